@@ -1,0 +1,163 @@
+// The JSON types the daemon and its workers exchange (the worker protocol of /api/v1), with
+// their nlohmann::json conversions. Both executables link this; schema/openapi.json describes
+// the same shapes for other clients.
+//
+// The worker protocol, in order:
+//   POST /api/v1/leases                      LeaseRequest -> 200 {"lease": LeaseGrant} | 204
+//   GET  /api/v1/beds/{id}/restart           bed restart bytes (a run lease names its bed)
+//   POST /api/v1/leases/{token}/heartbeat    Heartbeat -> 200 HeartbeatReply | 409 (lease lost)
+//   PUT  /api/v1/beds/{id}/restart?token=T   bed restart bytes, header X-Sha256 (bed leases)
+//   POST /api/v1/leases/{token}/complete     Completion -> 200 CompletionReply | 409 (lease lost)
+// A lease token is the only proof of ownership; completion is idempotent per token, and a
+// completion or heartbeat under a token that is no longer current never changes anything.
+//
+// Thread safety: values.
+#ifndef SANDSWIM_CORE_API_H_
+#define SANDSWIM_CORE_API_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace sandswim::api {
+
+enum class JobKind { kBed, kRun };
+NLOHMANN_JSON_SERIALIZE_ENUM(JobKind, {{JobKind::kBed, "bed"}, {JobKind::kRun, "run"}})
+
+struct LeaseRequest {
+  std::string worker;  // a stable name, "host:pid" by default
+  std::string host;
+  int ranks = 1;       // MPI ranks this worker gives one job
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(LeaseRequest, worker, host, ranks)
+
+struct BedRef {
+  int64_t id = 0;
+  std::string sha256;  // of the restart file; a run never starts from a bed that differs
+  std::string url;     // "/api/v1/beds/{id}/restart"
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedRef, id, sha256, url)
+
+struct LeaseGrant {
+  std::string token;
+  JobKind kind = JobKind::kRun;
+  int64_t id = 0;            // bed id or run id
+  std::string key;           // content key of the bed or run
+  std::string deck;          // LIGGGHTS input, rendered by the daemon
+  int attempt = 1;           // 1 for the first lease of this job
+  double ttl_s = 60;         // heartbeat before this runs out
+  double duration_s = 0;     // physical time the run simulates (0 for beds)
+  int64_t steps = 0;         // steps a complete run makes (0 for beds: decided by the deck)
+  double wall_budget_s = 0;  // stop the job after this much wall time (0: no budget)
+  std::optional<BedRef> bed; // runs only
+};
+void to_json(nlohmann::json& j, const LeaseGrant& g);
+void from_json(const nlohmann::json& j, LeaseGrant& g);
+
+struct Heartbeat {
+  double sim_time_s = 0;  // simulated time reached
+  double so_z = 0;        // the SO's current z, m
+  int64_t step = 0;
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Heartbeat, sim_time_s, so_z, step)
+
+struct HeartbeatReply {
+  double ttl_s = 60;
+  bool cancel = false;  // the sweep was cancelled: stop the job, then complete with kind "cancelled"
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(HeartbeatReply, ttl_s, cancel)
+
+// What a drive run measured (SPEC.md "Results a run produces").
+struct RunResult {
+  double uz = 0;              // m/s, least-squares slope of z(t) over [window_t0, window_t1]
+  double uz_stderr = 0;       // m/s, standard error of that slope
+  double window_t0 = 0;       // s, start of the steady window
+  double window_t1 = 0;       // s, end of the steady window
+  double dz = 0;              // m, z(end) - z(0)
+  double z_osc_amplitude = 0; // m, amplitude of z's oscillation at the drive frequency f
+  double x_drift = 0;         // m, x(end) - x(0)
+  bool broke_surface = false; // stopped because the SO broke the top surface
+  bool near_floor = false;    // stopped within one SO diameter of the floor
+  std::string stop_reason;    // "duration" | "surface" | "floor"
+  double sim_time_s = 0;      // physical time simulated
+  int64_t steps = 0;
+  int64_t grains = 0;
+  double z0 = 0;              // m, the SO's z at t = 0
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunResult, uz, uz_stderr, window_t0, window_t1, dz,
+                                                z_osc_amplitude, x_drift, broke_surface, near_floor,
+                                                stop_reason, sim_time_s, steps, grains, z0)
+
+// What a bed preparation produced.
+struct BedResult {
+  int64_t grains = 0;
+  double so_z = 0;          // m, where the SO settled
+  double grain_top = 0;     // m, highest grain centre
+  bool equilibrated = false;
+  double ke_ratio = 0;      // final kinetic energy / its initial (peak) value
+  std::string sha256;       // of the uploaded restart file
+  int64_t bytes = 0;
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedResult, grains, so_z, grain_top, equilibrated,
+                                                ke_ratio, sha256, bytes)
+
+// The SO's trajectory, downsampled for storage and plots (t ascending).
+struct Trajectory {
+  std::vector<double> t, x, y, z;
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Trajectory, t, x, y, z)
+
+// Why a job failed; `kind` is one of:
+//   "deck_error"     LIGGGHTS printed ERROR: (line in `message`)
+//   "lost_atoms"     LIGGGHTS lost atoms
+//   "signal"         the engine died on a signal
+//   "timeout"        the job outlived its wall-time budget
+//   "engine_missing" mpirun/srun/liggghts could not be started
+//   "incomplete"     the engine exited without doing all its steps
+//   "bad_output"     the dump or log could not be read
+//   "bed_mismatch"   the bed restart's checksum did not match
+//   "cancelled"      stopped because the sweep was cancelled
+struct Failure {
+  std::string kind;
+  std::string message;
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Failure, kind, message)
+
+// Facts about the execution, for every completion.
+struct Execution {
+  std::string engine_version;  // first line of the LIGGGHTS log
+  std::string host;
+  int ranks = 1;
+  std::string launcher;        // "mpirun" | "srun" | "direct"
+  double wall_s = 0;
+  double cpu_s = 0;
+  double lease_to_start_s = 0; // orchestration overhead before the engine ran
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Execution, engine_version, host, ranks, launcher,
+                                                wall_s, cpu_s, lease_to_start_s)
+
+struct Completion {
+  bool ok = false;
+  std::optional<RunResult> result;      // ok run
+  std::optional<BedResult> bed_result;  // ok bed
+  std::optional<Trajectory> trajectory; // ok run
+  std::optional<Failure> failure;       // !ok
+  Execution execution;
+  std::string log_tail;                 // last lines of the engine's log
+};
+void to_json(nlohmann::json& j, const Completion& c);
+void from_json(const nlohmann::json& j, Completion& c);
+
+struct CompletionReply {
+  // "done", "failed", "queued" (a retry will follow), "cancelled", or "duplicate" (this token
+  // had already completed: nothing changed).
+  std::string state;
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(CompletionReply, state)
+
+}  // namespace sandswim::api
+
+#endif  // SANDSWIM_CORE_API_H_

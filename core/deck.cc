@@ -1,0 +1,171 @@
+#include "core/deck.h"
+
+#include <charconv>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+#include "core/embedded.h"
+
+namespace sandswim {
+namespace {
+
+using Values = std::map<std::string, std::string>;
+
+// The grain insertion of the bed deck (templates/README.md explains these choices):
+// fix insert/pack saturates near a volume fraction of 0.30 here, so grains are inserted at 0.25
+// into a region tall enough that, packed at about 0.6 after settling, they fill the layer.
+constexpr double kInsertFraction = 0.25;
+constexpr double kPackedFraction = 0.60;
+constexpr int kSampleSteps = 1000;        // 10 ms: kinetic-energy sampling period
+constexpr double kViscousGamma = 0.2;     // N s/m: damping time m_grain / gamma ~ 50 ms
+constexpr int kViscousSteps = 20000;      // 0.2 s of damping
+constexpr int kCheckSamples = 100;        // at most 1 s of undamped checking
+constexpr double kKineticEnergyRatio = 1e-4;  // Sec. 2.3
+constexpr double kSkin = 0.01;            // m; fastest measured here (issue 2)
+constexpr int kThermoEvery = 1000;
+
+std::string Fmt(double v) { return FormatNumber(v); }
+std::string Fmt(long long v) { return std::to_string(v); }
+
+// Replaces every {{name}} with its value. A placeholder without a value, or a value without a
+// placeholder, is a programming error: it throws, and the golden tests catch it.
+std::string Render(std::string_view tpl, const Values& values) {
+  std::string out;
+  out.reserve(tpl.size() + 256);
+  std::map<std::string, bool> used;
+  size_t pos = 0;
+  while (true) {
+    size_t open = tpl.find("{{", pos);
+    if (open == std::string_view::npos) break;
+    size_t close = tpl.find("}}", open);
+    if (close == std::string_view::npos) throw std::logic_error("unterminated placeholder in template");
+    out.append(tpl.substr(pos, open - pos));
+    std::string name(tpl.substr(open + 2, close - open - 2));
+    auto it = values.find(name);
+    if (it == values.end()) throw std::logic_error("template placeholder without a value: " + name);
+    out += it->second;
+    used[name] = true;
+    pos = close + 2;
+  }
+  out.append(tpl.substr(pos));
+  for (const auto& [name, value] : values)
+    if (!used.count(name)) throw std::logic_error("value without a placeholder: " + name);
+  return out;
+}
+
+std::string_view Template(const char* name) {
+  auto t = EmbeddedFile(name);
+  if (!t) throw std::logic_error(std::string("template not compiled in: ") + name);
+  return *t;
+}
+
+// Values both decks share: Table 1 and the box.
+Values CommonValues(const Scale& s) {
+  const Materials& m = kMaterials;
+  return {
+      {"template_version", Fmt(static_cast<long long>(kTemplateVersion))},
+      {"skin", Fmt(kSkin)},
+      {"youngs", Fmt(m.youngs)},
+      {"poisson", Fmt(m.poisson)},
+      {"e_gg", Fmt(m.e_grain_grain)},
+      {"e_gs", Fmt(m.e_so_grain)},
+      {"mu_gg", Fmt(m.mu_grain_grain)},
+      {"mu_gs", Fmt(m.mu_so_grain)},
+      {"dt", Fmt(m.dt)},
+      {"gravity", Fmt(m.gravity)},
+      {"z_floor", Fmt(s.z_floor)},
+  };
+}
+
+long long StepsFor(double seconds) { return std::llround(seconds / kMaterials.dt); }
+
+}  // namespace
+
+std::string FormatNumber(double v) {
+  if (v == 0) return "0";  // also folds -0
+  char buf[64];
+  auto res = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, res.ptr);
+}
+
+std::string RenderBedDeck(const Scale& s) {
+  const Materials& m = kMaterials;
+  const double r = m.d_grain / 2;
+  Values v = CommonValues(s);
+  const double h1 = 0.0 - s.z_floor;    // first layer: floor to z = 0
+  const double h2 = s.z_bed_top - 0.0;  // second layer: z = 0 to the top
+  const double stretch = kPackedFraction / kInsertFraction;
+  const double pour1_lo = s.z_floor + r;
+  const double pour1_hi = pour1_lo + h1 * stretch;
+  const double pour2_lo = m.d_so / 2 + r;  // above the SO placed at z = 0
+  const double pour2_hi = pour2_lo + h2 * stretch;
+  // Fall time from the top of a pour region to its layer, plus as long again to settle.
+  auto settle_steps = [&](double drop) {
+    long long steps = StepsFor(2 * std::sqrt(2 * drop / m.gravity));
+    return (steps + kSampleSteps - 1) / kSampleSteps * kSampleSteps;
+  };
+  v.insert({
+      {"z_bed_top", Fmt(s.z_bed_top)},
+      {"x_lo", Fmt(-s.x_len / 2)},
+      {"x_hi", Fmt(s.x_len / 2)},
+      {"y_lo", Fmt(-s.y_len / 2)},
+      {"y_hi", Fmt(s.y_len / 2)},
+      {"z_box_top", Fmt(pour2_hi + 2 * m.d_grain)},
+      {"rho_grain", Fmt(m.rho_grain)},
+      {"r_grain", Fmt(r)},
+      {"insert_fraction", Fmt(kInsertFraction)},
+      {"pour1_lo", Fmt(pour1_lo)},
+      {"pour1_hi", Fmt(pour1_hi)},
+      {"pour1_steps", Fmt(settle_steps(pour1_hi - s.z_floor))},
+      {"clear_radius", Fmt(m.d_so / 2 + r)},
+      {"d_so", Fmt(m.d_so)},
+      {"rho_so", Fmt(m.rho_so)},
+      {"pour2_lo", Fmt(pour2_lo)},
+      {"pour2_hi", Fmt(pour2_hi)},
+      {"pour2_samples", Fmt(settle_steps(pour2_hi - s.z_floor) / kSampleSteps)},
+      {"sample_steps", Fmt(static_cast<long long>(kSampleSteps))},
+      {"viscous_gamma", Fmt(kViscousGamma)},
+      {"viscous_steps", Fmt(static_cast<long long>(kViscousSteps))},
+      {"check_samples", Fmt(static_cast<long long>(kCheckSamples))},
+      {"check_steps", Fmt(static_cast<long long>(kCheckSamples) * kSampleSteps)},
+      {"ke_ratio", Fmt(kKineticEnergyRatio)},
+      {"restart_file", kBedRestartFile},
+  });
+  return Render(Template("bed.in"), v);
+}
+
+long long DriveSteps(const Point& p, const Scale& scale) {
+  long long steps = StepsFor(RunDuration(p, scale));
+  return (steps + kOmegaUpdateSteps - 1) / kOmegaUpdateSteps * kOmegaUpdateSteps;
+}
+
+std::string RenderDriveDeck(const Point& p, const Scale& s) {
+  const Materials& m = kMaterials;
+  Values v = CommonValues(s);
+  // omega(t) = w0 + w1 cos(2 pi f t), along the mode's axis (core/point.h).
+  std::array<double, 3> w0{0, 0, 0}, w1{0, 0, 0};
+  if (p.has_constant_rotation()) {
+    auto a = AxisVector(p.axis);
+    for (int i = 0; i < 3; ++i) w0[i] = p.omega * a[i];
+  }
+  if (p.mode == Mode::kOscillatory) w1[0] = p.Omega;
+  const long long steps = DriveSteps(p, s);
+  v.insert({
+      {"A", Fmt(p.has_vibration() ? p.A : 0.0)},
+      {"f", Fmt(p.has_vibration() ? p.f : 0.0)},
+      {"w0x", Fmt(w0[0])}, {"w0y", Fmt(w0[1])}, {"w0z", Fmt(w0[2])},
+      {"w1x", Fmt(w1[0])}, {"w1y", Fmt(w1[1])}, {"w1z", Fmt(w1[2])},
+      {"omega_every", Fmt(static_cast<long long>(kOmegaUpdateSteps))},
+      {"dump_every", Fmt(static_cast<long long>(kDumpEverySteps))},
+      {"thermo_every", Fmt(static_cast<long long>(kThermoEvery))},
+      {"chunks", Fmt(steps / kOmegaUpdateSteps)},
+      {"total_steps", Fmt(steps)},
+      {"r_so", Fmt(m.d_so / 2)},
+      // The SO's centre when its bottom is one SO diameter above the floor.
+      {"z_floor_stop", Fmt(s.z_floor + m.d_so + m.d_so / 2)},
+  });
+  return Render(Template("drive.in"), v);
+}
+
+}  // namespace sandswim

@@ -1,0 +1,56 @@
+// Deck rendering: pure functions from a validated Point and a Scale to LIGGGHTS input text.
+//
+// The templates live in templates/*.in and are compiled into the library (templates/README.md
+// lists every placeholder). Every placeholder is replaced by a number this renderer formatted
+// itself (shortest round-trip form) or by one of the fixed file names below; no user string ever
+// reaches a deck (LIGGGHTS has a `shell` command). Output is byte-stable: the same inputs give
+// the same bytes on every machine, which the content keys (core/keys.h) rely on.
+//
+// Decks use file names relative to the run directory, so a deck does not depend on where it runs.
+//
+// Thread safety: pure functions.
+#ifndef SANDSWIM_CORE_DECK_H_
+#define SANDSWIM_CORE_DECK_H_
+
+#include <string>
+
+#include "core/point.h"
+#include "core/scale.h"
+
+namespace sandswim {
+
+// Bumped whenever a template changes in a way that changes results; part of every content key.
+inline constexpr int kTemplateVersion = 1;
+
+// Files a deck reads or writes, relative to its run directory.
+inline constexpr char kBedRestartFile[] = "bed.restart";     // bed deck writes, drive deck reads
+inline constexpr char kTrajectoryDumpFile[] = "so.dump";     // drive deck: the SO, every 1 ms
+inline constexpr char kInitialDumpFile[] = "initial.dump";   // drive deck: all atoms at t = 0
+inline constexpr char kLogFile[] = "log.liggghts";
+
+// Steps between updates of the SO's prescribed angular velocity (chunk M of the issue): the SO
+// is left out of the integrator, so its omega holds between updates. 100 steps = 1 ms.
+inline constexpr int kOmegaUpdateSteps = 100;
+// Steps between trajectory frames (1 ms of physical time at dt = 1e-5 s).
+inline constexpr int kDumpEverySteps = 100;
+
+// Lines the decks print for the worker to read (all start with "SANDSWIM ").
+//   SANDSWIM bed grains N so_z Z grain_top Z step S
+//   SANDSWIM bed equilibrated|not_equilibrated ke E ke_peak E
+//   SANDSWIM drive stop duration|surface|floor step S t T z Z
+inline constexpr char kMarkerPrefix[] = "SANDSWIM ";
+
+std::string RenderBedDeck(const Scale& scale);
+
+// REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok().
+std::string RenderDriveDeck(const Point& p, const Scale& scale);
+
+// Number of steps a drive run of this point makes when it is not stopped early.
+long long DriveSteps(const Point& p, const Scale& scale);
+
+// The shortest decimal text that reads back as `v` ("0.03", "1e-05", "-80").
+std::string FormatNumber(double v);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_CORE_DECK_H_

@@ -1,0 +1,117 @@
+#include "core/point.h"
+
+#include <cmath>
+
+namespace sandswim {
+namespace {
+
+struct ModeEntry {
+  Mode mode;
+  std::string_view name;
+};
+constexpr ModeEntry kModes[] = {
+    {Mode::kVibration, "vibration"},
+    {Mode::kRotation, "rotation"},
+    {Mode::kVibrationRotation, "vibration+rotation"},
+    {Mode::kOscillatory, "oscillatory"},
+};
+
+struct AxisEntry {
+  RotationAxis axis;
+  std::string_view name;
+};
+constexpr AxisEntry kAxes[] = {
+    {RotationAxis::kX, "x"}, {RotationAxis::kY, "y"}, {RotationAxis::kZ, "z"}, {RotationAxis::kXZ, "xz"}};
+
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+Status CheckPositive(const char* field, double v, double cap, const char* unit) {
+  if (!std::isfinite(v)) return Status::InvalidArgument(field, "must be a finite number");
+  if (v <= 0) return Status::InvalidArgument(field, "must be > 0 " + std::string(unit) + ", got " + Num(v));
+  if (v > cap)
+    return Status::InvalidArgument(field, "must be <= " + Num(cap) + " " + unit + ", got " + Num(v));
+  return Status::Ok();
+}
+
+Status CheckSigned(const char* field, double v, double cap, const char* unit) {
+  if (!std::isfinite(v)) return Status::InvalidArgument(field, "must be a finite number");
+  if (std::fabs(v) > cap)
+    return Status::InvalidArgument(field, "|" + std::string(field) + "| must be <= " + Num(cap) + " " + unit +
+                                              ", got " + Num(v));
+  return Status::Ok();
+}
+
+Status CheckUnused(const char* field, double v, Mode mode) {
+  if (v != 0.0)
+    return Status::InvalidArgument(field, "is not used by mode \"" + std::string(ModeName(mode)) + "\"");
+  return Status::Ok();
+}
+
+}  // namespace
+
+std::string_view ModeName(Mode mode) {
+  for (const auto& e : kModes)
+    if (e.mode == mode) return e.name;
+  return "?";
+}
+
+std::optional<Mode> ParseMode(std::string_view name) {
+  for (const auto& e : kModes)
+    if (e.name == name) return e.mode;
+  return std::nullopt;
+}
+
+std::string_view AxisName(RotationAxis axis) {
+  for (const auto& e : kAxes)
+    if (e.axis == axis) return e.name;
+  return "?";
+}
+
+std::optional<RotationAxis> ParseAxis(std::string_view name) {
+  for (const auto& e : kAxes)
+    if (e.name == name) return e.axis;
+  return std::nullopt;
+}
+
+std::array<double, 3> AxisVector(RotationAxis axis) {
+  switch (axis) {
+    case RotationAxis::kX: return {1, 0, 0};
+    case RotationAxis::kY: return {0, 1, 0};
+    case RotationAxis::kZ: return {0, 0, 1};
+    case RotationAxis::kXZ: return {M_SQRT1_2, 0, M_SQRT1_2};
+  }
+  return {1, 0, 0};
+}
+
+Status Validate(const Point& p) {
+  if (p.has_vibration()) {
+    SANDSWIM_RETURN_IF_ERROR(CheckPositive("A", p.A, kMaxAmplitudeM, "m"));
+    SANDSWIM_RETURN_IF_ERROR(CheckPositive("f", p.f, kMaxFrequencyHz, "Hz"));
+  } else {
+    SANDSWIM_RETURN_IF_ERROR(CheckUnused("A", p.A, p.mode));
+    SANDSWIM_RETURN_IF_ERROR(CheckUnused("f", p.f, p.mode));
+  }
+  if (p.mode == Mode::kOscillatory) {
+    SANDSWIM_RETURN_IF_ERROR(CheckSigned("Omega", p.Omega, kMaxAngularVelocity, "rad/s"));
+  } else {
+    SANDSWIM_RETURN_IF_ERROR(CheckUnused("Omega", p.Omega, p.mode));
+  }
+  if (p.has_constant_rotation()) {
+    SANDSWIM_RETURN_IF_ERROR(CheckSigned("omega", p.omega, kMaxAngularVelocity, "rad/s"));
+  } else {
+    SANDSWIM_RETURN_IF_ERROR(CheckUnused("omega", p.omega, p.mode));
+  }
+  SANDSWIM_RETURN_IF_ERROR(CheckPositive("duration_s", p.duration_s, kMaxDurationS, "s"));
+  return Status::Ok();
+}
+
+bool SameDrive(const Point& a, const Point& b) {
+  return a.mode == b.mode && a.A == b.A && a.f == b.f && a.Omega == b.Omega && a.omega == b.omega &&
+         (!a.has_constant_rotation() || a.axis == b.axis);
+}
+
+}  // namespace sandswim

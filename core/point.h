@@ -1,0 +1,68 @@
+// Point: one set of drive parameters for the self-excited object (SO), and its validation.
+//
+// A Point is what a user asks for (SPEC.md "point"): a drive mode and its numbers in SI units.
+// Validation is pure and names the offending field; a Point that passed Validate() is the only
+// thing the deck renderer accepts, so user text never reaches a deck.
+//
+// Modes (SPEC.md, paper Sec. 3):
+//   vibration           y = A sin(2 pi f t); omega = 0.
+//   rotation            constant omega about `axis`; y held at its start.
+//   vibration+rotation  both of the above at once.
+//   oscillatory         y = A sin(2 pi f t) and omega_x = Omega cos(2 pi f t) (paper eq. 6).
+// Signs of omega and Omega: right-hand rule about the axis (about +x for oscillatory).
+//
+// Thread safety: values.
+#ifndef SANDSWIM_CORE_POINT_H_
+#define SANDSWIM_CORE_POINT_H_
+
+#include <array>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "core/status.h"
+
+namespace sandswim {
+
+enum class Mode { kVibration, kRotation, kVibrationRotation, kOscillatory };
+enum class RotationAxis { kX, kY, kZ, kXZ };
+
+std::string_view ModeName(Mode mode);                 // "vibration", ..., "oscillatory"
+std::optional<Mode> ParseMode(std::string_view name);
+std::string_view AxisName(RotationAxis axis);         // "x", "y", "z", "xz"
+std::optional<RotationAxis> ParseAxis(std::string_view name);
+// Unit vector of the axis; xz is (1, 0, 1)/sqrt(2).
+std::array<double, 3> AxisVector(RotationAxis axis);
+
+// Caps that keep a point inside what the engine and this service can sensibly run. They are
+// stated in the API description and in every refusal.
+inline constexpr double kMaxAmplitudeM = 1.0;          // A
+inline constexpr double kMaxFrequencyHz = 1000.0;      // f
+inline constexpr double kMaxAngularVelocity = 5000.0;  // |Omega|, |omega| in rad/s
+inline constexpr double kMaxDurationS = 86400.0;       // a day of physical time
+
+struct Point {
+  Mode mode = Mode::kOscillatory;
+  double A = 0.0;          // m; vibration, vibration+rotation, oscillatory
+  double f = 0.0;          // Hz; vibration, vibration+rotation, oscillatory
+  double Omega = 0.0;      // rad/s; oscillatory only (eq. 6 amplitude)
+  double omega = 0.0;      // rad/s; rotation, vibration+rotation (constant)
+  RotationAxis axis = RotationAxis::kX;  // rotation, vibration+rotation
+  double duration_s = 0.0; // physical time the user asks for
+
+  bool has_vibration() const { return mode != Mode::kRotation; }
+  bool has_constant_rotation() const {
+    return mode == Mode::kRotation || mode == Mode::kVibrationRotation;
+  }
+};
+
+// Checks finiteness, signs and caps of the fields the mode uses. Fields the mode does not use
+// must be zero (the parser never sets them). Errors name the field ("A", "f", "Omega", ...).
+Status Validate(const Point& p);
+
+// Two points drive the SO the same way (everything but duration equal).
+bool SameDrive(const Point& a, const Point& b);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_CORE_POINT_H_

@@ -1,0 +1,63 @@
+// Scale: a preset of box size, grain count and duration (SPEC.md "scale"), and the materials of
+// Table 1, which are the same at every scale. This file is the one place both are defined.
+//
+// A scale sizes its periodic box so that the SO never meets its own periodic image at its full
+// swing (SPEC.md): L_y >= 2 A + d_SO + 3 d_grain and L_x >= d_SO + 3 d_grain. A point whose A
+// needs a bigger box is refused by FitsScale() with the name of a scale that would take it.
+// A scale that shortens runs still gives each run at least two full drive periods (2/f).
+//
+// Thread safety: immutable data.
+#ifndef SANDSWIM_CORE_SCALE_H_
+#define SANDSWIM_CORE_SCALE_H_
+
+#include <string_view>
+#include <vector>
+
+#include "core/point.h"
+#include "core/status.h"
+
+namespace sandswim {
+
+// Table 1 of the paper and Sec. 2.3. Nothing here is tuned.
+struct Materials {
+  double d_grain = 0.02;      // m
+  double rho_grain = 2500;    // kg/m^3
+  double d_so = 0.12;         // m
+  double rho_so = 2500;       // kg/m^3
+  double youngs = 1e7;        // Pa, grains and SO
+  double poisson = 0.25;      // grains and SO
+  double e_grain_grain = 0.9; // coefficient of restitution
+  double e_so_grain = 0.5;
+  double mu_grain_grain = 0.45;  // coefficient of friction
+  double mu_so_grain = 0.5;
+  double gravity = 9.81;      // m/s^2, along -z
+  double dt = 1e-5;           // s
+};
+inline constexpr Materials kMaterials{};
+
+struct Scale {
+  std::string_view name;
+  std::string_view purpose;
+  double x_len;           // m, periodic
+  double y_len;           // m, periodic; the vibration direction
+  double z_floor;         // m, rigid floor
+  double z_bed_top;       // m, target height of the poured bed
+  double max_duration_s;  // runs are cut to this (0: never cut), but never below two periods
+  // Derived: the largest A this box takes, (y_len - d_so - 3 d_grain) / 2.
+  double max_amplitude() const;
+};
+
+// paper, mini, smoke, in that order (largest first).
+const std::vector<Scale>& AllScales();
+const Scale* FindScale(std::string_view name);
+
+// Refuses a point the scale's box cannot hold ("A": "needs L_y >= ...; scale 'mini' takes it").
+Status FitsScale(const Point& p, const Scale& scale);
+
+// Physical time the run lasts at this scale: the user's duration, cut to the scale's cap but
+// never below two drive periods (2/f) nor above the user's duration.
+double RunDuration(const Point& p, const Scale& scale);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_CORE_SCALE_H_

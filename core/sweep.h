@@ -1,0 +1,107 @@
+// Sweeps and campaigns: parsing and validating the user's JSON, expanding axes into points, and
+// planning the distinct runs (deck + content key) a set of sweeps needs at a scale.
+//
+// The accepted JSON is described by schema/sweep.schema.json; ParseSweep() applies the same
+// rules and names the offending field with a path ("base.A", "axes[1].range.step"). Unknown
+// fields are errors. Numbers must be JSON numbers (a string where a number belongs is refused).
+//
+// Expansion order is byte-stable: axes vary in the order given, the last axis fastest
+// ("product"), or all together ("zip", equal lengths required). Values from `range` and
+// `geometric` are computed as from + i*step and start*ratio^i and rounded to 12 significant
+// digits, so 0.01..0.10 step 0.01 gives exactly 0.01, 0.02, ..., 0.1.
+//
+// Planning merges points across sweeps that drive the SO the same way (SameDrive): such a point
+// runs once, at the longest duration any sweep asks for, and belongs to every sweep that named it.
+//
+// Thread safety: pure functions; Builtin campaigns are immutable.
+#ifndef SANDSWIM_CORE_SWEEP_H_
+#define SANDSWIM_CORE_SWEEP_H_
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/point.h"
+#include "core/scale.h"
+#include "core/status.h"
+
+namespace sandswim {
+
+// Caps stated in the API description and in every refusal.
+inline constexpr size_t kMaxRunsPerSubmission = 100000;
+inline constexpr size_t kMaxNameLength = 100;  // names: [A-Za-z0-9._-]+
+
+enum class Combine { kProduct, kZip };
+
+struct SweepAxis {
+  std::string param;           // "A", "f", "Omega", "omega", "duration_s"
+  std::vector<double> values;  // materialized from values | range | geometric
+};
+
+struct SweepSpec {
+  std::string name;
+  std::string scale;           // a FindScale() name
+  Point base;
+  std::vector<SweepAxis> axes;
+  Combine combine = Combine::kProduct;
+};
+
+Result<SweepSpec> ParseSweep(const nlohmann::json& j);
+
+// Every point of the sweep, in expansion order; each passes Validate() and FitsScale() at the
+// sweep's scale, or the whole expansion fails naming the first bad point's field
+// ("axes[0].values[3]: A = 0.2 m needs ..."). Fails with ResourceExhausted past `max_points`.
+Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points = kMaxRunsPerSubmission);
+
+struct Campaign {
+  std::string name;
+  std::string description;
+  std::string scale;                    // default scale; a submission may override it
+  std::vector<SweepSpec> sweeps;        // each sweep's own scale field is ignored
+  std::optional<std::string> schedule;  // cron expression, daemon's local time zone
+  double drift_tolerance_mps = 0.0;     // |U_z now - U_z before| above this is flagged
+};
+
+Result<Campaign> ParseCampaign(const nlohmann::json& j);
+// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58".
+std::vector<std::string> BuiltinCampaignNames();
+Result<Campaign> BuiltinCampaign(const std::string& name);
+
+// One distinct run of a plan.
+struct PlannedRun {
+  Point point;                      // duration_s is the longest any sweep asked for
+  std::vector<std::string> sweeps;  // names of the sweeps it belongs to, in plan order
+  double run_duration_s = 0;        // RunDuration() at the plan's scale
+  long long steps = 0;              // DriveSteps()
+  std::string deck;                 // RenderDriveDeck()
+  std::string key;                  // RunKey()
+};
+
+struct PlannedBed {
+  std::string deck;  // RenderBedDeck()
+  std::string key;   // BedKey()
+};
+
+struct Plan {
+  std::string scale;
+  PlannedBed bed;
+  std::vector<PlannedRun> runs;  // distinct, in first-appearance order
+};
+
+// Expands every sweep at `scale` and merges shared points. `engine_version` enters every key.
+Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
+                        const std::string& engine_version,
+                        size_t max_runs = kMaxRunsPerSubmission);
+
+// The JSON object `sandswim expand --json` prints for a run: key, mode, A, f, Omega or omega +
+// axis, duration_s (asked), run_duration_s (at the scale), steps, sweeps.
+nlohmann::json PlannedRunToJson(const PlannedRun& r);
+// The point alone, as in a sweep's "base" (only the fields its mode uses).
+nlohmann::json PointToJson(const Point& p);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_CORE_SWEEP_H_

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs everything sandswim needs to build, test and run, from Debian 12's packages.
+# Idempotent; run as root (or with sudo). Used by README.md's commands and by .ci/run.
+set -euo pipefail
+packages=(
+  build-essential cmake ninja-build pkg-config
+  liggghts libliggghts-dev openmpi-bin libopenmpi-dev
+  libsqlite3-dev sqlite3 nlohmann-json3-dev libcpp-httplib-dev libspdlog-dev
+  libssl-dev zlib1g-dev libbrotli-dev   # cpp-httplib's pkg-config asks for these
+  libcli11-dev                          # the CLI's argument parsing
+  libgtest-dev libgmock-dev curl procps
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "sandswim: installing ${missing[*]}" >&2
+  sudo_cmd=""
+  [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
