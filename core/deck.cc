@@ -132,7 +132,7 @@ std::string RenderBedDeck(const Scale& s) {
       {"ke_ratio", Fmt(kKineticEnergyRatio)},
       {"restart_file", kBedRestartFile},
   });
-  return Render(Template("bed.in"), v);
+  return Render(Template("templates/bed.in"), v);
 }
 
 long long DriveSteps(const Point& p, const Scale& scale) {
@@ -165,7 +165,7 @@ std::string RenderDriveDeck(const Point& p, const Scale& s) {
       // The SO's centre when its bottom is one SO diameter above the floor.
       {"z_floor_stop", Fmt(s.z_floor + m.d_so + m.d_so / 2)},
   });
-  return Render(Template("drive.in"), v);
+  return Render(Template("templates/drive.in"), v);
 }
 
 }  // namespace sandswim

@@ -1,5 +1,6 @@
-// Files compiled into the binary from templates/ (see templates/CMakeLists.txt): deck templates
-// ("bed.in", "drive.in") and shipped campaigns ("campaigns/paper-58.json").
+// Files compiled into the binary (the list is in templates/CMakeLists.txt): deck templates
+// ("templates/bed.in", "templates/drive.in"), shipped campaigns
+// ("templates/campaigns/paper-58.json"), and whatever else that list names (SQL migrations).
 //
 // Thread safety: immutable data.
 #ifndef SANDSWIM_CORE_EMBEDDED_H_
@@ -10,7 +11,7 @@
 
 namespace sandswim {
 
-// The bytes of a file under templates/, by its path relative to templates/.
+// The bytes of a compiled-in file, by its path relative to the source root.
 std::optional<std::string_view> EmbeddedFile(std::string_view name);
 
 }  // namespace sandswim
