@@ -1,0 +1,143 @@
+#include "core/deck.h"
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+namespace sandswim {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+std::string GoldenPath(const std::string& name) {
+  return std::string(SANDSWIM_SOURCE_DIR) + "/tests/golden/" + name;
+}
+
+// Compares with tests/golden/<name>; SANDSWIM_UPDATE_GOLDEN=1 rewrites the file instead (then
+// review the diff: a changed deck changes every content key, so bump kTemplateVersion).
+void ExpectGolden(const std::string& name, const std::string& text) {
+  if (std::getenv("SANDSWIM_UPDATE_GOLDEN")) {
+    std::ofstream(GoldenPath(name), std::ios::binary) << text;
+    return;
+  }
+  std::ifstream in(GoldenPath(name), std::ios::binary);
+  ASSERT_TRUE(in) << "missing golden file " << GoldenPath(name);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  EXPECT_EQ(ss.str(), text) << "deck differs from " << GoldenPath(name);
+}
+
+Point Oscillatory(double A, double f, double Omega, double duration) {
+  Point p;
+  p.mode = Mode::kOscillatory;
+  p.A = A;
+  p.f = f;
+  p.Omega = Omega;
+  p.duration_s = duration;
+  return p;
+}
+
+const Scale& Smoke() { return *FindScale("smoke"); }
+
+TEST(FormatNumberTest, ShortestRoundTrip) {
+  EXPECT_EQ(FormatNumber(0.03), "0.03");
+  EXPECT_EQ(FormatNumber(-80), "-80");
+  EXPECT_EQ(FormatNumber(1e-5), "1e-05");
+  EXPECT_EQ(FormatNumber(1e7), "1e+07");
+  EXPECT_EQ(FormatNumber(2500), "2500");
+  EXPECT_EQ(FormatNumber(-0.0), "0");
+  EXPECT_EQ(FormatNumber(0.1 + 0.2), "0.30000000000000004");  // exact, never rounded away
+}
+
+TEST(DeckTest, BedDeckMatchesGolden) { ExpectGolden("bed_smoke.in", RenderBedDeck(Smoke())); }
+
+TEST(DeckTest, DriveDeckMatchesGolden) {
+  ExpectGolden("drive_oscillatory_smoke.in", RenderDriveDeck(Oscillatory(0.03, 3, -80, 4), Smoke()));
+}
+
+TEST(DeckTest, VibrationRotationDeckMatchesGolden) {
+  Point p;
+  p.mode = Mode::kVibrationRotation;
+  p.A = 0.03;
+  p.f = 3;
+  p.omega = 80;
+  p.axis = RotationAxis::kXZ;
+  p.duration_s = 4;
+  ExpectGolden("drive_vibration_rotation_xz_paper.in", RenderDriveDeck(p, *FindScale("paper")));
+}
+
+// Table 1 of the paper, as the decks must state it, whatever the scale.
+TEST(DeckTest, EveryDeckHoldsTableOne) {
+  for (const Scale& s : AllScales()) {
+    for (const std::string& deck : {RenderBedDeck(s), RenderDriveDeck(Oscillatory(0.03, 3, 80, 4), s)}) {
+      SCOPED_TRACE(std::string(s.name));
+      EXPECT_THAT(deck, HasSubstr("youngsModulus peratomtype 1e+07 1e+07"));
+      EXPECT_THAT(deck, HasSubstr("poissonsRatio peratomtype 0.25 0.25"));
+      EXPECT_THAT(deck, HasSubstr("coefficientRestitution peratomtypepair 2 0.9 0.5 0.5 0.5"));
+      EXPECT_THAT(deck, HasSubstr("coefficientFriction peratomtypepair 2 0.45 0.5 0.5 0.5"));
+      EXPECT_THAT(deck, HasSubstr("pair_style      gran model hertz tangential history"));
+      EXPECT_THAT(deck, HasSubstr("timestep        1e-05"));
+      EXPECT_THAT(deck, HasSubstr("gravity 9.81 vector 0.0 0.0 -1.0"));
+      EXPECT_THAT(deck, HasSubstr("boundary        p p f"));
+      EXPECT_THAT(deck, HasSubstr("primitive type 1 zplane " + FormatNumber(s.z_floor)));
+      EXPECT_THAT(deck, Not(HasSubstr("{{")));
+      EXPECT_THAT(deck, Not(HasSubstr("shell")));
+    }
+    std::string bed = RenderBedDeck(s);
+    EXPECT_THAT(bed, HasSubstr("density constant 2500 radius constant 0.01"));
+    EXPECT_THAT(bed, HasSubstr("set group so diameter 0.12"));
+    EXPECT_THAT(bed, HasSubstr("set group so density 2500"));
+  }
+}
+
+TEST(DeckTest, ModesBecomeNumbers) {
+  Point p;
+  p.mode = Mode::kRotation;
+  p.omega = 80;
+  p.axis = RotationAxis::kY;
+  p.duration_s = 4;
+  std::string d = RenderDriveDeck(p, *FindScale("paper"));
+  EXPECT_THAT(d, HasSubstr("variable A equal 0\n"));
+  EXPECT_THAT(d, HasSubstr("variable wy equal 80+0*cos"));
+  EXPECT_THAT(d, HasSubstr("variable wx equal 0+0*cos"));
+
+  p.mode = Mode::kVibrationRotation;
+  p.A = 0.03;
+  p.f = 3;
+  p.axis = RotationAxis::kXZ;
+  d = RenderDriveDeck(p, *FindScale("paper"));
+  const std::string c = FormatNumber(80 * M_SQRT1_2);
+  EXPECT_THAT(d, HasSubstr("variable wx equal " + c + "+0*cos"));
+  EXPECT_THAT(d, HasSubstr("variable wz equal " + c + "+0*cos"));
+  EXPECT_THAT(d, HasSubstr("variable A equal 0.03\n"));
+
+  d = RenderDriveDeck(Oscillatory(0.05, 4, -160, 4), *FindScale("paper"));
+  EXPECT_THAT(d, HasSubstr("variable wx equal 0+-160*cos(2.0*PI*v_f*v_t)"));
+  EXPECT_THAT(d, HasSubstr("variable f equal 4\n"));
+}
+
+TEST(DeckTest, RenderingIsDeterministic) {
+  Point p = Oscillatory(0.07, 20, 640, 4);
+  EXPECT_EQ(RenderDriveDeck(p, Smoke()), RenderDriveDeck(p, Smoke()));
+  EXPECT_EQ(RenderBedDeck(Smoke()), RenderBedDeck(Smoke()));
+  EXPECT_NE(RenderDriveDeck(p, Smoke()), RenderDriveDeck(Oscillatory(0.07, 20, -640, 4), Smoke()));
+}
+
+TEST(DeckTest, StepsCoverTheRunAndTwoPeriodsAtSmoke) {
+  // 4 s at paper scale is 400000 steps.
+  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 3, 80, 4), *FindScale("paper")), 400000);
+  // smoke cuts to 0.25 s but keeps two periods: 2/3 s at 3 Hz, rounded up to whole ω chunks.
+  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 3, 80, 4), Smoke()), 66700);
+  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 20, 80, 4), Smoke()), 25000);
+  // Never longer than asked.
+  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 1, 80, 0.1), Smoke()), 10000);
+  std::string d = RenderDriveDeck(Oscillatory(0.03, 3, 80, 4), Smoke());
+  EXPECT_THAT(d, HasSubstr("variable c loop 667\n"));
+}
+
+}  // namespace
+}  // namespace sandswim

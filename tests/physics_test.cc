@@ -1,0 +1,153 @@
+// Physics of the decks with the real engine at smoke scale (issue 2): the SO follows its
+// prescription, its x and z are free, runs from one bed start alike, and early stop fires.
+// Each test runs LIGGGHTS under mpirun; the smoke bed is prepared once (engine_fixture.h).
+#include <cmath>
+#include <filesystem>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "core/deck.h"
+#include "core/dump_reader.h"
+#include "tests/engine_fixture.h"
+
+namespace sandswim {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::EngineRun;
+
+struct Frame {
+  double t, x, y, z, vy, wx, wy, wz;
+};
+
+std::vector<Frame> ReadTrajectory(const std::string& dir) {
+  DumpReader reader;
+  EXPECT_TRUE(reader.Feed(testing::ReadFile(dir + "/" + kTrajectoryDumpFile)).ok());
+  EXPECT_TRUE(reader.Finish().ok());
+  EXPECT_FALSE(reader.torn());
+  std::vector<Frame> out;
+  for (const DumpFrame& f : reader.TakeFrames()) {
+    EXPECT_EQ(f.atoms, 1);
+    auto c = [&](const char* name) { return f.At(0, f.Column(name)); };
+    out.push_back({f.step * kMaterials.dt, c("x"), c("y"), c("z"), c("vy"), c("omegax"), c("omegay"), c("omegaz")});
+  }
+  return out;
+}
+
+std::string RunDir(const std::string& name) {
+  return testing::CacheDir() + "/physics/" + name;
+}
+
+EngineRun Drive(const std::string& name, const Point& p, const Scale& scale) {
+  EXPECT_TRUE(Validate(p).ok());
+  EXPECT_TRUE(FitsScale(p, scale).ok());
+  std::filesystem::remove_all(RunDir(name));
+  EngineRun r = testing::RunDeck(RunDir(name), RenderDriveDeck(p, scale), testing::PrepareBed(scale));
+  EXPECT_EQ(r.exit_code, 0) << r.log.substr(r.log.size() > 2000 ? r.log.size() - 2000 : 0);
+  return r;
+}
+
+const Scale& Smoke() { return *FindScale("smoke"); }
+
+Point Oscillatory(double A, double f, double Omega, double duration) {
+  Point p;
+  p.mode = Mode::kOscillatory;
+  p.A = A;
+  p.f = f;
+  p.Omega = Omega;
+  p.duration_s = duration;
+  return p;
+}
+
+// y = y0 + A sin(2 pi f t) at every frame; omega_x = Omega cos(2 pi f t') where t' is the start of
+// the 1 ms chunk the frame closes (omega is set between chunks and holds within one); x, z free.
+TEST(PhysicsTest, SoFollowsThePrescribedDriveAndZIsFree) {
+  const Point p = Oscillatory(0.03, 10, -80, 0.2);  // two periods at 10 Hz
+  EngineRun r = Drive("oscillatory", p, Smoke());
+  EXPECT_THAT(r.log, HasSubstr("SANDSWIM drive stop duration step 20000"));
+  std::vector<Frame> tr = ReadTrajectory(r.dir);
+  ASSERT_EQ(tr.size(), 201u);  // t = 0, 1 ms, ..., 200 ms
+  const double y0 = tr[0].y;
+  const double chunk = kOmegaUpdateSteps * kMaterials.dt;
+  for (size_t i = 0; i < tr.size(); ++i) {
+    const Frame& f = tr[i];
+    SCOPED_TRACE("t = " + std::to_string(f.t));
+    const double w = 2 * M_PI * p.f;
+    // The dump prints 6 significant digits: 1e-5 m and 1e-3 of the amplitudes are the resolution.
+    EXPECT_NEAR(f.y, y0 + p.A * std::sin(w * f.t), 1e-5);
+    EXPECT_NEAR(f.vy, p.A * w * std::cos(w * f.t), 1e-3 * p.A * w);
+    const double t_set = i == 0 ? 0.0 : f.t - chunk;
+    EXPECT_NEAR(f.wx, p.Omega * std::cos(w * t_set), 1e-3 * std::fabs(p.Omega));
+    EXPECT_EQ(f.wy, 0.0);
+    EXPECT_EQ(f.wz, 0.0);
+  }
+  // Driven, the SO moves in z by more than a quarter of a grain diameter in 0.2 s.
+  EXPECT_GT(std::fabs(tr.back().z - tr.front().z), 0.005) << "z0 " << tr.front().z << " z1 " << tr.back().z;
+}
+
+// With no drive at all the SO rests in the equilibrated bed: x and z free but still.
+TEST(PhysicsTest, UndrivenSoStaysPut) {
+  Point p;
+  p.mode = Mode::kRotation;
+  p.omega = 0;
+  p.duration_s = 0.1;
+  EngineRun r = Drive("undriven", p, Smoke());
+  std::vector<Frame> tr = ReadTrajectory(r.dir);
+  ASSERT_EQ(tr.size(), 101u);
+  for (const Frame& f : tr) {
+    EXPECT_NEAR(f.z, tr[0].z, 0.002);  // a tenth of a grain diameter
+    EXPECT_NEAR(f.x, tr[0].x, 0.002);
+    EXPECT_NEAR(f.y, tr[0].y, 1e-9);
+    EXPECT_EQ(f.wx, 0.0);
+  }
+}
+
+// Constant rotation about the xz diagonal: omega = 80 (1, 0, 1)/sqrt(2) in every frame.
+TEST(PhysicsTest, ConstantRotationAboutTheDiagonal) {
+  Point p;
+  p.mode = Mode::kVibrationRotation;
+  p.A = 0.03;
+  p.f = 20;
+  p.omega = 80;
+  p.axis = RotationAxis::kXZ;
+  p.duration_s = 0.1;
+  EngineRun r = Drive("diagonal", p, Smoke());
+  for (const Frame& f : ReadTrajectory(r.dir)) {
+    EXPECT_NEAR(f.wx, 80 * M_SQRT1_2, 1e-3);
+    EXPECT_EQ(f.wy, 0.0);
+    EXPECT_NEAR(f.wz, 80 * M_SQRT1_2, 1e-3);
+  }
+}
+
+// Every run starts from the same bed: identical grain positions at t = 0.
+TEST(PhysicsTest, RunsFromOneBedStartIdentically) {
+  Point a = Oscillatory(0.03, 20, 80, 0.1);
+  Point b = Oscillatory(0.05, 20, -160, 0.1);
+  EngineRun ra = Drive("same-bed-a", a, Smoke());
+  EngineRun rb = Drive("same-bed-b", b, Smoke());
+  std::string ia = testing::ReadFile(ra.dir + "/" + kInitialDumpFile);
+  std::string ib = testing::ReadFile(rb.dir + "/" + kInitialDumpFile);
+  ASSERT_GT(ia.size(), 1000u);
+  EXPECT_EQ(ia, ib);
+  EXPECT_NE(testing::ReadFile(ra.dir + "/" + kTrajectoryDumpFile),
+            testing::ReadFile(rb.dir + "/" + kTrajectoryDumpFile));
+}
+
+// A bed too shallow for the run: the SO's top is near the surface, and a rising drive stops the
+// run early at the surface and says so.
+TEST(PhysicsTest, EarlyStopAtTheSurfaceOfAShallowBed) {
+  Scale shallow = Smoke();
+  shallow.name = "shallow-test";
+  shallow.z_bed_top = 0.09;  // 0.03 m of grains above the SO's top
+  shallow.max_duration_s = 0;
+  const Point p = Oscillatory(0.03, 3, -80, 2.0);  // rises (Omega < 0), for up to 2 s
+  EngineRun r = Drive("shallow", p, shallow);
+  EXPECT_THAT(r.log, HasSubstr("SANDSWIM drive stop surface"));
+  std::vector<Frame> tr = ReadTrajectory(r.dir);
+  ASSERT_FALSE(tr.empty());
+  EXPECT_LT(tr.back().t, 2.0);
+}
+
+}  // namespace
+}  // namespace sandswim
