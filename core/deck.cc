@@ -1,6 +1,7 @@
 #include "core/deck.h"
 
 #include <charconv>
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -26,6 +27,9 @@ constexpr double kSkin = 0.01;            // m; fastest measured here (issue 2)
 constexpr int kThermoEvery = 1000;
 
 std::string Fmt(double v) { return FormatNumber(v); }
+// Lengths the renderer derives (box, regions) are rounded to a nanometre, so that the deck reads
+// "0.07" and not "0.06999999999999999". User values are never rounded: they go through Fmt.
+std::string Length(double v) { return FormatNumber(std::round(v * 1e9) / 1e9); }
 std::string Fmt(long long v) { return std::to_string(v); }
 
 // Replaces every {{name}} with its value. A placeholder without a value, or a value without a
@@ -107,22 +111,23 @@ std::string RenderBedDeck(const Scale& s) {
   };
   v.insert({
       {"z_bed_top", Fmt(s.z_bed_top)},
-      {"x_lo", Fmt(-s.x_len / 2)},
-      {"x_hi", Fmt(s.x_len / 2)},
-      {"y_lo", Fmt(-s.y_len / 2)},
-      {"y_hi", Fmt(s.y_len / 2)},
-      {"z_box_top", Fmt(pour2_hi + 2 * m.d_grain)},
+      {"x_lo", Length(-s.x_len / 2)},
+      {"x_hi", Length(s.x_len / 2)},
+      {"y_lo", Length(-s.y_len / 2)},
+      {"y_hi", Length(s.y_len / 2)},
+      // insert/pack refuses a region outside the box: the box holds both pour regions.
+      {"z_box_top", Length(std::max(pour1_hi, pour2_hi) + 2 * m.d_grain)},
       {"rho_grain", Fmt(m.rho_grain)},
       {"r_grain", Fmt(r)},
       {"insert_fraction", Fmt(kInsertFraction)},
-      {"pour1_lo", Fmt(pour1_lo)},
-      {"pour1_hi", Fmt(pour1_hi)},
+      {"pour1_lo", Length(pour1_lo)},
+      {"pour1_hi", Length(pour1_hi)},
       {"pour1_steps", Fmt(settle_steps(pour1_hi - s.z_floor))},
-      {"clear_radius", Fmt(m.d_so / 2 + r)},
+      {"clear_radius", Length(m.d_so / 2 + r)},
       {"d_so", Fmt(m.d_so)},
       {"rho_so", Fmt(m.rho_so)},
-      {"pour2_lo", Fmt(pour2_lo)},
-      {"pour2_hi", Fmt(pour2_hi)},
+      {"pour2_lo", Length(pour2_lo)},
+      {"pour2_hi", Length(pour2_hi)},
       {"pour2_samples", Fmt(settle_steps(pour2_hi - s.z_floor) / kSampleSteps)},
       {"sample_steps", Fmt(static_cast<long long>(kSampleSteps))},
       {"viscous_gamma", Fmt(kViscousGamma)},
@@ -163,7 +168,7 @@ std::string RenderDriveDeck(const Point& p, const Scale& s) {
       {"total_steps", Fmt(steps)},
       {"r_so", Fmt(m.d_so / 2)},
       // The SO's centre when its bottom is one SO diameter above the floor.
-      {"z_floor_stop", Fmt(s.z_floor + m.d_so + m.d_so / 2)},
+      {"z_floor_stop", Length(s.z_floor + m.d_so + m.d_so / 2)},
   });
   return Render(Template("templates/drive.in"), v);
 }

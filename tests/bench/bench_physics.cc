@@ -1,0 +1,140 @@
+// bench_physics: the figures issue 2 asks for, measured with the real engine.
+//
+//   bench_physics [--mini]
+//
+// Prints, per scale (smoke; mini with --mini, which prepares a ~1.5e4-grain bed: ~10 min):
+//   grain count and bed preparation wall time;
+//   drive-deck throughput in particle-timesteps/s on 1 and 2 MPI ranks;
+//   the ratio of throughput with the omega update every kOmegaUpdateSteps to a single `run`
+//   at constant omega (goal >= 0.97);
+// and, at smoke, z(t) and U_z for Omega = -80 and +80 (A = 0.03 m, f = 3 Hz, two periods).
+// A program to run on demand, not a test: it asserts nothing.
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <regex>
+#include <string>
+
+#include "core/deck.h"
+#include "core/dump_reader.h"
+#include "core/engine_log.h"
+#include "core/trajectory.h"
+#include "tests/engine_fixture.h"
+
+namespace sandswim {
+namespace {
+
+using testing::EngineRun;
+
+Point Oscillatory(double Omega, double duration) {
+  Point p;
+  p.mode = Mode::kOscillatory;
+  p.A = 0.03;
+  p.f = 3;
+  p.Omega = Omega;
+  p.duration_s = duration;
+  return p;
+}
+
+// Sum of "Loop time of X on P procs for N steps" over the runs that advanced time.
+double LoopSeconds(const std::string& log, long long* steps) {
+  static const std::regex re(R"(Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps)");
+  double sum = 0;
+  *steps = 0;
+  for (auto it = std::sregex_iterator(log.begin(), log.end(), re); it != std::sregex_iterator(); ++it) {
+    long long n = std::stoll((*it)[2]);
+    if (n == 0) continue;
+    sum += std::stod((*it)[1]);
+    *steps += n;
+  }
+  return sum;
+}
+
+// The same deck with the chunked omega update replaced by one `run` at constant omega(0).
+std::string ConstantOmegaDeck(const std::string& deck, long long steps) {
+  size_t cut = deck.find("run 0\nlabel chunk");
+  return deck.substr(0, cut) + "run " + std::to_string(steps) + "\n";
+}
+
+double Throughput(const std::string& name, const std::string& deck, const std::string& bed, int ranks,
+                  long long grains) {
+  std::string dir = testing::CacheDir() + "/bench/" + name;
+  std::filesystem::remove_all(dir);
+  EngineRun r = testing::RunDeck(dir, deck, bed, ranks);
+  if (r.exit_code != 0) {
+    std::fprintf(stderr, "%s failed: see %s/log.liggghts\n", name.c_str(), dir.c_str());
+    return 0;
+  }
+  long long steps = 0;
+  double secs = LoopSeconds(r.log, &steps);
+  return grains * static_cast<double>(steps) / secs;
+}
+
+void BenchScale(const Scale& scale, bool trajectories) {
+  auto t0 = std::chrono::steady_clock::now();
+  std::string bed = testing::PrepareBed(scale);
+  double prep = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EngineLog bed_log = ParseEngineLog(testing::ReadFile(std::filesystem::path(bed).parent_path() / kLogFile));
+  long long grains = bed_log.bed_grains ? bed_log.bed_grains->grains : 0;
+  std::printf("\n== scale %s: box %.2f x %.2f m, floor %.2f m, bed top %.2f m\n", std::string(scale.name).c_str(),
+              scale.x_len, scale.y_len, scale.z_floor, scale.z_bed_top);
+  std::printf("grains                       %lld (SO settled at z = %.4f m; %s, KE ratio %.2g)\n", grains,
+              bed_log.bed_grains ? bed_log.bed_grains->so_z : 0.0,
+              bed_log.bed_equilibrium && bed_log.bed_equilibrium->equilibrated ? "equilibrated" : "NOT equilibrated",
+              bed_log.bed_equilibrium ? bed_log.bed_equilibrium->ke / bed_log.bed_equilibrium->ke_peak : 0.0);
+  std::printf("bed preparation wall time    %.1f s%s\n", prep, prep < 1 ? " (cached; delete the cache to re-measure)" : "");
+
+  const double probe = 0.05;  // s of drive per throughput probe
+  Point p = Oscillatory(-80, probe);
+  std::string deck = RenderDriveDeck(p, scale);
+  long long steps = DriveSteps(p, scale);
+  double r1 = Throughput(std::string(scale.name) + "-1rank", deck, bed, 1, grains + 1);
+  double r2 = Throughput(std::string(scale.name) + "-2ranks", deck, bed, 2, grains + 1);
+  double rc = Throughput(std::string(scale.name) + "-constant", ConstantOmegaDeck(deck, steps), bed, 1, grains + 1);
+  std::printf("drive, 1 rank                %.3g particle-timesteps/s\n", r1);
+  std::printf("drive, 2 ranks               %.3g particle-timesteps/s (%.2fx)\n", r2, r2 / r1);
+  std::printf("omega update every %d steps vs constant omega: %.3f (%.3g vs %.3g)\n", kOmegaUpdateSteps, r1 / rc, r1,
+              rc);
+
+  if (!trajectories) return;
+  for (double Omega : {-80.0, 80.0}) {
+    Point q = Oscillatory(Omega, 4);
+    std::string dir = testing::CacheDir() + "/bench/" + std::string(scale.name) + "-omega" + std::to_string(int(Omega));
+    std::filesystem::remove_all(dir);
+    EngineRun r = testing::RunDeck(dir, RenderDriveDeck(q, scale), bed, 1);
+    DumpReader reader;
+    reader.Feed(testing::ReadFile(dir + "/" + kTrajectoryDumpFile));
+    reader.Finish();
+    auto samples = SamplesFromFrames(reader.TakeFrames(), kMaterials.dt);
+    EngineLog log = ParseEngineLog(r.log);
+    if (!samples.ok()) {
+      std::printf("Omega = %g: %s\n", Omega, samples.status().ToString().c_str());
+      continue;
+    }
+    auto res = AnalyzeTrajectory(*samples, q.f, log.drive_start, log.drive_stop);
+    if (!res.ok()) {
+      std::printf("Omega = %g: %s\n", Omega, res.status().ToString().c_str());
+      continue;
+    }
+    std::printf("\nOmega = %+g rad/s, A = 0.03 m, f = 3 Hz, %.3f s at %s:\n  t (s)   z (m)\n", Omega,
+                res->sim_time_s, std::string(scale.name).c_str());
+    for (size_t i = 0; i < samples->size(); i += 50)
+      std::printf("  %.3f  %+.4f\n", (*samples)[i].t, (*samples)[i].z);
+    std::printf("  U_z = %+.4f +- %.4f m/s over [%.3f, %.3f] s; dz = %+.4f m; z oscillation %.4f m; x drift %+.4f m; "
+                "stop: %s\n",
+                res->uz, res->uz_stderr, res->window_t0, res->window_t1, res->dz, res->z_osc_amplitude, res->x_drift,
+                res->stop_reason.c_str());
+  }
+}
+
+}  // namespace
+}  // namespace sandswim
+
+int main(int argc, char** argv) {
+  bool mini = argc > 1 && std::strcmp(argv[1], "--mini") == 0;
+  std::printf("engine: %s\n", sandswim::testing::EngineVersion().c_str());
+  sandswim::BenchScale(*sandswim::FindScale("smoke"), true);
+  if (mini) sandswim::BenchScale(*sandswim::FindScale("mini"), false);
+  return 0;
+}
