@@ -33,12 +33,16 @@ namespace sandswim {
 // Caps stated in the API description and in every refusal.
 inline constexpr size_t kMaxRunsPerSubmission = 100000;
 inline constexpr size_t kMaxNameLength = 100;  // names: [A-Za-z0-9._-]+
+inline constexpr size_t kMaxDescriptionLength = 10000;  // "description" of a sweep or campaign
 
 enum class Combine { kProduct, kZip };
 
 struct SweepAxis {
   std::string param;           // "A", "f", "Omega", "omega", "duration_s"
   std::vector<double> values;  // materialized from values | range | geometric
+  // Which of "values", "range", "geometric" the user wrote: error paths name it
+  // ("axes[0].values[3]", or "axes[0].range" with the value's index in the reason).
+  std::string source = "values";
 };
 
 struct SweepSpec {
@@ -60,7 +64,7 @@ struct Campaign {
   std::string name;
   std::string description;
   std::string scale;                    // default scale; a submission may override it
-  std::vector<SweepSpec> sweeps;        // each sweep's own scale field is ignored
+  std::vector<SweepSpec> sweeps;        // scale = the campaign's (its JSON sweeps have no "scale")
   std::optional<std::string> schedule;  // cron expression, daemon's local time zone
   double drift_tolerance_mps = 0.0;     // |U_z now - U_z before| above this is flagged
 };
@@ -95,6 +99,19 @@ struct Plan {
 Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
                         const std::string& engine_version,
                         size_t max_runs = kMaxRunsPerSubmission);
+
+// The same plan, with knobs for big submissions: a 100,000-run plan holds about 370 MB of decks
+// and takes about 1.5 s of CPU to render and hash. With keep_decks = false every deck is
+// rendered and hashed but not kept (PlannedRun::deck stays empty; RenderDriveDeck(run.point,
+// scale) gives the same bytes again when the run is leased). `threads` > 1 renders on that many
+// threads; the plan is identical to the single-threaded one.
+struct PlanOptions {
+  size_t max_runs = kMaxRunsPerSubmission;
+  bool keep_decks = true;
+  int threads = 1;
+};
+Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
+                        const std::string& engine_version, const PlanOptions& options);
 
 // The JSON object `sandswim expand --json` prints for a run: key, mode, A, f, Omega or omega +
 // axis, duration_s (asked), run_duration_s (at the scale), steps, sweeps.

@@ -1,0 +1,247 @@
+#include "cli/client.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include <netdb.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <httplib.h>
+
+namespace sandswim::cli {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr const char* kStartHint = "Start one with: build/bin/sandswimd --local-workers 2";
+
+StatusCode CodeForHttp(int http_status) {
+  switch (http_status) {
+    case 400: return StatusCode::kInvalidArgument;
+    case 401: case 403: return StatusCode::kUnauthenticated;
+    case 404: return StatusCode::kNotFound;
+    case 409: return StatusCode::kConflict;
+    case 413: return StatusCode::kResourceExhausted;
+    case 422: return StatusCode::kFailedPrecondition;
+    case 503: return StatusCode::kUnavailable;
+    default: return http_status >= 500 ? StatusCode::kInternal : StatusCode::kInvalidArgument;
+  }
+}
+
+std::string Trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  size_t start = 0;
+  while (start < s.size() && std::isspace(static_cast<unsigned char>(s[start]))) ++start;
+  return s.substr(start);
+}
+
+// Why a connection to `url` fails, in words ("connection refused"): httplib only says that it
+// failed, and a user needs to know whether nothing listens there or the host is wrong.
+std::string WhyNoConnection(const std::string& url) {
+  std::string rest = url.substr(std::string("http://").size());
+  std::string host = rest, port = "80";
+  if (!rest.empty() && rest[0] == '[') {
+    size_t close = rest.find(']');
+    host = rest.substr(1, close - 1);
+    if (close + 1 < rest.size() && rest[close + 1] == ':') port = rest.substr(close + 2);
+  } else if (size_t colon = rest.rfind(':'); colon != std::string::npos) {
+    host = rest.substr(0, colon);
+    port = rest.substr(colon + 1);
+  }
+  addrinfo hints{};
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* found = nullptr;
+  int rc = getaddrinfo(host.c_str(), port.c_str(), &hints, &found);
+  if (rc != 0) return "cannot resolve " + host + ": " + gai_strerror(rc);
+  std::string why = "cannot connect";
+  for (addrinfo* a = found; a != nullptr; a = a->ai_next) {
+    int fd = socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
+    if (fd < 0) continue;
+    int ok = connect(fd, a->ai_addr, a->ai_addrlen);
+    int saved = errno;
+    close(fd);
+    if (ok == 0) {
+      why = "it accepted a connection but did not answer HTTP";
+      break;
+    }
+    why = saved == ECONNREFUSED ? "connection refused" : std::strerror(saved);
+  }
+  freeaddrinfo(found);
+  return why;
+}
+
+class HttpDaemonClient : public DaemonClient {
+ public:
+  explicit HttpDaemonClient(const ClientOptions& options) : options_(options), http_(options.base_url) {
+    auto seconds = [](double s) { return static_cast<time_t>(s); };
+    auto micros = [](double s) { return static_cast<time_t>(std::fmod(s, 1.0) * 1e6); };
+    http_.set_connection_timeout(seconds(options.connect_timeout_s), micros(options.connect_timeout_s));
+    http_.set_read_timeout(seconds(options.read_timeout_s), micros(options.read_timeout_s));
+    http_.set_keep_alive(true);
+    if (!options.token.empty()) {
+      http_.set_default_headers({{"Authorization", "Bearer " + options.token}});
+    }
+  }
+
+  const std::string& base_url() const override { return options_.base_url; }
+
+  Result<json> Healthz() override { return Get("/healthz"); }
+
+  Result<json> Submit(const json& body, const std::string& idempotency_key) override {
+    httplib::Headers headers;
+    if (!idempotency_key.empty()) headers.emplace("Idempotency-Key", idempotency_key);
+    return Post("/api/v1/sweeps", body, headers);
+  }
+
+  Result<json> ListSweeps() override { return Paged("/api/v1/sweeps?", "sweeps", 0); }
+
+  Result<json> GetSweep(int64_t id) override { return Get("/api/v1/sweeps/" + std::to_string(id)); }
+
+  Result<json> SweepResults(int64_t id) override {
+    return Get("/api/v1/sweeps/" + std::to_string(id) + "/results");
+  }
+
+  Result<json> CancelSweep(int64_t id) override {
+    return Post("/api/v1/sweeps/" + std::to_string(id) + "/cancel", json::object(), {});
+  }
+
+  Result<json> ListRuns(const RunQuery& query) override {
+    std::string path = "/api/v1/runs?";
+    if (query.sweep) path += "sweep=" + std::to_string(*query.sweep) + "&";
+    if (query.state) path += "state=" + httplib::detail::encode_query_param(*query.state) + "&";
+    return Paged(path, "runs", query.limit);
+  }
+
+  Result<json> GetRun(int64_t id) override { return Get("/api/v1/runs/" + std::to_string(id)); }
+
+  Result<json> GetCampaignRun(int64_t id) override {
+    return Get("/api/v1/campaign-runs/" + std::to_string(id));
+  }
+
+  Result<json> CampaignRunResults(int64_t id) override {
+    return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
+  }
+
+ private:
+  Result<json> Get(const std::string& path) { return Answer(http_.Get(path.c_str()), "GET", path); }
+
+  Result<json> Post(const std::string& path, const json& body, const httplib::Headers& headers) {
+    return Answer(http_.Post(path.c_str(), headers, body.dump(), "application/json"), "POST", path);
+  }
+
+  // Follows next_cursor until the end or until `limit` items (0: no limit).
+  Result<json> Paged(const std::string& prefix, const char* key, int64_t limit) {
+    json all = json::array();
+    std::string cursor;
+    while (true) {
+      int64_t page = 1000;
+      if (limit > 0) page = std::min<int64_t>(page, limit - static_cast<int64_t>(all.size()));
+      std::string path = prefix + "limit=" + std::to_string(page);
+      if (!cursor.empty()) path += "&cursor=" + httplib::detail::encode_query_param(cursor);
+      auto reply = Get(path);
+      if (!reply.ok()) return reply.status();
+      auto items = reply->find(key);
+      if (items == reply->end() || !items->is_array()) {
+        return Status(StatusCode::kCorruption, std::string("the daemon's answer to GET ") + path +
+                                                   " has no \"" + key + "\" array");
+      }
+      for (auto& item : *items) all.push_back(std::move(item));
+      if (limit > 0 && static_cast<int64_t>(all.size()) >= limit) break;
+      auto next = reply->find("next_cursor");
+      if (next == reply->end() || next->is_null()) break;
+      std::string next_cursor = next->is_string() ? next->get<std::string>() : next->dump();
+      if (next_cursor == cursor || items->empty()) break;  // a daemon that repeats itself
+      cursor = next_cursor;
+    }
+    return all;
+  }
+
+  Result<json> Answer(const httplib::Result& res, const std::string& method, const std::string& path) {
+    if (!res) {
+      httplib::Error error = res.error();
+      if (error == httplib::Error::Connection || error == httplib::Error::ConnectionTimeout) {
+        std::string why = error == httplib::Error::ConnectionTimeout ? "connection timed out"
+                                                                      : WhyNoConnection(options_.base_url);
+        return Status::Unavailable("no daemon at " + options_.base_url + " (" + why + "). " + kStartHint);
+      }
+      return Status::Unavailable("the daemon at " + options_.base_url + " did not answer " + method + " " +
+                                 path + " (" + httplib::to_string(error) + ")");
+    }
+    json body;
+    bool parsed = false;
+    if (!res->body.empty()) {
+      try {
+        body = json::parse(res->body);
+        parsed = true;
+      } catch (const json::exception&) {
+      }
+    }
+    if (res->status >= 200 && res->status < 300) {
+      if (res->body.empty()) return json::object();
+      if (!parsed) {
+        return Status::Corruption("the daemon's answer to " + method + " " + path + " is not JSON");
+      }
+      return body;
+    }
+    std::string detail;
+    if (parsed && body.is_object() && body.contains("detail") && body["detail"].is_string()) {
+      detail = body["detail"].get<std::string>();
+    } else {
+      detail = "HTTP " + std::to_string(res->status) + " for " + method + " " + path;
+    }
+    if (res->status == 401) detail += " (pass --token-file FILE or set SANDSWIM_TOKEN)";
+    return Status(CodeForHttp(res->status), detail);
+  }
+
+  ClientOptions options_;
+  httplib::Client http_;
+};
+
+}  // namespace
+
+Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const std::string& token_file_flag,
+                                           const std::function<const char*(const char*)>& getenv) {
+  ClientOptions options;
+  std::string field = "--server";
+  std::string url = server_flag;
+  if (url.empty()) {
+    const char* env = getenv("SANDSWIM_SERVER");
+    if (env != nullptr && *env != '\0') {
+      url = env;
+      field = "SANDSWIM_SERVER";
+    }
+  }
+  if (url.empty()) url = kDefaultServer;
+  while (url.size() > 7 && url.back() == '/') url.pop_back();
+  static const std::regex kUrl(R"(http://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)(:[0-9]{1,5})?)");
+  if (!std::regex_match(url, kUrl)) {
+    return Status::InvalidArgument(field, "expected http://HOST:PORT (e.g. " + std::string(kDefaultServer) +
+                                              "), got \"" + url + "\"");
+  }
+  options.base_url = url;
+
+  std::string token;
+  if (!token_file_flag.empty()) {
+    std::ifstream in(token_file_flag);
+    if (!in) return Status::InvalidArgument("--token-file", "cannot read " + token_file_flag);
+    std::stringstream text;
+    text << in.rdbuf();
+    token = Trim(text.str());
+    if (token.empty()) return Status::InvalidArgument("--token-file", token_file_flag + " is empty");
+  } else if (const char* env = getenv("SANDSWIM_TOKEN"); env != nullptr && *env != '\0') {
+    token = Trim(env);
+  }
+  options.token = token;
+  return options;
+}
+
+std::unique_ptr<DaemonClient> NewHttpClient(const ClientOptions& options) {
+  return std::make_unique<HttpDaemonClient>(options);
+}
+
+}  // namespace sandswim::cli

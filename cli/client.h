@@ -1,0 +1,78 @@
+// Client: what `sandswim` asks the daemon over REST (/api/v1, /healthz), as an interface so that
+// the commands and the watch loop can be tested against a fake without a server.
+// HttpDaemonClient (client.cc) is the real one and the only CLI code that includes httplib.h.
+//
+// Answers are the daemon's JSON bodies, unchanged, except that list calls follow the cursors and
+// return the concatenated array. Errors are Status values whose reason is one line a user can
+// act on:
+//   - no daemon at the URL: kUnavailable, "no daemon at http://127.0.0.1:8640 (connection
+//     refused). Start one with: build/bin/sandswimd --local-workers 2";
+//   - a problem+json answer: the code its HTTP status stands for (404 -> kNotFound, 400 ->
+//     kInvalidArgument, 401 -> kUnauthenticated, 409 -> kConflict, 422 -> kFailedPrecondition,
+//     5xx -> kUnavailable/kInternal), the reason being its "detail".
+//
+// Where the daemon is: --server, else $SANDSWIM_SERVER, else http://127.0.0.1:8640. The bearer
+// token: --token-file, else $SANDSWIM_TOKEN, else none (reads from loopback need none).
+//
+// Thread safety: one client per thread.
+#ifndef SANDSWIM_CLI_CLIENT_H_
+#define SANDSWIM_CLI_CLIENT_H_
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "core/status.h"
+
+namespace sandswim::cli {
+
+inline constexpr const char* kDefaultServer = "http://127.0.0.1:8640";
+
+struct RunQuery {
+  std::optional<int64_t> sweep;
+  std::optional<std::string> state;  // queued | running | done | failed | cancelled
+  int64_t limit = 0;                 // at most this many runs; 0: all of them
+};
+
+class DaemonClient {
+ public:
+  virtual ~DaemonClient() = default;
+  virtual const std::string& base_url() const = 0;
+
+  virtual Result<nlohmann::json> Healthz() = 0;
+  // POST /api/v1/sweeps; `idempotency_key` empty: none sent.
+  virtual Result<nlohmann::json> Submit(const nlohmann::json& body, const std::string& idempotency_key) = 0;
+  // Every sweep (all pages): the concatenated "sweeps" arrays.
+  virtual Result<nlohmann::json> ListSweeps() = 0;
+  virtual Result<nlohmann::json> GetSweep(int64_t id) = 0;
+  virtual Result<nlohmann::json> SweepResults(int64_t id) = 0;  // {"id","results":[...]}
+  virtual Result<nlohmann::json> CancelSweep(int64_t id) = 0;
+  // The runs matching `query` (pages followed up to query.limit): the concatenated "runs".
+  virtual Result<nlohmann::json> ListRuns(const RunQuery& query) = 0;
+  virtual Result<nlohmann::json> GetRun(int64_t id) = 0;
+  virtual Result<nlohmann::json> GetCampaignRun(int64_t id) = 0;
+  virtual Result<nlohmann::json> CampaignRunResults(int64_t id) = 0;  // {"id","results":[...]}
+};
+
+struct ClientOptions {
+  std::string base_url = kDefaultServer;  // "http://HOST:PORT"
+  std::string token;                      // "" : no Authorization header
+  double connect_timeout_s = 3;
+  double read_timeout_s = 60;
+};
+
+// Resolves the daemon's URL and token from the flags and the environment (`getenv` is injected
+// for tests). Errors name the flag or variable ("--server", "--token-file", "SANDSWIM_TOKEN").
+Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const std::string& token_file_flag,
+                                           const std::function<const char*(const char*)>& getenv);
+
+// The REST client over cpp-httplib. REQUIRES: options.base_url starts with "http://".
+std::unique_ptr<DaemonClient> NewHttpClient(const ClientOptions& options);
+
+}  // namespace sandswim::cli
+
+#endif  // SANDSWIM_CLI_CLIENT_H_

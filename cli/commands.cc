@@ -1,0 +1,679 @@
+#include "cli/commands.h"
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <regex>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+
+#include "cli/format.h"
+#include "cli/snapshot.h"
+#include "cli/watch.h"
+#include "core/scale.h"
+#include "core/sweep.h"
+
+#ifndef SANDSWIM_VERSION
+#define SANDSWIM_VERSION "0.0.0"
+#endif
+
+namespace sandswim::cli {
+namespace {
+
+using json = nlohmann::json;
+
+// Every flag of every subcommand; each subcommand's setup binds the ones it takes.
+struct Args {
+  // Global.
+  std::string server;
+  std::string token_file;
+  bool no_color = false;
+  // Subcommands.
+  std::string target;  // the positional: FILE | CAMPAIGN | SWEEP | CAMPAIGN-RUN | RUN
+  std::string scale;
+  bool force = false;
+  bool wait = false;
+  std::string idempotency_key;
+  bool json = false;
+  std::string format = "table";
+  int64_t sweep = 0;
+  std::string state;
+  int64_t limit = 0;
+  int64_t campaign_run = 0;
+  double interval_s = 1.0;
+  std::string engine_version;
+};
+
+class Context {
+ public:
+  Context(Args& args, Environment& env) : args(args), env(env) {}
+  Args& args;
+  Environment& env;
+
+  std::ostream& out() { return *env.out; }
+  std::ostream& err() { return *env.err; }
+
+  bool ColorFor(bool tty) const {
+    if (!tty || args.no_color) return false;
+    const char* no_color = env.getenv("NO_COLOR");
+    if (no_color != nullptr && *no_color != '\0') return false;
+    const char* term = env.getenv("TERM");
+    return term == nullptr || std::string(term) != "dumb";
+  }
+  RenderOptions OutRender() const { return RenderOptions{ColorFor(env.out_is_tty)}; }
+
+  // The REST client, made on first use (offline commands never make one).
+  Result<DaemonClient*> Client() {
+    if (!client_) {
+      auto options = ResolveClientOptions(args.server, args.token_file, env.getenv);
+      if (!options.ok()) return options.status();
+      client_ = env.make_client(*options);
+    }
+    return client_.get();
+  }
+
+ private:
+  std::unique_ptr<DaemonClient> client_;
+};
+
+std::string Describe(const Status& s) { return s.field().empty() ? s.reason() : s.field() + ": " + s.reason(); }
+
+int Fail(Context& c, const Status& s, int code = kExitError) {
+  c.err() << "sandswim: " << Describe(s) << "\n";
+  return code;
+}
+
+// Malformed input the user typed: a usage error (exit 2); anything else: exit 1.
+int FailUsageIfInvalid(Context& c, const Status& s) {
+  return Fail(c, s, s.code() == StatusCode::kInvalidArgument ? kExitUsage : kExitError);
+}
+
+void PrintJson(Context& c, const json& j) { c.out() << j.dump(2) << "\n"; }
+
+// ---- FILE | CAMPAIGN ---------------------------------------------------------------------------
+
+struct Input {
+  std::optional<std::string> campaign;  // a campaign by name
+  json body;                            // else: the JSON the file holds
+};
+
+bool LooksLikeCampaignName(const std::string& text) {
+  static const std::regex kName(R"([A-Za-z0-9._-]+)");
+  return std::regex_match(text, kName) && text.size() <= kMaxNameLength &&
+         text.find(".json") == std::string::npos;
+}
+
+// "-": JSON on stdin; an existing file: its JSON; a name: a campaign.
+Result<Input> ReadInput(Context& c, const std::string& arg) {
+  Input input;
+  std::string text;
+  std::string where = arg;
+  std::error_code ec;
+  if (arg == "-") {
+    std::stringstream buffer;
+    buffer << c.env.in->rdbuf();
+    text = buffer.str();
+    where = "stdin";
+  } else if (std::filesystem::is_regular_file(arg, ec)) {
+    std::ifstream in(arg, std::ios::binary);
+    if (!in) return Status::InvalidArgument("FILE", "cannot read " + arg);
+    std::stringstream buffer;
+    buffer << in.rdbuf();
+    text = buffer.str();
+  } else if (LooksLikeCampaignName(arg)) {
+    input.campaign = arg;
+    return input;
+  } else {
+    return Status::InvalidArgument("FILE", "no such file: " + arg + " (give a sweep JSON file, - for stdin, or a campaign name such as paper-58)");
+  }
+  try {
+    input.body = json::parse(text);
+  } catch (const json::parse_error& e) {
+    return Status::InvalidArgument(where, "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+  }
+  if (!input.body.is_object()) return Status::InvalidArgument(where, "expected a JSON object (a sweep, {\"sweeps\": [...]} or {\"campaign\": NAME})");
+  return input;
+}
+
+// The POST /api/v1/sweeps body for `input` with --scale and --force applied.
+json SubmitBody(const Input& input, const Args& args) {
+  json body;
+  if (input.campaign) {
+    body = {{"campaign", *input.campaign}};
+    if (!args.scale.empty()) body["scale"] = args.scale;
+  } else {
+    body = input.body;
+    if (!args.scale.empty()) {
+      if (body.contains("campaign")) {
+        body["scale"] = args.scale;
+      } else if (body.contains("sweeps") && body["sweeps"].is_array()) {
+        for (auto& s : body["sweeps"]) {
+          if (s.is_object()) s["scale"] = args.scale;
+        }
+      } else {
+        body["scale"] = args.scale;
+      }
+    }
+  }
+  if (args.force) body["force"] = true;
+  return body;
+}
+
+// What a submission created: a campaign run, or sweeps.
+std::vector<Target> SubmittedTargets(const json& reply) {
+  std::vector<Target> targets;
+  if (reply.contains("campaign_run_id") && reply["campaign_run_id"].is_number_integer()) {
+    targets.push_back({Target::Kind::kCampaignRun, reply["campaign_run_id"].get<int64_t>()});
+    return targets;
+  }
+  for (const auto& id : reply.value("ids", json::array())) {
+    if (id.is_number_integer()) targets.push_back({Target::Kind::kSweep, id.get<int64_t>()});
+  }
+  return targets;
+}
+
+void PrintSubmission(Context& c, const json& reply) {
+  std::vector<Target> targets = SubmittedTargets(reply);
+  for (const Target& t : targets) c.out() << t.ToString() << "\n";
+  std::string sweeps;
+  if (!targets.empty() && targets[0].kind == Target::Kind::kCampaignRun) {
+    for (const auto& id : reply.value("ids", json::array())) sweeps += (sweeps.empty() ? "" : " ") + id.dump();
+    c.out() << "sweeps: " << sweeps << "\n";
+  }
+  c.err() << "sandswim: " << reply.value("runs", 0) << " run(s): " << reply.value("runs_new", 0) << " new, "
+          << reply.value("runs_reused", 0) << " reused, " << reply.value("runs_requeued", 0) << " requeued, "
+          << reply.value("runs_shared", 0) << " shared with other sweeps"
+          << (reply.value("replayed", false) ? " (an earlier identical submission answered)" : "") << "\n";
+}
+
+// Follows each target (progress on stderr), then prints its results on stdout.
+int WaitAndReport(Context& c, DaemonClient& client, const std::vector<Target>& targets, const json* reply) {
+  WatchOptions options;
+  options.tty = c.env.err_is_tty;
+  options.color = c.ColorFor(c.env.err_is_tty);
+  options.interval_s = c.args.interval_s;
+  bool failed = false;
+  json all = json::array();
+  for (const Target& t : targets) {
+    auto last = Watch(client, t, options, WatchClock{c.env.now, c.env.sleep}, c.err());
+    if (!last.ok()) return Fail(c, last.status());
+    failed = failed || last->counts.failed > 0;
+    auto rows = FetchResults(client, t);
+    if (!rows.ok()) return Fail(c, rows.status());
+    if (c.args.json) {
+      all.push_back({{"target", t.ToString()}, {"results", *rows}});
+    } else {
+      c.out() << RenderResultsTable(*rows, c.OutRender());
+    }
+  }
+  if (c.args.json) PrintJson(c, {{"submission", *reply}, {"results", all}});
+  return failed ? kExitRunsFailed : kExitOk;
+}
+
+int SubmitBodyAndReport(Context& c, const json& body) {
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto reply = (*client)->Submit(body, c.args.idempotency_key);
+  if (!reply.ok()) return Fail(c, reply.status());
+  if (c.args.wait) {
+    if (!c.args.json) PrintSubmission(c, *reply);
+    return WaitAndReport(c, **client, SubmittedTargets(*reply), &*reply);
+  }
+  if (c.args.json) {
+    PrintJson(c, *reply);
+  } else {
+    PrintSubmission(c, *reply);
+  }
+  return kExitOk;
+}
+
+// ---- Subcommands: setup and run ----------------------------------------------------------------
+
+void AddJson(CLI::App& sub, Args& a) { sub.add_flag("--json", a.json, "print the daemon's JSON instead of text"); }
+
+void AddTarget(CLI::App& sub, Args& a, const std::string& name, const std::string& help, bool required = true) {
+  auto* opt = sub.add_option(name, a.target, help);
+  if (required) opt->required();
+}
+
+void SetupSubmit(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "FILE|CAMPAIGN", "a sweep JSON file (- for stdin) or a campaign name (paper-58)");
+  sub.add_option("--scale", a.scale, "scale to run at: paper, mini or smoke (default: the file's or campaign's)");
+  sub.add_flag("--force", a.force, "rerun even runs whose result is already stored");
+  sub.add_flag("--wait", a.wait, "follow the runs (progress on stderr), then print the results");
+  sub.add_option("--idempotency-key", a.idempotency_key, "submitting again with the same key returns the same ids");
+  sub.add_option("--interval", a.interval_s, "with --wait: seconds between polls")->check(CLI::Range(0.05, 3600.0));
+  AddJson(sub, a);
+}
+
+int RunSubmit(Context& c) {
+  auto input = ReadInput(c, c.args.target);
+  if (!input.ok()) return FailUsageIfInvalid(c, input.status());
+  return SubmitBodyAndReport(c, SubmitBody(*input, c.args));
+}
+
+void SetupStatus(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "SWEEP|CAMPAIGN-RUN", "a sweep id (12) or a campaign run (cr:7); none: all sweeps", false);
+  AddJson(sub, a);
+}
+
+int RunStatus(Context& c) {
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  if (c.args.target.empty()) {
+    auto sweeps = (*client)->ListSweeps();
+    if (!sweeps.ok()) return Fail(c, sweeps.status());
+    if (c.args.json) {
+      PrintJson(c, *sweeps);
+    } else {
+      c.out() << RenderSweepsTable(*sweeps, c.OutRender());
+    }
+    return kExitOk;
+  }
+  auto target = ParseTarget(c.args.target);
+  if (!target.ok()) return Fail(c, target.status(), kExitUsage);
+  auto snapshot = FetchSnapshot(**client, *target);
+  if (!snapshot.ok()) return Fail(c, snapshot.status());
+  if (c.args.json) {
+    json j = SnapshotToJson(*snapshot);
+    j["target"] = target->ToString();
+    PrintJson(c, j);
+  } else {
+    c.out() << RenderStatus(*snapshot, c.OutRender());
+  }
+  return kExitOk;
+}
+
+void SetupRuns(CLI::App& sub, Args& a) {
+  sub.add_option("--sweep", a.sweep, "only the runs of this sweep")->check(CLI::PositiveNumber);
+  sub.add_option("--state", a.state, "only runs in this state")
+      ->check(CLI::IsMember({"queued", "running", "done", "failed", "cancelled"}));
+  sub.add_option("--limit", a.limit, "at most N runs (default: all)")->check(CLI::PositiveNumber);
+  AddJson(sub, a);
+}
+
+int RunRuns(Context& c) {
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  RunQuery query;
+  if (c.args.sweep > 0) query.sweep = c.args.sweep;
+  if (!c.args.state.empty()) query.state = c.args.state;
+  query.limit = c.args.limit;
+  auto runs = (*client)->ListRuns(query);
+  if (!runs.ok()) return Fail(c, runs.status());
+  if (c.args.json) {
+    PrintJson(c, *runs);
+  } else {
+    c.out() << RenderRunsTable(*runs, c.OutRender());
+  }
+  return kExitOk;
+}
+
+void SetupShow(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "RUN", "a run id");
+  AddJson(sub, a);
+}
+
+int RunShow(Context& c) {
+  auto id = ParseId(c.args.target, "RUN");
+  if (!id.ok()) return Fail(c, id.status(), kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto run = (*client)->GetRun(*id);
+  if (!run.ok()) return Fail(c, run.status());
+  if (c.args.json) {
+    PrintJson(c, *run);
+  } else {
+    c.out() << RenderRunDetail(*run, c.OutRender());
+  }
+  return kExitOk;
+}
+
+void SetupResults(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "SWEEP|CAMPAIGN-RUN", "a sweep id (12) or a campaign run (cr:7)", false);
+  sub.add_option("--campaign-run", a.campaign_run, "a campaign run id (same as cr:ID)")->check(CLI::PositiveNumber);
+  sub.add_option("--format", a.format, "table, csv or json")->check(CLI::IsMember({"table", "csv", "json"}));
+  AddJson(sub, a);
+}
+
+int RunResults(Context& c) {
+  Target target;
+  if (c.args.campaign_run > 0) {
+    if (!c.args.target.empty()) {
+      return Fail(c, Status::InvalidArgument("--campaign-run", "give either SWEEP|CAMPAIGN-RUN or --campaign-run, not both"), kExitUsage);
+    }
+    target = {Target::Kind::kCampaignRun, c.args.campaign_run};
+  } else if (c.args.target.empty()) {
+    return Fail(c, Status::InvalidArgument("SWEEP", "name a sweep id (12) or a campaign run (cr:7 or --campaign-run 7)"), kExitUsage);
+  } else {
+    auto parsed = ParseTarget(c.args.target);
+    if (!parsed.ok()) return Fail(c, parsed.status(), kExitUsage);
+    target = *parsed;
+  }
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto rows = FetchResults(**client, target);
+  if (!rows.ok()) return Fail(c, rows.status());
+  std::string format = c.args.json ? "json" : c.args.format;
+  if (format == "json") {
+    PrintJson(c, *rows);
+  } else if (format == "csv") {
+    c.out() << RenderResultsCsv(*rows);
+  } else {
+    c.out() << RenderResultsTable(*rows, c.OutRender());
+  }
+  return kExitOk;
+}
+
+void SetupWatch(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "SWEEP|CAMPAIGN-RUN", "a sweep id (12) or a campaign run (cr:7)");
+  sub.add_option("--interval", a.interval_s, "seconds between polls")->check(CLI::Range(0.05, 3600.0));
+}
+
+int RunWatch(Context& c) {
+  auto target = ParseTarget(c.args.target);
+  if (!target.ok()) return Fail(c, target.status(), kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  WatchOptions options;
+  options.tty = c.env.out_is_tty;
+  options.color = c.ColorFor(c.env.out_is_tty);
+  options.interval_s = c.args.interval_s;
+  auto last = Watch(**client, *target, options, WatchClock{c.env.now, c.env.sleep}, c.out());
+  if (!last.ok()) return Fail(c, last.status());
+  return last->counts.failed > 0 ? kExitRunsFailed : kExitOk;
+}
+
+void SetupCancel(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "SWEEP", "a sweep id");
+  AddJson(sub, a);
+}
+
+int RunCancel(Context& c) {
+  auto id = ParseId(c.args.target, "SWEEP");
+  if (!id.ok()) return Fail(c, id.status(), kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto reply = (*client)->CancelSweep(*id);
+  if (!reply.ok()) return Fail(c, reply.status());
+  if (c.args.json) {
+    PrintJson(c, *reply);
+    return kExitOk;
+  }
+  json cancel = reply->value("cancel", json::object());
+  c.out() << "sweep " << *id << " cancelled: " << cancel.value("cancelled", 0) << " queued run(s) cancelled, "
+          << cancel.value("stopping", 0) << " running run(s) told to stop\n";
+  return kExitOk;
+}
+
+void SetupRerun(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "CAMPAIGN", "a campaign name (paper-58, or one stored in the daemon)");
+  sub.add_option("--scale", a.scale, "scale to run at (default: the campaign's)");
+  sub.add_flag("--force", a.force, "rerun every run, even those whose result is current");
+  sub.add_option("--idempotency-key", a.idempotency_key, "rerunning again with the same key returns the same ids");
+  AddJson(sub, a);
+}
+
+int RunRerun(Context& c) {
+  if (!LooksLikeCampaignName(c.args.target)) {
+    return Fail(c, Status::InvalidArgument("CAMPAIGN", "\"" + c.args.target + "\" is not a campaign name ([A-Za-z0-9._-]+)"), kExitUsage);
+  }
+  Input input;
+  input.campaign = c.args.target;
+  return SubmitBodyAndReport(c, SubmitBody(input, c.args));
+}
+
+void SetupExpand(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "FILE|CAMPAIGN", "a sweep or campaign JSON file (- for stdin) or a builtin campaign name");
+  sub.add_option("--scale", a.scale, "scale to plan at (default: the file's or campaign's)");
+  sub.add_option("--engine-version", a.engine_version, "the LIGGGHTS version for the keys (default: ask liggghts)");
+  AddJson(sub, a);
+}
+
+// The sweeps `input` names and the scale each runs at.
+Result<std::vector<SweepSpec>> SweepsOf(const Input& input, const std::string& scale_flag) {
+  std::vector<SweepSpec> sweeps;
+  auto from_campaign = [&](const Campaign& campaign, const std::string& scale) {
+    for (SweepSpec s : campaign.sweeps) {
+      s.scale = scale.empty() ? campaign.scale : scale;
+      sweeps.push_back(std::move(s));
+    }
+  };
+  if (input.campaign || input.body.contains("campaign")) {
+    std::string name = input.campaign ? *input.campaign : input.body["campaign"].is_string()
+                                                              ? input.body["campaign"].get<std::string>()
+                                                              : "";
+    auto campaign = BuiltinCampaign(name);
+    if (!campaign.ok()) {
+      std::string names;
+      for (const auto& n : BuiltinCampaignNames()) names += (names.empty() ? "" : ", ") + n;
+      return Status::NotFound("no builtin campaign \"" + name + "\" (builtin: " + names +
+                              "); expand works offline: give a campaign JSON file instead");
+    }
+    std::string scale = scale_flag;
+    if (scale.empty() && input.body.contains("scale") && input.body["scale"].is_string()) {
+      scale = input.body["scale"].get<std::string>();
+    }
+    from_campaign(*campaign, scale);
+    return sweeps;
+  }
+  json body = input.body;
+  body.erase("force");
+  if (body.contains("sweeps") && body.contains("name")) {
+    auto campaign = ParseCampaign(body);
+    if (!campaign.ok()) return campaign.status();
+    from_campaign(*campaign, scale_flag);
+    return sweeps;
+  }
+  std::vector<json> specs;
+  if (body.contains("sweeps")) {
+    if (!body["sweeps"].is_array()) return Status::InvalidArgument("sweeps", "must be an array of sweeps");
+    for (const auto& s : body["sweeps"]) specs.push_back(s);
+  } else {
+    specs.push_back(body);
+  }
+  for (size_t i = 0; i < specs.size(); ++i) {
+    if (!scale_flag.empty() && specs[i].is_object()) specs[i]["scale"] = scale_flag;
+    auto spec = ParseSweep(specs[i]);
+    if (!spec.ok()) {
+      return body.contains("sweeps") ? spec.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]") : spec.status();
+    }
+    sweeps.push_back(std::move(*spec));
+  }
+  return sweeps;
+}
+
+int RunExpand(Context& c) {
+  auto input = ReadInput(c, c.args.target);
+  if (!input.ok()) return FailUsageIfInvalid(c, input.status());
+  auto sweeps = SweepsOf(*input, c.args.scale);
+  if (!sweeps.ok()) return FailUsageIfInvalid(c, sweeps.status());
+  std::string engine = c.args.engine_version;
+  if (engine.empty()) {
+    auto probed = c.env.probe_engine ? c.env.probe_engine() : Result<std::string>(Status::Unavailable("no engine probe"));
+    if (probed.ok()) {
+      engine = *probed;
+    } else {
+      engine = "unknown";
+      c.err() << "sandswim: " << Describe(probed.status())
+              << "; keys use engine version \"unknown\" (pass --engine-version to match the daemon's)\n";
+    }
+  }
+  // Plan per scale, in first-appearance order (as the daemon does).
+  std::vector<std::string> scales;
+  std::map<std::string, std::vector<SweepSpec>> by_scale;
+  for (const SweepSpec& s : *sweeps) {
+    if (!by_scale.count(s.scale)) scales.push_back(s.scale);
+    by_scale[s.scale].push_back(s);
+  }
+  json all = json::array();
+  std::string lines;
+  size_t runs = 0;
+  for (const std::string& name : scales) {
+    const Scale* scale = FindScale(name);
+    if (scale == nullptr) return Fail(c, Status::InvalidArgument("scale", "unknown scale \"" + name + "\" (paper, mini, smoke)"), kExitUsage);
+    PlanOptions options;
+    options.keep_decks = false;
+    auto plan = PlanSweeps(by_scale[name], *scale, engine, options);
+    if (!plan.ok()) return FailUsageIfInvalid(c, plan.status());
+    for (const PlannedRun& r : plan->runs) {
+      json j = PlannedRunToJson(r);
+      ++runs;
+      if (c.args.json) {
+        all.push_back(j);
+        continue;
+      }
+      std::string sweep_names;
+      for (const auto& s : r.sweeps) sweep_names += (sweep_names.empty() ? "" : ",") + s;
+      lines += r.key.substr(0, 12) + "  " + FormatPoint(j) + "  (runs " + FormatNumber(r.run_duration_s, 4) + " s, " +
+               std::to_string(r.steps) + " steps at " + name + ")  " + sweep_names + "\n";
+    }
+  }
+  if (c.args.json) {
+    PrintJson(c, all);
+  } else {
+    c.out() << lines;
+    c.err() << "sandswim: " << runs << " distinct run(s); engine " << engine << "\n";
+  }
+  return kExitOk;
+}
+
+void SetupVersion(CLI::App& sub, Args& a) { AddJson(sub, a); }
+
+int RunVersion(Context& c) {
+  json j = {{"client", ClientVersion()}};
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto health = (*client)->Healthz();
+  j["server_url"] = (*client)->base_url();
+  if (health.ok()) {
+    j["server"] = *health;
+  } else {
+    j["server"] = nullptr;
+    j["server_error"] = Describe(health.status());
+  }
+  if (c.args.json) {
+    PrintJson(c, j);
+    return kExitOk;
+  }
+  c.out() << "sandswim " << ClientVersion() << "\n";
+  if (health.ok()) {
+    c.out() << "daemon at " << (*client)->base_url() << ": " << health->value("status", "?") << ", engine "
+            << health->value("engine_version", "?") << ", schema " << health->value("schema_version", 0) << "\n";
+  } else {
+    c.out() << "daemon at " << (*client)->base_url() << ": not reachable\n";
+    c.err() << "sandswim: " << Describe(health.status()) << "\n";
+  }
+  return kExitOk;
+}
+
+// ---- The table ---------------------------------------------------------------------------------
+
+struct Command {
+  const char* name;
+  const char* summary;
+  const char* examples;
+  void (*setup)(CLI::App&, Args&);
+  int (*run)(Context&);
+};
+
+// clang-format off
+const Command kCommands[] = {
+  {"submit", "submit a sweep file or a campaign; prints the sweep id(s) or the campaign run (cr:ID)",
+   "  sandswim submit sweep.json\n"
+   "  sandswim submit - < sweep.json\n"
+   "  sandswim submit paper-58 --scale mini\n"
+   "  sandswim submit sweep.json --wait        # follow it, then print the results (exit 3: some failed)",
+   SetupSubmit, RunSubmit},
+  {"status", "counts, runs in flight, failures and ETA of a sweep or campaign run (none: all sweeps)",
+   "  sandswim status\n"
+   "  sandswim status 12\n"
+   "  sandswim status cr:7 --json",
+   SetupStatus, RunStatus},
+  {"runs", "list runs (all pages), optionally of one sweep or in one state",
+   "  sandswim runs --sweep 12\n"
+   "  sandswim runs --state failed --limit 20\n"
+   "  sandswim runs --sweep 12 --json",
+   SetupRuns, RunRuns},
+  {"show", "one run: point, state, progress, result, deck and log tail",
+   "  sandswim show 42\n"
+   "  sandswim show 42 --json",
+   SetupShow, RunShow},
+  {"results", "one row per run: point, U_z, dz, flags, state (campaign runs: cr:ID or --campaign-run ID)",
+   "  sandswim results 12\n"
+   "  sandswim results 12 --format csv > omega.csv\n"
+   "  sandswim results cr:7 --format json\n"
+   "  sandswim results --campaign-run 7",
+   SetupResults, RunResults},
+  {"watch", "follow a sweep or campaign run until nothing is queued or running (exit 3: some failed)",
+   "  sandswim watch 12\n"
+   "  sandswim watch cr:7 --interval 5\n"
+   "  sandswim watch 12 | tee progress.log   # plain lines when piped",
+   SetupWatch, RunWatch},
+  {"cancel", "cancel a sweep: its queued runs are cancelled, its running runs stop",
+   "  sandswim cancel 12",
+   SetupCancel, RunCancel},
+  {"rerun", "submit a campaign again; results whose content key is unchanged are reused",
+   "  sandswim rerun paper-58\n"
+   "  sandswim rerun paper-58 --scale mini --force",
+   SetupRerun, RunRerun},
+  {"expand", "offline: the distinct runs a sweep or campaign plans to (no daemon needed)",
+   "  sandswim expand sweep.json\n"
+   "  sandswim expand paper-58 --json | jq length   # 58\n"
+   "  sandswim expand paper-58 --scale smoke",
+   SetupExpand, RunExpand},
+  {"version", "the client's version and the daemon's /healthz answer",
+   "  sandswim version\n"
+   "  sandswim version --json",
+   SetupVersion, RunVersion},
+};
+// clang-format on
+
+}  // namespace
+
+std::vector<std::string> CommandNames() {
+  std::vector<std::string> names;
+  for (const Command& c : kCommands) names.push_back(c.name);
+  return names;
+}
+
+const char* ClientVersion() { return SANDSWIM_VERSION; }
+
+int RunCli(int argc, const char* const* argv, Environment& env) {
+  Args args;
+  CLI::App app{"sandswim: submit, follow and read DEM parameter studies run by sandswimd"};
+  app.footer(
+      "Where the daemon is: --server, else $SANDSWIM_SERVER, else " + std::string(kDefaultServer) +
+      ".\nSweeps are named by id (12), campaign runs by cr:ID (cr:7).\n"
+      "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed.\n");
+  app.require_subcommand(1);
+  app.fallthrough();
+  app.add_option("--server", args.server, "daemon URL, http://HOST:PORT (else $SANDSWIM_SERVER)");
+  app.add_option("--token-file", args.token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
+  app.add_flag("--no-color", args.no_color, "no colour (also: NO_COLOR set, or output not a terminal)");
+
+  std::vector<std::pair<CLI::App*, const Command*>> subs;
+  for (const Command& command : kCommands) {
+    CLI::App* sub = app.add_subcommand(command.name, command.summary);
+    sub->footer(std::string("Examples:\n") + command.examples + "\n");
+    command.setup(*sub, args);
+    subs.emplace_back(sub, &command);
+  }
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e, *env.out, *env.err);
+    return code == 0 ? kExitOk : kExitUsage;
+  }
+  Context context(args, env);
+  for (const auto& [sub, command] : subs) {
+    if (sub->parsed()) return command->run(context);
+  }
+  return kExitUsage;
+}
+
+}  // namespace sandswim::cli

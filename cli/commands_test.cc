@@ -1,0 +1,137 @@
+#include "cli/commands.h"
+
+#include <map>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "cli/fake_client_test_util.h"
+
+namespace sandswim::cli {
+namespace {
+
+using json = nlohmann::json;
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+// RunCli against a FakeClient, with a chosen TTY-ness and environment.
+struct Harness {
+  std::ostringstream out, err;
+  std::istringstream in;
+  std::map<std::string, std::string> vars;
+  FakeClient* fake = nullptr;  // owned by the Context once made
+  std::function<void(FakeClient&)> fill;
+
+  int Run(std::vector<const char*> args, bool tty) {
+    Environment env;
+    env.out = &out;
+    env.err = &err;
+    env.in = &in;
+    env.out_is_tty = tty;
+    env.err_is_tty = tty;
+    env.getenv = [this](const char* name) -> const char* {
+      auto it = vars.find(name);
+      return it == vars.end() ? nullptr : it->second.c_str();
+    };
+    env.now = [] { return 0.0; };
+    env.sleep = [](double) {};
+    env.make_client = [this](const ClientOptions&) {
+      auto client = std::make_unique<FakeClient>();
+      if (fill) fill(*client);
+      fake = client.get();
+      return std::unique_ptr<DaemonClient>(std::move(client));
+    };
+    env.probe_engine = [] { return Result<std::string>(Status::Unavailable("no engine in tests")); };
+    args.insert(args.begin(), "sandswim");
+    return RunCli(static_cast<int>(args.size()), args.data(), env);
+  }
+};
+
+void OneRunningRun(FakeClient& c) {
+  c.runs = json::array({{{"id", 1},
+                         {"state", "running"},
+                         {"point", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 4}}},
+                         {"run_duration_s", 4.0},
+                         {"progress", {{"sim_time_s", 1.0}, {"so_z", 0.4}, {"step", 0}}}}});
+}
+
+TEST(CommandsTest, TableReadsTopToBottom) {
+  EXPECT_THAT(CommandNames(), ElementsAre("submit", "status", "runs", "show", "results", "watch", "cancel",
+                                          "rerun", "expand", "version"));
+}
+
+TEST(CommandsTest, ColourOnlyOnATerminalWithoutNoColor) {
+  Harness tty;
+  tty.fill = OneRunningRun;
+  ASSERT_EQ(tty.Run({"runs"}, /*tty=*/true), kExitOk) << tty.err.str();
+  EXPECT_THAT(tty.out.str(), HasSubstr("\x1b[33mrunning\x1b[0m"));
+
+  Harness no_color;
+  no_color.fill = OneRunningRun;
+  no_color.vars["NO_COLOR"] = "1";
+  ASSERT_EQ(no_color.Run({"runs"}, /*tty=*/true), kExitOk);
+  EXPECT_THAT(no_color.out.str(), Not(HasSubstr("\x1b[")));
+
+  Harness piped;
+  piped.fill = OneRunningRun;
+  ASSERT_EQ(piped.Run({"runs"}, /*tty=*/false), kExitOk);
+  EXPECT_THAT(piped.out.str(), Not(HasSubstr("\x1b[")));
+
+  Harness flag;
+  flag.fill = OneRunningRun;
+  ASSERT_EQ(flag.Run({"--no-color", "runs"}, /*tty=*/true), kExitOk);
+  EXPECT_THAT(flag.out.str(), Not(HasSubstr("\x1b[")));
+}
+
+TEST(CommandsTest, WatchExitsThreeWhenRunsFailed) {
+  Harness h;
+  h.fill = [](FakeClient& c) {
+    c.sweeps[4] = {{"id", 4}, {"name", "s"}, {"scale", "smoke"},
+                   {"counts", {{"queued", 0}, {"running", 0}, {"done", 1}, {"failed", 1}, {"cancelled", 0}}}};
+  };
+  EXPECT_EQ(h.Run({"watch", "4"}, false), kExitRunsFailed);
+  EXPECT_THAT(h.out.str(), HasSubstr("1 failed"));
+}
+
+TEST(CommandsTest, ServerFromTheEnvironmentIsValidated) {
+  Harness h;
+  h.vars["SANDSWIM_SERVER"] = "not a url";
+  EXPECT_EQ(h.Run({"status"}, false), kExitUsage);
+  EXPECT_EQ(h.err.str(), "sandswim: SANDSWIM_SERVER: expected http://HOST:PORT (e.g. http://127.0.0.1:8640), got \"not a url\"\n");
+}
+
+TEST(CommandsTest, ExpandWithoutEngineWarnsAndUsesUnknown) {
+  Harness h;
+  ASSERT_EQ(h.Run({"expand", "paper-58", "--scale", "smoke"}, false), kExitOk) << h.err.str();
+  EXPECT_EQ(h.fake, nullptr);  // offline: no client was made
+  EXPECT_THAT(h.err.str(), HasSubstr("engine version \"unknown\""));
+}
+
+TEST(ClientOptionsTest, FlagBeatsEnvironmentBeatsDefault) {
+  std::map<std::string, std::string> vars;
+  auto getenv = [&vars](const char* name) -> const char* {
+    auto it = vars.find(name);
+    return it == vars.end() ? nullptr : it->second.c_str();
+  };
+  auto o = ResolveClientOptions("", "", getenv);
+  ASSERT_TRUE(o.ok());
+  EXPECT_EQ(o->base_url, "http://127.0.0.1:8640");
+  EXPECT_EQ(o->token, "");
+  vars["SANDSWIM_SERVER"] = "http://node7:9000/";
+  vars["SANDSWIM_TOKEN"] = " secret\n";
+  o = ResolveClientOptions("", "", getenv);
+  ASSERT_TRUE(o.ok());
+  EXPECT_EQ(o->base_url, "http://node7:9000");
+  EXPECT_EQ(o->token, "secret");
+  o = ResolveClientOptions("http://[::1]:8640", "", getenv);
+  ASSERT_TRUE(o.ok());
+  EXPECT_EQ(o->base_url, "http://[::1]:8640");
+  auto bad = ResolveClientOptions("", "/no/such/token", getenv);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().field(), "--token-file");
+}
+
+}  // namespace
+}  // namespace sandswim::cli

@@ -1,0 +1,461 @@
+#include "cli/format.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace sandswim::cli {
+namespace {
+
+using json = nlohmann::json;
+
+std::string Str(const json& j, const char* key, const std::string& fallback = "") {
+  auto it = j.find(key);
+  if (it == j.end() || it->is_null()) return fallback;
+  if (it->is_string()) return it->get<std::string>();
+  return it->dump();
+}
+
+std::optional<double> Num(const json& j, const char* key) {
+  auto it = j.find(key);
+  if (it == j.end() || !it->is_number()) return std::nullopt;
+  return it->get<double>();
+}
+
+int64_t Int(const json& j, const char* key) {
+  auto it = j.find(key);
+  if (it == j.end() || !it->is_number()) return 0;
+  return it->get<int64_t>();
+}
+
+bool Bool(const json& j, const char* key) {
+  auto it = j.find(key);
+  return it != j.end() && it->is_boolean() && it->get<bool>();
+}
+
+std::string Pad(const std::string& text, size_t width, Align align) {
+  size_t w = DisplayWidth(text);
+  if (w >= width) return text;
+  std::string fill(width - w, ' ');
+  return align == Align::kRight ? fill + text : text + fill;
+}
+
+std::string StateCell(const std::string& state) { return state.empty() ? "-" : state; }
+
+// The drive's angular velocity: Omega for oscillatory points, omega for the rotation modes.
+std::string OmegaCell(const json& p) {
+  if (auto v = Num(p, "Omega")) return FormatNumber(*v);
+  if (auto v = Num(p, "omega")) return FormatNumber(*v);
+  return "-";
+}
+
+std::string NumCell(const json& j, const char* key, int precision = 6) {
+  auto v = Num(j, key);
+  return v ? FormatNumber(*v, precision) : "-";
+}
+
+}  // namespace
+
+// ---- Building blocks ---------------------------------------------------------------------------
+
+size_t DisplayWidth(const std::string& text) {
+  size_t n = 0;
+  for (unsigned char ch : text) {
+    if ((ch & 0xC0) != 0x80) ++n;
+  }
+  return n;
+}
+
+std::string RenderTable(const Table& table) {
+  size_t columns = table.header.size();
+  for (const auto& row : table.rows) columns = std::max(columns, row.size());
+  std::vector<size_t> width(columns, 0);
+  auto measure = [&](const std::vector<std::string>& row) {
+    for (size_t i = 0; i < row.size(); ++i) width[i] = std::max(width[i], DisplayWidth(row[i]));
+  };
+  measure(table.header);
+  for (const auto& row : table.rows) measure(row);
+
+  auto line = [&](const std::vector<std::string>& row, const std::vector<std::string>* colors) {
+    std::string out;
+    for (size_t i = 0; i < columns; ++i) {
+      std::string cell = i < row.size() ? row[i] : "";
+      Align align = i < table.align.size() ? table.align[i] : Align::kLeft;
+      bool last = i + 1 == columns;
+      // The last column is not padded on the right: no trailing blanks.
+      std::string padded = (last && align == Align::kLeft) ? cell : Pad(cell, width[i], align);
+      if (colors != nullptr && i < colors->size() && !(*colors)[i].empty()) {
+        // Colour the text only, not the padding around it.
+        size_t start = padded.find(cell);
+        padded = padded.substr(0, start) + Colorize(cell, (*colors)[i], true) +
+                 padded.substr(start + cell.size());
+      }
+      out += (i ? "  " : "") + padded;
+    }
+    while (!out.empty() && out.back() == ' ') out.pop_back();
+    return out + "\n";
+  };
+  std::string out = line(table.header, nullptr);
+  for (size_t r = 0; r < table.rows.size(); ++r) {
+    out += line(table.rows[r], r < table.color.size() ? &table.color[r] : nullptr);
+  }
+  return out;
+}
+
+std::string Colorize(const std::string& text, const std::string& code, bool color) {
+  if (!color || code.empty() || text.empty()) return text;
+  return "\x1b[" + code + "m" + text + "\x1b[0m";
+}
+
+std::string StateColor(const std::string& state) {
+  if (state == "done") return "32";
+  if (state == "failed") return "31";
+  if (state == "running") return "33";
+  if (state == "cancelled") return "2";
+  return "";
+}
+
+std::string FormatNumber(double v, int precision) {
+  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+  if (v == 0) return "0";  // never "-0"
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*g", precision, v);
+  return buffer;
+}
+
+std::string FormatDuration(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "?";
+  long long s = std::llround(seconds);
+  char buffer[64];
+  if (s < 60) {
+    std::snprintf(buffer, sizeof buffer, "%llds", s);
+  } else if (s < 3600) {
+    std::snprintf(buffer, sizeof buffer, "%lldm%02llds", s / 60, s % 60);
+  } else if (s < 86400) {
+    std::snprintf(buffer, sizeof buffer, "%lldh%02lldm", s / 3600, (s % 3600) / 60);
+  } else {
+    std::snprintf(buffer, sizeof buffer, "%lldd%02lldh", s / 86400, (s % 86400) / 3600);
+  }
+  return buffer;
+}
+
+std::string ProgressBar(double fraction, int width) {
+  if (!std::isfinite(fraction)) fraction = 0;
+  fraction = std::clamp(fraction, 0.0, 1.0);
+  width = std::max(width, 1);
+  int filled = static_cast<int>(std::floor(fraction * width + 1e-9));
+  char percent[16];
+  std::snprintf(percent, sizeof percent, "%3d%%", static_cast<int>(std::floor(fraction * 100 + 1e-9)));
+  return "[" + std::string(filled, '#') + std::string(width - filled, '.') + "] " + percent;
+}
+
+std::string CsvCell(const json& value) {
+  if (value.is_null()) return "";
+  if (value.is_array()) {
+    std::string joined;
+    for (const auto& e : value) joined += (joined.empty() ? "" : ";") + (e.is_string() ? e.get<std::string>() : e.dump());
+    return CsvCell(json(joined));
+  }
+  if (!value.is_string()) return value.dump();
+  std::string s = value.get<std::string>();
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string quoted = "\"";
+  for (char ch : s) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return quoted + "\"";
+}
+
+// ---- Domain values -----------------------------------------------------------------------------
+
+Counts CountsFromJson(const json& j) {
+  Counts c;
+  if (!j.is_object()) return c;
+  c.queued = Int(j, "queued");
+  c.running = Int(j, "running");
+  c.done = Int(j, "done");
+  c.failed = Int(j, "failed");
+  c.cancelled = Int(j, "cancelled");
+  return c;
+}
+
+std::string FormatCounts(const Counts& c, const RenderOptions& options) {
+  auto part = [&](int64_t n, const char* state) {
+    std::string text = std::to_string(n) + " " + state;
+    return n > 0 ? Colorize(text, StateColor(state), options.color) : text;
+  };
+  return part(c.queued, "queued") + ", " + part(c.running, "running") + ", " + part(c.done, "done") +
+         ", " + part(c.failed, "failed") + ", " + part(c.cancelled, "cancelled");
+}
+
+std::string FormatPoint(const json& p) {
+  if (!p.is_object()) return "?";
+  std::string out = Str(p, "mode", "?");
+  const char* fields[] = {"A", "f", "Omega", "omega"};
+  for (const char* f : fields) {
+    if (auto v = Num(p, f)) out += std::string(" ") + f + "=" + FormatNumber(*v);
+  }
+  std::string axis = Str(p, "axis");
+  if (!axis.empty()) out += " axis=" + axis;
+  if (auto d = Num(p, "duration_s")) out += " T=" + FormatNumber(*d) + "s";
+  return out;
+}
+
+std::optional<double> EstimateEtaSeconds(const std::vector<double>& done_wall_s, int64_t queued,
+                                         const std::vector<double>& running_fractions) {
+  if (queued <= 0 && running_fractions.empty()) return 0.0;
+  std::vector<double> samples;
+  for (double w : done_wall_s) {
+    if (std::isfinite(w) && w >= 0) samples.push_back(w);
+  }
+  if (samples.empty() || running_fractions.empty()) return std::nullopt;
+  double mean = 0;
+  for (double w : samples) mean += w;
+  mean /= static_cast<double>(samples.size());
+  double left = static_cast<double>(std::max<int64_t>(queued, 0));
+  for (double f : running_fractions) left += 1.0 - std::clamp(std::isfinite(f) ? f : 0.0, 0.0, 1.0);
+  return mean * left / static_cast<double>(running_fractions.size());
+}
+
+// ---- status / watch ----------------------------------------------------------------------------
+
+double RunInFlight::fraction() const {
+  if (!(duration_s > 0) || !std::isfinite(sim_time_s)) return 0;
+  return std::clamp(sim_time_s / duration_s, 0.0, 1.0);
+}
+
+std::optional<double> Snapshot::eta_s() const {
+  std::vector<double> fractions;
+  for (const auto& r : running) fractions.push_back(r.fraction());
+  // The counts are authoritative for how many are in flight (the list may be a page).
+  while (static_cast<int64_t>(fractions.size()) < counts.running) fractions.push_back(0);
+  return EstimateEtaSeconds(done_wall_s, counts.queued, fractions);
+}
+
+namespace {
+
+std::string EtaText(const Snapshot& s) {
+  if (s.counts.finished()) return "finished";
+  auto eta = s.eta_s();
+  if (eta) return "ETA " + FormatDuration(*eta);
+  if (s.counts.running == 0) return "ETA unknown (no run in flight: is a worker running?)";
+  return "ETA unknown (no run has finished yet)";
+}
+
+std::string InFlightLine(const RunInFlight& r) {
+  return "run " + std::to_string(r.id) + "  " + ProgressBar(r.fraction()) + "  " +
+         FormatNumber(r.sim_time_s, 4) + "/" + FormatNumber(r.duration_s, 4) + " s  z=" +
+         FormatNumber(r.so_z, 4) + " m  " + r.point;
+}
+
+}  // namespace
+
+std::string RenderStatus(const Snapshot& s, const RenderOptions& options) {
+  std::string out = s.title + "\n";
+  out += "  runs: " + std::to_string(s.counts.total()) + " (" + FormatCounts(s.counts, options) + ")\n";
+  out += "  " + EtaText(s) + "\n";
+  if (!s.running.empty()) {
+    out += "in flight:\n";
+    for (const auto& r : s.running) {
+      out += "  " + InFlightLine(r) + (r.worker.empty() ? "" : "  on " + r.worker) + "\n";
+    }
+  }
+  if (!s.failed.empty()) {
+    out += Colorize("failed:", StateColor("failed"), options.color) + "\n";
+    for (const auto& f : s.failed) {
+      out += "  run " + std::to_string(f.id) + "  " + f.point + "\n    " + f.reason + "\n";
+    }
+  }
+  return out;
+}
+
+std::string RenderWatchFrame(const Snapshot& s, const RenderOptions& options) {
+  std::string out = s.title + "\n";
+  out += "  " + FormatCounts(s.counts, options) + "; " + EtaText(s) + "\n";
+  for (const auto& r : s.running) out += "  " + InFlightLine(r) + "\n";
+  return out;
+}
+
+json SnapshotToJson(const Snapshot& s) {
+  json running = json::array(), failed = json::array();
+  for (const auto& r : s.running) {
+    running.push_back({{"id", r.id}, {"point", r.point}, {"sim_time_s", r.sim_time_s},
+                       {"duration_s", r.duration_s}, {"so_z", r.so_z}, {"worker", r.worker}});
+  }
+  for (const auto& f : s.failed) failed.push_back({{"id", f.id}, {"point", f.point}, {"reason", f.reason}});
+  auto eta = s.eta_s();
+  return {{"title", s.title},
+          {"counts", {{"queued", s.counts.queued}, {"running", s.counts.running}, {"done", s.counts.done},
+                      {"failed", s.counts.failed}, {"cancelled", s.counts.cancelled}}},
+          {"running", running},
+          {"failed", failed},
+          {"eta_s", eta ? json(*eta) : json(nullptr)},
+          {"finished", s.counts.finished()}};
+}
+
+std::string RenderWatchLine(const Snapshot& s) {
+  const Counts& c = s.counts;
+  return s.title + ": " + std::to_string(c.done) + "/" + std::to_string(c.total()) + " done, " +
+         std::to_string(c.running) + " running, " + std::to_string(c.queued) + " queued, " +
+         std::to_string(c.failed) + " failed, " + std::to_string(c.cancelled) + " cancelled; " + EtaText(s);
+}
+
+// ---- Lists and results -------------------------------------------------------------------------
+
+std::string RenderSweepsTable(const json& sweeps, const RenderOptions&) {
+  Table t;
+  t.header = {"ID", "NAME", "SCALE", "RUNS", "QUEUED", "RUNNING", "DONE", "FAILED", "CANCELLED"};
+  t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight,
+             Align::kRight, Align::kRight, Align::kRight, Align::kRight};
+  if (sweeps.is_array()) {
+    for (const auto& s : sweeps) {
+      Counts c = CountsFromJson(s.value("counts", json::object()));
+      std::string name = Str(s, "name");
+      if (Bool(s, "cancelled")) name += " (cancelled)";
+      t.rows.push_back({Str(s, "id"), name, Str(s, "scale"), std::to_string(c.total()),
+                        std::to_string(c.queued), std::to_string(c.running), std::to_string(c.done),
+                        std::to_string(c.failed), std::to_string(c.cancelled)});
+    }
+  }
+  return RenderTable(t);
+}
+
+std::string RenderRunsTable(const json& runs, const RenderOptions& options) {
+  Table t;
+  t.header = {"ID", "STATE", "PROGRESS", "U_z (m/s)", "POINT", "WORKER"};
+  t.align = {Align::kRight, Align::kLeft, Align::kRight, Align::kRight, Align::kLeft, Align::kLeft};
+  if (runs.is_array()) {
+    for (const auto& r : runs) {
+      std::string state = Str(r, "state");
+      json progress = r.value("progress", json::object());
+      std::string progress_text = "-";
+      if (state == "running" || state == "done") {
+        progress_text = NumCell(progress, "sim_time_s", 4) + "/" + NumCell(r, "run_duration_s", 4) + " s";
+      }
+      std::string worker = Str(r, "worker");
+      t.rows.push_back({Str(r, "id"), StateCell(state), progress_text, NumCell(r, "uz", 4),
+                        FormatPoint(r.value("point", json::object())), worker.empty() ? "-" : worker});
+      t.color.push_back({"", options.color ? StateColor(state) : ""});
+    }
+  }
+  return RenderTable(t);
+}
+
+std::string RenderRunDetail(const json& run, const RenderOptions& options) {
+  std::ostringstream out;
+  std::string state = Str(run, "state");
+  out << "run " << Str(run, "id") << "  " << Colorize(state, StateColor(state), options.color) << "\n";
+  out << "  key:       " << Str(run, "key") << "\n";
+  out << "  point:     " << FormatPoint(run.value("point", json::object())) << "\n";
+  out << "  runs for:  " << NumCell(run, "run_duration_s") << " s simulated, " << Str(run, "steps", "?")
+      << " steps\n";
+  out << "  bed:       " << Str(run, "bed_id", "?") << " (" << Str(run, "bed_state", "?") << ")\n";
+  std::string sweeps;
+  for (const auto& id : run.value("sweeps", json::array())) sweeps += (sweeps.empty() ? "" : ", ") + id.dump();
+  out << "  sweeps:    " << (sweeps.empty() ? "-" : sweeps) << "\n";
+  std::string worker = Str(run, "worker");
+  out << "  attempts:  " << Str(run, "attempts", "0") << (worker.empty() ? "" : ", last on " + worker) << "\n";
+  json progress = run.value("progress", json::object());
+  if (state == "running") {
+    RunInFlight r;
+    r.sim_time_s = Num(progress, "sim_time_s").value_or(0);
+    r.duration_s = Num(run, "run_duration_s").value_or(0);
+    out << "  progress:  " << ProgressBar(r.fraction()) << "  " << FormatNumber(r.sim_time_s, 4) << "/"
+        << FormatNumber(r.duration_s, 4) << " s  z=" << NumCell(progress, "so_z", 4) << " m\n";
+  }
+  if (run.contains("result") && run["result"].is_object()) {
+    const json& r = run["result"];
+    out << "  result:    U_z = " << NumCell(r, "uz", 4) << " m/s (± " << NumCell(r, "uz_stderr", 2)
+        << "), dz = " << NumCell(r, "dz", 4) << " m, x drift = " << NumCell(r, "x_drift", 4)
+        << " m, stop: " << Str(r, "stop_reason", "?") << "\n";
+    out << "  executed:  " << Str(r, "engine_version", "?") << " on " << Str(r, "host", "?") << ", "
+        << Str(r, "ranks", "?") << " rank(s), " << FormatDuration(Num(r, "wall_s").value_or(-1)) << " wall\n";
+  }
+  if (run.contains("last_error") && run["last_error"].is_object()) {
+    out << "  error:     " << Str(run["last_error"], "kind") << ": " << Str(run["last_error"], "message") << "\n";
+  }
+  std::string deck = Str(run, "deck");
+  if (!deck.empty()) {
+    out << "--- deck ---\n" << deck;
+    if (deck.back() != '\n') out << "\n";
+  }
+  std::string log = Str(run, "log_tail");
+  out << "--- log tail ---\n";
+  if (log.empty()) {
+    out << "(no log yet)\n";
+  } else {
+    out << log;
+    if (log.back() != '\n') out << "\n";
+  }
+  return out.str();
+}
+
+std::string ResultFlags(const json& row) {
+  std::string flags;
+  if (Bool(row, "broke_surface")) flags = "surface";
+  if (Bool(row, "near_floor")) flags += flags.empty() ? "floor" : ",floor";
+  return flags;
+}
+
+std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
+  bool with_sweeps = false;
+  if (rows.is_array()) {
+    for (const auto& r : rows) with_sweeps = with_sweeps || r.contains("sweeps");
+  }
+  Table t;
+  t.header = {"RUN", "STATE", "MODE", "A", "f", "Omega/omega", "AXIS", "DURATION", "U_z (m/s)", "Δz (m)", "FLAGS"};
+  t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight, Align::kRight,
+             Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
+  if (with_sweeps) t.header.push_back("SWEEPS");
+  if (rows.is_array()) {
+    for (const auto& r : rows) {
+      std::string state = Str(r, "state");
+      std::string axis = Str(r, "axis");
+      std::string flags = ResultFlags(r);
+      std::vector<std::string> row = {Str(r, "run_id"), StateCell(state), Str(r, "mode", "-"),
+                                      NumCell(r, "A"), NumCell(r, "f"), OmegaCell(r),
+                                      axis.empty() ? "-" : axis, NumCell(r, "duration_s"),
+                                      NumCell(r, "Uz", 4), NumCell(r, "dz", 4), flags.empty() ? "-" : flags};
+      if (with_sweeps) {
+        std::string sweeps;
+        for (const auto& s : r.value("sweeps", json::array())) {
+          sweeps += (sweeps.empty() ? "" : ",") + (s.is_string() ? s.get<std::string>() : s.dump());
+        }
+        row.push_back(sweeps.empty() ? "-" : sweeps);
+      }
+      t.rows.push_back(std::move(row));
+      t.color.push_back({"", options.color ? StateColor(state) : ""});
+    }
+  }
+  return RenderTable(t);
+}
+
+const std::vector<std::string>& ResultCsvColumns() {
+  static const std::vector<std::string> kColumns = {
+      "run_id", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s", "run_duration_s",
+      "Uz", "Uz_stderr", "dz", "broke_surface", "near_floor", "stop_reason", "key"};
+  return kColumns;
+}
+
+std::string RenderResultsCsv(const json& rows) {
+  std::vector<std::string> columns = ResultCsvColumns();
+  bool with_sweeps = false;
+  if (rows.is_array()) {
+    for (const auto& r : rows) with_sweeps = with_sweeps || r.contains("sweeps");
+  }
+  if (with_sweeps) columns.push_back("sweeps");
+  std::string out;
+  for (size_t i = 0; i < columns.size(); ++i) out += (i ? "," : "") + columns[i];
+  out += "\n";
+  if (!rows.is_array()) return out;
+  for (const auto& r : rows) {
+    for (size_t i = 0; i < columns.size(); ++i) {
+      if (i) out += ",";
+      auto it = r.find(columns[i]);
+      if (it != r.end()) out += CsvCell(*it);
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace sandswim::cli

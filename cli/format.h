@@ -1,0 +1,150 @@
+// Format: how `sandswim` shows what the daemon answers. Pure functions from JSON values (the
+// REST API's shapes, server/store.h and server/routes.cc) and plain structs to text: tables,
+// CSV, progress bars, durations and the ETA. No I/O, no clock, no environment: the caller says
+// whether colour is wanted (RenderOptions) and what time it is.
+//
+// Tables: a header row, then one row per item; columns are separated by two spaces, numbers are
+// right-aligned, and no line has trailing blanks. Colour (ANSI SGR) only marks states and is
+// added after padding, so columns line up with and without it.
+//
+// Numbers: %.4g for physical figures (U_z, Δz), %g for drive parameters; CSV cells use the
+// shortest form that reads back to the same double (as the daemon's own CSV does).
+//
+// Thread safety: pure functions over values.
+#ifndef SANDSWIM_CLI_FORMAT_H_
+#define SANDSWIM_CLI_FORMAT_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace sandswim::cli {
+
+struct RenderOptions {
+  bool color = false;  // ANSI colours for states (decided by the caller: TTY, NO_COLOR)
+};
+
+// ---- Building blocks ---------------------------------------------------------------------------
+
+enum class Align { kLeft, kRight };
+
+struct Table {
+  std::vector<std::string> header;
+  std::vector<Align> align;                     // per column; missing columns are kLeft
+  std::vector<std::vector<std::string>> rows;
+  std::vector<std::vector<std::string>> color;  // optional SGR code per cell ("31"), same shape
+};
+
+// Width of `text` on a terminal: UTF-8 code points (so "Δz" is 2 wide).
+size_t DisplayWidth(const std::string& text);
+std::string RenderTable(const Table& table);
+
+// `text` wrapped in the SGR `code` ("1;31") when color is on.
+std::string Colorize(const std::string& text, const std::string& code, bool color);
+// The SGR code for a run state: done green, failed red, running yellow, cancelled dim.
+std::string StateColor(const std::string& state);
+
+// %g with up to `precision` significant digits ("0.03", "-80", "1.235e-05").
+std::string FormatNumber(double v, int precision = 6);
+// "45s", "3m20s", "1h02m", "2d03h"; negative or non-finite: "?".
+std::string FormatDuration(double seconds);
+// "[#########...........]  45%" with `width` cells between the brackets; fraction clamped to
+// [0, 1]. Partial cells are not drawn: the bar shows floor(fraction * width) '#'.
+std::string ProgressBar(double fraction, int width = 20);
+
+// One CSV cell: null -> "", strings quoted when they hold , " or a newline, numbers in the
+// shortest round-trip form, booleans as true/false.
+std::string CsvCell(const nlohmann::json& value);
+
+// ---- Domain values -----------------------------------------------------------------------------
+
+struct Counts {
+  int64_t queued = 0, running = 0, done = 0, failed = 0, cancelled = 0;
+  int64_t total() const { return queued + running + done + failed + cancelled; }
+  bool finished() const { return queued == 0 && running == 0; }
+  bool operator==(const Counts& o) const {
+    return queued == o.queued && running == o.running && done == o.done && failed == o.failed &&
+           cancelled == o.cancelled;
+  }
+};
+// From {"queued":..,"running":..,...} (missing keys count 0).
+Counts CountsFromJson(const nlohmann::json& j);
+// "2 queued, 1 running, 5 done, 0 failed, 0 cancelled"
+std::string FormatCounts(const Counts& c, const RenderOptions& options = {});
+
+// A point (PointToJson's shape, or a flat result row) in one line:
+// "oscillatory A=0.03 f=3 Omega=-80 T=0.3s", "rotation omega=20 axis=z T=4s".
+std::string FormatPoint(const nlohmann::json& point);
+
+// ETA from measured throughput: the mean wall time of the done runs (`done_wall_s`), times the
+// work left (every queued run, plus the unfinished fraction of each running run), divided by the
+// runs in flight (the parallelism the daemon shows right now). nullopt when nothing has finished
+// yet, or when runs are queued but none is running (no worker: no throughput to measure).
+// 0 when nothing is left.
+std::optional<double> EstimateEtaSeconds(const std::vector<double>& done_wall_s, int64_t queued,
+                                         const std::vector<double>& running_fractions);
+
+// ---- What `status` and `watch` show --------------------------------------------------------------
+
+struct RunInFlight {
+  int64_t id = 0;
+  std::string point;     // FormatPoint()
+  double sim_time_s = 0;  // simulated so far
+  double duration_s = 0;  // the run's duration at its scale
+  double so_z = 0;        // m
+  std::string worker;
+  double fraction() const;  // sim_time_s / duration_s in [0, 1]
+};
+
+struct RunFailure {
+  int64_t id = 0;
+  std::string point;
+  std::string reason;  // "kind: message"
+};
+
+// One look at a sweep or a campaign run (built by snapshot.h from the daemon's answers).
+struct Snapshot {
+  std::string title;  // "sweep 3 omega-sign (scale smoke)"
+  Counts counts;
+  std::vector<RunInFlight> running;
+  std::vector<RunFailure> failed;
+  std::vector<double> done_wall_s;  // finished_at - started_at of done runs
+  std::optional<double> eta_s() const;
+};
+
+// The full `status` text: title, counts, runs in flight (bar, simulated time / duration, SO z),
+// failures with their reasons, ETA.
+std::string RenderStatus(const Snapshot& s, const RenderOptions& options);
+// A `watch` frame on a terminal: title, counts + ETA, one progress line per running run.
+std::string RenderWatchFrame(const Snapshot& s, const RenderOptions& options);
+// {"title","counts":{...},"running":[{"id","point","sim_time_s","duration_s","so_z","worker"}],
+//  "failed":[{"id","point","reason"}],"eta_s": number|null,"finished": bool}
+nlohmann::json SnapshotToJson(const Snapshot& s);
+// The one line `watch` prints when piped: "sweep 3 ...: 5/8 done, 1 running, 2 queued, 0 failed,
+// 0 cancelled; ETA 3m20s".
+std::string RenderWatchLine(const Snapshot& s);
+
+// ---- Lists and results ---------------------------------------------------------------------------
+
+// GET /api/v1/sweeps "sweeps" array -> ID NAME SCALE RUNS QUEUED RUNNING DONE FAILED CANCELLED.
+std::string RenderSweepsTable(const nlohmann::json& sweeps, const RenderOptions& options);
+// GET /api/v1/runs "runs" array -> ID STATE POINT PROGRESS U_z WORKER.
+std::string RenderRunsTable(const nlohmann::json& runs, const RenderOptions& options);
+// GET /api/v1/runs/{id} -> a multi-line description with deck and log tail.
+std::string RenderRunDetail(const nlohmann::json& run, const RenderOptions& options);
+
+// Results rows (the flat rows of GET .../results): one row per run.
+// Table columns: RUN STATE MODE A f Omega/omega AXIS DURATION U_z (m/s) Δz (m) FLAGS [SWEEPS].
+std::string RenderResultsTable(const nlohmann::json& rows, const RenderOptions& options);
+// CSV columns: ResultCsvColumns() (+ "sweeps" when any row has them).
+std::string RenderResultsCsv(const nlohmann::json& rows);
+const std::vector<std::string>& ResultCsvColumns();
+// "surface", "floor", "surface,floor" or "" from a row's broke_surface / near_floor.
+std::string ResultFlags(const nlohmann::json& row);
+
+}  // namespace sandswim::cli
+
+#endif  // SANDSWIM_CLI_FORMAT_H_

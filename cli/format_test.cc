@@ -1,0 +1,207 @@
+#include "cli/format.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+namespace sandswim::cli {
+namespace {
+
+using json = nlohmann::json;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+json TwoResultRows() {
+  return json::parse(R"([
+    {"run_id": 1, "key": "k1", "state": "done", "mode": "oscillatory", "A": 0.03, "f": 3.0,
+     "Omega": -80.0, "omega": null, "axis": null, "duration_s": 5.0, "run_duration_s": 5.0,
+     "Uz": 0.0123456, "Uz_stderr": 0.0001, "dz": 0.061728, "broke_surface": true,
+     "near_floor": false, "stop_reason": "surface"},
+    {"run_id": 12, "key": "k,2", "state": "failed", "mode": "vibration+rotation", "A": 0.03,
+     "f": 3.0, "Omega": null, "omega": 80.0, "axis": "xz", "duration_s": 4.0,
+     "run_duration_s": 4.0, "Uz": null, "Uz_stderr": null, "dz": null, "broke_surface": null,
+     "near_floor": null, "stop_reason": null}
+  ])");
+}
+
+TEST(FormatTest, TableAlignsColumnsWithoutTrailingBlanks) {
+  Table t;
+  t.header = {"ID", "NAME", "N"};
+  t.align = {Align::kRight, Align::kLeft, Align::kRight};
+  t.rows = {{"1", "a", "10"}, {"123", "longer", "2"}};
+  EXPECT_EQ(RenderTable(t),
+            " ID  NAME     N\n"
+            "  1  a       10\n"
+            "123  longer   2\n");
+}
+
+TEST(FormatTest, ColourWrapsTheTextNotThePadding) {
+  Table t;
+  t.header = {"ID", "STATE", "X"};
+  t.rows = {{"1", "done", "x"}};
+  t.color = {{"", "32", ""}};
+  EXPECT_EQ(RenderTable(t), "ID  STATE  X\n1   \x1b[32mdone\x1b[0m   x\n");
+}
+
+TEST(FormatTest, DisplayWidthCountsCodePoints) {
+  EXPECT_EQ(DisplayWidth("Δz (m)"), 6u);
+  EXPECT_EQ(DisplayWidth(""), 0u);
+}
+
+TEST(FormatTest, NumbersAndDurations) {
+  EXPECT_EQ(FormatNumber(0.03), "0.03");
+  EXPECT_EQ(FormatNumber(-80.0), "-80");
+  EXPECT_EQ(FormatNumber(-0.0), "0");
+  EXPECT_EQ(FormatNumber(0.0123456, 4), "0.01235");
+  EXPECT_EQ(FormatDuration(45), "45s");
+  EXPECT_EQ(FormatDuration(200), "3m20s");
+  EXPECT_EQ(FormatDuration(3720), "1h02m");
+  EXPECT_EQ(FormatDuration(2 * 86400 + 3 * 3600 + 59), "2d03h");
+  EXPECT_EQ(FormatDuration(-1), "?");
+}
+
+TEST(FormatTest, ProgressBar) {
+  EXPECT_EQ(ProgressBar(0.0, 10), "[..........]   0%");
+  EXPECT_EQ(ProgressBar(0.45, 10), "[####......]  45%");
+  EXPECT_EQ(ProgressBar(1.0, 10), "[##########] 100%");
+  EXPECT_EQ(ProgressBar(7.0, 4), "[####] 100%");   // clamped
+  EXPECT_EQ(ProgressBar(-1.0, 4), "[....]   0%");  // clamped
+}
+
+TEST(FormatTest, EtaFromMeasuredThroughput) {
+  // Nothing finished yet: no throughput to measure.
+  EXPECT_FALSE(EstimateEtaSeconds({}, 3, {0.5}).has_value());
+  // Queued runs and nobody running: no worker.
+  EXPECT_FALSE(EstimateEtaSeconds({10}, 3, {}).has_value());
+  // Nothing left.
+  EXPECT_EQ(EstimateEtaSeconds({}, 0, {}), 0.0);
+  // Mean wall 20 s; left: 3 queued + 0.5 + 1.0 of two running runs = 4.5 runs over 2 in flight.
+  auto eta = EstimateEtaSeconds({10, 30}, 3, {0.5, 0.0});
+  ASSERT_TRUE(eta.has_value());
+  EXPECT_DOUBLE_EQ(*eta, 20 * 4.5 / 2);
+}
+
+TEST(FormatTest, CountsAndPoints) {
+  Counts c = CountsFromJson(json::parse(R"({"queued":2,"running":1,"done":5,"failed":0,"cancelled":0})"));
+  EXPECT_EQ(c.total(), 8);
+  EXPECT_FALSE(c.finished());
+  EXPECT_EQ(FormatCounts(c), "2 queued, 1 running, 5 done, 0 failed, 0 cancelled");
+  EXPECT_EQ(FormatPoint(json::parse(R"({"mode":"oscillatory","A":0.03,"f":3,"Omega":-80,"duration_s":5})")),
+            "oscillatory A=0.03 f=3 Omega=-80 T=5s");
+  EXPECT_EQ(FormatPoint(json::parse(R"({"mode":"rotation","omega":80,"axis":"x","duration_s":4})")),
+            "rotation omega=80 axis=x T=4s");
+}
+
+TEST(FormatTest, ResultsTableGolden) {
+  EXPECT_EQ(RenderResultsTable(TwoResultRows(), {}),
+            "RUN  STATE   MODE                   A  f  Omega/omega  AXIS  DURATION  U_z (m/s)   Δz (m)  FLAGS\n"
+            "  1  done    oscillatory         0.03  3          -80  -            5    0.01235  0.06173  surface\n"
+            " 12  failed  vibration+rotation  0.03  3           80  xz           4          -        -  -\n");
+}
+
+TEST(FormatTest, ResultsTableNamesSweepsOfCampaignRows) {
+  json rows = TwoResultRows();
+  rows[0]["sweeps"] = {"baseline", "Omega-sweep"};
+  rows[1]["sweeps"] = {"modes.vibration-rotation-xz"};
+  std::string table = RenderResultsTable(rows, {});
+  EXPECT_THAT(table, HasSubstr("SWEEPS"));
+  EXPECT_THAT(table, HasSubstr("baseline,Omega-sweep"));
+}
+
+TEST(FormatTest, ResultsCsvGolden) {
+  EXPECT_EQ(RenderResultsCsv(TwoResultRows()),
+            "run_id,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz,Uz_stderr,dz,"
+            "broke_surface,near_floor,stop_reason,key\n"
+            "1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,0.0123456,0.0001,0.061728,true,false,surface,k1\n"
+            "12,failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,\"k,2\"\n");
+}
+
+TEST(FormatTest, ResultFlags) {
+  EXPECT_EQ(ResultFlags(json::parse(R"({"broke_surface":true,"near_floor":true})")), "surface,floor");
+  EXPECT_EQ(ResultFlags(json::parse(R"({"broke_surface":false,"near_floor":true})")), "floor");
+  EXPECT_EQ(ResultFlags(json::parse(R"({"broke_surface":null})")), "");
+}
+
+TEST(FormatTest, CsvCellQuotes) {
+  EXPECT_EQ(CsvCell(json("a\"b")), "\"a\"\"b\"");
+  EXPECT_EQ(CsvCell(json(nullptr)), "");
+  EXPECT_EQ(CsvCell(json::array({"a", "b"})), "a;b");
+}
+
+Snapshot SampleSnapshot() {
+  Snapshot s;
+  s.title = "sweep 3 omega-sign (scale smoke)";
+  s.counts = {2, 1, 5, 1, 0};
+  s.running.push_back({7, "oscillatory A=0.03 f=3 Omega=-80 T=5s", 2.5, 5.0, 0.4321, "node1:12"});
+  s.failed.push_back({9, "oscillatory A=0.03 f=3 Omega=80 T=5s", "engine_error: ERROR: Lost atoms"});
+  s.done_wall_s = {100, 140};
+  return s;
+}
+
+TEST(FormatTest, StatusGolden) {
+  // ETA: mean 120 s * (2 queued + 0.5) / 1 in flight = 300 s.
+  EXPECT_EQ(RenderStatus(SampleSnapshot(), {}),
+            "sweep 3 omega-sign (scale smoke)\n"
+            "  runs: 9 (2 queued, 1 running, 5 done, 1 failed, 0 cancelled)\n"
+            "  ETA 5m00s\n"
+            "in flight:\n"
+            "  run 7  [##########..........]  50%  2.5/5 s  z=0.4321 m  oscillatory A=0.03 f=3 Omega=-80 T=5s"
+            "  on node1:12\n"
+            "failed:\n"
+            "  run 9  oscillatory A=0.03 f=3 Omega=80 T=5s\n"
+            "    engine_error: ERROR: Lost atoms\n");
+}
+
+TEST(FormatTest, WatchLineAndFrame) {
+  Snapshot s = SampleSnapshot();
+  EXPECT_EQ(RenderWatchLine(s),
+            "sweep 3 omega-sign (scale smoke): 5/9 done, 1 running, 2 queued, 1 failed, 0 cancelled; ETA 5m00s");
+  std::string frame = RenderWatchFrame(s, {});
+  EXPECT_THAT(frame, HasSubstr("[##########..........]  50%"));
+  EXPECT_THAT(frame, Not(HasSubstr("\x1b[")));
+  EXPECT_THAT(RenderWatchFrame(s, RenderOptions{true}), HasSubstr("\x1b[31m1 failed\x1b[0m"));
+  s.running.clear();
+  s.counts = {0, 0, 7, 2, 0};
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("; finished"));
+}
+
+TEST(FormatTest, SnapshotJson) {
+  json j = SnapshotToJson(SampleSnapshot());
+  EXPECT_EQ(j["counts"]["queued"], 2);
+  EXPECT_EQ(j["running"][0]["id"], 7);
+  EXPECT_EQ(j["failed"][0]["reason"], "engine_error: ERROR: Lost atoms");
+  EXPECT_DOUBLE_EQ(j["eta_s"].get<double>(), 300);
+  EXPECT_EQ(j["finished"], false);
+}
+
+TEST(FormatTest, SweepsAndRunsTables) {
+  json sweeps = json::parse(R"([{"id": 1, "name": "omega-sign", "scale": "smoke", "cancelled": true,
+      "counts": {"queued":0,"running":0,"done":1,"failed":0,"cancelled":1}}])");
+  EXPECT_EQ(RenderSweepsTable(sweeps, {}),
+            "ID  NAME                    SCALE  RUNS  QUEUED  RUNNING  DONE  FAILED  CANCELLED\n"
+            " 1  omega-sign (cancelled)  smoke     2       0        0     1       0          1\n");
+  json runs = json::parse(R"([{"id": 4, "state": "running", "run_duration_s": 5.0, "worker": "n1:3",
+      "point": {"mode":"vibration","A":0.03,"f":3,"duration_s":5},
+      "progress": {"sim_time_s": 1.25, "so_z": 0.4, "step": 125000}}])");
+  EXPECT_EQ(RenderRunsTable(runs, {}),
+            "ID  STATE    PROGRESS  U_z (m/s)  POINT                      WORKER\n"
+            " 4  running  1.25/5 s          -  vibration A=0.03 f=3 T=5s  n1:3\n");
+}
+
+TEST(FormatTest, RunDetailShowsDeckResultAndLog) {
+  json run = json::parse(R"J({"id": 4, "state": "done", "key": "abc", "run_duration_s": 5.0, "steps": 500000,
+      "bed_id": 1, "bed_state": "done", "sweeps": [2, 3], "attempts": 1, "worker": "n1:3",
+      "point": {"mode":"vibration","A":0.03,"f":3,"duration_s":5},
+      "progress": {"sim_time_s": 5.0, "so_z": 0.4, "step": 500000},
+      "result": {"uz": 0.012, "uz_stderr": 0.0001, "dz": 0.06, "x_drift": 0.001, "stop_reason": "duration",
+                 "engine_version": "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0)", "host": "n1", "ranks": 2,
+                 "wall_s": 95},
+      "deck": "run 1000\n", "log_tail": "Loop time of 95"})J");
+  std::string text = RenderRunDetail(run, {});
+  EXPECT_THAT(text, HasSubstr("run 4  done\n"));
+  EXPECT_THAT(text, HasSubstr("sweeps:    2, 3\n"));
+  EXPECT_THAT(text, HasSubstr("U_z = 0.012 m/s"));
+  EXPECT_THAT(text, HasSubstr("--- deck ---\nrun 1000\n--- log tail ---\nLoop time of 95\n"));
+}
+
+}  // namespace
+}  // namespace sandswim::cli

@@ -1,0 +1,31 @@
+// sandswim: wiring only. The real streams, environment, clock, REST client and engine probe go
+// into the Environment; cli/commands.cc does the rest.
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <iostream>
+#include <thread>
+
+#include "cli/client.h"
+#include "cli/commands.h"
+#include "server/engine_probe.h"
+
+int main(int argc, char** argv) {
+  signal(SIGPIPE, SIG_IGN);  // `sandswim results 12 | head` ends quietly
+  sandswim::cli::Environment env;
+  env.out = &std::cout;
+  env.err = &std::cerr;
+  env.in = &std::cin;
+  env.out_is_tty = isatty(STDOUT_FILENO) == 1;
+  env.err_is_tty = isatty(STDERR_FILENO) == 1;
+  env.getenv = [](const char* name) { return static_cast<const char*>(std::getenv(name)); };
+  env.now = [] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  };
+  env.sleep = [](double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); };
+  env.make_client = [](const sandswim::cli::ClientOptions& o) { return sandswim::cli::NewHttpClient(o); };
+  env.probe_engine = [] { return sandswim::ProbeEngineVersion(); };
+  return sandswim::cli::RunCli(argc, argv, env);
+}

@@ -1,0 +1,138 @@
+#include "cli/snapshot.h"
+
+#include <charconv>
+#include <set>
+#include <vector>
+
+namespace sandswim::cli {
+namespace {
+
+using json = nlohmann::json;
+
+double NumOr(const json& j, const char* key, double fallback) {
+  auto it = j.find(key);
+  return it != j.end() && it->is_number() ? it->get<double>() : fallback;
+}
+
+std::string FailureReason(const json& run) {
+  auto it = run.find("last_error");
+  if (it == run.end() || !it->is_object()) return "(no reason recorded)";
+  std::string kind = it->value("kind", "");
+  std::string message = it->value("message", "");
+  if (kind.empty()) return message.empty() ? "(no reason recorded)" : message;
+  return message.empty() ? kind : kind + ": " + message;
+}
+
+// Adds the runs of one sweep (running, failed, and done when asked) to the snapshot, skipping run
+// ids already seen (campaign runs share runs between sweeps).
+Status AddRuns(DaemonClient& client, int64_t sweep_id, const SnapshotOptions& options, Snapshot& s,
+               std::set<int64_t>& seen) {
+  struct Want {
+    const char* state;
+    bool wanted;
+  };
+  const Want wants[] = {{"running", true}, {"failed", true}, {"done", options.done_timings}};
+  for (const Want& want : wants) {
+    if (!want.wanted) continue;
+    RunQuery query;
+    query.sweep = sweep_id;
+    query.state = want.state;
+    auto runs = client.ListRuns(query);
+    if (!runs.ok()) return runs.status();
+    for (const json& run : *runs) {
+      int64_t id = run.value("id", int64_t{0});
+      if (!seen.insert(id).second) continue;
+      std::string state = want.state;
+      std::string point = FormatPoint(run.value("point", json::object()));
+      if (state == "running") {
+        json progress = run.value("progress", json::object());
+        RunInFlight r;
+        r.id = id;
+        r.point = point;
+        r.sim_time_s = NumOr(progress, "sim_time_s", 0);
+        r.duration_s = NumOr(run, "run_duration_s", 0);
+        r.so_z = NumOr(progress, "so_z", 0);
+        r.worker = run.value("worker", "");
+        s.running.push_back(r);
+      } else if (state == "failed") {
+        s.failed.push_back({id, point, FailureReason(run)});
+      } else {
+        double started = NumOr(run, "started_at", -1), finished = NumOr(run, "finished_at", -1);
+        if (started >= 0 && finished >= started) s.done_wall_s.push_back(finished - started);
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+std::string Target::ToString() const {
+  return (kind == Kind::kCampaignRun ? "cr:" : "") + std::to_string(id);
+}
+
+Result<int64_t> ParseId(const std::string& text, const std::string& field) {
+  int64_t v = 0;
+  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || v < 1) {
+    return Status::InvalidArgument(field, "expected a positive integer id, got \"" + text + "\"");
+  }
+  return v;
+}
+
+Result<Target> ParseTarget(const std::string& text, const std::string& field) {
+  Target t;
+  std::string id = text;
+  if (text.rfind("cr:", 0) == 0) {
+    t.kind = Target::Kind::kCampaignRun;
+    id = text.substr(3);
+  } else if (text.rfind("sweep:", 0) == 0) {
+    id = text.substr(6);
+  }
+  auto v = ParseId(id, field);
+  if (!v.ok()) {
+    return Status::InvalidArgument(field, "expected a sweep id (12) or a campaign run id (cr:7), got \"" + text + "\"");
+  }
+  t.id = *v;
+  return t;
+}
+
+Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const SnapshotOptions& options) {
+  Snapshot s;
+  std::vector<int64_t> sweep_ids;
+  if (target.kind == Target::Kind::kSweep) {
+    auto sweep = client.GetSweep(target.id);
+    if (!sweep.ok()) return sweep.status();
+    s.title = "sweep " + std::to_string(target.id) + " " + sweep->value("name", "") + " (scale " +
+              sweep->value("scale", "?") + (sweep->value("cancelled", false) ? ", cancelled" : "") + ")";
+    s.counts = CountsFromJson(sweep->value("counts", json::object()));
+    sweep_ids.push_back(target.id);
+  } else {
+    auto run = client.GetCampaignRun(target.id);
+    if (!run.ok()) return run.status();
+    s.title = "campaign run cr:" + std::to_string(target.id) + " " + run->value("campaign", "") + " (scale " +
+              run->value("scale", "?") + ", " + run->value("trigger", "manual") + ")";
+    s.counts = CountsFromJson(run->value("counts", json::object()));
+    for (const json& id : run->value("sweeps", json::array())) {
+      if (id.is_number_integer()) sweep_ids.push_back(id.get<int64_t>());
+    }
+  }
+  std::set<int64_t> seen;
+  for (int64_t sweep_id : sweep_ids) {
+    SANDSWIM_RETURN_IF_ERROR(AddRuns(client, sweep_id, options, s, seen));
+  }
+  return s;
+}
+
+Result<json> FetchResults(DaemonClient& client, const Target& target) {
+  auto reply = target.kind == Target::Kind::kSweep ? client.SweepResults(target.id)
+                                                   : client.CampaignRunResults(target.id);
+  if (!reply.ok()) return reply.status();
+  auto rows = reply->find("results");
+  if (rows == reply->end() || !rows->is_array()) {
+    return Status::Corruption("the daemon's results for " + target.ToString() + " have no \"results\" array");
+  }
+  return *rows;
+}
+
+}  // namespace sandswim::cli

@@ -1,0 +1,48 @@
+// Snapshot: what `status` and `watch` look at, gathered from the daemon through DaemonClient.
+//
+// Targets: the CLI names a sweep by its id ("12") and a campaign run by its id prefixed "cr:"
+// ("cr:7"), the form `submit CAMPAIGN` prints. `sweep:12` is accepted too.
+//
+// A campaign run's counts are those of its distinct runs (a run shared by two of its sweeps
+// counts once), as the daemon reports them; its running and failed runs are gathered over its
+// sweeps and de-duplicated by run id.
+//
+// Thread safety: free functions; the client is used from the calling thread only.
+#ifndef SANDSWIM_CLI_SNAPSHOT_H_
+#define SANDSWIM_CLI_SNAPSHOT_H_
+
+#include <cstdint>
+#include <string>
+
+#include "cli/client.h"
+#include "cli/format.h"
+#include "core/status.h"
+
+namespace sandswim::cli {
+
+struct Target {
+  enum class Kind { kSweep, kCampaignRun };
+  Kind kind = Kind::kSweep;
+  int64_t id = 0;
+  std::string ToString() const;  // "12" or "cr:7"
+};
+
+// "12", "sweep:12" -> a sweep; "cr:7" -> a campaign run. InvalidArgument naming `field` otherwise.
+Result<Target> ParseTarget(const std::string& text, const std::string& field = "SWEEP");
+
+// A run id ("12"); InvalidArgument naming `field` otherwise.
+Result<int64_t> ParseId(const std::string& text, const std::string& field);
+
+struct SnapshotOptions {
+  bool done_timings = true;  // fetch the done runs' wall times (for the ETA)
+};
+
+// Counts, runs in flight and failures (and the done runs' wall times) of a sweep or campaign run.
+Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const SnapshotOptions& options = {});
+
+// The flat result rows of a sweep or campaign run (the "results" array).
+Result<nlohmann::json> FetchResults(DaemonClient& client, const Target& target);
+
+}  // namespace sandswim::cli
+
+#endif  // SANDSWIM_CLI_SNAPSHOT_H_

@@ -1,0 +1,44 @@
+// Watch: follows a sweep or campaign run until nothing is queued or running, showing progress.
+//
+// On a terminal (WatchOptions::tty) each poll redraws one frame in place: the cursor moves back
+// up over the previous frame (ANSI "ESC[nF"), the rest of the screen is cleared ("ESC[J") and the
+// new frame (RenderWatchFrame) is written. When piped, it writes RenderWatchLine() lines: only
+// when the line changed, at most one every `line_interval_s`, and always the final one.
+//
+// The clock and the sleep are injected (WatchClock) so tests run without waiting. The done runs'
+// wall times (for the ETA) are fetched again only when the done count changed.
+//
+// Thread safety: call from one thread.
+#ifndef SANDSWIM_CLI_WATCH_H_
+#define SANDSWIM_CLI_WATCH_H_
+
+#include <functional>
+#include <ostream>
+
+#include "cli/client.h"
+#include "cli/format.h"
+#include "cli/snapshot.h"
+#include "core/status.h"
+
+namespace sandswim::cli {
+
+struct WatchOptions {
+  bool tty = false;
+  bool color = false;
+  double interval_s = 1.0;       // between polls
+  double line_interval_s = 5.0;  // piped: at most one line this often
+};
+
+struct WatchClock {
+  std::function<double()> now;             // seconds, monotonic
+  std::function<void(double)> sleep;       // seconds
+};
+
+// Follows `target` until it is finished; returns the last snapshot (the caller decides the exit
+// code from its counts). Errors from the daemon end the watch.
+Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options,
+                       const WatchClock& clock, std::ostream& out);
+
+}  // namespace sandswim::cli
+
+#endif  // SANDSWIM_CLI_WATCH_H_

@@ -1,0 +1,587 @@
+#include "server/lease_queue.h"
+
+#include <openssl/rand.h>
+
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <utility>
+
+#include <unistd.h>
+
+#include "core/keys.h"
+
+namespace sandswim {
+namespace {
+
+Result<std::string> NewToken() {
+  unsigned char bytes[16];
+  if (RAND_bytes(bytes, sizeof bytes) != 1) return Status::Internal("no randomness for a token");
+  static const char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (unsigned char b : bytes) {
+    out.push_back(kHex[b >> 4]);
+    out.push_back(kHex[b & 15]);
+  }
+  return out;
+}
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+const char* Table(api::JobKind kind) { return kind == api::JobKind::kBed ? "beds" : "runs"; }
+const char* Noun(api::JobKind kind) { return kind == api::JobKind::kBed ? "bed" : "run"; }
+std::string Subject(api::JobKind kind, int64_t id) {
+  return std::string(Noun(kind)) + "/" + std::to_string(id);
+}
+
+struct LeaseRow {
+  api::JobKind kind = api::JobKind::kRun;
+  int64_t job_id = 0;
+  bool completed = false;
+  std::string outcome;
+};
+
+// The lease a token names, or kConflict for a token this daemon never granted.
+Result<LeaseRow> FindLease(Transaction& t, const std::string& token) {
+  Statement st = t.Prepare("SELECT kind, job_id, completed_at, outcome FROM leases WHERE token = ?");
+  st.Bind(1, token);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Conflict("unknown lease token");
+  LeaseRow l;
+  l.kind = st.Text(0) == "bed" ? api::JobKind::kBed : api::JobKind::kRun;
+  l.job_id = st.Int(1);
+  l.completed = !st.IsNull(2);
+  l.outcome = st.Text(3);
+  return l;
+}
+
+struct JobRow {
+  std::string state;
+  std::string lease_token;
+  int attempts = 0;
+  int max_attempts = 0;
+};
+
+Result<JobRow> LoadJob(Transaction& t, api::JobKind kind, int64_t id, int default_max) {
+  Statement st = t.Prepare(std::string("SELECT state, lease_token, attempts, max_attempts FROM ") +
+                           Table(kind) + " WHERE id = ?");
+  st.Bind(1, id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Conflict(std::string(Noun(kind)) + " of this lease no longer exists");
+  JobRow j;
+  j.state = st.Text(0);
+  j.lease_token = st.Text(1);
+  j.attempts = static_cast<int>(st.Int(2));
+  j.max_attempts = static_cast<int>(st.OptInt(3).value_or(default_max));
+  return j;
+}
+
+// kConflict unless `token` is the current lease of a running job.
+Status RequireCurrent(const JobRow& job, const std::string& token, api::JobKind kind) {
+  if (job.state != "running" || job.lease_token != token) {
+    return Status::Conflict("this lease on " + std::string(Noun(kind)) +
+                            " is no longer held (it expired and the job was re-queued or "
+                            "leased again); the job is " + job.state);
+  }
+  return Status::Ok();
+}
+
+// Fails the queued runs waiting for a bed that failed for good.
+Status FailBedRuns(Transaction& t, int64_t bed_id, const std::string& reason, double now) {
+  Statement st = t.Prepare(
+      "UPDATE runs SET state = 'failed', finished_at = ?, last_error_kind = 'bed_failed', "
+      "last_error = ? WHERE bed_id = ? AND state = 'queued'");
+  st.Bind(1, now).Bind(2, reason).Bind(3, bed_id);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  int64_t n = t.Changes();
+  if (n > 0) {
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "runs.failed", "bed/" + std::to_string(bed_id),
+                                     {{"runs", n}, {"reason", reason}}));
+  }
+  return Status::Ok();
+}
+
+// Moves a running job to queued (retry) or failed, recording why. Returns the new state.
+Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
+                                const std::string& kind_text, const std::string& message,
+                                bool retryable, double now) {
+  bool retry = retryable && job.attempts < job.max_attempts;
+  std::string state = retry ? "queued" : "failed";
+  std::string sql = std::string("UPDATE ") + Table(kind) +
+                    " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
+                    "last_error = ?, finished_at = CASE WHEN ? = 'failed' THEN ? ELSE NULL END";
+  if (kind == api::JobKind::kRun) sql += ", queued_at = ?6";
+  sql += " WHERE id = ?7";
+  Statement st = t.Prepare(sql);
+  st.Bind(1, state).Bind(2, kind_text).Bind(3, message).Bind(4, state).Bind(5, now);
+  if (kind == api::JobKind::kRun) st.Bind(6, now);
+  st.Bind(7, id);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"),
+                                   Subject(kind, id),
+                                   {{"kind", kind_text},
+                                    {"message", message},
+                                    {"attempts", job.attempts}}));
+  if (!retry && kind == api::JobKind::kBed) {
+    SANDSWIM_RETURN_IF_ERROR(FailBedRuns(
+        t, id, "bed " + std::to_string(id) + " failed: " + kind_text + ": " + message, now));
+  }
+  return state;
+}
+
+Result<int64_t> ExpireIn(Transaction& t, double now, int default_max) {
+  int64_t expired = 0;
+  for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
+    struct Expired {
+      int64_t id;
+      JobRow job;
+      std::string worker;
+    };
+    std::vector<Expired> rows;
+    {
+      Statement st = t.Prepare(std::string("SELECT id, lease_token, attempts, max_attempts, worker "
+                                           "FROM ") +
+                               Table(kind) +
+                               " WHERE state = 'running' AND lease_expires_at < ? ORDER BY id");
+      st.Bind(1, now);
+      while (true) {
+        Result<bool> row = st.Step();
+        if (!row.ok()) return row.status();
+        if (!*row) break;
+        Expired e;
+        e.id = st.Int(0);
+        e.job.state = "running";
+        e.job.lease_token = st.Text(1);
+        e.job.attempts = static_cast<int>(st.Int(2));
+        e.job.max_attempts = static_cast<int>(st.OptInt(3).value_or(default_max));
+        e.worker = st.Text(4);
+        rows.push_back(std::move(e));
+      }
+    }
+    for (const Expired& e : rows) {
+      Result<std::string> state =
+          RetryOrFail(t, kind, e.id, e.job, "lease_expired",
+                      "worker " + e.worker + " stopped heartbeating (lease expired)",
+                      /*retryable=*/true, now);
+      if (!state.ok()) return state.status();
+      Statement st = t.Prepare("UPDATE leases SET outcome = 'expired' WHERE token = ?");
+      st.Bind(1, e.job.lease_token);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      ++expired;
+    }
+  }
+  if (expired > 0) SANDSWIM_RETURN_IF_ERROR(t.Count("expirations", expired));
+  return expired;
+}
+
+}  // namespace
+
+void to_json(nlohmann::json& j, const CancelSummary& c) {
+  j = nlohmann::json{{"cancelled", c.cancelled}, {"stopping", c.stopping}};
+}
+
+LeaseQueue::LeaseQueue(Store* store, Clock* clock, LeaseQueueOptions options)
+    : store_(store), clock_(clock), options_(options) {}
+
+Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest& request) {
+  using Out = std::optional<api::LeaseGrant>;
+  const double now = clock_->Now();
+  Result<Transaction> begun = store_->Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  Result<int64_t> expired = ExpireIn(t, now, options_.max_attempts);
+  if (!expired.ok()) return expired.status();
+
+  api::LeaseGrant g;
+  g.ttl_s = options_.ttl_s;
+  g.wall_budget_s = options_.wall_budget_s;
+  bool found = false;
+  {
+    // Beds first: a bed some queued run is waiting for.
+    Statement st = t.Prepare(
+        "SELECT b.id, b.key, b.deck, b.attempts FROM beds b WHERE b.state = 'queued' AND "
+        "EXISTS (SELECT 1 FROM runs r WHERE r.bed_id = b.id AND r.state = 'queued') "
+        "ORDER BY b.id LIMIT 1");
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      found = true;
+      g.kind = api::JobKind::kBed;
+      g.id = st.Int(0);
+      g.key = st.Text(1);
+      g.deck = st.Text(2);
+      g.attempt = static_cast<int>(st.Int(3)) + 1;
+    }
+  }
+  if (!found) {
+    Statement st = t.Prepare(
+        "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256 "
+        "FROM runs r JOIN beds b ON b.id = r.bed_id JOIN run_decks d ON d.run_id = r.id "
+        "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      found = true;
+      g.kind = api::JobKind::kRun;
+      g.id = st.Int(0);
+      g.key = st.Text(1);
+      g.deck = st.Text(2);
+      g.attempt = static_cast<int>(st.Int(3)) + 1;
+      g.duration_s = st.Double(4);
+      g.steps = st.Int(5);
+      int64_t bed_id = st.Int(6);
+      g.bed = api::BedRef{bed_id, st.Text(7),
+                          "/api/v1/beds/" + std::to_string(bed_id) + "/restart"};
+    }
+  }
+  if (!found) {
+    if (*expired > 0) SANDSWIM_RETURN_IF_ERROR(t.Commit());
+    return Out();
+  }
+  Result<std::string> token = NewToken();
+  if (!token.ok()) return token.status();
+  g.token = *token;
+  {
+    Statement st = t.Prepare(std::string("UPDATE ") + Table(g.kind) +
+                             " SET state = 'running', attempts = attempts + 1, lease_token = ?, "
+                             "lease_expires_at = ?, worker = ?, started_at = ? WHERE id = ?");
+    st.Bind(1, g.token).Bind(2, now + options_.ttl_s).Bind(3, request.worker).Bind(4, now);
+    st.Bind(5, g.id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  {
+    Statement st = t.Prepare(
+        "INSERT INTO leases (token, kind, job_id, attempt, worker, host, ranks, granted_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
+    st.Bind(1, g.token).Bind(2, Noun(g.kind)).Bind(3, g.id).Bind(4, g.attempt);
+    st.Bind(5, request.worker).Bind(6, request.host).Bind(7, request.ranks).Bind(8, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(g.kind)) + ".leased",
+                                   Subject(g.kind, g.id),
+                                   {{"worker", request.worker},
+                                    {"host", request.host},
+                                    {"ranks", request.ranks},
+                                    {"attempt", g.attempt}}));
+  SANDSWIM_RETURN_IF_ERROR(t.Commit());
+  return Out(std::move(g));
+}
+
+Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token,
+                                                  const api::Heartbeat& beat) {
+  const double now = clock_->Now();
+  Result<Transaction> begun = store_->Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  Result<LeaseRow> lease = FindLease(t, token);
+  if (!lease.ok()) return lease.status();
+  Result<JobRow> job = LoadJob(t, lease->kind, lease->job_id, options_.max_attempts);
+  if (!job.ok()) return job.status();
+  SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, lease->kind));
+
+  api::HeartbeatReply reply;
+  reply.ttl_s = options_.ttl_s;
+  if (lease->kind == api::JobKind::kRun) {
+    Statement st = t.Prepare(
+        "UPDATE runs SET lease_expires_at = ?, sim_time_s = ?, so_z = ?, step = ?, "
+        "heartbeat_at = ? WHERE id = ?");
+    st.Bind(1, now + options_.ttl_s).Bind(2, beat.sim_time_s).Bind(3, beat.so_z);
+    st.Bind(4, beat.step).Bind(5, now).Bind(6, lease->job_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    // Stop only when no live sweep wants the run any more (it may be shared).
+    Statement live = t.Prepare(
+        "SELECT EXISTS (SELECT 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+        "WHERE sr.run_id = ? AND s.cancelled_at IS NULL)");
+    live.Bind(1, lease->job_id);
+    Result<bool> row = live.Step();
+    if (!row.ok()) return row.status();
+    reply.cancel = *row && live.Int(0) == 0;
+  } else {
+    Statement st = t.Prepare("UPDATE beds SET lease_expires_at = ? WHERE id = ?");
+    st.Bind(1, now + options_.ttl_s).Bind(2, lease->job_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Commit());
+  return reply;
+}
+
+Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
+                                                  const api::Completion& c) {
+  const double now = clock_->Now();
+  Result<Transaction> begun = store_->Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  Result<LeaseRow> lease = FindLease(t, token);
+  if (!lease.ok()) return lease.status();
+  if (lease->completed) {
+    SANDSWIM_RETURN_IF_ERROR(t.Count("duplicates"));
+    SANDSWIM_RETURN_IF_ERROR(t.Commit());
+    return api::CompletionReply{"duplicate"};
+  }
+  const api::JobKind kind = lease->kind;
+  const int64_t id = lease->job_id;
+  Result<JobRow> job = LoadJob(t, kind, id, options_.max_attempts);
+  if (!job.ok()) return job.status();
+  SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
+
+  if (c.ok && kind == api::JobKind::kRun && !c.result) {
+    return Status::InvalidArgument("result", "an ok run completion carries its result");
+  }
+  if (c.ok && kind == api::JobKind::kBed && !c.bed_result) {
+    return Status::InvalidArgument("bed_result", "an ok bed completion carries its bed_result");
+  }
+  if (!c.ok && !c.failure) {
+    return Status::InvalidArgument("failure", "a failed completion says why");
+  }
+
+  std::string state;
+  if (c.ok && kind == api::JobKind::kRun) {
+    const api::RunResult& r = *c.result;
+    const api::Execution& e = c.execution;
+    {
+      Statement key = t.Prepare("SELECT key FROM runs WHERE id = ?");
+      key.Bind(1, id);
+      Result<bool> row = key.Step();
+      if (!row.ok()) return row.status();
+      // A forced rerun replaces the old result here, in the same transaction as the state.
+      Statement st = t.Prepare(
+          "INSERT OR REPLACE INTO results (run_id, uz, uz_stderr, window_t0, window_t1, dz, "
+          "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
+          "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at) "
+          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      st.Bind(1, id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
+      st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
+      st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
+      st.Bind(14, r.grains).Bind(15, r.z0).Bind(16, e.engine_version).Bind(17, e.host);
+      st.Bind(18, e.ranks).Bind(19, e.launcher).Bind(20, e.wall_s).Bind(21, e.cpu_s);
+      st.Bind(22, key.Text(0)).Bind(23, now);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    }
+    if (c.trajectory) {
+      Statement st = t.Prepare("INSERT OR REPLACE INTO trajectories (run_id, data) VALUES (?, ?)");
+      st.Bind(1, id).Bind(2, nlohmann::json(*c.trajectory).dump());
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    }
+    Statement st = t.Prepare(
+        "UPDATE runs SET state = 'done', lease_expires_at = NULL, finished_at = ?, "
+        "last_error_kind = NULL, last_error = NULL, sim_time_s = ?, step = ? WHERE id = ?");
+    st.Bind(1, now).Bind(2, r.sim_time_s).Bind(3, r.steps).Bind(4, id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    state = "done";
+  } else if (c.ok) {
+    const api::BedResult& b = *c.bed_result;
+    Statement cur = t.Prepare("SELECT path, sha256 FROM beds WHERE id = ?");
+    cur.Bind(1, id);
+    Result<bool> row = cur.Step();
+    if (!row.ok()) return row.status();
+    if (cur.IsNull(0)) {
+      return Status::FailedPrecondition("bed_result",
+                                        "upload the bed's restart file before completing it");
+    }
+    if (!b.sha256.empty() && Lower(b.sha256) != cur.Text(1)) {
+      return Status::FailedPrecondition("bed_result.sha256",
+                                        "differs from the uploaded restart file's checksum");
+    }
+    Statement st = t.Prepare(
+        "UPDATE beds SET state = 'done', lease_expires_at = NULL, finished_at = ?, grains = ?, "
+        "result = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
+    st.Bind(1, now).Bind(2, b.grains).Bind(3, nlohmann::json(b).dump()).Bind(4, id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    state = "done";
+  } else {
+    const api::Failure& f = *c.failure;
+    if (f.kind == "cancelled") {
+      // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
+      std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";
+      Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
+                               " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
+                               "last_error = ?, finished_at = ? WHERE id = ?");
+      st.Bind(1, to).Bind(2, f.kind).Bind(3, f.message);
+      if (to == "cancelled") st.Bind(4, now); else st.BindNull(4);
+      st.Bind(5, id);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + "." + to,
+                                       Subject(kind, id), {{"message", f.message}}));
+      state = to;
+    } else {
+      Result<std::string> s = RetryOrFail(t, kind, id, *job, f.kind, f.message,
+                                          /*retryable=*/f.kind != "deck_error", now);
+      if (!s.ok()) return s.status();
+      state = *s;
+    }
+  }
+  if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
+    Statement st = t.Prepare("INSERT OR REPLACE INTO run_logs (run_id, log_tail) VALUES (?, ?)");
+    st.Bind(1, id).Bind(2, c.log_tail);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  if (state == "done") {
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
+                                     {{"host", c.execution.host},
+                                      {"wall_s", c.execution.wall_s}}));
+  }
+  {
+    Statement st = t.Prepare("UPDATE leases SET completed_at = ?, outcome = ? WHERE token = ?");
+    st.Bind(1, now).Bind(2, state).Bind(3, token);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));
+  SANDSWIM_RETURN_IF_ERROR(t.Commit());
+  return api::CompletionReply{state};
+}
+
+Result<int64_t> LeaseQueue::ExpireLeases() {
+  const double now = clock_->Now();
+  Result<Transaction> begun = store_->Begin();
+  if (!begun.ok()) return begun.status();
+  Result<int64_t> n = ExpireIn(*begun, now, options_.max_attempts);
+  if (!n.ok()) return n.status();
+  SANDSWIM_RETURN_IF_ERROR(begun->Commit());
+  return n;
+}
+
+Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
+  const double now = clock_->Now();
+  Result<Transaction> begun = store_->Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  {
+    Statement st = t.Prepare("SELECT cancelled_at FROM sweeps WHERE id = ?");
+    st.Bind(1, sweep_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) return Status::NotFound("no sweep " + std::to_string(sweep_id));
+  }
+  {
+    Statement st = t.Prepare("UPDATE sweeps SET cancelled_at = ? WHERE id = ? AND cancelled_at IS NULL");
+    st.Bind(1, now).Bind(2, sweep_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  // Runs of this sweep that no live sweep still wants.
+  const std::string orphaned =
+      "id IN (SELECT run_id FROM sweep_runs WHERE sweep_id = ?2) AND NOT EXISTS ("
+      "SELECT 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+      "WHERE sr.run_id = runs.id AND s.cancelled_at IS NULL)";
+  CancelSummary out;
+  {
+    Statement st = t.Prepare(
+        "UPDATE runs SET state = 'cancelled', finished_at = ?1, last_error_kind = 'cancelled', "
+        "last_error = 'sweep ' || ?2 || ' was cancelled' WHERE state = 'queued' AND " + orphaned);
+    st.Bind(1, now).Bind(2, sweep_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    out.cancelled = t.Changes();
+  }
+  {
+    Statement st = t.Prepare("UPDATE runs SET cancel_requested = 1 WHERE ?1 = ?1 AND "
+                             "state = 'running' AND " + orphaned);
+    st.Bind(1, now).Bind(2, sweep_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    out.stopping = t.Changes();
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, "sweep.cancelled", "sweep/" + std::to_string(sweep_id),
+                                   {{"cancelled", out.cancelled}, {"stopping", out.stopping}}));
+  SANDSWIM_RETURN_IF_ERROR(t.Commit());
+  return out;
+}
+
+Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view bytes,
+                                 const std::string& sha256, const std::string& data_dir) {
+  const std::string expected = Lower(sha256);
+  const std::string actual = Sha256Hex(bytes);
+  if (expected != actual) {
+    return Status::InvalidArgument("X-Sha256", "the body's SHA-256 is " + actual + ", not " +
+                                                   (expected.empty() ? "(none given)" : expected));
+  }
+  // Check the lease, write the file without holding the store, then record it under a second
+  // check: the token may have been lost while the bytes were being written.
+  auto check = [&](Transaction& t) -> Result<std::pair<int64_t, std::string>> {
+    Result<LeaseRow> lease = FindLease(t, token);
+    if (!lease.ok()) return lease.status();
+    if (lease->kind != api::JobKind::kBed) return Status::Conflict("this lease is not a bed's");
+    if (lease->completed) return Status::Conflict("this bed lease already completed");
+    Result<JobRow> job = LoadJob(t, api::JobKind::kBed, lease->job_id, options_.max_attempts);
+    if (!job.ok()) return job.status();
+    SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, api::JobKind::kBed));
+    Statement st = t.Prepare("SELECT key FROM beds WHERE id = ?");
+    st.Bind(1, lease->job_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    return std::make_pair(lease->job_id, st.Text(0));
+  };
+  std::string key;
+  {
+    Result<Transaction> t = store_->BeginRead();
+    if (!t.ok()) return t.status();
+    auto found = check(*t);
+    if (!found.ok()) return found.status();
+    key = found->second;
+  }
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(data_dir) / "beds";
+  const fs::path path = dir / (key + ".restart");
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return Status::IOError("cannot create " + dir.string() + ": " + ec.message());
+  Result<std::string> suffix = NewToken();
+  if (!suffix.ok()) return suffix.status();
+  const fs::path tmp = dir / (key + ".restart.tmp." + suffix->substr(0, 8));
+  {
+    FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (f == nullptr) return Status::IOError("cannot write " + tmp.string());
+    bool good = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+    good = std::fflush(f) == 0 && good;
+    good = ::fsync(fileno(f)) == 0 && good;
+    good = std::fclose(f) == 0 && good;
+    if (!good) {
+      fs::remove(tmp, ec);
+      return Status::IOError("cannot write " + tmp.string());
+    }
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    return Status::IOError("cannot rename into " + path.string() + ": " + ec.message());
+  }
+  const double now = clock_->Now();
+  Result<Transaction> t = store_->Begin();
+  if (!t.ok()) return t.status();
+  auto found = check(*t);
+  if (!found.ok()) return found.status();
+  {
+    Statement st = t->Prepare("UPDATE beds SET path = ?, sha256 = ? WHERE id = ?");
+    st.Bind(1, path.string()).Bind(2, actual).Bind(3, found->first);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t->Event(now, "bed.uploaded", "bed/" + std::to_string(found->first),
+                                    {{"sha256", actual}, {"bytes", bytes.size()}}));
+  return t->Commit();
+}
+
+Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {
+  Result<Transaction> t = store_->BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("SELECT key, state, path, sha256 FROM beds WHERE id = ?");
+  st.Bind(1, bed_id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::NotFound("no bed " + std::to_string(bed_id));
+  if (st.Text(1) != "done" || st.IsNull(2)) {
+    return Status::FailedPrecondition("bed", "bed " + std::to_string(bed_id) +
+                                                 " is not prepared yet (" + st.Text(1) + ")");
+  }
+  return BedFile{bed_id, st.Text(0), st.Text(2), st.Text(3)};
+}
+
+Result<std::string> LeaseQueue::GetBedRestartPath(int64_t bed_id) {
+  Result<BedFile> f = GetBedRestart(bed_id);
+  if (!f.ok()) return f.status();
+  return f->path;
+}
+
+}  // namespace sandswim

@@ -1,0 +1,108 @@
+// LeaseQueue: the daemon side of the worker protocol (core/api.h). Beds and runs are jobs that
+// workers lease, heartbeat and complete; every state change is one store transaction.
+//
+// Job states: queued -> running (leased) -> done | failed | queued (retry) | cancelled (runs).
+//   Lease      picks, oldest first, a queued bed that a queued run is waiting for; failing that,
+//              a queued run whose bed is done. The job's attempts count goes up by one; the
+//              grant carries a fresh random 128-bit token (hex) that is the only proof of
+//              ownership, and a TTL. Expired leases are reclaimed first (ExpireLeases).
+//   Heartbeat  under the current token: extends the lease by the TTL and records progress; the
+//              reply says cancel=true once every sweep the run belongs to is cancelled.
+//   Complete   under the current token: ok -> done (a run gets its result, trajectory and log
+//              tail; a bed must have had its restart uploaded with PutBedRestart first and
+//              becomes done with its sha256/grains/result). Failure -> back to queued while
+//              attempts < max_attempts, else failed with the reason; a "deck_error" is never
+//              retried (the same deck fails the same way); "cancelled" -> cancelled (a bed goes
+//              back to queued). A bed that fails for good fails its queued runs ("bed_failed").
+//              Completing a token that already completed answers "duplicate" and changes
+//              nothing; a token that is not the job's current lease (expired and re-leased,
+//              unknown) gets kConflict and changes nothing. So there is never a second result.
+//   ExpireLeases  running jobs past their lease expiry go back to queued (the attempt stays
+//              counted) or, at max_attempts, to failed with kind "lease_expired".
+//   Cancel     a sweep: its queued runs that belong to no other live sweep become cancelled;
+//              its running runs are told to stop at their next heartbeat.
+//
+// Every leased token is recorded in the `leases` table (token, job, granted/expiry/completion),
+// which is how a repeated completion is recognised as a duplicate.
+//
+// Thread safety: safe from any thread (all state is in the Store, which serialises).
+// REQUIRES: `store` and `clock` outlive the queue.
+#ifndef SANDSWIM_SERVER_LEASE_QUEUE_H_
+#define SANDSWIM_SERVER_LEASE_QUEUE_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "core/api.h"
+#include "core/status.h"
+#include "server/clock.h"
+#include "server/store.h"
+
+namespace sandswim {
+
+struct LeaseQueueOptions {
+  double ttl_s = 60;         // lease lifetime; each heartbeat extends it by this much
+  int max_attempts = 3;      // leases a job gets before a failure or expiry is final
+  double wall_budget_s = 0;  // passed to workers in every grant (0: no budget)
+};
+
+struct CancelSummary {
+  int64_t cancelled = 0;  // queued runs now cancelled
+  int64_t stopping = 0;   // running runs that will be told to stop
+};
+void to_json(nlohmann::json& j, const CancelSummary& c);
+
+struct BedFile {
+  int64_t bed_id = 0;
+  std::string key;
+  std::string path;    // absolute or as given by data_dir: <data>/beds/<key>.restart
+  std::string sha256;
+};
+
+class LeaseQueue {
+ public:
+  LeaseQueue(Store* store, Clock* clock, LeaseQueueOptions options = {});
+
+  const LeaseQueueOptions& options() const { return options_; }
+
+  // The next job for this worker, or nullopt when nothing is leasable now.
+  Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest& request);
+
+  // kConflict when `token` is not the current lease of a running job.
+  Result<api::HeartbeatReply> Heartbeat(const std::string& token, const api::Heartbeat& beat);
+
+  // kConflict as above (nothing changes); "duplicate" when this token already completed.
+  // kInvalidArgument when the completion lacks what its kind needs (ok run without result, ok
+  // bed without bed_result, failure without failure); kFailedPrecondition for an ok bed whose
+  // restart was not uploaded (or whose bed_result.sha256 differs from the upload).
+  Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& c);
+
+  // Reclaims every lease that expired before the clock's now. Returns how many.
+  Result<int64_t> ExpireLeases();
+
+  // kNotFound for an unknown sweep. Cancelling twice is harmless.
+  Result<CancelSummary> Cancel(int64_t sweep_id);
+
+  // Stores a bed's restart file uploaded under a current bed lease: checks SHA-256 of `bytes`
+  // against `sha256` (kInvalidArgument "X-Sha256" on mismatch), writes
+  // <data_dir>/beds/<key>.restart atomically (temp file + rename) and records path and checksum.
+  // The bed stays running until Complete(). kConflict when the token is not a current bed lease.
+  Status PutBedRestart(const std::string& token, std::string_view bytes, const std::string& sha256,
+                       const std::string& data_dir);
+
+  // The restart file of a done bed (kNotFound for an unknown bed, kFailedPrecondition when the
+  // bed is not done yet).
+  Result<BedFile> GetBedRestart(int64_t bed_id);
+  Result<std::string> GetBedRestartPath(int64_t bed_id);
+
+ private:
+  Store* store_;
+  Clock* clock_;
+  LeaseQueueOptions options_;
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_LEASE_QUEUE_H_

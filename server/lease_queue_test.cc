@@ -1,0 +1,328 @@
+#include "server/lease_queue.h"
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/keys.h"
+#include "server/clock.h"
+#include "server/store.h"
+#include "server/submission.h"
+
+namespace sandswim {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kEngine[] = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, test)";
+
+nlohmann::json OmegaSignSweep(const std::string& name = "omega-sign") {
+  nlohmann::json j = nlohmann::json::parse(R"({"scale": "smoke",
+    "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+    "axes": [{"param": "Omega", "values": [-80, 80]}], "combine": "product"})");
+  j["name"] = name;
+  return j;
+}
+
+api::Completion OkRun(double uz = -0.01) {
+  api::Completion c;
+  c.ok = true;
+  c.result = api::RunResult{};
+  c.result->uz = uz;
+  c.result->stop_reason = "duration";
+  c.trajectory = api::Trajectory{{0, 0.1}, {0, 0}, {0, 0}, {0, -0.001}};
+  c.execution.host = "test-host";
+  c.execution.engine_version = kEngine;
+  c.log_tail = "Total wall time: 0:00:01";
+  return c;
+}
+
+api::Completion Failed(const std::string& kind, const std::string& message = "it broke") {
+  api::Completion c;
+  c.ok = false;
+  c.failure = api::Failure{kind, message};
+  return c;
+}
+
+class LeaseQueueTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir_ = fs::temp_directory_path() / ("sandswim-lq-" + std::to_string(rd()));
+    fs::create_directories(dir_);
+    OpenStore();
+  }
+  void TearDown() override {
+    queue_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+  void OpenStore() {
+    queue_.reset();
+    store_.reset();
+    auto s = Store::Open((dir_ / "db" / "sandswim.db").string());
+    ASSERT_TRUE(s.ok()) << s.status().ToString();
+    store_ = std::move(s).value();
+    queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, options_);
+  }
+  int64_t SubmitJson(const nlohmann::json& body, bool force = false) {
+    auto req = ParseSubmitRequest(body);
+    EXPECT_TRUE(req.ok()) << req.status().ToString();
+    req->force = force;
+    auto r = Submit(*store_, *req, kEngine, clock_.Now());
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    return r.ok() ? r->sweep_ids.at(0) : 0;
+  }
+  api::LeaseGrant MustLease(const std::string& worker = "w1") {
+    auto g = queue_->Lease({worker, "host", 1});
+    EXPECT_TRUE(g.ok()) << g.status().ToString();
+    EXPECT_TRUE(g.ok() && g->has_value());
+    return g.ok() && g->has_value() ? **g : api::LeaseGrant{};
+  }
+  // Leases the bed, uploads its restart and completes it.
+  void PrepareBed() {
+    api::LeaseGrant g = MustLease("bed-worker");
+    ASSERT_EQ(g.kind, api::JobKind::kBed);
+    const std::string bytes = "restart bytes";
+    ASSERT_TRUE(queue_->PutBedRestart(g.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    api::Completion c;
+    c.ok = true;
+    c.bed_result = api::BedResult{};
+    c.bed_result->grains = 3700;
+    c.bed_result->sha256 = Sha256Hex(bytes);
+    auto r = queue_->Complete(g.token, c);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_EQ(r->state, "done");
+  }
+  std::string RunState(int64_t id) {
+    auto r = store_->GetRun(id);
+    return r.ok() ? r->summary.state : r.status().ToString();
+  }
+  int64_t Rows(const std::string& table) { return store_->CountRows(table).value(); }
+
+  fs::path dir_;
+  FakeClock clock_;
+  LeaseQueueOptions options_{/*ttl_s=*/60, /*max_attempts=*/3, /*wall_budget_s=*/0};
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<LeaseQueue> queue_;
+};
+
+TEST_F(LeaseQueueTest, NothingToLeaseOnAnEmptyQueue) {
+  auto g = queue_->Lease({"w", "h", 1});
+  ASSERT_TRUE(g.ok());
+  EXPECT_FALSE(g->has_value());
+}
+
+TEST_F(LeaseQueueTest, BedIsLeasedBeforeRunsAndRunsOnlyOnceTheBedIsDone) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease();
+  EXPECT_EQ(bed.kind, api::JobKind::kBed);
+  EXPECT_EQ(bed.token.size(), 32u);
+  EXPECT_FALSE(bed.deck.empty());
+  // The bed is running: the runs wait for it, so nothing else is leasable.
+  auto none = queue_->Lease({"w2", "h", 1});
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->has_value());
+  // Completing without an upload is refused and changes nothing.
+  api::Completion c;
+  c.ok = true;
+  c.bed_result = api::BedResult{};
+  EXPECT_EQ(queue_->Complete(bed.token, c).status().code(), StatusCode::kFailedPrecondition);
+  const std::string bytes = "restart";
+  EXPECT_EQ(queue_->PutBedRestart(bed.token, bytes, Sha256Hex("other"), dir_.string()).code(),
+            StatusCode::kInvalidArgument);
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  auto file = queue_->GetBedRestart(bed.id);
+  ASSERT_TRUE(file.ok()) << file.status().ToString();
+  std::ifstream in(file->path, std::ios::binary);
+  std::string read((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(read, bytes);
+  EXPECT_EQ(file->sha256, Sha256Hex(bytes));
+
+  api::LeaseGrant r1 = MustLease();
+  api::LeaseGrant r2 = MustLease();
+  EXPECT_EQ(r1.kind, api::JobKind::kRun);
+  EXPECT_EQ(r2.kind, api::JobKind::kRun);
+  EXPECT_LT(r1.id, r2.id);  // oldest first
+  ASSERT_TRUE(r1.bed.has_value());
+  EXPECT_EQ(r1.bed->id, bed.id);
+  EXPECT_EQ(r1.bed->sha256, Sha256Hex(bytes));
+  EXPECT_GT(r1.steps, 0);
+  EXPECT_GT(r1.duration_s, 0);
+  auto none2 = queue_->Lease({"w3", "h", 1});
+  EXPECT_FALSE(none2->has_value());
+}
+
+TEST_F(LeaseQueueTest, ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(g.attempt, 1);
+  clock_.Advance(30);
+  ASSERT_TRUE(queue_->Heartbeat(g.token, {0.1, -0.01, 10000}).ok());
+  clock_.Advance(59);  // the heartbeat extended the lease: still held
+  EXPECT_EQ(*queue_->ExpireLeases(), 0);
+  clock_.Advance(2);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(RunState(g.id), "queued");
+  EXPECT_EQ(queue_->Heartbeat(g.token, {}).status().code(), StatusCode::kConflict);
+
+  api::LeaseGrant g2 = MustLease();
+  EXPECT_EQ(g2.id, g.id);
+  EXPECT_EQ(g2.attempt, 2);
+  clock_.Advance(61);
+  api::LeaseGrant g3 = MustLease();  // Lease() reclaims the expired one itself
+  EXPECT_EQ(g3.id, g.id);
+  EXPECT_EQ(g3.attempt, 3);
+  clock_.Advance(61);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  auto run = store_->GetRun(g.id);
+  EXPECT_EQ(run->summary.state, "failed");
+  EXPECT_EQ(run->summary.attempts, 3);
+  ASSERT_TRUE(run->summary.last_error.has_value());
+  EXPECT_EQ(run->summary.last_error->kind, "lease_expired");
+  EXPECT_EQ(store_->GetMetrics()->expirations, 3);
+}
+
+TEST_F(LeaseQueueTest, FailuresRetryUntilMaxAttemptsAndKeepTheLastReason) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  int64_t id = 0;
+  for (int i = 1; i <= 3; ++i) {
+    api::LeaseGrant g = MustLease();
+    if (id == 0) id = g.id;
+    ASSERT_EQ(g.id, id);
+    auto r = queue_->Complete(g.token, Failed("lost_atoms", "attempt " + std::to_string(i)));
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->state, i < 3 ? "queued" : "failed");
+  }
+  auto run = store_->GetRun(id);
+  EXPECT_EQ(run->summary.state, "failed");
+  EXPECT_EQ(run->summary.last_error->kind, "lost_atoms");
+  EXPECT_EQ(run->summary.last_error->message, "attempt 3");
+}
+
+TEST_F(LeaseQueueTest, DeckErrorIsNotRetried) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(queue_->Complete(g.token, Failed("deck_error", "ERROR: x"))->state, "failed");
+}
+
+TEST_F(LeaseQueueTest, CompletionIsIdempotentPerToken) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "done");
+  int64_t events = Rows("events");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun(0.5))->state, "duplicate");
+  EXPECT_EQ(queue_->Complete(g.token, Failed("signal"))->state, "duplicate");
+  EXPECT_EQ(Rows("results"), 1);
+  EXPECT_EQ(Rows("events"), events);
+  auto run = store_->GetRun(g.id);
+  EXPECT_EQ(run->summary.state, "done");
+  EXPECT_DOUBLE_EQ(run->result->result.uz, -0.01);
+  ASSERT_TRUE(run->trajectory.has_value());
+  EXPECT_EQ(run->trajectory->z.size(), 2u);
+  EXPECT_EQ(run->log_tail, "Total wall time: 0:00:01");
+  EXPECT_EQ(queue_->Heartbeat(g.token, {}).status().code(), StatusCode::kConflict);
+}
+
+TEST_F(LeaseQueueTest, LateCompletionFromAnExpiredLeaseAfterReleaseConflicts) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant old = MustLease("slow");
+  clock_.Advance(61);
+  api::LeaseGrant fresh = MustLease("fast");
+  ASSERT_EQ(fresh.id, old.id);
+  auto late = queue_->Complete(old.token, OkRun(0.9));
+  EXPECT_EQ(late.status().code(), StatusCode::kConflict);
+  EXPECT_EQ(Rows("results"), 0);
+  EXPECT_EQ(RunState(old.id), "running");
+  EXPECT_EQ(queue_->Complete(fresh.token, OkRun(-0.02))->state, "done");
+  EXPECT_EQ(queue_->Complete(old.token, OkRun(0.9)).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(Rows("results"), 1);
+  EXPECT_DOUBLE_EQ(store_->GetRun(old.id)->result->result.uz, -0.02);
+}
+
+TEST_F(LeaseQueueTest, UnknownTokenConflicts) {
+  EXPECT_EQ(queue_->Complete("nope", OkRun()).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(queue_->Heartbeat("nope", {}).status().code(), StatusCode::kConflict);
+}
+
+TEST_F(LeaseQueueTest, MalformedCompletionChangesNothing) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  api::Completion c;
+  c.ok = true;  // no result
+  EXPECT_EQ(queue_->Complete(g.token, c).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunState(g.id), "running");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "done");
+}
+
+TEST_F(LeaseQueueTest, CancelDropsQueuedRunsAndStopsRunningOnesAtHeartbeat) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant running = MustLease();
+  auto hb = queue_->Heartbeat(running.token, {});
+  EXPECT_FALSE(hb->cancel);
+  auto summary = queue_->Cancel(sweep);
+  ASSERT_TRUE(summary.ok());
+  EXPECT_EQ(summary->cancelled, 1);
+  EXPECT_EQ(summary->stopping, 1);
+  EXPECT_TRUE(queue_->Heartbeat(running.token, {})->cancel);
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+  EXPECT_EQ(queue_->Complete(running.token, Failed("cancelled", "stopped"))->state, "cancelled");
+  auto info = store_->GetSweep(sweep);
+  EXPECT_EQ(info->counts.cancelled, 2);
+  EXPECT_TRUE(info->cancelled_at.has_value());
+  EXPECT_EQ(queue_->Cancel(9999).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(LeaseQueueTest, CancelKeepsRunsAnotherLiveSweepShares) {
+  int64_t a = SubmitJson(OmegaSignSweep("a"));
+  int64_t b = SubmitJson(OmegaSignSweep("b"));  // same points: shared runs
+  EXPECT_EQ(Rows("runs"), 2);
+  auto s = queue_->Cancel(a);
+  EXPECT_EQ(s->cancelled, 0);
+  EXPECT_EQ(store_->GetSweep(b)->counts.queued, 2);
+  EXPECT_EQ(queue_->Cancel(b)->cancelled, 2);
+}
+
+TEST_F(LeaseQueueTest, BedFailingForGoodFailsItsRuns) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  for (int i = 0; i < 3; ++i) {
+    api::LeaseGrant g = MustLease();
+    ASSERT_EQ(g.kind, api::JobKind::kBed);
+    queue_->Complete(g.token, Failed("signal", "killed"));
+  }
+  auto info = store_->GetSweep(sweep);
+  EXPECT_EQ(info->counts.failed, 2);
+  auto runs = store_->ListRuns({sweep, std::nullopt, 0, 10});
+  EXPECT_EQ(runs->runs[0].last_error->kind, "bed_failed");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
+TEST_F(LeaseQueueTest, ReopeningTheFileKeepsLeasesAndRuns) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  OpenStore();  // a daemon restart
+  ASSERT_TRUE(queue_->Heartbeat(g.token, {0.2, 0, 1}).ok());
+  EXPECT_EQ(RunState(g.id), "running");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "done");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "duplicate");
+  auto m = store_->GetMetrics();
+  EXPECT_EQ(m->runs.done, 1);
+  EXPECT_EQ(m->runs.queued, 1);
+  EXPECT_EQ(m->leases_granted, 2);
+}
+
+}  // namespace
+}  // namespace sandswim

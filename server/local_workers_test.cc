@@ -1,0 +1,208 @@
+#include "server/local_workers.h"
+
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <map>
+#include <set>
+#include <utility>
+
+#include <gtest/gtest.h>
+
+namespace sandswim {
+namespace {
+
+// Children that live until told to die; SIGTERM kills them unless `ignore_term`.
+class FakeLauncher : public ProcessLauncher {
+ public:
+  explicit FakeLauncher(FakeClock* clock) : clock_(clock) {}
+  Result<pid_t> Spawn(const std::vector<std::string>& argv) override {
+    last_argv = argv;
+    pid_t pid = next_pid_++;
+    alive.insert(pid);
+    ++spawned;
+    return pid;
+  }
+  std::optional<int> Reap(pid_t pid) override {
+    if (alive.count(pid)) return std::nullopt;
+    return 0;
+  }
+  void SignalGroup(pid_t pgid, int signal) override {
+    signals.emplace_back(pgid, signal);
+    if (signal == SIGKILL || (signal == SIGTERM && !ignore_term)) alive.erase(pgid);
+  }
+  void Pause(double seconds) override { clock_->Advance(seconds); }
+
+  std::set<pid_t> alive;
+  std::vector<std::pair<pid_t, int>> signals;
+  std::vector<std::string> last_argv;
+  int spawned = 0;
+  bool ignore_term = false;
+
+ private:
+  FakeClock* clock_;
+  pid_t next_pid_ = 100;
+};
+
+LocalWorkersOptions Options(int count) {
+  LocalWorkersOptions o;
+  o.count = count;
+  o.argv = {"/bin/sh", "--server", "http://127.0.0.1:1"};
+  o.min_backoff_s = 1;
+  o.max_backoff_s = 8;
+  o.healthy_after_s = 30;
+  o.grace_s = 5;
+  return o;
+}
+
+TEST(LocalWorkersTest, StartsEveryWorkerWithItsCommandLine) {
+  FakeClock clock;
+  FakeLauncher launcher(&clock);
+  LocalWorkers workers(Options(3), &launcher, &clock);
+  ASSERT_TRUE(workers.Start().ok());
+  EXPECT_EQ(launcher.spawned, 3);
+  EXPECT_EQ(launcher.alive.size(), 3u);
+  EXPECT_EQ(launcher.last_argv, Options(3).argv);
+}
+
+TEST(LocalWorkersTest, RefusesAMissingWorkerBinary) {
+  FakeClock clock;
+  FakeLauncher launcher(&clock);
+  LocalWorkersOptions o = Options(2);
+  o.argv[0] = "/nonexistent/sandswim-worker";
+  LocalWorkers workers(o, &launcher, &clock);
+  Status s = workers.Start();
+  EXPECT_FALSE(s.ok());
+  EXPECT_EQ(s.field(), "--local-workers");
+  EXPECT_EQ(launcher.spawned, 0);
+}
+
+TEST(LocalWorkersTest, RestartsADeadWorkerAfterADoublingBackoff) {
+  FakeClock clock;
+  FakeLauncher launcher(&clock);
+  LocalWorkers workers(Options(1), &launcher, &clock);
+  ASSERT_TRUE(workers.Start().ok());
+  pid_t first = workers.pids()[0];
+
+  launcher.alive.erase(first);  // dies young
+  workers.Tick();
+  EXPECT_EQ(workers.pids()[0], 0);
+  clock.Advance(0.5);
+  workers.Tick();
+  EXPECT_EQ(launcher.spawned, 1);  // still backing off (1 s)
+  clock.Advance(0.6);
+  workers.Tick();
+  EXPECT_EQ(launcher.spawned, 2);
+  pid_t second = workers.pids()[0];
+  EXPECT_NE(second, first);
+
+  launcher.alive.erase(second);  // dies young again: 2 s now
+  workers.Tick();
+  clock.Advance(1.5);
+  workers.Tick();
+  EXPECT_EQ(launcher.spawned, 2);
+  clock.Advance(0.6);
+  workers.Tick();
+  EXPECT_EQ(launcher.spawned, 3);
+  EXPECT_EQ(workers.restarts(), 2);
+
+  // One that lived long resets the backoff to 1 s.
+  clock.Advance(60);
+  launcher.alive.erase(workers.pids()[0]);
+  workers.Tick();
+  clock.Advance(1.1);
+  workers.Tick();
+  EXPECT_EQ(launcher.spawned, 4);
+}
+
+TEST(LocalWorkersTest, StopTermsThenKillsAfterTheGrace) {
+  FakeClock clock;
+  FakeLauncher launcher(&clock);
+  launcher.ignore_term = true;
+  LocalWorkers workers(Options(2), &launcher, &clock);
+  ASSERT_TRUE(workers.Start().ok());
+  double t0 = clock.Now();
+  workers.Stop();
+  EXPECT_TRUE(launcher.alive.empty());
+  EXPECT_GE(clock.Now() - t0, 5.0);
+  int terms = 0, kills = 0;
+  for (const auto& [pgid, sig] : launcher.signals) {
+    terms += sig == SIGTERM;
+    kills += sig == SIGKILL;
+  }
+  EXPECT_EQ(terms, 2);
+  EXPECT_EQ(kills, 2);
+  workers.Tick();  // stopped: never restarts
+  EXPECT_EQ(launcher.spawned, 2);
+}
+
+TEST(LocalWorkersTest, StopIsQuickWhenWorkersObeySigterm) {
+  FakeClock clock;
+  FakeLauncher launcher(&clock);
+  LocalWorkers workers(Options(2), &launcher, &clock);
+  ASSERT_TRUE(workers.Start().ok());
+  double t0 = clock.Now();
+  workers.Stop();
+  EXPECT_TRUE(launcher.alive.empty());
+  EXPECT_LT(clock.Now() - t0, 0.1);
+}
+
+// Processes of group `pgid` that are not zombies (a killed grandchild may await its reaper).
+int LiveGroupMembers(pid_t pgid) {
+  int live = 0;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+    std::ifstream in(entry.path() / "stat");
+    std::string stat;
+    if (!std::getline(in, stat)) continue;
+    size_t paren = stat.rfind(')');
+    if (paren == std::string::npos) continue;
+    std::istringstream fields(stat.substr(paren + 2));
+    char state = 0;
+    long ppid = 0, pgrp = 0;
+    fields >> state >> ppid >> pgrp;
+    if (pgrp == pgid && state != 'Z') ++live;
+  }
+  return live;
+}
+
+// Real processes: each in its own group; one that ignores SIGTERM is killed with its children.
+TEST(LocalWorkersPosixTest, StopsRealChildrenIncludingOnesIgnoringSigterm) {
+  SystemClock clock;
+  PosixLauncher launcher;
+  LocalWorkersOptions o;
+  o.count = 2;
+  char dir[] = "/tmp/sandswim-workers-XXXXXX";
+  ASSERT_NE(mkdtemp(dir), nullptr);
+  // Each child says when its trap is set, so the SIGTERM surely meets it.
+  o.argv = {"/bin/sh", "-c", std::string("trap '' TERM; sleep 30 & touch ") + dir + "/$$; wait"};
+  o.grace_s = 0.3;
+  LocalWorkers workers(o, &launcher, &clock);
+  ASSERT_TRUE(workers.Start().ok());
+  std::vector<pid_t> pids = workers.pids();
+  for (pid_t pid : pids) {
+    std::string ready = std::string(dir) + "/" + std::to_string(pid);
+    for (int i = 0; i < 500 && !std::filesystem::exists(ready); ++i) usleep(2000);
+    ASSERT_TRUE(std::filesystem::exists(ready));
+  }
+  auto t0 = std::chrono::steady_clock::now();
+  for (pid_t pid : pids) {
+    ASSERT_GT(pid, 0);
+    EXPECT_EQ(getpgid(pid), pid);
+  }
+  workers.Stop();
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(250));  // waited the grace
+  std::filesystem::remove_all(dir);
+  for (pid_t pid : pids) {
+    EXPECT_EQ(kill(pid, 0), -1);  // reaped and gone
+    EXPECT_EQ(LiveGroupMembers(pid), 0);  // and nothing left alive in its group
+  }
+}
+
+}  // namespace
+}  // namespace sandswim

@@ -1,0 +1,194 @@
+// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the lease-expiry thread and the
+// local-worker supervisor; SIGTERM/SIGINT stop them in reverse order.
+#include <signal.h>
+
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "server/clock.h"
+#include "server/engine_probe.h"
+#include "server/lease_queue.h"
+#include "server/local_workers.h"
+#include "server/routes.h"
+#include "server/store.h"
+
+namespace {
+
+using sandswim::Status;
+
+struct Flags {
+  std::string db = "./var/sandswim.db";
+  std::string listen = "127.0.0.1:8640";
+  std::string data = "./var/data";
+  std::string token_file;
+  int local_workers = 0;
+  double lease_ttl_s = 60;
+  int max_attempts = 3;
+  std::string engine_version;
+  std::string log_level = "info";
+};
+
+// The token from --token-file, else SANDSWIM_TOKEN, else "" (no auth).
+sandswim::Result<std::string> LoadToken(const std::string& token_file) {
+  std::string token;
+  if (!token_file.empty()) {
+    std::ifstream in(token_file);
+    if (!in) return Status::InvalidArgument("--token-file", "cannot read " + token_file);
+    std::stringstream text;
+    text << in.rdbuf();
+    token = text.str();
+  } else if (const char* env = std::getenv("SANDSWIM_TOKEN")) {
+    token = env;
+  } else {
+    return std::string();
+  }
+  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
+  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.front()))) token.erase(0, 1);
+  if (token.empty()) return Status::InvalidArgument(token_file.empty() ? "SANDSWIM_TOKEN" : "--token-file", "the token is empty");
+  return token;
+}
+
+int Die(const Status& s, const std::string& next) {
+  spdlog::critical("{}; {}", s.ToString(), next);
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Flags flags;
+  CLI::App app{"sandswimd: the sandswim daemon (REST API, SQLite store, lease queue)"};
+  app.add_option("--db", flags.db, "SQLite file")->capture_default_str();
+  app.add_option("--listen", flags.listen, "HOST:PORT to serve on (port 0: any free port)")->capture_default_str();
+  app.add_option("--data", flags.data, "directory for beds, dumps and artifacts")->capture_default_str();
+  app.add_option("--token-file", flags.token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
+  app.add_option("--local-workers", flags.local_workers, "worker processes to run on this machine")
+      ->capture_default_str()->check(CLI::Range(0, 1024));
+  app.add_option("--lease-ttl", flags.lease_ttl_s, "seconds a lease lives without a heartbeat")
+      ->capture_default_str()->check(CLI::Range(1.0, 86400.0));
+  app.add_option("--max-attempts", flags.max_attempts, "leases a job gets before it fails")
+      ->capture_default_str()->check(CLI::Range(1, 100));
+  app.add_option("--engine-version", flags.engine_version, "LIGGGHTS version string (default: ask liggghts)");
+  app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")->capture_default_str()
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
+  CLI11_PARSE(app, argc, argv);
+  // Logs go to stderr; stdout carries only the "listening on" line that scripts wait for.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("sandswimd"));
+  spdlog::set_level(spdlog::level::from_str(flags.log_level));
+
+  // Signals are taken by one thread with sigwait; every other thread (httplib's pool too)
+  // inherits the blocked mask from here.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGTERM);
+  sigaddset(&stop_signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  auto address = sandswim::ParseListenAddress(flags.listen);
+  if (!address.ok()) return Die(address.status(), "use --listen HOST:PORT, e.g. 127.0.0.1:8640");
+  auto token = LoadToken(flags.token_file);
+  if (!token.ok()) return Die(token.status(), "write the token into the file, or unset SANDSWIM_TOKEN");
+  Status policy = sandswim::CheckListenPolicy(*address, !token->empty());
+  if (!policy.ok()) return Die(policy, "give a token or listen on a loopback address");
+
+  if (flags.engine_version.empty()) {
+    auto version = sandswim::ProbeEngineVersion();
+    if (version.ok()) {
+      flags.engine_version = *version;
+    } else {
+      flags.engine_version = "unknown";
+      spdlog::warn("{}; using engine version \"unknown\" in content keys (install LIGGGHTS on PATH "
+                   "or pass --engine-version to key results by the engine the workers run)",
+                   version.status().ToString());
+    }
+  }
+  spdlog::info("engine: {}", flags.engine_version);
+
+  auto store = sandswim::Store::Open(flags.db);
+  if (!store.ok()) return Die(store.status(), "check that --db " + flags.db + " is writable (or pick another path)");
+  sandswim::SystemClock clock;
+  sandswim::LeaseQueueOptions lease_options;
+  lease_options.ttl_s = flags.lease_ttl_s;
+  lease_options.max_attempts = flags.max_attempts;
+  sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
+
+  sandswim::Deps deps;
+  deps.store = store->get();
+  deps.leases = &leases;
+  deps.clock = &clock;
+  deps.data_dir = flags.data;
+  deps.engine_version = flags.engine_version;
+  deps.token = *token;
+  sandswim::ApiServer server(deps);
+  auto port = server.Bind(*address);
+  if (!port.ok()) return Die(port.status(), "stop whatever holds the port, or pass another --listen");
+  std::thread serve([&server] { server.Serve(); });
+
+  // Leases run out by time: reclaim them every second.
+  std::mutex stop_mu;
+  std::condition_variable stop_cv;
+  bool stopping = false;
+  std::thread expiry([&] {
+    std::unique_lock<std::mutex> lock(stop_mu);
+    while (!stop_cv.wait_for(lock, std::chrono::seconds(1), [&] { return stopping; })) {
+      lock.unlock();
+      auto expired = leases.ExpireLeases();
+      if (!expired.ok()) {
+        spdlog::error("expiring leases: {}; will retry in 1 s (check the disk holding {})",
+                      expired.status().ToString(), flags.db);
+      } else if (*expired > 0) {
+        spdlog::info("{} lease(s) expired; their jobs are queued again", *expired);
+      }
+      lock.lock();
+    }
+  });
+
+  std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
+
+  sandswim::PosixLauncher launcher;
+  sandswim::LocalWorkersOptions worker_options;
+  worker_options.count = flags.local_workers;
+  worker_options.argv = {sandswim::ExecutableDir() + "/sandswim-worker", "--server",
+                         "http://127.0.0.1:" + std::to_string(*port), "--slots", "1", "--ranks", "1",
+                         "--workdir", flags.data + "/worker"};
+  // A token from SANDSWIM_TOKEN reaches the workers through the environment.
+  if (!flags.token_file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", flags.token_file});
+  sandswim::LocalWorkers workers(worker_options, &launcher, &clock);
+  std::thread supervisor;
+  int exit_code = 0;
+  Status started = workers.Start();
+  if (!started.ok()) {
+    exit_code = Die(started, "the daemon is stopping");
+  } else {
+    if (flags.local_workers > 0) supervisor = std::thread([&workers] { workers.RunUntilStopped(); });
+    int signal_number = 0;
+    sigwait(&stop_signals, &signal_number);
+    spdlog::info("{} received: stopping", strsignal(signal_number));
+  }
+
+  // Workers first (they may still report to the server), then the server, then the store.
+  workers.RequestStop();
+  if (supervisor.joinable()) supervisor.join();
+  workers.Stop();
+  {
+    std::lock_guard<std::mutex> lock(stop_mu);
+    stopping = true;
+  }
+  stop_cv.notify_all();
+  expiry.join();
+  server.Stop();
+  serve.join();
+  spdlog::info("sandswimd stopped");
+  return exit_code;
+}

@@ -1,0 +1,941 @@
+#include "server/routes.h"
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <charconv>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include <httplib.h>
+#include <openssl/crypto.h>
+#include <spdlog/spdlog.h>
+
+#include "core/embedded.h"
+#include "core/sweep.h"
+#include "server/submission.h"
+
+namespace sandswim {
+namespace {
+
+using json = nlohmann::json;
+
+// A body bigger than its route's limit is still read (and thrown away) up to this many bytes, so
+// the client gets its 413 instead of a connection reset; past it the connection is closed.
+constexpr size_t kDrainCapBytes = size_t{64} << 20;
+constexpr const char* kProblemType = "application/problem+json";
+
+std::string HttpTitle(int http_status) {
+  static const std::map<int, const char*> kTitles = {
+      {200, "OK"}, {201, "Created"}, {204, "No Content"}, {400, "Bad Request"},
+      {401, "Unauthorized"}, {403, "Forbidden"}, {404, "Not Found"},
+      {405, "Method Not Allowed"}, {409, "Conflict"}, {411, "Length Required"},
+      {413, "Content Too Large"}, {415, "Unsupported Media Type"},
+      {416, "Range Not Satisfiable"}, {422, "Unprocessable Content"},
+      {500, "Internal Server Error"}, {503, "Service Unavailable"}};
+  auto it = kTitles.find(http_status);
+  return it != kTitles.end() ? it->second : "HTTP " + std::to_string(http_status);
+}
+
+// Counts every answered request by status code, for /metrics.
+struct HttpCounters {
+  std::mutex mu;
+  std::map<int, uint64_t> by_status;
+  void Count(int status) {
+    std::lock_guard<std::mutex> lock(mu);
+    ++by_status[status == -1 ? 200 : status];
+  }
+};
+
+// ---- One request in flight ---------------------------------------------------------------------
+
+struct Call {
+  const httplib::Request& req;
+  httplib::Response& res;
+  Deps& deps;
+  std::string body;                                // BodyKind::kJson, at most max_json_body
+  const httplib::ContentReader* reader = nullptr;  // BodyKind::kRestart, not yet read
+  HttpCounters* counters = nullptr;
+};
+
+void SendJson(Call& c, int http_status, const json& body) {
+  c.res.status = http_status;
+  c.res.set_content(body.dump(), "application/json");
+}
+
+void SendProblem(httplib::Response& res, const Status& status, int http_status = 0) {
+  if (http_status == 0) http_status = HttpStatusFor(status.code());
+  res.status = http_status;
+  res.set_content(ProblemFor(status, http_status).dump(), kProblemType);
+  if (http_status >= 500) {
+    spdlog::error("HTTP {}: {} (check the daemon's --db and --data paths and disk space; "
+                  "the request can be retried)",
+                  http_status, status.ToString());
+  }
+}
+
+void Fail(Call& c, const Status& status, int http_status = 0) { SendProblem(c.res, status, http_status); }
+
+// Parses a JSON body; a syntax error names the byte where parsing stopped.
+Result<json> ParseJsonBody(const std::string& body, bool allow_empty) {
+  if (body.empty()) {
+    if (allow_empty) return json::object();
+    return Status::InvalidArgument("body", "a JSON body is required");
+  }
+  try {
+    return json::parse(body);
+  } catch (const json::parse_error& e) {
+    return Status::InvalidArgument(
+        "body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+  } catch (const json::exception& e) {  // e.g. a number too large for a double (1e999)
+    return Status::InvalidArgument("body", std::string("unreadable JSON: ") + e.what());
+  }
+}
+
+// Converts a worker message with its nlohmann conversions; a wrong type names the message.
+template <typename T>
+Result<T> ParseMessage(const std::string& body, const char* what, bool allow_empty) {
+  auto j = ParseJsonBody(body, allow_empty);
+  if (!j.ok()) return j.status();
+  if (!j->is_object()) return Status::InvalidArgument("body", std::string(what) + " must be a JSON object");
+  try {
+    return j->template get<T>();
+  } catch (const json::exception& e) {
+    return Status::InvalidArgument("body", std::string("not a valid ") + what + ": " + e.what());
+  }
+}
+
+Result<int64_t> ParseInt(const std::string& text, const std::string& field, int64_t min, int64_t max) {
+  int64_t v = 0;
+  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size()) {
+    return Status::InvalidArgument(field, "must be an integer, got \"" + text + "\"");
+  }
+  if (v < min || v > max) {
+    return Status::InvalidArgument(
+        field, "must be in [" + std::to_string(min) + ", " + std::to_string(max) + "], got " + text);
+  }
+  return v;
+}
+
+Result<int64_t> PathId(const Call& c, size_t index = 1) {
+  return ParseInt(c.req.matches[index].str(), "id", 1, INT64_MAX);
+}
+
+std::string PathToken(const Call& c) { return c.req.matches[1].str(); }
+
+// Optional integer query parameter.
+Result<std::optional<int64_t>> QueryInt(const Call& c, const std::string& name, int64_t min, int64_t max) {
+  if (!c.req.has_param(name.c_str())) return std::optional<int64_t>();
+  auto v = ParseInt(c.req.get_param_value(name.c_str()), name, min, max);
+  if (!v.ok()) return v.status();
+  return std::optional<int64_t>(*v);
+}
+
+struct PageArgs {
+  int64_t after_id = 0;
+  int limit = 100;
+};
+
+Result<PageArgs> ParsePage(const Call& c) {
+  PageArgs page;
+  auto cursor = QueryInt(c, "cursor", 0, INT64_MAX);
+  if (!cursor.ok()) return cursor.status();
+  auto limit = QueryInt(c, "limit", 1, 1000);
+  if (!limit.ok()) return limit.status();
+  if (*cursor) page.after_id = **cursor;
+  if (*limit) page.limit = static_cast<int>(**limit);
+  return page;
+}
+
+// Cursors are opaque strings to clients (today: the last id of the page).
+void CursorToString(json& page) {
+  auto it = page.find("next_cursor");
+  if (it != page.end() && it->is_number_integer()) *it = std::to_string(it->get<int64_t>());
+}
+
+bool WantsCsv(const Call& c) {
+  if (c.req.has_param("format")) return c.req.get_param_value("format") == "csv";
+  return c.req.get_header_value("Accept").find("text/csv") != std::string::npos;
+}
+
+// ---- Result rows (JSON objects and CSV rows share the columns) ---------------------------------
+
+const std::vector<std::string>& ResultColumns() {
+  static const std::vector<std::string> kColumns = {
+      "run_id", "key", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s",
+      "run_duration_s", "Uz", "Uz_stderr", "dz", "z_osc_amplitude", "x_drift", "broke_surface",
+      "near_floor", "stop_reason", "sim_time_s", "grains", "engine_version"};
+  return kColumns;
+}
+
+json ResultRowJson(const ResultRow& row) {
+  json j = json::object();
+  for (const auto& col : ResultColumns()) j[col] = nullptr;
+  j["run_id"] = row.run_id;
+  j["key"] = row.key;
+  j["state"] = row.state;
+  const json point = PointToJson(row.point);
+  for (auto it = point.begin(); it != point.end(); ++it) j[it.key()] = it.value();
+  j["run_duration_s"] = row.run_duration_s;
+  if (row.result) {
+    const api::RunResult& r = row.result->result;
+    j["Uz"] = r.uz;
+    j["Uz_stderr"] = r.uz_stderr;
+    j["dz"] = r.dz;
+    j["z_osc_amplitude"] = r.z_osc_amplitude;
+    j["x_drift"] = r.x_drift;
+    j["broke_surface"] = r.broke_surface;
+    j["near_floor"] = r.near_floor;
+    j["stop_reason"] = r.stop_reason;
+    j["sim_time_s"] = r.sim_time_s;
+    j["grains"] = r.grains;
+    j["engine_version"] = row.result->execution.engine_version;
+  }
+  return j;
+}
+
+std::string CsvCell(const json& v) {
+  if (v.is_null()) return "";
+  if (v.is_array()) {
+    std::string joined;
+    for (const auto& e : v) joined += (joined.empty() ? "" : ";") + (e.is_string() ? e.get<std::string>() : e.dump());
+    return CsvCell(json(joined));
+  }
+  if (!v.is_string()) return v.dump();  // shortest round-trip form for numbers
+  std::string s = v.get<std::string>();
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string quoted = "\"";
+  for (char ch : s) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return quoted + "\"";
+}
+
+std::string RowsToCsv(const std::vector<json>& rows, const std::vector<std::string>& columns) {
+  std::string out;
+  for (size_t i = 0; i < columns.size(); ++i) out += (i ? "," : "") + columns[i];
+  out += "\n";
+  for (const auto& row : rows) {
+    for (size_t i = 0; i < columns.size(); ++i) {
+      if (i) out += ",";
+      auto it = row.find(columns[i]);
+      if (it != row.end()) out += CsvCell(*it);
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+void SendRows(Call& c, int64_t id, const std::vector<json>& rows, bool with_sweeps) {
+  if (WantsCsv(c)) {
+    std::vector<std::string> columns = ResultColumns();
+    if (with_sweeps) columns.push_back("sweeps");
+    c.res.status = 200;
+    c.res.set_content(RowsToCsv(rows, columns), "text/csv");
+    return;
+  }
+  SendJson(c, 200, {{"id", id}, {"results", rows}});
+}
+
+// A campaign run's distinct runs, each naming the sweeps it belongs to.
+Result<std::vector<json>> CampaignRunRows(Store& store, const CampaignRunInfo& info) {
+  std::vector<json> rows;
+  std::map<int64_t, size_t> index_of_run;
+  for (int64_t sweep_id : info.sweep_ids) {
+    auto sweep = store.GetSweep(sweep_id);
+    if (!sweep.ok()) return sweep.status();
+    auto results = store.SweepResults(sweep_id);
+    if (!results.ok()) return results.status();
+    for (const ResultRow& row : *results) {
+      auto [it, inserted] = index_of_run.emplace(row.run_id, rows.size());
+      if (inserted) {
+        rows.push_back(ResultRowJson(row));
+        rows.back()["sweeps"] = json::array();
+      }
+      rows[it->second]["sweeps"].push_back(sweep->name);
+    }
+  }
+  return rows;
+}
+
+// ---- Handlers: parse -> call -> render ---------------------------------------------------------
+
+void SubmitSweeps(Call& c) {
+  auto body = ParseJsonBody(c.body, /*allow_empty=*/false);
+  if (!body.ok()) return Fail(c, body.status());
+  auto request = ParseSubmitRequest(*body);
+  if (!request.ok()) return Fail(c, request.status());
+  if (c.req.has_header("Idempotency-Key")) request->idempotency_key = c.req.get_header_value("Idempotency-Key");
+  auto result = Submit(*c.deps.store, *request, c.deps.engine_version, c.deps.clock->Now());
+  if (!result.ok()) return Fail(c, result.status());
+  json reply = *result;
+  std::string location;
+  if (result->campaign_run_id) {
+    reply["id"] = *result->campaign_run_id;
+    reply["campaign"] = *request->campaign;
+    reply["sweeps"] = result->sweep_ids;
+    location = "/api/v1/campaign-runs/" + std::to_string(*result->campaign_run_id);
+  } else {
+    location = "/api/v1/sweeps/" + std::to_string(result->sweep_ids.at(0));
+  }
+  c.res.set_header("Location", location);
+  SendJson(c, 201, reply);
+}
+
+void ListSweeps(Call& c) {
+  auto page = ParsePage(c);
+  if (!page.ok()) return Fail(c, page.status());
+  auto sweeps = c.deps.store->ListSweeps(page->after_id, page->limit);
+  if (!sweeps.ok()) return Fail(c, sweeps.status());
+  json reply = *sweeps;
+  CursorToString(reply);
+  SendJson(c, 200, reply);
+}
+
+void GetSweep(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto sweep = c.deps.store->GetSweep(*id);
+  if (!sweep.ok()) return Fail(c, sweep.status());
+  SendJson(c, 200, *sweep);
+}
+
+void GetSweepResults(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto results = c.deps.store->SweepResults(*id);
+  if (!results.ok()) return Fail(c, results.status());
+  std::vector<json> rows;
+  rows.reserve(results->size());
+  for (const ResultRow& row : *results) rows.push_back(ResultRowJson(row));
+  SendRows(c, *id, rows, /*with_sweeps=*/false);
+}
+
+void CancelSweep(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto summary = c.deps.leases->Cancel(*id);
+  if (!summary.ok()) return Fail(c, summary.status());
+  auto sweep = c.deps.store->GetSweep(*id);
+  if (!sweep.ok()) return Fail(c, sweep.status());
+  json reply = *sweep;
+  reply["cancel"] = *summary;
+  SendJson(c, 200, reply);
+}
+
+void ListRuns(Call& c) {
+  RunFilter filter;
+  auto page = ParsePage(c);
+  if (!page.ok()) return Fail(c, page.status());
+  filter.after_id = page->after_id;
+  filter.limit = page->limit;
+  auto sweep = QueryInt(c, "sweep", 1, INT64_MAX);
+  if (!sweep.ok()) return Fail(c, sweep.status());
+  filter.sweep_id = *sweep;
+  if (c.req.has_param("state")) filter.state = c.req.get_param_value("state");
+  auto runs = c.deps.store->ListRuns(filter);
+  if (!runs.ok()) return Fail(c, runs.status());
+  json reply = *runs;
+  CursorToString(reply);
+  SendJson(c, 200, reply);
+}
+
+void GetRun(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto run = c.deps.store->GetRun(*id);
+  if (!run.ok()) return Fail(c, run.status());
+  SendJson(c, 200, *run);
+}
+
+json CampaignJson(const Campaign& campaign, bool builtin, bool stored) {
+  json sweeps = json::array();
+  for (const SweepSpec& s : campaign.sweeps) sweeps.push_back(s.name);
+  return {{"name", campaign.name},
+          {"description", campaign.description},
+          {"scale", campaign.scale},
+          {"builtin", builtin},
+          {"stored", stored},
+          {"sweeps", sweeps},
+          {"schedule", campaign.schedule ? json(*campaign.schedule) : json(nullptr)},
+          {"drift_tolerance_mps", campaign.drift_tolerance_mps}};
+}
+
+// Stored campaigns (a stored definition overrides the builtin one of its name), then the
+// builtin campaigns nobody has stored.
+void ListCampaigns(Call& c) {
+  json campaigns = json::array();
+  std::set<std::string> listed;
+  const std::vector<std::string> builtin_names = BuiltinCampaignNames();
+  auto is_builtin = [&](const std::string& name) {
+    return std::find(builtin_names.begin(), builtin_names.end(), name) != builtin_names.end();
+  };
+  auto stored = c.deps.store->ListCampaigns();
+  if (!stored.ok()) return Fail(c, stored.status());
+  for (const StoredCampaign& s : *stored) {
+    auto campaign = ParseCampaign(s.definition);
+    if (!campaign.ok()) {
+      return Fail(c, Status::Corruption("stored campaign '" + s.name + "' no longer parses: " +
+                                        campaign.status().ToString()));
+    }
+    campaign->name = s.name;
+    campaign->schedule = s.schedule;
+    campaign->drift_tolerance_mps = s.drift_tolerance_mps;
+    campaigns.push_back(CampaignJson(*campaign, is_builtin(s.name), /*stored=*/true));
+    listed.insert(s.name);
+  }
+  for (const std::string& name : builtin_names) {
+    if (listed.count(name)) continue;
+    auto campaign = BuiltinCampaign(name);
+    if (!campaign.ok()) return Fail(c, campaign.status());
+    campaigns.push_back(CampaignJson(*campaign, /*builtin=*/true, /*stored=*/false));
+  }
+  SendJson(c, 200, {{"campaigns", campaigns}});
+}
+
+void GetCampaignRun(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto info = c.deps.store->GetCampaignRun(*id);
+  if (!info.ok()) return Fail(c, info.status());
+  SendJson(c, 200, *info);
+}
+
+void GetCampaignRunResults(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto info = c.deps.store->GetCampaignRun(*id);
+  if (!info.ok()) return Fail(c, info.status());
+  auto rows = CampaignRunRows(*c.deps.store, *info);
+  if (!rows.ok()) return Fail(c, rows.status());
+  SendRows(c, *id, *rows, /*with_sweeps=*/true);
+}
+
+void LeaseJob(Call& c) {
+  auto request = ParseMessage<api::LeaseRequest>(c.body, "LeaseRequest", /*allow_empty=*/true);
+  if (!request.ok()) return Fail(c, request.status());
+  auto grant = c.deps.leases->Lease(*request);
+  if (!grant.ok()) return Fail(c, grant.status());
+  if (!*grant) {
+    c.res.status = 204;
+    return;
+  }
+  SendJson(c, 200, {{"lease", **grant}});
+}
+
+void HeartbeatLease(Call& c) {
+  auto beat = ParseMessage<api::Heartbeat>(c.body, "Heartbeat", /*allow_empty=*/true);
+  if (!beat.ok()) return Fail(c, beat.status());
+  auto reply = c.deps.leases->Heartbeat(PathToken(c), *beat);
+  if (!reply.ok()) return Fail(c, reply.status());
+  SendJson(c, 200, *reply);
+}
+
+void CompleteLease(Call& c) {
+  auto completion = ParseMessage<api::Completion>(c.body, "Completion", /*allow_empty=*/false);
+  if (!completion.ok()) return Fail(c, completion.status());
+  auto reply = c.deps.leases->Complete(PathToken(c), *completion);
+  if (!reply.ok()) return Fail(c, reply.status());
+  SendJson(c, 200, *reply);
+}
+
+// A file mapped read-only, so a restart of any size reaches PutBedRestart without a copy in memory.
+class MappedFile {
+ public:
+  ~MappedFile() {
+    if (data_ != nullptr) munmap(data_, size_);
+    if (fd_ >= 0) close(fd_);
+  }
+  Status Open(const std::string& path) {
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd_ < 0) return Status::IOError("cannot open " + path);
+    struct stat st {};
+    if (fstat(fd_, &st) != 0) return Status::IOError("cannot stat " + path);
+    size_ = static_cast<size_t>(st.st_size);
+    if (size_ == 0) return Status::Ok();
+    void* p = mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);
+    if (p == MAP_FAILED) return Status::IOError("cannot map " + path);
+    data_ = p;
+    return Status::Ok();
+  }
+  std::string_view view() const {
+    return data_ == nullptr ? std::string_view() : std::string_view(static_cast<const char*>(data_), size_);
+  }
+
+ private:
+  int fd_ = -1;
+  void* data_ = nullptr;
+  size_t size_ = 0;
+};
+
+void UploadBedRestart(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  std::string token = c.req.get_param_value("token");
+  std::string sha256 = c.req.get_header_value("X-Sha256");
+  // Read the body first either way, so a refusal reaches the client instead of a reset.
+  static std::atomic<uint64_t> upload_counter{0};
+  std::filesystem::path dir = std::filesystem::path(c.deps.data_dir) / "uploads";
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Fail(c, Status::IOError("cannot create " + dir.string() + ": " + ec.message()));
+  std::filesystem::path temp =
+      dir / ("bed-" + std::to_string(*id) + "-" + std::to_string(getpid()) + "-" +
+             std::to_string(upload_counter.fetch_add(1)) + ".part");
+  struct RemoveOnExit {
+    std::filesystem::path path;
+    ~RemoveOnExit() {
+      std::error_code ignored;
+      std::filesystem::remove(path, ignored);
+    }
+  } cleanup{temp};
+  std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+  if (!out) return Fail(c, Status::IOError("cannot write " + temp.string()));
+  size_t received = 0;
+  bool too_big = false;
+  (*c.reader)([&](const char* data, size_t n) {
+    received += n;
+    if (received > c.deps.max_restart_body) {
+      too_big = true;
+      return false;
+    }
+    out.write(data, static_cast<std::streamsize>(n));
+    return static_cast<bool>(out);
+  });
+  out.close();
+  if (too_big) {
+    c.res.set_header("Connection", "close");
+    return Fail(c, Status::ResourceExhausted("body", "a bed restart may be at most " +
+                                                         std::to_string(c.deps.max_restart_body) + " bytes"),
+                413);
+  }
+  if (!out) return Fail(c, Status::IOError("cannot write " + temp.string() + " (disk full?)"));
+  if (token.empty()) return Fail(c, Status::InvalidArgument("token", "the query parameter token= is required"));
+  if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  MappedFile mapped;
+  Status s = mapped.Open(temp.string());
+  if (!s.ok()) return Fail(c, s);
+  s = c.deps.leases->PutBedRestart(token, mapped.view(), sha256, c.deps.data_dir);
+  if (!s.ok()) return Fail(c, s);
+  SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", mapped.view().size()}});
+}
+
+void DownloadBedRestart(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto bed = c.deps.leases->GetBedRestart(*id);
+  if (!bed.ok()) return Fail(c, bed.status());
+  auto file = std::make_shared<std::ifstream>(bed->path, std::ios::binary);
+  std::error_code ec;
+  auto size = std::filesystem::file_size(bed->path, ec);
+  if (!*file || ec) {
+    return Fail(c, Status::IOError("bed " + std::to_string(*id) + "'s restart file " + bed->path +
+                                   " is missing; the bed must be prepared again"));
+  }
+  c.res.status = 200;
+  c.res.set_header("X-Sha256", bed->sha256);
+  c.res.set_content_provider(
+      static_cast<size_t>(size), "application/octet-stream",
+      [file](size_t offset, size_t length, httplib::DataSink& sink) {
+        std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
+        file->seekg(static_cast<std::streamoff>(offset));
+        file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+        std::streamsize got = file->gcount();
+        if (got <= 0) return false;
+        return sink.write(buffer.data(), static_cast<size_t>(got));
+      });
+}
+
+void OpenApi(Call& c) {
+  auto doc = EmbeddedFile("schema/openapi.json");
+  if (!doc) return Fail(c, Status::Internal("schema/openapi.json was not compiled in; rebuild sandswimd"));
+  c.res.status = 200;
+  c.res.set_content(std::string(*doc), "application/json");
+}
+
+void Healthz(Call& c) {
+  Status s = c.deps.store->HealthCheck();
+  if (!s.ok()) return Fail(c, Status::Unavailable("store: " + s.ToString()));
+  SendJson(c, 200, {{"status", "ok"},
+                    {"engine_version", c.deps.engine_version},
+                    {"schema_version", c.deps.store->schema_version()}});
+}
+
+std::string MetricsText(const Metrics& m, HttpCounters& http) {
+  std::ostringstream out;
+  auto gauge_by_state = [&out](const char* name, const char* help, const RunCounts& c) {
+    out << "# HELP " << name << " " << help << "\n# TYPE " << name << " gauge\n";
+    const std::pair<const char*, int64_t> states[] = {{"queued", c.queued}, {"running", c.running},
+                                                      {"done", c.done}, {"failed", c.failed},
+                                                      {"cancelled", c.cancelled}};
+    for (const auto& [state, n] : states) out << name << "{state=\"" << state << "\"} " << n << "\n";
+  };
+  auto counter = [&out](const char* name, const char* help, int64_t v) {
+    out << "# HELP " << name << " " << help << "\n# TYPE " << name << " counter\n" << name << " " << v << "\n";
+  };
+  gauge_by_state("sandswim_runs", "Runs by state.", m.runs);
+  gauge_by_state("sandswim_beds", "Beds by state.", m.beds);
+  out << "# HELP sandswim_sweeps Sweeps submitted.\n# TYPE sandswim_sweeps gauge\nsandswim_sweeps " << m.sweeps << "\n";
+  counter("sandswim_leases_granted_total", "Leases granted to workers.", m.leases_granted);
+  counter("sandswim_completions_total", "Completions accepted.", m.completions);
+  counter("sandswim_lease_expirations_total", "Leases that ran out.", m.expirations);
+  counter("sandswim_duplicate_completions_total", "Repeated completions answered duplicate.", m.duplicates);
+  out << "# HELP sandswim_http_requests_total HTTP requests answered, by status code.\n"
+         "# TYPE sandswim_http_requests_total counter\n";
+  std::lock_guard<std::mutex> lock(http.mu);
+  for (const auto& [code, n] : http.by_status) {
+    out << "sandswim_http_requests_total{code=\"" << code << "\"} " << n << "\n";
+  }
+  return out.str();
+}
+
+void GetMetrics(Call& c) {
+  auto metrics = c.deps.store->GetMetrics();
+  if (!metrics.ok()) return Fail(c, metrics.status());
+  c.res.status = 200;
+  c.res.set_content(MetricsText(*metrics, *c.counters), "text/plain; version=0.0.4");
+}
+
+// ---- The route table ---------------------------------------------------------------------------
+
+using Handler = void (*)(Call&);
+
+struct Route {
+  const char* method;
+  const char* path;
+  Access access;
+  BodyKind body;
+  Handler handler;
+};
+
+// clang-format off
+const Route kRoutes[] = {
+  // method  path                                   access            body                handler
+  {"POST", "/api/v1/sweeps",                        Access::kWrite,  BodyKind::kJson,    SubmitSweeps},
+  {"GET",  "/api/v1/sweeps",                        Access::kRead,   BodyKind::kNone,    ListSweeps},
+  {"GET",  "/api/v1/sweeps/{id}",                   Access::kRead,   BodyKind::kNone,    GetSweep},
+  {"GET",  "/api/v1/sweeps/{id}/results",           Access::kRead,   BodyKind::kNone,    GetSweepResults},
+  {"POST", "/api/v1/sweeps/{id}/cancel",            Access::kWrite,  BodyKind::kJson,    CancelSweep},
+  {"GET",  "/api/v1/runs",                          Access::kRead,   BodyKind::kNone,    ListRuns},
+  {"GET",  "/api/v1/runs/{id}",                     Access::kRead,   BodyKind::kNone,    GetRun},
+  {"GET",  "/api/v1/campaigns",                     Access::kRead,   BodyKind::kNone,    ListCampaigns},
+  {"GET",  "/api/v1/campaign-runs/{id}",            Access::kRead,   BodyKind::kNone,    GetCampaignRun},
+  {"GET",  "/api/v1/campaign-runs/{id}/results",    Access::kRead,   BodyKind::kNone,    GetCampaignRunResults},
+  // The worker protocol (core/api.h), in the order a worker uses it.
+  {"POST", "/api/v1/leases",                        Access::kWorker, BodyKind::kJson,    LeaseJob},
+  {"GET",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kNone,    DownloadBedRestart},
+  {"POST", "/api/v1/leases/{token}/heartbeat",      Access::kWorker, BodyKind::kJson,    HeartbeatLease},
+  {"PUT",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kRestart, UploadBedRestart},
+  {"POST", "/api/v1/leases/{token}/complete",       Access::kWorker, BodyKind::kJson,    CompleteLease},
+  // Operations.
+  {"GET",  "/api/v1/openapi.json",                  Access::kPublic, BodyKind::kNone,    OpenApi},
+  {"GET",  "/healthz",                              Access::kPublic, BodyKind::kNone,    Healthz},
+  {"GET",  "/metrics",                              Access::kRead,   BodyKind::kNone,    GetMetrics},
+};
+// clang-format on
+
+// "/api/v1/sweeps/{id}" -> "/api/v1/sweeps/(\d+)"; tokens are what LeaseQueue mints (hex).
+std::string PathRegex(const std::string& path) {
+  static const std::regex kId(R"(\{id\})"), kToken(R"(\{token\})");
+  std::string r = std::regex_replace(path, kId, R"(([0-9]+))");
+  r = std::regex_replace(r, kToken, R"(([A-Za-z0-9_-]+))");
+  return std::regex_replace(r, std::regex(R"(\.)"), R"(\.)");
+}
+
+struct CompiledRoute {
+  const Route* route;
+  std::regex pattern;
+};
+
+const std::vector<CompiledRoute>& CompiledRoutes() {
+  static const std::vector<CompiledRoute> kCompiled = [] {
+    std::vector<CompiledRoute> v;
+    for (const Route& r : kRoutes) v.push_back({&r, std::regex(PathRegex(r.path))});
+    return v;
+  }();
+  return kCompiled;
+}
+
+const Route* FindRoute(const std::string& method, const std::string& path) {
+  for (const CompiledRoute& cr : CompiledRoutes()) {
+    if (method == cr.route->method && std::regex_match(path, cr.pattern)) return cr.route;
+  }
+  return nullptr;
+}
+
+bool IsLoopbackPeer(const std::string& addr) {
+  return addr.rfind("127.", 0) == 0 || addr == "::1" || addr.rfind("::ffff:127.", 0) == 0;
+}
+
+// Empty when the caller may go on; otherwise why not.
+std::optional<Status> CheckAuth(const Deps& deps, const Route& route, const httplib::Request& req) {
+  if (deps.token.empty() || route.access == Access::kPublic) return std::nullopt;
+  if (route.access == Access::kRead && IsLoopbackPeer(req.remote_addr)) return std::nullopt;
+  std::string header = req.get_header_value("Authorization");
+  const std::string prefix = "Bearer ";
+  if (header.rfind(prefix, 0) == 0) {
+    std::string given = header.substr(prefix.size());
+    if (given.size() == deps.token.size() &&
+        CRYPTO_memcmp(given.data(), deps.token.data(), given.size()) == 0) {
+      return std::nullopt;
+    }
+    return Status(StatusCode::kUnauthenticated, "the bearer token is not the daemon's token", "Authorization");
+  }
+  return Status(StatusCode::kUnauthenticated,
+                "this daemon has a token: send \"Authorization: Bearer <token>\"", "Authorization");
+}
+
+// Reads a JSON body up to `limit` bytes; past it, reads on (discarding) up to the drain cap.
+// Returns false when the body was too large.
+bool ReadBody(const httplib::ContentReader& reader, size_t limit, std::string& body, bool& drained) {
+  size_t received = 0;
+  bool too_big = false;
+  drained = true;
+  reader([&](const char* data, size_t n) {
+    received += n;
+    if (received > limit) too_big = true;
+    if (!too_big) body.append(data, n);
+    if (received > kDrainCapBytes) {
+      drained = false;
+      return false;
+    }
+    return true;
+  });
+  return !too_big;
+}
+
+void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const httplib::Request& req,
+              httplib::Response& res, const httplib::ContentReader* reader) {
+  Call c{req, res, deps, {}, nullptr, counters};
+  std::optional<Status> denied = CheckAuth(deps, route, req);
+  if (reader != nullptr && (route.body == BodyKind::kJson || denied)) {
+    bool drained = true;
+    bool fits = ReadBody(*reader, deps.max_json_body, c.body, drained);
+    if (!drained) res.set_header("Connection", "close");
+    if (denied) return SendProblem(res, *denied);
+    if (!fits) {
+      return SendProblem(res,
+                         Status::ResourceExhausted("body", "a JSON body may be at most " +
+                                                               std::to_string(deps.max_json_body) + " bytes"),
+                         413);
+    }
+  }
+  if (denied) return SendProblem(res, *denied);
+  if (route.body == BodyKind::kRestart) c.reader = reader;
+  route.handler(c);
+}
+
+// Dispatch, counted for /metrics.
+void DispatchCounted(const Route& route, Deps& deps, HttpCounters* counters, const httplib::Request& req,
+                     httplib::Response& res, const httplib::ContentReader* reader) {
+  Dispatch(route, deps, counters, req, res, reader);
+  counters->Count(res.status);
+}
+
+}  // namespace
+
+// ---- Public ------------------------------------------------------------------------------------
+
+std::vector<RouteInfo> RouteTable() {
+  std::vector<RouteInfo> table;
+  for (const Route& r : kRoutes) table.push_back({r.method, r.path, r.access, r.body});
+  return table;
+}
+
+int HttpStatusFor(StatusCode code) {
+  switch (code) {
+    case StatusCode::kOk: return 200;
+    case StatusCode::kInvalidArgument: return 400;
+    case StatusCode::kUnauthenticated: return 401;
+    case StatusCode::kNotFound: return 404;
+    case StatusCode::kAlreadyExists: return 409;
+    case StatusCode::kConflict: return 409;
+    case StatusCode::kFailedPrecondition: return 422;
+    case StatusCode::kResourceExhausted: return 422;  // e.g. a sweep past the run limit
+    case StatusCode::kUnavailable: return 503;
+    case StatusCode::kIOError: return 500;
+    case StatusCode::kCorruption: return 500;
+    case StatusCode::kInternal: return 500;
+  }
+  return 500;
+}
+
+json ProblemFor(const Status& status, int http_status) {
+  std::string name = StatusCodeName(status.code());
+  std::string slug;
+  for (char ch : name) slug += ch == ' ' || ch == '_' ? '-' : static_cast<char>(std::tolower(ch));
+  std::string title = HttpTitle(http_status);
+  return {{"type", "urn:sandswim:problem:" + slug},
+          {"title", title},
+          {"status", http_status},
+          {"detail", status.field().empty() ? status.reason() : status.field() + ": " + status.reason()},
+          {"field", status.field()}};
+}
+
+void RegisterRoutes(httplib::Server& server, Deps& deps) {
+  Deps* d = &deps;
+  auto counters = std::make_shared<HttpCounters>();
+  for (const Route& route : kRoutes) {
+    const Route* r = &route;
+    std::string pattern = PathRegex(route.path);
+    httplib::Server::Handler plain = [r, d, counters](const httplib::Request& req, httplib::Response& res) {
+      DispatchCounted(*r, *d, counters.get(), req, res, nullptr);
+    };
+    httplib::Server::HandlerWithContentReader with_body =
+        [r, d, counters](const httplib::Request& req, httplib::Response& res,
+                         const httplib::ContentReader& reader) { DispatchCounted(*r, *d, counters.get(), req, res, &reader);
+        };
+    std::string method = route.method;
+    if (method == "GET") server.Get(pattern, plain);
+    else if (method == "POST") server.Post(pattern, with_body);
+    else if (method == "PUT") server.Put(pattern, with_body);
+  }
+
+  // Refuse what cannot be drained before any byte of the body is read.
+  server.set_pre_routing_handler([d, counters](const httplib::Request& req, httplib::Response& res) {
+    const Route* route = FindRoute(req.method, req.path);
+    if (route == nullptr || route->body == BodyKind::kNone || !req.has_header("Content-Length")) {
+      return httplib::Server::HandlerResponse::Unhandled;
+    }
+    size_t limit = route->body == BodyKind::kRestart ? d->max_restart_body : std::max(d->max_json_body, kDrainCapBytes);
+    auto length = ParseInt(req.get_header_value("Content-Length"), "Content-Length", 0, INT64_MAX);
+    if (length.ok() && static_cast<uint64_t>(*length) <= limit) return httplib::Server::HandlerResponse::Unhandled;
+    res.set_header("Connection", "close");
+    SendProblem(res, Status::ResourceExhausted("body", "the body is larger than this route takes (" +
+                                                           std::to_string(route->body == BodyKind::kRestart
+                                                                              ? d->max_restart_body
+                                                                              : d->max_json_body) +
+                                                           " bytes)"),
+                413);
+    counters->Count(413);
+    return httplib::Server::HandlerResponse::Handled;
+  });
+
+  server.set_payload_max_length(std::max(deps.max_restart_body, kDrainCapBytes) + 1);
+
+  // Backstop: whatever httplib answers by itself (404, 405, 413, 400) becomes a problem document.
+  httplib::Server::HandlerWithResponse on_error = [counters](const httplib::Request& req, httplib::Response& res) {
+    if (!res.body.empty() || res.content_length_ > 0) return httplib::Server::HandlerResponse::Unhandled;
+    counters->Count(res.status);  // answered by httplib itself (no route, unreadable request)
+    std::string reason = res.status == 404 ? "no route " + req.method + " " + req.path +
+                                                 " (see /api/v1/openapi.json)"
+                                           : HttpTitle(res.status);
+    StatusCode code = res.status == 404 ? StatusCode::kNotFound
+                      : res.status >= 500 ? StatusCode::kInternal
+                                          : StatusCode::kInvalidArgument;
+    std::string field = res.status == 413 ? "body" : "";
+    res.set_content(ProblemFor(Status(code, reason, field), res.status).dump(), kProblemType);
+    return httplib::Server::HandlerResponse::Handled;
+  };
+  server.set_error_handler(on_error);
+
+  server.set_exception_handler([](const httplib::Request& req, httplib::Response& res, std::exception_ptr ep) {
+    try {
+      std::rethrow_exception(ep);
+    } catch (const json::parse_error& e) {
+      SendProblem(res, Status::InvalidArgument("body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what()));
+    } catch (const json::exception& e) {
+      SendProblem(res, Status::InvalidArgument("body", e.what()));
+    } catch (const std::exception& e) {
+      SendProblem(res, Status::Internal(req.method + " " + req.path + " threw: " + e.what()));
+    } catch (...) {
+      SendProblem(res, Status::Internal(req.method + " " + req.path + " threw a non-standard exception"));
+    }
+  });
+
+  server.set_logger([](const httplib::Request& req, const httplib::Response& res) {
+    spdlog::debug("{} {} -> {}", req.method, req.path, res.status);
+  });
+}
+
+// ---- Listen address ----------------------------------------------------------------------------
+
+Result<ListenAddress> ParseListenAddress(const std::string& text) {
+  ListenAddress address;
+  std::string host, port;
+  if (!text.empty() && text[0] == '[') {
+    size_t close = text.find(']');
+    if (close == std::string::npos || close + 1 >= text.size() || text[close + 1] != ':') {
+      return Status::InvalidArgument("--listen", "expected [IPv6]:PORT, got \"" + text + "\"");
+    }
+    host = text.substr(1, close - 1);
+    port = text.substr(close + 2);
+  } else {
+    size_t colon = text.rfind(':');
+    if (colon == std::string::npos) {
+      return Status::InvalidArgument("--listen", "expected HOST:PORT (e.g. 127.0.0.1:8640), got \"" + text + "\"");
+    }
+    host = text.substr(0, colon);
+    port = text.substr(colon + 1);
+  }
+  if (host.empty()) host = "127.0.0.1";
+  auto p = ParseInt(port, "--listen", 0, 65535);
+  if (!p.ok()) return Status::InvalidArgument("--listen", "port must be 0..65535, got \"" + port + "\"");
+  address.host = host;
+  address.port = static_cast<int>(*p);
+  return address;
+}
+
+bool IsLoopbackHost(const std::string& host) {
+  if (host == "localhost") return true;
+  in_addr v4{};
+  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  if (inet_pton(AF_INET6, host.c_str(), &v6) == 1) return IN6_IS_ADDR_LOOPBACK(&v6);
+  return false;
+}
+
+Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
+  if (IsLoopbackHost(address.host) || have_token) return Status::Ok();
+  return Status(StatusCode::kFailedPrecondition,
+                "refusing to listen on " + address.host +
+                    " (not loopback) without a token: pass --token-file FILE or set SANDSWIM_TOKEN, "
+                    "or listen on 127.0.0.1",
+                "--listen");
+}
+
+// ---- ApiServer ---------------------------------------------------------------------------------
+
+ApiServer::ApiServer(Deps deps) : deps_(std::move(deps)), server_(std::make_unique<httplib::Server>()) {
+  // Keep-alive connections hold a thread each; give concurrent workers and clients room.
+  server_->new_task_queue = [] { return new httplib::ThreadPool(64); };
+  server_->set_keep_alive_max_count(100000);
+  server_->set_read_timeout(60, 0);
+  RegisterRoutes(*server_, deps_);
+}
+
+ApiServer::~ApiServer() { Stop(); }
+
+Result<int> ApiServer::Bind(const ListenAddress& address) {
+  int port = address.port;
+  if (port == 0) {
+    port = server_->bind_to_any_port(address.host);
+    if (port < 0) port = 0;
+  } else if (!server_->bind_to_port(address.host, port)) {
+    port = 0;
+  }
+  if (port <= 0) {
+    return Status::Unavailable("cannot listen on " + address.host + ":" + std::to_string(address.port) +
+                               " (address in use or not local?): pick another --listen");
+  }
+  return port;
+}
+
+void ApiServer::Serve() { server_->listen_after_bind(); }
+
+void ApiServer::Stop() {
+  if (server_) server_->stop();
+}
+
+}  // namespace sandswim

@@ -1,0 +1,118 @@
+// Routes: the REST API of sandswimd (/api/v1, /healthz, /metrics) over cpp-httplib. This is the
+// only server file that includes httplib.h; everything else speaks Status and values.
+//
+// Every route stands in one table (RouteTable(), in routes.cc, read top to bottom): method, path
+// in OpenAPI form ("/api/v1/sweeps/{id}"), who may call it, what body it takes, and its handler.
+// schema/openapi.json describes exactly these routes (a test keeps the two equal). Handlers parse
+// the request, call Store / LeaseQueue / Submit, and render; they hold no business logic.
+//
+// Errors are RFC 9457 application/problem+json: {"type","title","status","detail","field"}, with
+// the HTTP status from one table (HttpStatusFor). An exception handler and an error handler are
+// the backstop, so nothing a client sends produces anything but a problem document.
+//
+// Auth: when Deps::token is non-empty, every write and every worker call needs
+// "Authorization: Bearer <token>" (401 otherwise); reads need it only from non-loopback peers.
+// Body limits: JSON bodies at most Deps::max_json_body bytes, bed restart uploads at most
+// Deps::max_restart_body (streamed to a file under data_dir); past the limit: 413.
+//
+// Ownership: Deps points at objects the caller owns; they must outlive the server.
+// Thread safety: handlers run on httplib's thread pool; Store and LeaseQueue are thread-safe.
+#ifndef SANDSWIM_SERVER_ROUTES_H_
+#define SANDSWIM_SERVER_ROUTES_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/status.h"
+#include "server/clock.h"
+#include "server/lease_queue.h"
+#include "server/store.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace sandswim {
+
+inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;           // 1 MiB
+inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;        // 2 GiB
+inline constexpr int kDefaultPort = 8640;
+
+struct Deps {
+  Store* store = nullptr;
+  LeaseQueue* leases = nullptr;
+  Clock* clock = nullptr;
+  std::string data_dir;        // beds' restart files and upload temp files live under it
+  std::string engine_version;  // enters every content key (Submit)
+  std::string token;           // bearer token; empty: no auth
+  size_t max_json_body = kMaxJsonBodyBytes;
+  size_t max_restart_body = kMaxRestartBodyBytes;
+};
+
+// Who may call a route when a token is configured.
+enum class Access {
+  kPublic,  // always open (/healthz, /api/v1/openapi.json)
+  kRead,    // open to loopback peers; others need the token
+  kWrite,   // needs the token
+  kWorker,  // needs the token (the worker protocol)
+};
+
+// What a route reads from the request body.
+enum class BodyKind { kNone, kJson, kRestart };
+
+struct RouteInfo {
+  std::string method;  // "GET", "POST", "PUT"
+  std::string path;    // OpenAPI form: "/api/v1/sweeps/{id}"
+  Access access;
+  BodyKind body;
+};
+
+// Every route RegisterRoutes() installs, in table order.
+std::vector<RouteInfo> RouteTable();
+
+// Installs the routes, the problem+json error and exception handlers, auth and body limits.
+void RegisterRoutes(httplib::Server& server, Deps& deps);
+
+// The HTTP status a Status code answers with (the one table).
+int HttpStatusFor(StatusCode code);
+// The RFC 9457 body for a Status: {"type","title","status","detail","field"}.
+nlohmann::json ProblemFor(const Status& status, int http_status);
+
+// "HOST:PORT" (or "[v6]:PORT", or ":PORT" for 127.0.0.1). Port 0 asks for an ephemeral port.
+struct ListenAddress {
+  std::string host;
+  int port = kDefaultPort;
+};
+Result<ListenAddress> ParseListenAddress(const std::string& text);
+bool IsLoopbackHost(const std::string& host);
+// Refuses a non-loopback address without a token (field "--listen").
+Status CheckListenPolicy(const ListenAddress& address, bool have_token);
+
+// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib.
+class ApiServer {
+ public:
+  explicit ApiServer(Deps deps);
+  ~ApiServer();
+  ApiServer(const ApiServer&) = delete;
+  ApiServer& operator=(const ApiServer&) = delete;
+
+  // Binds and listens; returns the bound port (the real one when address.port is 0).
+  Result<int> Bind(const ListenAddress& address);
+  // Serves until Stop(). REQUIRES: Bind() succeeded.
+  void Serve();
+  // Safe from any thread (and repeatedly); Serve() returns soon after.
+  void Stop();
+
+ private:
+  Deps deps_;
+  std::unique_ptr<httplib::Server> server_;
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_ROUTES_H_

@@ -1,0 +1,526 @@
+// The REST API end to end in one process: a real httplib::Server on 127.0.0.1 (ephemeral port),
+// a real SQLite file in a temp directory, and httplib::Client as the caller.
+#include "server/routes.h"
+
+#include <stdlib.h>
+
+#include <filesystem>
+#include <map>
+#include <set>
+#include <string>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include "core/keys.h"
+#include "core/point.h"
+#include "core/sweep.h"
+
+namespace sandswim {
+namespace {
+
+using json = nlohmann::json;
+using ::testing::HasSubstr;
+
+const char* kExampleSweep = R"({"name": "omega-sign", "scale": "smoke",
+  "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+  "axes": [{"param": "Omega", "values": [-80, 80]}],
+  "combine": "product"})";
+
+class RoutesTest : public ::testing::Test {
+ protected:
+  void SetUp() override { Start(""); }
+
+  void Start(const std::string& token) {
+    char pattern[] = "/tmp/sandswim-routes-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+    auto store = Store::Open(dir_ + "/test.db");
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    store_ = std::move(*store);
+    leases_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, LeaseQueueOptions{});
+    deps_.store = store_.get();
+    deps_.leases = leases_.get();
+    deps_.clock = &clock_;
+    deps_.data_dir = dir_ + "/data";
+    deps_.engine_version = "LIGGGHTS (Version test)";
+    deps_.token = token;
+    server_ = std::make_unique<httplib::Server>();
+    RegisterRoutes(*server_, deps_);
+    port_ = server_->bind_to_any_port("127.0.0.1");
+    ASSERT_GT(port_, 0);
+    // The socket listens from bind on; requests queue until the loop accepts them.
+    thread_ = std::thread([this] { server_->listen_after_bind(); });
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  }
+
+  void TearDown() override { Shutdown(); }
+
+  void Shutdown() {
+    if (!server_) return;
+    while (!server_->is_running()) std::this_thread::yield();
+    server_->stop();
+    thread_.join();
+    server_.reset();
+    client_.reset();
+    leases_.reset();
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+
+  httplib::Result Post(const std::string& path, const std::string& body, httplib::Headers headers = {}) {
+    return client_->Post(path.c_str(), headers, body, "application/json");
+  }
+
+  json Body(const httplib::Result& r) { return json::parse(r->body); }
+
+  int64_t Rows(const std::string& table) {
+    auto n = store_->CountRows(table);
+    EXPECT_TRUE(n.ok()) << n.status().ToString();
+    return n.ok() ? *n : -1;
+  }
+
+  std::map<std::string, int64_t> AllRows() {
+    std::map<std::string, int64_t> rows;
+    for (const char* t : {"sweeps", "runs", "beds", "sweep_runs", "submissions", "campaign_runs"}) rows[t] = Rows(t);
+    return rows;
+  }
+
+  int64_t SubmitExample() {
+    auto r = Post("/api/v1/sweeps", kExampleSweep);
+    EXPECT_EQ(r->status, 201) << r->body;
+    return Body(r)["id"].get<int64_t>();
+  }
+
+  std::string dir_;
+  FakeClock clock_;
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<LeaseQueue> leases_;
+  Deps deps_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+  int port_ = 0;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+TEST_F(RoutesTest, SubmitExampleSweepAnswersCreatedWithLocationAndCounts) {
+  auto r = Post("/api/v1/sweeps", kExampleSweep);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 201) << r->body;
+  int64_t id = Body(r)["id"].get<int64_t>();
+  EXPECT_EQ(r->get_header_value("Location"), "/api/v1/sweeps/" + std::to_string(id));
+
+  auto got = client_->Get(("/api/v1/sweeps/" + std::to_string(id)).c_str());
+  ASSERT_EQ(got->status, 200);
+  json sweep = Body(got);
+  EXPECT_EQ(sweep["name"], "omega-sign");
+  EXPECT_EQ(sweep["counts"]["queued"], 2);
+  EXPECT_EQ(sweep["counts"]["running"], 0);
+  EXPECT_EQ(sweep["counts"]["done"], 0);
+  EXPECT_EQ(sweep["counts"]["failed"], 0);
+
+  auto list = client_->Get("/api/v1/sweeps");
+  ASSERT_EQ(list->status, 200);
+  ASSERT_EQ(Body(list)["sweeps"].size(), 1u);
+}
+
+TEST_F(RoutesTest, ListRunsPagesWithCursorRoundTrip) {
+  auto r = Post("/api/v1/sweeps", R"({"name": "omegas", "scale": "smoke",
+    "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": 10, "duration_s": 0.3},
+    "axes": [{"param": "Omega", "values": [10, 20, 40, 80, 160]}]})");
+  ASSERT_EQ(r->status, 201) << r->body;
+  int64_t sweep = Body(r)["id"].get<int64_t>();
+
+  std::set<int64_t> seen;
+  std::string cursor;
+  int pages = 0;
+  while (true) {
+    std::string path = "/api/v1/runs?sweep=" + std::to_string(sweep) + "&state=queued&limit=2";
+    if (!cursor.empty()) path += "&cursor=" + cursor;
+    auto page = client_->Get(path.c_str());
+    ASSERT_EQ(page->status, 200) << page->body;
+    json body = Body(page);
+    for (const auto& run : body["runs"]) EXPECT_TRUE(seen.insert(run["id"].get<int64_t>()).second);
+    ++pages;
+    ASSERT_LE(pages, 5);
+    if (!body.contains("next_cursor") || body["next_cursor"].is_null()) break;
+    ASSERT_TRUE(body["next_cursor"].is_string());
+    cursor = body["next_cursor"].get<std::string>();
+  }
+  EXPECT_EQ(seen.size(), 5u);
+  EXPECT_GE(pages, 3);
+
+  auto bad = client_->Get("/api/v1/runs?limit=abc");
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_EQ(Body(bad)["field"], "limit");
+}
+
+struct BadInput {
+  const char* name;
+  std::string body;
+  std::string field;
+};
+
+TEST_F(RoutesTest, BadInputGetsProblemNamingTheFieldAndChangesNothing) {
+  SubmitExample();  // something in the database to stay untouched
+  const std::string base =
+      R"("base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3})";
+  auto sweep = [&](const std::string& extra, const std::string& b) {
+    return R"({"name": "bad", "scale": "smoke", )" + b + extra + "}";
+  };
+  auto with_base = [&](const std::string& fields) {
+    return sweep("", R"("base": {"mode": "oscillatory", )" + fields + "}");
+  };
+  const std::vector<BadInput> cases = {
+      {"malformed JSON", R"({"name": "bad", "scale": )", "body"},
+      {"not an object", "[1, 2]", ""},
+      {"unknown field", sweep(R"(, "colour": "red")", base), "colour"},
+      {"wrong type", sweep(R"(, "axes": {"param": "A"})", base), "axes"},
+      {"string where a number belongs", with_base(R"("A": "0.03", "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
+      {"deck injection in a number", with_base(R"("A": "0.03\nrun 1000000", "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
+      {"newline inside a value", with_base(R"("A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3, "axis": "x\nshell rm")"), "base.axis"},
+      {"newline in the mode", sweep("", R"("base": {"mode": "oscillatory\nrun 1", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3})"), "base.mode"},
+      {"newline in the name", R"({"name": "a\nb", "scale": "smoke", )" + base + "}", "name"},
+      {"number too large (no NaN in JSON)", with_base(R"("A": 1e999, "f": 3, "Omega": -80, "duration_s": 0.3)"), "body"},
+      {"negative A", with_base(R"("A": -0.03, "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
+      {"zero A", with_base(R"("A": 0, "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
+      {"negative f", with_base(R"("A": 0.03, "f": -3, "Omega": -80, "duration_s": 0.3)"), "base.f"},
+      {"zero f", with_base(R"("A": 0.03, "f": 0, "Omega": -80, "duration_s": 0.3)"), "base.f"},
+      {"Omega beyond its cap", with_base(R"("A": 0.03, "f": 3, "Omega": 5001, "duration_s": 0.3)"), "base.Omega"},
+      {"Omega beyond its cap on an axis", sweep(R"(, "axes": [{"param": "Omega", "values": [80, 1e6]}])", base), "axes[0].values[1]"},
+      {"past the run limit", sweep(R"(, "axes": [{"param": "Omega", "range": {"from": 1, "to": 400, "step": 1}},
+                                                 {"param": "f", "range": {"from": 1, "to": 400, "step": 1}}])", base), "axes"},
+      {"unknown scale", R"({"name": "bad", "scale": "galaxy", )" + base + "}", "scale"},
+      {"unknown campaign", R"({"campaign": "nope"})", "campaign"},
+  };
+  const auto before = AllRows();
+  for (const BadInput& c : cases) {
+    SCOPED_TRACE(c.name);
+    auto r = Post("/api/v1/sweeps", c.body);
+    ASSERT_TRUE(r);
+    EXPECT_GE(r->status, 400);
+    EXPECT_LT(r->status, 500);
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json");
+    json problem = Body(r);
+    EXPECT_EQ(problem["status"], r->status);
+    EXPECT_TRUE(problem["type"].is_string());
+    EXPECT_TRUE(problem["title"].is_string());
+    EXPECT_TRUE(problem["detail"].is_string());
+    if (!c.field.empty()) {
+      EXPECT_THAT(problem["field"].get<std::string>(), HasSubstr(c.field)) << r->body;
+    }
+  }
+  EXPECT_EQ(AllRows(), before);
+}
+
+TEST_F(RoutesTest, HugeBodyIs413AndChangesNothing) {
+  const auto before = AllRows();
+  std::string huge = R"({"name": "huge", "pad": ")" + std::string(2 << 20, 'x') + R"("})";
+  auto r = Post("/api/v1/sweeps", huge);
+  ASSERT_TRUE(r) << "connection error " << static_cast<int>(r.error());
+  EXPECT_EQ(r->status, 413);
+  EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_EQ(Body(r)["field"], "body");
+  EXPECT_EQ(AllRows(), before);
+  // The connection is still usable for the next request.
+  EXPECT_EQ(client_->Get("/healthz")->status, 200);
+}
+
+TEST_F(RoutesTest, IdempotencyKeyReplaysTheSameId) {
+  httplib::Headers key = {{"Idempotency-Key", "retry-7"}};
+  auto first = Post("/api/v1/sweeps", kExampleSweep, key);
+  ASSERT_EQ(first->status, 201) << first->body;
+  auto second = Post("/api/v1/sweeps", kExampleSweep, key);
+  ASSERT_EQ(second->status, 201) << second->body;
+  EXPECT_EQ(Body(first)["id"], Body(second)["id"]);
+  EXPECT_EQ(Body(second)["replayed"], true);
+  EXPECT_EQ(first->get_header_value("Location"), second->get_header_value("Location"));
+  EXPECT_EQ(Rows("sweeps"), 1);
+  EXPECT_EQ(Rows("runs"), 2);
+
+  // The same key with another body is a conflict, not a silent replay.
+  std::string other = kExampleSweep;
+  other.replace(other.find("omega-sign"), 10, "omega-two");
+  auto clash = Post("/api/v1/sweeps", other, key);
+  EXPECT_EQ(clash->status, 409);
+  EXPECT_EQ(Body(clash)["field"], "Idempotency-Key");
+  EXPECT_EQ(Rows("sweeps"), 1);
+}
+
+TEST_F(RoutesTest, CampaignSubmissionCreatesACampaignRun) {
+  auto r = Post("/api/v1/sweeps", R"({"campaign": "paper-58", "scale": "smoke"})");
+  ASSERT_EQ(r->status, 201) << r->body;
+  json body = Body(r);
+  EXPECT_EQ(body["campaign"], "paper-58");
+  int64_t id = body["id"].get<int64_t>();
+  EXPECT_EQ(r->get_header_value("Location"), "/api/v1/campaign-runs/" + std::to_string(id));
+  EXPECT_FALSE(body["sweeps"].empty());
+  EXPECT_EQ(Rows("runs"), 58);
+
+  auto run = client_->Get(("/api/v1/campaign-runs/" + std::to_string(id)).c_str());
+  ASSERT_EQ(run->status, 200);
+  EXPECT_EQ(Body(run)["counts"]["queued"], 58);
+  auto results = client_->Get(("/api/v1/campaign-runs/" + std::to_string(id) + "/results").c_str());
+  ASSERT_EQ(results->status, 200);
+  EXPECT_EQ(Body(results)["results"].size(), 58u);
+
+  auto campaigns = client_->Get("/api/v1/campaigns");
+  ASSERT_EQ(campaigns->status, 200);
+  bool found = false;
+  const json listed = Body(campaigns)["campaigns"];
+  for (const auto& c : listed) found |= c["name"] == "paper-58" && c["builtin"] == true;
+  EXPECT_TRUE(found) << campaigns->body;
+}
+
+class TokenRoutesTest : public RoutesTest {
+ protected:
+  void SetUp() override { Start("s3cret"); }
+};
+
+TEST_F(TokenRoutesTest, WritesAndWorkerCallsNeedTheTokenReadsStayOpenOnLoopback) {
+  auto none = Post("/api/v1/sweeps", kExampleSweep);
+  EXPECT_EQ(none->status, 401);
+  EXPECT_EQ(none->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_EQ(Body(none)["field"], "Authorization");
+  auto wrong = Post("/api/v1/sweeps", kExampleSweep, {{"Authorization", "Bearer s3creT"}});
+  EXPECT_EQ(wrong->status, 401);
+  EXPECT_EQ(Rows("sweeps"), 0);
+  EXPECT_EQ(Post("/api/v1/leases", "{}")->status, 401);
+  EXPECT_EQ(Post("/api/v1/leases/abc/heartbeat", "{}")->status, 401);
+  EXPECT_EQ(Post("/api/v1/leases/abc/complete", "{}")->status, 401);
+  EXPECT_EQ(Post("/api/v1/sweeps/1/cancel", "")->status, 401);
+  EXPECT_EQ(client_->Get("/api/v1/beds/1/restart")->status, 401);
+  EXPECT_EQ(client_->Put("/api/v1/beds/1/restart?token=x", "bytes", "application/octet-stream")->status, 401);
+  auto right = Post("/api/v1/sweeps", kExampleSweep, {{"Authorization", "Bearer s3cret"}});
+  EXPECT_EQ(right->status, 201) << right->body;
+  EXPECT_EQ(client_->Get("/api/v1/sweeps")->status, 200);
+  EXPECT_EQ(client_->Get("/healthz")->status, 200);
+}
+
+// lease (bed) -> upload restart -> complete bed -> lease (run) -> heartbeat -> complete run ->
+// the result is visible in GET /runs/{id} and the sweep's results as JSON and CSV.
+TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
+  int64_t sweep = SubmitExample();
+  auto lease = Post("/api/v1/leases", R"({"worker": "test:1", "host": "test", "ranks": 1})");
+  ASSERT_EQ(lease->status, 200) << lease->body;
+  api::LeaseGrant bed = Body(lease)["lease"].get<api::LeaseGrant>();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+
+  const std::string restart = "restart bytes \n\0 of a bed";
+  const std::string sha = Sha256Hex(restart);
+  std::string put_path = "/api/v1/beds/" + std::to_string(bed.id) + "/restart?token=" + bed.token;
+  auto bad_sha = client_->Put(put_path.c_str(), {{"X-Sha256", std::string(64, '0')}}, restart, "application/octet-stream");
+  EXPECT_EQ(bad_sha->status, 400);
+  EXPECT_EQ(Body(bad_sha)["field"], "X-Sha256");
+  auto put = client_->Put(put_path.c_str(), {{"X-Sha256", sha}}, restart, "application/octet-stream");
+  ASSERT_EQ(put->status, 200) << put->body;
+
+  api::Completion bed_done;
+  bed_done.ok = true;
+  bed_done.bed_result = api::BedResult{3700, 0.0, 0.22, true, 1e-4, sha, static_cast<int64_t>(restart.size())};
+  auto completed_bed = Post("/api/v1/leases/" + bed.token + "/complete", json(bed_done).dump());
+  ASSERT_EQ(completed_bed->status, 200) << completed_bed->body;
+  EXPECT_EQ(Body(completed_bed)["state"], "done");
+
+  auto download = client_->Get(("/api/v1/beds/" + std::to_string(bed.id) + "/restart").c_str());
+  ASSERT_EQ(download->status, 200) << download->body;
+  EXPECT_EQ(download->body, restart);
+  EXPECT_EQ(download->get_header_value("X-Sha256"), sha);
+
+  auto run_lease = Post("/api/v1/leases", R"({"worker": "test:1"})");
+  ASSERT_EQ(run_lease->status, 200) << run_lease->body;
+  api::LeaseGrant run = Body(run_lease)["lease"].get<api::LeaseGrant>();
+  ASSERT_EQ(run.kind, api::JobKind::kRun);
+  ASSERT_TRUE(run.bed.has_value());
+  EXPECT_EQ(run.bed->sha256, sha);
+
+  auto beat = Post("/api/v1/leases/" + run.token + "/heartbeat", R"({"sim_time_s": 0.1, "so_z": 0.001, "step": 10000})");
+  ASSERT_EQ(beat->status, 200) << beat->body;
+  EXPECT_EQ(Body(beat)["cancel"], false);
+  auto lost = Post("/api/v1/leases/deadbeef/heartbeat", "{}");
+  EXPECT_EQ(lost->status, 409);
+
+  api::Completion done;
+  done.ok = true;
+  done.result = api::RunResult{};
+  done.result->uz = -0.0123;
+  done.result->stop_reason = "duration";
+  done.trajectory = api::Trajectory{{0, 0.1, 0.2}, {0, 0, 0}, {0, 0.01, 0}, {0, -0.001, -0.002}};
+  done.execution.engine_version = "LIGGGHTS (Version test)";
+  done.log_tail = "Loop time of 1.0\n";
+  auto completed = Post("/api/v1/leases/" + run.token + "/complete", json(done).dump());
+  ASSERT_EQ(completed->status, 200) << completed->body;
+  EXPECT_EQ(Body(completed)["state"], "done");
+  auto again = Post("/api/v1/leases/" + run.token + "/complete", json(done).dump());
+  ASSERT_EQ(again->status, 200);
+  EXPECT_EQ(Body(again)["state"], "duplicate");
+
+  auto got = client_->Get(("/api/v1/runs/" + std::to_string(run.id)).c_str());
+  ASSERT_EQ(got->status, 200);
+  json detail = Body(got);
+  EXPECT_EQ(detail["state"], "done");
+  EXPECT_DOUBLE_EQ(detail["result"]["uz"].get<double>(), -0.0123);
+  EXPECT_EQ(detail["trajectory"]["z"].size(), 3u);
+  EXPECT_THAT(detail["deck"].get<std::string>(), HasSubstr("LIGGGHTS"));
+  EXPECT_THAT(detail["log_tail"].get<std::string>(), HasSubstr("Loop time"));
+
+  std::string results_path = "/api/v1/sweeps/" + std::to_string(sweep) + "/results";
+  auto results = client_->Get(results_path.c_str());
+  ASSERT_EQ(results->status, 200);
+  json rows = Body(results)["results"];
+  ASSERT_EQ(rows.size(), 2u);
+  int with_uz = 0;
+  for (const auto& row : rows) {
+    EXPECT_EQ(row["mode"], "oscillatory");
+    if (!row["Uz"].is_null()) {
+      ++with_uz;
+      EXPECT_DOUBLE_EQ(row["Uz"].get<double>(), -0.0123);
+      EXPECT_EQ(row["run_id"], run.id);
+    }
+  }
+  EXPECT_EQ(with_uz, 1);
+
+  for (const auto& csv : {client_->Get((results_path + "?format=csv").c_str()),
+                          client_->Get(results_path.c_str(), {{"Accept", "text/csv"}})}) {
+    ASSERT_EQ(csv->status, 200);
+    EXPECT_THAT(csv->get_header_value("Content-Type"), HasSubstr("text/csv"));
+    EXPECT_THAT(csv->body, HasSubstr("run_id,key,state,mode,A,f,Omega"));
+    EXPECT_THAT(csv->body, HasSubstr(",-0.0123,"));
+    EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 3);
+  }
+}
+
+TEST_F(RoutesTest, CancelStopsQueuedRuns) {
+  int64_t sweep = SubmitExample();
+  auto r = Post("/api/v1/sweeps/" + std::to_string(sweep) + "/cancel", "");
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(Body(r)["counts"]["cancelled"], 2);
+  EXPECT_EQ(Post("/api/v1/sweeps/999/cancel", "")->status, 404);
+}
+
+TEST_F(RoutesTest, UnknownRoutesAndIdsAreProblems) {
+  auto none = client_->Get("/api/v1/nothing");
+  EXPECT_EQ(none->status, 404);
+  EXPECT_EQ(none->get_header_value("Content-Type"), "application/problem+json");
+  auto missing = client_->Get("/api/v1/runs/12345");
+  EXPECT_EQ(missing->status, 404);
+  EXPECT_EQ(missing->get_header_value("Content-Type"), "application/problem+json");
+  auto huge_id = client_->Get("/api/v1/sweeps/99999999999999999999999");
+  EXPECT_EQ(huge_id->status, 400);
+  EXPECT_EQ(Body(huge_id)["field"], "id");
+}
+
+TEST_F(RoutesTest, HealthzAndMetrics) {
+  SubmitExample();
+  auto health = client_->Get("/healthz");
+  ASSERT_EQ(health->status, 200);
+  EXPECT_EQ(Body(health)["status"], "ok");
+  auto metrics = client_->Get("/metrics");
+  ASSERT_EQ(metrics->status, 200);
+  EXPECT_THAT(metrics->get_header_value("Content-Type"), HasSubstr("text/plain"));
+  EXPECT_THAT(metrics->body, HasSubstr("# TYPE sandswim_runs gauge"));
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_runs{state=\"queued\"} 2\n"));
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_http_requests_total{code=\"201\"} 1\n"));
+}
+
+// schema/openapi.json describes every route of the table, and nothing else.
+TEST_F(RoutesTest, OpenApiDescribesExactlyTheRouteTable) {
+  auto r = client_->Get("/api/v1/openapi.json");
+  ASSERT_EQ(r->status, 200);
+  json doc = Body(r);
+  EXPECT_EQ(doc["openapi"].get<std::string>().substr(0, 2), "3.");
+  std::set<std::string> described;
+  for (const auto& [path, item] : doc["paths"].items()) {
+    for (const auto& [method, op] : item.items()) {
+      if (method == "parameters") continue;
+      std::string upper = method;
+      for (char& ch : upper) ch = static_cast<char>(std::toupper(ch));
+      described.insert(upper + " " + path);
+      EXPECT_TRUE(op.contains("responses")) << upper << " " << path;
+    }
+  }
+  std::set<std::string> routed;
+  for (const RouteInfo& route : RouteTable()) {
+    routed.insert(route.method + " " + route.path);
+    // Every described route answers something other than the router's own 404.
+  }
+  EXPECT_EQ(described, routed);
+  // Caps stated in the description are the ones the code enforces.
+  EXPECT_EQ(doc["x-caps"]["max_runs_per_submission"], kMaxRunsPerSubmission);
+  EXPECT_EQ(doc["x-caps"]["max_amplitude_m"], kMaxAmplitudeM);
+  EXPECT_EQ(doc["x-caps"]["max_frequency_hz"], kMaxFrequencyHz);
+  EXPECT_EQ(doc["x-caps"]["max_angular_velocity_rad_s"], kMaxAngularVelocity);
+  EXPECT_EQ(doc["x-caps"]["max_duration_s"], kMaxDurationS);
+  EXPECT_EQ(doc["x-caps"]["max_json_body_bytes"], kMaxJsonBodyBytes);
+  EXPECT_EQ(doc["x-caps"]["max_restart_body_bytes"], kMaxRestartBodyBytes);
+  EXPECT_EQ(doc["components"]["schemas"]["Point"]["properties"]["Omega"]["maximum"], kMaxAngularVelocity);
+}
+
+// Every route of the table is served (none falls through to the router's 404).
+TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
+  SubmitExample();
+  for (const RouteInfo& route : RouteTable()) {
+    std::string path = route.path;
+    for (const auto& [param, value] : {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}}) {
+      auto at = path.find(param);
+      if (at != std::string::npos) path.replace(at, param.size(), value);
+    }
+    httplib::Result r = route.method == "GET"    ? client_->Get(path.c_str())
+                        : route.method == "POST" ? client_->Post(path.c_str(), "{}", "application/json")
+                                                 : client_->Put(path.c_str(), "x", "application/octet-stream");
+    ASSERT_TRUE(r) << route.method << " " << path;
+    EXPECT_LT(r->status, 500) << route.method << " " << path << ": " << r->body;
+    if (r->status == 404) {
+      EXPECT_THAT(r->body, ::testing::Not(HasSubstr("no route"))) << route.method << " " << path;
+    }
+  }
+}
+
+TEST(RoutesUnitTest, StatusTableAndProblemShape) {
+  EXPECT_EQ(HttpStatusFor(StatusCode::kInvalidArgument), 400);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kUnauthenticated), 401);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kNotFound), 404);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kConflict), 409);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kFailedPrecondition), 422);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kUnavailable), 503);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kInternal), 500);
+  json p = ProblemFor(Status::InvalidArgument("base.A", "must be > 0"), 400);
+  EXPECT_EQ(p["status"], 400);
+  EXPECT_EQ(p["field"], "base.A");
+  EXPECT_EQ(p["title"], "Bad Request");
+  EXPECT_THAT(p["detail"].get<std::string>(), HasSubstr("must be > 0"));
+  EXPECT_THAT(p["type"].get<std::string>(), HasSubstr("invalid"));
+}
+
+TEST(RoutesUnitTest, ListenAddressAndPolicy) {
+  auto a = ParseListenAddress("127.0.0.1:8640");
+  ASSERT_TRUE(a.ok());
+  EXPECT_EQ(a->host, "127.0.0.1");
+  EXPECT_EQ(a->port, 8640);
+  auto v6 = ParseListenAddress("[::1]:0");
+  ASSERT_TRUE(v6.ok());
+  EXPECT_EQ(v6->host, "::1");
+  EXPECT_EQ(v6->port, 0);
+  EXPECT_FALSE(ParseListenAddress("localhost").ok());
+  EXPECT_FALSE(ParseListenAddress("127.0.0.1:99999").ok());
+  EXPECT_EQ(ParseListenAddress("0.0.0.0:x").status().field(), "--listen");
+
+  EXPECT_TRUE(IsLoopbackHost("127.0.0.1"));
+  EXPECT_TRUE(IsLoopbackHost("127.1.2.3"));
+  EXPECT_TRUE(IsLoopbackHost("::1"));
+  EXPECT_TRUE(IsLoopbackHost("localhost"));
+  EXPECT_FALSE(IsLoopbackHost("0.0.0.0"));
+  EXPECT_FALSE(IsLoopbackHost("192.168.1.4"));
+
+  EXPECT_TRUE(CheckListenPolicy({"127.0.0.1", 1}, false).ok());
+  Status refused = CheckListenPolicy({"0.0.0.0", 1}, false);
+  EXPECT_FALSE(refused.ok());
+  EXPECT_EQ(refused.field(), "--listen");
+  EXPECT_THAT(refused.reason(), HasSubstr("--token-file"));
+  EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true).ok());
+}
+
+}  // namespace
+}  // namespace sandswim

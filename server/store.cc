@@ -1,0 +1,892 @@
+#include "server/store.h"
+
+#include <sqlite3.h>
+
+#include <filesystem>
+#include <utility>
+
+#include "core/embedded.h"
+#include "core/sweep.h"
+
+namespace sandswim {
+namespace {
+
+// The migrations this binary knows, in order. Versions are the file numbers.
+struct Migration {
+  int version;
+  const char* file;
+};
+constexpr Migration kMigrations[] = {
+    {1, "schema/001_init.sql"},
+};
+
+constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
+                                   "beds",      "runs",          "run_decks",   "sweep_runs",  "leases",
+                                   "results",   "trajectories",  "run_logs",    "events",
+                                   "counters",  "schema_migrations"};
+
+Status SqlError(sqlite3* db, const std::string& what) {
+  int code = sqlite3_extended_errcode(db);
+  std::string msg = what + ": " + sqlite3_errmsg(db);
+  if ((code & 0xff) == SQLITE_BUSY || (code & 0xff) == SQLITE_LOCKED) {
+    return Status::Unavailable(msg);
+  }
+  if ((code & 0xff) == SQLITE_CONSTRAINT) return Status::Conflict(msg);
+  if ((code & 0xff) == SQLITE_CORRUPT || (code & 0xff) == SQLITE_NOTADB) {
+    return Status::Corruption(msg);
+  }
+  if ((code & 0xff) == SQLITE_IOERR || (code & 0xff) == SQLITE_FULL ||
+      (code & 0xff) == SQLITE_CANTOPEN) {
+    return Status::IOError(msg);
+  }
+  return Status::Internal(msg);
+}
+
+Status ExecRaw(sqlite3* db, const std::string& sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : "unknown error";
+    sqlite3_free(err);
+    Status s = SqlError(db, "sql");
+    return Status(s.code(), msg);
+  }
+  return Status::Ok();
+}
+
+// Columns of a run summary, shared by ListRuns, GetRun and SweepResults.
+constexpr const char* kRunColumns =
+    "r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
+    "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
+    "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, res.uz, r.last_error_kind, "
+    "r.last_error";
+constexpr int kRunColumnCount = 25;
+
+constexpr const char* kResultColumns =
+    "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
+    "res.x_drift, res.broke_surface, res.near_floor, res.stop_reason, res.sim_time_s, res.steps, "
+    "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
+    "res.cpu_s, res.key, res.created_at";
+
+Point PointFromRow(const Statement& st, int c) {
+  Point p;
+  p.mode = ParseMode(st.Text(c)).value_or(Mode::kOscillatory);
+  p.A = st.Double(c + 1);
+  p.f = st.Double(c + 2);
+  p.Omega = st.Double(c + 3);
+  p.omega = st.Double(c + 4);
+  p.axis = ParseAxis(st.Text(c + 5)).value_or(RotationAxis::kX);
+  p.duration_s = st.Double(c + 6);
+  return p;
+}
+
+RunSummary RunSummaryFromRow(const Statement& st) {
+  RunSummary r;
+  r.id = st.Int(0);
+  r.key = st.Text(1);
+  r.state = st.Text(2);
+  r.point = PointFromRow(st, 3);
+  r.run_duration_s = st.Double(10);
+  r.steps = st.Int(11);
+  r.bed_id = st.Int(12);
+  r.attempts = static_cast<int>(st.Int(13));
+  r.worker = st.Text(14);
+  r.progress.sim_time_s = st.OptDouble(15).value_or(0);
+  r.progress.so_z = st.OptDouble(16).value_or(0);
+  r.progress.step = st.OptInt(17).value_or(0);
+  r.progress.heartbeat_at = st.OptDouble(18);
+  r.created_at = st.Double(19);
+  r.started_at = st.OptDouble(20);
+  r.finished_at = st.OptDouble(21);
+  r.uz = st.OptDouble(22);
+  if (!st.IsNull(23)) r.last_error = api::Failure{st.Text(23), st.Text(24)};
+  return r;
+}
+
+std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
+  if (st.IsNull(c)) return std::nullopt;
+  StoredResult s;
+  api::RunResult& r = s.result;
+  r.uz = st.Double(c);
+  r.uz_stderr = st.Double(c + 1);
+  r.window_t0 = st.Double(c + 2);
+  r.window_t1 = st.Double(c + 3);
+  r.dz = st.Double(c + 4);
+  r.z_osc_amplitude = st.Double(c + 5);
+  r.x_drift = st.Double(c + 6);
+  r.broke_surface = st.Int(c + 7) != 0;
+  r.near_floor = st.Int(c + 8) != 0;
+  r.stop_reason = st.Text(c + 9);
+  r.sim_time_s = st.Double(c + 10);
+  r.steps = st.Int(c + 11);
+  r.grains = st.Int(c + 12);
+  r.z0 = st.Double(c + 13);
+  s.execution.engine_version = st.Text(c + 14);
+  s.execution.host = st.Text(c + 15);
+  s.execution.ranks = static_cast<int>(st.Int(c + 16));
+  s.execution.launcher = st.Text(c + 17);
+  s.execution.wall_s = st.Double(c + 18);
+  s.execution.cpu_s = st.Double(c + 19);
+  s.key = st.Text(c + 20);
+  s.created_at = st.Double(c + 21);
+  return s;
+}
+
+void AddState(RunCounts& c, const std::string& state, int64_t n) {
+  if (state == "queued") c.queued += n;
+  else if (state == "running") c.running += n;
+  else if (state == "done") c.done += n;
+  else if (state == "failed") c.failed += n;
+  else if (state == "cancelled") c.cancelled += n;
+}
+
+bool IsRunState(const std::string& s) {
+  return s == "queued" || s == "running" || s == "done" || s == "failed" || s == "cancelled";
+}
+
+template <typename T>
+void PutOpt(nlohmann::json& j, const char* name, const std::optional<T>& v) {
+  if (v) j[name] = *v;
+}
+
+nlohmann::json ParseJsonOr(const std::string& text, nlohmann::json fallback) {
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  return j.is_discarded() ? fallback : j;
+}
+
+Result<RunCounts> CountsWhere(Transaction& t, const std::string& sql, int64_t id) {
+  Statement st = t.Prepare(sql);
+  st.Bind(1, id);
+  RunCounts c;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    AddState(c, st.Text(0), st.Int(1));
+  }
+  return c;
+}
+
+Result<RunCounts> SweepCounts(Transaction& t, int64_t sweep_id) {
+  return CountsWhere(t,
+                     "SELECT r.state, COUNT(*) FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+                     "WHERE sr.sweep_id = ? GROUP BY r.state",
+                     sweep_id);
+}
+
+SweepInfo SweepFromRow(const Statement& st) {
+  SweepInfo s;
+  s.id = st.Int(0);
+  s.name = st.Text(1);
+  s.scale = st.Text(2);
+  s.spec = ParseJsonOr(st.Text(3), nlohmann::json::object());
+  s.campaign_run_id = st.OptInt(4);
+  s.force = st.Int(5) != 0;
+  s.created_at = st.Double(6);
+  s.cancelled_at = st.OptDouble(7);
+  return s;
+}
+
+constexpr const char* kSweepColumns =
+    "id, name, scale, spec, campaign_run_id, force, created_at, cancelled_at";
+
+}  // namespace
+
+// ---- JSON ---------------------------------------------------------------------------------------
+
+void to_json(nlohmann::json& j, const RunCounts& c) {
+  j = nlohmann::json{{"queued", c.queued}, {"running", c.running},     {"done", c.done},
+                     {"failed", c.failed}, {"cancelled", c.cancelled}};
+}
+
+void to_json(nlohmann::json& j, const SweepInfo& s) {
+  j = nlohmann::json{{"id", s.id},
+                     {"name", s.name},
+                     {"scale", s.scale},
+                     {"spec", s.spec},
+                     {"force", s.force},
+                     {"created_at", s.created_at},
+                     {"cancelled", s.cancelled_at.has_value()},
+                     {"counts", s.counts},
+                     {"runs", s.counts.total()}};
+  PutOpt(j, "campaign_run_id", s.campaign_run_id);
+  PutOpt(j, "cancelled_at", s.cancelled_at);
+}
+
+void to_json(nlohmann::json& j, const SweepPage& p) {
+  j = nlohmann::json{{"sweeps", p.sweeps}, {"next_cursor", nullptr}};
+  if (p.next_cursor) j["next_cursor"] = *p.next_cursor;
+}
+
+void to_json(nlohmann::json& j, const Progress& p) {
+  j = nlohmann::json{{"sim_time_s", p.sim_time_s}, {"so_z", p.so_z}, {"step", p.step}};
+  PutOpt(j, "heartbeat_at", p.heartbeat_at);
+}
+
+void to_json(nlohmann::json& j, const StoredResult& r) {
+  j = r.result;
+  j["engine_version"] = r.execution.engine_version;
+  j["host"] = r.execution.host;
+  j["ranks"] = r.execution.ranks;
+  j["launcher"] = r.execution.launcher;
+  j["wall_s"] = r.execution.wall_s;
+  j["cpu_s"] = r.execution.cpu_s;
+  j["key"] = r.key;
+  j["created_at"] = r.created_at;
+}
+
+void to_json(nlohmann::json& j, const RunSummary& r) {
+  j = nlohmann::json{{"id", r.id},
+                     {"key", r.key},
+                     {"state", r.state},
+                     {"point", PointToJson(r.point)},
+                     {"run_duration_s", r.run_duration_s},
+                     {"steps", r.steps},
+                     {"bed_id", r.bed_id},
+                     {"attempts", r.attempts},
+                     {"worker", r.worker},
+                     {"progress", r.progress},
+                     {"created_at", r.created_at}};
+  PutOpt(j, "started_at", r.started_at);
+  PutOpt(j, "finished_at", r.finished_at);
+  PutOpt(j, "uz", r.uz);
+  PutOpt(j, "last_error", r.last_error);
+}
+
+void to_json(nlohmann::json& j, const RunPage& p) {
+  j = nlohmann::json{{"runs", p.runs}, {"next_cursor", nullptr}};
+  if (p.next_cursor) j["next_cursor"] = *p.next_cursor;
+}
+
+void to_json(nlohmann::json& j, const RunDetail& r) {
+  j = r.summary;
+  j["deck"] = r.deck;
+  j["bed_key"] = r.bed_key;
+  j["bed_state"] = r.bed_state;
+  j["sweeps"] = r.sweep_ids;
+  PutOpt(j, "result", r.result);
+  PutOpt(j, "trajectory", r.trajectory);
+  j["log_tail"] = r.log_tail;
+}
+
+void to_json(nlohmann::json& j, const ResultRow& r) {
+  j = nlohmann::json{{"run_id", r.run_id},
+                     {"key", r.key},
+                     {"state", r.state},
+                     {"point", PointToJson(r.point)},
+                     {"run_duration_s", r.run_duration_s}};
+  if (r.result) {
+    j["Uz"] = r.result->result.uz;
+    j["result"] = *r.result;
+  }
+}
+
+void to_json(nlohmann::json& j, const CampaignRunInfo& c) {
+  j = nlohmann::json{{"id", c.id},
+                     {"campaign", c.campaign},
+                     {"scale", c.scale},
+                     {"trigger", c.trigger},
+                     {"created_at", c.created_at},
+                     {"sweeps", c.sweep_ids},
+                     {"counts", c.counts}};
+  PutOpt(j, "due_time", c.due_time);
+}
+
+void to_json(nlohmann::json& j, const StoredCampaign& c) {
+  j = nlohmann::json{{"name", c.name},
+                     {"definition", c.definition},
+                     {"drift_tolerance_mps", c.drift_tolerance_mps},
+                     {"updated_at", c.updated_at}};
+  PutOpt(j, "schedule", c.schedule);
+}
+
+void to_json(nlohmann::json& j, const Metrics& m) {
+  j = nlohmann::json{{"runs", m.runs},
+                     {"beds", m.beds},
+                     {"sweeps", m.sweeps},
+                     {"leases_granted", m.leases_granted},
+                     {"completions", m.completions},
+                     {"expirations", m.expirations},
+                     {"duplicates", m.duplicates}};
+}
+
+// ---- Statement ----------------------------------------------------------------------------------
+
+Statement::Statement(sqlite3_stmt* stmt, Store* store, bool owned)
+    : stmt_(stmt), store_(store), owned_(owned) {}
+
+Statement::Statement(Statement&& o) noexcept
+    : stmt_(o.stmt_), store_(o.store_), owned_(o.owned_), bind_error_(std::move(o.bind_error_)) {
+  o.stmt_ = nullptr;
+}
+
+Statement::~Statement() {
+  if (stmt_ == nullptr) return;
+  sqlite3_reset(stmt_);
+  sqlite3_clear_bindings(stmt_);
+  if (owned_) {
+    sqlite3_finalize(stmt_);
+  } else {
+    store_->in_use_.erase(stmt_);
+  }
+}
+
+#define SANDSWIM_BIND(call)                                                 \
+  do {                                                                      \
+    if (stmt_ != nullptr && (call) != SQLITE_OK && bind_error_.ok()) {      \
+      bind_error_ = SqlError(store_->db_, "bind " + std::to_string(index));         \
+    }                                                                       \
+    return *this;                                                           \
+  } while (0)
+
+Statement& Statement::Bind(int index, int64_t v) { SANDSWIM_BIND(sqlite3_bind_int64(stmt_, index, v)); }
+Statement& Statement::Bind(int index, double v) { SANDSWIM_BIND(sqlite3_bind_double(stmt_, index, v)); }
+Statement& Statement::Bind(int index, std::string_view v) {
+  SANDSWIM_BIND(sqlite3_bind_text64(stmt_, index, v.data(), v.size(), SQLITE_TRANSIENT, SQLITE_UTF8));
+}
+Statement& Statement::BindBlob(int index, std::string_view v) {
+  SANDSWIM_BIND(sqlite3_bind_blob64(stmt_, index, v.data(), v.size(), SQLITE_TRANSIENT));
+}
+Statement& Statement::BindNull(int index) { SANDSWIM_BIND(sqlite3_bind_null(stmt_, index)); }
+#undef SANDSWIM_BIND
+
+Result<bool> Statement::Step() {
+  if (stmt_ == nullptr) return bind_error_.ok() ? Status::Internal("statement not prepared") : bind_error_;
+  if (!bind_error_.ok()) return bind_error_;
+  int rc = sqlite3_step(stmt_);
+  if (rc == SQLITE_ROW) return true;
+  if (rc == SQLITE_DONE) return false;
+  Status s = SqlError(store_->db_, "step");
+  sqlite3_reset(stmt_);
+  return s;
+}
+
+Status Statement::Run() {
+  while (true) {
+    Result<bool> r = Step();
+    if (!r.ok()) return r.status();
+    if (!*r) return Status::Ok();
+  }
+}
+
+bool Statement::IsNull(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
+int64_t Statement::Int(int col) const { return sqlite3_column_int64(stmt_, col); }
+double Statement::Double(int col) const { return sqlite3_column_double(stmt_, col); }
+std::string Statement::Text(int col) const {
+  const unsigned char* p = sqlite3_column_text(stmt_, col);
+  if (p == nullptr) return "";
+  return std::string(reinterpret_cast<const char*>(p), sqlite3_column_bytes(stmt_, col));
+}
+std::optional<int64_t> Statement::OptInt(int col) const {
+  if (IsNull(col)) return std::nullopt;
+  return Int(col);
+}
+std::optional<double> Statement::OptDouble(int col) const {
+  if (IsNull(col)) return std::nullopt;
+  return Double(col);
+}
+std::optional<std::string> Statement::OptText(int col) const {
+  if (IsNull(col)) return std::nullopt;
+  return Text(col);
+}
+
+// ---- Transaction --------------------------------------------------------------------------------
+
+Transaction::Transaction(Store* store, std::unique_lock<std::mutex> lock)
+    : store_(store), lock_(std::move(lock)), open_(true) {}
+
+Transaction::Transaction(Transaction&& o) noexcept
+    : store_(o.store_), lock_(std::move(o.lock_)), open_(o.open_) {
+  o.open_ = false;
+}
+
+Transaction::~Transaction() {
+  if (open_) ExecRaw(store_->db_, "ROLLBACK");
+}
+
+Statement Transaction::Prepare(const std::string& sql) {
+  Status error;
+  sqlite3_stmt* stmt = store_->Cached(sql, &error);
+  if (stmt != nullptr && store_->in_use_.insert(stmt).second) {
+    return Statement(stmt, store_, /*owned=*/false);
+  }
+  if (stmt != nullptr) {
+    // Its cached twin is held by a live Statement (nested use of one SQL text): a private copy.
+    stmt = nullptr;
+    if (sqlite3_prepare_v2(store_->db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+      error = SqlError(store_->db_, "prepare");
+      sqlite3_finalize(stmt);
+      stmt = nullptr;
+    }
+    if (stmt != nullptr) return Statement(stmt, store_, /*owned=*/true);
+  }
+  Statement st(nullptr, store_, /*owned=*/true);
+  st.bind_error_ = error;
+  return st;
+}
+
+Status Transaction::Exec(const std::string& sql) { return ExecRaw(store_->db_, sql); }
+int64_t Transaction::LastInsertId() const { return sqlite3_last_insert_rowid(store_->db_); }
+int64_t Transaction::Changes() const { return sqlite3_changes(store_->db_); }
+
+Status Transaction::Event(double time, std::string_view kind, std::string_view subject,
+                          const nlohmann::json& detail) {
+  Statement st = Prepare("INSERT INTO events (time, kind, subject, detail) VALUES (?, ?, ?, ?)");
+  st.Bind(1, time).Bind(2, kind).Bind(3, subject).Bind(4, detail.dump());
+  return st.Run();
+}
+
+Status Transaction::Count(std::string_view counter, int64_t delta) {
+  Statement st = Prepare(
+      "INSERT INTO counters (name, value) VALUES (?, ?) "
+      "ON CONFLICT (name) DO UPDATE SET value = value + excluded.value");
+  st.Bind(1, counter).Bind(2, delta);
+  return st.Run();
+}
+
+Status Transaction::Commit() {
+  if (!open_) return Status::Internal("transaction already finished");
+  Status s = ExecRaw(store_->db_, "COMMIT");
+  if (!s.ok()) return s;  // still open: the destructor rolls back
+  open_ = false;
+  return Status::Ok();
+}
+
+// ---- Store --------------------------------------------------------------------------------------
+
+Result<std::unique_ptr<Store>> Store::Open(const std::string& path) {
+  std::unique_ptr<Store> store(new Store());
+  store->path_ = path;
+  if (path != ":memory:") {
+    std::error_code ec;
+    std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+    if (ec) return Status::IOError("cannot create " + parent.string() + ": " + ec.message());
+  }
+  int rc = sqlite3_open_v2(path.c_str(), &store->db_,
+                           SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
+                           nullptr);
+  if (rc != SQLITE_OK) {
+    std::string msg = store->db_ ? sqlite3_errmsg(store->db_) : "out of memory";
+    return Status::IOError("cannot open database " + path + ": " + msg);
+  }
+  sqlite3_busy_timeout(store->db_, 5000);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(store->db_,
+                                   "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
+                                   "PRAGMA synchronous = NORMAL; PRAGMA cache_size = -65536; PRAGMA wal_autocheckpoint = 10000;"));
+  SANDSWIM_RETURN_IF_ERROR(store->Migrate());
+  return store;
+}
+
+Store::~Store() {
+  for (auto& [sql, stmt] : cache_) sqlite3_finalize(stmt);
+  if (db_ != nullptr) sqlite3_close_v2(db_);
+}
+
+sqlite3_stmt* Store::Cached(const std::string& sql, Status* error) {
+  auto it = cache_.find(sql);
+  if (it != cache_.end()) return it->second;
+  sqlite3_stmt* stmt = nullptr;
+  if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+    *error = SqlError(db_, "prepare \"" + sql.substr(0, 60) + "\"");
+    return nullptr;
+  }
+  cache_.emplace(sql, stmt);
+  return stmt;
+}
+
+Status Store::Migrate() {
+  std::unique_lock<std::mutex> lock(mu_);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_,
+                                   "CREATE TABLE IF NOT EXISTS schema_migrations ("
+                                   " version INTEGER PRIMARY KEY, name TEXT NOT NULL,"
+                                   " applied_at REAL NOT NULL)"));
+  auto user_version = [this]() -> int {
+    sqlite3_stmt* st = nullptr;
+    int v = 0;
+    if (sqlite3_prepare_v2(db_, "PRAGMA user_version", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW) {
+      v = sqlite3_column_int(st, 0);
+    }
+    sqlite3_finalize(st);
+    return v;
+  };
+  int current = user_version();
+  int latest = kMigrations[std::size(kMigrations) - 1].version;
+  if (current > latest) {
+    return Status::FailedPrecondition(
+        "schema", "database " + path_ + " has schema version " + std::to_string(current) +
+                      "; this sandswimd knows up to " + std::to_string(latest));
+  }
+  for (const Migration& m : kMigrations) {
+    if (m.version <= current) continue;
+    std::optional<std::string_view> sql = EmbeddedFile(m.file);
+    if (!sql) return Status::Internal(std::string("migration not compiled in: ") + m.file);
+    SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
+    Status s = ExecRaw(db_, std::string(*sql));
+    if (s.ok()) {
+      s = ExecRaw(db_, "INSERT INTO schema_migrations (version, name, applied_at) VALUES (" +
+                           std::to_string(m.version) + ", '" + m.file +
+                           "', CAST(strftime('%s','now') AS REAL))");
+    }
+    if (s.ok()) s = ExecRaw(db_, "PRAGMA user_version = " + std::to_string(m.version));
+    if (s.ok()) s = ExecRaw(db_, "COMMIT");
+    if (!s.ok()) {
+      ExecRaw(db_, "ROLLBACK");
+      return Status(s.code(), std::string("migration ") + m.file + ": " + s.reason());
+    }
+    current = m.version;
+  }
+  schema_version_ = current;
+  return Status::Ok();
+}
+
+Result<Transaction> Store::Begin() {
+  std::unique_lock<std::mutex> lock(mu_);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
+  return Transaction(this, std::move(lock));
+}
+
+Result<Transaction> Store::BeginRead() {
+  std::unique_lock<std::mutex> lock(mu_);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN"));
+  return Transaction(this, std::move(lock));
+}
+
+Result<SweepPage> Store::ListSweeps(int64_t after_id, int limit) {
+  limit = std::clamp(limit, 1, 1000);
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  SweepPage page;
+  {
+    Statement st = t->Prepare(std::string("SELECT ") + kSweepColumns +
+                              " FROM sweeps WHERE id > ? ORDER BY id LIMIT ?");
+    st.Bind(1, after_id).Bind(2, limit + 1);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      if (static_cast<int>(page.sweeps.size()) == limit) {
+        page.next_cursor = page.sweeps.back().id;
+        break;
+      }
+      page.sweeps.push_back(SweepFromRow(st));
+    }
+  }
+  for (SweepInfo& s : page.sweeps) {
+    Result<RunCounts> c = SweepCounts(*t, s.id);
+    if (!c.ok()) return c.status();
+    s.counts = *c;
+  }
+  return page;
+}
+
+Result<SweepInfo> Store::GetSweep(int64_t id) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  SweepInfo s;
+  {
+    Statement st = t->Prepare(std::string("SELECT ") + kSweepColumns + " FROM sweeps WHERE id = ?");
+    st.Bind(1, id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) return Status::NotFound("no sweep " + std::to_string(id));
+    s = SweepFromRow(st);
+  }
+  Result<RunCounts> c = SweepCounts(*t, id);
+  if (!c.ok()) return c.status();
+  s.counts = *c;
+  return s;
+}
+
+Result<RunPage> Store::ListRuns(const RunFilter& f) {
+  if (f.state && !IsRunState(*f.state)) {
+    return Status::InvalidArgument(
+        "state", "'" + *f.state + "' is not one of queued, running, done, failed, cancelled");
+  }
+  int limit = std::clamp(f.limit, 1, 1000);
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  std::string sql = std::string("SELECT ") + kRunColumns + " FROM ";
+  sql += f.sweep_id ? "sweep_runs sr JOIN runs r ON r.id = sr.run_id " : "runs r ";
+  sql += "LEFT JOIN results res ON res.run_id = r.id WHERE r.id > ?1";
+  if (f.sweep_id) sql += " AND sr.sweep_id = ?2";
+  if (f.state) sql += " AND r.state = ?3";
+  sql += " ORDER BY r.id LIMIT ?4";
+  RunPage page;
+  Statement st = t->Prepare(sql);
+  st.Bind(1, f.after_id).Bind(4, limit + 1);
+  if (f.sweep_id) st.Bind(2, *f.sweep_id);
+  if (f.state) st.Bind(3, *f.state);
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    if (static_cast<int>(page.runs.size()) == limit) {
+      page.next_cursor = page.runs.back().id;
+      break;
+    }
+    page.runs.push_back(RunSummaryFromRow(st));
+  }
+  return page;
+}
+
+Result<RunDetail> Store::GetRun(int64_t id) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  RunDetail d;
+  {
+    Statement st = t->Prepare(std::string("SELECT ") + kRunColumns + ", d.deck, b.key, b.state, " +
+                              kResultColumns + ", tr.data, lg.log_tail FROM runs r " +
+                              "JOIN beds b ON b.id = r.bed_id " +
+                              "LEFT JOIN run_decks d ON d.run_id = r.id " +
+                              "LEFT JOIN results res ON res.run_id = r.id " +
+                              "LEFT JOIN trajectories tr ON tr.run_id = r.id " +
+                              "LEFT JOIN run_logs lg ON lg.run_id = r.id WHERE r.id = ?");
+    st.Bind(1, id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) return Status::NotFound("no run " + std::to_string(id));
+    d.summary = RunSummaryFromRow(st);
+    int c = kRunColumnCount;
+    d.deck = st.Text(c);
+    d.bed_key = st.Text(c + 1);
+    d.bed_state = st.Text(c + 2);
+    d.result = ResultFromRow(st, c + 3);
+    if (!st.IsNull(c + 25)) {
+      nlohmann::json tj = ParseJsonOr(st.Text(c + 25), nullptr);
+      if (tj.is_object()) {
+        try {
+          d.trajectory = tj.get<api::Trajectory>();
+        } catch (const nlohmann::json::exception&) {
+          return Status::Corruption("trajectory of run " + std::to_string(id) + " does not parse");
+        }
+      }
+    }
+    d.log_tail = st.Text(c + 26);
+  }
+  Statement st = t->Prepare("SELECT sweep_id FROM sweep_runs WHERE run_id = ? ORDER BY sweep_id");
+  st.Bind(1, id);
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    d.sweep_ids.push_back(st.Int(0));
+  }
+  return d;
+}
+
+Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  {
+    Statement st = t->Prepare("SELECT 1 FROM sweeps WHERE id = ?");
+    st.Bind(1, sweep_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) return Status::NotFound("no sweep " + std::to_string(sweep_id));
+  }
+  Statement st = t->Prepare(
+      std::string("SELECT r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, "
+                  "r.axis, r.duration_s, r.run_duration_s, ") +
+      kResultColumns +
+      " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+      "LEFT JOIN results res ON res.run_id = r.id WHERE sr.sweep_id = ? ORDER BY sr.position");
+  st.Bind(1, sweep_id);
+  std::vector<ResultRow> rows;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    ResultRow r;
+    r.run_id = st.Int(0);
+    r.key = st.Text(1);
+    r.state = st.Text(2);
+    r.point = PointFromRow(st, 3);
+    r.run_duration_s = st.Double(10);
+    r.result = ResultFromRow(st, 11);
+    rows.push_back(std::move(r));
+  }
+  return rows;
+}
+
+namespace {
+
+Result<std::vector<CampaignRunInfo>> ReadCampaignRuns(Transaction& t, Statement& st) {
+  std::vector<CampaignRunInfo> out;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    CampaignRunInfo c;
+    c.id = st.Int(0);
+    c.campaign = st.Text(1);
+    c.scale = st.Text(2);
+    c.trigger = st.Text(3);
+    c.due_time = st.OptDouble(4);
+    c.created_at = st.Double(5);
+    out.push_back(std::move(c));
+  }
+  for (CampaignRunInfo& c : out) {
+    Statement s = t.Prepare("SELECT id FROM sweeps WHERE campaign_run_id = ? ORDER BY id");
+    s.Bind(1, c.id);
+    while (true) {
+      Result<bool> row = s.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      c.sweep_ids.push_back(s.Int(0));
+    }
+    Result<RunCounts> counts = CountsWhere(
+        t,
+        "SELECT state, COUNT(*) FROM runs WHERE id IN (SELECT sr.run_id FROM sweep_runs sr "
+        "JOIN sweeps s ON s.id = sr.sweep_id WHERE s.campaign_run_id = ?) GROUP BY state",
+        c.id);
+    if (!counts.ok()) return counts.status();
+    c.counts = *counts;
+  }
+  return out;
+}
+
+constexpr const char* kCampaignRunColumns = "id, campaign, scale, trigger, due_time, created_at";
+
+}  // namespace
+
+Result<CampaignRunInfo> Store::GetCampaignRun(int64_t id) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns +
+                            " FROM campaign_runs WHERE id = ?");
+  st.Bind(1, id);
+  Result<std::vector<CampaignRunInfo>> rows = ReadCampaignRuns(*t, st);
+  if (!rows.ok()) return rows.status();
+  if (rows->empty()) return Status::NotFound("no campaign run " + std::to_string(id));
+  return std::move(rows->front());
+}
+
+Result<std::vector<CampaignRunInfo>> Store::ListCampaignRuns(const std::string& campaign, int limit) {
+  limit = std::clamp(limit, 1, 1000);
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns +
+                            " FROM campaign_runs WHERE (?1 = '' OR campaign = ?1) "
+                            "ORDER BY id DESC LIMIT ?2");
+  st.Bind(1, campaign).Bind(2, limit);
+  return ReadCampaignRuns(*t, st);
+}
+
+namespace {
+constexpr const char* kCampaignColumns =
+    "name, definition, schedule, drift_tolerance_mps, updated_at";
+StoredCampaign CampaignFromRow(const Statement& st) {
+  StoredCampaign c;
+  c.name = st.Text(0);
+  c.definition = ParseJsonOr(st.Text(1), nlohmann::json::object());
+  c.schedule = st.OptText(2);
+  c.drift_tolerance_mps = st.Double(3);
+  c.updated_at = st.Double(4);
+  return c;
+}
+}  // namespace
+
+Result<std::optional<StoredCampaign>> Store::GetCampaign(const std::string& name) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st =
+      t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns WHERE name = ?");
+  st.Bind(1, name);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return std::optional<StoredCampaign>();
+  return std::optional<StoredCampaign>(CampaignFromRow(st));
+}
+
+Result<std::vector<StoredCampaign>> Store::ListCampaigns() {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st =
+      t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns ORDER BY name");
+  std::vector<StoredCampaign> out;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    out.push_back(CampaignFromRow(st));
+  }
+  return out;
+}
+
+Status Store::PutCampaign(const StoredCampaign& c) {
+  Result<Transaction> t = Begin();
+  if (!t.ok()) return t.status();
+  {
+    Statement st = t->Prepare(
+        "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
+        "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO UPDATE SET definition = excluded.definition,"
+        " schedule = excluded.schedule, drift_tolerance_mps = excluded.drift_tolerance_mps,"
+        " updated_at = excluded.updated_at");
+    st.Bind(1, c.name).Bind(2, c.definition.dump()).Bind(3, c.schedule);
+    st.Bind(4, c.drift_tolerance_mps).Bind(5, c.updated_at);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t->Event(c.updated_at, "campaign.saved", "campaign/" + c.name));
+  return t->Commit();
+}
+
+Result<Metrics> Store::GetMetrics() {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Metrics m;
+  for (const char* table : {"runs", "beds"}) {
+    Statement st = t->Prepare(std::string("SELECT state, COUNT(*) FROM ") + table +
+                              " GROUP BY state");
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      AddState(std::string(table) == "runs" ? m.runs : m.beds, st.Text(0), st.Int(1));
+    }
+  }
+  {
+    Statement st = t->Prepare("SELECT COUNT(*) FROM sweeps");
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    m.sweeps = st.Int(0);
+  }
+  Statement st = t->Prepare("SELECT name, value FROM counters");
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    std::string name = st.Text(0);
+    if (name == "leases_granted") m.leases_granted = st.Int(1);
+    else if (name == "completions") m.completions = st.Int(1);
+    else if (name == "expirations") m.expirations = st.Int(1);
+    else if (name == "duplicates") m.duplicates = st.Int(1);
+  }
+  return m;
+}
+
+Status Store::HealthCheck() {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("PRAGMA user_version");
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row || st.Int(0) != schema_version_) {
+    return Status::Unavailable("database schema changed under the daemon");
+  }
+  return Status::Ok();
+}
+
+Result<int64_t> Store::CountRows(const std::string& table) {
+  bool known = false;
+  for (const char* t : kTables) known = known || table == t;
+  if (!known) return Status::InvalidArgument("table", "unknown table '" + table + "'");
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("SELECT COUNT(*) FROM " + table);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return st.Int(0);
+}
+
+}  // namespace sandswim

@@ -1,0 +1,170 @@
+#include "server/store.h"
+
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "server/clock.h"
+#include "server/submission.h"
+
+namespace sandswim {
+namespace {
+
+namespace fs = std::filesystem;
+
+class StoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir_ = fs::temp_directory_path() / ("sandswim-store-" + std::to_string(rd()));
+    path_ = (dir_ / "nested" / "sandswim.db").string();
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::unique_ptr<Store> MustOpen() {
+    auto s = Store::Open(path_);
+    EXPECT_TRUE(s.ok()) << s.status().ToString();
+    return s.ok() ? std::move(s).value() : nullptr;
+  }
+  fs::path dir_;
+  std::string path_;
+};
+
+nlohmann::json Sweep(const std::string& name, int points) {
+  std::vector<double> omegas;
+  for (int i = 0; i < points; ++i) omegas.push_back(10 + 10 * i);
+  return {{"name", name},
+          {"scale", "smoke"},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", 10},
+                    {"duration_s", 0.3}}},
+          {"axes", {{{"param", "Omega"}, {"values", omegas}}}}};
+}
+
+TEST_F(StoreTest, OpenCreatesTheDirectoryAndMigratesOnce) {
+  {
+    auto store = MustOpen();
+    ASSERT_TRUE(store);
+    EXPECT_EQ(store->schema_version(), 1);
+    EXPECT_EQ(*store->CountRows("schema_migrations"), 1);
+    EXPECT_TRUE(store->HealthCheck().ok());
+  }
+  auto again = MustOpen();
+  ASSERT_TRUE(again);
+  EXPECT_EQ(*again->CountRows("schema_migrations"), 1);
+  auto t = again->BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("PRAGMA journal_mode");
+  ASSERT_TRUE(*st.Step());
+  EXPECT_EQ(st.Text(0), "wal");
+  Statement fk = t->Prepare("PRAGMA foreign_keys");
+  ASSERT_TRUE(*fk.Step());
+  EXPECT_EQ(fk.Int(0), 1);
+}
+
+TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
+  {
+    auto store = MustOpen();
+    auto t = store->Begin();
+    ASSERT_TRUE(t->Exec("PRAGMA user_version = 99").ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto s = Store::Open(path_);
+  EXPECT_EQ(s.status().code(), StatusCode::kFailedPrecondition);
+}
+
+TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
+  auto store = MustOpen();
+  {
+    auto t = store->Begin();
+    ASSERT_TRUE(t->Event(1, "test", "x/1").ok());
+  }
+  EXPECT_EQ(*store->CountRows("events"), 0);
+  {
+    auto t = store->Begin();
+    ASSERT_TRUE(t->Event(1, "test", "x/1").ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  EXPECT_EQ(*store->CountRows("events"), 1);
+  auto t = store->Begin();
+  Statement bad = t->Prepare("SELECT nope FROM nowhere");
+  EXPECT_FALSE(bad.Step().ok());
+}
+
+TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
+  auto store = MustOpen();
+  auto req = ParseSubmitRequest(Sweep("five", 5));
+  auto sub = Submit(*store, *req, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+  auto req2 = ParseSubmitRequest(Sweep("two", 2));
+  ASSERT_TRUE(Submit(*store, *req2, "engine", 1.7e9).ok());
+
+  RunFilter f;
+  f.sweep_id = sub->sweep_ids[0];
+  f.limit = 2;
+  std::vector<int64_t> seen;
+  for (int page = 0; page < 5; ++page) {
+    auto p = store->ListRuns(f);
+    ASSERT_TRUE(p.ok());
+    for (const RunSummary& r : p->runs) seen.push_back(r.id);
+    if (!p->next_cursor) break;
+    f.after_id = *p->next_cursor;
+  }
+  EXPECT_EQ(seen.size(), 5u);
+  EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
+
+  RunFilter all;
+  all.state = "queued";
+  EXPECT_EQ(store->ListRuns(all)->runs.size(), 5u);  // the two are shared with "five"
+  all.state = "done";
+  EXPECT_TRUE(store->ListRuns(all)->runs.empty());
+  all.state = "bogus";
+  EXPECT_EQ(store->ListRuns(all).status().field(), "state");
+
+  auto page = store->ListSweeps(0, 1);
+  ASSERT_EQ(page->sweeps.size(), 1u);
+  ASSERT_TRUE(page->next_cursor.has_value());
+  EXPECT_EQ(store->ListSweeps(*page->next_cursor, 1)->sweeps[0].name, "two");
+  nlohmann::json j = *page;
+  EXPECT_EQ(j["sweeps"][0]["counts"]["queued"], 5);
+  EXPECT_EQ(j["sweeps"][0]["runs"], 5);
+}
+
+TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
+  auto store = MustOpen();
+  auto req = ParseSubmitRequest(Sweep("one", 1));
+  auto sub = Submit(*store, *req, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok());
+  auto runs = store->ListRuns({});
+  auto run = store->GetRun(runs->runs[0].id);
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EXPECT_FALSE(run->deck.empty());
+  EXPECT_EQ(run->sweep_ids, sub->sweep_ids);
+  EXPECT_EQ(run->bed_state, "queued");
+  nlohmann::json j = *run;
+  EXPECT_EQ(j["state"], "queued");
+  EXPECT_EQ(j["point"]["mode"], "oscillatory");
+  EXPECT_TRUE(j.contains("deck"));
+  EXPECT_EQ(store->GetRun(12345).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->GetSweep(12345).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->SweepResults(12345).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->CountRows("sqlite_master; DROP TABLE runs").status().code(),
+            StatusCode::kInvalidArgument);
+}
+
+TEST_F(StoreTest, CampaignsRoundTrip) {
+  auto store = MustOpen();
+  StoredCampaign c{"mine", {{"name", "mine"}}, "0 3 * * *", 0.01, 5};
+  ASSERT_TRUE(store->PutCampaign(c).ok());
+  c.schedule.reset();
+  ASSERT_TRUE(store->PutCampaign(c).ok());
+  auto got = store->GetCampaign("mine");
+  ASSERT_TRUE(got.ok() && got->has_value());
+  EXPECT_FALSE((*got)->schedule.has_value());
+  EXPECT_EQ(store->ListCampaigns()->size(), 1u);
+  EXPECT_FALSE(store->GetCampaign("other")->has_value());
+}
+
+}  // namespace
+}  // namespace sandswim

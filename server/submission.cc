@@ -1,0 +1,424 @@
+#include "server/submission.h"
+
+#include <algorithm>
+#include <map>
+#include <utility>
+
+#include "core/embedded.h"
+#include "core/keys.h"
+#include "core/scale.h"
+
+namespace sandswim {
+namespace {
+
+nlohmann::json SweepToJson(const SweepSpec& s) {
+  nlohmann::json axes = nlohmann::json::array();
+  for (const SweepAxis& a : s.axes) axes.push_back({{"param", a.param}, {"values", a.values}});
+  return nlohmann::json{{"name", s.name},
+                        {"scale", s.scale},
+                        {"base", PointToJson(s.base)},
+                        {"axes", axes},
+                        {"combine", s.combine == Combine::kZip ? "zip" : "product"}};
+}
+
+Status CheckIdempotencyKey(const std::string& key) {
+  if (key.empty() || key.size() > 200) {
+    return Status::InvalidArgument("Idempotency-Key", "must be 1 to 200 characters");
+  }
+  for (char c : key) {
+    if (c < 0x21 || c > 0x7e) {
+      return Status::InvalidArgument("Idempotency-Key", "must be printable ASCII without spaces");
+    }
+  }
+  return Status::Ok();
+}
+
+Result<SubmitResult> ResultFromJson(const std::string& text) {
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (!j.is_object()) return Status::Corruption("stored submission response does not parse");
+  SubmitResult r;
+  try {
+    r.sweep_ids = j.at("ids").get<std::vector<int64_t>>();
+    if (j.contains("campaign_run_id")) r.campaign_run_id = j.at("campaign_run_id").get<int64_t>();
+    r.runs = j.value("runs", int64_t{0});
+    r.runs_new = j.value("runs_new", int64_t{0});
+    r.runs_reused = j.value("runs_reused", int64_t{0});
+    r.runs_requeued = j.value("runs_requeued", int64_t{0});
+    r.runs_shared = j.value("runs_shared", int64_t{0});
+  } catch (const nlohmann::json::exception& e) {
+    return Status::Corruption(std::string("stored submission response: ") + e.what());
+  }
+  return r;
+}
+
+// The sweeps a campaign submission stands for, their scale set to the submission's scale.
+Result<Campaign> ResolveCampaign(Store& store, const SubmitRequest& req,
+                                 std::optional<nlohmann::json>* builtin_definition) {
+  Result<std::optional<StoredCampaign>> stored = store.GetCampaign(*req.campaign);
+  if (!stored.ok()) return stored.status();
+  Result<Campaign> c = Status::NotFound("");
+  if (stored->has_value()) {
+    c = ParseCampaign((*stored)->definition);
+    if (!c.ok()) return Status::Corruption("stored campaign '" + *req.campaign +
+                                           "' no longer parses: " + c.status().ToString());
+  } else {
+    c = BuiltinCampaign(*req.campaign);
+    if (!c.ok()) {
+      return Status(StatusCode::kNotFound, "no campaign named '" + *req.campaign + "'",
+                    "campaign");
+    }
+    auto text = EmbeddedFile("templates/campaigns/" + *req.campaign + ".json");
+    if (text) {
+      nlohmann::json def = nlohmann::json::parse(*text, nullptr, false);
+      if (!def.is_discarded()) *builtin_definition = def;
+    }
+  }
+  std::string scale = req.scale.value_or(c->scale);
+  for (SweepSpec& s : c->sweeps) s.scale = scale;
+  return c;
+}
+
+// One scale's share of a submission: which sweeps, and their plan.
+struct ScaleGroup {
+  std::string scale;
+  std::vector<size_t> sweep_indexes;
+  Plan plan;
+};
+
+}  // namespace
+
+void to_json(nlohmann::json& j, const SubmitResult& r) {
+  j = nlohmann::json{{"ids", r.sweep_ids},
+                     {"replayed", r.replayed},
+                     {"runs", r.runs},
+                     {"runs_new", r.runs_new},
+                     {"runs_reused", r.runs_reused},
+                     {"runs_requeued", r.runs_requeued},
+                     {"runs_shared", r.runs_shared}};
+  if (!r.sweep_ids.empty()) j["id"] = r.sweep_ids.front();
+  if (r.campaign_run_id) j["campaign_run_id"] = *r.campaign_run_id;
+}
+
+Result<SubmitRequest> ParseSubmitRequest(const nlohmann::json& body) {
+  if (!body.is_object()) return Status::InvalidArgument("", "the body must be a JSON object");
+  SubmitRequest req;
+  nlohmann::json rest = body;
+  if (auto it = rest.find("force"); it != rest.end()) {
+    if (!it->is_boolean()) return Status::InvalidArgument("force", "must be true or false");
+    req.force = it->get<bool>();
+    rest.erase(it);
+  }
+  if (rest.contains("campaign")) {
+    for (const auto& [k, v] : rest.items()) {
+      if (k != "campaign" && k != "scale") {
+        return Status::InvalidArgument(k, "unknown field in a campaign submission "
+                                          "(allowed: campaign, scale, force)");
+      }
+    }
+    if (!rest["campaign"].is_string() || rest["campaign"].get<std::string>().empty()) {
+      return Status::InvalidArgument("campaign", "must be a campaign name");
+    }
+    req.campaign = rest["campaign"].get<std::string>();
+    if (rest.contains("scale")) {
+      if (!rest["scale"].is_string() || FindScale(rest["scale"].get<std::string>()) == nullptr) {
+        return Status::InvalidArgument("scale", "must be one of paper, mini, smoke");
+      }
+      req.scale = rest["scale"].get<std::string>();
+    }
+    return req;
+  }
+  if (rest.contains("sweeps")) {
+    if (rest.size() != 1) {
+      for (const auto& [k, v] : rest.items()) {
+        if (k != "sweeps") {
+          return Status::InvalidArgument(k, "unknown field (allowed: sweeps, force)");
+        }
+      }
+    }
+    const nlohmann::json& arr = rest["sweeps"];
+    if (!arr.is_array() || arr.empty()) {
+      return Status::InvalidArgument("sweeps", "must be a non-empty array of sweeps");
+    }
+    for (size_t i = 0; i < arr.size(); ++i) {
+      Result<SweepSpec> s = ParseSweep(arr[i]);
+      if (!s.ok()) return s.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]");
+      req.sweeps.push_back(std::move(s).value());
+    }
+    return req;
+  }
+  Result<SweepSpec> s = ParseSweep(rest);
+  if (!s.ok()) return s.status();
+  req.sweeps.push_back(std::move(s).value());
+  return req;
+}
+
+Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
+                            const std::string& engine_version, double now) {
+  // ---- Everything that can be refused is decided before the transaction opens. ----
+  if (req.sweeps.empty() == !req.campaign.has_value()) {
+    return Status::InvalidArgument("sweeps", "give either sweeps or a campaign, not both or none");
+  }
+  if (req.trigger != "manual" && req.trigger != "schedule") {
+    return Status::InvalidArgument("trigger", "must be manual or schedule");
+  }
+  if (req.trigger == "schedule" && (!req.campaign || !req.due_time)) {
+    return Status::InvalidArgument("due_time", "a scheduled submission is a campaign with a due time");
+  }
+  if (req.idempotency_key) SANDSWIM_RETURN_IF_ERROR(CheckIdempotencyKey(*req.idempotency_key));
+
+  std::vector<SweepSpec> sweeps = req.sweeps;
+  std::optional<Campaign> campaign;
+  std::optional<nlohmann::json> builtin_definition;
+  std::string campaign_scale;
+  if (req.campaign) {
+    Result<Campaign> c = ResolveCampaign(store, req, &builtin_definition);
+    if (!c.ok()) return c.status();
+    campaign = std::move(c).value();
+    sweeps = campaign->sweeps;
+    campaign_scale = req.scale.value_or(campaign->scale);
+  }
+
+  // Group by scale (first-appearance order) and plan each group.
+  std::vector<ScaleGroup> groups;
+  std::map<std::string, size_t> seen_names;
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    std::string field = req.campaign ? "campaign" : "sweeps[" + std::to_string(i) + "]";
+    if (!seen_names.emplace(sweeps[i].name, i).second) {
+      return Status::InvalidArgument(field + ".name", "'" + sweeps[i].name +
+                                                          "' names two sweeps of one submission");
+    }
+    if (FindScale(sweeps[i].scale) == nullptr) {
+      return Status::InvalidArgument(req.campaign ? "scale" : field + ".scale",
+                                     "'" + sweeps[i].scale + "' is not one of paper, mini, smoke");
+    }
+    auto g = std::find_if(groups.begin(), groups.end(),
+                          [&](const ScaleGroup& x) { return x.scale == sweeps[i].scale; });
+    if (g == groups.end()) {
+      groups.push_back(ScaleGroup{sweeps[i].scale, {}, {}});
+      g = groups.end() - 1;
+    }
+    g->sweep_indexes.push_back(i);
+  }
+  size_t planned = 0;
+  for (ScaleGroup& g : groups) {
+    std::vector<SweepSpec> group_sweeps;
+    for (size_t i : g.sweep_indexes) group_sweeps.push_back(sweeps[i]);
+    size_t budget = req.max_runs > planned ? req.max_runs - planned : 0;
+    Result<Plan> plan = PlanSweeps(group_sweeps, *FindScale(g.scale), engine_version, budget);
+    if (!plan.ok()) {
+      Status s = plan.status();
+      // A single sweep's field paths are relative to it; name the sweep when there are several.
+      if (!req.campaign && sweeps.size() > 1 && g.sweep_indexes.size() == 1) {
+        s = s.WithFieldPrefix("sweeps[" + std::to_string(g.sweep_indexes[0]) + "]");
+      }
+      return s;
+    }
+    planned += plan->runs.size();
+    g.plan = std::move(plan).value();
+  }
+
+  nlohmann::json fingerprint_json{{"force", req.force}, {"trigger", req.trigger}};
+  if (req.campaign) {
+    fingerprint_json["campaign"] = *req.campaign;
+    fingerprint_json["scale"] = campaign_scale;
+  } else {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const SweepSpec& s : sweeps) arr.push_back(SweepToJson(s));
+    fingerprint_json["sweeps"] = arr;
+  }
+  if (req.due_time) fingerprint_json["due_time"] = *req.due_time;
+  const std::string fingerprint = Sha256Hex(fingerprint_json.dump());
+
+  // ---- One transaction: all rows or none. ----
+  Result<Transaction> begun = store.Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  SubmitResult out;
+
+  if (req.idempotency_key) {
+    Statement st = t.Prepare("SELECT fingerprint, response FROM submissions WHERE idempotency_key = ?");
+    st.Bind(1, *req.idempotency_key);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      if (st.Text(0) != fingerprint) {
+        return Status(StatusCode::kConflict,
+                      "this Idempotency-Key was used with a different request", "Idempotency-Key");
+      }
+      Result<SubmitResult> prior = ResultFromJson(st.Text(1));
+      if (!prior.ok()) return prior.status();
+      prior->replayed = true;
+      return prior;
+    }
+  }
+  if (req.trigger == "schedule") {
+    Statement st = t.Prepare("SELECT id FROM campaign_runs WHERE campaign = ? AND due_time = ?");
+    st.Bind(1, *req.campaign).Bind(2, *req.due_time);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      int64_t id = st.Int(0);
+      Statement s2 = t.Prepare(
+          "SELECT sub.response FROM sweeps s JOIN submissions sub ON sub.id = s.submission_id "
+          "WHERE s.campaign_run_id = ? LIMIT 1");
+      s2.Bind(1, id);
+      Result<bool> r2 = s2.Step();
+      if (!r2.ok()) return r2.status();
+      if (!*r2) return Status::Corruption("campaign run " + std::to_string(id) + " has no sweeps");
+      Result<SubmitResult> prior = ResultFromJson(s2.Text(0));
+      if (!prior.ok()) return prior.status();
+      prior->replayed = true;
+      return prior;
+    }
+  }
+
+  int64_t submission_id = 0;
+  {
+    Statement st = t.Prepare(
+        "INSERT INTO submissions (idempotency_key, fingerprint, response, created_at) "
+        "VALUES (?, ?, '{}', ?)");
+    st.Bind(1, req.idempotency_key).Bind(2, fingerprint).Bind(3, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    submission_id = t.LastInsertId();
+  }
+
+  if (campaign) {
+    if (builtin_definition) {
+      Statement st = t.Prepare(
+          "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
+          "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO NOTHING");
+      st.Bind(1, *req.campaign).Bind(2, builtin_definition->dump()).Bind(3, campaign->schedule);
+      st.Bind(4, campaign->drift_tolerance_mps).Bind(5, now);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    }
+    Statement st = t.Prepare(
+        "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at) "
+        "VALUES (?, ?, ?, ?, ?)");
+    st.Bind(1, *req.campaign).Bind(2, campaign_scale).Bind(3, req.trigger);
+    st.Bind(4, req.due_time).Bind(5, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    out.campaign_run_id = t.LastInsertId();
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.created",
+                                     "campaign_run/" + std::to_string(*out.campaign_run_id),
+                                     {{"campaign", *req.campaign}, {"trigger", req.trigger}}));
+  }
+
+  // Sweeps, in request order.
+  std::vector<int64_t> sweep_ids(sweeps.size());
+  std::map<std::string, int64_t> id_by_name;
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    nlohmann::json spec = SweepToJson(sweeps[i]);
+    Statement st = t.Prepare(
+        "INSERT INTO sweeps (name, scale, spec, campaign_run_id, submission_id, force, created_at)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?)");
+    st.Bind(1, sweeps[i].name).Bind(2, sweeps[i].scale).Bind(3, spec.dump());
+    st.Bind(4, out.campaign_run_id).Bind(5, submission_id).Bind(6, req.force).Bind(7, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    sweep_ids[i] = t.LastInsertId();
+    id_by_name[sweeps[i].name] = sweep_ids[i];
+  }
+  out.sweep_ids = sweep_ids;
+
+  std::map<int64_t, int64_t> next_position;
+  for (const ScaleGroup& g : groups) {
+    // The bed: one per key; a failed one is given another chance.
+    int64_t bed_id = 0;
+    {
+      Statement ins = t.Prepare(
+          "INSERT INTO beds (key, scale, deck, state, created_at) VALUES (?, ?, ?, 'queued', ?) "
+          "ON CONFLICT (key) DO NOTHING");
+      ins.Bind(1, g.plan.bed.key).Bind(2, g.scale).Bind(3, g.plan.bed.deck).Bind(4, now);
+      SANDSWIM_RETURN_IF_ERROR(ins.Run());
+      Statement sel = t.Prepare("SELECT id, state FROM beds WHERE key = ?");
+      sel.Bind(1, g.plan.bed.key);
+      Result<bool> row = sel.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) return Status::Internal("bed row vanished");
+      bed_id = sel.Int(0);
+      if (sel.Text(1) == "failed") {
+        Statement up = t.Prepare(
+            "UPDATE beds SET state = 'queued', attempts = 0, lease_token = NULL, "
+            "lease_expires_at = NULL, last_error_kind = NULL, last_error = NULL WHERE id = ?");
+        up.Bind(1, bed_id);
+        SANDSWIM_RETURN_IF_ERROR(up.Run());
+        SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
+      }
+    }
+
+    for (const PlannedRun& r : g.plan.runs) {
+      int64_t run_id = 0;
+      Statement ins = t.Prepare(
+          "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
+          "run_duration_s, steps, state, created_at, queued_at) "
+          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?) "
+          "ON CONFLICT (key) DO NOTHING");
+      ins.Bind(1, r.key).Bind(2, bed_id).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
+      ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
+      ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
+      ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
+      ins.Bind(12, now).Bind(13, now);
+      SANDSWIM_RETURN_IF_ERROR(ins.Run());
+      if (t.Changes() == 1) {
+        run_id = t.LastInsertId();
+        ++out.runs_new;
+        Statement deck = t.Prepare("INSERT INTO run_decks (run_id, deck) VALUES (?, ?)");
+        deck.Bind(1, run_id).Bind(2, r.deck);
+        SANDSWIM_RETURN_IF_ERROR(deck.Run());
+      } else {
+        Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
+        sel.Bind(1, r.key);
+        Result<bool> row = sel.Step();
+        if (!row.ok()) return row.status();
+        if (!*row) return Status::Internal("run row vanished");
+        run_id = sel.Int(0);
+        std::string state = sel.Text(1);
+        bool requeue = state == "failed" || state == "cancelled" || (state == "done" && req.force);
+        if (requeue) {
+          // The old result row (if any) stays until the new completion replaces it.
+          Statement up = t.Prepare(
+              "UPDATE runs SET state = 'queued', attempts = 0, lease_token = NULL, "
+              "lease_expires_at = NULL, worker = NULL, sim_time_s = NULL, so_z = NULL, "
+              "step = NULL, heartbeat_at = NULL, cancel_requested = 0, queued_at = ?, "
+              "started_at = NULL, finished_at = NULL, last_error_kind = NULL, last_error = NULL "
+              "WHERE id = ?");
+          up.Bind(1, now).Bind(2, run_id);
+          SANDSWIM_RETURN_IF_ERROR(up.Run());
+          SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.requeued", "run/" + std::to_string(run_id),
+                                           {{"from", state}, {"force", req.force}}));
+          ++out.runs_requeued;
+        } else if (state == "done") {
+          ++out.runs_reused;
+        } else {
+          ++out.runs_shared;
+        }
+      }
+      ++out.runs;
+      for (const std::string& name : r.sweeps) {
+        auto it = id_by_name.find(name);
+        if (it == id_by_name.end()) return Status::Internal("plan names unknown sweep " + name);
+        Statement sr = t.Prepare(
+            "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
+            "ON CONFLICT DO NOTHING");
+        sr.Bind(1, it->second).Bind(2, run_id).Bind(3, next_position[it->second]++);
+        SANDSWIM_RETURN_IF_ERROR(sr.Run());
+      }
+    }
+  }
+
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
+                                     {{"name", sweeps[i].name},
+                                      {"scale", sweeps[i].scale},
+                                      {"runs", next_position[sweep_ids[i]]}}));
+  }
+  nlohmann::json response = out;
+  {
+    Statement st = t.Prepare("UPDATE submissions SET response = ? WHERE id = ?");
+    st.Bind(1, response.dump()).Bind(2, submission_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Commit());
+  return out;
+}
+
+}  // namespace sandswim

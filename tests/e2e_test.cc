@@ -1,0 +1,141 @@
+// End to end (issue 4): the real sandswimd, real sandswim-workers launching LIGGGHTS under
+// mpirun at smoke scale, a real SQLite file. One daemon serves every test of this file, so the
+// smoke bed is prepared once, by the first bed job, and reused by every run after it.
+#include <signal.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "tests/engine_fixture.h"
+#include "tests/service_fixture.h"
+
+namespace sandswim {
+namespace {
+
+using ::testing::HasSubstr;
+using nlohmann::json;
+using testing::Daemon;
+
+constexpr double kTimeoutS = 1800;  // the first sweep prepares the bed (~2-3 min on a free core)
+
+json Sweep(const std::string& name, std::vector<double> omegas, double duration) {
+  return {{"name", name},
+          {"scale", "smoke"},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", omegas[0]}, {"duration_s", duration}}},
+          {"axes", json::array({{{"param", "Omega"}, {"values", omegas}}})},
+          {"combine", "product"}};
+}
+
+class EndToEndTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string(testing::CacheDir() + "/e2e");
+    std::filesystem::remove_all(*dir_);
+    daemon_ = new Daemon(*dir_ + "/daemon", {"--lease-ttl", "6", "--max-attempts", "3"});
+  }
+  static void TearDownTestSuite() {
+    delete daemon_;
+    delete dir_;
+  }
+
+  int64_t Submit(const json& sweep) {
+    int status = 0;
+    json r = daemon_->Post("/api/v1/sweeps", sweep, &status);
+    EXPECT_EQ(status, 201) << r.dump();
+    return r.value("id", int64_t{0});
+  }
+
+  std::vector<json> Runs(int64_t sweep) {
+    json page = daemon_->Get("/api/v1/runs?sweep=" + std::to_string(sweep));
+    return page["runs"].get<std::vector<json>>();
+  }
+
+  static std::string* dir_;
+  static Daemon* daemon_;
+};
+std::string* EndToEndTest::dir_ = nullptr;
+Daemon* EndToEndTest::daemon_ = nullptr;
+
+// The issue's pair: Omega = -80 and +80 at smoke. Both finish with a finite U_z and a trajectory;
+// the bed was prepared once for both.
+TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
+  auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
+  int64_t id = Submit(Sweep("omega-sign", {-80, 80}, 0.3));
+  json sweep = daemon_->WaitForSweep(id, kTimeoutS);
+  ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
+  for (const json& run : Runs(id)) {
+    json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()));
+    const json& res = detail["result"];
+    ASSERT_TRUE(res.is_object()) << detail.dump();
+    EXPECT_TRUE(std::isfinite(res["uz"].get<double>()));
+    EXPECT_EQ(res["stop_reason"], "duration");
+    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.3, 1e-9);
+    EXPECT_GT(res["grains"].get<int64_t>(), 4000);
+    EXPECT_GT(detail["trajectory"]["t"].size(), 100u);
+    EXPECT_EQ(detail["trajectory"]["t"].size(), detail["trajectory"]["z"].size());
+    EXPECT_EQ(res["launcher"], "mpirun");
+    EXPECT_EQ(detail["attempts"], 1);
+    // Figures for the closing note of issue 4.
+    std::printf("E2E Omega=%+g: U_z=%+.4f m/s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
+                run["point"]["Omega"].get<double>(), res["uz"].get<double>(), res["dz"].get<double>(),
+                res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
+  }
+  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM beds"), "1");
+  EXPECT_EQ(daemon_->Sql("SELECT attempts FROM beds"), "1");
+  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results"), "2");
+  // Submitting the same sweep again reuses both results: nothing is queued.
+  int64_t again = Submit(Sweep("omega-sign-again", {-80, 80}, 0.3));
+  json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
+  EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
+  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM runs"), "2");
+}
+
+// A worker killed with SIGKILL in the middle of a run: its lease expires, a second worker runs it
+// again, and exactly one result exists.
+TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
+  int64_t id = Submit(Sweep("killed-worker", {-40}, 0.3));
+  auto first = testing::StartWorker(*daemon_, *dir_ + "/worker-killed", 1);
+  int64_t run_id = 0;
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(kTimeoutS));
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::vector<json> runs = Runs(id);
+    ASSERT_EQ(runs.size(), 1u);
+    run_id = runs[0]["id"];
+    if (runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0.02) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  first->Kill(SIGKILL);
+  auto second = testing::StartWorker(*daemon_, *dir_ + "/worker-second", 1);
+  json sweep = daemon_->WaitForSweep(id, kTimeoutS);
+  ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nsecond worker:\n" << second->Output();
+  json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run_id));
+  EXPECT_EQ(detail["attempts"], 2);
+  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results WHERE run_id = " + std::to_string(run_id)), "1");
+}
+
+// A deck LIGGGHTS rejects fails its run with the ERROR: line, without retries; the sweep's other
+// run finishes. The deck is broken in the database, where a bad template would put it.
+TEST_F(EndToEndTest, RejectedDeckFailsItsRunOnly) {
+  int64_t id = Submit(Sweep("bad-deck", {-20, 20}, 0.05));
+  std::vector<json> runs = Runs(id);
+  ASSERT_EQ(runs.size(), 2u);
+  const std::string bad = std::to_string(runs[0]["id"].get<int64_t>());
+  daemon_->Sql("UPDATE runs SET deck = replace(deck, 'pair_style      gran', 'pair_style      no_such_style') WHERE id = " + bad);
+  auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-bad-deck", 2);
+  json sweep = daemon_->WaitForSweep(id, kTimeoutS);
+  EXPECT_EQ(sweep["counts"]["done"], 1) << sweep.dump();
+  EXPECT_EQ(sweep["counts"]["failed"], 1) << sweep.dump();
+  json detail = daemon_->Get("/api/v1/runs/" + bad);
+  EXPECT_EQ(detail["state"], "failed");
+  EXPECT_EQ(detail["attempts"], 1);
+  EXPECT_EQ(detail["last_error"]["kind"], "deck_error") << detail.dump();
+  EXPECT_THAT(detail["last_error"]["message"].get<std::string>(), HasSubstr("ERROR"));
+}
+
+}  // namespace
+}  // namespace sandswim

@@ -1,0 +1,64 @@
+// Test support: the real sandswimd and sandswim-worker as child processes, and a REST client.
+//
+// Daemon starts `sandswimd --listen 127.0.0.1:0` on a fresh SQLite file and data directory under
+// `dir`, and learns its port from the "listening on" line it prints. Worker starts
+// `sandswim-worker --server URL`. Both run in their own process groups (workers/launcher.h);
+// Kill() sends a signal to the process alone, Stop() ends the whole group.
+//
+// Thread safety: none; one test thread drives them.
+#ifndef SANDSWIM_TESTS_SERVICE_FIXTURE_H_
+#define SANDSWIM_TESTS_SERVICE_FIXTURE_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "workers/launcher.h"
+
+namespace sandswim::testing {
+
+class ChildProcess {
+ public:
+  ChildProcess(std::vector<std::string> argv, const std::string& dir, const std::string& output_file);
+  ~ChildProcess();
+  bool running();
+  void Kill(int signal);        // the process alone (its children keep their own groups)
+  void Stop(double grace_s = 5);  // SIGTERM to its group, then SIGKILL
+  std::string Output() const;   // what it printed so far
+  pid_t pid() const { return pid_; }
+
+ private:
+  std::unique_ptr<worker::EngineProcess> process_;
+  std::string output_path_;
+  pid_t pid_ = 0;
+};
+
+class Daemon {
+ public:
+  // Extra flags are appended (e.g. {"--lease-ttl", "5"}).
+  Daemon(const std::string& dir, std::vector<std::string> extra = {});
+  const std::string& url() const { return url_; }
+  const std::string& db() const { return db_; }
+  ChildProcess& process() { return *process_; }
+
+  // REST calls; they fail the test on transport errors. `status` receives the HTTP status.
+  nlohmann::json Get(const std::string& path, int* status = nullptr);
+  nlohmann::json Post(const std::string& path, const nlohmann::json& body, int* status = nullptr);
+
+  // Polls GET /api/v1/sweeps/{id} until no run is queued or running; returns the last answer.
+  nlohmann::json WaitForSweep(int64_t sweep_id, double timeout_s);
+  // One value from the SQLite file, through the sqlite3 command-line shell.
+  std::string Sql(const std::string& query);
+
+ private:
+  std::string dir_, db_, url_;
+  std::unique_ptr<ChildProcess> process_;
+};
+
+std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots);
+
+}  // namespace sandswim::testing
+
+#endif  // SANDSWIM_TESTS_SERVICE_FIXTURE_H_

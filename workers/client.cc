@@ -1,0 +1,195 @@
+#include "workers/client.h"
+
+#include <httplib.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <thread>
+
+namespace sandswim::worker {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// One HTTP exchange's outcome: a response, or Unavailable when there was none.
+struct Exchange {
+  Status status;  // OK when a response arrived
+  int code = 0;
+  std::string body;
+};
+
+Status StatusFromResponse(int code, const std::string& body, const std::string& what) {
+  if (code >= 200 && code < 300) return Status::Ok();
+  std::string detail = what + ": HTTP " + std::to_string(code) + (body.empty() ? "" : " " + body.substr(0, 300));
+  if (code == 409) return Status::Conflict(detail);
+  if (code == 401 || code == 403) {
+    return Status(StatusCode::kUnauthenticated, detail + " (check --token-file or SANDSWIM_TOKEN)");
+  }
+  if (code == 404) return Status::NotFound(detail);
+  if (code >= 500) return Status::Unavailable(detail);
+  return Status::InvalidArgument("", detail);
+}
+
+bool Retryable(const Status& s) { return s.code() == StatusCode::kUnavailable; }
+
+}  // namespace
+
+HttpServerClient::HttpServerClient(ClientOptions options, const std::atomic<bool>* stopping)
+    : options_(std::move(options)), stopping_(stopping) {}
+
+namespace {
+
+// Runs `call` until it succeeds, fails for good, `retry_for_s` passes or `stopping` is set.
+template <typename F>
+auto WithRetries(double retry_for_s, const std::atomic<bool>* stopping, F call) -> decltype(call()) {
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(retry_for_s));
+  double backoff = 0.2;
+  while (true) {
+    auto r = call();
+    if (r.ok() || !Retryable(r.status()) || Clock::now() >= deadline) return r;
+    // Sleep in small steps so a shutdown is not held up by a long backoff.
+    const auto wake = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(backoff));
+    while (Clock::now() < wake) {
+      if (stopping != nullptr && stopping->load()) return r;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    backoff = std::min(backoff * 2, 10.0);
+  }
+}
+
+std::unique_ptr<httplib::Client> MakeClient(const ClientOptions& o) {
+  auto cli = std::make_unique<httplib::Client>(o.server);
+  cli->set_connection_timeout(static_cast<time_t>(o.connect_timeout_s),
+                              static_cast<time_t>((o.connect_timeout_s - static_cast<time_t>(o.connect_timeout_s)) * 1e6));
+  cli->set_read_timeout(static_cast<time_t>(o.read_timeout_s), 0);
+  cli->set_write_timeout(static_cast<time_t>(o.read_timeout_s), 0);
+  if (!o.token.empty()) cli->set_bearer_token_auth(o.token);
+  return cli;
+}
+
+Exchange FromResult(const httplib::Result& res, const std::string& what) {
+  Exchange ex;
+  if (!res) {
+    ex.status = Status::Unavailable(what + ": daemon not reachable (" + httplib::to_string(res.error()) + ")");
+    return ex;
+  }
+  ex.code = res->status;
+  ex.body = res->body;
+  ex.status = StatusFromResponse(ex.code, ex.body, what);
+  return ex;
+}
+
+template <typename T>
+Result<T> ParseJson(const std::string& body, const std::string& what) {
+  try {
+    return nlohmann::json::parse(body).get<T>();
+  } catch (const std::exception& e) {
+    return Status::Corruption(what + ": unreadable reply: " + e.what());
+  }
+}
+
+}  // namespace
+
+Result<std::optional<api::LeaseGrant>> HttpServerClient::Lease(const api::LeaseRequest& request) {
+  auto cli = MakeClient(options_);
+  Exchange ex = FromResult(cli->Post("/api/v1/leases", nlohmann::json(request).dump(), "application/json"),
+                           "POST /api/v1/leases");
+  if (!ex.status.ok()) return ex.status;
+  if (ex.code == 204 || ex.body.empty()) return std::optional<api::LeaseGrant>();
+  try {
+    nlohmann::json j = nlohmann::json::parse(ex.body);
+    if (!j.contains("lease") || j["lease"].is_null()) return std::optional<api::LeaseGrant>();
+    return std::optional<api::LeaseGrant>(j["lease"].get<api::LeaseGrant>());
+  } catch (const std::exception& e) {
+    return Status::Corruption("POST /api/v1/leases: unreadable lease: " + std::string(e.what()));
+  }
+}
+
+Result<api::HeartbeatReply> HttpServerClient::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
+  const std::string path = "/api/v1/leases/" + token + "/heartbeat";
+  auto cli = MakeClient(options_);
+  Exchange ex = FromResult(cli->Post(path, nlohmann::json(beat).dump(), "application/json"), "POST heartbeat");
+  if (!ex.status.ok()) return ex.status;
+  return ParseJson<api::HeartbeatReply>(ex.body, "heartbeat");
+}
+
+Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& dest_path) {
+  const std::string path = bed.url.empty() ? "/api/v1/beds/" + std::to_string(bed.id) + "/restart" : bed.url;
+  auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {
+    std::ofstream out(dest_path, std::ios::binary | std::ios::trunc);
+    if (!out) return Status::IOError("cannot write " + dest_path);
+    auto cli = MakeClient(options_);
+    int code = 0;
+    std::string error_body;
+    auto res = cli->Get(
+        path, httplib::Headers{},
+        [&](const httplib::Response& response) {
+          code = response.status;
+          return true;
+        },
+        [&](const char* data, size_t n) {
+          if (code == 200) {
+            out.write(data, static_cast<std::streamsize>(n));
+          } else if (error_body.size() < 1000) {
+            error_body.append(data, n);
+          }
+          return true;
+        });
+    Exchange ex = FromResult(res, "GET " + path);
+    if (!ex.status.ok()) return ex.status;
+    if (code != 200) return StatusFromResponse(code, error_body, "GET " + path);
+    out.flush();
+    if (!out) return Status::IOError("cannot write " + dest_path);
+    return true;
+  });
+  return r.status();
+}
+
+Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
+                                  const std::string& sha256) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::NotFound("bed restart " + path + " does not exist");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string bytes = ss.str();
+  const std::string url = "/api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token;
+  auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {
+    auto cli = MakeClient(options_);
+    Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, "application/octet-stream"),
+                             "PUT bed restart");
+    if (!ex.status.ok()) return ex.status;
+    return true;
+  });
+  return r.status();
+}
+
+Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token, const api::Completion& completion) {
+  const std::string path = "/api/v1/leases/" + token + "/complete";
+  const std::string body = nlohmann::json(completion).dump();
+  return WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<api::CompletionReply> {
+    auto cli = MakeClient(options_);
+    Exchange ex = FromResult(cli->Post(path, body, "application/json"), "POST complete");
+    if (!ex.status.ok()) return ex.status;
+    return ParseJson<api::CompletionReply>(ex.body, "complete");
+  });
+}
+
+Result<std::string> LoadToken(const std::string& token_file) {
+  if (!token_file.empty()) {
+    std::ifstream in(token_file);
+    if (!in) return Status::IOError("cannot read --token-file " + token_file);
+    std::string line;
+    std::getline(in, line);
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    return line;
+  }
+  const char* env = std::getenv("SANDSWIM_TOKEN");
+  return std::string(env ? env : "");
+}
+
+}  // namespace sandswim::worker

@@ -1,0 +1,70 @@
+// ServerClient: the worker's side of the worker protocol (core/api.h lists the routes).
+//
+// Abstract so the worker loop can be tested against a fake. HttpServerClient is the real one
+// and the only worker file that includes httplib.h. It sends "Authorization: Bearer <token>"
+// when a token is set, and retries with exponential backoff (0.2 s doubling to 10 s) while the
+// daemon is down or answers 5xx: a daemon restart then costs a delay, never a running job.
+// Which calls retry and for how long:
+//   Lease, Heartbeat         one attempt (the loop calls again on its own schedule);
+//   DownloadBed, UploadBed,
+//   Complete                 until `retry_for_s` has passed (completion is idempotent per token).
+// Status codes: Conflict for 409 (lease lost), Unavailable when the daemon cannot be reached or
+// answers 5xx, Unauthenticated for 401/403, InvalidArgument for other 4xx (with the body).
+//
+// Thread safety: HttpServerClient is thread-safe (one httplib::Client per call).
+#ifndef SANDSWIM_WORKERS_CLIENT_H_
+#define SANDSWIM_WORKERS_CLIENT_H_
+
+#include <atomic>
+#include <optional>
+#include <string>
+
+#include "core/api.h"
+#include "core/status.h"
+
+namespace sandswim::worker {
+
+class ServerClient {
+ public:
+  virtual ~ServerClient() = default;
+  // nullopt when there is no work (204).
+  virtual Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest& request) = 0;
+  virtual Result<api::HeartbeatReply> Heartbeat(const std::string& token, const api::Heartbeat& beat) = 0;
+  virtual Status DownloadBed(const api::BedRef& bed, const std::string& dest_path) = 0;
+  virtual Status UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
+                           const std::string& sha256) = 0;
+  virtual Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& completion) = 0;
+};
+
+struct ClientOptions {
+  std::string server;           // "http://host:port"
+  std::string token;            // bearer token; empty: none
+  double retry_for_s = 3600;    // how long retried calls keep trying
+  double connect_timeout_s = 5;
+  double read_timeout_s = 60;
+};
+
+class HttpServerClient : public ServerClient {
+ public:
+  // `stopping`, when set and true, ends retries early (the worker is shutting down).
+  explicit HttpServerClient(ClientOptions options, const std::atomic<bool>* stopping = nullptr);
+
+  Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest& request) override;
+  Result<api::HeartbeatReply> Heartbeat(const std::string& token, const api::Heartbeat& beat) override;
+  Status DownloadBed(const api::BedRef& bed, const std::string& dest_path) override;
+  Status UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
+                   const std::string& sha256) override;
+  Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& completion) override;
+
+ private:
+  ClientOptions options_;
+  const std::atomic<bool>* stopping_;
+};
+
+// The bearer token: the file's first line when `token_file` is set, else $SANDSWIM_TOKEN, else "".
+// IOError naming the file when it cannot be read.
+Result<std::string> LoadToken(const std::string& token_file);
+
+}  // namespace sandswim::worker
+
+#endif  // SANDSWIM_WORKERS_CLIENT_H_

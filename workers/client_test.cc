@@ -1,0 +1,185 @@
+// HttpServerClient against a real httplib server on an ephemeral port of 127.0.0.1.
+#include "workers/client.h"
+
+#include <httplib.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <stdlib.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+namespace sandswim::worker {
+namespace {
+
+class FakeDaemon {
+ public:
+  FakeDaemon() {
+    port_ = server_.bind_to_any_port("127.0.0.1");
+    thread_ = std::thread([this] { server_.listen_after_bind(); });
+    // The socket already listens (bind_to_any_port), so early connections queue; still, wait.
+    while (!server_.is_running()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ~FakeDaemon() {
+    server_.stop();
+    thread_.join();
+  }
+  httplib::Server& server() { return server_; }
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+
+ private:
+  httplib::Server server_;
+  int port_ = 0;
+  std::thread thread_;
+};
+
+ClientOptions Options(const std::string& url) {
+  ClientOptions o;
+  o.server = url;
+  o.token = "secret";
+  o.retry_for_s = 5;
+  o.connect_timeout_s = 1;
+  o.read_timeout_s = 5;
+  return o;
+}
+
+TEST(ClientTest, LeaseSendsTheTokenAndReadsTheGrant) {
+  FakeDaemon d;
+  std::string auth;
+  std::atomic<int> calls{0};
+  d.server().Post("/api/v1/leases", [&](const httplib::Request& req, httplib::Response& res) {
+    auth = req.get_header_value("Authorization");
+    auto r = nlohmann::json::parse(req.body).get<api::LeaseRequest>();
+    if (calls++ > 0) {
+      res.status = 204;
+      return;
+    }
+    api::LeaseGrant g;
+    g.token = "t1";
+    g.id = 5;
+    g.deck = "deck for " + r.worker;
+    res.set_content(nlohmann::json{{"lease", g}}.dump(), "application/json");
+  });
+  HttpServerClient client(Options(d.url()));
+  auto lease = client.Lease(api::LeaseRequest{"w:1", "h", 1});
+  ASSERT_TRUE(lease.ok()) << lease.status().ToString();
+  ASSERT_TRUE(lease->has_value());
+  EXPECT_EQ((*lease)->token, "t1");
+  EXPECT_EQ((*lease)->deck, "deck for w:1");
+  EXPECT_EQ(auth, "Bearer secret");
+  auto none = client.Lease(api::LeaseRequest{"w:1", "h", 1});
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->has_value());
+}
+
+TEST(ClientTest, HeartbeatConflictIsLeaseLost) {
+  FakeDaemon d;
+  d.server().Post(R"(/api/v1/leases/([^/]+)/heartbeat)", [&](const httplib::Request& req, httplib::Response& res) {
+    if (req.matches[1] == "gone") {
+      res.status = 409;
+      res.set_content(R"({"error":"lease lost"})", "application/json");
+      return;
+    }
+    res.set_content(R"({"ttl_s":30,"cancel":true})", "application/json");
+  });
+  HttpServerClient client(Options(d.url()));
+  auto ok = client.Heartbeat("t1", api::Heartbeat{0.1, -0.01, 100});
+  ASSERT_TRUE(ok.ok());
+  EXPECT_TRUE(ok->cancel);
+  auto lost = client.Heartbeat("gone", api::Heartbeat{});
+  EXPECT_EQ(lost.status().code(), StatusCode::kConflict);
+}
+
+TEST(ClientTest, CompleteRetriesWhileTheDaemonAnswers503) {
+  FakeDaemon d;
+  std::atomic<int> calls{0};
+  d.server().Post(R"(/api/v1/leases/([^/]+)/complete)", [&](const httplib::Request& req, httplib::Response& res) {
+    if (calls++ < 2) {
+      res.status = 503;
+      return;
+    }
+    auto c = nlohmann::json::parse(req.body).get<api::Completion>();
+    res.set_content(nlohmann::json{{"state", c.ok ? "done" : "failed"}}.dump(), "application/json");
+  });
+  HttpServerClient client(Options(d.url()));
+  api::Completion c;
+  c.ok = true;
+  auto reply = client.Complete("t1", c);
+  ASSERT_TRUE(reply.ok()) << reply.status().ToString();
+  EXPECT_EQ(reply->state, "done");
+  EXPECT_EQ(calls.load(), 3);
+}
+
+TEST(ClientTest, DaemonDownIsUnavailableAndRetriesStopWhenStopping) {
+  // A port nobody listens on: bind one, then close it.
+  int port = 0;
+  {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+    socklen_t len = sizeof(addr);
+    getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+    port = ntohs(addr.sin_port);
+    close(fd);  // bound, never listened, now closed: connections are refused
+  }
+  std::atomic<bool> stopping{true};
+  HttpServerClient client(Options("http://127.0.0.1:" + std::to_string(port)), &stopping);
+  auto lease = client.Lease(api::LeaseRequest{});
+  EXPECT_EQ(lease.status().code(), StatusCode::kUnavailable);
+  auto reply = client.Complete("t", api::Completion{});
+  EXPECT_EQ(reply.status().code(), StatusCode::kUnavailable);
+}
+
+TEST(ClientTest, BedDownloadAndUpload) {
+  FakeDaemon d;
+  std::string uploaded, sha_header, token_param;
+  d.server().Get("/api/v1/beds/3/restart", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(std::string(100000, 'b'), "application/octet-stream");
+  });
+  d.server().Get("/api/v1/beds/4/restart", [](const httplib::Request&, httplib::Response& res) {
+    res.status = 404;
+    res.set_content("no such bed", "text/plain");
+  });
+  d.server().Put("/api/v1/beds/3/restart", [&](const httplib::Request& req, httplib::Response& res) {
+    uploaded = req.body;
+    sha_header = req.get_header_value("X-Sha256");
+    token_param = req.get_param_value("token");
+    res.set_content("{}", "application/json");
+  });
+  HttpServerClient client(Options(d.url()));
+  char tmpl[] = "/tmp/sandswim-client-XXXXXX";
+  std::string dir = mkdtemp(tmpl);
+  ASSERT_TRUE(client.DownloadBed(api::BedRef{3, "", ""}, dir + "/bed").ok());
+  std::ifstream in(dir + "/bed", std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  EXPECT_EQ(ss.str(), std::string(100000, 'b'));
+  Status missing = client.DownloadBed(api::BedRef{4, "", "/api/v1/beds/4/restart"}, dir + "/bed4");
+  EXPECT_EQ(missing.code(), StatusCode::kNotFound);
+  ASSERT_TRUE(client.UploadBed(3, "tok", dir + "/bed", "abc").ok());
+  EXPECT_EQ(uploaded.size(), 100000u);
+  EXPECT_EQ(sha_header, "abc");
+  EXPECT_EQ(token_param, "tok");
+}
+
+TEST(ClientTest, LoadToken) {
+  char tmpl[] = "/tmp/sandswim-token-XXXXXX";
+  int fd = mkstemp(tmpl);
+  ASSERT_GE(fd, 0);
+  std::ofstream(tmpl) << "s3cret\n";
+  auto t = LoadToken(tmpl);
+  ASSERT_TRUE(t.ok());
+  EXPECT_EQ(*t, "s3cret");
+  EXPECT_EQ(LoadToken("/nonexistent/token").status().code(), StatusCode::kIOError);
+}
+
+}  // namespace
+}  // namespace sandswim::worker

@@ -1,0 +1,78 @@
+// Launcher: starts the engine (mpirun/srun/liggghts) as a child process in its own process group,
+// and stops and reaps it.
+//
+// Abstract so it can be faked in tests of the worker loop. The real one (ProcessLauncher)
+// spawns the child (posix_spawn) in a new process group, in the run directory, with its stdout
+// and stderr in a file there. Stop() sends SIGTERM to the whole group
+// (mpirun and every rank), waits up to a grace period, then sends SIGKILL. Wall and CPU time come
+// from wait4()'s rusage, which covers the ranks that mpirun reaped.
+//
+// Thread safety: a Launcher may be shared by threads; one EngineProcess belongs to one thread.
+#ifndef SANDSWIM_WORKERS_LAUNCHER_H_
+#define SANDSWIM_WORKERS_LAUNCHER_H_
+
+#include <sys/types.h>
+
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/status.h"
+
+namespace sandswim::worker {
+
+enum class LauncherKind { kMpirun, kSrun, kDirect };
+const char* LauncherName(LauncherKind kind);  // "mpirun" | "srun" | "direct"
+
+struct LaunchSpec {
+  std::vector<std::string> argv;                          // argv[0] is looked up on PATH
+  std::string cwd;                                        // run directory
+  std::vector<std::pair<std::string, std::string>> env;  // added to the worker's environment
+  std::string output_file;                                // stdout+stderr, relative to cwd ("" = /dev/null)
+};
+
+// The command line for the engine. mpirun: `mpirun -np R --bind-to none ENGINE -in DECK -log LOG
+// -screen /dev/null` (with OMPI_ALLOW_RUN_AS_ROOT[_CONFIRM]=1 in env when running as root);
+// srun: `srun --mpi=pmix -n R ENGINE ...`; direct: `ENGINE ...` (R must be 1).
+// (`-screen none` segfaults with fix insert/pack, so the screen goes to /dev/null.)
+LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine, const std::string& deck_file,
+                         const std::string& log_file, const std::string& cwd, bool as_root);
+
+struct ExitStatus {
+  int exit_code = 0;  // when it exited
+  int signal = 0;     // non-zero: died on this signal
+  double wall_s = 0;
+  double cpu_s = 0;   // user + system of the child and the children it reaped
+};
+
+// One started engine process (group).
+class EngineProcess {
+ public:
+  virtual ~EngineProcess() = default;
+  // Waits up to `seconds` (0: just checks) for the process to exit; true once it has.
+  virtual bool WaitFor(double seconds) = 0;
+  // SIGTERM to the group, up to `grace_s` for it to exit, then SIGKILL; returns once reaped.
+  virtual void Stop(double grace_s) = 0;
+  // REQUIRES: WaitFor() returned true or Stop() returned.
+  virtual ExitStatus exit_status() const = 0;
+  // The process id, which is also its process group id.
+  virtual pid_t pid() const = 0;
+};
+
+class Launcher {
+ public:
+  virtual ~Launcher() = default;
+  // Unavailable (naming the command and errno text) when the command cannot be executed.
+  virtual Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) = 0;
+};
+
+// The real thing: posix_spawn into a new process group.
+class ProcessLauncher : public Launcher {
+ public:
+  Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) override;
+};
+
+}  // namespace sandswim::worker
+
+#endif  // SANDSWIM_WORKERS_LAUNCHER_H_

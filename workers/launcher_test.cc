@@ -1,0 +1,142 @@
+#include "workers/launcher.h"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace sandswim::worker {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string TempDir() {
+  char tmpl[] = "/tmp/sandswim-launcher-XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d ? d : "/tmp";
+}
+
+LaunchSpec Sh(const std::string& script, const std::string& cwd = "") {
+  LaunchSpec spec;
+  spec.argv = {"/bin/sh", "-c", script};
+  spec.cwd = cwd;
+  return spec;
+}
+
+TEST(LauncherTest, ExitStatusAndOutputFile) {
+  const std::string dir = TempDir();
+  LaunchSpec spec = Sh("echo hello from $SANDSWIM_TEST_VAR; pwd; exit 3", dir);
+  spec.env = {{"SANDSWIM_TEST_VAR", "the child"}};
+  spec.output_file = "out.txt";
+  ProcessLauncher launcher;
+  auto proc = launcher.Start(spec);
+  ASSERT_TRUE(proc.ok()) << proc.status().ToString();
+  ASSERT_TRUE((*proc)->WaitFor(10));
+  EXPECT_EQ((*proc)->exit_status().exit_code, 3);
+  EXPECT_EQ((*proc)->exit_status().signal, 0);
+  std::ifstream in(dir + "/out.txt");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  EXPECT_EQ(ss.str(), "hello from the child\n" + dir + "\n");
+}
+
+TEST(LauncherTest, WaitForZeroDoesNotBlock) {
+  ProcessLauncher launcher;
+  auto proc = launcher.Start(Sh("sleep 30"));
+  ASSERT_TRUE(proc.ok());
+  EXPECT_FALSE((*proc)->WaitFor(0));
+  EXPECT_FALSE((*proc)->WaitFor(0.05));
+  (*proc)->Stop(5);
+}
+
+TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
+  const std::string dir = TempDir();
+  ProcessLauncher launcher;
+  // The shell's child `sleep` writes its pid; Stop() must end it too (it is in the group).
+  auto proc = launcher.Start(Sh("sleep 30 & echo $! > sleep.pid; wait", dir));
+  ASSERT_TRUE(proc.ok());
+  pid_t sleeper = 0;
+  for (int i = 0; i < 200 && sleeper == 0; ++i) {
+    std::ifstream in(dir + "/sleep.pid");
+    in >> sleeper;
+    if (sleeper == 0) usleep(10000);
+  }
+  ASSERT_GT(sleeper, 0);
+  const auto t0 = Clock::now();
+  (*proc)->Stop(5);
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 4.0);
+  EXPECT_EQ((*proc)->exit_status().signal, SIGTERM);
+  // The grandchild got SIGTERM too (it may linger a moment as a zombie of init).
+  bool gone = false;
+  for (int i = 0; i < 200 && !gone; ++i) {
+    std::ifstream stat("/proc/" + std::to_string(sleeper) + "/stat");
+    std::string s;
+    std::getline(stat, s);
+    gone = s.empty() || s.find(") Z") != std::string::npos;
+    if (!gone) usleep(10000);
+  }
+  EXPECT_TRUE(gone);
+}
+
+TEST(LauncherTest, ProcessIgnoringSigtermGetsSigkill) {
+  const std::string dir = TempDir();
+  ProcessLauncher launcher;
+  auto proc = launcher.Start(Sh("trap '' TERM; touch ready; while :; do sleep 0.05; done", dir));
+  ASSERT_TRUE(proc.ok());
+  for (int i = 0; i < 200 && access((dir + "/ready").c_str(), F_OK) != 0; ++i) usleep(10000);
+  const auto t0 = Clock::now();
+  (*proc)->Stop(0.3);
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_EQ((*proc)->exit_status().signal, SIGKILL);
+  EXPECT_GE(took, 0.29);
+  EXPECT_LT(took, 3.0);
+}
+
+TEST(LauncherTest, MissingCommandIsUnavailable) {
+  ProcessLauncher launcher;
+  LaunchSpec spec;
+  spec.argv = {"sandswim-no-such-engine-here"};
+  auto proc = launcher.Start(spec);
+  ASSERT_FALSE(proc.ok());
+  EXPECT_EQ(proc.status().code(), StatusCode::kUnavailable);
+  EXPECT_NE(proc.status().reason().find("sandswim-no-such-engine-here"), std::string::npos);
+}
+
+TEST(LauncherTest, BadWorkingDirectoryIsUnavailable) {
+  ProcessLauncher launcher;
+  auto proc = launcher.Start(Sh("true", "/nonexistent/sandswim/dir"));
+  ASSERT_FALSE(proc.ok());
+  EXPECT_NE(proc.status().reason().find("/nonexistent/sandswim/dir"), std::string::npos) << proc.status().reason();
+}
+
+TEST(LauncherTest, CpuTimeIsCounted) {
+  ProcessLauncher launcher;
+  auto proc = launcher.Start(Sh("i=0; while [ $i -lt 200000 ]; do i=$((i+1)); done"));
+  ASSERT_TRUE(proc.ok());
+  ASSERT_TRUE((*proc)->WaitFor(30));
+  EXPECT_GT((*proc)->exit_status().cpu_s, 0.01);
+  EXPECT_GT((*proc)->exit_status().wall_s, 0.01);
+}
+
+TEST(LauncherTest, EngineCommands) {
+  LaunchSpec m = EngineCommand(LauncherKind::kMpirun, 2, "liggghts", "drive.in", "log.liggghts", "/d", true);
+  EXPECT_EQ(m.argv, (std::vector<std::string>{"mpirun", "-np", "2", "--bind-to", "none", "liggghts", "-in",
+                                              "drive.in", "-log", "log.liggghts", "-screen", "/dev/null"}));
+  EXPECT_EQ(m.env.size(), 2u);
+  EXPECT_EQ(m.cwd, "/d");
+  EXPECT_TRUE(EngineCommand(LauncherKind::kMpirun, 1, "liggghts", "a", "b", "/d", false).env.empty());
+  LaunchSpec s = EngineCommand(LauncherKind::kSrun, 4, "liggghts", "bed.in", "log.liggghts", "/d", false);
+  EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "liggghts", "-in", "bed.in", "-log",
+                                              "log.liggghts", "-screen", "/dev/null"}));
+  LaunchSpec d = EngineCommand(LauncherKind::kDirect, 1, "/opt/liggghts", "x.in", "log", "/d", true);
+  EXPECT_EQ(d.argv, (std::vector<std::string>{"/opt/liggghts", "-in", "x.in", "-log", "log", "-screen", "/dev/null"}));
+}
+
+}  // namespace
+}  // namespace sandswim::worker

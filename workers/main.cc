@@ -1,0 +1,97 @@
+// sandswim-worker: leases runs from the daemon and runs them with LIGGGHTS (workers/worker.h).
+// Wiring only: parse flags, build the client, launcher and worker, wait for signals.
+#include <signal.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <string>
+#include <thread>
+
+#include "workers/client.h"
+#include "workers/launcher.h"
+#include "workers/worker.h"
+
+int main(int argc, char** argv) {
+  using namespace sandswim::worker;
+  CLI::App app{"sandswim-worker: runs sandswim's LIGGGHTS jobs leased from the daemon"};
+  std::string server;
+  int ranks = 1;
+  int slots = 0;
+  std::string launcher_name = "mpirun";
+  std::string token_file;
+  WorkerOptions options;
+  app.add_option("--server", server, "daemon URL, e.g. http://127.0.0.1:8080")->required();
+  app.add_option("--ranks", ranks, "MPI ranks per job")->check(CLI::Range(1, 4096));
+  app.add_option("--slots", slots, "jobs at once (default: cores / ranks)")->check(CLI::Range(1, 4096));
+  app.add_option("--launcher", launcher_name, "mpirun | srun | direct (direct: one rank, no MPI launcher)")
+      ->check(CLI::IsMember({"mpirun", "srun", "direct"}));
+  app.add_option("--workdir", options.workdir, "run directories and the bed cache")->capture_default_str();
+  app.add_option("--token-file", token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
+  app.add_option("--engine", options.engine, "the LIGGGHTS executable")->capture_default_str();
+  app.add_option("--heartbeat", options.heartbeat_every_s, "seconds between heartbeats")->capture_default_str();
+  app.add_option("--name", options.name, "worker name (default host:pid)");
+  app.add_flag("--once", options.once, "take one job (waiting for one if the queue is empty), run it, exit");
+  app.add_flag("--keep-run-dirs", options.keep_run_dirs, "keep run directories of jobs that succeeded");
+  CLI11_PARSE(app, argc, argv);
+
+  options.launcher = launcher_name == "srun" ? LauncherKind::kSrun
+                     : launcher_name == "direct" ? LauncherKind::kDirect
+                                                 : LauncherKind::kMpirun;
+  if (options.launcher == LauncherKind::kDirect && ranks != 1) {
+    spdlog::error("--launcher direct runs one rank: use --ranks 1, or --launcher mpirun for {} ranks", ranks);
+    return 2;
+  }
+  const int cores = std::max(1u, std::thread::hardware_concurrency());
+  options.ranks = ranks;
+  options.slots = slots > 0 ? slots : std::max(1, cores / ranks);
+  char host[256] = {0};
+  gethostname(host, sizeof(host) - 1);
+  options.host = host;
+  if (options.name.empty()) options.name = options.host + ":" + std::to_string(getpid());
+  options.as_root = geteuid() == 0;
+
+  auto token = LoadToken(token_file);
+  if (!token.ok()) {
+    spdlog::error("{}", token.status().ToString());
+    return 2;
+  }
+
+  // Signals are taken by one thread with sigwait; every other thread (and so every engine,
+  // which resets its mask) never sees them asynchronously.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  std::atomic<bool> stopping{false};
+  std::atomic<bool> done{false};
+  ClientOptions client_options;
+  client_options.server = server;
+  client_options.token = *token;
+  HttpServerClient client(client_options, &stopping);
+  ProcessLauncher launcher;
+  Worker worker(options, client, launcher);
+
+  std::thread signal_thread([&] {
+    int sig = 0;
+    sigwait(&signals, &sig);
+    if (done) return;  // woken by main at exit
+    spdlog::warn("signal {}: stopping; running jobs are stopped and not completed, so the daemon re-leases them",
+                 sig);
+    stopping = true;
+    worker.RequestStop();
+  });
+  spdlog::info("sandswim-worker {}: server {}, {} slot(s) x {} rank(s), launcher {}, workdir {}", options.name,
+               server, options.once ? 1 : options.slots, options.ranks, launcher_name, options.workdir);
+  worker.Run();
+  done = true;
+  if (!stopping) pthread_kill(signal_thread.native_handle(), SIGTERM);
+  signal_thread.join();
+  return 0;
+}

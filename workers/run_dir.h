@@ -1,0 +1,77 @@
+// Run directories and the per-host bed cache.
+//
+// Each job runs in its own directory under the worker's workdir, named by kind, id and attempt
+// ("run-42-a1", "bed-7-a2"), so two attempts of one job never share files. A fresh directory is
+// made for every lease (left-overs of an earlier attempt under the same name are removed).
+//
+// BedCache keeps bed restart files once per host under <workdir>/beds/<sha256>.restart: a bed is
+// downloaded once, and its SHA-256 is verified before every use. A run directory gets the bed as
+// bed.restart (a hard link, or a copy across file systems). A checksum that does not match is
+// Status Corruption whose reason starts with "bed_mismatch:". Hashing a paper-scale bed takes a
+// while, so a file this cache has verified is not hashed again while its inode, size and
+// modification time stay the same (any rewrite changes them).
+//
+// Thread safety: RunDir is a value. BedCache is thread-safe (one download at a time per cache).
+#ifndef SANDSWIM_WORKERS_RUN_DIR_H_
+#define SANDSWIM_WORKERS_RUN_DIR_H_
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <string>
+
+#include "core/api.h"
+#include "core/status.h"
+
+namespace sandswim::worker {
+
+class RunDir {
+ public:
+  // Creates <workdir>/<kind>-<id>-a<attempt>, empty.
+  static Result<RunDir> Create(const std::string& workdir, api::JobKind kind, int64_t id, int attempt);
+
+  const std::string& path() const { return path_; }
+  std::string File(const std::string& name) const { return path_ + "/" + name; }
+  // Writes text to a file in the directory (write to a temporary, then rename).
+  Status Write(const std::string& name, const std::string& text) const;
+  // Reads a file of the directory; NotFound when it is not there.
+  Result<std::string> Read(const std::string& name) const;
+  // Removes the directory and everything in it.
+  Status Remove() const;
+
+ private:
+  explicit RunDir(std::string path) : path_(std::move(path)) {}
+  std::string path_;
+};
+
+// SHA-256 (lower-case hex) of a file's bytes.
+Result<std::string> Sha256OfFile(const std::string& path);
+
+class BedCache {
+ public:
+  // Downloads the bed's restart to `dest` (the cache verifies it afterwards).
+  using Download = std::function<Status(const api::BedRef& bed, const std::string& dest)>;
+
+  BedCache(std::string dir, Download download) : dir_(std::move(dir)), download_(std::move(download)) {}
+
+  // Puts the bed into `run_dir` as bed.restart, downloading it first if this host lacks it.
+  Status Provide(const api::BedRef& bed, const RunDir& run_dir);
+
+ private:
+  struct FileStamp {
+    unsigned long long ino = 0, size = 0;
+    long long mtime_ns = 0;
+    bool operator==(const FileStamp& o) const { return ino == o.ino && size == o.size && mtime_ns == o.mtime_ns; }
+  };
+  static bool Stamp(const std::string& path, FileStamp* stamp);
+
+  std::string dir_;
+  Download download_;
+  std::mutex mu_;
+  std::map<std::string, FileStamp> verified_;  // sha256 -> stamp of the cached file when verified
+};
+
+}  // namespace sandswim::worker
+
+#endif  // SANDSWIM_WORKERS_RUN_DIR_H_

@@ -1,0 +1,99 @@
+#include "workers/run_dir.h"
+
+#include <stdlib.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "core/keys.h"
+
+namespace sandswim::worker {
+namespace {
+
+std::string TempDir() {
+  char tmpl[] = "/tmp/sandswim-rundir-XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d ? d : "/tmp";
+}
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+TEST(RunDirTest, FreshDirectoryPerAttempt) {
+  const std::string work = TempDir();
+  auto a = RunDir::Create(work, api::JobKind::kRun, 42, 1);
+  ASSERT_TRUE(a.ok());
+  EXPECT_EQ(a->path(), work + "/run-42-a1");
+  ASSERT_TRUE(a->Write("drive.in", "deck text").ok());
+  EXPECT_EQ(*a->Read("drive.in"), "deck text");
+  EXPECT_EQ(a->Read("nope").status().code(), StatusCode::kNotFound);
+  // The same name again starts empty.
+  auto again = RunDir::Create(work, api::JobKind::kRun, 42, 1);
+  ASSERT_TRUE(again.ok());
+  EXPECT_FALSE(std::filesystem::exists(work + "/run-42-a1/drive.in"));
+  auto bed = RunDir::Create(work, api::JobKind::kBed, 3, 2);
+  EXPECT_EQ(bed->path(), work + "/bed-3-a2");
+  ASSERT_TRUE(bed->Remove().ok());
+  EXPECT_FALSE(std::filesystem::exists(work + "/bed-3-a2"));
+}
+
+TEST(RunDirTest, Sha256OfFileMatchesCore) {
+  const std::string work = TempDir();
+  std::ofstream(work + "/f", std::ios::binary) << std::string(3 << 20, 'x');
+  auto sha = Sha256OfFile(work + "/f");
+  ASSERT_TRUE(sha.ok());
+  EXPECT_EQ(*sha, Sha256Hex(std::string(3 << 20, 'x')));
+}
+
+TEST(BedCacheTest, DownloadsOnceVerifiesEveryUseAndRefusesMismatch) {
+  const std::string work = TempDir();
+  std::string served = "bed bytes";
+  int downloads = 0;
+  BedCache cache(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
+    ++downloads;
+    std::ofstream(dest, std::ios::binary) << served;
+    return Status::Ok();
+  });
+  api::BedRef bed{1, Sha256Hex("bed bytes"), ""};
+  auto r1 = RunDir::Create(work, api::JobKind::kRun, 1, 1);
+  auto r2 = RunDir::Create(work, api::JobKind::kRun, 2, 1);
+  ASSERT_TRUE(cache.Provide(bed, *r1).ok());
+  ASSERT_TRUE(cache.Provide(bed, *r2).ok());
+  EXPECT_EQ(downloads, 1);
+  EXPECT_EQ(ReadAll(r2->File("bed.restart")), "bed bytes");
+
+  // A cached copy damaged on disk is noticed and fetched again.
+  std::ofstream(work + "/beds/" + bed.sha256 + ".restart", std::ios::binary) << "damaged";
+  auto r3 = RunDir::Create(work, api::JobKind::kRun, 3, 1);
+  ASSERT_TRUE(cache.Provide(bed, *r3).ok());
+  EXPECT_EQ(downloads, 2);
+  EXPECT_EQ(ReadAll(r3->File("bed.restart")), "bed bytes");
+
+  // The daemon serves bytes that do not match the lease: refused, nothing cached.
+  served = "other bytes";
+  api::BedRef other{2, Sha256Hex("expected bytes"), ""};
+  auto r4 = RunDir::Create(work, api::JobKind::kRun, 4, 1);
+  Status s = cache.Provide(other, *r4);
+  EXPECT_EQ(s.code(), StatusCode::kCorruption);
+  EXPECT_EQ(s.reason().rfind("bed_mismatch:", 0), 0u) << s.reason();
+  EXPECT_FALSE(std::filesystem::exists(r4->File("bed.restart")));
+  EXPECT_FALSE(std::filesystem::exists(work + "/beds/" + other.sha256 + ".restart"));
+}
+
+TEST(BedCacheTest, DownloadFailureIsPassedOn) {
+  const std::string work = TempDir();
+  BedCache cache(work + "/beds",
+                 [](const api::BedRef&, const std::string&) { return Status::NotFound("GET bed: HTTP 404"); });
+  auto r = RunDir::Create(work, api::JobKind::kRun, 1, 1);
+  EXPECT_EQ(cache.Provide(api::BedRef{1, std::string(64, 'a'), ""}, *r).code(), StatusCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace sandswim::worker

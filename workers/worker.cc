@@ -1,0 +1,358 @@
+#include "workers/worker.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <thread>
+#include <vector>
+
+#include "core/deck.h"
+#include "core/dump_reader.h"
+#include "core/engine_log.h"
+#include "core/trajectory.h"
+
+namespace sandswim::worker {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+constexpr int kLogTailLines = 40;
+constexpr char kEngineOutputFile[] = "engine.out";
+
+// Follows a file that another process appends to, handing new bytes to a callback.
+class FileTail {
+ public:
+  explicit FileTail(std::string path) : path_(std::move(path)) {}
+  // Reads what was appended since the last call.
+  std::string ReadNew() {
+    std::ifstream in(path_, std::ios::binary);
+    if (!in) return "";
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    if (size <= offset_) return "";
+    in.seekg(offset_);
+    std::string buf(static_cast<size_t>(size - offset_), '\0');
+    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    buf.resize(static_cast<size_t>(in.gcount()));
+    offset_ += static_cast<std::streamoff>(buf.size());
+    return buf;
+  }
+
+ private:
+  std::string path_;
+  std::streamoff offset_ = 0;
+};
+
+// The last `bytes` of a file (the growing log, for a bed's progress).
+std::string ReadTail(const std::string& path, size_t bytes) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "";
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff from = std::max<std::streamoff>(0, size - static_cast<std::streamoff>(bytes));
+  in.seekg(from);
+  std::string buf(static_cast<size_t>(size - from), '\0');
+  in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+  buf.resize(static_cast<size_t>(in.gcount()));
+  if (from > 0) {
+    // Drop the partial first line; a dummy first line stands in for the version line.
+    size_t nl = buf.find('\n');
+    buf = "(tail)\n" + (nl == std::string::npos ? std::string() : buf.substr(nl + 1));
+  }
+  return buf;
+}
+
+// Progress of a running job, for its heartbeats.
+class Progress {
+ public:
+  Progress(const RunDir& dir, api::JobKind kind, double dt)
+      : kind_(kind), dt_(dt), dump_(dir.File(kTrajectoryDumpFile)), log_path_(dir.File(kLogFile)) {}
+
+  api::Heartbeat Read() {
+    if (kind_ == api::JobKind::kRun) {
+      std::string bytes = dump_.ReadNew();
+      if (!bytes.empty() && reader_.Feed(bytes).ok()) {
+        for (const DumpFrame& f : reader_.TakeFrames()) {
+          int cz = f.Column("z");
+          if (cz >= 0 && f.atoms > 0) {
+            beat_.step = f.step;
+            beat_.so_z = f.At(0, cz);
+          }
+        }
+      }
+    } else {
+      EngineLog log = ParseEngineLog(ReadTail(log_path_, 64 * 1024));
+      if (log.last_thermo_step >= 0) beat_.step = log.last_thermo_step;
+    }
+    beat_.sim_time_s = static_cast<double>(beat_.step) * dt_;
+    return beat_;
+  }
+
+ private:
+  api::JobKind kind_;
+  double dt_;
+  FileTail dump_;
+  DumpReader reader_;
+  std::string log_path_;
+  api::Heartbeat beat_;
+};
+
+std::string ReadFileOr(const std::string& path, const std::string& fallback) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fallback;
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+std::string JobName(const api::LeaseGrant& g) {
+  return std::string(g.kind == api::JobKind::kBed ? "bed " : "run ") + std::to_string(g.id) + " attempt " +
+         std::to_string(g.attempt);
+}
+
+}  // namespace
+
+Worker::Worker(WorkerOptions options, ServerClient& client, Launcher& launcher)
+    : options_(std::move(options)),
+      client_(client),
+      launcher_(launcher),
+      beds_(options_.workdir + "/beds",
+            [this](const api::BedRef& bed, const std::string& dest) { return client_.DownloadBed(bed, dest); }) {}
+
+WorkerStats Worker::stats() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return stats_;
+}
+
+void Worker::RequestStop() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+}
+
+bool Worker::Idle(double seconds) {
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait_for(lock, std::chrono::duration<double>(seconds), [this] { return stopping_.load(); });
+  return !stopping_;
+}
+
+void Worker::Run() {
+  const int slots = options_.once ? 1 : std::max(1, options_.slots);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < slots; ++i) threads.emplace_back([this] { SlotLoop(); });
+  for (auto& t : threads) t.join();
+}
+
+void Worker::SlotLoop() {
+  double backoff = 0.5;
+  while (!stopping_) {
+    api::LeaseRequest request{options_.name, options_.host, options_.ranks};
+    auto lease = client_.Lease(request);
+    if (!lease.ok()) {
+      if (lease.status().code() == StatusCode::kUnauthenticated) {
+        spdlog::error("lease refused: {}", lease.status().ToString());
+      } else {
+        spdlog::warn("cannot lease ({}); retrying in {:.1f} s. Is the daemon running at the --server URL?",
+                     lease.status().ToString(), backoff);
+      }
+      if (!Idle(backoff)) break;
+      backoff = std::min(backoff * 2, options_.max_backoff_s);
+      continue;
+    }
+    backoff = 0.5;
+    if (!lease->has_value()) {
+      if (!Idle(options_.idle_poll_s)) break;
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      ++stats_.leased;
+    }
+    RunJob(**lease);
+    if (options_.once) break;
+  }
+}
+
+void Worker::RunJob(const api::LeaseGrant& grant) {
+  const auto leased_at = Clock::now();
+  const std::string name = JobName(grant);
+  const bool is_bed = grant.kind == api::JobKind::kBed;
+  spdlog::info("{}: leased ({} steps, wall budget {} s)", name, grant.steps, grant.wall_budget_s);
+
+  api::Completion completion;
+  completion.execution.host = options_.host;
+  completion.execution.ranks = options_.ranks;
+  completion.execution.launcher = LauncherName(options_.launcher);
+
+  auto abandon = [this, &name](const std::string& why) {
+    spdlog::warn("{}: not completed: {}", name, why);
+    std::lock_guard<std::mutex> lock(mu_);
+    ++stats_.abandoned;
+  };
+  auto complete = [&](const RunDir* dir) {
+    auto reply = client_.Complete(grant.token, completion);
+    if (!reply.ok()) {
+      if (reply.status().code() == StatusCode::kConflict) {
+        abandon("the lease was lost before completion (another worker has the run)");
+      } else {
+        abandon("completion failed: " + reply.status().ToString() + "; the lease will expire and the run be retried");
+      }
+      return;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      ++stats_.completed;
+    }
+    if (completion.ok) {
+      spdlog::info("{}: completed ({})", name, reply->state);
+    } else {
+      spdlog::warn("{}: failed {}: {} ({})", name, completion.failure->kind, completion.failure->message, reply->state);
+    }
+    if (dir != nullptr && completion.ok && !options_.keep_run_dirs) dir->Remove();
+  };
+  auto fail = [&](const RunDir* dir, const std::string& kind, const std::string& message) {
+    completion.ok = false;
+    completion.failure = api::Failure{kind, message};
+    complete(dir);
+  };
+
+  auto dir = RunDir::Create(options_.workdir, grant.kind, grant.id, grant.attempt);
+  if (!dir.ok()) {
+    spdlog::error("{}: {} (check --workdir: it must be writable)", name, dir.status().ToString());
+    abandon(dir.status().ToString());
+    return;
+  }
+  const std::string deck_file = is_bed ? "bed.in" : "drive.in";
+  if (Status s = dir->Write(deck_file, grant.deck); !s.ok()) {
+    abandon(s.ToString());
+    return;
+  }
+  if (!is_bed) {
+    if (!grant.bed) return fail(&*dir, "bed_mismatch", "the run's lease names no bed");
+    if (Status s = beds_.Provide(*grant.bed, *dir); !s.ok()) {
+      if (stopping_) return abandon("stopping while fetching the bed");
+      return fail(&*dir, "bed_mismatch", s.reason());
+    }
+  }
+
+  DriveInfo drive;
+  if (auto info = ReadDriveInfo(grant.deck); info.ok()) {
+    drive = *info;
+  } else if (grant.steps > 0 && grant.duration_s > 0) {
+    drive.dt = grant.duration_s / static_cast<double>(grant.steps);
+  } else {
+    drive.dt = 1e-5;
+  }
+
+  LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile,
+                                  dir->path(), options_.as_root);
+  spec.output_file = kEngineOutputFile;
+  ExitFacts facts;
+  ExitStatus exit_status;
+  auto started = launcher_.Start(spec);
+  completion.execution.lease_to_start_s = Since(leased_at);
+  if (!started.ok()) {
+    facts.started = false;
+    facts.start_error = started.status().reason();
+  } else {
+    std::unique_ptr<EngineProcess> proc = std::move(*started);
+    const auto start = Clock::now();
+    const double hb_every = std::max(0.001, std::min(options_.heartbeat_every_s, grant.ttl_s / 3));
+    auto next_beat = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+    Progress progress(*dir, grant.kind, drive.dt);
+    bool lease_lost = false;
+    while (true) {
+      // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
+      double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
+      if (proc->WaitFor(std::clamp(until_beat, 0.0, 0.25))) break;
+      if (stopping_) {
+        proc->Stop(options_.stop_grace_s);
+        return abandon("the worker is stopping; the lease will expire and the job be leased again");
+      }
+      if (grant.wall_budget_s > 0 && Since(start) > grant.wall_budget_s) {
+        spdlog::warn("{}: wall-time budget of {} s used up; stopping the engine", name, grant.wall_budget_s);
+        facts.timed_out = true;
+        proc->Stop(options_.stop_grace_s);
+        break;
+      }
+      if (Clock::now() >= next_beat) {
+        auto reply = client_.Heartbeat(grant.token, progress.Read());
+        if (reply.ok()) {
+          if (reply->cancel) {
+            spdlog::info("{}: cancelled by the daemon; stopping the engine", name);
+            facts.cancelled = true;
+            proc->Stop(options_.stop_grace_s);
+            break;
+          }
+        } else if (reply.status().code() == StatusCode::kConflict) {
+          lease_lost = true;
+          proc->Stop(options_.stop_grace_s);
+          break;
+        } else {
+          spdlog::warn("{}: heartbeat failed ({}); the job keeps running", name, reply.status().ToString());
+        }
+        next_beat = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+      }
+    }
+    exit_status = proc->exit_status();
+    if (lease_lost) return abandon("the lease was lost (409 on heartbeat); the engine was stopped");
+    facts.exit_code = exit_status.exit_code;
+    facts.signal = exit_status.signal;
+    completion.execution.wall_s = exit_status.wall_s;
+    completion.execution.cpu_s = exit_status.cpu_s;
+  }
+
+  const std::string log_text = ReadFileOr(dir->File(kLogFile), "");
+  const EngineLog log = ParseEngineLog(log_text);
+  completion.execution.engine_version = log.version_line;
+  completion.log_tail =
+      LastLines(log_text.empty() ? ReadFileOr(dir->File(kEngineOutputFile), "") : log_text, kLogTailLines);
+  if (auto failure = ClassifyExit(grant.kind, facts, log, grant.steps)) {
+    completion.ok = false;
+    completion.failure = *failure;
+    return complete(&*dir);
+  }
+
+  if (is_bed) {
+    const std::string restart = dir->File(kBedRestartFile);
+    auto sha = Sha256OfFile(restart);
+    if (!sha.ok()) return fail(&*dir, "bad_output", "the bed deck wrote no " + std::string(kBedRestartFile));
+    std::ifstream in(restart, std::ios::binary | std::ios::ate);
+    api::BedResult bed;
+    bed.grains = log.bed_grains->grains;
+    bed.so_z = log.bed_grains->so_z;
+    bed.grain_top = log.bed_grains->grain_top;
+    if (log.bed_equilibrium) {
+      bed.equilibrated = log.bed_equilibrium->equilibrated;
+      bed.ke_ratio = log.bed_equilibrium->ke_peak > 0 ? log.bed_equilibrium->ke / log.bed_equilibrium->ke_peak : 0;
+    }
+    bed.sha256 = *sha;
+    bed.bytes = static_cast<int64_t>(in.tellg());
+    if (Status s = client_.UploadBed(grant.id, grant.token, restart, *sha); !s.ok()) {
+      if (s.code() == StatusCode::kConflict) return abandon("the lease was lost before the bed upload");
+      if (stopping_) return abandon("stopping during the bed upload");
+      return fail(&*dir, "bad_output", "bed upload failed: " + s.ToString());
+    }
+    completion.ok = true;
+    completion.bed_result = bed;
+    return complete(&*dir);
+  }
+
+  auto frames = ReadDump(ReadFileOr(dir->File(kTrajectoryDumpFile), ""));
+  if (!frames.ok()) return fail(&*dir, "bad_output", std::string(kTrajectoryDumpFile) + ": " + frames.status().reason());
+  auto samples = SamplesFromFrames(*frames, drive.dt);
+  if (!samples.ok()) return fail(&*dir, "bad_output", samples.status().reason());
+  auto result = AnalyzeTrajectory(*samples, drive.f, log.drive_start, log.drive_stop);
+  if (!result.ok()) return fail(&*dir, "bad_output", result.status().reason());
+  completion.ok = true;
+  completion.result = *result;
+  completion.trajectory = Downsample(*samples);
+  complete(&*dir);
+}
+
+}  // namespace sandswim::worker

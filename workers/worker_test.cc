@@ -1,0 +1,383 @@
+#include "workers/worker.h"
+
+#include <signal.h>
+#include <stdlib.h>
+
+#include <atomic>
+#include <deque>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "core/dump_reader.h"
+#include "core/keys.h"
+
+namespace sandswim::worker {
+namespace {
+
+std::string Fixture(const std::string& name) {
+  std::ifstream in(std::string(SANDSWIM_SOURCE_DIR) + "/tests/fixtures/" + name, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string TempDir() {
+  char tmpl[] = "/tmp/sandswim-worker-XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d ? d : "/tmp";
+}
+
+void WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+constexpr char kBedBytes[] = "pretend restart bytes";
+
+// The daemon, scripted.
+class FakeClient : public ServerClient {
+ public:
+  std::mutex mu;
+  std::deque<api::LeaseGrant> grants;
+  std::vector<api::Heartbeat> beats;
+  std::vector<api::Completion> completions;
+  std::vector<std::string> uploads;  // sha256 of each upload
+  bool cancel_on_beat = false;
+  bool conflict_on_beat = false;
+  std::string bed_bytes = kBedBytes;
+  std::atomic<int> downloads{0};
+
+  Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest&) override {
+    std::lock_guard<std::mutex> l(mu);
+    if (grants.empty()) return std::optional<api::LeaseGrant>();
+    api::LeaseGrant g = grants.front();
+    grants.pop_front();
+    return std::optional<api::LeaseGrant>(g);
+  }
+  Result<api::HeartbeatReply> Heartbeat(const std::string&, const api::Heartbeat& beat) override {
+    std::lock_guard<std::mutex> l(mu);
+    beats.push_back(beat);
+    if (conflict_on_beat) return Status::Conflict("lease lost");
+    api::HeartbeatReply r;
+    r.cancel = cancel_on_beat;
+    return r;
+  }
+  Status DownloadBed(const api::BedRef&, const std::string& dest) override {
+    ++downloads;
+    WriteFile(dest, bed_bytes);
+    return Status::Ok();
+  }
+  Status UploadBed(int64_t, const std::string&, const std::string&, const std::string& sha256) override {
+    std::lock_guard<std::mutex> l(mu);
+    uploads.push_back(sha256);
+    return Status::Ok();
+  }
+  Result<api::CompletionReply> Complete(const std::string&, const api::Completion& c) override {
+    std::lock_guard<std::mutex> l(mu);
+    completions.push_back(c);
+    return api::CompletionReply{c.ok ? "done" : "failed"};
+  }
+};
+
+// The engine, scripted: writes its output files into the run directory when started, then
+// either exits at once or runs until stopped.
+class FakeProcess : public EngineProcess {
+ public:
+  // `stops` outlives the process (the worker destroys it when the job ends): tests read it.
+  FakeProcess(bool runs_until_stopped, std::atomic<int>* stops) : running_(runs_until_stopped), stops_(stops) {}
+  pid_t pid() const override { return 0; }
+  bool WaitFor(double seconds) override {
+    if (!running_) return true;
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(seconds, 0.005)));
+    return !running_;
+  }
+  void Stop(double) override {
+    ++*stops_;
+    if (running_) status_.signal = SIGTERM;
+    running_ = false;
+  }
+  ExitStatus exit_status() const override { return status_; }
+
+ private:
+  std::atomic<bool> running_;
+  std::atomic<int>* stops_;
+  ExitStatus status_;
+};
+
+class FakeLauncher : public Launcher {
+ public:
+  std::map<std::string, std::string> files;  // written into the run directory at start
+  bool runs_until_stopped = false;
+  bool missing = false;
+  std::vector<LaunchSpec> started;
+  std::atomic<int> stops{0};  // Stop() calls on any process this launcher started
+
+  Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) override {
+    if (missing) return Status::Unavailable("'liggghts' not found on PATH or not executable");
+    started.push_back(spec);
+    for (const auto& [name, text] : files) WriteFile(spec.cwd + "/" + name, text);
+    return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(runs_until_stopped, &stops));
+  }
+};
+
+api::LeaseGrant RunGrant() {
+  api::LeaseGrant g;
+  g.token = "tok-1";
+  g.kind = api::JobKind::kRun;
+  g.id = 42;
+  g.attempt = 2;
+  g.deck = Fixture("drive_omega_minus80.in");
+  g.steps = 30000;
+  g.duration_s = 0.3;
+  g.ttl_s = 60;
+  g.bed = api::BedRef{7, Sha256Hex(kBedBytes), "/api/v1/beds/7/restart"};
+  return g;
+}
+
+WorkerOptions Options(const std::string& workdir) {
+  WorkerOptions o;
+  o.name = "test:1";
+  o.host = "testhost";
+  o.workdir = workdir;
+  o.heartbeat_every_s = 0.01;
+  o.stop_grace_s = 0.1;
+  o.idle_poll_s = 0.01;
+  o.launcher = LauncherKind::kDirect;
+  o.keep_run_dirs = true;
+  return o;
+}
+
+TEST(WorkerTest, CompletedRunCarriesItsResultAndTrajectory) {
+  const std::string work = TempDir();
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
+                    {"so.dump", Fixture("so_omega_minus80.dump")}};
+  Worker worker(Options(work), client, launcher);
+  worker.RunJob(RunGrant());
+
+  ASSERT_EQ(client.completions.size(), 1u);
+  const api::Completion& c = client.completions[0];
+  ASSERT_TRUE(c.ok) << (c.failure ? c.failure->kind + ": " + c.failure->message : "");
+  ASSERT_TRUE(c.result.has_value());
+  EXPECT_GT(c.result->uz, 0.0);  // Omega = -80 rose in this run
+  EXPECT_EQ(c.result->steps, 30000);
+  EXPECT_EQ(c.result->grains, 5024);
+  EXPECT_EQ(c.result->stop_reason, "duration");
+  EXPECT_NEAR(c.result->dz, 0.0266815 - -0.0112944, 1e-12);
+  ASSERT_TRUE(c.trajectory.has_value());
+  EXPECT_EQ(c.trajectory->t.size(), 301u);
+  EXPECT_DOUBLE_EQ(c.trajectory->t.back(), 0.3);
+  EXPECT_NE(c.execution.engine_version.find("LIGGGHTS-PUBLIC 3.8.0"), std::string::npos);
+  EXPECT_EQ(c.execution.host, "testhost");
+  EXPECT_EQ(c.execution.launcher, "direct");
+  EXPECT_FALSE(c.log_tail.empty());
+  // The run directory has the deck and the verified bed.
+  ASSERT_EQ(launcher.started.size(), 1u);
+  EXPECT_EQ(launcher.started[0].cwd, work + "/run-42-a2");
+  std::ifstream bed(work + "/run-42-a2/bed.restart");
+  std::string bed_text((std::istreambuf_iterator<char>(bed)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(bed_text, kBedBytes);
+  // A second run from the same bed does not download it again.
+  worker.RunJob(RunGrant());
+  EXPECT_EQ(client.downloads.load(), 1);
+}
+
+TEST(WorkerTest, DeckErrorIsReportedWithItsLine) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("deck_error.log")}};
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  ASSERT_EQ(client.completions.size(), 1u);
+  ASSERT_TRUE(client.completions[0].failure.has_value());
+  EXPECT_EQ(client.completions[0].failure->kind, "deck_error");
+  EXPECT_EQ(client.completions[0].failure->message, "ERROR: Unknown command: foo_command 1 2 (./src/input.cpp:259)");
+}
+
+TEST(WorkerTest, CancelStopsTheEngineAndCompletesAsCancelled) {
+  FakeClient client;
+  client.cancel_on_beat = true;
+  FakeLauncher launcher;
+  launcher.runs_until_stopped = true;
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  ASSERT_EQ(launcher.started.size(), 1u);
+  EXPECT_GT(launcher.stops.load(), 0);
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.completions[0].failure->kind, "cancelled");
+}
+
+TEST(WorkerTest, LeaseLossStopsTheEngineWithoutCompleting) {
+  FakeClient client;
+  client.conflict_on_beat = true;
+  FakeLauncher launcher;
+  launcher.runs_until_stopped = true;
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  EXPECT_GT(launcher.stops.load(), 0);
+  EXPECT_TRUE(client.completions.empty());
+  EXPECT_EQ(worker.stats().abandoned, 1);
+}
+
+TEST(WorkerTest, HeartbeatsCarryTheSoZFromTheGrowingDump) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.runs_until_stopped = true;
+  const std::string dump = Fixture("so_omega_minus80.dump");
+  // 51 whole frames (steps 0..5000) and a torn 52nd, as while the engine writes.
+  size_t cut = 0;
+  for (int i = 0; i < 51; ++i) cut = dump.find("ITEM: TIMESTEP", cut + 1);
+  launcher.files = {{"so.dump", dump.substr(0, cut + 40)}};
+  Worker worker(Options(TempDir()), client, launcher);
+  std::thread stopper([&] {
+    for (int i = 0; i < 1000; ++i) {
+      {
+        std::lock_guard<std::mutex> l(client.mu);
+        if (client.beats.size() >= 2) break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    client.cancel_on_beat = true;
+  });
+  worker.RunJob(RunGrant());
+  stopper.join();
+  ASSERT_FALSE(client.beats.empty());
+  const api::Heartbeat& b = client.beats.front();
+  EXPECT_EQ(b.step, 5000);
+  EXPECT_DOUBLE_EQ(b.sim_time_s, 5000 * 1e-5);
+  auto frames = ReadDump(dump.substr(0, cut));
+  ASSERT_TRUE(frames.ok());
+  EXPECT_DOUBLE_EQ(b.so_z, frames->back().At(0, 3));
+}
+
+TEST(WorkerTest, WallBudgetStopsTheEngineAsTimeout) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.runs_until_stopped = true;
+  api::LeaseGrant g = RunGrant();
+  g.wall_budget_s = 0.05;
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(g);
+  EXPECT_GT(launcher.stops.load(), 0);
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.completions[0].failure->kind, "timeout");
+}
+
+TEST(WorkerTest, BedChecksumMismatchNeverStartsTheEngine) {
+  FakeClient client;
+  client.bed_bytes = "tampered bytes";
+  FakeLauncher launcher;
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  EXPECT_TRUE(launcher.started.empty());
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.completions[0].failure->kind, "bed_mismatch");
+}
+
+TEST(WorkerTest, MissingEngineIsReported) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.missing = true;
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.completions[0].failure->kind, "engine_missing");
+}
+
+TEST(WorkerTest, EngineExitingZeroWithoutFinishingIsIncomplete) {
+  FakeClient client;
+  FakeLauncher launcher;
+  std::string log = Fixture("drive_omega_minus80.log");
+  log = log.substr(0, log.find("SANDSWIM drive stop"));  // as after SIGTERM: exit 0, no stop marker
+  launcher.files = {{"log.liggghts", log}, {"so.dump", Fixture("so_omega_minus80.dump")}};
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.completions[0].failure->kind, "incomplete");
+}
+
+TEST(WorkerTest, CorruptDumpIsBadOutput) {
+  FakeClient client;
+  FakeLauncher launcher;
+  std::string dump = Fixture("so_omega_minus80.dump");
+  dump.replace(dump.find("0.0266815"), 9, "0.02x6815");
+  launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")}, {"so.dump", dump}};
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(RunGrant());
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.completions[0].failure->kind, "bad_output");
+  EXPECT_NE(client.completions[0].failure->message.find("dump line 3010"), std::string::npos)
+      << client.completions[0].failure->message;
+}
+
+TEST(WorkerTest, BedJobUploadsTheRestartAndReportsTheBed) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+  api::LeaseGrant g;
+  g.token = "tok-bed";
+  g.kind = api::JobKind::kBed;
+  g.id = 7;
+  g.deck = "timestep 1e-05\n";
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(g);
+  ASSERT_EQ(client.completions.size(), 1u);
+  const api::Completion& c = client.completions[0];
+  ASSERT_TRUE(c.ok) << c.failure->message;
+  ASSERT_TRUE(c.bed_result.has_value());
+  EXPECT_EQ(c.bed_result->grains, 5024);
+  EXPECT_TRUE(c.bed_result->equilibrated);
+  EXPECT_NEAR(c.bed_result->ke_ratio, 0.00300510734387237 / 37.677812517013, 1e-15);
+  EXPECT_EQ(c.bed_result->sha256, Sha256Hex("new bed bytes"));
+  EXPECT_EQ(c.bed_result->bytes, 13);
+  ASSERT_EQ(client.uploads.size(), 1u);
+  EXPECT_EQ(client.uploads[0], Sha256Hex("new bed bytes"));
+  EXPECT_EQ(launcher.started[0].argv[2], "bed.in");
+}
+
+TEST(WorkerTest, StopRequestStopsRunningJobsWithoutCompleting) {
+  FakeClient client;
+  client.grants.push_back(RunGrant());
+  FakeLauncher launcher;
+  launcher.runs_until_stopped = true;
+  WorkerOptions o = Options(TempDir());
+  o.slots = 2;
+  Worker worker(o, client, launcher);
+  std::thread run([&] { worker.Run(); });
+  for (int i = 0; i < 1000; ++i) {
+    {
+      std::lock_guard<std::mutex> l(client.mu);
+      if (!client.beats.empty()) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  worker.RequestStop();
+  run.join();
+  ASSERT_EQ(launcher.started.size(), 1u);
+  EXPECT_GT(launcher.stops.load(), 0);
+  EXPECT_TRUE(client.completions.empty());
+  EXPECT_EQ(worker.stats().leased, 1);
+}
+
+TEST(WorkerTest, OnceTakesOneJobAndReturns) {
+  FakeClient client;
+  client.grants = {RunGrant(), RunGrant()};
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
+                    {"so.dump", Fixture("so_omega_minus80.dump")}};
+  WorkerOptions o = Options(TempDir());
+  o.once = true;
+  o.slots = 4;
+  Worker worker(o, client, launcher);
+  worker.Run();
+  EXPECT_EQ(client.completions.size(), 1u);
+  EXPECT_EQ(client.grants.size(), 1u);
+}
+
+}  // namespace
+}  // namespace sandswim::worker
