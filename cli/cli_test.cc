@@ -348,9 +348,14 @@ TEST_F(CliTest, ExitCodes) {
   o = Sandswim({"show", "999999"});
   EXPECT_EQ(o.code, 1);
 
-  o = Sandswim({"status", "abc"});
+  o = Sandswim({"status", "cr:abc"});
   EXPECT_EQ(o.code, 2);
   EXPECT_THAT(o.err, HasSubstr("SWEEP: expected a sweep id (12) or a campaign run id (cr:7)"));
+
+  // A name is a campaign: its last drift report, or why there is none.
+  o = Sandswim({"status", "abc"});
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, HasSubstr("no campaign named 'abc'"));
 
   o = Sandswim({"runs", "--state", "sleeping"});
   EXPECT_EQ(o.code, 2);

@@ -127,6 +127,12 @@ class HttpDaemonClient : public DaemonClient {
     return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
   }
 
+  Result<json> CampaignDrift(const std::string& name, const std::string& scale) override {
+    std::string path = "/api/v1/campaigns/" + httplib::detail::encode_query_param(name) + "/drift";
+    if (!scale.empty()) path += "?scale=" + httplib::detail::encode_query_param(scale);
+    return Get(path);
+  }
+
  private:
   Result<json> Get(const std::string& path) { return Answer(http_.Get(path.c_str()), "GET", path); }
 

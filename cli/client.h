@@ -56,6 +56,11 @@ class DaemonClient {
   virtual Result<nlohmann::json> GetRun(int64_t id) = 0;
   virtual Result<nlohmann::json> GetCampaignRun(int64_t id) = 0;
   virtual Result<nlohmann::json> CampaignRunResults(int64_t id) = 0;  // {"id","results":[...]}
+  // GET /api/v1/campaigns/{name}/drift[?scale=]: the latest drift report (kNotFound: none yet).
+  virtual Result<nlohmann::json> CampaignDrift(const std::string& name, const std::string& scale) {
+    (void)scale;
+    return Status::NotFound("no drift report for campaign '" + name + "'");
+  }
 };
 
 struct ClientOptions {

@@ -256,8 +256,45 @@ int RunSubmit(Context& c) {
 }
 
 void SetupStatus(CLI::App& sub, Args& a) {
-  AddTarget(sub, a, "SWEEP|CAMPAIGN-RUN", "a sweep id (12) or a campaign run (cr:7); none: all sweeps", false);
+  AddTarget(sub, a, "SWEEP|CAMPAIGN-RUN|CAMPAIGN",
+            "a sweep id (12), a campaign run (cr:7) or a campaign name (its last drift report); none: all sweeps",
+            false);
+  sub.add_option("--scale", a.scale, "with CAMPAIGN: the last report at this scale (default: any)");
   AddJson(sub, a);
+}
+
+// `status CAMPAIGN`: the campaign's last drift report, one row per point.
+int RunCampaignStatus(Context& c, DaemonClient& client) {
+  auto report = client.CampaignDrift(c.args.target, c.args.scale);
+  if (!report.ok()) return Fail(c, report.status());
+  if (c.args.json) {
+    PrintJson(c, *report);
+    return kExitOk;
+  }
+  c.out() << report->value("summary", "") << "\n";
+  Table t;
+  t.header = {"run", "point", "state", "Uz m/s", "before", "diff", ""};
+  t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
+  auto number = [](const json& row, const char* name) {
+    auto it = row.find(name);
+    return it != row.end() && it->is_number() ? FormatNumber(it->get<double>()) : std::string("-");
+  };
+  for (const json& row : report->value("rows", json::array())) {
+    const json drive = row.value("point", json::object());
+    std::string point = drive.value("mode", "");
+    for (const auto& [k, v] : drive.items()) {
+      if (k == "duration_s" || k == "mode") continue;
+      point += (point.empty() ? "" : " ") + k + "=" + (v.is_string() ? v.get<std::string>() : FormatNumber(v.get<double>()));
+    }
+    bool drifted = row.value("drifted", false);
+    t.rows.push_back({std::to_string(row.value("run_id", int64_t{0})), point, row.value("state", ""),
+                      number(row, "uz"), number(row, "uz_previous"), number(row, "difference"),
+                      drifted ? "DRIFT" : (row.value("reused", false) ? "reused" : "")});
+    t.color.push_back({"", "", StateColor(row.value("state", "")), "", "", "", drifted ? "1;31" : ""});
+  }
+  if (!c.OutRender().color) t.color.clear();
+  c.out() << RenderTable(t);
+  return kExitOk;
 }
 
 int RunStatus(Context& c) {
@@ -274,6 +311,7 @@ int RunStatus(Context& c) {
     return kExitOk;
   }
   auto target = ParseTarget(c.args.target);
+  if (!target.ok() && LooksLikeCampaignName(c.args.target)) return RunCampaignStatus(c, **client);
   if (!target.ok()) return Fail(c, target.status(), kExitUsage);
   auto snapshot = FetchSnapshot(**client, *target);
   if (!snapshot.ok()) return Fail(c, snapshot.status());
@@ -588,10 +626,12 @@ const Command kCommands[] = {
    "  sandswim submit paper-58 --scale mini\n"
    "  sandswim submit sweep.json --wait        # follow it, then print the results (exit 3: some failed)",
    SetupSubmit, RunSubmit},
-  {"status", "counts, runs in flight, failures and ETA of a sweep or campaign run (none: all sweeps)",
+  {"status", "counts, runs in flight, failures and ETA of a sweep or campaign run (none: all sweeps); "
+             "for a campaign name, its last drift report",
    "  sandswim status\n"
    "  sandswim status 12\n"
-   "  sandswim status cr:7 --json",
+   "  sandswim status cr:7 --json\n"
+   "  sandswim status paper-58 --scale smoke",
    SetupStatus, RunStatus},
   {"runs", "list runs (all pages), optionally of one sweep or in one state",
    "  sandswim runs --sweep 12\n"

@@ -9,7 +9,10 @@
 
 #include <unistd.h>
 
+#include "core/deck.h"
 #include "core/keys.h"
+#include "core/point.h"
+#include "core/scale.h"
 
 namespace sandswim {
 namespace {
@@ -218,29 +221,76 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest
       g.attempt = static_cast<int>(st.Int(3)) + 1;
     }
   }
-  if (!found) {
+  bool failed_decks = false;
+  // Then the oldest queued run whose bed is done. Its deck is rendered from its point and its
+  // bed's scale (runs submitted before migration 3 have it stored in run_decks) and checked
+  // against the run's key; a run whose deck no longer renders to its key (the templates changed
+  // since it was submitted) fails with "deck_error" and the next run is tried.
+  while (!found) {
     Statement st = t.Prepare(
-        "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256 "
-        "FROM runs r JOIN beds b ON b.id = r.bed_id JOIN run_decks d ON d.run_id = r.id "
+        "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256, "
+        "r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, b.scale, b.key, "
+        "b.engine_version "
+        "FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN run_decks d ON d.run_id = r.id "
         "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
-    if (*row) {
-      found = true;
-      g.kind = api::JobKind::kRun;
-      g.id = st.Int(0);
-      g.key = st.Text(1);
+    if (!*row) break;
+    g.kind = api::JobKind::kRun;
+    g.id = st.Int(0);
+    g.key = st.Text(1);
+    g.attempt = static_cast<int>(st.Int(3)) + 1;
+    g.duration_s = st.Double(4);
+    g.steps = st.Int(5);
+    int64_t bed_id = st.Int(6);
+    g.bed = api::BedRef{bed_id, st.Text(7), "/api/v1/beds/" + std::to_string(bed_id) + "/restart"};
+    if (!st.IsNull(2)) {
       g.deck = st.Text(2);
-      g.attempt = static_cast<int>(st.Int(3)) + 1;
-      g.duration_s = st.Double(4);
-      g.steps = st.Int(5);
-      int64_t bed_id = st.Int(6);
-      g.bed = api::BedRef{bed_id, st.Text(7),
-                          "/api/v1/beds/" + std::to_string(bed_id) + "/restart"};
+      found = true;
+      break;
     }
+    Point p;
+    std::optional<Mode> mode = ParseMode(st.Text(8));
+    std::optional<RotationAxis> axis = ParseAxis(st.Text(13));
+    p.A = st.Double(9);
+    p.f = st.Double(10);
+    p.Omega = st.Double(11);
+    p.omega = st.Double(12);
+    p.duration_s = st.Double(14);
+    const Scale* scale = FindScale(st.Text(15));
+    const std::string bed_key = st.Text(16);
+    const std::optional<std::string> engine_version = st.OptText(17);
+    std::string why;
+    if (!mode || !axis || scale == nullptr) {
+      why = "its stored point or scale no longer parses";
+    } else {
+      p.mode = *mode;
+      p.axis = *axis;
+      try {
+        g.deck = RenderDriveDeck(p, *scale);
+      } catch (const std::exception& e) {
+        why = std::string("its deck no longer renders: ") + e.what();
+      }
+      if (why.empty() && engine_version && RunKey(g.deck, bed_key, *engine_version) != g.key) {
+        why = "its deck no longer renders to its key (the deck templates changed since it was "
+              "submitted); submit its sweep again";
+      }
+    }
+    if (why.empty()) {
+      found = true;
+      break;
+    }
+    Statement fail = t.Prepare(
+        "UPDATE runs SET state = 'failed', finished_at = ?, last_error_kind = 'deck_error', "
+        "last_error = ? WHERE id = ?");
+    fail.Bind(1, now).Bind(2, why).Bind(3, g.id);
+    SANDSWIM_RETURN_IF_ERROR(fail.Run());
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, g.id),
+                                     {{"kind", "deck_error"}, {"message", why}}));
+    failed_decks = true;  // something changed: commit even when nothing is leasable
   }
   if (!found) {
-    if (*expired > 0) SANDSWIM_RETURN_IF_ERROR(t.Commit());
+    if (*expired > 0 || failed_decks) SANDSWIM_RETURN_IF_ERROR(t.Commit());
     return Out();
   }
   Result<std::string> token = NewToken();

@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
+#include "core/scale.h"
+#include "core/sweep.h"
 #include "server/clock.h"
 #include "server/store.h"
 #include "server/submission.h"
@@ -322,6 +324,73 @@ TEST_F(LeaseQueueTest, ReopeningTheFileKeepsLeasesAndRuns) {
   EXPECT_EQ(m->runs.done, 1);
   EXPECT_EQ(m->runs.queued, 1);
   EXPECT_EQ(m->leases_granted, 2);
+}
+
+// Decks are not stored at submission (schema/003_perf.sql): the deck a run is leased with, and
+// the one GET /api/v1/runs/{id} shows, are rendered again and must be byte for byte the deck its
+// key was computed from.
+TEST_F(LeaseQueueTest, LeasedDeckIsTheDeckTheKeyWasComputedFrom) {
+  const nlohmann::json body = OmegaSignSweep();
+  auto req = ParseSubmitRequest(body);
+  ASSERT_TRUE(req.ok());
+  auto plan = PlanSweeps(req->sweeps, *FindScale(req->sweeps[0].scale), kEngine);  // keeps decks
+  ASSERT_TRUE(plan.ok());
+  SubmitJson(body);
+  EXPECT_EQ(Rows("run_decks"), 0);
+  PrepareBed();
+  for (size_t i = 0; i < plan->runs.size(); ++i) {
+    api::LeaseGrant g = MustLease();
+    ASSERT_EQ(g.kind, api::JobKind::kRun);
+    const PlannedRun* planned = nullptr;
+    for (const PlannedRun& r : plan->runs) {
+      if (r.key == g.key) planned = &r;
+    }
+    ASSERT_NE(planned, nullptr) << g.key;
+    EXPECT_EQ(g.deck, planned->deck);
+    EXPECT_EQ(RunKey(g.deck, plan->bed.key, kEngine), g.key);
+    auto detail = store_->GetRun(g.id);
+    ASSERT_TRUE(detail.ok());
+    EXPECT_EQ(detail->deck, planned->deck);
+  }
+}
+
+// A run whose deck no longer renders to its key (templates changed after it was submitted) is
+// never handed out with a deck that differs from its key: it fails as a deck_error.
+TEST_F(LeaseQueueTest, RunWhoseDeckNoLongerMatchesItsKeyFails) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  {
+    auto t = store_->Begin();
+    ASSERT_TRUE(t.ok());
+    ASSERT_TRUE(t->Exec("UPDATE runs SET key = 'stale-' || id WHERE id = 1").ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  api::LeaseGrant g = MustLease();
+  EXPECT_NE(g.id, 1);
+  auto r1 = store_->GetRun(1);
+  ASSERT_TRUE(r1.ok());
+  EXPECT_EQ(r1->summary.state, "failed");
+  ASSERT_TRUE(r1->summary.last_error.has_value());
+  EXPECT_EQ(r1->summary.last_error->kind, "deck_error");
+}
+
+// sweep_counts follow every state change in the transaction that makes it.
+TEST_F(LeaseQueueTest, SweepCountsFollowStateChanges) {
+  const int64_t sweep = SubmitJson(OmegaSignSweep());
+  auto counts = [&] { return store_->GetSweep(sweep).value().counts; };
+  const int64_t total = counts().total();
+  EXPECT_GT(total, 1);
+  EXPECT_EQ(counts().queued, total);
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(counts().running, 1);
+  EXPECT_EQ(counts().queued, total - 1);
+  ASSERT_TRUE(queue_->Complete(g.token, OkRun()).ok());
+  EXPECT_EQ(counts().done, 1);
+  EXPECT_EQ(counts().running, 0);
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  EXPECT_EQ(counts().cancelled, total - 1);
+  EXPECT_EQ(counts().total(), total);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the lease-expiry thread and the
-// local-worker supervisor; SIGTERM/SIGINT stop them in reverse order.
+// local-worker supervisor, the scheduler thread (nightly reruns and drift reports); SIGTERM/SIGINT
+// stop them in reverse order.
 #include <signal.h>
 
 #include <condition_variable>
@@ -16,10 +17,12 @@
 #include <spdlog/spdlog.h>
 
 #include "server/clock.h"
+#include "server/drift_report.h"
 #include "server/engine_probe.h"
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
 #include "server/routes.h"
+#include "server/scheduler.h"
 #include "server/store.h"
 
 namespace {
@@ -36,6 +39,8 @@ struct Flags {
   int max_attempts = 3;
   std::string engine_version;
   std::string log_level = "info";
+  std::vector<std::string> schedules;  // NAME[:SCALE]
+  double scheduler_tick_s = 20;
 };
 
 // The token from --token-file, else SANDSWIM_TOKEN, else "" (no auth).
@@ -81,6 +86,11 @@ int main(int argc, char** argv) {
   app.add_option("--engine-version", flags.engine_version, "LIGGGHTS version string (default: ask liggghts)");
   app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
+  app.add_option("--schedule", flags.schedules,
+                 "rerun this campaign on its cron schedule, NAME[:SCALE] (repeatable; e.g. paper-58:smoke)");
+  app.add_option("--scheduler-tick", flags.scheduler_tick_s,
+                 "seconds between looks for due reruns and finished ones (drift reports)")
+      ->capture_default_str()->check(CLI::Range(0.05, 3600.0));
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr; stdout carries only the "listening on" line that scripts wait for.
   spdlog::set_default_logger(spdlog::stderr_color_mt("sandswimd"));
@@ -123,6 +133,24 @@ int main(int argc, char** argv) {
   lease_options.max_attempts = flags.max_attempts;
   sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
 
+  // Nightly reruns: registered now (a --schedule left out is disabled), checked every tick.
+  std::vector<sandswim::ScheduleRequest> schedule_requests;
+  for (const std::string& text : flags.schedules) {
+    auto request = sandswim::ParseScheduleFlag(text);
+    if (!request.ok()) return Die(request.status(), "use --schedule NAME[:SCALE], e.g. paper-58:smoke");
+    schedule_requests.push_back(*request);
+  }
+  sandswim::Scheduler scheduler(store->get(), &clock, flags.engine_version);
+  Status registered = scheduler.Register(schedule_requests);
+  if (!registered.ok()) return Die(registered, "fix or drop that --schedule");
+  spdlog::info("scheduling in local time zone {}", sandswim::LocalTimeZoneDescription(clock.Now()));
+  if (auto list = scheduler.List(); list.ok()) {
+    for (const sandswim::ScheduledCampaign& s : *list) {
+      if (!s.enabled) continue;
+      spdlog::info("schedule: {}@{} \"{}\", next due {}", s.campaign, s.scale, s.cron,
+                   s.next_due ? sandswim::FormatWallMinute(*s.next_due) : std::string("never"));
+    }
+  }
   sandswim::Deps deps;
   deps.store = store->get();
   deps.leases = &leases;
@@ -152,6 +180,32 @@ int main(int argc, char** argv) {
       }
       lock.lock();
     }
+  });
+
+  auto scheduler_pass = [&] {
+    auto tick = scheduler.Tick();
+    if (!tick.ok()) {
+      spdlog::error("scheduler: {}; will retry at the next tick", tick.status().ToString());
+    } else {
+      for (const auto& rerun : tick->submitted) spdlog::info("{}", sandswim::DescribeRerun(rerun, scheduler.zone()));
+      for (const auto& [campaign, why] : tick->errors) {
+        spdlog::error("scheduled rerun of {}: {}; will retry at the next tick", campaign, why.ToString());
+      }
+    }
+    auto reports = sandswim::ReportFinishedCampaignRuns(**store, clock.Now(), scheduler.zone());
+    if (!reports.ok()) {
+      spdlog::error("drift reports: {}; will retry at the next tick", reports.status().ToString());
+    } else {
+      for (const auto& report : *reports) spdlog::info("{}", report.summary);
+    }
+  };
+  std::thread nightly([&] {
+    std::unique_lock<std::mutex> lock(stop_mu);
+    do {
+      lock.unlock();
+      scheduler_pass();
+      lock.lock();
+    } while (!stop_cv.wait_for(lock, std::chrono::duration<double>(flags.scheduler_tick_s), [&] { return stopping; }));
   });
 
   std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
@@ -187,6 +241,7 @@ int main(int argc, char** argv) {
   }
   stop_cv.notify_all();
   expiry.join();
+  nightly.join();
   server.Stop();
   serve.join();
   spdlog::info("sandswimd stopped");

@@ -463,7 +463,7 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
   SubmitExample();
   for (const RouteInfo& route : RouteTable()) {
     std::string path = route.path;
-    for (const auto& [param, value] : {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}}) {
+    for (const auto& [param, value] : {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}, {"{name}", "paper-58"}}) {
       auto at = path.find(param);
       if (at != std::string::npos) path.replace(at, param.size(), value);
     }

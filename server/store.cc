@@ -5,7 +5,9 @@
 #include <filesystem>
 #include <utility>
 
+#include "core/deck.h"
 #include "core/embedded.h"
+#include "core/scale.h"
 #include "core/sweep.h"
 
 namespace sandswim {
@@ -18,12 +20,15 @@ struct Migration {
 };
 constexpr Migration kMigrations[] = {
     {1, "schema/001_init.sql"},
+    {2, "schema/002_nightly.sql"},
+    {3, "schema/003_perf.sql"},
 };
 
 constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
                                    "beds",      "runs",          "run_decks",   "sweep_runs",  "leases",
                                    "results",   "trajectories",  "run_logs",    "events",
-                                   "counters",  "schema_migrations"};
+                                   "counters",  "schema_migrations", "sweep_counts", "campaign_schedules",
+                                   "drift_reports"};
 
 Status SqlError(sqlite3* db, const std::string& what) {
   int code = sqlite3_extended_errcode(db);
@@ -166,11 +171,17 @@ Result<RunCounts> CountsWhere(Transaction& t, const std::string& sql, int64_t id
   return c;
 }
 
+// One row of sweep_counts (schema/003_perf.sql: kept by triggers in every transaction that
+// changes a run's state or a sweep's membership), not a count over 10^5 membership rows.
 Result<RunCounts> SweepCounts(Transaction& t, int64_t sweep_id) {
-  return CountsWhere(t,
-                     "SELECT r.state, COUNT(*) FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
-                     "WHERE sr.sweep_id = ? GROUP BY r.state",
-                     sweep_id);
+  Statement st = t.Prepare(
+      "SELECT queued, running, done, failed, cancelled FROM sweep_counts WHERE sweep_id = ?");
+  st.Bind(1, sweep_id);
+  RunCounts c;
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (*row) c = RunCounts{st.Int(0), st.Int(1), st.Int(2), st.Int(3), st.Int(4)};
+  return c;
 }
 
 SweepInfo SweepFromRow(const Statement& st) {
@@ -368,6 +379,11 @@ Status Statement::Run() {
   }
 }
 
+void Statement::Reset() {
+  if (stmt_ != nullptr) sqlite3_reset(stmt_);
+  if (stmt_ != nullptr) bind_error_ = Status::Ok();
+}
+
 bool Statement::IsNull(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
 int64_t Statement::Int(int col) const { return sqlite3_column_int64(stmt_, col); }
 double Statement::Double(int col) const { return sqlite3_column_double(stmt_, col); }
@@ -462,6 +478,13 @@ Result<std::unique_ptr<Store>> Store::Open(const std::string& path) {
     if (!parent.empty()) std::filesystem::create_directories(parent, ec);
     if (ec) return Status::IOError("cannot create " + parent.string() + ": " + ec.message());
   }
+  // No global memory statistics: they take a process-wide mutex on every allocation (~6% of a
+  // 100,000-run submission). Only possible before SQLite initialises; later calls are no-ops.
+  static const bool kConfigured = [] {
+    sqlite3_config(SQLITE_CONFIG_MEMSTATUS, 0);
+    return true;
+  }();
+  (void)kConfigured;
   int rc = sqlite3_open_v2(path.c_str(), &store->db_,
                            SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
                            nullptr);
@@ -636,7 +659,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
   RunDetail d;
   {
     Statement st = t->Prepare(std::string("SELECT ") + kRunColumns + ", d.deck, b.key, b.state, " +
-                              kResultColumns + ", tr.data, lg.log_tail FROM runs r " +
+                              kResultColumns + ", tr.data, lg.log_tail, b.scale FROM runs r " +
                               "JOIN beds b ON b.id = r.bed_id " +
                               "LEFT JOIN run_decks d ON d.run_id = r.id " +
                               "LEFT JOIN results res ON res.run_id = r.id " +
@@ -649,6 +672,17 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     d.summary = RunSummaryFromRow(st);
     int c = kRunColumnCount;
     d.deck = st.Text(c);
+    if (st.IsNull(c)) {
+      // Not stored since migration 3: the deck is a pure function of the point and the scale
+      // (the lease queue renders the same bytes and checks them against the run's key).
+      const Scale* scale = FindScale(st.Text(c + 27));
+      if (scale == nullptr) return Status::Corruption("run " + std::to_string(id) + "'s bed has an unknown scale");
+      try {
+        d.deck = RenderDriveDeck(d.summary.point, *scale);
+      } catch (const std::exception& e) {
+        return Status::Internal("run " + std::to_string(id) + "'s deck does not render: " + e.what());
+      }
+    }
     d.bed_key = st.Text(c + 1);
     d.bed_state = st.Text(c + 2);
     d.result = ResultFromRow(st, c + 3);

@@ -71,6 +71,9 @@ class Statement {
   Result<bool> Step();
   // Steps until done (for INSERT/UPDATE/DELETE).
   Status Run();
+  // Makes the statement ready to bind and step again (one statement reused across many rows of
+  // a transaction). Bindings not rebound keep their values.
+  void Reset();
 
   bool IsNull(int col) const;
   int64_t Int(int col) const;

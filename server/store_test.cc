@@ -46,13 +46,14 @@ TEST_F(StoreTest, OpenCreatesTheDirectoryAndMigratesOnce) {
   {
     auto store = MustOpen();
     ASSERT_TRUE(store);
-    EXPECT_EQ(store->schema_version(), 1);
-    EXPECT_EQ(*store->CountRows("schema_migrations"), 1);
+    // Every migration of schema/ (001, 002, 003, ...) applied once.
+    EXPECT_GE(store->schema_version(), 3);
+    EXPECT_EQ(*store->CountRows("schema_migrations"), store->schema_version());
     EXPECT_TRUE(store->HealthCheck().ok());
   }
   auto again = MustOpen();
   ASSERT_TRUE(again);
-  EXPECT_EQ(*again->CountRows("schema_migrations"), 1);
+  EXPECT_EQ(*again->CountRows("schema_migrations"), again->schema_version());
   auto t = again->BeginRead();
   ASSERT_TRUE(t.ok());
   Statement st = t->Prepare("PRAGMA journal_mode");

@@ -204,7 +204,13 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
     std::vector<SweepSpec> group_sweeps;
     for (size_t i : g.sweep_indexes) group_sweeps.push_back(sweeps[i]);
     size_t budget = req.max_runs > planned ? req.max_runs - planned : 0;
-    Result<Plan> plan = PlanSweeps(group_sweeps, *FindScale(g.scale), engine_version, budget);
+    // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
+    // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
+    PlanOptions options;
+    options.max_runs = budget;
+    options.keep_decks = false;
+    options.threads = 2;
+    Result<Plan> plan = PlanSweeps(group_sweeps, *FindScale(g.scale), engine_version, options);
     if (!plan.ok()) {
       Status s = plan.status();
       // A single sweep's field paths are relative to it; name the sweep when there are several.
@@ -324,10 +330,15 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
     // The bed: one per key; a failed one is given another chance.
     int64_t bed_id = 0;
     {
+      // engine_version: what the run keys on this bed were made with, so a deck rendered again
+      // at lease time can be checked against its run's key (the bed key covers it too).
       Statement ins = t.Prepare(
-          "INSERT INTO beds (key, scale, deck, state, created_at) VALUES (?, ?, ?, 'queued', ?) "
-          "ON CONFLICT (key) DO NOTHING");
+          "INSERT INTO beds (key, scale, deck, state, created_at, engine_version) "
+          "VALUES (?, ?, ?, 'queued', ?, ?) "
+          "ON CONFLICT (key) DO UPDATE SET engine_version = excluded.engine_version "
+          "WHERE engine_version IS NULL");
       ins.Bind(1, g.plan.bed.key).Bind(2, g.scale).Bind(3, g.plan.bed.deck).Bind(4, now);
+      ins.Bind(5, engine_version);
       SANDSWIM_RETURN_IF_ERROR(ins.Run());
       Statement sel = t.Prepare("SELECT id, state FROM beds WHERE key = ?");
       sel.Bind(1, g.plan.bed.key);
@@ -345,13 +356,19 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
       }
     }
 
+    // One prepared statement each, reused for every row (100,000 rows in one transaction).
+    Statement ins = t.Prepare(
+        "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
+        "run_duration_s, steps, state, created_at, queued_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?) "
+        "ON CONFLICT (key) DO NOTHING");
+    Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
+    Statement sr = t.Prepare(
+        "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
+        "ON CONFLICT DO NOTHING");
     for (const PlannedRun& r : g.plan.runs) {
       int64_t run_id = 0;
-      Statement ins = t.Prepare(
-          "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-          "run_duration_s, steps, state, created_at, queued_at) "
-          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?) "
-          "ON CONFLICT (key) DO NOTHING");
+      ins.Reset();
       ins.Bind(1, r.key).Bind(2, bed_id).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
       ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
       ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
@@ -361,17 +378,15 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
       if (t.Changes() == 1) {
         run_id = t.LastInsertId();
         ++out.runs_new;
-        Statement deck = t.Prepare("INSERT INTO run_decks (run_id, deck) VALUES (?, ?)");
-        deck.Bind(1, run_id).Bind(2, r.deck);
-        SANDSWIM_RETURN_IF_ERROR(deck.Run());
       } else {
-        Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
+        sel.Reset();
         sel.Bind(1, r.key);
         Result<bool> row = sel.Step();
         if (!row.ok()) return row.status();
         if (!*row) return Status::Internal("run row vanished");
         run_id = sel.Int(0);
         std::string state = sel.Text(1);
+        sel.Reset();
         bool requeue = state == "failed" || state == "cancelled" || (state == "done" && req.force);
         if (requeue) {
           // The old result row (if any) stays until the new completion replaces it.
@@ -396,15 +411,29 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
       for (const std::string& name : r.sweeps) {
         auto it = id_by_name.find(name);
         if (it == id_by_name.end()) return Status::Internal("plan names unknown sweep " + name);
-        Statement sr = t.Prepare(
-            "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
-            "ON CONFLICT DO NOTHING");
+        sr.Reset();
         sr.Bind(1, it->second).Bind(2, run_id).Bind(3, next_position[it->second]++);
         SANDSWIM_RETURN_IF_ERROR(sr.Run());
       }
     }
   }
 
+  // Each new sweep's counts by state (sweep_counts, schema/003_perf.sql), from its membership
+  // rows, in this transaction: one aggregate per sweep instead of a trigger per row.
+  {
+    Statement recount = t.Prepare(
+        "UPDATE sweep_counts SET (queued, running, done, failed, cancelled) = ("
+        "SELECT COALESCE(SUM(r.state = 'queued'), 0), COALESCE(SUM(r.state = 'running'), 0), "
+        "COALESCE(SUM(r.state = 'done'), 0), COALESCE(SUM(r.state = 'failed'), 0), "
+        "COALESCE(SUM(r.state = 'cancelled'), 0) "
+        "FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE sr.sweep_id = ?1) "
+        "WHERE sweep_id = ?1");
+    for (int64_t id : sweep_ids) {
+      recount.Reset();
+      recount.Bind(1, id);
+      SANDSWIM_RETURN_IF_ERROR(recount.Run());
+    }
+  }
   for (size_t i = 0; i < sweeps.size(); ++i) {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
                                      {{"name", sweeps[i].name},

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include <gmock/gmock.h>
@@ -119,13 +120,21 @@ TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
 }
 
 // A deck LIGGGHTS rejects fails its run with the ERROR: line, without retries; the sweep's other
-// run finishes. The deck is broken in the database, where a bad template would put it.
+// run finishes. The deck is broken in the database, where a stored deck is read from.
 TEST_F(EndToEndTest, RejectedDeckFailsItsRunOnly) {
   int64_t id = Submit(Sweep("bad-deck", {-20, 20}, 0.05));
   std::vector<json> runs = Runs(id);
   ASSERT_EQ(runs.size(), 2u);
   const std::string bad = std::to_string(runs[0]["id"].get<int64_t>());
-  daemon_->Sql("UPDATE runs SET deck = replace(deck, 'pair_style      gran', 'pair_style      no_such_style') WHERE id = " + bad);
+  // Decks are rendered at lease time unless one is stored for the run: store a broken one.
+  std::string deck = daemon_->Get("/api/v1/runs/" + bad)["deck"];
+  const std::string good_line = "pair_style      gran";
+  ASSERT_NE(deck.find(good_line), std::string::npos);
+  deck.replace(deck.find(good_line), good_line.size(), "pair_style      no_such_style");
+  const std::string deck_file = *dir_ + "/bad-deck.in";
+  { std::ofstream(deck_file, std::ios::binary) << deck; }
+  daemon_->Sql("INSERT INTO run_decks (run_id, deck) VALUES (" + bad + ", CAST(readfile('" + deck_file + "') AS TEXT))");
+  ASSERT_EQ(daemon_->Sql("SELECT count(*) FROM run_decks WHERE run_id = " + bad), "1");
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-bad-deck", 2);
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   EXPECT_EQ(sweep["counts"]["done"], 1) << sweep.dump();

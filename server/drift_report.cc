@@ -1,0 +1,283 @@
+#include "server/drift_report.h"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <utility>
+
+#include "core/sweep.h"
+
+namespace sandswim {
+namespace {
+
+using json = nlohmann::json;
+
+template <typename T>
+json OrNull(const std::optional<T>& v) {
+  return v ? json(*v) : json(nullptr);
+}
+
+template <typename T>
+std::optional<T> OptField(const json& j, const char* name) {
+  auto it = j.find(name);
+  if (it == j.end() || it->is_null()) return std::nullopt;
+  return it->get<T>();
+}
+
+std::string PointIdentity(const json& point) { return point.dump(); }
+
+std::string Tolerance(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// The campaign's drift tolerance: a stored definition's column, else the builtin campaign's.
+Result<double> ToleranceOf(Store& store, const std::string& campaign) {
+  auto stored = store.GetCampaign(campaign);
+  if (!stored.ok()) return stored.status();
+  if (stored->has_value()) return (*stored)->drift_tolerance_mps;
+  auto builtin = BuiltinCampaign(campaign);
+  if (builtin.ok()) return builtin->drift_tolerance_mps;
+  return 0.0;  // the campaign is gone: flag every change
+}
+
+Result<std::optional<DriftReport>> ReadOne(Statement& st) {
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return std::optional<DriftReport>();
+  try {
+    return std::optional<DriftReport>(json::parse(st.Text(0)).get<DriftReport>());
+  } catch (const json::exception& e) {
+    return Status::Corruption(std::string("a stored drift report does not parse: ") + e.what());
+  }
+}
+
+// The campaign runs without a report whose runs are all terminal, oldest first.
+Result<std::vector<int64_t>> FinishedWithoutReport(Store& store) {
+  auto t = store.BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT cr.id FROM campaign_runs cr "
+      "WHERE NOT EXISTS (SELECT 1 FROM drift_reports d WHERE d.campaign_run_id = cr.id) "
+      "  AND NOT EXISTS (SELECT 1 FROM sweeps s JOIN sweep_runs sr ON sr.sweep_id = s.id "
+      "                  JOIN runs r ON r.id = sr.run_id "
+      "                  WHERE s.campaign_run_id = cr.id AND r.state IN ('queued', 'running')) "
+      "ORDER BY cr.id");
+  std::vector<int64_t> ids;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    ids.push_back(st.Int(0));
+  }
+  return ids;
+}
+
+Result<std::optional<DriftReport>> PreviousReport(Store& store, const std::string& campaign,
+                                                  const std::string& scale, int64_t before_id) {
+  auto t = store.BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT report FROM drift_reports WHERE campaign = ? AND scale = ? AND campaign_run_id < ? "
+      "ORDER BY campaign_run_id DESC LIMIT 1");
+  st.Bind(1, campaign).Bind(2, scale).Bind(3, before_id);
+  return ReadOne(st);
+}
+
+// The campaign run's distinct runs as they stand now.
+Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, double now) {
+  DriftReport report;
+  report.campaign_run_id = info.id;
+  report.campaign = info.campaign;
+  report.scale = info.scale;
+  report.trigger = info.trigger;
+  report.due_time = info.due_time;
+  report.campaign_run_created_at = info.created_at;
+  report.created_at = now;
+  auto tolerance = ToleranceOf(store, info.campaign);
+  if (!tolerance.ok()) return tolerance.status();
+  report.tolerance_mps = *tolerance;
+  std::map<int64_t, bool> seen;
+  for (int64_t sweep_id : info.sweep_ids) {
+    auto rows = store.SweepResults(sweep_id);
+    if (!rows.ok()) return rows.status();
+    for (const ResultRow& row : *rows) {
+      if (!seen.emplace(row.run_id, true).second) continue;
+      DriftPoint p;
+      p.point = PointToJson(row.point);
+      p.run_id = row.run_id;
+      p.key = row.key;
+      p.state = row.state;
+      if (row.state == "done" && row.result) {
+        p.uz = row.result->result.uz;
+        p.reused = row.result->created_at < info.created_at;
+      }
+      report.rows.push_back(std::move(p));
+    }
+  }
+  return report;
+}
+
+}  // namespace
+
+void to_json(json& j, const DriftPoint& p) {
+  j = {{"point", p.point}, {"run_id", p.run_id},          {"key", p.key},
+       {"state", p.state},              {"uz", OrNull(p.uz)},          {"uz_previous", OrNull(p.uz_previous)},
+       {"difference", OrNull(p.difference)}, {"drifted", p.drifted}, {"reused", p.reused}};
+}
+
+void from_json(const json& j, DriftPoint& p) {
+  p.point = j.at("point");
+  p.run_id = j.at("run_id").get<int64_t>();
+  p.key = j.value("key", "");
+  p.state = j.value("state", "");
+  p.uz = OptField<double>(j, "uz");
+  p.uz_previous = OptField<double>(j, "uz_previous");
+  p.difference = OptField<double>(j, "difference");
+  p.drifted = j.value("drifted", false);
+  p.reused = j.value("reused", false);
+}
+
+void to_json(json& j, const DriftReport& r) {
+  j = {{"campaign_run_id", r.campaign_run_id},
+       {"campaign", r.campaign},
+       {"scale", r.scale},
+       {"trigger", r.trigger},
+       {"due_time", OrNull(r.due_time)},
+       {"campaign_run_created_at", r.campaign_run_created_at},
+       {"previous_campaign_run_id", OrNull(r.previous_campaign_run_id)},
+       {"tolerance_mps", r.tolerance_mps},
+       {"created_at", r.created_at},
+       {"points", r.points},
+       {"reused", r.reused},
+       {"ran", r.ran},
+       {"missing", r.missing},
+       {"compared", r.compared},
+       {"drifted", r.drifted},
+       {"summary", r.summary},
+       {"rows", r.rows}};
+}
+
+void from_json(const json& j, DriftReport& r) {
+  r.campaign_run_id = j.at("campaign_run_id").get<int64_t>();
+  r.campaign = j.at("campaign").get<std::string>();
+  r.scale = j.at("scale").get<std::string>();
+  r.trigger = j.value("trigger", "manual");
+  r.due_time = OptField<double>(j, "due_time");
+  r.campaign_run_created_at = j.value("campaign_run_created_at", 0.0);
+  r.previous_campaign_run_id = OptField<int64_t>(j, "previous_campaign_run_id");
+  r.tolerance_mps = j.value("tolerance_mps", 0.0);
+  r.created_at = j.value("created_at", 0.0);
+  r.points = j.value("points", int64_t{0});
+  r.reused = j.value("reused", int64_t{0});
+  r.ran = j.value("ran", int64_t{0});
+  r.missing = j.value("missing", int64_t{0});
+  r.compared = j.value("compared", int64_t{0});
+  r.drifted = j.value("drifted", int64_t{0});
+  r.summary = j.value("summary", "");
+  r.rows = j.value("rows", std::vector<DriftPoint>{});
+}
+
+void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone) {
+  std::map<std::string, const DriftPoint*> before;
+  if (previous != nullptr) {
+    report.previous_campaign_run_id = previous->campaign_run_id;
+    for (const DriftPoint& p : previous->rows) before[PointIdentity(p.point)] = &p;
+  }
+  report.points = static_cast<int64_t>(report.rows.size());
+  report.reused = report.ran = report.missing = report.compared = report.drifted = 0;
+  for (DriftPoint& p : report.rows) {
+    p.uz_previous.reset();
+    p.difference.reset();
+    p.drifted = false;
+    if (!p.uz) {
+      ++report.missing;
+      continue;
+    }
+    ++(p.reused ? report.reused : report.ran);
+    auto it = before.find(PointIdentity(p.point));
+    if (it == before.end() || !it->second->uz) continue;
+    p.uz_previous = it->second->uz;
+    p.difference = *p.uz - *p.uz_previous;
+    p.drifted = std::fabs(*p.difference) > report.tolerance_mps;
+    ++report.compared;
+    if (p.drifted) ++report.drifted;
+  }
+  std::string head = report.campaign + "@" + report.scale + " ";
+  if (report.trigger == "schedule" && report.due_time) {
+    head += "night " + FormatWallMinute(*report.due_time, zone);
+  } else {
+    head += "rerun cr:" + std::to_string(report.campaign_run_id) + " (" + report.trigger + ", " +
+            FormatWallMinute(report.campaign_run_created_at, zone) + ")";
+  }
+  std::string line = head + ": " + std::to_string(report.points) + " points, " +
+                     std::to_string(report.reused) + " reused, " + std::to_string(report.ran) + " run, " +
+                     std::to_string(report.drifted) + " drifted beyond " + Tolerance(report.tolerance_mps) +
+                     " m/s";
+  if (report.missing > 0) line += ", " + std::to_string(report.missing) + " failed or cancelled";
+  if (previous == nullptr) line += "; first report, nothing to compare";
+  report.summary = line;
+}
+
+Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now, CronZone zone) {
+  auto ids = FinishedWithoutReport(store);
+  if (!ids.ok()) return ids.status();
+  std::vector<DriftReport> made;
+  for (int64_t id : *ids) {
+    auto info = store.GetCampaignRun(id);
+    if (!info.ok()) return info.status();
+    auto report = CurrentState(store, *info, now);
+    if (!report.ok()) return report.status();
+    auto previous = PreviousReport(store, info->campaign, info->scale, id);
+    if (!previous.ok()) return previous.status();
+    CompareWithPrevious(*report, previous->has_value() ? &**previous : nullptr, zone);
+
+    auto t = store.Begin();
+    if (!t.ok()) return t.status();
+    Statement st = t->Prepare(
+        "INSERT INTO drift_reports (campaign_run_id, campaign, scale, previous_campaign_run_id, "
+        "tolerance_mps, points, reused, ran, missing, drifted, report, created_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (campaign_run_id) DO NOTHING");
+    st.Bind(1, report->campaign_run_id).Bind(2, report->campaign).Bind(3, report->scale);
+    st.Bind(4, report->previous_campaign_run_id).Bind(5, report->tolerance_mps);
+    st.Bind(6, report->points).Bind(7, report->reused).Bind(8, report->ran);
+    st.Bind(9, report->missing).Bind(10, report->drifted);
+    st.Bind(11, json(*report).dump()).Bind(12, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    if (t->Changes() > 0) {
+      SANDSWIM_RETURN_IF_ERROR(t->Event(now, "campaign_run.drift_report", "campaign_run/" + std::to_string(id),
+                                        {{"drifted", report->drifted}, {"summary", report->summary}}));
+    }
+    SANDSWIM_RETURN_IF_ERROR(t->Commit());
+    made.push_back(std::move(report).value());
+  }
+  return made;
+}
+
+Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign_run_id) {
+  auto t = store.BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("SELECT report FROM drift_reports WHERE campaign_run_id = ?");
+  st.Bind(1, campaign_run_id);
+  return ReadOne(st);
+}
+
+Result<std::optional<DriftReport>> LatestDriftReport(Store& store, const std::string& campaign,
+                                                     const std::string& scale) {
+  auto t = store.BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT report FROM drift_reports WHERE campaign = ? AND (? = '' OR scale = ?) "
+      "ORDER BY campaign_run_id DESC LIMIT 1");
+  st.Bind(1, campaign).Bind(2, scale).Bind(3, scale);
+  return ReadOne(st);
+}
+
+Result<std::optional<DriftReport>> LastDriftFor(Store& store, const CampaignRunInfo& run) {
+  auto own = DriftReportFor(store, run.id);
+  if (!own.ok() || own->has_value()) return own;
+  return PreviousReport(store, run.campaign, run.scale, run.id);
+}
+
+}  // namespace sandswim

@@ -1,0 +1,94 @@
+// DriftReport: after a campaign run finishes (every run of its sweeps is done, failed or
+// cancelled), per point, U_z now vs the previous report of the same campaign and scale, flagged
+// where |U_z now - U_z before| > the campaign's drift_tolerance_mps.
+//
+// Reports are stored (table drift_reports, schema/002_nightly.sql), one per campaign run, and
+// keep the U_z values they saw: a forced rerun replaces the result row of a run it shares with
+// earlier campaign runs, so "before" must come from the earlier report, not from `results`.
+// Points are matched across reruns by their drive (PointToJson of the point, duration
+// included), not by run key, so a new engine version or template is compared with the old one.
+// "previous" is the latest report of the same campaign and scale with a smaller campaign run id;
+// the first report of a campaign+scale compares with nothing (every point "new").
+//
+// A point counts as "reused" when its result row predates the campaign run, "run" when it was
+// computed for it, "missing" when the run failed or was cancelled (no U_z this time).
+//
+// Thread safety: free functions over a thread-safe Store; ReportFinishedCampaignRuns is meant
+// for one thread (the scheduler's) at a time; a second caller at most recomputes a report the
+// first already stored (the insert is ignored).
+#ifndef SANDSWIM_SERVER_DRIFT_REPORT_H_
+#define SANDSWIM_SERVER_DRIFT_REPORT_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/cron.h"
+#include "core/status.h"
+#include "server/store.h"
+
+namespace sandswim {
+
+struct DriftPoint {
+  nlohmann::json point;              // PointToJson(point): the identity across reruns
+  int64_t run_id = 0;
+  std::string key;
+  std::string state;                 // the run's state when the report was made
+  std::optional<double> uz;          // m/s now (done runs)
+  std::optional<double> uz_previous; // m/s in the previous report
+  std::optional<double> difference;  // uz - uz_previous, when both exist
+  bool drifted = false;              // |difference| > tolerance
+  bool reused = false;               // the result predates this campaign run
+};
+// {"point":{...},"run_id","key","state","uz","uz_previous","difference","drifted","reused"}
+// (absent values are null).
+void to_json(nlohmann::json& j, const DriftPoint& p);
+void from_json(const nlohmann::json& j, DriftPoint& p);
+
+struct DriftReport {
+  int64_t campaign_run_id = 0;
+  std::string campaign;
+  std::string scale;
+  std::string trigger;                      // "manual" | "schedule"
+  std::optional<double> due_time;           // schedule: the due minute
+  double campaign_run_created_at = 0;
+  std::optional<int64_t> previous_campaign_run_id;
+  double tolerance_mps = 0;
+  double created_at = 0;
+  int64_t points = 0, reused = 0, ran = 0, missing = 0, compared = 0, drifted = 0;
+  std::vector<DriftPoint> rows;             // the campaign run's distinct runs, in sweep order
+  std::string summary;                      // the one-line summary the daemon logs
+};
+// {"campaign_run_id","campaign","scale","trigger","due_time","campaign_run_created_at",
+//  "previous_campaign_run_id","tolerance_mps","created_at","points","reused","ran","missing",
+//  "compared","drifted","summary","rows":[DriftPoint...]}
+void to_json(nlohmann::json& j, const DriftReport& r);
+void from_json(const nlohmann::json& j, DriftReport& r);
+
+// Pure: fills rows' uz_previous/difference/drifted and the counts of `report` from `previous`
+// (nullptr: the first report), then the summary line (times in `zone`'s wall clock):
+//   "paper-58@smoke night 2026-11-23 02:00: 58 points, 56 reused, 2 run, 1 drifted beyond 0.005 m/s"
+//   "paper-58@smoke rerun cr:7 (manual, 2026-11-23 14:05): ..."
+// plus ", N failed or cancelled" and "; first report, nothing to compare" when they apply.
+void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone);
+
+// Makes, stores and returns a report for every campaign run that has none yet and whose runs
+// are all terminal, oldest first. `now` stamps created_at.
+Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now,
+                                                            CronZone zone = CronZone::kLocal);
+
+// The report of one campaign run (nullopt: none yet).
+Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign_run_id);
+// The latest report of a campaign (at `scale`, or at any scale when empty); nullopt: none.
+Result<std::optional<DriftReport>> LatestDriftReport(Store& store, const std::string& campaign,
+                                                     const std::string& scale = "");
+// The report GET /campaign-runs/{id} shows as "last_drift": the run's own report, else the
+// latest earlier report of its campaign and scale.
+Result<std::optional<DriftReport>> LastDriftFor(Store& store, const CampaignRunInfo& run);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_DRIFT_REPORT_H_

@@ -1,0 +1,283 @@
+#include "server/scheduler.h"
+
+#include <time.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <regex>
+#include <set>
+#include <utility>
+
+#include "core/scale.h"
+#include "core/sweep.h"
+#include "server/submission.h"
+
+namespace sandswim {
+namespace {
+
+using json = nlohmann::json;
+
+// What a registration needs from a campaign: its default scale and its schedule.
+struct CampaignSchedule {
+  std::string default_scale;
+  std::optional<std::string> schedule;
+};
+
+// A stored campaign (its columns), else a builtin one.
+Result<CampaignSchedule> LookUpCampaign(Store& store, const std::string& name, const std::string& field) {
+  auto stored = store.GetCampaign(name);
+  if (!stored.ok()) return stored.status();
+  if (stored->has_value()) {
+    auto parsed = ParseCampaign((*stored)->definition);
+    if (!parsed.ok()) {
+      return Status::Corruption("stored campaign '" + name + "' no longer parses: " + parsed.status().ToString());
+    }
+    return CampaignSchedule{parsed->scale, (*stored)->schedule};
+  }
+  auto builtin = BuiltinCampaign(name);
+  if (!builtin.ok()) {
+    std::string names;
+    for (const std::string& n : BuiltinCampaignNames()) names += (names.empty() ? "" : ", ") + n;
+    return Status(StatusCode::kNotFound,
+                  "no campaign named '" + name + "' (builtin: " + names + "; or one stored in the daemon)", field);
+  }
+  return CampaignSchedule{builtin->scale, builtin->schedule};
+}
+
+Result<std::optional<double>> LastScheduledDue(Store& store, const std::string& campaign) {
+  auto t = store.BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT MAX(due_time) FROM campaign_runs WHERE campaign = ? AND trigger = 'schedule'");
+  st.Bind(1, campaign);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return *row ? st.OptDouble(0) : std::optional<double>();
+}
+
+int CountDueIn(const CronSchedule& cron, double after, double until, CronZone zone, int cap) {
+  int n = 0;
+  double t = after;
+  while (n < cap) {
+    auto next = NextDue(cron, t, zone);
+    if (!next.ok() || *next > until) break;
+    ++n;
+    t = *next;
+  }
+  return n;
+}
+
+}  // namespace
+
+Result<ScheduleRequest> ParseScheduleFlag(const std::string& text, const std::string& field) {
+  static const std::regex kName(R"([A-Za-z0-9._-]+)");
+  ScheduleRequest r;
+  size_t colon = text.find(':');
+  r.campaign = text.substr(0, colon);
+  if (r.campaign.empty() || r.campaign.size() > kMaxNameLength || !std::regex_match(r.campaign, kName)) {
+    return Status::InvalidArgument(field, "\"" + text + "\" is not NAME or NAME:SCALE (a campaign name of "
+                                          "[A-Za-z0-9._-], e.g. paper-58 or paper-58:smoke)");
+  }
+  if (colon != std::string::npos) {
+    std::string scale = text.substr(colon + 1);
+    if (FindScale(scale) == nullptr) {
+      return Status::InvalidArgument(field, "unknown scale \"" + scale + "\" in \"" + text + "\" (paper, mini, smoke)");
+    }
+    r.scale = scale;
+  }
+  return r;
+}
+
+void to_json(json& j, const ScheduledCampaign& s) {
+  j = {{"campaign", s.campaign},
+       {"scale", s.scale},
+       {"cron", s.cron},
+       {"enabled", s.enabled},
+       {"first_seen_at", s.first_seen_at},
+       {"last_due", s.last_due ? json(*s.last_due) : json(nullptr)},
+       {"next_due", s.next_due ? json(*s.next_due) : json(nullptr)}};
+}
+
+Scheduler::Scheduler(Store* store, Clock* clock, std::string engine_version, CronZone zone)
+    : store_(store), clock_(clock), engine_version_(std::move(engine_version)), zone_(zone) {}
+
+Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool exclusive, const std::string& field) {
+  struct Row {
+    std::string campaign, scale, cron;
+  };
+  std::vector<Row> rows;
+  std::set<std::string> names;
+  for (const ScheduleRequest& r : requests) {
+    if (!names.insert(r.campaign).second) {
+      return Status::InvalidArgument(field, "campaign '" + r.campaign + "' is scheduled twice; a campaign has one "
+                                            "schedule (at one scale)");
+    }
+    auto campaign = LookUpCampaign(*store_, r.campaign, field);
+    if (!campaign.ok()) return campaign.status();
+    if (!campaign->schedule) {
+      return Status::InvalidArgument(field, "campaign '" + r.campaign + "' has no \"schedule\"; give it one, "
+                                            "e.g. \"schedule\": \"0 2 * * *\"");
+    }
+    auto cron = ParseCron(*campaign->schedule, field);
+    if (!cron.ok()) {
+      return Status::InvalidArgument(field, "campaign '" + r.campaign + "': " + cron.status().reason());
+    }
+    rows.push_back({r.campaign, r.scale.value_or(campaign->default_scale), cron->text});
+  }
+
+  const double now = clock_->Now();
+  auto t = store_->Begin();
+  if (!t.ok()) return t.status();
+  if (exclusive) {
+    Statement all = t->Prepare("SELECT campaign FROM campaign_schedules WHERE enabled = 1");
+    std::vector<std::string> disable;
+    while (true) {
+      Result<bool> row = all.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      if (!names.count(all.Text(0))) disable.push_back(all.Text(0));
+    }
+    for (const std::string& name : disable) {
+      Statement st = t->Prepare("UPDATE campaign_schedules SET enabled = 0, updated_at = ? WHERE campaign = ?");
+      st.Bind(1, now).Bind(2, name);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      SANDSWIM_RETURN_IF_ERROR(t->Event(now, "schedule.disabled", "campaign/" + name));
+    }
+  }
+  for (const Row& r : rows) {
+    // A new or re-enabled registration starts now; an enabled one keeps its first_seen_at.
+    Statement st = t->Prepare(
+        "INSERT INTO campaign_schedules (campaign, scale, cron, enabled, first_seen_at, updated_at) "
+        "VALUES (?, ?, ?, 1, ?, ?) ON CONFLICT (campaign) DO UPDATE SET scale = excluded.scale, "
+        "cron = excluded.cron, first_seen_at = CASE WHEN enabled = 1 THEN first_seen_at "
+        "ELSE excluded.first_seen_at END, enabled = 1, updated_at = excluded.updated_at");
+    st.Bind(1, r.campaign).Bind(2, r.scale).Bind(3, r.cron).Bind(4, now).Bind(5, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    SANDSWIM_RETURN_IF_ERROR(
+        t->Event(now, "schedule.registered", "campaign/" + r.campaign, {{"scale", r.scale}, {"cron", r.cron}}));
+  }
+  return t->Commit();
+}
+
+Result<std::vector<ScheduledCampaign>> Scheduler::List() {
+  std::vector<ScheduledCampaign> out;
+  {
+    auto t = store_->BeginRead();
+    if (!t.ok()) return t.status();
+    Statement st = t->Prepare(
+        "SELECT s.campaign, s.scale, s.cron, s.enabled, s.first_seen_at, "
+        "(SELECT MAX(due_time) FROM campaign_runs cr WHERE cr.campaign = s.campaign AND cr.trigger = 'schedule') "
+        "FROM campaign_schedules s ORDER BY s.campaign");
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      ScheduledCampaign s;
+      s.campaign = st.Text(0);
+      s.scale = st.Text(1);
+      s.cron = st.Text(2);
+      s.enabled = st.Int(3) != 0;
+      s.first_seen_at = st.Double(4);
+      s.last_due = st.OptDouble(5);
+      out.push_back(std::move(s));
+    }
+  }
+  const double now = clock_->Now();
+  for (ScheduledCampaign& s : out) {
+    auto cron = ParseCron(s.cron);
+    if (!cron.ok() || !s.enabled) continue;
+    double from = std::max({s.first_seen_at, s.last_due.value_or(0.0), now});
+    auto next = NextDue(*cron, from, zone_);
+    if (next.ok()) s.next_due = *next;
+  }
+  return out;
+}
+
+Result<TickResult> Scheduler::Tick() {
+  auto schedules = List();
+  if (!schedules.ok()) return schedules.status();
+  const double now = clock_->Now();
+  TickResult result;
+  for (const ScheduledCampaign& s : *schedules) {
+    if (!s.enabled) continue;
+    auto cron = ParseCron(s.cron);
+    if (!cron.ok()) {
+      result.errors.emplace_back(s.campaign, cron.status());
+      continue;
+    }
+    // List() read last_due a moment ago; read it again so a Tick racing another sees its work.
+    auto last_due = LastScheduledDue(*store_, s.campaign);
+    if (!last_due.ok()) return last_due.status();
+    const double anchor = std::max(s.first_seen_at, last_due->value_or(s.first_seen_at));
+    auto due = LatestDueIn(*cron, anchor, now, zone_);
+    if (!due.ok()) {
+      result.errors.emplace_back(s.campaign, due.status());
+      continue;
+    }
+    if (!due->has_value()) continue;
+
+    SubmitRequest request;
+    request.campaign = s.campaign;
+    request.scale = s.scale;
+    request.trigger = "schedule";
+    request.due_time = **due;
+    auto submitted = Submit(*store_, request, engine_version_, now);
+    if (!submitted.ok()) {
+      result.errors.emplace_back(s.campaign, submitted.status());
+      continue;
+    }
+    ScheduledRerun r;
+    r.campaign = s.campaign;
+    r.scale = s.scale;
+    r.due_time = **due;
+    r.skipped = CountDueIn(*cron, anchor, **due, zone_, 100000) - 1;
+    r.campaign_run_id = submitted->campaign_run_id.value_or(0);
+    r.replayed = submitted->replayed;
+    r.runs = submitted->runs;
+    r.runs_reused = submitted->runs_reused;
+    r.runs_new = submitted->runs_new;
+    r.runs_requeued = submitted->runs_requeued;
+    r.runs_shared = submitted->runs_shared;
+    result.submitted.push_back(std::move(r));
+  }
+  return result;
+}
+
+std::string DescribeRerun(const ScheduledRerun& r, CronZone zone) {
+  std::string line = r.campaign + "@" + r.scale + " night " + FormatWallMinute(r.due_time, zone) + ": ";
+  if (r.replayed) {
+    line += "already submitted as campaign run " + std::to_string(r.campaign_run_id);
+  } else {
+    line += "submitted campaign run " + std::to_string(r.campaign_run_id) + " (" + std::to_string(r.runs) +
+            " runs: " + std::to_string(r.runs_reused) + " reused, " +
+            std::to_string(r.runs_new + r.runs_requeued) + " to run, " + std::to_string(r.runs_shared) +
+            " already in flight)";
+  }
+  if (r.skipped > 0) {
+    line += "; " + std::to_string(r.skipped) + " earlier due time(s) missed while the daemon was down were skipped";
+  }
+  return line;
+}
+
+std::string LocalTimeZoneDescription(double now) {
+  std::string name;
+  if (const char* tz = std::getenv("TZ"); tz != nullptr && *tz != '\0') {
+    name = tz[0] == ':' ? tz + 1 : tz;
+  } else {
+    std::error_code ec;
+    std::filesystem::path target = std::filesystem::read_symlink("/etc/localtime", ec);
+    std::string s = target.string();
+    size_t at = s.find("zoneinfo/");
+    if (!ec && at != std::string::npos) name = s.substr(at + 9);
+  }
+  time_t t = static_cast<time_t>(now);
+  struct tm tm {};
+  localtime_r(&t, &tm);
+  long offset = tm.tm_gmtoff;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%s, UTC%c%02ld:%02ld", tm.tm_zone ? tm.tm_zone : "?", offset < 0 ? '-' : '+',
+                std::labs(offset) / 3600, (std::labs(offset) % 3600) / 60);
+  return name.empty() ? std::string(buf) : name + " (" + buf + ")";
+}
+
+}  // namespace sandswim
