@@ -202,7 +202,10 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   // The oscillation is fitted only over at least one whole period and 8 samples; over less, a
   // sinusoid and a trend cannot be told apart (the fit swings wildly), so the plain line stands
   // and the amplitude is reported as 0.
-  const double window = samples[i1 - 1].t - samples[i0].t;
+  // Each sample stands for one sampling interval, so n samples cover n intervals: a window of
+  // samples 0.334 .. 0.667 s at 1 ms covers one whole 3 Hz period.
+  const double spacing = (samples[i1 - 1].t - samples[i0].t) / static_cast<double>(i1 - i0 - 1);
+  const double window = samples[i1 - 1].t - samples[i0].t + spacing;
   if (f > 0 && i1 - i0 >= 8 && window * f >= 1.0 - 1e-9 &&
       !FitLineAndOscillation(samples, i0, i1, f, &line, &amplitude)) {
     line = FitLine(samples, i0, i1);
