@@ -180,7 +180,7 @@ TEST_F(CliTest, SubmitPrintsTheSweepIdAndStatusShowsIt) {
   EXPECT_EQ(o.code, 0) << o.err;
   EXPECT_THAT(o.out, StartsWith("sweep " + std::to_string(id) + " status-sweep (scale smoke)\n"));
   EXPECT_THAT(o.out, HasSubstr("runs: 2 (2 queued, 0 running, 0 done, 0 failed, 0 cancelled)"));
-  EXPECT_THAT(o.out, HasSubstr("ETA unknown (no run in flight"));
+  EXPECT_THAT(o.out, HasSubstr("ETA unknown (the bed waits for a worker: is one running?)"));
 
   o = Sandswim({"status", std::to_string(id), "--json"});
   ASSERT_EQ(o.code, 0) << o.err;

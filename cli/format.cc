@@ -237,7 +237,12 @@ std::string EtaText(const Snapshot& s) {
   if (s.counts.finished()) return "finished";
   auto eta = s.eta_s();
   if (eta) return "ETA " + FormatDuration(*eta);
-  if (s.counts.running == 0) return "ETA unknown (no run in flight: is a worker running?)";
+  if (s.counts.running == 0) {
+    // Runs start only once their bed is prepared (minutes at smoke): say so, not "no worker".
+    if (s.waiting_bed_state == "running") return "ETA unknown (preparing the granular bed first)";
+    if (s.waiting_bed_state == "queued") return "ETA unknown (the bed waits for a worker: is one running?)";
+    return "ETA unknown (no run in flight: is a worker running?)";
+  }
   return "ETA unknown (no run has finished yet)";
 }
 

@@ -112,6 +112,9 @@ struct Snapshot {
   std::vector<RunInFlight> running;
   std::vector<RunFailure> failed;
   std::vector<double> done_wall_s;  // finished_at - started_at of done runs
+  // When runs are queued and none runs: the state of the bed they wait for ("queued",
+  // "running", "done", "failed"), so the ETA line can say the bed is being prepared.
+  std::string waiting_bed_state;
   std::optional<double> eta_s() const;
 };
 

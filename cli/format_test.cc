@@ -151,6 +151,19 @@ TEST(FormatTest, StatusGolden) {
             "    engine_error: ERROR: Lost atoms\n");
 }
 
+// While the bed is prepared nothing runs; the ETA says so instead of asking for a worker.
+TEST(FormatTest, EtaNamesTheBedWhileNothingRuns) {
+  Snapshot s;
+  s.title = "sweep 1 x (scale smoke)";
+  s.counts.queued = 2;
+  s.waiting_bed_state = "running";
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA unknown (preparing the granular bed first)"));
+  s.waiting_bed_state = "queued";
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("the bed waits for a worker"));
+  s.waiting_bed_state = "done";
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("no run in flight: is a worker running?"));
+}
+
 TEST(FormatTest, WatchLineAndFrame) {
   Snapshot s = SampleSnapshot();
   EXPECT_EQ(RenderWatchLine(s),

@@ -121,6 +121,22 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const
   for (int64_t sweep_id : sweep_ids) {
     SANDSWIM_RETURN_IF_ERROR(AddRuns(client, sweep_id, options, s, seen));
   }
+  if (s.counts.running == 0 && s.counts.queued > 0) {
+    // Two small requests, only while nothing runs: the first queued run names its bed's state.
+    for (int64_t sweep_id : sweep_ids) {
+      RunQuery query;
+      query.sweep = sweep_id;
+      query.state = "queued";
+      query.limit = 1;
+      auto runs = client.ListRuns(query);
+      if (!runs.ok()) return runs.status();
+      if (runs->empty()) continue;
+      auto run = client.GetRun((*runs)[0].value("id", int64_t{0}));
+      if (!run.ok()) return run.status();
+      s.waiting_bed_state = run->value("bed_state", "");
+      break;
+    }
+  }
   return s;
 }
 
