@@ -1,5 +1,7 @@
 #include "cli/client.h"
 
+#include "core/token.h"
+
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -31,13 +33,6 @@ StatusCode CodeForHttp(int http_status) {
     case 503: return StatusCode::kUnavailable;
     default: return http_status >= 500 ? StatusCode::kInternal : StatusCode::kInvalidArgument;
   }
-}
-
-std::string Trim(std::string s) {
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
-  size_t start = 0;
-  while (start < s.size() && std::isspace(static_cast<unsigned char>(s[start]))) ++start;
-  return s.substr(start);
 }
 
 // Why a connection to `url` fails, in words ("connection refused"): httplib only says that it
@@ -231,18 +226,9 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
   }
   options.base_url = url;
 
-  std::string token;
-  if (!token_file_flag.empty()) {
-    std::ifstream in(token_file_flag);
-    if (!in) return Status::InvalidArgument("--token-file", "cannot read " + token_file_flag);
-    std::stringstream text;
-    text << in.rdbuf();
-    token = Trim(text.str());
-    if (token.empty()) return Status::InvalidArgument("--token-file", token_file_flag + " is empty");
-  } else if (const char* env = getenv("SANDSWIM_TOKEN"); env != nullptr && *env != '\0') {
-    token = Trim(env);
-  }
-  options.token = token;
+  auto token = LoadToken(token_file_flag, getenv);
+  if (!token.ok()) return token.status();
+  options.token = *token;
   return options;
 }
 

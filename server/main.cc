@@ -18,6 +18,7 @@
 
 #include "server/clock.h"
 #include "server/drift_report.h"
+#include "core/token.h"
 #include "server/engine_probe.h"
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
@@ -43,25 +44,6 @@ struct Flags {
   double scheduler_tick_s = 20;
 };
 
-// The token from --token-file, else SANDSWIM_TOKEN, else "" (no auth).
-sandswim::Result<std::string> LoadToken(const std::string& token_file) {
-  std::string token;
-  if (!token_file.empty()) {
-    std::ifstream in(token_file);
-    if (!in) return Status::InvalidArgument("--token-file", "cannot read " + token_file);
-    std::stringstream text;
-    text << in.rdbuf();
-    token = text.str();
-  } else if (const char* env = std::getenv("SANDSWIM_TOKEN")) {
-    token = env;
-  } else {
-    return std::string();
-  }
-  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
-  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.front()))) token.erase(0, 1);
-  if (token.empty()) return Status::InvalidArgument(token_file.empty() ? "SANDSWIM_TOKEN" : "--token-file", "the token is empty");
-  return token;
-}
 
 int Die(const Status& s, const std::string& next) {
   spdlog::critical("{}; {}", s.ToString(), next);
@@ -107,7 +89,7 @@ int main(int argc, char** argv) {
 
   auto address = sandswim::ParseListenAddress(flags.listen);
   if (!address.ok()) return Die(address.status(), "use --listen HOST:PORT, e.g. 127.0.0.1:8640");
-  auto token = LoadToken(flags.token_file);
+  auto token = sandswim::LoadToken(flags.token_file);
   if (!token.ok()) return Die(token.status(), "write the token into the file, or unset SANDSWIM_TOKEN");
   Status policy = sandswim::CheckListenPolicy(*address, !token->empty());
   if (!policy.ok()) return Die(policy, "give a token or listen on a loopback address");

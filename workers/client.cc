@@ -181,17 +181,5 @@ Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token
   });
 }
 
-Result<std::string> LoadToken(const std::string& token_file) {
-  if (!token_file.empty()) {
-    std::ifstream in(token_file);
-    if (!in) return Status::IOError("cannot read --token-file " + token_file);
-    std::string line;
-    std::getline(in, line);
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    return line;
-  }
-  const char* env = std::getenv("SANDSWIM_TOKEN");
-  return std::string(env ? env : "");
-}
 
 }  // namespace sandswim::worker

@@ -61,10 +61,6 @@ class HttpServerClient : public ServerClient {
   const std::atomic<bool>* stopping_;
 };
 
-// The bearer token: the file's first line when `token_file` is set, else $SANDSWIM_TOKEN, else "".
-// IOError naming the file when it cannot be read.
-Result<std::string> LoadToken(const std::string& token_file);
-
 }  // namespace sandswim::worker
 
 #endif  // SANDSWIM_WORKERS_CLIENT_H_

@@ -170,16 +170,5 @@ TEST(ClientTest, BedDownloadAndUpload) {
   EXPECT_EQ(token_param, "tok");
 }
 
-TEST(ClientTest, LoadToken) {
-  char tmpl[] = "/tmp/sandswim-token-XXXXXX";
-  int fd = mkstemp(tmpl);
-  ASSERT_GE(fd, 0);
-  std::ofstream(tmpl) << "s3cret\n";
-  auto t = LoadToken(tmpl);
-  ASSERT_TRUE(t.ok());
-  EXPECT_EQ(*t, "s3cret");
-  EXPECT_EQ(LoadToken("/nonexistent/token").status().code(), StatusCode::kIOError);
-}
-
 }  // namespace
 }  // namespace sandswim::worker

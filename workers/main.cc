@@ -11,6 +11,7 @@
 #include <string>
 #include <thread>
 
+#include "core/token.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
 #include "workers/worker.h"
@@ -54,7 +55,7 @@ int main(int argc, char** argv) {
   if (options.name.empty()) options.name = options.host + ":" + std::to_string(getpid());
   options.as_root = geteuid() == 0;
 
-  auto token = LoadToken(token_file);
+  auto token = sandswim::LoadToken(token_file);
   if (!token.ok()) {
     spdlog::error("{}", token.status().ToString());
     return 2;
