@@ -31,16 +31,6 @@ void ExpectGolden(const std::string& name, const std::string& text) {
   EXPECT_EQ(ss.str(), text) << "deck differs from " << GoldenPath(name);
 }
 
-Point Oscillatory(double A, double f, double Omega, double duration) {
-  Point p;
-  p.mode = Mode::kOscillatory;
-  p.A = A;
-  p.f = f;
-  p.Omega = Omega;
-  p.duration_s = duration;
-  return p;
-}
-
 const Scale& Smoke() { return *FindScale("smoke"); }
 
 TEST(FormatNumberTest, ShortestRoundTrip) {
@@ -56,7 +46,7 @@ TEST(FormatNumberTest, ShortestRoundTrip) {
 TEST(DeckTest, BedDeckMatchesGolden) { ExpectGolden("bed_smoke.in", RenderBedDeck(Smoke())); }
 
 TEST(DeckTest, DriveDeckMatchesGolden) {
-  ExpectGolden("drive_oscillatory_smoke.in", RenderDriveDeck(Oscillatory(0.03, 3, -80, 4), Smoke()));
+  ExpectGolden("drive_oscillatory_smoke.in", RenderDriveDeck(OscillatoryPoint(0.03, 3, -80, 4), Smoke()));
 }
 
 TEST(DeckTest, VibrationRotationDeckMatchesGolden) {
@@ -73,7 +63,7 @@ TEST(DeckTest, VibrationRotationDeckMatchesGolden) {
 // Table 1 of the paper, as the decks must state it, whatever the scale.
 TEST(DeckTest, EveryDeckHoldsTableOne) {
   for (const Scale& s : AllScales()) {
-    for (const std::string& deck : {RenderBedDeck(s), RenderDriveDeck(Oscillatory(0.03, 3, 80, 4), s)}) {
+    for (const std::string& deck : {RenderBedDeck(s), RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), s)}) {
       SCOPED_TRACE(std::string(s.name));
       EXPECT_THAT(deck, HasSubstr("youngsModulus peratomtype 1e+07 1e+07"));
       EXPECT_THAT(deck, HasSubstr("poissonsRatio peratomtype 0.25 0.25"));
@@ -115,27 +105,27 @@ TEST(DeckTest, ModesBecomeNumbers) {
   EXPECT_THAT(d, HasSubstr("variable wz equal " + c + "+0*cos"));
   EXPECT_THAT(d, HasSubstr("variable A equal 0.03\n"));
 
-  d = RenderDriveDeck(Oscillatory(0.05, 4, -160, 4), *FindScale("paper"));
+  d = RenderDriveDeck(OscillatoryPoint(0.05, 4, -160, 4), *FindScale("paper"));
   EXPECT_THAT(d, HasSubstr("variable wx equal 0+-160*cos(2.0*PI*v_f*v_t)"));
   EXPECT_THAT(d, HasSubstr("variable f equal 4\n"));
 }
 
 TEST(DeckTest, RenderingIsDeterministic) {
-  Point p = Oscillatory(0.07, 20, 640, 4);
+  Point p = OscillatoryPoint(0.07, 20, 640, 4);
   EXPECT_EQ(RenderDriveDeck(p, Smoke()), RenderDriveDeck(p, Smoke()));
   EXPECT_EQ(RenderBedDeck(Smoke()), RenderBedDeck(Smoke()));
-  EXPECT_NE(RenderDriveDeck(p, Smoke()), RenderDriveDeck(Oscillatory(0.07, 20, -640, 4), Smoke()));
+  EXPECT_NE(RenderDriveDeck(p, Smoke()), RenderDriveDeck(OscillatoryPoint(0.07, 20, -640, 4), Smoke()));
 }
 
 TEST(DeckTest, StepsCoverTheRunAndTwoPeriodsAtSmoke) {
   // 4 s at paper scale is 400000 steps.
-  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 3, 80, 4), *FindScale("paper")), 400000);
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), *FindScale("paper")), 400000);
   // smoke cuts to 0.25 s but keeps two periods: 2/3 s at 3 Hz, rounded up to whole ω chunks.
-  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 3, 80, 4), Smoke()), 66700);
-  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 20, 80, 4), Smoke()), 25000);
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), Smoke()), 66700);
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 20, 80, 4), Smoke()), 25000);
   // Never longer than asked.
-  EXPECT_EQ(DriveSteps(Oscillatory(0.03, 1, 80, 0.1), Smoke()), 10000);
-  std::string d = RenderDriveDeck(Oscillatory(0.03, 3, 80, 4), Smoke());
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 0.1), Smoke()), 10000);
+  std::string d = RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke());
   EXPECT_THAT(d, HasSubstr("variable c loop 667\n"));
 }
 

@@ -87,6 +87,16 @@ std::array<double, 3> AxisVector(RotationAxis axis) {
   return {1, 0, 0};
 }
 
+Point OscillatoryPoint(double A, double f, double Omega, double duration_s) {
+  Point p;
+  p.mode = Mode::kOscillatory;
+  p.A = A;
+  p.f = f;
+  p.Omega = Omega;
+  p.duration_s = duration_s;
+  return p;
+}
+
 Status Validate(const Point& p) {
   if (p.has_vibration()) {
     SANDSWIM_RETURN_IF_ERROR(CheckPositive("A", p.A, kMaxAmplitudeM, "m"));

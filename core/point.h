@@ -56,6 +56,9 @@ struct Point {
   }
 };
 
+// The paper's Sec. 3.2 drive (eq. 6): y = A sin(2 pi f t), omega_x = Omega cos(2 pi f t).
+Point OscillatoryPoint(double A, double f, double Omega, double duration_s);
+
 // Checks finiteness, signs and caps of the fields the mode uses. Fields the mode does not use
 // must be zero (the parser never sets them). Errors name the field ("A", "f", "Omega", ...).
 Status Validate(const Point& p);

@@ -50,20 +50,10 @@ EngineRun Drive(const std::string& name, const Point& p, const Scale& scale) {
 
 const Scale& Smoke() { return *FindScale("smoke"); }
 
-Point Oscillatory(double A, double f, double Omega, double duration) {
-  Point p;
-  p.mode = Mode::kOscillatory;
-  p.A = A;
-  p.f = f;
-  p.Omega = Omega;
-  p.duration_s = duration;
-  return p;
-}
-
 // y = y0 + A sin(2 pi f t) at every frame; omega_x = Omega cos(2 pi f t') where t' is the start of
 // the 1 ms chunk the frame closes (omega is set between chunks and holds within one); x, z free.
 TEST(PhysicsTest, SoFollowsThePrescribedDriveAndZIsFree) {
-  const Point p = Oscillatory(0.03, 10, -80, 0.2);  // two periods at 10 Hz
+  const Point p = OscillatoryPoint(0.03, 10, -80, 0.2);  // two periods at 10 Hz
   EngineRun r = Drive("oscillatory", p, Smoke());
   EXPECT_THAT(r.log, HasSubstr("SANDSWIM drive stop duration step 20000"));
   std::vector<Frame> tr = ReadTrajectory(r.dir);
@@ -77,7 +67,9 @@ TEST(PhysicsTest, SoFollowsThePrescribedDriveAndZIsFree) {
     // The dump prints 6 significant digits: 1e-5 m and 1e-3 of the amplitudes are the resolution.
     EXPECT_NEAR(f.y, y0 + p.A * std::sin(w * f.t), 1e-5);
     // fix move prescribes v_y from the first step on; the t = 0 frame still shows the bed's rest.
-    if (i > 0) EXPECT_NEAR(f.vy, p.A * w * std::cos(w * f.t), 1e-3 * p.A * w);
+    if (i > 0) {
+      EXPECT_NEAR(f.vy, p.A * w * std::cos(w * f.t), 1e-3 * p.A * w);
+    }
     const double t_set = i == 0 ? 0.0 : f.t - chunk;
     EXPECT_NEAR(f.wx, p.Omega * std::cos(w * t_set), 1e-3 * std::fabs(p.Omega));
     EXPECT_EQ(f.wy, 0.0);
@@ -123,8 +115,8 @@ TEST(PhysicsTest, ConstantRotationAboutTheDiagonal) {
 
 // Every run starts from the same bed: identical grain positions at t = 0.
 TEST(PhysicsTest, RunsFromOneBedStartIdentically) {
-  Point a = Oscillatory(0.03, 20, 80, 0.1);
-  Point b = Oscillatory(0.05, 20, -160, 0.1);
+  Point a = OscillatoryPoint(0.03, 20, 80, 0.1);
+  Point b = OscillatoryPoint(0.05, 20, -160, 0.1);
   EngineRun ra = Drive("same-bed-a", a, Smoke());
   EngineRun rb = Drive("same-bed-b", b, Smoke());
   std::string ia = testing::ReadFile(ra.dir + "/" + kInitialDumpFile);
@@ -142,7 +134,7 @@ TEST(PhysicsTest, EarlyStopAtTheSurfaceOfAShallowBed) {
   shallow.name = "shallow-test";
   shallow.z_bed_top = 0.09;  // 0.03 m of grains above the SO's top
   shallow.max_duration_s = 0;
-  const Point p = Oscillatory(0.03, 3, -80, 2.0);  // rises (Omega < 0), for up to 2 s
+  const Point p = OscillatoryPoint(0.03, 3, -80, 2.0);  // rises (Omega < 0), for up to 2 s
   EngineRun r = Drive("shallow", p, shallow);
   EXPECT_THAT(r.log, HasSubstr("SANDSWIM drive stop surface"));
   std::vector<Frame> tr = ReadTrajectory(r.dir);

@@ -60,10 +60,6 @@ double Seconds() {
   std::exit(1);
 }
 
-void Check(const Status& s, const std::string& what) {
-  if (!s.ok()) Die(what + ": " + s.ToString());
-}
-
 // An oscillatory sweep at smoke scale with about `n` points: A x f x Omega.
 json SweepJson(const std::string& name, int n) {
   // 40 Omega values x 50 f values x (n / 2000) A values; small n shrinks the A axis first.

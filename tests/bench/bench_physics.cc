@@ -27,15 +27,8 @@ namespace {
 
 using testing::EngineRun;
 
-Point Oscillatory(double Omega, double duration) {
-  Point p;
-  p.mode = Mode::kOscillatory;
-  p.A = 0.03;
-  p.f = 3;
-  p.Omega = Omega;
-  p.duration_s = duration;
-  return p;
-}
+// The paper's baseline drive (A = 0.03 m, f = 3 Hz) at a given Omega.
+Point Oscillatory(double Omega, double duration) { return OscillatoryPoint(0.03, 3, Omega, duration); }
 
 // Sum of "Loop time of X on P procs for N steps" over the runs that advanced time.
 double LoopSeconds(const std::string& log, long long* steps) {
