@@ -7,8 +7,10 @@
 #   sudo systemctl enable --now sandswimd sandswim-worker@1
 #
 # What it does:
-#   - installs sandswimd, sandswim and sandswim-worker from BUILD_DIR/bin to /usr/local/bin;
-#   - installs sandswimd.service and sandswim-worker@.service to /etc/systemd/system;
+#   - installs sandswimd, sandswim, sandswim-worker and sandswim-engine-guard (which the worker
+#     starts each engine under, so no engine outlives its worker) from BUILD_DIR/bin to /usr/local/bin;
+#   - installs sandswimd.service and sandswim-worker@.service to /etc/systemd/system, and the
+#     Slurm batch scripts (deploy/slurm) to /usr/local/share/sandswim/slurm;
 #   - creates the system user "sandswim", /var/lib/sandswim (owned by it) and /etc/sandswim, and
 #     copies sandswim.env.example to /etc/sandswim/sandswim.env unless that file exists;
 #   - runs `systemctl daemon-reload` when systemd is running.
@@ -28,7 +30,7 @@ if [ -z "$dest" ] && [ "$(id -u)" -ne 0 ]; then
   echo "install.sh: run as root (sudo $0 ${1:-}), or set DESTDIR to stage the files" >&2
   exit 2
 fi
-for b in sandswimd sandswim sandswim-worker; do
+for b in sandswimd sandswim sandswim-worker sandswim-engine-guard; do
   if [ ! -x "$build/bin/$b" ]; then
     echo "install.sh: $build/bin/$b is missing; build first: cmake -S . -B build -G Ninja && ninja -C build" >&2
     exit 1
@@ -36,11 +38,14 @@ for b in sandswimd sandswim sandswim-worker; do
 done
 
 install -d -m 0755 "$bin_dir" "$unit_dir" "$etc_dir"
-for b in sandswimd sandswim sandswim-worker; do
+for b in sandswimd sandswim sandswim-worker sandswim-engine-guard; do
   install -m 0755 "$build/bin/$b" "$bin_dir/$b"
 done
 install -m 0644 "$here/sandswimd.service" "$unit_dir/sandswimd.service"
 install -m 0644 "$here/sandswim-worker@.service" "$unit_dir/sandswim-worker@.service"
+# The Slurm batch scripts, where `sandswim slurm submit` looks for them (deploy/slurm/README.md).
+install -d -m 0755 "$dest/usr/local/share/sandswim/slurm"
+install -m 0755 "$here/slurm/pilot.sbatch" "$here/slurm/array.sbatch" "$dest/usr/local/share/sandswim/slurm/"
 if [ ! -e "$etc_dir/sandswim.env" ]; then
   install -m 0640 "$here/sandswim.env.example" "$etc_dir/sandswim.env"
   created_env=1

@@ -1,5 +1,7 @@
 // LeaseQueue: the daemon side of the worker protocol (core/api.h). Beds and runs are jobs that
-// workers lease, heartbeat and complete; every state change is one store transaction.
+// workers lease, heartbeat and complete; every state change is one store transaction (Lease,
+// Heartbeat and Complete go through Store::Write: concurrent calls share one commit, each in its
+// own savepoint, and each returns only after that commit).
 //
 // Job states: queued -> running (leased) -> done | failed | queued (retry) | cancelled (runs).
 //   Lease      picks, oldest first, a queued bed that a queued run is waiting for; failing that,
@@ -17,6 +19,10 @@
 //              Completing a token that already completed answers "duplicate" and changes
 //              nothing; a token that is not the job's current lease (expired and re-leased,
 //              unknown) gets kConflict and changes nothing. So there is never a second result.
+//   Release    under the current token: the worker hands the job back unfinished (it is
+//              stopping: Slurm signalled its allocation's end, or it was asked to stop). The job
+//              goes back to queued and the attempt is not counted (attempts - 1): it was not the
+//              job's fault. Releasing a token again answers "duplicate".
 //   ExpireLeases  running jobs past their lease expiry go back to queued (the attempt stays
 //              counted) or, at max_attempts, to failed with kind "lease_expired".
 //   Cancel     a sweep: its queued runs that belong to no other live sweep become cancelled;
@@ -78,6 +84,10 @@ class LeaseQueue {
   // bed without bed_result, failure without failure); kFailedPrecondition for an ok bed whose
   // restart was not uploaded (or whose bed_result.sha256 differs from the upload).
   Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& c);
+
+  // kConflict as for Complete; {"queued"} once released, {"duplicate"} for a token that already
+  // completed or was released.
+  Result<api::CompletionReply> Release(const std::string& token, const std::string& reason);
 
   // Reclaims every lease that expired before the clock's now. Returns how many.
   Result<int64_t> ExpireLeases();

@@ -252,9 +252,59 @@ TEST_F(LeaseQueueTest, LateCompletionFromAnExpiredLeaseAfterReleaseConflicts) {
   EXPECT_DOUBLE_EQ(store_->GetRun(old.id)->result->result.uz, -0.02);
 }
 
+// The worker's lease -> engine start time is kept with the result and read back with the run.
+TEST_F(LeaseQueueTest, ResultKeepsLeaseToStartTime) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  api::Completion c = OkRun();
+  c.execution.lease_to_start_s = 0.125;
+  ASSERT_EQ(queue_->Complete(g.token, c)->state, "done");
+  auto run = store_->GetRun(g.id);
+  ASSERT_TRUE(run.ok() && run->result.has_value());
+  EXPECT_DOUBLE_EQ(run->result->execution.lease_to_start_s, 0.125);
+  EXPECT_DOUBLE_EQ(nlohmann::json(*run->result).at("lease_to_start_s").get<double>(), 0.125);
+}
+
 TEST_F(LeaseQueueTest, UnknownTokenConflicts) {
   EXPECT_EQ(queue_->Complete("nope", OkRun()).status().code(), StatusCode::kConflict);
   EXPECT_EQ(queue_->Heartbeat("nope", {}).status().code(), StatusCode::kConflict);
+}
+
+// A worker that stops (Slurm's end-of-allocation signal) hands its run back: queued at once, the
+// attempt not counted, and the released token can neither heartbeat nor complete.
+TEST_F(LeaseQueueTest, ReleasedRunIsQueuedAgainWithoutCountingTheAttempt) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease("pilot-1");
+  EXPECT_EQ(g.attempt, 1);
+  auto r = queue_->Release(g.token, "slurm allocation ends");
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->state, "queued");
+  EXPECT_EQ(RunState(g.id), "queued");
+  EXPECT_EQ(store_->GetRun(g.id)->summary.attempts, 0);
+  EXPECT_EQ(queue_->Release(g.token, "again")->state, "duplicate");
+  EXPECT_EQ(queue_->Heartbeat(g.token, {}).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "duplicate");
+  EXPECT_EQ(Rows("results"), 0);
+  api::LeaseGrant again = MustLease("pilot-2");
+  EXPECT_EQ(again.id, g.id);
+  EXPECT_EQ(again.attempt, 1);
+  EXPECT_EQ(queue_->Complete(again.token, OkRun())->state, "done");
+  EXPECT_EQ(Rows("results"), 1);
+  EXPECT_EQ(queue_->Release("nope", "x").status().code(), StatusCode::kConflict);
+}
+
+TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant old = MustLease("slow");
+  clock_.Advance(61);
+  api::LeaseGrant fresh = MustLease("fast");
+  ASSERT_EQ(fresh.id, old.id);
+  EXPECT_EQ(queue_->Release(old.token, "late").status().code(), StatusCode::kConflict);
+  EXPECT_EQ(RunState(fresh.id), "running");
+  EXPECT_EQ(store_->GetRun(fresh.id)->summary.attempts, 2);
 }
 
 TEST_F(LeaseQueueTest, MalformedCompletionChangesNothing) {

@@ -2,6 +2,7 @@
 
 #include <sqlite3.h>
 
+#include <chrono>
 #include <filesystem>
 #include <utility>
 
@@ -22,6 +23,7 @@ constexpr Migration kMigrations[] = {
     {1, "schema/001_init.sql"},
     {2, "schema/002_nightly.sql"},
     {3, "schema/003_perf.sql"},
+    {4, "schema/004_lease_to_start.sql"},
 };
 
 constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
@@ -70,7 +72,7 @@ constexpr const char* kResultColumns =
     "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
     "res.x_drift, res.broke_surface, res.near_floor, res.stop_reason, res.sim_time_s, res.steps, "
     "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
-    "res.cpu_s, res.key, res.created_at";
+    "res.cpu_s, res.key, res.created_at, res.lease_to_start_s";
 
 Point PointFromRow(const Statement& st, int c) {
   Point p;
@@ -133,6 +135,7 @@ std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
   s.execution.cpu_s = st.Double(c + 19);
   s.key = st.Text(c + 20);
   s.created_at = st.Double(c + 21);
+  s.execution.lease_to_start_s = st.OptDouble(c + 22).value_or(0);
   return s;
 }
 
@@ -241,6 +244,7 @@ void to_json(nlohmann::json& j, const StoredResult& r) {
   j["launcher"] = r.execution.launcher;
   j["wall_s"] = r.execution.wall_s;
   j["cpu_s"] = r.execution.cpu_s;
+  j["lease_to_start_s"] = r.execution.lease_to_start_s;
   j["key"] = r.key;
   j["created_at"] = r.created_at;
 }
@@ -495,7 +499,7 @@ Result<std::unique_ptr<Store>> Store::Open(const std::string& path) {
   sqlite3_busy_timeout(store->db_, 5000);
   SANDSWIM_RETURN_IF_ERROR(ExecRaw(store->db_,
                                    "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
-                                   "PRAGMA synchronous = NORMAL; PRAGMA cache_size = -65536; PRAGMA wal_autocheckpoint = 10000;"));
+                                   "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = -65536; PRAGMA wal_autocheckpoint = 10000;"));
   SANDSWIM_RETURN_IF_ERROR(store->Migrate());
   return store;
 }
@@ -573,6 +577,105 @@ Result<Transaction> Store::BeginRead() {
   std::unique_lock<std::mutex> lock(mu_);
   SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN"));
   return Transaction(this, std::move(lock));
+}
+
+// ---- Group commit -------------------------------------------------------------------------------
+
+struct Store::PendingWrite {
+  const std::function<Status(Transaction&)>* change;
+  Status result;
+  bool done = false;
+};
+
+// A group bounded so that no caller waits behind an unbounded number of others.
+constexpr size_t kMaxGroup = 256;
+// How long a leader waits for a group to fill (far less than one commit costs here).
+constexpr std::chrono::microseconds kGather(200);
+
+Status Store::Write(const std::function<Status(Transaction&)>& change) {
+  PendingWrite mine{&change, Status::Ok(), false};
+  std::unique_lock<std::mutex> g(group_mu_);
+  pending_.push_back(&mine);
+  if (gathering_ && pending_.size() >= last_group_) leader_cv_.notify_one();
+  while (!mine.done) {
+    if (leading_) {
+      group_cv_.wait(g);
+      continue;
+    }
+    // Lead: take what has queued up (while the previous group committed) and run it. Callers
+    // answered by the previous group come back within microseconds; when that group was larger
+    // than what is queued now, wait a moment (at most kGather) for them to join this one.
+    leading_ = true;
+    if (last_group_ > 1 && pending_.size() < last_group_) {
+      gathering_ = true;
+      leader_cv_.wait_for(g, kGather, [this] { return pending_.size() >= last_group_; });
+      gathering_ = false;
+    }
+    std::vector<PendingWrite*> group;
+    const size_t n = std::min(pending_.size(), kMaxGroup);
+    group.assign(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+    last_group_ = n;
+    g.unlock();
+    RunGroup(group);
+    g.lock();
+    for (PendingWrite* w : group) w->done = true;
+    leading_ = false;
+    group_cv_.notify_all();
+  }
+  return mine.result;
+}
+
+void Store::RunGroup(const std::vector<PendingWrite*>& group) {
+  size_t i = 0;
+  while (i < group.size()) {
+    Result<Transaction> t = Begin();
+    if (!t.ok()) {
+      for (; i < group.size(); ++i) group[i]->result = t.status();
+      return;
+    }
+    std::vector<PendingWrite*> members;  // changes held by this transaction
+    Status broken;                       // set when the transaction itself was lost
+    for (; i < group.size() && broken.ok(); ++i) {
+      PendingWrite* w = group[i];
+      Status s = ExecRaw(db_, "SAVEPOINT grouped_change");
+      if (s.ok()) {
+        try {
+          s = (*w->change)(*t);
+        } catch (const std::exception& e) {
+          s = Status::Internal(std::string("exception in a store change: ") + e.what());
+        }
+      }
+      if (sqlite3_get_autocommit(db_)) {
+        // SQLite rolled the whole transaction back (I/O error, disk full, ...): the changes
+        // already in it are gone too.
+        broken = s.ok() ? Status::Internal("the transaction ended inside a change") : s;
+        w->result = broken;
+        break;
+      }
+      if (s.ok()) {
+        s = ExecRaw(db_, "RELEASE grouped_change");
+      } else {
+        ExecRaw(db_, "ROLLBACK TO grouped_change");
+        ExecRaw(db_, "RELEASE grouped_change");
+      }
+      w->result = s;
+      if (s.ok()) members.push_back(w);
+    }
+    if (broken.ok()) {
+      Status c = t->Commit();
+      if (!c.ok()) {
+        for (PendingWrite* w : members) w->result = c;
+      }
+    } else {
+      ++i;  // past the change that broke it
+      for (PendingWrite* w : members) {
+        w->result = Status(broken.code(), "rolled back with its commit group: " + broken.reason());
+      }
+    }
+    // `t` ends here: a transaction that did not commit rolls back, and the lock is released so
+    // that reads get in between groups.
+  }
 }
 
 Result<SweepPage> Store::ListSweeps(int64_t after_id, int limit) {
@@ -675,7 +778,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     if (st.IsNull(c)) {
       // Not stored since migration 3: the deck is a pure function of the point and the scale
       // (the lease queue renders the same bytes and checks them against the run's key).
-      const Scale* scale = FindScale(st.Text(c + 27));
+      const Scale* scale = FindScale(st.Text(c + 28));
       if (scale == nullptr) return Status::Corruption("run " + std::to_string(id) + "'s bed has an unknown scale");
       try {
         d.deck = RenderDriveDeck(d.summary.point, *scale);
@@ -686,8 +789,8 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     d.bed_key = st.Text(c + 1);
     d.bed_state = st.Text(c + 2);
     d.result = ResultFromRow(st, c + 3);
-    if (!st.IsNull(c + 25)) {
-      nlohmann::json tj = ParseJsonOr(st.Text(c + 25), nullptr);
+    if (!st.IsNull(c + 26)) {
+      nlohmann::json tj = ParseJsonOr(st.Text(c + 26), nullptr);
       if (tj.is_object()) {
         try {
           d.trajectory = tj.get<api::Trajectory>();
@@ -696,7 +799,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
         }
       }
     }
-    d.log_tail = st.Text(c + 26);
+    d.log_tail = st.Text(c + 27);
   }
   Statement st = t->Prepare("SELECT sweep_id FROM sweep_runs WHERE run_id = ? ORDER BY sweep_id");
   st.Bind(1, id);

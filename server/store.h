@@ -2,7 +2,8 @@
 // the read queries the REST API answers from. This is the only file that includes sqlite3.h.
 //
 // Open() creates the file and its parent directory if needed, turns on WAL, foreign keys,
-// synchronous=NORMAL and a busy timeout, and applies the numbered migrations of schema/*.sql
+// synchronous=NORMAL, temp_store=MEMORY (statement journals in memory: a file one cost 3 of every 4
+// write calls of the lease queue) and a busy timeout, and applies the numbered migrations of schema/*.sql
 // (compiled in) that the file has not seen yet, each in one transaction, recorded in
 // `schema_migrations` and in PRAGMA user_version. A file with a newer schema than this binary
 // knows is refused (Status kFailedPrecondition).
@@ -13,6 +14,15 @@
 // (lease_queue.h) write their SQL through Transaction/Statement; the read queries below are
 // methods of Store.
 //
+// Group commit: Write() runs a change in a write transaction that it shares with the changes other
+// threads hand to Write() at the same time. One of the callers (the leader) runs the queued
+// changes one after the other, each inside its own SAVEPOINT (a change that returns an error or
+// throws is rolled back alone, as if it had never run), then commits them all at once; every
+// caller returns only after that COMMIT, so its change is as durable as with its own transaction.
+// If the COMMIT fails, every change of the group is rolled back and every caller gets the error.
+// This is how the lease queue's hot path (lease, heartbeat, complete) writes: one commit (one WAL
+// append of the pages the group dirtied) for many state changes.
+//
 // Thread safety: Store owns one connection guarded by one mutex. A Transaction holds that mutex
 // for its whole life, and every read query takes it for its duration, so Store is safe to use
 // from any number of threads (httplib's pool); work is serialised. Do not call Store's read
@@ -21,7 +31,9 @@
 #ifndef SANDSWIM_SERVER_STORE_H_
 #define SANDSWIM_SERVER_STORE_H_
 
+#include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -167,7 +179,7 @@ struct StoredResult {
   double created_at = 0;
 };
 // The RunResult fields flat, plus "engine_version","host","ranks","launcher","wall_s","cpu_s",
-// "key","created_at".
+// "lease_to_start_s" (0 for results stored before migration 4), "key","created_at".
 void to_json(nlohmann::json& j, const StoredResult& r);
 
 struct RunSummary {
@@ -276,6 +288,24 @@ class Store {
   Result<Transaction> Begin();
   Result<Transaction> BeginRead();
 
+  // Runs `change` inside a grouped write transaction (see the top of this file) and returns its
+  // status once the group has committed (or the commit's error). `change` must not commit, must
+  // not call the Store, and may run on another thread than the caller's (it is called before
+  // Write returns, so it may capture the caller's locals by reference).
+  Status Write(const std::function<Status(Transaction&)>& change);
+
+  // Write() for a change that returns a value: the value once committed, else the error.
+  template <typename T>
+  Result<T> WriteResult(const std::function<Result<T>(Transaction&)>& change) {
+    std::optional<Result<T>> out;
+    Status s = Write([&](Transaction& t) {
+      out.emplace(change(t));
+      return out->status();
+    });
+    if (!s.ok()) return s;
+    return std::move(*out);
+  }
+
   // ---- Reads for the REST API. NotFound when the id does not exist. ----
   Result<SweepPage> ListSweeps(int64_t after_id = 0, int limit = 100);
   Result<SweepInfo> GetSweep(int64_t id);
@@ -302,6 +332,8 @@ class Store {
   Store() = default;
   Status Migrate();
   sqlite3_stmt* Cached(const std::string& sql, Status* error);
+  struct PendingWrite;
+  void RunGroup(const std::vector<PendingWrite*>& group);
 
   std::string path_;
   sqlite3* db_ = nullptr;
@@ -309,6 +341,15 @@ class Store {
   std::mutex mu_;
   std::map<std::string, sqlite3_stmt*> cache_;  // guarded by mu_
   std::set<sqlite3_stmt*> in_use_;              // cached statements held by a Statement
+
+  // Group commit (Write): changes waiting for a leader, and whether one is running a group.
+  std::mutex group_mu_;
+  std::condition_variable group_cv_;
+  std::vector<PendingWrite*> pending_;  // guarded by group_mu_
+  bool leading_ = false;                // guarded by group_mu_
+  bool gathering_ = false;              // the leader waits for a group to fill; guarded by group_mu_
+  size_t last_group_ = 1;               // size of the previous group; guarded by group_mu_
+  std::condition_variable leader_cv_;   // wakes a gathering leader
 };
 
 }  // namespace sandswim

@@ -1,9 +1,13 @@
 #include "server/store.h"
 
+#include <atomic>
 #include <filesystem>
 #include <memory>
 #include <random>
+#include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -165,6 +169,63 @@ TEST_F(StoreTest, CampaignsRoundTrip) {
   EXPECT_FALSE((*got)->schedule.has_value());
   EXPECT_EQ(store->ListCampaigns()->size(), 1u);
   EXPECT_FALSE(store->GetCampaign("other")->has_value());
+}
+
+// Group commit: many threads hand changes to Write() at once. Every change that succeeds is in
+// the file once Write returns; one that fails or throws is rolled back alone, and its caller
+// (only its caller) gets the error.
+TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
+  auto store = MustOpen();
+  ASSERT_NE(store, nullptr);
+  constexpr int kThreads = 16, kEach = 50;
+  std::atomic<int> ok{0}, refused{0}, thrown{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kThreads; ++i) {
+    threads.emplace_back([&, i] {
+      for (int k = 0; k < kEach; ++k) {
+        const int n = i * kEach + k;
+        Status s = store->Write([&](Transaction& t) -> Status {
+          // Every change writes first, so a failing one has something to roll back.
+          SANDSWIM_RETURN_IF_ERROR(t.Count("grouped"));
+          if (n % 7 == 3) return Status::Conflict("refused on purpose");
+          if (n % 11 == 5) throw std::runtime_error("thrown on purpose");
+          return Status::Ok();
+        });
+        if (s.ok()) {
+          ++ok;
+          // Durable and visible as soon as Write returned.
+          Result<int64_t> rows = store->CountRows("counters");
+          EXPECT_TRUE(rows.ok() && *rows >= 1);
+        } else if (s.code() == StatusCode::kConflict) {
+          ++refused;
+        } else {
+          EXPECT_NE(s.reason().find("thrown on purpose"), std::string::npos) << s.ToString();
+          ++thrown;
+        }
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  int want_refused = 0, want_thrown = 0;
+  for (int n = 0; n < kThreads * kEach; ++n) {
+    if (n % 7 == 3) ++want_refused;
+    else if (n % 11 == 5) ++want_thrown;
+  }
+  EXPECT_EQ(refused.load(), want_refused);
+  EXPECT_EQ(thrown.load(), want_thrown);
+  EXPECT_EQ(ok.load(), kThreads * kEach - want_refused - want_thrown);
+  store.reset();
+  // Reopened: exactly the successful changes were committed.
+  auto again = MustOpen();
+  ASSERT_NE(again, nullptr);
+  Result<Metrics> m = again->GetMetrics();
+  ASSERT_TRUE(m.ok());
+  auto t = again->BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("SELECT value FROM counters WHERE name = 'grouped'");
+  Result<bool> row = st.Step();
+  ASSERT_TRUE(row.ok() && *row);
+  EXPECT_EQ(st.Int(0), ok.load());
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/syscall.h>
@@ -123,6 +124,125 @@ class ChildProcess : public EngineProcess {
   ExitStatus status_;
 };
 
+constexpr int kParentDied = SIGUSR2;  // PR_SET_PDEATHSIG of the guard
+constexpr int kGuardSignals[] = {SIGCHLD, kParentDied, SIGTERM, SIGINT, SIGHUP, SIGQUIT, SIGPIPE, SIGUSR1};
+
+[[noreturn]] void ReportAndExit(int fd, int stage) {
+  int msg[2] = {stage, errno};
+  ssize_t ignored = write(fd, msg, sizeof msg);
+  (void)ignored;
+  _exit(127);
+}
+
+// The guard: leader of the engine's process group, the process the worker waits for.
+//  - It asks the kernel for kParentDied when the worker's thread that forked it dies (SIGKILL
+//    included), and then SIGKILLs its whole group: mpirun, every rank, itself.
+//  - The engine asks the kernel for SIGKILL when the guard dies, so a SIGKILL aimed at the guard
+//    (the pid the worker knows) also ends the engine.
+//  - Signals the worker sends to the group (SIGTERM on Stop) reach the engine directly; the
+//    guard ignores them and waits for the engine, then exits as the engine did (same code, or
+//    the same signal), so the worker sees the engine's exit status. wait4() on the guard
+//    counts the CPU of the engine and of the ranks it reaped.
+}  // namespace
+
+[[noreturn]] void GuardMain(const GuardArgs& a) {
+  sigset_t guard_set, none;
+  sigemptyset(&guard_set);
+  sigemptyset(&none);
+  for (int sig : kGuardSignals) sigaddset(&guard_set, sig);
+  sigprocmask(SIG_BLOCK, &guard_set, nullptr);
+  // Default dispositions, so that every one of these is generated and waits for sigwaitinfo()
+  // (an ignored SIGCHLD would not be).
+  for (int sig : kGuardSignals) signal(sig, SIG_DFL);
+  if (setpgid(0, 0) != 0) ReportAndExit(a.report_fd, 0);
+  if (prctl(PR_SET_PDEATHSIG, kParentDied) != 0) ReportAndExit(a.report_fd, 0);
+  if (getppid() != a.worker_pid) _exit(127);  // the worker died before the line above
+  if (a.cwd != nullptr && chdir(a.cwd) != 0) ReportAndExit(a.report_fd, 1);
+  if (a.out != nullptr) {
+    int in = open("/dev/null", O_RDONLY);
+    int out = open(a.out, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || out < 0) ReportAndExit(a.report_fd, 2);
+    dup2(in, 0);
+    dup2(out, 1);
+    dup2(out, 2);
+  }
+  fcntl(a.report_fd, F_SETFD, FD_CLOEXEC);  // closed by the engine's exec
+  // Nothing else of the worker's (sockets, other engines' pipes) stays open in the group.
+  const int keep = a.report_fd;
+  for (int fd = 3; fd < keep; ++fd) close(fd);
+  if (syscall(SYS_close_range, keep + 1, ~0U, 0) != 0) {
+    for (int fd = keep + 1; fd < 4096; ++fd) close(fd);  // kernels before 5.9
+  }
+  // vfork: the guard is single-threaded and waits for the exec anyway; no page-table copy.
+  const pid_t guard = getpid();
+  pid_t engine = vfork();
+  if (engine < 0) ReportAndExit(a.report_fd, 3);
+  if (engine == 0) {
+    // The engine dies with the guard too, should the guard itself be SIGKILLed (the kernel's
+    // SIGKILL reaches mpirun or a direct engine; mpirun's ranks then lose their launcher).
+    if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != guard) _exit(137);
+    // Default dispositions (set above) and an empty mask for the engine.
+    sigprocmask(SIG_SETMASK, &none, nullptr);
+    execve(a.exe, a.argv, a.envp);
+    ReportAndExit(a.report_fd, 4);
+  }
+  close(a.report_fd);
+  while (true) {
+    siginfo_t info;
+    int sig = sigwaitinfo(&guard_set, &info);
+    if (sig == kParentDied) {
+      kill(0, SIGKILL);  // the whole group, this guard included
+      _exit(137);
+    }
+    if (sig != SIGCHLD) continue;  // a group-wide signal: the engine got it too
+    int st = 0;
+    pid_t r = waitpid(engine, &st, WNOHANG);
+    if (r != engine) continue;
+    if (WIFEXITED(st)) _exit(WEXITSTATUS(st));
+    const int term = WIFSIGNALED(st) ? WTERMSIG(st) : SIGKILL;
+    signal(term, SIG_DFL);
+    sigset_t only;
+    sigemptyset(&only);
+    sigaddset(&only, term);
+    sigprocmask(SIG_UNBLOCK, &only, nullptr);
+    kill(getpid(), term);
+    _exit(128 + term);
+  }
+}
+
+namespace {
+
+// The guard executable next to this program (sandswim-engine-guard), or "" to fork the guard.
+const std::string& GuardExecutable() {
+  static const std::string path = [] {
+    char buf[4096];
+    ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+    if (n <= 0) return std::string();
+    std::string self(buf, static_cast<size_t>(n));
+    std::string guard = self.substr(0, self.rfind('/') + 1) + "sandswim-engine-guard";
+    return access(guard.c_str(), X_OK) == 0 ? guard : std::string();
+  }();
+  return path;
+}
+
+// Without the guard executable: fork this process and run the guard in the copy (the same
+// guarantees, at the price of copying this process's page tables: ~4x the CPU of a spawn here).
+pid_t ForkGuard(const std::string& exe, std::vector<char*>& argv, std::vector<char*>& envp, const std::string& cwd,
+                const std::string& out, int report_fd) {
+  GuardArgs g;
+  g.exe = exe.c_str();
+  g.argv = argv.data();
+  g.envp = envp.data();
+  g.cwd = cwd.empty() ? nullptr : cwd.c_str();
+  g.out = out.c_str();
+  g.report_fd = report_fd;
+  g.worker_pid = getpid();
+  pid_t pid = fork();
+  if (pid == 0) GuardMain(g);  // never returns
+  return pid;
+}
+
+
 }  // namespace
 
 const char* LauncherName(LauncherKind kind) {
@@ -148,7 +268,9 @@ LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine
       }
       break;
     case LauncherKind::kSrun:
-      spec.argv = {"srun", "--mpi=pmix", "-n", r};
+      // --exclusive: the step gets CPUs of its own, so several runs share one allocation side
+      // by side (a step that finds none free waits for one).
+      spec.argv = {"srun", "--mpi=pmix", "-n", r, "--exclusive"};
       break;
     case LauncherKind::kDirect:
       break;
@@ -184,32 +306,66 @@ Result<std::unique_ptr<EngineProcess>> ProcessLauncher::Start(const LaunchSpec& 
   argv.push_back(nullptr);
   const std::string out = spec.output_file.empty() ? "/dev/null" : spec.output_file;
 
-  // posix_spawn (vfork-like, no page-table copy) is several times cheaper than fork() here, and
-  // reports a failed chdir/open/exec as its return value. The child gets its own process group,
-  // an empty signal mask and default handlers for the signals the worker handles.
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  if (!spec.cwd.empty()) posix_spawn_file_actions_addchdir_np(&actions, spec.cwd.c_str());
-  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, 1, 2);
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
-  posix_spawnattr_setpgroup(&attr, 0);
-  sigset_t none, defaults;
-  sigemptyset(&none);
-  posix_spawnattr_setsigmask(&attr, &none);
-  sigemptyset(&defaults);
-  for (int sig : {SIGTERM, SIGINT, SIGHUP, SIGPIPE, SIGCHLD}) sigaddset(&defaults, sig);
-  posix_spawnattr_setsigdefault(&attr, &defaults);
-  pid_t pid = 0;
-  int rc = posix_spawn(&pid, exe.c_str(), &actions, &attr, argv.data(), envp.data());
-  posix_spawn_file_actions_destroy(&actions);
-  posix_spawnattr_destroy(&attr);
-  if (rc != 0) {
+  // The engine must never outlive the worker, even a worker killed with SIGKILL: mpirun and its
+  // ranks would run on unwatched, and the run is leased again elsewhere. posix_spawn cannot set
+  // PR_SET_PDEATHSIG, and that signal would reach only mpirun, not its ranks. So the child is a
+  // small guard (GuardMain) that leads the engine's process group: it dies with the worker's
+  // thread, and then kills the whole group. Failures before exec come back through a pipe.
+  int report[2];
+  if (pipe2(report, O_CLOEXEC) != 0) return Status::Unavailable(std::string("pipe: ") + std::strerror(errno));
+  pid_t pid = -1;
+  int spawn_errno = 0;
+  if (const std::string& guard = GuardExecutable(); !guard.empty()) {
+    // The cheap way: posix_spawn (vfork-like: no copy of this process's page tables) of the small
+    // static guard, which forks the engine from its own tiny address space. Its argv:
+    // WORKER_PID REPORT_FD EXE ENGINE_ARGV...; the report pipe is its fd 3.
+    std::vector<std::string> gargs = {guard, std::to_string(getpid()), "3", exe};
+    gargs.insert(gargs.end(), args.begin(), args.end());
+    std::vector<char*> gargv;
+    for (auto& a : gargs) gargv.push_back(a.data());
+    gargv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    if (!spec.cwd.empty()) posix_spawn_file_actions_addchdir_np(&actions, spec.cwd.c_str());
+    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&actions, 1, 2);
+    posix_spawn_file_actions_adddup2(&actions, report[1], 3);
+    posix_spawnattr_t attr;
+    posix_spawnattr_init(&attr);
+    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attr, 0);
+    spawn_errno = posix_spawn(&pid, guard.c_str(), &actions, &attr, gargv.data(), envp.data());
+    posix_spawn_file_actions_destroy(&actions);
+    posix_spawnattr_destroy(&attr);
+    if (spawn_errno != 0) pid = -1;
+  } else {
+    pid = ForkGuard(exe, argv, envp, spec.cwd, out, report[1]);
+    if (pid < 0) spawn_errno = errno;
+  }
+  close(report[1]);
+  if (pid < 0) {
+    close(report[0]);
     return Status::Unavailable("could not start '" + spec.argv[0] + "'" +
-                               (spec.cwd.empty() ? std::string() : " in " + spec.cwd) + ": " + std::strerror(rc));
+                               (spec.cwd.empty() ? std::string() : " in " + spec.cwd) + ": " +
+                               std::strerror(spawn_errno));
+  }
+  // EOF once the engine's exec succeeded (the pipe is close-on-exec), else {stage, errno}.
+  int failure[2] = {0, 0};
+  ssize_t got;
+  do {
+    got = read(report[0], failure, sizeof failure);
+  } while (got < 0 && errno == EINTR);
+  close(report[0]);
+  if (got == static_cast<ssize_t>(sizeof failure)) {
+    int st = 0;
+    while (waitpid(pid, &st, 0) < 0 && errno == EINTR) {
+    }
+    static const char* const kStage[] = {"start", "chdir", "open output", "fork", "exec"};
+    const int stage = failure[0] >= 0 && failure[0] < 5 ? failure[0] : 0;
+    return Status::Unavailable("could not start '" + spec.argv[0] + "'" +
+                               (spec.cwd.empty() ? std::string() : " in " + spec.cwd) + " (" + kStage[stage] +
+                               "): " + std::strerror(failure[1]));
   }
   int pidfd = static_cast<int>(syscall(SYS_pidfd_open, pid, 0));
   return std::unique_ptr<EngineProcess>(new ChildProcess(pid, pidfd));

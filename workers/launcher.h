@@ -2,8 +2,13 @@
 // and stops and reaps it.
 //
 // Abstract so it can be faked in tests of the worker loop. The real one (ProcessLauncher)
-// spawns the child (posix_spawn) in a new process group, in the run directory, with its stdout
-// and stderr in a file there. Stop() sends SIGTERM to the whole group
+// spawns a small guard process (sandswim-engine-guard next to this program; a fork of this
+// process when that is missing) that leads a new process group and starts the engine in it, in the
+// run directory, with its stdout and stderr in a file there. The engine never outlives the
+// worker: the guard gets PR_SET_PDEATHSIG when the worker thread that started it dies (even by
+// SIGKILL) and then SIGKILLs the whole group, mpirun and ranks included. So a Start()ing thread
+// must outlive its EngineProcess (the worker's slot threads wait for their engines). The guard
+// exits as the engine did, so exit codes and signals read as the engine's own. Stop() sends SIGTERM to the whole group
 // (mpirun and every rank), waits up to a grace period, then sends SIGKILL. Wall and CPU time come
 // from wait4()'s rusage, which covers the ranks that mpirun reaped.
 //
@@ -34,7 +39,7 @@ struct LaunchSpec {
 
 // The command line for the engine. mpirun: `mpirun -np R --bind-to none ENGINE -in DECK -log LOG
 // -screen /dev/null` (with OMPI_ALLOW_RUN_AS_ROOT[_CONFIRM]=1 in env when running as root);
-// srun: `srun --mpi=pmix -n R ENGINE ...`; direct: `ENGINE ...` (R must be 1).
+// srun (inside an allocation): `srun --mpi=pmix -n R --exclusive ENGINE ...`; direct: `ENGINE ...` (R must be 1).
 // (`-screen none` segfaults with fix insert/pack, so the screen goes to /dev/null.)
 LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine, const std::string& deck_file,
                          const std::string& log_file, const std::string& cwd, bool as_root);
@@ -67,11 +72,25 @@ class Launcher {
   virtual Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) = 0;
 };
 
-// The real thing: posix_spawn into a new process group.
+// The real thing: a guard process leading a new process group, and the engine in it.
 class ProcessLauncher : public Launcher {
  public:
   Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) override;
 };
+
+// The engine guard (sandswim-engine-guard's main, and the fork fallback): leads the engine's
+// process group, dies with the worker thread that started it and takes the group with it, and
+// exits as the engine did. Only async-signal-safe calls: usable right after fork().
+struct GuardArgs {
+  const char* exe;    // the engine, resolved
+  char* const* argv;
+  char* const* envp;
+  const char* cwd;    // nullptr: stay
+  const char* out;    // stdout + stderr, relative to cwd (nullptr: already set up)
+  int report_fd;      // {stage, errno} written here on a failure before exec
+  pid_t worker_pid;   // the expected parent
+};
+[[noreturn]] void GuardMain(const GuardArgs& args);
 
 }  // namespace sandswim::worker
 

@@ -1,13 +1,16 @@
 #include "workers/launcher.h"
 
 #include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -132,10 +135,90 @@ TEST(LauncherTest, EngineCommands) {
   EXPECT_EQ(m.cwd, "/d");
   EXPECT_TRUE(EngineCommand(LauncherKind::kMpirun, 1, "liggghts", "a", "b", "/d", false).env.empty());
   LaunchSpec s = EngineCommand(LauncherKind::kSrun, 4, "liggghts", "bed.in", "log.liggghts", "/d", false);
-  EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "liggghts", "-in", "bed.in", "-log",
+  EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "--exclusive", "liggghts", "-in", "bed.in", "-log",
                                               "log.liggghts", "-screen", "/dev/null"}));
   LaunchSpec d = EngineCommand(LauncherKind::kDirect, 1, "/opt/liggghts", "x.in", "log", "/d", true);
   EXPECT_EQ(d.argv, (std::vector<std::string>{"/opt/liggghts", "-in", "x.in", "-log", "log", "-screen", "/dev/null"}));
+}
+
+// True while `pid` runs (a zombie waiting for its reaper counts as dead).
+bool Alive(pid_t pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return false;
+  size_t close_paren = line.rfind(')');
+  return close_paren != std::string::npos && close_paren + 2 < line.size() && line[close_paren + 2] != 'Z';
+}
+
+pid_t ReadPid(const std::string& path) {
+  std::ifstream in(path);
+  pid_t pid = 0;
+  in >> pid;
+  return pid;
+}
+
+// A worker killed with SIGKILL takes its engine with it: the engine (here a shell) and the
+// "rank" it started in the background, as mpirun's ranks, are gone soon after.
+TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
+  const std::string dir = TempDir();
+  pid_t worker = fork();
+  ASSERT_GE(worker, 0);
+  if (worker == 0) {
+    // The worker-like parent: starts the engine, then waits to be killed.
+    ProcessLauncher launcher;
+    // engine.pid is complete before rank.pid appears (renamed into place).
+    auto proc = launcher.Start(Sh("echo $$ > engine.pid; sleep 300 & echo $! > rank.tmp && "
+                                  "mv rank.tmp rank.pid; wait", dir));
+    if (!proc.ok()) _exit(1);
+    while (true) pause();
+  }
+  // Whatever happens below, nothing this test started outlives it (the paused parent would
+  // also hold the test's stdout open).
+  pid_t rank = 0, engine = 0;
+  bool reaped = false;
+  struct Cleanup {
+    std::function<void()> f;
+    ~Cleanup() { f(); }
+  } cleanup{[&] {
+    if (!reaped) {
+      kill(worker, SIGKILL);
+      waitpid(worker, nullptr, 0);
+    }
+    if (rank > 0 && Alive(rank)) kill(rank, SIGKILL);
+    if (engine > 0 && Alive(engine)) kill(engine, SIGKILL);
+  }};
+  // Wait (bounded) for the engine to have started its rank.
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while (ReadPid(dir + "/rank.pid") == 0 && Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  rank = ReadPid(dir + "/rank.pid");
+  engine = ReadPid(dir + "/engine.pid");
+  ASSERT_GT(rank, 0) << "the engine did not start";
+  ASSERT_GT(engine, 0);
+  EXPECT_TRUE(Alive(rank));
+  EXPECT_TRUE(Alive(engine));
+
+  kill(worker, SIGKILL);
+  int st = 0;
+  ASSERT_EQ(waitpid(worker, &st, 0), worker);
+  reaped = true;
+  ASSERT_TRUE(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL);
+  const auto gone_by = Clock::now() + std::chrono::seconds(10);
+  while ((Alive(rank) || Alive(engine)) && Clock::now() < gone_by) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_FALSE(Alive(engine)) << "the engine outlived its worker";
+  EXPECT_FALSE(Alive(rank)) << "the engine's rank outlived its worker";
+}
+
+// The guard passes the engine's way of ending on: a signal reads as that signal.
+TEST(LauncherTest, EngineKilledBySignalReadsAsThatSignal) {
+  ProcessLauncher launcher;
+  auto proc = launcher.Start(Sh("kill -SEGV $$"));
+  ASSERT_TRUE(proc.ok());
+  ASSERT_TRUE((*proc)->WaitFor(10));
+  EXPECT_EQ((*proc)->exit_status().signal, SIGSEGV);
 }
 
 }  // namespace

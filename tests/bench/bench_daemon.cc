@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -34,6 +35,7 @@
 #include "server/lease_queue.h"
 #include "server/routes.h"
 #include "server/store.h"
+#include "tests/bench/in_process_daemon.h"
 #include "server/submission.h"
 
 namespace {
@@ -48,6 +50,19 @@ double CpuSeconds() {
   struct rusage u {};
   getrusage(RUSAGE_SELF, &u);
   return u.ru_utime.tv_sec + u.ru_stime.tv_sec + (u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-6;
+}
+
+// Write system calls and bytes written by this process so far (/proc/self/io): how many WAL
+// frames (two pwrites each) a state change costs.
+std::pair<long long, long long> WritesSoFar() {
+  std::ifstream in("/proc/self/io");
+  std::string key;
+  long long value = 0, calls = 0, bytes = 0;
+  while (in >> key >> value) {
+    if (key == "syscw:") calls = value;
+    if (key == "wchar:") bytes = value;
+  }
+  return {calls, bytes};
 }
 
 double Seconds() {
@@ -91,42 +106,7 @@ Stats Summarise(std::vector<double> v) {
 }
 
 // A daemon in this process: store + lease queue + ApiServer on 127.0.0.1:ephemeral.
-struct Daemon {
-  std::unique_ptr<sandswim::Store> store;
-  sandswim::SystemClock clock;
-  std::unique_ptr<sandswim::LeaseQueue> leases;
-  std::unique_ptr<sandswim::ApiServer> server;
-  std::thread thread;
-  int port = 0;
-
-  Daemon(const fs::path& dir, const std::string& engine_version) {
-    auto s = sandswim::Store::Open((dir / "sandswim.db").string());
-    if (!s.ok()) Die("open store: " + s.status().ToString());
-    store = std::move(s).value();
-    leases = std::make_unique<sandswim::LeaseQueue>(store.get(), &clock);
-    sandswim::Deps deps;
-    deps.store = store.get();
-    deps.leases = leases.get();
-    deps.clock = &clock;
-    deps.data_dir = (dir / "data").string();
-    deps.engine_version = engine_version;
-    server = std::make_unique<sandswim::ApiServer>(deps);
-    auto p = server->Bind({"127.0.0.1", 0});
-    if (!p.ok()) Die("bind: " + p.status().ToString());
-    port = *p;
-    thread = std::thread([this] { server->Serve(); });
-    httplib::Client probe("127.0.0.1", port);
-    for (int i = 0; i < 500; ++i) {
-      if (auto r = probe.Get("/healthz"); r && r->status == 200) return;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    Die("the in-process server did not answer /healthz");
-  }
-  ~Daemon() {
-    server->Stop();
-    thread.join();
-  }
-};
+using Daemon = sandswim::bench::InProcessDaemon;
 
 constexpr const char* kEngine = "LIGGGHTS-PUBLIC 3.8.0 (bench)";
 
@@ -280,7 +260,8 @@ void BenchCycles(const fs::path& root, int clients, int cycles, bool rest) {
   std::atomic<int> failures{0};
   std::vector<std::vector<double>> lease_ms(clients), complete_ms(clients);
   std::vector<std::thread> threads;
-  double t0 = Seconds();
+  double t0 = Seconds(), c0 = CpuSeconds();
+  const auto w0 = WritesSoFar();
   for (int i = 0; i < clients; ++i) {
     threads.emplace_back([&, i] {
       if (!rest) {
@@ -331,7 +312,8 @@ void BenchCycles(const fs::path& root, int clients, int cycles, bool rest) {
     });
   }
   for (auto& t : threads) t.join();
-  double elapsed = Seconds() - t0;
+  double elapsed = Seconds() - t0, cpu = CpuSeconds() - c0;
+  const auto w1 = WritesSoFar();
   std::vector<double> all_lease, all_complete;
   for (int i = 0; i < clients; ++i) {
     all_lease.insert(all_lease.end(), lease_ms[i].begin(), lease_ms[i].end());
@@ -348,6 +330,12 @@ void BenchCycles(const fs::path& root, int clients, int cycles, bool rest) {
   std::printf("cycles_%s_clients %d\n", how, clients);
   std::printf("cycles_%s_done %lld failures %d in %.3f s\n", how, ok_cycles, failures.load(), elapsed);
   std::printf("cycles_%s_per_s %.0f%s\n", how, ok_cycles / elapsed, rest ? "   (goal >= 5000)" : "");
+  // CPU of this whole process (server and clients) per cycle: what the figure would be on two
+  // idle cores is about 2 / cpu_per_cycle, whatever else the machine was doing.
+  std::printf("cycles_%s_cpu_us_per_cycle %.0f (cpu_s %.3f; on 2 idle cores at most ~%.0f/s)\n", how,
+              cpu / ok_cycles * 1e6, cpu, 2 * ok_cycles / cpu);
+  std::printf("cycles_%s_write_calls_per_cycle %.1f  bytes_written_per_cycle %.0f (incl. HTTP sends)\n", how,
+              double(w1.first - w0.first) / ok_cycles, double(w1.second - w0.second) / ok_cycles);
   std::printf("%s lease_ms median %.2f p95 %.2f   complete_ms median %.2f p95 %.2f\n", how, l.median, l.p95,
               c.median, c.p95);
   std::fflush(stdout);
