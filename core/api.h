@@ -8,6 +8,9 @@
 //   POST /api/v1/leases/{token}/heartbeat    Heartbeat -> 200 HeartbeatReply | 409 (lease lost)
 //   PUT  /api/v1/beds/{id}/restart?token=T   bed restart bytes, header X-Sha256 (bed leases)
 //   POST /api/v1/leases/{token}/complete     Completion -> 200 CompletionReply | 409 (lease lost)
+//   POST /api/v1/leases/{token}/release      ReleaseRequest -> 200 CompletionReply | 409: hands a
+//                                            job back unfinished (worker stopping, e.g. its Slurm
+//                                            allocation ends); the attempt does not count
 // A lease token is the only proof of ownership; completion is idempotent per token, and a
 // completion or heartbeat under a token that is no longer current never changes anything.
 //
@@ -157,6 +160,12 @@ struct CompletionReply {
   std::string state;
 };
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(CompletionReply, state)
+
+// A job handed back unfinished by a worker that is stopping (not the job's fault).
+struct ReleaseRequest {
+  std::string reason;  // for the event log, e.g. "slurm allocation 123 ends"
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(ReleaseRequest, reason)
 
 }  // namespace sandswim::api
 

@@ -24,14 +24,6 @@ using testing::Daemon;
 
 constexpr double kTimeoutS = 1800;  // the first sweep prepares the bed (~2-3 min on a free core)
 
-json Sweep(const std::string& name, std::vector<double> omegas, double duration) {
-  return {{"name", name},
-          {"scale", "smoke"},
-          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", omegas[0]}, {"duration_s", duration}}},
-          {"axes", json::array({{{"param", "Omega"}, {"values", omegas}}})},
-          {"combine", "product"}};
-}
-
 class EndToEndTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -66,7 +58,7 @@ Daemon* EndToEndTest::daemon_ = nullptr;
 // the bed was prepared once for both.
 TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
-  int64_t id = Submit(Sweep("omega-sign", {-80, 80}, 0.3));
+  int64_t id = Submit(testing::OmegaSweep("omega-sign", {-80, 80}, 0.3));
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
   for (const json& run : Runs(id)) {
@@ -90,7 +82,7 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
   EXPECT_EQ(daemon_->Sql("SELECT attempts FROM beds"), "1");
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results"), "2");
   // Submitting the same sweep again reuses both results: nothing is queued.
-  int64_t again = Submit(Sweep("omega-sign-again", {-80, 80}, 0.3));
+  int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.3));
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
   EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM runs"), "2");
@@ -99,7 +91,7 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
 // A worker killed with SIGKILL in the middle of a run: its lease expires, a second worker runs it
 // again, and exactly one result exists.
 TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
-  int64_t id = Submit(Sweep("killed-worker", {-40}, 0.3));
+  int64_t id = Submit(testing::OmegaSweep("killed-worker", {-40}, 0.3));
   auto first = testing::StartWorker(*daemon_, *dir_ + "/worker-killed", 1);
   int64_t run_id = 0;
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(kTimeoutS));
@@ -122,7 +114,7 @@ TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
 // A deck LIGGGHTS rejects fails its run with the ERROR: line, without retries; the sweep's other
 // run finishes. The deck is broken in the database, where a stored deck is read from.
 TEST_F(EndToEndTest, RejectedDeckFailsItsRunOnly) {
-  int64_t id = Submit(Sweep("bad-deck", {-20, 20}, 0.05));
+  int64_t id = Submit(testing::OmegaSweep("bad-deck", {-20, 20}, 0.05));
   std::vector<json> runs = Runs(id);
   ASSERT_EQ(runs.size(), 2u);
   const std::string bad = std::to_string(runs[0]["id"].get<int64_t>());

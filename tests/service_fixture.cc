@@ -109,4 +109,13 @@ std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::strin
       dir, "worker.out");
 }
 
+nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration) {
+  using nlohmann::json;
+  return {{"name", name},
+          {"scale", "smoke"},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", omegas.at(0)}, {"duration_s", duration}}},
+          {"axes", json::array({{{"param", "Omega"}, {"values", omegas}}})},
+          {"combine", "product"}};
+}
+
 }  // namespace sandswim::testing

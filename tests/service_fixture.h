@@ -2,8 +2,10 @@
 //
 // Daemon starts `sandswimd --listen 127.0.0.1:0` on a fresh SQLite file and data directory under
 // `dir`, and learns its port from the "listening on" line it prints. Worker starts
-// `sandswim-worker --server URL`. Both run in their own process groups (workers/launcher.h);
-// Kill() sends a signal to the process alone, Stop() ends the whole group.
+// `sandswim-worker --server URL`. Both run in their own process groups under the engine guard
+// (workers/launcher.h); Kill(SIGKILL) kills the process alone (the guard passes the SIGKILL on;
+// the process's own children, in their own groups, are left to their own guards), Stop() ends
+// the whole group.
 //
 // Thread safety: none; one test thread drives them.
 #ifndef SANDSWIM_TESTS_SERVICE_FIXTURE_H_
@@ -24,7 +26,7 @@ class ChildProcess {
   ChildProcess(std::vector<std::string> argv, const std::string& dir, const std::string& output_file);
   ~ChildProcess();
   bool running();
-  void Kill(int signal);        // the process alone (its children keep their own groups)
+  void Kill(int signal);        // the process alone; see the top of this file
   void Stop(double grace_s = 5);  // SIGTERM to its group, then SIGKILL
   std::string Output() const;   // what it printed so far
   pid_t pid() const { return pid_; }
@@ -58,6 +60,10 @@ class Daemon {
 };
 
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots);
+
+// A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz) over the given Omega values, each run
+// `duration` s long: the sweep JSON to POST.
+nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration);
 
 }  // namespace sandswim::testing
 

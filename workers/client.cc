@@ -120,6 +120,15 @@ Result<api::HeartbeatReply> HttpServerClient::Heartbeat(const std::string& token
   return ParseJson<api::HeartbeatReply>(ex.body, "heartbeat");
 }
 
+Result<api::CompletionReply> HttpServerClient::Release(const std::string& token, const std::string& reason) {
+  const std::string path = "/api/v1/leases/" + token + "/release";
+  auto cli = MakeClient(options_);
+  api::ReleaseRequest request{reason};
+  Exchange ex = FromResult(cli->Post(path, nlohmann::json(request).dump(), "application/json"), "POST release");
+  if (!ex.status.ok()) return ex.status;
+  return ParseJson<api::CompletionReply>(ex.body, "release");
+}
+
 Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& dest_path) {
   const std::string path = bed.url.empty() ? "/api/v1/beds/" + std::to_string(bed.id) + "/restart" : bed.url;
   auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {

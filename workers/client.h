@@ -5,7 +5,8 @@
 // when a token is set, and retries with exponential backoff (0.2 s doubling to 10 s) while the
 // daemon is down or answers 5xx: a daemon restart then costs a delay, never a running job.
 // Which calls retry and for how long:
-//   Lease, Heartbeat         one attempt (the loop calls again on its own schedule);
+//   Lease, Heartbeat,
+//   Release                  one attempt (the loop calls again on its own schedule);
 //   DownloadBed, UploadBed,
 //   Complete                 until `retry_for_s` has passed (completion is idempotent per token).
 // Status codes: Conflict for 409 (lease lost), Unavailable when the daemon cannot be reached or
@@ -34,6 +35,14 @@ class ServerClient {
   virtual Status UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
                            const std::string& sha256) = 0;
   virtual Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& completion) = 0;
+  // Hands an unfinished job back (the worker is stopping); the daemon queues it again without
+  // counting the attempt. One attempt, no retries: when it fails the lease simply expires.
+  // The default (for fakes that predate it) answers Unavailable, which is how a failure looks.
+  virtual Result<api::CompletionReply> Release(const std::string& token, const std::string& reason) {
+    (void)token;
+    (void)reason;
+    return Status::Unavailable("release is not supported by this client");
+  }
 };
 
 struct ClientOptions {
@@ -55,6 +64,7 @@ class HttpServerClient : public ServerClient {
   Status UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
                    const std::string& sha256) override;
   Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& completion) override;
+  Result<api::CompletionReply> Release(const std::string& token, const std::string& reason) override;
 
  private:
   ClientOptions options_;

@@ -8,12 +8,16 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 
 #include "core/token.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
+#include "workers/slurm.h"
 #include "workers/worker.h"
 
 int main(int argc, char** argv) {
@@ -35,6 +39,11 @@ int main(int argc, char** argv) {
   app.add_option("--engine", options.engine, "the LIGGGHTS executable")->capture_default_str();
   app.add_option("--heartbeat", options.heartbeat_every_s, "seconds between heartbeats")->capture_default_str();
   app.add_option("--name", options.name, "worker name (default host:pid)");
+  app.add_option("--end-margin", options.end_margin_s,
+                 "inside a Slurm allocation: seconds a run is expected to take before one has finished here "
+                 "(no lease unless the allocation has that long left)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--once", options.once, "take one job (waiting for one if the queue is empty), run it, exit");
   app.add_flag("--keep-run-dirs", options.keep_run_dirs, "keep run directories of jobs that succeeded");
   CLI11_PARSE(app, argc, argv);
@@ -67,6 +76,7 @@ int main(int argc, char** argv) {
   sigemptyset(&signals);
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGUSR1);  // Slurm's warning before the allocation ends (--signal=B:USR1@N)
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   signal(SIGPIPE, SIG_IGN);
 
@@ -77,14 +87,29 @@ int main(int argc, char** argv) {
   client_options.token = *token;
   HttpServerClient client(client_options, &stopping);
   ProcessLauncher launcher;
+  // Inside a Slurm allocation, the worker stops leasing runs that would outlast it.
+  sandswim::slurm::ProcessSlurmCommands slurm_commands;
+  std::unique_ptr<sandswim::slurm::AllocationDeadline> deadline;
+  std::mutex deadline_mu;
+  if (const char* job = getenv("SLURM_JOB_ID"); job != nullptr && *job != '\0') {
+    const auto t0 = std::chrono::steady_clock::now();
+    deadline = std::make_unique<sandswim::slurm::AllocationDeadline>(slurm_commands, job, [t0] {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    });
+    options.allocation_seconds_left = [&] {
+      std::lock_guard<std::mutex> lock(deadline_mu);
+      return deadline->SecondsLeft();
+    };
+    spdlog::info("in Slurm job {}: no lease for a run that would outlast the allocation", job);
+  }
   Worker worker(options, client, launcher);
 
   std::thread signal_thread([&] {
     int sig = 0;
     sigwait(&signals, &sig);
     if (done) return;  // woken by main at exit
-    spdlog::warn("signal {}: stopping; running jobs are stopped and not completed, so the daemon re-leases them",
-                 sig);
+    spdlog::warn("signal {}{}: stopping; running jobs are stopped and handed back to the daemon, which leases "
+                 "them again", sig, sig == SIGUSR1 ? " (the Slurm allocation is about to end)" : "");
     stopping = true;
     worker.RequestStop();
   });

@@ -13,6 +13,7 @@
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
 #include "core/trajectory.h"
+#include "workers/slurm.h"
 
 namespace sandswim::worker {
 namespace {
@@ -141,6 +142,30 @@ bool Worker::Idle(double seconds) {
   return !stopping_;
 }
 
+bool Worker::RunFitsAllocation() {
+  if (!options_.allocation_seconds_left) return true;
+  std::optional<double> expected;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stats_.allocation_ending) return false;
+    expected = longest_run_s_;
+  }
+  auto left = options_.allocation_seconds_left();
+  if (!left.ok()) {
+    // Slurm not answering is no reason to idle an allocation; its own signal still stops us.
+    spdlog::warn("cannot read the allocation's end time ({}); leasing anyway", left.status().ToString());
+    return true;
+  }
+  if (slurm::ShouldLease(*left, expected, options_.end_margin_s)) return true;
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!stats_.allocation_ending) {
+    stats_.allocation_ending = true;
+    spdlog::info("the allocation ends in {:.0f} s and a run is expected to take {:.0f} s{}: no more leases", **left,
+                 expected.value_or(options_.end_margin_s), expected ? "" : " (--end-margin, no run done yet)");
+  }
+  return false;
+}
+
 void Worker::Run() {
   const int slots = options_.once ? 1 : std::max(1, options_.slots);
   std::vector<std::thread> threads;
@@ -151,6 +176,7 @@ void Worker::Run() {
 void Worker::SlotLoop() {
   double backoff = 0.5;
   while (!stopping_) {
+    if (!RunFitsAllocation()) break;
     api::LeaseRequest request{options_.name, options_.host, options_.ranks};
     auto lease = client_.Lease(request);
     if (!lease.ok()) {
@@ -194,6 +220,17 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
     std::lock_guard<std::mutex> lock(mu_);
     ++stats_.abandoned;
   };
+  // The worker is stopping: give the job back so it is queued again at once, attempt uncounted.
+  auto hand_back = [&](const std::string& why) {
+    auto reply = client_.Release(grant.token, why);
+    if (!reply.ok()) {
+      return abandon(why + "; handing it back failed (" + reply.status().ToString() +
+                     "), so the lease will expire and the job be leased again");
+    }
+    spdlog::info("{}: handed back to the daemon ({}): {}", name, reply->state, why);
+    std::lock_guard<std::mutex> lock(mu_);
+    ++stats_.released;
+  };
   auto complete = [&](const RunDir* dir) {
     auto reply = client_.Complete(grant.token, completion);
     if (!reply.ok()) {
@@ -210,6 +247,10 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
     }
     if (completion.ok) {
       spdlog::info("{}: completed ({})", name, reply->state);
+      if (!is_bed) {
+        std::lock_guard<std::mutex> lock(mu_);
+        longest_run_s_ = std::max(longest_run_s_.value_or(0.0), Since(leased_at));
+      }
     } else {
       spdlog::warn("{}: failed {}: {} ({})", name, completion.failure->kind, completion.failure->message, reply->state);
     }
@@ -235,7 +276,7 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
   if (!is_bed) {
     if (!grant.bed) return fail(&*dir, "bed_mismatch", "the run's lease names no bed");
     if (Status s = beds_.Provide(*grant.bed, *dir); !s.ok()) {
-      if (stopping_) return abandon("stopping while fetching the bed");
+      if (stopping_) return hand_back("the worker stopped while fetching the bed");
       return fail(&*dir, "bed_mismatch", s.reason());
     }
   }
@@ -272,7 +313,7 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
       if (proc->WaitFor(std::clamp(until_beat, 0.0, 0.25))) break;
       if (stopping_) {
         proc->Stop(options_.stop_grace_s);
-        return abandon("the worker is stopping; the lease will expire and the job be leased again");
+        return hand_back("the worker is stopping");
       }
       if (grant.wall_budget_s > 0 && Since(start) > grant.wall_budget_s) {
         spdlog::warn("{}: wall-time budget of {} s used up; stopping the engine", name, grant.wall_budget_s);
@@ -313,6 +354,17 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
   completion.log_tail =
       LastLines(log_text.empty() ? ReadFileOr(dir->File(kEngineOutputFile), "") : log_text, kLogTailLines);
   if (auto failure = ClassifyExit(grant.kind, facts, log, grant.steps)) {
+    if (facts.started && !facts.cancelled && !facts.timed_out) {
+      // A stop of the whole worker (scancel, the allocation's end, systemd) also reaches the
+      // engine, which then exits -- with status 0 if it was LIGGGHTS that got SIGTERM -- short of
+      // its steps. Under srun the two signals arrive at about the same time: give the worker's own
+      // stop a moment to land. An engine stopped with its worker is handed back, not failed.
+      if (options_.launcher == LauncherKind::kSrun && !stopping_) {
+        std::unique_lock<std::mutex> lock(mu_);
+        cv_.wait_for(lock, std::chrono::seconds(2), [this] { return stopping_.load(); });
+      }
+      if (stopping_) return hand_back("the worker is stopping and its engine was stopped with it");
+    }
     completion.ok = false;
     completion.failure = *failure;
     return complete(&*dir);

@@ -8,16 +8,24 @@
 //   - a heartbeat reply says cancel      -> completes with failure "cancelled";
 //   - a heartbeat gets 409 (lease lost)  -> does not complete (the lease is someone else's now);
 //   - the grant's wall-time budget ends  -> completes with failure "timeout";
-//   - the worker is asked to stop        -> does not complete (see below).
+//   - the worker is asked to stop        -> hands the job back (see below).
 // When the engine exits, the job is judged from the log's markers and steps (ClassifyExit), the
 // dump is parsed into the run's results and downsampled trajectory (core/trajectory.h), a bed's
 // restart is uploaded with its SHA-256, and the job is completed with its execution facts.
 //
 // Daemon down: heartbeats that fail are logged and the job keeps running; completion and
 // uploads retry with backoff (client.h). A daemon restart therefore loses nothing.
-// Worker asked to stop (SIGTERM/SIGINT): no new leases; running engines are stopped and their
-// jobs are NOT completed, so their leases expire and the daemon leases the runs again. A
+// Worker asked to stop (SIGTERM/SIGINT, or SIGUSR1 from Slurm before its allocation ends): no
+// new leases; running engines are stopped and their jobs are NOT completed but released
+// (ServerClient::Release): the daemon queues them again without counting the attempt. A
 // "signal" failure would count against the run's retries for something that was not its fault.
+// When the release cannot be sent, the lease expires and the daemon re-leases the run anyway.
+// An engine that dies while the worker is stopping (Slurm signals the steps too) is released
+// the same way.
+//
+// Inside a Slurm allocation (`allocation_seconds_left` set), a slot leases a job only while
+// slurm::ShouldLease says it would finish before the allocation ends: it expects a run to take
+// as long as the longest run this worker has done, or `end_margin_s` before the first one.
 //
 // Thread safety: Run() once; RequestStop() from any thread (not from a signal handler: main.cc
 // waits for signals on a thread of its own and calls it from there).
@@ -27,7 +35,9 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <string>
 
@@ -53,12 +63,18 @@ struct WorkerOptions {
   double stop_grace_s = 10;       // SIGTERM -> SIGKILL
   double idle_poll_s = 2;         // when the queue is empty
   double max_backoff_s = 30;      // when the daemon cannot be reached
+  // Seconds until this worker's Slurm allocation ends (nullopt: no limit); empty when the worker
+  // is not in an allocation. Called before every lease.
+  std::function<Result<std::optional<double>>()> allocation_seconds_left;
+  double end_margin_s = 300;      // a run's expected wall time before this worker has done one
 };
 
 struct WorkerStats {
   int64_t leased = 0;
   int64_t completed = 0;     // completions the daemon accepted (any state)
   int64_t abandoned = 0;     // lease lost or worker stopping: not completed
+  int64_t released = 0;      // handed back to the daemon unfinished (worker stopping)
+  bool allocation_ending = false;  // stopped leasing: the next run would outlast the allocation
 };
 
 class Worker {
@@ -79,6 +95,8 @@ class Worker {
   void SlotLoop();
   // Sleeps up to `seconds`, less when asked to stop. False when stopping.
   bool Idle(double seconds);
+  // False (and logs why, once) when the next run would not finish inside the allocation.
+  bool RunFitsAllocation();
 
   WorkerOptions options_;
   ServerClient& client_;
@@ -88,6 +106,7 @@ class Worker {
   mutable std::mutex mu_;
   std::condition_variable cv_;
   WorkerStats stats_;
+  std::optional<double> longest_run_s_;  // wall time of the longest run done ok, for ShouldLease
 };
 
 }  // namespace sandswim::worker

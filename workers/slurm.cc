@@ -1,0 +1,251 @@
+#include "workers/slurm.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+
+extern char** environ;
+
+namespace sandswim::slurm {
+namespace {
+
+bool AllDigits(std::string_view s) {
+  return !s.empty() && s.size() <= 9 &&
+         std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; });
+}
+
+std::vector<std::string_view> Split(std::string_view s, char sep) {
+  std::vector<std::string_view> parts;
+  size_t start = 0;
+  while (true) {
+    size_t end = s.find(sep, start);
+    parts.push_back(s.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
+    if (end == std::string_view::npos) return parts;
+    start = end + 1;
+  }
+}
+
+std::string_view Trim(std::string_view s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
+  return s;
+}
+
+}  // namespace
+
+Result<CommandOutput> ProcessSlurmCommands::Run(const std::vector<std::string>& argv,
+                                                const std::vector<std::pair<std::string, std::string>>& env) {
+  if (argv.empty()) return Status::InvalidArgument("argv", "empty command");
+  std::vector<std::string> env_strings;
+  for (char** e = environ; *e != nullptr; ++e) {
+    std::string kv = *e;
+    const std::string key = kv.substr(0, kv.find('='));
+    if (std::none_of(env.begin(), env.end(), [&](const auto& p) { return p.first == key; })) {
+      env_strings.push_back(std::move(kv));
+    }
+  }
+  for (const auto& [k, v] : env) env_strings.push_back(k + "=" + v);
+  std::vector<char*> envp;
+  for (auto& s : env_strings) envp.push_back(s.data());
+  envp.push_back(nullptr);
+  std::vector<std::string> args = argv;
+  std::vector<char*> cargv;
+  for (auto& a : args) cargv.push_back(a.data());
+  cargv.push_back(nullptr);
+
+  int out_pipe[2], err_pipe[2];
+  if (pipe2(out_pipe, O_CLOEXEC) != 0) return Status::IOError(std::string("pipe: ") + std::strerror(errno));
+  if (pipe2(err_pipe, O_CLOEXEC) != 0) {
+    close(out_pipe[0]);
+    close(out_pipe[1]);
+    return Status::IOError(std::string("pipe: ") + std::strerror(errno));
+  }
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_adddup2(&actions, out_pipe[1], 1);
+  posix_spawn_file_actions_adddup2(&actions, err_pipe[1], 2);
+  pid_t pid = 0;
+  int rc = posix_spawnp(&pid, args[0].c_str(), &actions, nullptr, cargv.data(), envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  close(out_pipe[1]);
+  close(err_pipe[1]);
+  if (rc != 0) {
+    close(out_pipe[0]);
+    close(err_pipe[0]);
+    return Status::Unavailable("cannot run '" + args[0] + "' (" + std::strerror(rc) +
+                               "): are Slurm's client commands installed and on PATH?");
+  }
+  CommandOutput result;
+  // Both pipes drained together, so a command that fills one cannot block on it.
+  struct pollfd fds[2] = {{out_pipe[0], POLLIN, 0}, {err_pipe[0], POLLIN, 0}};
+  std::string* sinks[2] = {&result.out, &result.err};
+  int open_fds = 2;
+  char buf[4096];
+  while (open_fds > 0) {
+    if (poll(fds, 2, -1) < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    for (int i = 0; i < 2; ++i) {
+      if (fds[i].fd < 0 || fds[i].revents == 0) continue;
+      ssize_t n = read(fds[i].fd, buf, sizeof buf);
+      if (n > 0) {
+        sinks[i]->append(buf, static_cast<size_t>(n));
+      } else if (n == 0 || errno != EINTR) {
+        close(fds[i].fd);
+        fds[i].fd = -1;
+        --open_fds;
+      }
+    }
+  }
+  for (auto& f : fds) {
+    if (f.fd >= 0) close(f.fd);
+  }
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return result;
+}
+
+Result<std::optional<double>> ParseSlurmDuration(std::string_view text, const std::string& field) {
+  using Out = std::optional<double>;
+  const std::string_view t = Trim(text);
+  if (t == "UNLIMITED" || t == "INFINITE" || t == "NOT_SET" || t == "Partition_Limit") return Out();
+  auto bad = [&] {
+    return Status::InvalidArgument(field, "'" + std::string(t) +
+                                              "' is not a Slurm time (minutes, M:S, H:M:S, D-H, D-H:M or D-H:M:S)");
+  };
+  double days = 0;
+  std::string_view clock = t;
+  const size_t dash = t.find('-');
+  if (dash != std::string_view::npos) {
+    if (!AllDigits(t.substr(0, dash))) return bad();
+    days = std::stod(std::string(t.substr(0, dash)));
+    clock = t.substr(dash + 1);
+  }
+  std::vector<std::string_view> parts = Split(clock, ':');
+  if (parts.size() > 3) return bad();
+  std::vector<double> v;
+  for (std::string_view p : parts) {
+    if (!AllDigits(p)) return bad();
+    v.push_back(std::stod(std::string(p)));
+  }
+  double seconds = 0;
+  if (dash != std::string_view::npos) {
+    // After "D-": hours, hours:minutes or hours:minutes:seconds.
+    seconds = v[0] * 3600 + (v.size() > 1 ? v[1] * 60 : 0) + (v.size() > 2 ? v[2] : 0);
+  } else if (v.size() == 1) {
+    seconds = v[0] * 60;  // a bare number is minutes
+  } else if (v.size() == 2) {
+    seconds = v[0] * 60 + v[1];
+  } else {
+    seconds = v[0] * 3600 + v[1] * 60 + v[2];
+  }
+  return Out(days * 86400 + seconds);
+}
+
+Result<std::vector<std::string>> PilotSbatchArgs(const PilotRequest& r) {
+  if (r.nodes < 1) return Status::InvalidArgument("nodes", "must be at least 1");
+  if (r.ranks_per_run < 1) return Status::InvalidArgument("ranks-per-run", "must be at least 1");
+  if (r.tasks_per_node < 0) return Status::InvalidArgument("tasks-per-node", "must be at least 1 (0: ranks-per-run)");
+  if (r.time.empty()) return Status::InvalidArgument("time", "a time limit is required (e.g. 2:00:00)");
+  auto limit = ParseSlurmDuration(r.time, "time");
+  if (!limit.ok()) return limit.status();
+  if (r.array < 0) return Status::InvalidArgument("array", "must be at least 1");
+  if (r.throttle < 0) return Status::InvalidArgument("throttle", "must be at least 1");
+  if (r.throttle > 0 && r.array == 0) return Status::InvalidArgument("throttle", "only an --array has a throttle");
+  if (r.array > 0 && r.throttle > r.array) {
+    return Status::InvalidArgument("throttle", "is larger than the array (" + std::to_string(r.array) + ")");
+  }
+  if (r.script.empty()) return Status::InvalidArgument("script", "the batch script is required");
+  const int per_node = r.tasks_per_node > 0 ? r.tasks_per_node : r.ranks_per_run;
+  if (r.array == 0 && per_node * r.nodes < r.ranks_per_run) {
+    return Status::InvalidArgument("tasks-per-node", "the pilot's " + std::to_string(per_node * r.nodes) +
+                                                         " tasks cannot hold one run of " +
+                                                         std::to_string(r.ranks_per_run) + " ranks");
+  }
+  if (r.array == 0 && *limit && *limit <= r.signal_lead_s) {
+    return Status::InvalidArgument("time", "must be longer than the " + std::to_string(r.signal_lead_s) +
+                                               " s warning the pilot gets before its end");
+  }
+  std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name", r.job_name, "--time", r.time,
+                                   "--nodes", std::to_string(r.nodes)};
+  if (r.array > 0) {
+    // One run per element: exactly the ranks of one run.
+    argv.insert(argv.end(), {"--ntasks", std::to_string(r.ranks_per_run)});
+    std::string spec = "0-" + std::to_string(r.array - 1);
+    if (r.throttle > 0) spec += "%" + std::to_string(r.throttle);
+    argv.insert(argv.end(), {"--array", spec});
+  } else {
+    argv.insert(argv.end(), {"--ntasks-per-node", std::to_string(per_node)});
+    // B: the batch shell (which execs the worker) gets USR1, not the engines' steps.
+    argv.push_back("--signal=B:USR1@" + std::to_string(r.signal_lead_s));
+  }
+  if (!r.partition.empty()) argv.insert(argv.end(), {"--partition", r.partition});
+  if (!r.account.empty()) argv.insert(argv.end(), {"--account", r.account});
+  if (!r.output.empty()) argv.insert(argv.end(), {"--output", r.output});
+  argv.push_back("--export=ALL");
+  argv.push_back(r.script);
+  return argv;
+}
+
+Result<int64_t> ParseSbatchJobId(std::string_view out) {
+  std::string_view t = Trim(out);
+  // A warning may precede the id: the id is the last line.
+  const size_t nl = t.rfind('\n');
+  if (nl != std::string_view::npos) t = Trim(t.substr(nl + 1));
+  const size_t semi = t.find(';');
+  if (semi != std::string_view::npos) t = t.substr(0, semi);
+  if (!AllDigits(t)) return Status::Corruption("sbatch printed no job id: '" + std::string(Trim(out)) + "'");
+  return static_cast<int64_t>(std::stoll(std::string(t)));
+}
+
+bool ShouldLease(std::optional<double> seconds_left, std::optional<double> expected_run_s, double margin_s) {
+  if (!seconds_left) return true;
+  const double need = expected_run_s ? *expected_run_s : margin_s;
+  return *seconds_left >= need;
+}
+
+AllocationDeadline::AllocationDeadline(SlurmCommands& slurm, std::string job_id, std::function<double()> now,
+                                       double refresh_s)
+    : slurm_(slurm), job_id_(std::move(job_id)), now_(std::move(now)), refresh_s_(refresh_s) {}
+
+Result<std::optional<double>> AllocationDeadline::SecondsLeft() {
+  using Out = std::optional<double>;
+  const double now = now_();
+  auto counted_down = [&]() -> Out {
+    if (!left_at_ask_) return Out();
+    return Out(std::max(0.0, *left_at_ask_ - (now - asked_at_)));
+  };
+  if (known_ && now - asked_at_ < refresh_s_) return counted_down();
+  auto out = slurm_.Run({"squeue", "-h", "-j", job_id_, "-o", "%L"});
+  Status error = Status::Ok();
+  if (!out.ok()) {
+    error = out.status();
+  } else if (out->exit_code != 0 || Trim(out->out).empty()) {
+    error = Status::Unavailable("squeue -j " + job_id_ + " answered nothing: " + std::string(Trim(out->err)));
+  } else {
+    auto left = ParseSlurmDuration(Trim(out->out), "squeue %L");
+    if (!left.ok()) {
+      error = left.status();
+    } else {
+      known_ = true;
+      asked_at_ = now;
+      left_at_ask_ = *left;
+      return *left;
+    }
+  }
+  if (known_) return counted_down();
+  return error;
+}
+
+}  // namespace sandswim::slurm
