@@ -128,6 +128,21 @@ class HttpDaemonClient : public DaemonClient {
     return Get(path);
   }
 
+  Result<std::string> CampaignReport(const std::string& name, const std::string& scale,
+                                     int64_t campaign_run_id) override {
+    std::string path = campaign_run_id > 0
+                           ? "/api/v1/campaign-runs/" + std::to_string(campaign_run_id) + "/report"
+                           : "/api/v1/campaigns/" + httplib::detail::encode_query_param(name) + "/report";
+    if (campaign_run_id <= 0 && !scale.empty()) path += "?scale=" + httplib::detail::encode_query_param(scale);
+    // Reports draw every figure they have not drawn before: allow them longer than a JSON answer.
+    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+    httplib::Result res = http_.Get(path.c_str());
+    if (res && res->status == 200) return res->body;
+    auto error = Answer(res, "GET", path);
+    if (!error.ok()) return error.status();
+    return Status::Corruption("the daemon answered GET " + path + " with HTTP " + std::to_string(res->status));
+  }
+
  private:
   Result<json> Get(const std::string& path) { return Answer(http_.Get(path.c_str()), "GET", path); }
 

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include "cli/format.h"
+#include "cli/slurm_submit.h"
 #include "cli/snapshot.h"
 #include "cli/watch.h"
 #include "core/scale.h"
@@ -45,6 +46,8 @@ struct Args {
   int64_t campaign_run = 0;
   double interval_s = 1.0;
   std::string engine_version;
+  std::string out_file;  // `report --out`
+  SlurmSubmitOptions slurm;  // `slurm submit`
 };
 
 class Context {
@@ -579,6 +582,52 @@ int RunExpand(Context& c) {
   return kExitOk;
 }
 
+void SetupReport(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "CAMPAIGN|CAMPAIGN-RUN", "a campaign name (its latest run) or a campaign run (cr:7)");
+  sub.add_option("--scale", a.scale, "with CAMPAIGN: its latest run at this scale (default: any)");
+  sub.add_option("--out", a.out_file, "where to write the HTML (default: sandswim-report-CAMPAIGN.html here)");
+}
+
+// Writes the campaign's HTML report (every figure inlined) and says where.
+int RunReport(Context& c) {
+  int64_t campaign_run = 0;
+  std::string name;
+  if (c.args.target.rfind("cr:", 0) == 0) {
+    auto target = ParseTarget(c.args.target, "CAMPAIGN");
+    if (!target.ok()) return FailUsageIfInvalid(c, target.status());
+    campaign_run = target->id;
+  } else if (LooksLikeCampaignName(c.args.target)) {
+    name = c.args.target;
+  } else {
+    return Fail(c, Status::InvalidArgument("CAMPAIGN", "expected a campaign name (paper-58) or a campaign run (cr:7), got \"" +
+                                                           c.args.target + "\""), kExitUsage);
+  }
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto html = (*client)->CampaignReport(name, c.args.scale, campaign_run);
+  if (!html.ok()) return Fail(c, html.status());
+  std::string path = c.args.out_file;
+  if (path.empty()) path = "sandswim-report-" + (campaign_run > 0 ? "cr" + std::to_string(campaign_run) : name) + ".html";
+  // Written aside and renamed: an interrupted write never leaves half a report under the name.
+  const std::string temp = path + ".part";
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    out << *html;
+    if (!out) {
+      std::error_code ignored;
+      std::filesystem::remove(temp, ignored);
+      return Fail(c, Status::IOError("cannot write " + temp));
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(temp, path, ec);
+  if (ec) return Fail(c, Status::IOError("cannot write " + path + ": " + ec.message()));
+  std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+  c.out() << (ec ? path : absolute.string()) << "\n";
+  c.err() << "sandswim: wrote the report (" << html->size() << " bytes, self-contained HTML): open it in a browser\n";
+  return kExitOk;
+}
+
 void SetupVersion(CLI::App& sub, Args& a) { AddJson(sub, a); }
 
 int RunVersion(Context& c) {
@@ -605,6 +654,54 @@ int RunVersion(Context& c) {
     c.out() << "daemon at " << (*client)->base_url() << ": not reachable\n";
     c.err() << "sandswim: " << Describe(health.status()) << "\n";
   }
+  return kExitOk;
+}
+
+void SetupSlurm(CLI::App& sub, Args& a) {
+  sub.require_subcommand(1);
+  CLI::App* submit = sub.add_subcommand(
+      "submit", "sbatch a pilot (one sandswim-worker for the allocation) or, with --array, one one-shot worker per "
+                "element; prints the Slurm job id");
+  slurm::PilotRequest& r = a.slurm.request;
+  submit->add_option("--nodes", r.nodes, "nodes per allocation")->capture_default_str();
+  submit->add_option("--ranks-per-run", r.ranks_per_run, "MPI ranks of each run (srun -n)")->capture_default_str();
+  submit->add_option("--time", r.time, "time limit, Slurm syntax (30, 2:00:00, 1-00:00:00)")->required();
+  submit->add_option("--tasks-per-node", r.tasks_per_node,
+                     "pilot: CPUs (tasks) per node; runs side by side = tasks / ranks-per-run (default: one run)");
+  submit->add_option("--array", r.array, "a job array of this many elements, one run each (instead of a pilot)");
+  submit->add_option("--throttle", r.throttle, "array elements running at once (%k)");
+  submit->add_option("--partition", r.partition, "Slurm partition");
+  submit->add_option("--account", r.account, "Slurm account");
+  submit->add_option("--job-name", r.job_name, "Slurm job name")->capture_default_str();
+  submit->add_option("--output", r.output, "sbatch --output pattern for the worker's log");
+  submit->add_option("--script", r.script, "the batch script (default: pilot.sbatch / array.sbatch, see README)");
+  submit->add_option("--worker", a.slurm.worker, "sandswim-worker on the compute nodes (default: on PATH)");
+  submit->add_option("--workdir", a.slurm.workdir, "run directories on the compute nodes");
+  submit->add_option("--end-margin", a.slurm.end_margin_s,
+                     "seconds a run is expected to take before a worker has finished one")
+      ->check(CLI::NonNegativeNumber);
+  AddJson(*submit, a);
+}
+
+int RunSlurm(Context& c) {
+  auto options = ResolveClientOptions(c.args.server, c.args.token_file, c.env.getenv);
+  if (!options.ok()) return FailUsageIfInvalid(c, options.status());
+  SlurmSubmitOptions submit = c.args.slurm;
+  submit.server = options->base_url;
+  submit.token = options->token;
+  submit.scripts_dir = DefaultSlurmScriptsDir(c.env.getenv("SANDSWIM_SLURM_SCRIPTS"));
+  std::unique_ptr<slurm::SlurmCommands> commands =
+      c.env.make_slurm ? c.env.make_slurm() : std::make_unique<slurm::ProcessSlurmCommands>();
+  auto done = SubmitToSlurm(*commands, submit);
+  if (!done.ok()) return FailUsageIfInvalid(c, done.status());
+  if (c.args.json) {
+    PrintJson(c, {{"job_id", done->job_id}, {"sbatch", done->sbatch}, {"server", submit.server}});
+    return kExitOk;
+  }
+  c.out() << done->job_id << "\n";
+  const slurm::PilotRequest& r = submit.request;
+  c.err() << "sandswim: submitted " << (r.array > 0 ? "job array " : "pilot ") << done->job_id << " (runs of "
+          << r.ranks_per_run << " rank(s), time " << r.time << ", workers report to " << submit.server << ")\n";
   return kExitOk;
 }
 
@@ -665,10 +762,19 @@ const Command kCommands[] = {
    "  sandswim expand paper-58 --json | jq length   # 58\n"
    "  sandswim expand paper-58 --scale smoke",
    SetupExpand, RunExpand},
+  {"report", "write a campaign's HTML report (figures, fits, drift report) to a file and print its path",
+   "  sandswim report paper-58\n"
+   "  sandswim report paper-58 --scale smoke --out paper-58.html\n"
+   "  sandswim report cr:7",
+   SetupReport, RunReport},
   {"version", "the client's version and the daemon's /healthz answer",
    "  sandswim version\n"
    "  sandswim version --json",
    SetupVersion, RunVersion},
+  {"slurm", "run workers on a Slurm cluster: `slurm submit` sbatches a pilot or a job array of workers",
+   "  sandswim --server http://login1:8080 slurm submit --nodes 2 --ranks-per-run 4 --tasks-per-node 16 --time 4:00:00\n"
+   "  sandswim slurm submit --array 58 --throttle 8 --ranks-per-run 4 --time 30",
+   SetupSlurm, RunSlurm},
 };
 // clang-format on
 

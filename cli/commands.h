@@ -25,6 +25,7 @@
 
 #include "cli/client.h"
 #include "core/status.h"
+#include "workers/slurm.h"
 
 namespace sandswim::cli {
 
@@ -46,6 +47,8 @@ struct Environment {
   std::function<std::unique_ptr<DaemonClient>(const ClientOptions&)> make_client;
   // The LIGGGHTS version string for `expand` when --engine-version is not given.
   std::function<Result<std::string>()> probe_engine;
+  // Runs Slurm's client commands for `slurm submit` (tests: a fake; unset: the real ones).
+  std::function<std::unique_ptr<slurm::SlurmCommands>()> make_slurm;
 };
 
 // Parses argv (argv[0] is the program name) and runs the subcommand. Returns the exit code.

@@ -8,7 +8,12 @@ packages=(
   libsqlite3-dev sqlite3 nlohmann-json3-dev libcpp-httplib-dev libspdlog-dev
   libssl-dev zlib1g-dev libbrotli-dev   # cpp-httplib's pkg-config asks for these
   libcli11-dev                          # the CLI's argument parsing
+  libgsl-dev                            # the paper's fits, eqs. 8 and 9 and f_c (core/fit.h)
+  libplplot-dev plplot-driver-cairo     # figures as SVG and PNG (server/figures.h; cairo draws the PNGs)
   libgtest-dev libgmock-dev curl procps
+  # Slurm, for `sandswim slurm submit` and the tests/slurm test, which starts a real single-node
+  # cluster from these itself (deploy/slurm/local-cluster.sh, no systemd needed).
+  slurmctld slurmd slurm-client munge
 )
 missing=()
 for p in "${packages[@]}"; do

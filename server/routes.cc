@@ -26,6 +26,8 @@
 #include "core/embedded.h"
 #include "core/sweep.h"
 #include "server/drift_report.h"
+#include "server/figures.h"
+#include "server/report.h"
 #include "server/submission.h"
 
 namespace sandswim {
@@ -449,6 +451,94 @@ void GetCampaignRunResults(Call& c) {
   SendRows(c, *id, *rows, /*with_sweeps=*/true);
 }
 
+// ---- Figures, fits and reports (server/figures.h, server/report.h) ----------------------------
+
+// Figures live next to the results, keyed by their data (FigureCache): never stale.
+FigureCache FiguresOf(const Deps& deps) { return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string()); }
+
+void SendFigure(Call& c, const std::string& name, const Plot& plot, ImageFormat format) {
+  auto bytes = FiguresOf(c.deps).Get(name, plot, format);
+  if (!bytes.ok()) return Fail(c, bytes.status());
+  c.res.status = 200;
+  c.res.set_content(*bytes, ImageContentType(format));
+}
+
+template <ImageFormat kFormat>
+void GetRunFigure(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto plot = RunFigure(*c.deps.store, *id);
+  if (!plot.ok()) return Fail(c, plot.status());
+  SendFigure(c, RunFigureName(*id), *plot, kFormat);
+}
+
+Result<SweepAnalysis> FinishedSweep(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return id.status();
+  auto analysis = AnalyzeSweep(*c.deps.store, *id);
+  if (!analysis.ok()) return analysis.status();
+  if (analysis->samples.empty()) {
+    return Status::FailedPrecondition("id", "sweep " + std::to_string(*id) + " has no finished run yet: nothing to plot");
+  }
+  return analysis;
+}
+
+template <ImageFormat kFormat>
+void GetSweepTrajectoriesFigure(Call& c) {
+  auto a = FinishedSweep(c);
+  if (!a.ok()) return Fail(c, a.status());
+  if (a->runs.empty()) return Fail(c, Status::FailedPrecondition("id", "no finished run of this sweep has a trajectory"));
+  SendFigure(c, SweepTrajectoriesName(a->info.id), SweepTrajectoriesFigure(*a), kFormat);
+}
+
+template <ImageFormat kFormat>
+void GetSweepUzFigure(Call& c) {
+  auto a = FinishedSweep(c);
+  if (!a.ok()) return Fail(c, a.status());
+  SendFigure(c, SweepUzName(a->info.id), SweepUzFigure(*a), kFormat);
+}
+
+void GetSweepFits(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto a = AnalyzeSweep(*c.deps.store, *id);
+  if (!a.ok()) return Fail(c, a.status());
+  json reply = a->fits;
+  reply["sweep_id"] = *id;
+  reply["finished_runs"] = a->samples.size();
+  SendJson(c, 200, reply);
+}
+
+void SendReport(Call& c, int64_t campaign_run_id) {
+  FigureCache figures = FiguresOf(c.deps);
+  auto html = CampaignReport(*c.deps.store, figures, campaign_run_id, c.deps.clock->Now());
+  if (!html.ok()) return Fail(c, html.status());
+  c.res.status = 200;
+  c.res.set_content(*html, "text/html; charset=utf-8");
+}
+
+void GetCampaignRunReport(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  SendReport(c, *id);
+}
+
+// The report of a campaign's latest run (?scale= narrows it to one scale).
+void GetCampaignReport(Call& c) {
+  const std::string name = c.req.matches[1].str();
+  const std::string scale = c.req.has_param("scale") ? c.req.get_param_value("scale") : "";
+  if (c.req.has_param("scale") && FindScale(scale) == nullptr) {
+    return Fail(c, Status::InvalidArgument("scale", "unknown scale \"" + scale + "\" (paper, mini, smoke)"));
+  }
+  auto runs = c.deps.store->ListCampaignRuns(name, 1000);
+  if (!runs.ok()) return Fail(c, runs.status());
+  for (const CampaignRunInfo& run : *runs) {
+    if (scale.empty() || run.scale == scale) return SendReport(c, run.id);
+  }
+  return Fail(c, Status::NotFound("no run of campaign '" + name + "'" + (scale.empty() ? "" : " at scale " + scale) +
+                                  " yet: submit it first (sandswim submit " + name + ")"));
+}
+
 void LeaseJob(Call& c) {
   auto request = ParseMessage<api::LeaseRequest>(c.body, "LeaseRequest", /*allow_empty=*/true);
   if (!request.ok()) return Fail(c, request.status());
@@ -473,6 +563,14 @@ void CompleteLease(Call& c) {
   auto completion = ParseMessage<api::Completion>(c.body, "Completion", /*allow_empty=*/false);
   if (!completion.ok()) return Fail(c, completion.status());
   auto reply = c.deps.leases->Complete(PathToken(c), *completion);
+  if (!reply.ok()) return Fail(c, reply.status());
+  SendJson(c, 200, *reply);
+}
+
+void ReleaseLease(Call& c) {
+  auto request = ParseMessage<api::ReleaseRequest>(c.body, "ReleaseRequest", /*allow_empty=*/true);
+  if (!request.ok()) return Fail(c, request.status());
+  auto reply = c.deps.leases->Release(PathToken(c), request->reason);
   if (!reply.ok()) return Fail(c, reply.status());
   SendJson(c, 200, *reply);
 }
@@ -660,12 +758,23 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/campaigns/{name}/drift",        Access::kRead,   BodyKind::kNone,    GetCampaignDrift},
   {"GET",  "/api/v1/campaign-runs/{id}",            Access::kRead,   BodyKind::kNone,    GetCampaignRun},
   {"GET",  "/api/v1/campaign-runs/{id}/results",    Access::kRead,   BodyKind::kNone,    GetCampaignRunResults},
+  // Figures (SVG or PNG by extension), fits and reports (server/report.h).
+  {"GET",  "/api/v1/runs/{id}/trajectory.svg",      Access::kRead,   BodyKind::kNone,    GetRunFigure<ImageFormat::kSvg>},
+  {"GET",  "/api/v1/runs/{id}/trajectory.png",      Access::kRead,   BodyKind::kNone,    GetRunFigure<ImageFormat::kPng>},
+  {"GET",  "/api/v1/sweeps/{id}/trajectories.svg",  Access::kRead,   BodyKind::kNone,    GetSweepTrajectoriesFigure<ImageFormat::kSvg>},
+  {"GET",  "/api/v1/sweeps/{id}/trajectories.png",  Access::kRead,   BodyKind::kNone,    GetSweepTrajectoriesFigure<ImageFormat::kPng>},
+  {"GET",  "/api/v1/sweeps/{id}/uz.svg",            Access::kRead,   BodyKind::kNone,    GetSweepUzFigure<ImageFormat::kSvg>},
+  {"GET",  "/api/v1/sweeps/{id}/uz.png",            Access::kRead,   BodyKind::kNone,    GetSweepUzFigure<ImageFormat::kPng>},
+  {"GET",  "/api/v1/sweeps/{id}/fits",              Access::kRead,   BodyKind::kNone,    GetSweepFits},
+  {"GET",  "/api/v1/campaign-runs/{id}/report",     Access::kRead,   BodyKind::kNone,    GetCampaignRunReport},
+  {"GET",  "/api/v1/campaigns/{name}/report",       Access::kRead,   BodyKind::kNone,    GetCampaignReport},
   // The worker protocol (core/api.h), in the order a worker uses it.
   {"POST", "/api/v1/leases",                        Access::kWorker, BodyKind::kJson,    LeaseJob},
   {"GET",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kNone,    DownloadBedRestart},
   {"POST", "/api/v1/leases/{token}/heartbeat",      Access::kWorker, BodyKind::kJson,    HeartbeatLease},
   {"PUT",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kRestart, UploadBedRestart},
   {"POST", "/api/v1/leases/{token}/complete",       Access::kWorker, BodyKind::kJson,    CompleteLease},
+  {"POST", "/api/v1/leases/{token}/release",        Access::kWorker, BodyKind::kJson,    ReleaseLease},
   // Operations.
   {"GET",  "/api/v1/openapi.json",                  Access::kPublic, BodyKind::kNone,    OpenApi},
   {"GET",  "/healthz",                              Access::kPublic, BodyKind::kNone,    Healthz},

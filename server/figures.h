@@ -1,0 +1,108 @@
+// Figures: the paper's plots of a run and of a sweep, drawn by PLplot (Debian's libplplot-dev) as
+// SVG (PLplot's own "svg" device) or PNG ("pngcairo", plplot-driver-cairo).
+//
+//   per run    Δz(t) and Δx(t) of the SO (paper Fig. 2 and 4 style);
+//   per sweep  every run's Δz(t) on one plot (Fig. 6a/b, 7a/b, 8a/b), and U_z against the swept
+//              parameter with error bars and the fitted law (Fig. 6c/d, 7c/d, 8c/d).
+//
+// A Plot is a value (title, axis labels with units, series); the builders below make one from
+// stored results, RenderPlot() draws it. Every series has its own colour (SeriesColor(i) for the
+// i-th), also in the legend: a reader of the SVG can count the series by their colours.
+//
+// FigureCache keeps rendered figures next to the results, under DATA_DIR/figures, named
+// NAME-HASH.EXT where HASH is the SHA-256 of the plot's data, its format and the style version:
+// new results make a new plot, hence a new name, so a stale figure is never served. Writing a new
+// figure removes the older ones of the same NAME. Files are written to a temporary name and
+// renamed, so a reader never sees half a figure.
+//
+// Thread safety: PLplot keeps global state and is not thread-safe; RenderPlot() serialises every
+// drawing behind one process-wide mutex. FigureCache is thread-safe (two threads may render the
+// same figure at once; both write the same bytes). PLplot ends the process on an internal error
+// (plexit), so RenderPlot() checks what it can first: finite data, a writable temporary file.
+#ifndef SANDSWIM_SERVER_FIGURES_H_
+#define SANDSWIM_SERVER_FIGURES_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/api.h"
+#include "core/fit.h"
+#include "core/point.h"
+#include "core/status.h"
+
+namespace sandswim {
+
+enum class ImageFormat { kSvg, kPng };
+const char* ImageExtension(ImageFormat format);    // "svg", "png"
+const char* ImageContentType(ImageFormat format);  // "image/svg+xml", "image/png"
+
+struct Series {
+  std::string label;
+  std::vector<double> x, y;
+  std::vector<double> y_err;  // empty, or one error bar per point
+  bool markers = false;       // data points (markers) rather than a line
+  bool dashed = false;
+};
+
+struct Plot {
+  std::string title;
+  std::string x_label, y_label;  // with units: "t (s)", "U_z (m/s)"
+  std::vector<Series> series;
+};
+void to_json(nlohmann::json& j, const Plot& p);
+
+// "#RRGGBB" of the i-th series; distinct from each other for i < 64 and never black, white or
+// the axes' colour.
+std::string SeriesColor(size_t i);
+
+// Draws the plot. InvalidArgument ("plot") for a plot with no series, a series whose x and y
+// differ in length, or a non-finite value; IOError when the temporary file cannot be made.
+Result<std::string> RenderPlot(const Plot& plot, ImageFormat format);
+
+// ---- The figures of a run and of a sweep -------------------------------------------------------
+
+// "Ω = -80 rad/s" (param "Omega"), "A = 0.03 m, Ω = -80 rad/s", "f = 3 Hz, Ω = -80 rad/s";
+// for param "" the whole drive.
+std::string PointLabel(const Point& point, const std::string& param);
+
+// Δz(t) and Δx(t) of one run. REQUIRES: the trajectory has at least one sample.
+Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory& trajectory);
+
+struct RunTrajectory {
+  int64_t run_id = 0;
+  Point point;
+  api::Trajectory trajectory;
+};
+// Every run's Δz(t), one series each, labelled by PointLabel(point, param).
+Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs,
+                           const std::string& param);
+
+// U_z against the swept parameter (signed Ω for an Ω sweep, else A or f), one series of points
+// with error bars per branch, plus the fitted law of each branch that has one (the curve of eq.
+// 8, the line of eq. 9 over its range, or a vertical line at f_c).
+Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& samples, const SweepFits& fits);
+
+// ---- Figures kept next to the results ----------------------------------------------------------
+
+class FigureCache {
+ public:
+  // `dir`: where figures live (created on first write), e.g. DATA_DIR/figures.
+  explicit FigureCache(std::string dir);
+
+  // The figure `name` (e.g. "run-12-trajectory") of `plot`: read from the file when one for this
+  // exact plot exists, else rendered and written.
+  Result<std::string> Get(const std::string& name, const Plot& plot, ImageFormat format);
+
+  // The file Get() reads or writes for this plot.
+  std::string PathFor(const std::string& name, const Plot& plot, ImageFormat format) const;
+
+ private:
+  std::string dir_;
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_FIGURES_H_

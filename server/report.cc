@@ -1,0 +1,278 @@
+#include "server/report.h"
+
+#include <cmath>
+#include <ctime>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "core/sweep.h"
+
+namespace sandswim {
+namespace {
+
+std::string Escape(const std::string& text) {
+  std::string out;
+  for (char ch : text) {
+    switch (ch) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += ch;
+    }
+  }
+  return out;
+}
+
+std::string Num(double v, int digits = 4) {
+  std::ostringstream out;
+  out.precision(digits);
+  out << v;
+  return out.str();
+}
+
+std::string PlusMinus(double v, double err) { return Num(v) + " ± " + Num(err, 2); }
+
+std::string UtcTime(double unix_s) {
+  std::time_t t = static_cast<std::time_t>(unix_s);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%d %H:%M:%S UTC", &tm);
+  return buf;
+}
+
+// An SVG file's <svg> element alone (no XML prolog or DOCTYPE), for inlining in HTML. PLplot
+// names its clip paths alike in every file ("text-clipping0"); inlined together they would
+// clash, so each figure's ids (and the url(#...) references to them) get a prefix of their own.
+std::string InlineSvg(const std::string& svg, const std::string& prefix) {
+  size_t at = svg.find("<svg");
+  if (at == std::string::npos) return std::string();
+  static const std::regex kIds(R"re((\sid="|url\(#|href="#))re");
+  return std::regex_replace(svg.substr(at), kIds, "$1" + prefix + "-");
+}
+
+std::string FigureHtml(const std::string& svg, const std::string& id, const std::string& caption) {
+  if (svg.empty()) return "<p class=\"none\">" + Escape(caption) + ": nothing finished yet.</p>\n";
+  return "<figure>" + InlineSvg(svg, id) + "<figcaption>" + Escape(caption) + "</figcaption></figure>\n";
+}
+
+std::string FitRows(const ReportSweep& s) {
+  std::string rows;
+  const SweepFits& fits = s.fits;
+  if (fits.choice.kind == FitKind::kNone || fits.branches.empty()) {
+    return "<tr><td><a href=\"#sweep-" + std::to_string(s.info.id) + "\">" + Escape(s.info.name) +
+           "</a></td><td>none</td><td colspan=\"5\">" +
+           Escape(fits.choice.kind == FitKind::kNone ? fits.choice.reason : "no finished runs") + "</td></tr>\n";
+  }
+  for (const BranchFit& b : fits.branches) {
+    std::string law, params, r2, range, signs = b.sign_matches_paper ? (*b.sign_matches_paper ? "yes" : "NO") : "–";
+    if (b.saturation) {
+      law = "eq. 8: U<sub>z</sub> = ±C1 (1 − e<sup>−C2|Ω|</sup>)";
+      params = "C1 = " + PlusMinus(b.saturation->c1, b.saturation->c1_stderr) + " m/s<br>C2 = " +
+               PlusMinus(b.saturation->c2, b.saturation->c2_stderr) + " s/rad";
+      r2 = Num(b.saturation->r2, 3);
+      range = std::to_string(b.saturation->n) + " points";
+    } else if (b.linear) {
+      law = "eq. 9: U<sub>z</sub> = C3 A";
+      params = "C3 = " + PlusMinus(b.linear->c3, b.linear->c3_stderr) + " 1/s";
+      r2 = Num(b.linear->r2, 3);
+      range = "A = " + Num(b.linear->a_from) + " … " + Num(b.linear->a_to) + " m (" + std::to_string(b.linear->n) +
+              " of " + std::to_string(b.linear->n_total) + " points)";
+    } else if (b.fastest_rise) {
+      law = "fastest rise";
+      params = "f<sub>c</sub> = " + Num(b.fastest_rise->f_c) + " Hz, interval [" + Num(b.fastest_rise->interval_lo) +
+               ", " + Num(b.fastest_rise->interval_hi) + "] Hz" + (b.fastest_rise->at_edge ? " (at the edge)" : "");
+      r2 = "–";
+      range = std::to_string(b.fastest_rise->n) + " points";
+    } else {
+      law = FitKindName(fits.choice.kind);
+      params = "not fitted: " + Escape(b.error);
+    }
+    rows += "<tr><td><a href=\"#sweep-" + std::to_string(s.info.id) + "\">" + Escape(s.info.name) + "</a> (" +
+            Escape(b.branch) + ")</td><td>" + law + "</td><td>" + params + "</td><td>" + r2 + "</td><td>" + range +
+            "</td><td>" + signs + "</td><td>" + std::to_string(b.points) + "</td></tr>\n";
+  }
+  return rows;
+}
+
+std::string DriftHtml(const std::optional<DriftReport>& drift) {
+  if (!drift) return "<p class=\"none\">No drift report yet: one is made when a campaign run finishes.</p>\n";
+  std::string html = "<p>" + Escape(drift->summary) + "</p>\n<table><tr><th>run</th><th>point</th><th>state</th>"
+                     "<th>U<sub>z</sub> (m/s)</th><th>before (m/s)</th><th>difference (m/s)</th><th></th></tr>\n";
+  auto cell = [](const std::optional<double>& v) { return v ? Num(*v) : std::string("–"); };
+  for (const DriftPoint& p : drift->rows) {
+    html += "<tr" + std::string(p.drifted ? " class=\"drifted\"" : "") + "><td><a href=\"#run-" +
+            std::to_string(p.run_id) + "\">" + std::to_string(p.run_id) + "</a></td><td>" + Escape(p.point.dump()) +
+            "</td><td>" + Escape(p.state) + "</td><td>" + cell(p.uz) + "</td><td>" + cell(p.uz_previous) +
+            "</td><td>" + cell(p.difference) + "</td><td>" + (p.drifted ? "drifted" : p.reused ? "reused" : "") +
+            "</td></tr>\n";
+  }
+  return html + "</table>\n";
+}
+
+}  // namespace
+
+// ---- Analysis ----------------------------------------------------------------------------------
+
+Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
+  SweepAnalysis a;
+  auto info = store.GetSweep(sweep_id);
+  if (!info.ok()) return info.status();
+  a.info = *info;
+  auto rows = store.SweepResults(sweep_id);
+  if (!rows.ok()) return rows.status();
+  for (const ResultRow& row : *rows) {
+    if (row.state != "done" || !row.result) continue;
+    a.samples.push_back({row.point, row.result->result.uz, row.result->result.uz_stderr});
+    auto run = store.GetRun(row.run_id);
+    if (!run.ok()) return run.status();
+    if (run->trajectory && !run->trajectory->t.empty()) a.runs.push_back({row.run_id, row.point, *run->trajectory});
+  }
+  // The law is what the sweep varies (all its points), whatever has finished so far.
+  std::vector<Point> points;
+  for (const ResultRow& row : *rows) points.push_back(row.point);
+  a.fits = FitSweep(a.samples, ChooseFit(points));
+  return a;
+}
+
+Plot SweepTrajectoriesFigure(const SweepAnalysis& a) {
+  return SweepTrajectoriesPlot("sweep " + std::to_string(a.info.id) + " " + a.info.name + " (" + a.info.scale +
+                                   "): Δz(t) of every run",
+                               a.runs, a.fits.choice.param);
+}
+
+Plot SweepUzFigure(const SweepAnalysis& a) {
+  return SweepUzPlot("sweep " + std::to_string(a.info.id) + " " + a.info.name + " (" + a.info.scale + "): U#dz#u",
+                     a.samples, a.fits);
+}
+
+Result<Plot> RunFigure(Store& store, int64_t run_id) {
+  auto run = store.GetRun(run_id);
+  if (!run.ok()) return run.status();
+  if (!run->trajectory || run->trajectory->t.empty()) {
+    return Status::FailedPrecondition("id", "run " + std::to_string(run_id) + " has no trajectory yet (state " +
+                                                run->summary.state + ")");
+  }
+  return RunTrajectoryPlot(run_id, run->summary.point, *run->trajectory);
+}
+
+std::string RunFigureName(int64_t run_id) { return "run-" + std::to_string(run_id) + "-trajectory"; }
+std::string SweepTrajectoriesName(int64_t sweep_id) { return "sweep-" + std::to_string(sweep_id) + "-trajectories"; }
+std::string SweepUzName(int64_t sweep_id) { return "sweep-" + std::to_string(sweep_id) + "-uz"; }
+
+// ---- HTML --------------------------------------------------------------------------------------
+
+std::string RenderReportHtml(const ReportInput& in) {
+  const CampaignRunInfo& cr = in.campaign_run;
+  const std::string title = "sandswim report: " + cr.campaign + " at " + cr.scale + ", campaign run cr:" +
+                            std::to_string(cr.id);
+  std::string html =
+      "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + Escape(title) +
+      "</title>\n<style>\n"
+      "body{font-family:sans-serif;margin:2em;max-width:1100px}table{border-collapse:collapse;margin:1em 0}"
+      "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}"
+      "figure{margin:1em 0}figure svg{width:100%;height:auto}figcaption{color:#555}"
+      ".none{color:#777}.drifted{background:#fdd}details{margin:0.5em 0}\n"
+      "</style>\n</head>\n<body>\n<h1 id=\"top\">" +
+      Escape(title) + "</h1>\n<p>Generated " + UtcTime(in.generated_at) + ". Created " + UtcTime(cr.created_at) +
+      " (" + Escape(cr.trigger) + "). Runs: " + std::to_string(cr.counts.done) + " done, " +
+      std::to_string(cr.counts.queued) + " queued, " + std::to_string(cr.counts.running) + " running, " +
+      std::to_string(cr.counts.failed) + " failed, " + std::to_string(cr.counts.cancelled) + " cancelled.</p>\n";
+
+  html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#fits\">Fits</a></li>\n";
+  for (const ReportSweep& s : in.sweeps) {
+    html += "<li><a href=\"#sweep-" + std::to_string(s.info.id) + "\">sweep " + std::to_string(s.info.id) + ": " +
+            Escape(s.info.name) + "</a></li>\n";
+  }
+  html += "<li><a href=\"#drift\">Drift report</a></li>\n</ul></nav>\n";
+
+  html += "<h2 id=\"fits\">Fits</h2>\n<p>Least squares; ± is one standard error. \"paper's sign\": rising for "
+          "Ω &lt; 0, sinking for Ω &gt; 0.</p>\n<table><tr><th>sweep (branch)</th><th>law</th><th>parameters</th>"
+          "<th>R²</th><th>over</th><th>paper's sign</th><th>runs</th></tr>\n";
+  for (const ReportSweep& s : in.sweeps) html += FitRows(s);
+  html += "</table>\n";
+
+  for (const ReportSweep& s : in.sweeps) {
+    const std::string id = std::to_string(s.info.id);
+    html += "<section id=\"sweep-" + id + "\">\n<h2>sweep " + id + ": " + Escape(s.info.name) + "</h2>\n<p>" +
+            Escape(s.fits.choice.reason) + ". <a href=\"#top\">top</a></p>\n";
+    html += FigureHtml(s.trajectories_svg, "fig-sweep-" + id + "-trajectories", "Δz(t) of every finished run of sweep " + id);
+    html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz", "U_z of sweep " + id + " against " +
+                                     (s.fits.choice.param.empty() ? std::string("its point") : s.fits.choice.param) +
+                                     ", with the fitted law");
+    html += "<table><tr><th>run</th><th>point</th><th>state</th><th>U<sub>z</sub> (m/s)</th></tr>\n";
+    for (const ReportRun& r : s.runs) {
+      html += "<tr><td><a href=\"#run-" + std::to_string(r.run_id) + "\">" + std::to_string(r.run_id) + "</a></td><td>" +
+              Escape(r.label) + "</td><td>" + Escape(r.state) + "</td><td>" +
+              (r.uz ? PlusMinus(*r.uz, r.uz_stderr.value_or(0)) : std::string("–")) + "</td></tr>\n";
+    }
+    html += "</table>\n";
+    for (const ReportRun& r : s.runs) {
+      if (!r.anchored) continue;
+      html += "<details id=\"run-" + std::to_string(r.run_id) + "\"><summary>run " + std::to_string(r.run_id) + ": " +
+              Escape(r.label) + "</summary>\n" +
+              FigureHtml(r.trajectory_svg, "fig-run-" + std::to_string(r.run_id), "Δz(t) and Δx(t) of run " + std::to_string(r.run_id)) + "</details>\n";
+    }
+    html += "</section>\n";
+  }
+  html += "<h2 id=\"drift\">Drift report</h2>\n" + DriftHtml(in.drift) + "<p><a href=\"#top\">top</a></p>\n";
+  return html + "</body>\n</html>\n";
+}
+
+Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now) {
+  auto cr = store.GetCampaignRun(campaign_run_id);
+  if (!cr.ok()) return cr.status();
+  ReportInput in;
+  in.campaign_run = *cr;
+  in.generated_at = now;
+  auto drift = DriftReportFor(store, campaign_run_id);
+  if (!drift.ok()) return drift.status();
+  in.drift = *drift;
+  // A run shared by several sweeps is drawn once and shown (anchored) under its first sweep only,
+  // so every "#run-ID" names exactly one element.
+  std::set<int64_t> shown;
+  for (int64_t sweep_id : cr->sweep_ids) {
+    auto a = AnalyzeSweep(store, sweep_id);
+    if (!a.ok()) return a.status();
+    ReportSweep s;
+    s.info = a->info;
+    s.fits = a->fits;
+    if (!a->runs.empty()) {
+      auto svg = figures.Get(SweepTrajectoriesName(sweep_id), SweepTrajectoriesFigure(*a), ImageFormat::kSvg);
+      if (!svg.ok()) return svg.status();
+      s.trajectories_svg = *svg;
+    }
+    if (!a->samples.empty()) {
+      auto svg = figures.Get(SweepUzName(sweep_id), SweepUzFigure(*a), ImageFormat::kSvg);
+      if (!svg.ok()) return svg.status();
+      s.uz_svg = *svg;
+    }
+    auto rows = store.SweepResults(sweep_id);
+    if (!rows.ok()) return rows.status();
+    for (const ResultRow& row : *rows) {
+      ReportRun r;
+      r.anchored = shown.insert(row.run_id).second;
+      r.run_id = row.run_id;
+      r.label = PointLabel(row.point, "");
+      r.state = row.state;
+      if (row.result) {
+        r.uz = row.result->result.uz;
+        r.uz_stderr = row.result->result.uz_stderr;
+      }
+      for (const RunTrajectory& t : a->runs) {
+        if (t.run_id != row.run_id || !r.anchored) continue;
+        auto svg = figures.Get(RunFigureName(t.run_id), RunTrajectoryPlot(t.run_id, t.point, t.trajectory),
+                               ImageFormat::kSvg);
+        if (!svg.ok()) return svg.status();
+        r.trajectory_svg = *svg;
+      }
+      s.runs.push_back(std::move(r));
+    }
+    in.sweeps.push_back(std::move(s));
+  }
+  return RenderReportHtml(in);
+}
+
+}  // namespace sandswim

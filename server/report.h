@@ -1,0 +1,83 @@
+// Report: a sweep's analysis (its finished runs, the paper's fit, its figures) and one
+// self-contained HTML report per campaign run (every figure inlined as SVG, the fit table, the
+// drift report).
+//
+// AnalyzeSweep() reads a sweep's finished runs (U_z, its standard error, the trajectory) from
+// the Store and fits the law ChooseFit() picks (core/fit.h). The figures of a sweep and of a run
+// are built from it with server/figures.h and kept by a FigureCache (so the report and the REST
+// routes draw each figure once per set of results).
+//
+// The HTML is one file: no external stylesheet, script, font or image; every internal link is an
+// anchor ("#sweep-12", "#run-40") of an element in the same page, and the figures are inline
+// <svg> elements (their XML prolog stripped). RenderReportHtml() is pure; CampaignReport() does
+// the reading.
+//
+// Thread safety: free functions over a thread-safe Store and FigureCache.
+#ifndef SANDSWIM_SERVER_REPORT_H_
+#define SANDSWIM_SERVER_REPORT_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/fit.h"
+#include "core/status.h"
+#include "server/drift_report.h"
+#include "server/figures.h"
+#include "server/store.h"
+
+namespace sandswim {
+
+struct SweepAnalysis {
+  SweepInfo info;
+  std::vector<SweepSample> samples;  // finished runs with a U_z, in expansion order
+  std::vector<RunTrajectory> runs;   // finished runs with a trajectory, in expansion order
+  SweepFits fits;                    // of `samples`
+};
+// NotFound when the sweep does not exist.
+Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
+
+// The two figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished.
+Plot SweepTrajectoriesFigure(const SweepAnalysis& analysis);
+Plot SweepUzFigure(const SweepAnalysis& analysis);
+// FailedPrecondition when the run has no trajectory yet.
+Result<Plot> RunFigure(Store& store, int64_t run_id);
+
+// Cache names of the figures (FigureCache::Get): "run-ID-trajectory", "sweep-ID-trajectories",
+// "sweep-ID-uz".
+std::string RunFigureName(int64_t run_id);
+std::string SweepTrajectoriesName(int64_t sweep_id);
+std::string SweepUzName(int64_t sweep_id);
+
+// What the report shows, already drawn (SVG text as RenderPlot makes it).
+struct ReportRun {
+  int64_t run_id = 0;
+  std::string label;  // PointLabel
+  std::string state;
+  std::optional<double> uz, uz_stderr;
+  std::string trajectory_svg;  // "" when none
+  // The run's figure and its "#run-ID" anchor are shown here (false where an earlier sweep of the
+  // report, sharing the run, shows them).
+  bool anchored = true;
+};
+struct ReportSweep {
+  SweepInfo info;
+  SweepFits fits;
+  std::string trajectories_svg, uz_svg;  // "" when nothing is finished
+  std::vector<ReportRun> runs;
+};
+struct ReportInput {
+  CampaignRunInfo campaign_run;
+  std::vector<ReportSweep> sweeps;
+  std::optional<DriftReport> drift;
+  double generated_at = 0;  // unix seconds
+};
+std::string RenderReportHtml(const ReportInput& input);
+
+// Reads and draws everything of a campaign run and renders the report. NotFound for an unknown id.
+Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_REPORT_H_

@@ -1,0 +1,296 @@
+// A campaign of two sweeps (an Ω sweep and the ±Ω baseline, sharing two runs) is submitted and
+// "run" through the real lease queue with synthetic results; then the analysis, the HTML report
+// (every internal link resolves, nothing is fetched from outside) and the REST routes of
+// figures, fits and reports (real httplib server on an ephemeral port).
+#include "server/report.h"
+
+#include <stdlib.h>
+
+#include <cmath>
+#include <filesystem>
+#include <regex>
+#include <set>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include "core/keys.h"
+#include "server/clock.h"
+#include "server/lease_queue.h"
+#include "server/routes.h"
+#include "server/submission.h"
+
+namespace sandswim {
+namespace {
+
+using json = nlohmann::json;
+using ::testing::HasSubstr;
+
+constexpr const char* kEngine = "LIGGGHTS (Version test)";
+
+const char* kCampaign = R"({"name": "tiny", "description": "two sweeps for the report test", "scale": "smoke",
+  "drift_tolerance_mps": 0.001,
+  "sweeps": [
+    {"name": "omega", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -10, "duration_s": 0.3},
+     "axes": [{"param": "Omega", "values": [-10, -20, -40, -80, 10, 20, 40, 80]}]},
+    {"name": "baseline", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+     "axes": [{"param": "Omega", "values": [-80, 80]}]}]})";
+
+// U_z of eq. 8 with C1 = 0.02 / 0.01 m/s and C2 = 0.03 s/rad, plus a small deterministic wobble.
+double SyntheticUz(double omega) {
+  double w = std::fabs(omega);
+  double wobble = 1e-4 * std::sin(w);
+  return omega < 0 ? 0.02 * (1 - std::exp(-0.03 * w)) + wobble : -0.01 * (1 - std::exp(-0.03 * w)) + wobble;
+}
+
+class ReportTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/sandswim-report-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+    auto store = Store::Open(dir_ + "/test.db");
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    store_ = std::move(*store);
+    leases_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, LeaseQueueOptions{});
+    clock_.Set(1.7e9);
+    StoredCampaign campaign;
+    campaign.name = "tiny";
+    campaign.definition = json::parse(kCampaign);
+    campaign.drift_tolerance_mps = 0.001;
+    ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+    SubmitRequest request;
+    request.campaign = "tiny";
+    auto submitted = Submit(*store_, request, kEngine, clock_.Now());
+    ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+    ASSERT_TRUE(submitted->campaign_run_id.has_value());
+    campaign_run_ = *submitted->campaign_run_id;
+    sweeps_ = submitted->sweep_ids;
+    ASSERT_EQ(sweeps_.size(), 2u);
+  }
+
+  void TearDown() override {
+    StopServer();
+    leases_.reset();
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+
+  // Prepares the bed and completes up to `runs` runs with synthetic results.
+  void RunAll(int runs = 1000) {
+    for (int done = 0; done < runs;) {
+      auto grant = leases_->Lease(api::LeaseRequest{"test:1", "test", 1});
+      ASSERT_TRUE(grant.ok()) << grant.status().ToString();
+      if (!grant->has_value()) return;
+      const api::LeaseGrant& g = **grant;
+      api::Completion c;
+      c.ok = true;
+      c.execution.engine_version = kEngine;
+      if (g.kind == api::JobKind::kBed) {
+        const std::string restart = "a bed";
+        ASSERT_TRUE(leases_->PutBedRestart(g.token, restart, Sha256Hex(restart), dir_ + "/data").ok());
+        c.bed_result = api::BedResult{3700, 0.0, 0.22, true, 1e-4, Sha256Hex(restart), 5};
+      } else {
+        auto run = store_->GetRun(g.id);
+        ASSERT_TRUE(run.ok());
+        const double omega = run->summary.point.Omega;
+        api::RunResult r;
+        r.uz = SyntheticUz(omega);
+        r.uz_stderr = 2e-4;
+        r.stop_reason = "duration";
+        c.result = r;
+        api::Trajectory t;
+        for (int i = 0; i <= 30; ++i) {
+          double time = i * 0.01;
+          t.t.push_back(time);
+          t.x.push_back(1e-4 * i);
+          t.y.push_back(0);
+          t.z.push_back(r.uz * time + 0.002 * std::sin(2 * M_PI * 3 * time));
+        }
+        c.trajectory = t;
+        ++done;
+      }
+      auto reply = leases_->Complete(g.token, c);
+      ASSERT_TRUE(reply.ok()) << reply.status().ToString();
+    }
+  }
+
+  void StartServer() {
+    deps_.store = store_.get();
+    deps_.leases = leases_.get();
+    deps_.clock = &clock_;
+    deps_.data_dir = dir_ + "/data";
+    deps_.engine_version = kEngine;
+    server_ = std::make_unique<httplib::Server>();
+    RegisterRoutes(*server_, deps_);
+    port_ = server_->bind_to_any_port("127.0.0.1");
+    ASSERT_GT(port_, 0);
+    thread_ = std::thread([this] { server_->listen_after_bind(); });
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  }
+
+  void StopServer() {
+    if (!server_) return;
+    while (!server_->is_running()) std::this_thread::yield();
+    server_->stop();
+    thread_.join();
+    server_.reset();
+  }
+
+  std::string dir_;
+  FakeClock clock_;
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<LeaseQueue> leases_;
+  int64_t campaign_run_ = 0;
+  std::vector<int64_t> sweeps_;
+  Deps deps_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+  int port_ = 0;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+TEST_F(ReportTest, AnalyzeSweepFitsTheFinishedRuns) {
+  auto before = AnalyzeSweep(*store_, sweeps_[0]);
+  ASSERT_TRUE(before.ok()) << before.status().ToString();
+  EXPECT_TRUE(before->samples.empty());
+  EXPECT_EQ(before->fits.choice.kind, FitKind::kSaturation);  // decided by the points, before any result
+  RunAll();
+  auto a = AnalyzeSweep(*store_, sweeps_[0]);
+  ASSERT_TRUE(a.ok());
+  EXPECT_EQ(a->samples.size(), 8u);
+  EXPECT_EQ(a->runs.size(), 8u);
+  ASSERT_EQ(a->fits.branches.size(), 2u);
+  ASSERT_TRUE(a->fits.branches[0].saturation.has_value()) << a->fits.branches[0].error;
+  EXPECT_NEAR(a->fits.branches[0].saturation->c1, 0.02, 3 * a->fits.branches[0].saturation->c1_stderr + 1e-3);
+  EXPECT_EQ(a->fits.branches[1].sign_matches_paper, true);
+  EXPECT_EQ(SweepTrajectoriesFigure(*a).series.size(), 8u);
+  EXPECT_EQ(SweepUzFigure(*a).series.size(), 4u);
+  EXPECT_EQ(AnalyzeSweep(*store_, 999).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {
+  RunAll();
+  auto drift = ReportFinishedCampaignRuns(*store_, clock_.Now());
+  ASSERT_TRUE(drift.ok()) << drift.status().ToString();
+  ASSERT_EQ(drift->size(), 1u);
+  FigureCache figures(dir_ + "/data/figures");
+  auto html = CampaignReport(*store_, figures, campaign_run_, clock_.Now());
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  std::set<std::string> ids;
+  static const std::regex kId(R"re(\sid="([^"]+)")re");
+  for (auto it = std::sregex_iterator(html->begin(), html->end(), kId); it != std::sregex_iterator(); ++it) {
+    EXPECT_TRUE(ids.insert((*it)[1].str()).second) << "duplicate id " << (*it)[1].str();
+  }
+  static const std::regex kHref(R"re(href="([^"]*)")re");
+  int links = 0;
+  for (auto it = std::sregex_iterator(html->begin(), html->end(), kHref); it != std::sregex_iterator(); ++it) {
+    std::string target = (*it)[1].str();
+    ASSERT_FALSE(target.empty());
+    ASSERT_EQ(target[0], '#') << "a link leaves the page: " << target;
+    EXPECT_TRUE(ids.count(target.substr(1))) << "no element for " << target;
+    ++links;
+  }
+  // Contents 4, fit rows 3 (2 branches + the baseline's "none"), "top" 3, run rows 8 + 2, drift rows 8.
+  EXPECT_EQ(links, 28);
+  EXPECT_THAT(*html, HasSubstr((*drift)[0].summary.substr(0, 20)));
+  EXPECT_THAT(*html, ::testing::Not(HasSubstr(" src=")));  // nothing loaded from elsewhere
+  EXPECT_THAT(*html, ::testing::Not(HasSubstr("<?xml")));  // SVGs inlined without their prolog
+  // Both sweeps, each run's figure once (2 shared runs), the sweeps' 2 figures each.
+  EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[0])));
+  EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[1])));
+  size_t svgs = 0;
+  for (size_t at = html->find("<svg"); at != std::string::npos; at = html->find("<svg", at + 1)) ++svgs;
+  EXPECT_EQ(svgs, 8u + 2 * 2);
+  EXPECT_THAT(*html, HasSubstr("C1 = "));
+  EXPECT_THAT(*html, HasSubstr("id=\"drift\""));
+  EXPECT_EQ(CampaignReport(*store_, figures, 999, 0).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(ReportTest, RoutesServeFiguresFitsAndReportsWithTheirTypes) {
+  RunAll();
+  StartServer();
+  const std::string sweep = "/api/v1/sweeps/" + std::to_string(sweeps_[0]);
+  auto runs = store_->SweepResults(sweeps_[0]);
+  ASSERT_TRUE(runs.ok());
+  const std::string run = "/api/v1/runs/" + std::to_string(runs->front().run_id);
+  const std::pair<std::string, std::string> ok[] = {
+      {run + "/trajectory.svg", "image/svg+xml"},
+      {run + "/trajectory.png", "image/png"},
+      {sweep + "/trajectories.svg", "image/svg+xml"},
+      {sweep + "/trajectories.png", "image/png"},
+      {sweep + "/uz.svg", "image/svg+xml"},
+      {sweep + "/uz.png", "image/png"},
+      {sweep + "/fits", "application/json"},
+      {"/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/report", "text/html; charset=utf-8"},
+      {"/api/v1/campaigns/tiny/report", "text/html; charset=utf-8"},
+      {"/api/v1/campaigns/tiny/report?scale=smoke", "text/html; charset=utf-8"},
+  };
+  for (const auto& [path, type] : ok) {
+    auto r = client_->Get(path.c_str());
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, 200) << path << ": " << r->body;
+    EXPECT_EQ(r->get_header_value("Content-Type"), type) << path;
+    EXPECT_FALSE(r->body.empty()) << path;
+  }
+  json fits = json::parse(client_->Get((sweep + "/fits").c_str())->body);
+  EXPECT_EQ(fits["kind"], "saturation");
+  EXPECT_EQ(fits["finished_runs"], 8);
+  EXPECT_TRUE(fits["branches"][0]["saturation"].contains("C1_stderr"));
+  // The figures were written next to the results.
+  EXPECT_TRUE(std::filesystem::exists(dir_ + "/data/figures"));
+
+  const std::pair<std::string, int> bad[] = {
+      {"/api/v1/runs/999/trajectory.svg", 404},
+      {"/api/v1/sweeps/999/uz.png", 404},
+      {"/api/v1/sweeps/999/trajectories.svg", 404},
+      {"/api/v1/sweeps/999/fits", 404},
+      {"/api/v1/campaign-runs/999/report", 404},
+      {"/api/v1/campaigns/nothing/report", 404},
+      {"/api/v1/campaigns/tiny/report?scale=huge", 400},
+      {"/api/v1/sweeps/99999999999999999999999/fits", 400},
+      {"/api/v1/runs/1/trajectory.gif", 404},
+  };
+  for (const auto& [path, status] : bad) {
+    auto r = client_->Get(path.c_str());
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, status) << path << ": " << r->body;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json") << path;
+  }
+}
+
+TEST_F(ReportTest, NothingFinishedIsUnprocessableNotAnError) {
+  StartServer();
+  const std::string sweep = "/api/v1/sweeps/" + std::to_string(sweeps_[0]);
+  for (const std::string path : {sweep + "/uz.svg", sweep + "/trajectories.png"}) {
+    auto r = client_->Get(path.c_str());
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 422) << path;
+    EXPECT_THAT(r->body, HasSubstr("no finished run"));
+  }
+  auto fits = client_->Get((sweep + "/fits").c_str());
+  ASSERT_EQ(fits->status, 200);
+  EXPECT_EQ(json::parse(fits->body)["finished_runs"], 0);
+  auto report = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/report").c_str());
+  EXPECT_EQ(report->status, 200);
+  EXPECT_THAT(report->body, HasSubstr("nothing finished yet"));
+}
+
+// New results are never answered with an older figure.
+TEST_F(ReportTest, AFigureFollowsNewResults) {
+  RunAll(3);
+  StartServer();
+  const std::string path = "/api/v1/sweeps/" + std::to_string(sweeps_[0]) + "/uz.svg";
+  auto first = client_->Get(path.c_str());
+  ASSERT_EQ(first->status, 200);
+  EXPECT_EQ(client_->Get(path.c_str())->body, first->body);
+  RunAll(1);
+  auto second = client_->Get(path.c_str());
+  ASSERT_EQ(second->status, 200);
+  EXPECT_NE(second->body, first->body);
+}
+
+}  // namespace
+}  // namespace sandswim
