@@ -45,6 +45,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--once", options.once, "take one job (waiting for one if the queue is empty), run it, exit");
+  app.add_option("--exit-when-idle", options.exit_when_idle_s,
+                 "exit after this many seconds with nothing to lease (0: wait for work forever)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--keep-run-dirs", options.keep_run_dirs, "keep run directories of jobs that succeeded");
   CLI11_PARSE(app, argc, argv);
 

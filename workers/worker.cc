@@ -175,6 +175,7 @@ void Worker::Run() {
 
 void Worker::SlotLoop() {
   double backoff = 0.5;
+  auto idle_since = Clock::now();
   while (!stopping_) {
     if (!RunFitsAllocation()) break;
     api::LeaseRequest request{options_.name, options_.host, options_.ranks};
@@ -192,7 +193,14 @@ void Worker::SlotLoop() {
     }
     backoff = 0.5;
     if (!lease->has_value()) {
-      if (!Idle(options_.idle_poll_s)) break;
+      if (options_.exit_when_idle_s > 0 && Since(idle_since) >= options_.exit_when_idle_s) {
+        spdlog::info("no work for {:.0f} s (--exit-when-idle): this slot is done", Since(idle_since));
+        break;
+      }
+      if (!Idle(options_.exit_when_idle_s > 0 ? std::min(options_.idle_poll_s, options_.exit_when_idle_s)
+                                              : options_.idle_poll_s)) {
+        break;
+      }
       continue;
     }
     {
@@ -201,6 +209,7 @@ void Worker::SlotLoop() {
     }
     RunJob(**lease);
     if (options_.once) break;
+    idle_since = Clock::now();
   }
 }
 

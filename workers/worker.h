@@ -62,6 +62,7 @@ struct WorkerOptions {
   double heartbeat_every_s = 5;   // also capped at a third of the lease's ttl
   double stop_grace_s = 10;       // SIGTERM -> SIGKILL
   double idle_poll_s = 2;         // when the queue is empty
+  double exit_when_idle_s = 0;    // > 0: a slot returns after this long without work (array jobs)
   double max_backoff_s = 30;      // when the daemon cannot be reached
   // Seconds until this worker's Slurm allocation ends (nullopt: no limit); empty when the worker
   // is not in an allocation. Called before every lease.

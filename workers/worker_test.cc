@@ -379,5 +379,18 @@ TEST(WorkerTest, OnceTakesOneJobAndReturns) {
   EXPECT_EQ(client.grants.size(), 1u);
 }
 
+TEST(WorkerTest, ExitWhenIdleReturnsWithNoWork) {
+  FakeClient client;  // no grants: every lease answers "nothing queued"
+  FakeLauncher launcher;
+  WorkerOptions o = Options(TempDir());
+  o.once = true;
+  o.idle_poll_s = 0.01;
+  o.exit_when_idle_s = 0.05;
+  Worker worker(o, client, launcher);
+  worker.Run();  // would wait forever without exit_when_idle_s
+  EXPECT_EQ(worker.stats().leased, 0);
+  EXPECT_TRUE(launcher.started.empty());
+}
+
 }  // namespace
 }  // namespace sandswim::worker
