@@ -24,6 +24,7 @@ Result<SlurmSubmission> SubmitToSlurm(slurm::SlurmCommands& slurm, const SlurmSu
     return Status::InvalidArgument("--server", "the daemon URL the compute nodes reach, http://HOST:PORT");
   }
   slurm::PilotRequest request = options.request;
+  if (options.end_margin_s >= 0) request.end_margin_s = options.end_margin_s;
   if (request.script.empty()) {
     if (options.scripts_dir.empty()) {
       return Status::InvalidArgument("--script", "no batch script: pass --script or set $SANDSWIM_SLURM_SCRIPTS");

@@ -268,6 +268,15 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
   return plot;
 }
 
+std::string PlplotLiteral(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '#') out += '#';
+    out += c;
+  }
+  return out;
+}
+
 Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs,
                            const std::string& param) {
   Plot plot;

@@ -62,6 +62,10 @@ std::string SeriesColor(size_t i);
 // differ in length, or a non-finite value; IOError when the temporary file cannot be made.
 Result<std::string> RenderPlot(const Plot& plot, ImageFormat format);
 
+// Text shown as it is in a PLplot label: '#' (PLplot's escape, as in "U#dz#u") doubled. For
+// user-given names (a sweep's) inside titles.
+std::string PlplotLiteral(const std::string& text);
+
 // ---- The figures of a run and of a sweep -------------------------------------------------------
 
 // "Ω = -80 rad/s" (param "Omega"), "A = 0.03 m, Ω = -80 rad/s", "f = 3 Hz, Ω = -80 rad/s";

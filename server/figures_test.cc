@@ -55,6 +55,11 @@ TEST(FiguresTest, SeriesColoursAreDistinctAndNeverInk) {
   EXPECT_FALSE(colors.count("#FFFFFF"));
 }
 
+TEST(FiguresTest, PlplotLiteralDoublesTheEscape) {
+  EXPECT_EQ(PlplotLiteral("omega #1 #u"), "omega ##1 ##u");
+  EXPECT_EQ(PlplotLiteral("plain"), "plain");
+}
+
 TEST(FiguresTest, ARunPlotHasZAndXWithUnits) {
   Plot plot = RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), Wiggle(0.01, 0));
   ASSERT_EQ(plot.series.size(), 2u);

@@ -220,7 +220,6 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest
         g.attempt = static_cast<int>(st.Int(3)) + 1;
       }
     }
-    bool failed_decks = false;
     // Then the oldest queued run whose bed is done. Its deck is rendered from its point and its
     // bed's scale (runs submitted before migration 3 have it stored in run_decks) and checked
     // against the run's key; a run whose deck no longer renders to its key (the templates changed
@@ -286,7 +285,6 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest
       SANDSWIM_RETURN_IF_ERROR(fail.Run());
       SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, g.id),
                                        {{"kind", "deck_error"}, {"message", why}}));
-      failed_decks = true;  // something changed: commit even when nothing is leasable
     }
     if (!found) return Out();  // committed with the group when it expired leases or failed decks
     Result<std::string> token = NewToken();
@@ -491,24 +489,62 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   Result<JobRow> job = LoadJob(t, kind, id, options_.max_attempts);
   if (!job.ok()) return job.status();
   SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
-  // Back to the queue as if this lease had never been granted: the attempt is not counted.
+  int64_t released_before = 0;
+  {
+    Statement st = t.Prepare(std::string("SELECT releases FROM ") + Table(kind) + " WHERE id = ?");
+    st.Bind(1, id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) released_before = st.Int(0);
+  }
+  {
+    Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) + " SET releases = releases + 1 WHERE id = ?");
+    st.Bind(1, id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    Statement up = t.Prepare("UPDATE leases SET completed_at = ?, outcome = 'released' WHERE token = ?");
+    up.Bind(1, now).Bind(2, token);
+    SANDSWIM_RETURN_IF_ERROR(up.Run());
+  }
+  if (released_before >= job->max_attempts) {
+    // Handed back this often, the job does not fit where it is leased (a run longer than any
+    // allocation): from now on a hand-back is an attempt, so the job ends failed, not leased for ever.
+    Result<std::string> state = RetryOrFail(
+        t, kind, id, *job, "released",
+        "handed back " + std::to_string(released_before + 1) + " times (" + reason +
+            "): it never finished where it was leased; give the pilots a longer --time",
+        /*retryable=*/true, now);
+    if (!state.ok()) return state.status();
+    SANDSWIM_RETURN_IF_ERROR(t.Commit());
+    return api::CompletionReply{*state};
+  }
+  // A run that no live sweep wants any more (its sweep was cancelled while it ran) is cancelled,
+  // as Cancel() does with queued runs, rather than queued again.
+  bool wanted = true;
+  if (kind == api::JobKind::kRun) {
+    Statement live = t.Prepare(
+        "SELECT EXISTS (SELECT 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+        "WHERE sr.run_id = ? AND s.cancelled_at IS NULL)");
+    live.Bind(1, id);
+    Result<bool> row = live.Step();
+    if (!row.ok()) return row.status();
+    wanted = !*row || live.Int(0) != 0;
+  }
+  // Otherwise back to the queue as if this lease had never been granted: the attempt is not counted.
   std::string sql = std::string("UPDATE ") + Table(kind) +
-                    " SET state = 'queued', attempts = MAX(attempts - 1, 0), lease_expires_at = NULL";
-  if (kind == api::JobKind::kRun) sql += ", queued_at = ?1";
+                    (wanted ? " SET state = 'queued', attempts = MAX(attempts - 1, 0), lease_expires_at = NULL"
+                            : " SET state = 'cancelled', attempts = MAX(attempts - 1, 0), lease_expires_at = NULL, "
+                              "finished_at = ?1, last_error_kind = 'cancelled', "
+                              "last_error = 'its sweeps were cancelled while it ran'");
+  if (kind == api::JobKind::kRun && wanted) sql += ", queued_at = ?1";
   sql += " WHERE id = ?2";
   Statement st = t.Prepare(sql);
   if (kind == api::JobKind::kRun) st.Bind(1, now);
   st.Bind(2, id);
   SANDSWIM_RETURN_IF_ERROR(st.Run());
-  {
-    Statement up = t.Prepare("UPDATE leases SET completed_at = ?, outcome = 'released' WHERE token = ?");
-    up.Bind(1, now).Bind(2, token);
-    SANDSWIM_RETURN_IF_ERROR(up.Run());
-  }
-  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".released", Subject(kind, id),
-                                   {{"reason", reason}, {"attempts", job->attempts - 1}}));
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (wanted ? ".released" : ".cancelled"),
+                                   Subject(kind, id), {{"reason", reason}, {"attempts", job->attempts - 1}}));
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
-  return api::CompletionReply{"queued"};
+  return api::CompletionReply{wanted ? "queued" : "cancelled"};
 }
 
 Result<int64_t> LeaseQueue::ExpireLeases() {

@@ -22,7 +22,10 @@
 //   Release    under the current token: the worker hands the job back unfinished (it is
 //              stopping: Slurm signalled its allocation's end, or it was asked to stop). The job
 //              goes back to queued and the attempt is not counted (attempts - 1): it was not the
-//              job's fault. Releasing a token again answers "duplicate".
+//              job's fault -- unless it was handed back max_attempts times before: then the
+//              hand-back counts ("released"), so a run that never fits its allocations ends
+//              failed. A run no live sweep wants any more becomes cancelled. Releasing a token
+//              again answers "duplicate".
 //   ExpireLeases  running jobs past their lease expiry go back to queued (the attempt stays
 //              counted) or, at max_attempts, to failed with kind "lease_expired".
 //   Cancel     a sweep: its queued runs that belong to no other live sweep become cancelled;

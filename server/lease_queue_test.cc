@@ -295,6 +295,39 @@ TEST_F(LeaseQueueTest, ReleasedRunIsQueuedAgainWithoutCountingTheAttempt) {
   EXPECT_EQ(queue_->Release("nope", "x").status().code(), StatusCode::kConflict);
 }
 
+// A run handed back more than max_attempts times (say it is longer than any allocation it is
+// leased in) stops going round: from then on a hand-back counts, and it ends failed.
+TEST_F(LeaseQueueTest, RunHandedBackTooOftenEndsFailed) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  int64_t id = 0;
+  std::vector<std::string> states;
+  for (int i = 0; i < 10 && (states.empty() || states.back() == "queued"); ++i) {
+    api::LeaseGrant g = MustLease("pilot");
+    if (id == 0) id = g.id;
+    ASSERT_EQ(g.id, id);
+    states.push_back(queue_->Release(g.token, "allocation ends")->state);
+  }
+  // 3 free hand-backs (max_attempts = 3), then 3 counted ones: queued, queued, failed.
+  ASSERT_EQ(states.size(), 6u);
+  EXPECT_EQ(states.back(), "failed");
+  EXPECT_EQ(RunState(id), "failed");
+  auto run = store_->GetRun(id);
+  EXPECT_EQ(run->summary.attempts, 3);
+  EXPECT_EQ(Rows("results"), 0);
+}
+
+// A run whose sweep was cancelled while it ran, handed back, is cancelled, not queued again.
+TEST_F(LeaseQueueTest, ReleasedRunOfACancelledSweepIsCancelled) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  EXPECT_EQ(queue_->Release(g.token, "worker stopping")->state, "cancelled");
+  EXPECT_EQ(RunState(g.id), "cancelled");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
 TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

@@ -138,13 +138,13 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
 }
 
 Plot SweepTrajectoriesFigure(const SweepAnalysis& a) {
-  return SweepTrajectoriesPlot("sweep " + std::to_string(a.info.id) + " " + a.info.name + " (" + a.info.scale +
+  return SweepTrajectoriesPlot("sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale +
                                    "): Δz(t) of every run",
                                a.runs, a.fits.choice.param);
 }
 
 Plot SweepUzFigure(const SweepAnalysis& a) {
-  return SweepUzPlot("sweep " + std::to_string(a.info.id) + " " + a.info.name + " (" + a.info.scale + "): U#dz#u",
+  return SweepUzPlot("sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale + "): U#dz#u",
                      a.samples, a.fits);
 }
 

@@ -264,7 +264,7 @@ TEST_F(ReportTest, RoutesServeFiguresFitsAndReportsWithTheirTypes) {
 TEST_F(ReportTest, NothingFinishedIsUnprocessableNotAnError) {
   StartServer();
   const std::string sweep = "/api/v1/sweeps/" + std::to_string(sweeps_[0]);
-  for (const std::string path : {sweep + "/uz.svg", sweep + "/trajectories.png"}) {
+  for (const std::string& path : {sweep + "/uz.svg", sweep + "/trajectories.png"}) {
     auto r = client_->Get(path.c_str());
     ASSERT_TRUE(r);
     EXPECT_EQ(r->status, 422) << path;

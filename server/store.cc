@@ -24,6 +24,7 @@ constexpr Migration kMigrations[] = {
     {2, "schema/002_nightly.sql"},
     {3, "schema/003_perf.sql"},
     {4, "schema/004_lease_to_start.sql"},
+    {5, "schema/005_releases.sql"},
 };
 
 constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
@@ -617,7 +618,13 @@ Status Store::Write(const std::function<Status(Transaction&)>& change) {
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
     last_group_ = n;
     g.unlock();
-    RunGroup(group);
+    try {
+      RunGroup(group);
+    } catch (...) {  // bad_alloc and the like: fail the group, never leave its callers waiting
+      for (PendingWrite* w : group) {
+        if (w->result.ok()) w->result = Status::Internal("the commit group failed (out of memory?)");
+      }
+    }
     g.lock();
     for (PendingWrite* w : group) w->done = true;
     leading_ = false;
@@ -644,6 +651,8 @@ void Store::RunGroup(const std::vector<PendingWrite*>& group) {
           s = (*w->change)(*t);
         } catch (const std::exception& e) {
           s = Status::Internal(std::string("exception in a store change: ") + e.what());
+        } catch (...) {
+          s = Status::Internal("exception in a store change");
         }
       }
       if (sqlite3_get_autocommit(db_)) {
@@ -656,8 +665,15 @@ void Store::RunGroup(const std::vector<PendingWrite*>& group) {
       if (s.ok()) {
         s = ExecRaw(db_, "RELEASE grouped_change");
       } else {
-        ExecRaw(db_, "ROLLBACK TO grouped_change");
-        ExecRaw(db_, "RELEASE grouped_change");
+        Status undo = ExecRaw(db_, "ROLLBACK TO grouped_change");
+        if (undo.ok()) undo = ExecRaw(db_, "RELEASE grouped_change");
+        if (!undo.ok()) {
+          // The failed change's writes could not be undone alone: drop the whole transaction
+          // rather than commit them with the others.
+          broken = Status::Internal("cannot roll back a failed change: " + undo.reason());
+          w->result = s;
+          break;
+        }
       }
       w->result = s;
       if (s.ok()) members.push_back(w);

@@ -191,6 +191,7 @@ constexpr int kGuardSignals[] = {SIGCHLD, kParentDied, SIGTERM, SIGINT, SIGHUP, 
     siginfo_t info;
     int sig = sigwaitinfo(&guard_set, &info);
     if (sig == kParentDied) {
+      if (getppid() == a.worker_pid) continue;  // a stray SIGUSR2 (kill, scancel --signal), not a death
       kill(0, SIGKILL);  // the whole group, this guard included
       _exit(137);
     }
@@ -200,6 +201,9 @@ constexpr int kGuardSignals[] = {SIGCHLD, kParentDied, SIGTERM, SIGINT, SIGHUP, 
     if (r != engine) continue;
     if (WIFEXITED(st)) _exit(WEXITSTATUS(st));
     const int term = WIFSIGNALED(st) ? WTERMSIG(st) : SIGKILL;
+    // Dying of the engine's signal must not also dump the guard's core over the engine's.
+    const rlimit no_core{0, 0};
+    setrlimit(RLIMIT_CORE, &no_core);
     signal(term, SIG_DFL);
     sigset_t only;
     sigemptyset(&only);

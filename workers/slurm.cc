@@ -177,6 +177,11 @@ Result<std::vector<std::string>> PilotSbatchArgs(const PilotRequest& r) {
     return Status::InvalidArgument("time", "must be longer than the " + std::to_string(r.signal_lead_s) +
                                                " s warning the pilot gets before its end");
   }
+  if (*limit && **limit <= r.end_margin_s) {
+    return Status::InvalidArgument(
+        "time", "must be longer than the " + std::to_string(static_cast<int>(r.end_margin_s)) +
+                    " s a worker expects its first run to take (--end-margin): it would lease nothing");
+  }
   std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name", r.job_name, "--time", r.time,
                                    "--nodes", std::to_string(r.nodes)};
   if (r.array > 0) {

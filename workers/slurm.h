@@ -68,6 +68,7 @@ struct PilotRequest {
   std::string script;           // deploy/slurm/pilot.sbatch or array.sbatch
   std::string output;           // sbatch --output pattern; "" : Slurm's default
   int signal_lead_s = 120;      // pilot: USR1 this long before the time limit (--signal=B:USR1@N)
+  double end_margin_s = 300;    // the workers' --end-margin: a time limit at or under it leases nothing
 };
 
 // The sbatch argv (starting with "sbatch"); InvalidArgument naming the field for bad values

@@ -130,6 +130,12 @@ TEST(PilotSbatchArgsTest, RefusesBadValuesNamingTheField) {
   r.time = "2";  // 120 s: no room for the 120 s warning
   EXPECT_EQ(field_of(r), "time");
   r = base;
+  r.array = 2;
+  r.time = "5";  // 300 s: no longer than the 300 s a first run is expected to take
+  EXPECT_EQ(field_of(r), "time");
+  r.end_margin_s = 60;
+  EXPECT_EQ(field_of(r), "(ok)");
+  r = base;
   r.throttle = 2;  // without an array
   EXPECT_EQ(field_of(r), "throttle");
   r = base;

@@ -187,6 +187,10 @@ void Worker::SlotLoop() {
         spdlog::warn("cannot lease ({}); retrying in {:.1f} s. Is the daemon running at the --server URL?",
                      lease.status().ToString(), backoff);
       }
+      if (options_.exit_when_idle_s > 0 && Since(idle_since) >= options_.exit_when_idle_s) {
+        spdlog::warn("no daemon answer for {:.0f} s (--exit-when-idle): this slot is done", Since(idle_since));
+        break;
+      }
       if (!Idle(backoff)) break;
       backoff = std::min(backoff * 2, options_.max_backoff_s);
       continue;
@@ -366,11 +370,12 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
     if (facts.started && !facts.cancelled && !facts.timed_out) {
       // A stop of the whole worker (scancel, the allocation's end, systemd) also reaches the
       // engine, which then exits -- with status 0 if it was LIGGGHTS that got SIGTERM -- short of
-      // its steps. Under srun the two signals arrive at about the same time: give the worker's own
-      // stop a moment to land. An engine stopped with its worker is handed back, not failed.
-      if (options_.launcher == LauncherKind::kSrun && !stopping_) {
+      // its steps, at about the moment the worker hears of it: give the worker's own stop a moment
+      // to land. An engine stopped with its worker is handed back, not failed.
+      if (!stopping_ && options_.stop_settle_s > 0) {
         std::unique_lock<std::mutex> lock(mu_);
-        cv_.wait_for(lock, std::chrono::seconds(2), [this] { return stopping_.load(); });
+        cv_.wait_for(lock, std::chrono::duration<double>(options_.stop_settle_s),
+                     [this] { return stopping_.load(); });
       }
       if (stopping_) return hand_back("the worker is stopping and its engine was stopped with it");
     }
@@ -396,7 +401,7 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
     bed.bytes = static_cast<int64_t>(in.tellg());
     if (Status s = client_.UploadBed(grant.id, grant.token, restart, *sha); !s.ok()) {
       if (s.code() == StatusCode::kConflict) return abandon("the lease was lost before the bed upload");
-      if (stopping_) return abandon("stopping during the bed upload");
+      if (stopping_) return hand_back("the worker stopped during the bed upload");
       return fail(&*dir, "bad_output", "bed upload failed: " + s.ToString());
     }
     completion.ok = true;

@@ -61,6 +61,7 @@ struct WorkerOptions {
   bool keep_run_dirs = false;     // keep directories of jobs that completed ok (failed ones are kept)
   double heartbeat_every_s = 5;   // also capped at a third of the lease's ttl
   double stop_grace_s = 10;       // SIGTERM -> SIGKILL
+  double stop_settle_s = 2;       // after an engine fails, how long to wait for the worker's own stop
   double idle_poll_s = 2;         // when the queue is empty
   double exit_when_idle_s = 0;    // > 0: a slot returns after this long without work (array jobs)
   double max_backoff_s = 30;      // when the daemon cannot be reached

@@ -145,6 +145,7 @@ WorkerOptions Options(const std::string& workdir) {
   o.workdir = workdir;
   o.heartbeat_every_s = 0.01;
   o.stop_grace_s = 0.1;
+  o.stop_settle_s = 0;
   o.idle_poll_s = 0.01;
   o.launcher = LauncherKind::kDirect;
   o.keep_run_dirs = true;
