@@ -149,30 +149,61 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
 }
 
 Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt) {
-  std::vector<SoSample> out;
-  out.reserve(frames.size());
+  SoSampleSink sink(dt);
   for (const DumpFrame& f : frames) {
-    int cx = f.Column("x"), cy = f.Column("y"), cz = f.Column("z");
-    if (cx < 0 || cy < 0 || cz < 0) {
-      return Status::Corruption("dump frame at step " + std::to_string(f.step) + " lacks column x, y or z");
-    }
-    if (f.atoms < 1) return Status::Corruption("dump frame at step " + std::to_string(f.step) + " has no atom");
-    if (!out.empty() && f.step <= out.back().step) {
-      return Status::Corruption("dump steps do not rise: " + std::to_string(out.back().step) + " then " +
-                                std::to_string(f.step));
-    }
-    SoSample s;
-    s.step = f.step;
-    s.t = static_cast<double>(f.step) * dt;
-    s.x = f.At(0, cx);
-    s.y = f.At(0, cy);
-    s.z = f.At(0, cz);
-    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z)) {
-      return Status::Corruption("dump frame at step " + std::to_string(f.step) + " has a non-finite position");
-    }
-    out.push_back(s);
+    DumpFrameView view;
+    view.step = f.step;
+    view.atoms = f.atoms;
+    view.names = &f.columns;
+    view.values = f.values.data();  // columns_serial 0: the sink looks the columns up
+    sink.OnFrame(view);
   }
-  return out;
+  return sink.Take();
+}
+
+void SoSampleSink::OnFrame(const DumpFrameView& f) {
+  if (!status_.ok()) return;
+  if (f.columns_serial == 0 || f.columns_serial != serial_) {
+    cx_ = f.Column("x");
+    cy_ = f.Column("y");
+    cz_ = f.Column("z");
+    serial_ = f.columns_serial;
+  }
+  if (cx_ < 0 || cy_ < 0 || cz_ < 0) {
+    status_ = Status::Corruption("dump frame at step " + std::to_string(f.step) + " lacks column x, y or z");
+    return;
+  }
+  if (f.atoms < 1) {
+    status_ = Status::Corruption("dump frame at step " + std::to_string(f.step) + " has no atom");
+    return;
+  }
+  if (!samples_.empty() && f.step <= samples_.back().step) {
+    status_ = Status::Corruption("dump steps do not rise: " + std::to_string(samples_.back().step) + " then " +
+                                 std::to_string(f.step));
+    return;
+  }
+  SoSample s;
+  s.step = f.step;
+  s.t = static_cast<double>(f.step) * dt_;
+  s.x = f.values[cx_];  // atom 0
+  s.y = f.values[cy_];
+  s.z = f.values[cz_];
+  if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z)) {
+    status_ = Status::Corruption("dump frame at step " + std::to_string(f.step) + " has a non-finite position");
+    return;
+  }
+  samples_.push_back(s);
+}
+
+Result<std::vector<SoSample>> SoSampleSink::Take() {
+  if (!status_.ok()) return status_;
+  return std::move(samples_);
+}
+
+Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt) {
+  SoSampleSink sink(dt);
+  if (Status s = ReadDump(text, sink); !s.ok()) return s;
+  return sink.Take();
 }
 
 double SteadyWindowStart(double f, double duration) {

@@ -50,6 +50,26 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck);
 // atom of the SO dump). Corruption when a column is missing or a frame is empty; steps must rise.
 Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt);
 
+// The same, frame by frame as a DumpReader hands them over (DumpReader::Feed(chunk, sink)): no
+// DumpFrame is made. Frames after the first problem are ignored; Take() reports it.
+class SoSampleSink final : public DumpFrameSink {
+ public:
+  explicit SoSampleSink(double dt) : dt_(dt) {}
+  void OnFrame(const DumpFrameView& frame) override;
+  // The samples so far, or the first problem (the Status SamplesFromFrames would return).
+  Result<std::vector<SoSample>> Take();
+
+ private:
+  double dt_;
+  uint64_t serial_ = 0;  // columns_serial the indices below were found for (0: none)
+  int cx_ = -1, cy_ = -1, cz_ = -1;
+  std::vector<SoSample> samples_;
+  Status status_;
+};
+
+// SamplesFromFrames(ReadDump(text)) without the frames: a dump Corruption, or a frame's problem.
+Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt);
+
 // Where the steady window starts for a run of `duration` seconds (see above).
 double SteadyWindowStart(double f, double duration);
 

@@ -164,13 +164,39 @@ TEST(TrajectoryTest, RealFixturesRiseAndSink) {
 TEST(TrajectoryTest, SamplesNeedRisingStepsAndColumns) {
   DumpFrame f;
   f.step = 5;
-  f.columns = {"id", "x", "z"};
+  f.columns = DumpFrame::Names({"id", "x", "z"});
   f.atoms = 1;
   f.values = {1, 0, 0};
   EXPECT_EQ(SamplesFromFrames({f}, 1e-5).status().code(), StatusCode::kCorruption);
-  f.columns = {"x", "y", "z"};
+  f.columns = DumpFrame::Names({"x", "y", "z"});
   EXPECT_TRUE(SamplesFromFrames({f}, 1e-5).ok());
   EXPECT_EQ(SamplesFromFrames({f, f}, 1e-5).status().code(), StatusCode::kCorruption);
+}
+
+// The streaming form (no DumpFrames) gives exactly the samples of SamplesFromFrames(ReadDump()),
+// and the same errors.
+TEST(TrajectoryTest, SamplesFromDumpEqualsSamplesFromFrames) {
+  const std::string text = Fixture("so_omega_minus80.dump");
+  auto frames = ReadDump(text);
+  ASSERT_TRUE(frames.ok());
+  auto want = SamplesFromFrames(*frames, 1e-5);
+  auto got = SamplesFromDump(text, 1e-5);
+  ASSERT_TRUE(want.ok() && got.ok());
+  ASSERT_EQ(got->size(), want->size());
+  ASSERT_GT(got->size(), 3u);
+  for (size_t i = 0; i < got->size(); ++i) {
+    EXPECT_EQ((*got)[i].step, (*want)[i].step);
+    EXPECT_EQ((*got)[i].t, (*want)[i].t);
+    EXPECT_EQ((*got)[i].x, (*want)[i].x);
+    EXPECT_EQ((*got)[i].y, (*want)[i].y);
+    EXPECT_EQ((*got)[i].z, (*want)[i].z);
+  }
+  // Steps that do not rise (the file twice), a missing column, text that is not a dump.
+  EXPECT_EQ(SamplesFromDump(text + text, 1e-5).status().code(), StatusCode::kCorruption);
+  std::string no_z = text;
+  for (size_t at; (at = no_z.find(" z vx")) != std::string::npos;) no_z.replace(at, 5, " q vx");
+  EXPECT_NE(SamplesFromDump(no_z, 1e-5).status().reason().find("lacks column"), std::string::npos);
+  EXPECT_NE(SamplesFromDump("ITEM: NONSENSE\n", 1e-5).status().reason().find("dump line 1"), std::string::npos);
 }
 
 }  // namespace

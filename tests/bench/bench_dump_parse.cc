@@ -1,5 +1,8 @@
 // bench_dump_parse: how fast the streaming DumpReader (core/dump_reader.h) reads a LIGGGHTS dump,
-// next to `wc -l` on the same file (issue 4's goal: at least half of wc -l's speed).
+// next to `wc -l` on the same file (issue 4's goal: at least half of wc -l's speed). The figure
+// compared is the worker's path: the file in 1 MB chunks fed to DumpReader::Feed(chunk, sink) with
+// the SoSampleSink that makes the run's samples (core/trajectory.h); the legacy Feed(chunk) +
+// TakeFrames() path is timed too.
 //
 // Usage: bench_dump_parse [FILE] [MB]
 //   With no FILE, generates a dump of about MB megabytes (default 200) of 10-column granular
@@ -15,6 +18,7 @@
 #include <vector>
 
 #include "core/dump_reader.h"
+#include "core/trajectory.h"
 
 namespace {
 
@@ -70,38 +74,79 @@ int main(int argc, char** argv) {
   // Warm the page cache so both measure parsing, not the disk.
   if (std::system(("cat '" + path + "' > /dev/null").c_str()) != 0) return 1;
 
-  auto t0 = Clock::now();
-  const double cpu0 = CpuSeconds(RUSAGE_SELF);
-  sandswim::DumpReader reader;
-  std::ifstream in(path, std::ios::binary);
-  std::vector<char> buf(1 << 20);
-  long frames = 0, atoms = 0;
-  while (in) {
-    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    if (in.gcount() <= 0) break;
-    sandswim::Status s = reader.Feed(std::string_view(buf.data(), static_cast<size_t>(in.gcount())));
-    if (!s.ok()) {
-      std::fprintf(stderr, "%s\n", s.ToString().c_str());
-      return 1;
+  // The path the worker uses (workers/worker.cc): frames lent to a sink, SoSampleSink making the
+  // SO's samples (SamplesFromDump); the legacy Feed + TakeFrames copies next to it.
+  struct Timing {
+    double cpu = 0, wall = 0;
+    long frames = 0, atoms = 0;
+  };
+  auto time_path = [&](bool sink_path, Timing* t) -> bool {
+    auto t0 = Clock::now();
+    const double cpu0 = CpuSeconds(RUSAGE_SELF);
+    sandswim::DumpReader reader;
+    // A file made of several dumps back to back (steps start again): one SoSampleSink per dump.
+    struct Samples final : sandswim::DumpFrameSink {
+      sandswim::SoSampleSink sink{1e-5};
+      int64_t last_step = -1;
+      long samples = 0;
+      bool ok = true;
+      void Restart() {
+        auto got = sink.Take();
+        ok = ok && got.ok();
+        if (!got.ok()) std::fprintf(stderr, "%s\n", got.status().ToString().c_str());
+        samples += got.ok() ? static_cast<long>(got->size()) : 0;
+        sink = sandswim::SoSampleSink(1e-5);
+      }
+      void OnFrame(const sandswim::DumpFrameView& f) override {
+        if (f.step <= last_step) Restart();
+        last_step = f.step;
+        sink.OnFrame(f);
+      }
+    } samples;
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> buf(1 << 20);
+    while (in) {
+      in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+      if (in.gcount() <= 0) break;
+      const std::string_view chunk(buf.data(), static_cast<size_t>(in.gcount()));
+      sandswim::Status s = sink_path ? reader.Feed(chunk, samples) : reader.Feed(chunk);
+      if (!s.ok()) {
+        std::fprintf(stderr, "%s\n", s.ToString().c_str());
+        return false;
+      }
+      if (!sink_path) {
+        for (const auto& f : reader.TakeFrames()) {
+          ++t->frames;
+          t->atoms += f.atoms;
+        }
+      }
     }
-    for (const auto& f : reader.TakeFrames()) {
-      ++frames;
-      atoms += f.atoms;
+    if (sink_path) {
+      samples.Restart();
+      if (!samples.ok) return false;
+      t->frames = samples.samples;
     }
-  }
-  const double parse_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  const double parse_cpu = CpuSeconds(RUSAGE_SELF) - cpu0;
+    t->wall = std::chrono::duration<double>(Clock::now() - t0).count();
+    t->cpu = CpuSeconds(RUSAGE_SELF) - cpu0;
+    return true;
+  };
+  Timing sink, queue;
+  if (!time_path(true, &sink) || !time_path(false, &queue)) return 1;
+  const double parse_cpu = sink.cpu, parse_s = sink.wall;
+  const long frames = queue.frames, atoms = queue.atoms;
 
   const double child0 = CpuSeconds(RUSAGE_CHILDREN);
-  t0 = Clock::now();
+  const auto t0 = Clock::now();
   if (std::system(("exec wc -l '" + path + "' > /dev/null").c_str()) != 0) return 1;
   const double wc_s = std::chrono::duration<double>(Clock::now() - t0).count();
   const double wc_cpu = CpuSeconds(RUSAGE_CHILDREN) - child0;
 
   std::printf("file: %s, %.1f MB, %ld frames, %ld atom lines\n", path.c_str(), mb, frames, atoms);
   // CPU time is the fair figure on a shared machine; wall time is printed too.
+  std::printf("DumpReader, worker path (1 MB chunks -> Feed(chunk, SoSampleSink), %ld samples):\n", sink.frames);
   std::printf("DumpReader: %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s)\n", parse_cpu, mb / parse_cpu, parse_s,
               mb / parse_s);
+  std::printf("Feed + TakeFrames (DumpFrame copies): %.3f s CPU = %.0f MB/s\n", queue.cpu, mb / queue.cpu);
   std::printf("wc -l:      %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s, includes sh)\n", wc_cpu, mb / wc_cpu,
               wc_s, mb / wc_s);
   std::printf("ratio DumpReader / wc -l = %.2f by CPU time, %.2f by wall time (goal >= 0.5)\n", wc_cpu / parse_cpu,
