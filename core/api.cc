@@ -45,6 +45,7 @@ void to_json(nlohmann::json& j, const Completion& c) {
   PutOptional(j, "bed_result", c.bed_result);
   PutOptional(j, "trajectory", c.trajectory);
   PutOptional(j, "failure", c.failure);
+  PutOptional(j, "next", c.next);
 }
 
 void from_json(const nlohmann::json& j, Completion& c) {
@@ -55,6 +56,17 @@ void from_json(const nlohmann::json& j, Completion& c) {
   GetOptional(j, "bed_result", c.bed_result);
   GetOptional(j, "trajectory", c.trajectory);
   GetOptional(j, "failure", c.failure);
+  GetOptional(j, "next", c.next);
+}
+
+void to_json(nlohmann::json& j, const CompletionReply& r) {
+  j = nlohmann::json{{"state", r.state}};
+  PutOptional(j, "next", r.next);
+}
+
+void from_json(const nlohmann::json& j, CompletionReply& r) {
+  r.state = j.at("state").get<std::string>();
+  GetOptional(j, "next", r.next);
 }
 
 }  // namespace sandswim::api

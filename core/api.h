@@ -7,7 +7,10 @@
 //   GET  /api/v1/beds/{id}/restart           bed restart bytes (a run lease names its bed)
 //   POST /api/v1/leases/{token}/heartbeat    Heartbeat -> 200 HeartbeatReply | 409 (lease lost)
 //   PUT  /api/v1/beds/{id}/restart?token=T   bed restart bytes, header X-Sha256 (bed leases)
-//   POST /api/v1/leases/{token}/complete     Completion -> 200 CompletionReply | 409 (lease lost)
+//   POST /api/v1/leases/{token}/complete     Completion -> 200 CompletionReply | 409 (lease lost);
+//                                            a Completion with `next` also leases the worker's
+//                                            next job in the same transaction (one round trip
+//                                            per job instead of two); the reply carries it
 //   POST /api/v1/leases/{token}/release      ReleaseRequest -> 200 CompletionReply | 409: hands a
 //                                            job back unfinished (worker stopping, e.g. its Slurm
 //                                            allocation ends); the attempt does not count
@@ -150,16 +153,25 @@ struct Completion {
   std::optional<Failure> failure;       // !ok
   Execution execution;
   std::string log_tail;                 // last lines of the engine's log
+  // Set by a worker that wants more work: lease its next job in the same call. The completion is
+  // applied first; when it is refused (409, 4xx) nothing is leased either.
+  std::optional<LeaseRequest> next;
 };
 void to_json(nlohmann::json& j, const Completion& c);
 void from_json(const nlohmann::json& j, Completion& c);
 
 struct CompletionReply {
+  CompletionReply() = default;
+  CompletionReply(std::string s) : state(std::move(s)) {}  // NOLINT: implicit, as {"done"} reads
   // "done", "failed", "queued" (a retry will follow), "cancelled", or "duplicate" (this token
   // had already completed: nothing changed).
   std::string state;
+  // The next job when the completion asked for one (`Completion::next`) and one was leasable;
+  // absent otherwise (nothing to do now: poll POST /api/v1/leases later).
+  std::optional<LeaseGrant> next;
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(CompletionReply, state)
+void to_json(nlohmann::json& j, const CompletionReply& r);
+void from_json(const nlohmann::json& j, CompletionReply& r);
 
 // A job handed back unfinished by a worker that is stopping (not the job's fault).
 struct ReleaseRequest {

@@ -194,127 +194,130 @@ LeaseQueue::LeaseQueue(Store* store, Clock* clock, LeaseQueueOptions options)
 Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest& request) {
   using Out = std::optional<api::LeaseGrant>;
   // Group commit (store.h): this change shares its transaction with concurrent ones.
-  return store_->WriteResult<Out>([&](Transaction& t) -> Result<Out> {
-    const double now = clock_->Now();
-    Result<int64_t> expired = ExpireIn(t, now, options_.max_attempts);
-    if (!expired.ok()) return expired.status();
+  return store_->WriteResult<Out>([&](Transaction& t) { return LeaseIn(t, request, clock_->Now()); });
+}
 
-    api::LeaseGrant g;
-    g.ttl_s = options_.ttl_s;
-    g.wall_budget_s = options_.wall_budget_s;
-    bool found = false;
-    {
-      // Beds first: a bed some queued run is waiting for.
-      Statement st = t.Prepare(
-          "SELECT b.id, b.key, b.deck, b.attempts FROM beds b WHERE b.state = 'queued' AND "
-          "EXISTS (SELECT 1 FROM runs r WHERE r.bed_id = b.id AND r.state = 'queued') "
-          "ORDER BY b.id LIMIT 1");
-      Result<bool> row = st.Step();
-      if (!row.ok()) return row.status();
-      if (*row) {
-        found = true;
-        g.kind = api::JobKind::kBed;
-        g.id = st.Int(0);
-        g.key = st.Text(1);
-        g.deck = st.Text(2);
-        g.attempt = static_cast<int>(st.Int(3)) + 1;
-      }
-    }
-    // Then the oldest queued run whose bed is done. Its deck is rendered from its point and its
-    // bed's scale (runs submitted before migration 3 have it stored in run_decks) and checked
-    // against the run's key; a run whose deck no longer renders to its key (the templates changed
-    // since it was submitted) fails with "deck_error" and the next run is tried.
-    while (!found) {
-      Statement st = t.Prepare(
-          "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256, "
-          "r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, b.scale, b.key, "
-          "b.engine_version "
-          "FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN run_decks d ON d.run_id = r.id "
-          "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
-      Result<bool> row = st.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      g.kind = api::JobKind::kRun;
+Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const api::LeaseRequest& request,
+                                                           double now) {
+  using Out = std::optional<api::LeaseGrant>;
+  Result<int64_t> expired = ExpireIn(t, now, options_.max_attempts);
+  if (!expired.ok()) return expired.status();
+
+  api::LeaseGrant g;
+  g.ttl_s = options_.ttl_s;
+  g.wall_budget_s = options_.wall_budget_s;
+  bool found = false;
+  {
+    // Beds first: a bed some queued run is waiting for.
+    Statement st = t.Prepare(
+        "SELECT b.id, b.key, b.deck, b.attempts FROM beds b WHERE b.state = 'queued' AND "
+        "EXISTS (SELECT 1 FROM runs r WHERE r.bed_id = b.id AND r.state = 'queued') "
+        "ORDER BY b.id LIMIT 1");
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      found = true;
+      g.kind = api::JobKind::kBed;
       g.id = st.Int(0);
       g.key = st.Text(1);
+      g.deck = st.Text(2);
       g.attempt = static_cast<int>(st.Int(3)) + 1;
-      g.duration_s = st.Double(4);
-      g.steps = st.Int(5);
-      int64_t bed_id = st.Int(6);
-      g.bed = api::BedRef{bed_id, st.Text(7), "/api/v1/beds/" + std::to_string(bed_id) + "/restart"};
-      if (!st.IsNull(2)) {
-        g.deck = st.Text(2);
-        found = true;
-        break;
-      }
-      Point p;
-      std::optional<Mode> mode = ParseMode(st.Text(8));
-      std::optional<RotationAxis> axis = ParseAxis(st.Text(13));
-      p.A = st.Double(9);
-      p.f = st.Double(10);
-      p.Omega = st.Double(11);
-      p.omega = st.Double(12);
-      p.duration_s = st.Double(14);
-      const Scale* scale = FindScale(st.Text(15));
-      const std::string bed_key = st.Text(16);
-      const std::optional<std::string> engine_version = st.OptText(17);
-      std::string why;
-      if (!mode || !axis || scale == nullptr) {
-        why = "its stored point or scale no longer parses";
-      } else {
-        p.mode = *mode;
-        p.axis = *axis;
-        try {
-          g.deck = RenderDriveDeck(p, *scale);
-        } catch (const std::exception& e) {
-          why = std::string("its deck no longer renders: ") + e.what();
-        }
-        if (why.empty() && engine_version && RunKey(g.deck, bed_key, *engine_version) != g.key) {
-          why = "its deck no longer renders to its key (the deck templates changed since it was "
-                "submitted); submit its sweep again";
-        }
-      }
-      if (why.empty()) {
-        found = true;
-        break;
-      }
-      Statement fail = t.Prepare(
-          "UPDATE runs SET state = 'failed', finished_at = ?, last_error_kind = 'deck_error', "
-          "last_error = ? WHERE id = ?");
-      fail.Bind(1, now).Bind(2, why).Bind(3, g.id);
-      SANDSWIM_RETURN_IF_ERROR(fail.Run());
-      SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, g.id),
-                                       {{"kind", "deck_error"}, {"message", why}}));
     }
-    if (!found) return Out();  // committed with the group when it expired leases or failed decks
-    Result<std::string> token = NewToken();
-    if (!token.ok()) return token.status();
-    g.token = *token;
-    {
-      Statement st = t.Prepare(std::string("UPDATE ") + Table(g.kind) +
-                               " SET state = 'running', attempts = attempts + 1, lease_token = ?, "
-                               "lease_expires_at = ?, worker = ?, started_at = ? WHERE id = ?");
-      st.Bind(1, g.token).Bind(2, now + options_.ttl_s).Bind(3, request.worker).Bind(4, now);
-      st.Bind(5, g.id);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  // Then the oldest queued run whose bed is done. Its deck is rendered from its point and its
+  // bed's scale (runs submitted before migration 3 have it stored in run_decks) and checked
+  // against the run's key; a run whose deck no longer renders to its key (the templates changed
+  // since it was submitted) fails with "deck_error" and the next run is tried.
+  while (!found) {
+    Statement st = t.Prepare(
+        "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256, "
+        "r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, b.scale, b.key, "
+        "b.engine_version "
+        "FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN run_decks d ON d.run_id = r.id "
+        "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    g.kind = api::JobKind::kRun;
+    g.id = st.Int(0);
+    g.key = st.Text(1);
+    g.attempt = static_cast<int>(st.Int(3)) + 1;
+    g.duration_s = st.Double(4);
+    g.steps = st.Int(5);
+    int64_t bed_id = st.Int(6);
+    g.bed = api::BedRef{bed_id, st.Text(7), "/api/v1/beds/" + std::to_string(bed_id) + "/restart"};
+    if (!st.IsNull(2)) {
+      g.deck = st.Text(2);
+      found = true;
+      break;
     }
-    {
-      Statement st = t.Prepare(
-          "INSERT INTO leases (token, kind, job_id, attempt, worker, host, ranks, granted_at) "
-          "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
-      st.Bind(1, g.token).Bind(2, Noun(g.kind)).Bind(3, g.id).Bind(4, g.attempt);
-      st.Bind(5, request.worker).Bind(6, request.host).Bind(7, request.ranks).Bind(8, now);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    Point p;
+    std::optional<Mode> mode = ParseMode(st.Text(8));
+    std::optional<RotationAxis> axis = ParseAxis(st.Text(13));
+    p.A = st.Double(9);
+    p.f = st.Double(10);
+    p.Omega = st.Double(11);
+    p.omega = st.Double(12);
+    p.duration_s = st.Double(14);
+    const Scale* scale = FindScale(st.Text(15));
+    const std::string bed_key = st.Text(16);
+    const std::optional<std::string> engine_version = st.OptText(17);
+    std::string why;
+    if (!mode || !axis || scale == nullptr) {
+      why = "its stored point or scale no longer parses";
+    } else {
+      p.mode = *mode;
+      p.axis = *axis;
+      try {
+        g.deck = RenderDriveDeck(p, *scale);
+      } catch (const std::exception& e) {
+        why = std::string("its deck no longer renders: ") + e.what();
+      }
+      if (why.empty() && engine_version && RunKey(g.deck, bed_key, *engine_version) != g.key) {
+        why = "its deck no longer renders to its key (the deck templates changed since it was "
+              "submitted); submit its sweep again";
+      }
     }
-    SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
-    SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(g.kind)) + ".leased",
-                                     Subject(g.kind, g.id),
-                                     {{"worker", request.worker},
-                                      {"host", request.host},
-                                      {"ranks", request.ranks},
-                                      {"attempt", g.attempt}}));
-    return Out(std::move(g));
-  });
+    if (why.empty()) {
+      found = true;
+      break;
+    }
+    Statement fail = t.Prepare(
+        "UPDATE runs SET state = 'failed', finished_at = ?, last_error_kind = 'deck_error', "
+        "last_error = ? WHERE id = ?");
+    fail.Bind(1, now).Bind(2, why).Bind(3, g.id);
+    SANDSWIM_RETURN_IF_ERROR(fail.Run());
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, g.id),
+                                     {{"kind", "deck_error"}, {"message", why}}));
+  }
+  if (!found) return Out();  // committed with the group when it expired leases or failed decks
+  Result<std::string> token = NewToken();
+  if (!token.ok()) return token.status();
+  g.token = *token;
+  {
+    Statement st = t.Prepare(std::string("UPDATE ") + Table(g.kind) +
+                             " SET state = 'running', attempts = attempts + 1, lease_token = ?, "
+                             "lease_expires_at = ?, worker = ?, started_at = ? WHERE id = ?");
+    st.Bind(1, g.token).Bind(2, now + options_.ttl_s).Bind(3, request.worker).Bind(4, now);
+    st.Bind(5, g.id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  {
+    Statement st = t.Prepare(
+        "INSERT INTO leases (token, kind, job_id, attempt, worker, host, ranks, granted_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
+    st.Bind(1, g.token).Bind(2, Noun(g.kind)).Bind(3, g.id).Bind(4, g.attempt);
+    st.Bind(5, request.worker).Bind(6, request.host).Bind(7, request.ranks).Bind(8, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(g.kind)) + ".leased",
+                                   Subject(g.kind, g.id),
+                                   {{"worker", request.worker},
+                                    {"host", request.host},
+                                    {"ranks", request.ranks},
+                                    {"attempt", g.attempt}}));
+  return Out(std::move(g));
 }
 
 Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token,
@@ -357,123 +360,135 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
                                                   const api::Completion& c) {
   return store_->WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
     const double now = clock_->Now();
-    Result<LeaseRow> lease = FindLease(t, token);
-    if (!lease.ok()) return lease.status();
-    if (lease->completed) {
-      SANDSWIM_RETURN_IF_ERROR(t.Count("duplicates"));
-      return api::CompletionReply{"duplicate"};
-    }
-    const api::JobKind kind = lease->kind;
-    const int64_t id = lease->job_id;
-    Result<JobRow> job = LoadJob(t, kind, id, options_.max_attempts);
-    if (!job.ok()) return job.status();
-    SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
-
-    if (c.ok && kind == api::JobKind::kRun && !c.result) {
-      return Status::InvalidArgument("result", "an ok run completion carries its result");
-    }
-    if (c.ok && kind == api::JobKind::kBed && !c.bed_result) {
-      return Status::InvalidArgument("bed_result", "an ok bed completion carries its bed_result");
-    }
-    if (!c.ok && !c.failure) {
-      return Status::InvalidArgument("failure", "a failed completion says why");
-    }
-
-    std::string state;
-    if (c.ok && kind == api::JobKind::kRun) {
-      const api::RunResult& r = *c.result;
-      const api::Execution& e = c.execution;
-      {
-        Statement key = t.Prepare("SELECT key FROM runs WHERE id = ?");
-        key.Bind(1, id);
-        Result<bool> row = key.Step();
-        if (!row.ok()) return row.status();
-        // A forced rerun replaces the old result here, in the same transaction as the state.
-        Statement st = t.Prepare(
-            "INSERT OR REPLACE INTO results (run_id, uz, uz_stderr, window_t0, window_t1, dz, "
-            "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
-            "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at, "
-            "lease_to_start_s) "
-            "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
-        st.Bind(1, id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
-        st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
-        st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
-        st.Bind(14, r.grains).Bind(15, r.z0).Bind(16, e.engine_version).Bind(17, e.host);
-        st.Bind(18, e.ranks).Bind(19, e.launcher).Bind(20, e.wall_s).Bind(21, e.cpu_s);
-        st.Bind(22, key.Text(0)).Bind(23, now).Bind(24, e.lease_to_start_s);
-        SANDSWIM_RETURN_IF_ERROR(st.Run());
-      }
-      if (c.trajectory) {
-        Statement st = t.Prepare("INSERT OR REPLACE INTO trajectories (run_id, data) VALUES (?, ?)");
-        st.Bind(1, id).Bind(2, nlohmann::json(*c.trajectory).dump());
-        SANDSWIM_RETURN_IF_ERROR(st.Run());
-      }
-      Statement st = t.Prepare(
-          "UPDATE runs SET state = 'done', lease_expires_at = NULL, finished_at = ?, "
-          "last_error_kind = NULL, last_error = NULL, sim_time_s = ?, step = ? WHERE id = ?");
-      st.Bind(1, now).Bind(2, r.sim_time_s).Bind(3, r.steps).Bind(4, id);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-      state = "done";
-    } else if (c.ok) {
-      const api::BedResult& b = *c.bed_result;
-      Statement cur = t.Prepare("SELECT path, sha256 FROM beds WHERE id = ?");
-      cur.Bind(1, id);
-      Result<bool> row = cur.Step();
-      if (!row.ok()) return row.status();
-      if (cur.IsNull(0)) {
-        return Status::FailedPrecondition("bed_result",
-                                          "upload the bed's restart file before completing it");
-      }
-      if (!b.sha256.empty() && Lower(b.sha256) != cur.Text(1)) {
-        return Status::FailedPrecondition("bed_result.sha256",
-                                          "differs from the uploaded restart file's checksum");
-      }
-      Statement st = t.Prepare(
-          "UPDATE beds SET state = 'done', lease_expires_at = NULL, finished_at = ?, grains = ?, "
-          "result = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
-      st.Bind(1, now).Bind(2, b.grains).Bind(3, nlohmann::json(b).dump()).Bind(4, id);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-      state = "done";
-    } else {
-      const api::Failure& f = *c.failure;
-      if (f.kind == "cancelled") {
-        // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
-        std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";
-        Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
-                                 " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
-                                 "last_error = ?, finished_at = ? WHERE id = ?");
-        st.Bind(1, to).Bind(2, f.kind).Bind(3, f.message);
-        if (to == "cancelled") st.Bind(4, now); else st.BindNull(4);
-        st.Bind(5, id);
-        SANDSWIM_RETURN_IF_ERROR(st.Run());
-        SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + "." + to,
-                                         Subject(kind, id), {{"message", f.message}}));
-        state = to;
-      } else {
-        Result<std::string> s = RetryOrFail(t, kind, id, *job, f.kind, f.message,
-                                            /*retryable=*/f.kind != "deck_error", now);
-        if (!s.ok()) return s.status();
-        state = *s;
-      }
-    }
-    if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
-      Statement st = t.Prepare("INSERT OR REPLACE INTO run_logs (run_id, log_tail) VALUES (?, ?)");
-      st.Bind(1, id).Bind(2, c.log_tail);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-    }
-    if (state == "done") {
-      SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
-                                       {{"host", c.execution.host},
-                                        {"wall_s", c.execution.wall_s}}));
-    }
-    {
-      Statement st = t.Prepare("UPDATE leases SET completed_at = ?, outcome = ? WHERE token = ?");
-      st.Bind(1, now).Bind(2, state).Bind(3, token);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-    }
-    SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));
-    return api::CompletionReply{state};
+    Result<api::CompletionReply> reply = CompleteIn(t, token, c, now);
+    if (!reply.ok() || !c.next) return reply;
+    // The worker's next job, in the same transaction: the completion is applied first, so the
+    // job just finished is never handed out again, and its bed (just done) counts.
+    Result<std::optional<api::LeaseGrant>> next = LeaseIn(t, *c.next, now);
+    if (!next.ok()) return next.status();
+    reply->next = std::move(*next);
+    return reply;
   });
+}
+
+Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::string& token,
+                                                    const api::Completion& c, double now) {
+  Result<LeaseRow> lease = FindLease(t, token);
+  if (!lease.ok()) return lease.status();
+  if (lease->completed) {
+    SANDSWIM_RETURN_IF_ERROR(t.Count("duplicates"));
+    return api::CompletionReply{"duplicate"};
+  }
+  const api::JobKind kind = lease->kind;
+  const int64_t id = lease->job_id;
+  Result<JobRow> job = LoadJob(t, kind, id, options_.max_attempts);
+  if (!job.ok()) return job.status();
+  SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
+
+  if (c.ok && kind == api::JobKind::kRun && !c.result) {
+    return Status::InvalidArgument("result", "an ok run completion carries its result");
+  }
+  if (c.ok && kind == api::JobKind::kBed && !c.bed_result) {
+    return Status::InvalidArgument("bed_result", "an ok bed completion carries its bed_result");
+  }
+  if (!c.ok && !c.failure) {
+    return Status::InvalidArgument("failure", "a failed completion says why");
+  }
+
+  std::string state;
+  if (c.ok && kind == api::JobKind::kRun) {
+    const api::RunResult& r = *c.result;
+    const api::Execution& e = c.execution;
+    {
+      Statement key = t.Prepare("SELECT key FROM runs WHERE id = ?");
+      key.Bind(1, id);
+      Result<bool> row = key.Step();
+      if (!row.ok()) return row.status();
+      // A forced rerun replaces the old result here, in the same transaction as the state.
+      Statement st = t.Prepare(
+          "INSERT OR REPLACE INTO results (run_id, uz, uz_stderr, window_t0, window_t1, dz, "
+          "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
+          "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at, "
+          "lease_to_start_s) "
+          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      st.Bind(1, id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
+      st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
+      st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
+      st.Bind(14, r.grains).Bind(15, r.z0).Bind(16, e.engine_version).Bind(17, e.host);
+      st.Bind(18, e.ranks).Bind(19, e.launcher).Bind(20, e.wall_s).Bind(21, e.cpu_s);
+      st.Bind(22, key.Text(0)).Bind(23, now).Bind(24, e.lease_to_start_s);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    }
+    if (c.trajectory) {
+      Statement st = t.Prepare("INSERT OR REPLACE INTO trajectories (run_id, data) VALUES (?, ?)");
+      st.Bind(1, id).Bind(2, nlohmann::json(*c.trajectory).dump());
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    }
+    Statement st = t.Prepare(
+        "UPDATE runs SET state = 'done', lease_expires_at = NULL, finished_at = ?, "
+        "last_error_kind = NULL, last_error = NULL, sim_time_s = ?, step = ? WHERE id = ?");
+    st.Bind(1, now).Bind(2, r.sim_time_s).Bind(3, r.steps).Bind(4, id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    state = "done";
+  } else if (c.ok) {
+    const api::BedResult& b = *c.bed_result;
+    Statement cur = t.Prepare("SELECT path, sha256 FROM beds WHERE id = ?");
+    cur.Bind(1, id);
+    Result<bool> row = cur.Step();
+    if (!row.ok()) return row.status();
+    if (cur.IsNull(0)) {
+      return Status::FailedPrecondition("bed_result",
+                                        "upload the bed's restart file before completing it");
+    }
+    if (!b.sha256.empty() && Lower(b.sha256) != cur.Text(1)) {
+      return Status::FailedPrecondition("bed_result.sha256",
+                                        "differs from the uploaded restart file's checksum");
+    }
+    Statement st = t.Prepare(
+        "UPDATE beds SET state = 'done', lease_expires_at = NULL, finished_at = ?, grains = ?, "
+        "result = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
+    st.Bind(1, now).Bind(2, b.grains).Bind(3, nlohmann::json(b).dump()).Bind(4, id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    state = "done";
+  } else {
+    const api::Failure& f = *c.failure;
+    if (f.kind == "cancelled") {
+      // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
+      std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";
+      Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
+                               " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
+                               "last_error = ?, finished_at = ? WHERE id = ?");
+      st.Bind(1, to).Bind(2, f.kind).Bind(3, f.message);
+      if (to == "cancelled") st.Bind(4, now); else st.BindNull(4);
+      st.Bind(5, id);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + "." + to,
+                                       Subject(kind, id), {{"message", f.message}}));
+      state = to;
+    } else {
+      Result<std::string> s = RetryOrFail(t, kind, id, *job, f.kind, f.message,
+                                          /*retryable=*/f.kind != "deck_error", now);
+      if (!s.ok()) return s.status();
+      state = *s;
+    }
+  }
+  if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
+    Statement st = t.Prepare("INSERT OR REPLACE INTO run_logs (run_id, log_tail) VALUES (?, ?)");
+    st.Bind(1, id).Bind(2, c.log_tail);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  if (state == "done") {
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
+                                     {{"host", c.execution.host},
+                                      {"wall_s", c.execution.wall_s}}));
+  }
+  {
+    Statement st = t.Prepare("UPDATE leases SET completed_at = ?, outcome = ? WHERE token = ?");
+    st.Bind(1, now).Bind(2, state).Bind(3, token);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));
+  return api::CompletionReply{state};
 }
 
 Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const std::string& reason) {

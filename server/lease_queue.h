@@ -19,6 +19,8 @@
 //              Completing a token that already completed answers "duplicate" and changes
 //              nothing; a token that is not the job's current lease (expired and re-leased,
 //              unknown) gets kConflict and changes nothing. So there is never a second result.
+//              A completion may also ask for the worker's next job (Completion::next): it is
+//              leased in the same transaction, after the completion, and returned with the reply.
 //   Release    under the current token: the worker hands the job back unfinished (it is
 //              stopping: Slurm signalled its allocation's end, or it was asked to stop). The job
 //              goes back to queued and the attempt is not counted (attempts - 1): it was not the
@@ -86,6 +88,8 @@ class LeaseQueue {
   // kInvalidArgument when the completion lacks what its kind needs (ok run without result, ok
   // bed without bed_result, failure without failure); kFailedPrecondition for an ok bed whose
   // restart was not uploaded (or whose bed_result.sha256 differs from the upload).
+  // With `c.next`, also leases the next job for that request in the same transaction (as Lease
+  // would, after the completion) and returns it in `next`; on any error nothing happens.
   Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& c);
 
   // kConflict as for Complete; {"queued"} once released, {"duplicate"} for a token that already
@@ -111,6 +115,11 @@ class LeaseQueue {
   Result<std::string> GetBedRestartPath(int64_t bed_id);
 
  private:
+  // The bodies of Lease and Complete, inside a caller's transaction at time `now`.
+  Result<std::optional<api::LeaseGrant>> LeaseIn(Transaction& t, const api::LeaseRequest& request, double now);
+  Result<api::CompletionReply> CompleteIn(Transaction& t, const std::string& token, const api::Completion& c,
+                                          double now);
+
   Store* store_;
   Clock* clock_;
   LeaseQueueOptions options_;

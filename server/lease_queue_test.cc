@@ -266,6 +266,62 @@ TEST_F(LeaseQueueTest, ResultKeepsLeaseToStartTime) {
   EXPECT_DOUBLE_EQ(nlohmann::json(*run->result).at("lease_to_start_s").get<double>(), 0.125);
 }
 
+// A completion that asks for the next job gets it in the same transaction: the bed's completion
+// makes its runs leasable at once, a run's completion leases the following run, and at the end
+// the reply simply has no next job.
+TEST_F(LeaseQueueTest, CompletionCanLeaseTheNextJob) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease("w");
+  const std::string bytes = "restart bytes";
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion bed_done;
+  bed_done.ok = true;
+  bed_done.bed_result = api::BedResult{};
+  bed_done.bed_result->sha256 = Sha256Hex(bytes);
+  bed_done.next = api::LeaseRequest{"w", "host", 1};
+  auto r = queue_->Complete(bed.token, bed_done);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->state, "done");
+  ASSERT_TRUE(r->next.has_value());
+  const api::LeaseGrant first = *r->next;
+  EXPECT_EQ(first.kind, api::JobKind::kRun);
+  EXPECT_EQ(RunState(first.id), "running");
+
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w", "host", 1};
+  r = queue_->Complete(first.token, c);
+  ASSERT_TRUE(r.ok() && r->next.has_value());
+  const api::LeaseGrant second = *r->next;
+  EXPECT_NE(second.id, first.id);
+  EXPECT_EQ(RunState(first.id), "done");
+  EXPECT_EQ(RunState(second.id), "running");
+
+  r = queue_->Complete(second.token, c);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->state, "done");
+  EXPECT_FALSE(r->next.has_value());  // nothing left
+  EXPECT_EQ(Rows("results"), 2);
+  // Serialised, an absent next job is an absent field.
+  EXPECT_FALSE(nlohmann::json(*r).contains("next"));
+}
+
+// A completion that is refused leases nothing: the next job stays queued for someone else.
+TEST_F(LeaseQueueTest, RefusedCompletionLeasesNoNextJob) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w", "host", 1};
+  EXPECT_EQ(queue_->Complete("not-a-token", c).status().code(), StatusCode::kConflict);
+  api::Completion bad = c;
+  bad.result.reset();  // an ok run without its result
+  EXPECT_EQ(queue_->Complete(g.token, bad).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(Rows("leases"), 2);  // the bed's and g's: no other lease was granted
+  EXPECT_EQ(RunState(g.id), "running");
+  api::LeaseGrant other = MustLease("other");
+  EXPECT_NE(other.id, g.id);
+}
+
 TEST_F(LeaseQueueTest, UnknownTokenConflicts) {
   EXPECT_EQ(queue_->Complete("nope", OkRun()).status().code(), StatusCode::kConflict);
   EXPECT_EQ(queue_->Heartbeat("nope", {}).status().code(), StatusCode::kConflict);

@@ -247,6 +247,66 @@ pid_t ForkGuard(const std::string& exe, std::vector<char*>& argv, std::vector<ch
 }
 
 
+// A single-process engine, started straight from this (multi-threaded) process without a guard:
+// vfork (no page-table copy; this thread waits until the exec), then in the child only system
+// calls on memory prepared before: default dispositions, its own process group,
+// PR_SET_PDEATHSIG SIGKILL (it dies with the thread that started it, even a SIGKILLed worker),
+// the run directory, stdout/stderr to `out`, nothing else inherited, an empty signal mask, exec.
+// A failure before the exec is written to `*stage` / `*error` (memory the vfork child shares)
+// and returns -1 after reaping the child.
+pid_t SpawnSingle(const char* exe, char* const* argv, char* const* envp, const char* cwd, const char* out,
+                  int* stage, int* error) {
+  sigset_t all, old, none;
+  sigfillset(&all);
+  sigemptyset(&none);
+  // No handler of this process may run in the child while it shares this process's memory.
+  pthread_sigmask(SIG_SETMASK, &all, &old);
+  const pid_t parent = getpid();
+  volatile int failed_stage = -1;
+  volatile int failed_errno = 0;
+  const pid_t pid = vfork();
+  if (pid == 0) {
+    struct sigaction dfl;
+    std::memset(&dfl, 0, sizeof dfl);
+    dfl.sa_handler = SIG_DFL;
+    for (int sig = 1; sig < NSIG; ++sig) sigaction(sig, &dfl, nullptr);  // fails harmlessly for some
+    auto fail = [&](int st) {
+      failed_errno = errno;
+      failed_stage = st;
+      _exit(127);
+    };
+    if (setpgid(0, 0) != 0) fail(0);
+    if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0) fail(0);
+    if (getppid() != parent) _exit(137);  // the worker died before the line above
+    if (cwd != nullptr && chdir(cwd) != 0) fail(1);
+    int in = open("/dev/null", O_RDONLY);
+    int outfd = open(out, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || outfd < 0) fail(2);
+    if (dup2(in, 0) < 0 || dup2(outfd, 1) < 0 || dup2(outfd, 2) < 0) fail(2);
+    if (syscall(SYS_close_range, 3, ~0U, 0) != 0) {
+      for (int fd = 3; fd < 4096; ++fd) close(fd);  // kernels before 5.9
+    }
+    sigprocmask(SIG_SETMASK, &none, nullptr);
+    execve(exe, argv, envp);
+    fail(4);
+  }
+  const int vfork_errno = errno;
+  pthread_sigmask(SIG_SETMASK, &old, nullptr);
+  if (pid < 0) {
+    *stage = 3;
+    *error = vfork_errno;
+    return -1;
+  }
+  if (failed_stage >= 0) {
+    while (waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {
+    }
+    *stage = failed_stage;
+    *error = failed_errno;
+    return -1;
+  }
+  return pid;
+}
+
 }  // namespace
 
 const char* LauncherName(LauncherKind kind) {
@@ -277,6 +337,7 @@ LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine
       spec.argv = {"srun", "--mpi=pmix", "-n", r, "--exclusive"};
       break;
     case LauncherKind::kDirect:
+      spec.single_process = true;
       break;
   }
   spec.argv.push_back(engine);
@@ -309,6 +370,21 @@ Result<std::unique_ptr<EngineProcess>> ProcessLauncher::Start(const LaunchSpec& 
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   const std::string out = spec.output_file.empty() ? "/dev/null" : spec.output_file;
+  static const char* const kStage[] = {"start", "chdir", "open output", "fork", "exec"};
+  auto start_failed = [&](int stage, int error) {
+    return Status::Unavailable("could not start '" + spec.argv[0] + "'" +
+                               (spec.cwd.empty() ? std::string() : " in " + spec.cwd) + " (" +
+                               kStage[stage >= 0 && stage < 5 ? stage : 0] + "): " + std::strerror(error));
+  };
+
+  if (spec.single_process) {
+    int stage = 0, error = 0;
+    const pid_t pid = SpawnSingle(exe.c_str(), argv.data(), envp.data(), spec.cwd.empty() ? nullptr : spec.cwd.c_str(),
+                                  out.c_str(), &stage, &error);
+    if (pid < 0) return start_failed(stage, error);
+    int pidfd = static_cast<int>(syscall(SYS_pidfd_open, pid, 0));
+    return std::unique_ptr<EngineProcess>(new ChildProcess(pid, pidfd));
+  }
 
   // The engine must never outlive the worker, even a worker killed with SIGKILL: mpirun and its
   // ranks would run on unwatched, and the run is leased again elsewhere. posix_spawn cannot set
@@ -365,11 +441,7 @@ Result<std::unique_ptr<EngineProcess>> ProcessLauncher::Start(const LaunchSpec& 
     int st = 0;
     while (waitpid(pid, &st, 0) < 0 && errno == EINTR) {
     }
-    static const char* const kStage[] = {"start", "chdir", "open output", "fork", "exec"};
-    const int stage = failure[0] >= 0 && failure[0] < 5 ? failure[0] : 0;
-    return Status::Unavailable("could not start '" + spec.argv[0] + "'" +
-                               (spec.cwd.empty() ? std::string() : " in " + spec.cwd) + " (" + kStage[stage] +
-                               "): " + std::strerror(failure[1]));
+    return start_failed(failure[0], failure[1]);
   }
   int pidfd = static_cast<int>(syscall(SYS_pidfd_open, pid, 0));
   return std::unique_ptr<EngineProcess>(new ChildProcess(pid, pidfd));

@@ -4,7 +4,8 @@
 // Abstract so it can be faked in tests of the worker loop. The real one (ProcessLauncher)
 // spawns a small guard process (sandswim-engine-guard next to this program; a fork of this
 // process when that is missing) that leads a new process group and starts the engine in it, in the
-// run directory, with its stdout and stderr in a file there. The engine never outlives the
+// run directory, with its stdout and stderr in a file there. A LaunchSpec marked single_process
+// (a direct engine) needs no guard and is started itself, with the same guarantees. The engine never outlives the
 // worker: the guard gets PR_SET_PDEATHSIG when the worker thread that started it dies (even by
 // SIGKILL) and then SIGKILLs the whole group, mpirun and ranks included. So a Start()ing thread
 // must outlive its EngineProcess (the worker's slot threads wait for their engines). The guard
@@ -35,9 +36,13 @@ struct LaunchSpec {
   std::string cwd;                                        // run directory
   std::vector<std::pair<std::string, std::string>> env;  // added to the worker's environment
   std::string output_file;                                // stdout+stderr, relative to cwd ("" = /dev/null)
+  // The command is one process that starts no others (a direct engine): it needs no guard. It is
+  // started straight from the worker (vfork + exec) as the leader of its own group, and asks
+  // for SIGKILL itself when the worker's thread dies: one program start per run instead of two.
+  bool single_process = false;
 };
 
-// The command line for the engine. mpirun: `mpirun -np R --bind-to none ENGINE -in DECK -log LOG
+// The command line for the engine (single_process for direct). mpirun: `mpirun -np R --bind-to none ENGINE -in DECK -log LOG
 // -screen /dev/null` (with OMPI_ALLOW_RUN_AS_ROOT[_CONFIRM]=1 in env when running as root);
 // srun (inside an allocation): `srun --mpi=pmix -n R --exclusive ENGINE ...`; direct: `ENGINE ...` (R must be 1).
 // (`-screen none` segfaults with fix insert/pack, so the screen goes to /dev/null.)

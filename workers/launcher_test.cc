@@ -32,13 +32,25 @@ LaunchSpec Sh(const std::string& script, const std::string& cwd = "") {
   return spec;
 }
 
-TEST(LauncherTest, ExitStatusAndOutputFile) {
+// The tests that hold for both ways of starting an engine: through the guard (mpirun, srun) and
+// straight from the worker (single_process: a direct engine).
+class LauncherModes : public ::testing::TestWithParam<bool> {
+ protected:
+  LaunchSpec Mode(LaunchSpec spec) const {
+    spec.single_process = GetParam();
+    return spec;
+  }
+};
+INSTANTIATE_TEST_SUITE_P(GuardedAndSingle, LauncherModes, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "SingleProcess" : "Guarded"; });
+
+TEST_P(LauncherModes, ExitStatusAndOutputFile) {
   const std::string dir = TempDir();
   LaunchSpec spec = Sh("echo hello from $SANDSWIM_TEST_VAR; pwd; exit 3", dir);
   spec.env = {{"SANDSWIM_TEST_VAR", "the child"}};
   spec.output_file = "out.txt";
   ProcessLauncher launcher;
-  auto proc = launcher.Start(spec);
+  auto proc = launcher.Start(Mode(spec));
   ASSERT_TRUE(proc.ok()) << proc.status().ToString();
   ASSERT_TRUE((*proc)->WaitFor(10));
   EXPECT_EQ((*proc)->exit_status().exit_code, 3);
@@ -49,9 +61,9 @@ TEST(LauncherTest, ExitStatusAndOutputFile) {
   EXPECT_EQ(ss.str(), "hello from the child\n" + dir + "\n");
 }
 
-TEST(LauncherTest, WaitForZeroDoesNotBlock) {
+TEST_P(LauncherModes, WaitForZeroDoesNotBlock) {
   ProcessLauncher launcher;
-  auto proc = launcher.Start(Sh("sleep 30"));
+  auto proc = launcher.Start(Mode(Sh("sleep 30")));
   ASSERT_TRUE(proc.ok());
   EXPECT_FALSE((*proc)->WaitFor(0));
   EXPECT_FALSE((*proc)->WaitFor(0.05));
@@ -87,10 +99,10 @@ TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
   EXPECT_TRUE(gone);
 }
 
-TEST(LauncherTest, ProcessIgnoringSigtermGetsSigkill) {
+TEST_P(LauncherModes, ProcessIgnoringSigtermGetsSigkill) {
   const std::string dir = TempDir();
   ProcessLauncher launcher;
-  auto proc = launcher.Start(Sh("trap '' TERM; touch ready; while :; do sleep 0.05; done", dir));
+  auto proc = launcher.Start(Mode(Sh("trap '' TERM; touch ready; while :; do sleep 0.05; done", dir)));
   ASSERT_TRUE(proc.ok());
   for (int i = 0; i < 200 && access((dir + "/ready").c_str(), F_OK) != 0; ++i) usleep(10000);
   const auto t0 = Clock::now();
@@ -101,26 +113,26 @@ TEST(LauncherTest, ProcessIgnoringSigtermGetsSigkill) {
   EXPECT_LT(took, 3.0);
 }
 
-TEST(LauncherTest, MissingCommandIsUnavailable) {
+TEST_P(LauncherModes, MissingCommandIsUnavailable) {
   ProcessLauncher launcher;
   LaunchSpec spec;
   spec.argv = {"sandswim-no-such-engine-here"};
-  auto proc = launcher.Start(spec);
+  auto proc = launcher.Start(Mode(spec));
   ASSERT_FALSE(proc.ok());
   EXPECT_EQ(proc.status().code(), StatusCode::kUnavailable);
   EXPECT_NE(proc.status().reason().find("sandswim-no-such-engine-here"), std::string::npos);
 }
 
-TEST(LauncherTest, BadWorkingDirectoryIsUnavailable) {
+TEST_P(LauncherModes, BadWorkingDirectoryIsUnavailable) {
   ProcessLauncher launcher;
-  auto proc = launcher.Start(Sh("true", "/nonexistent/sandswim/dir"));
+  auto proc = launcher.Start(Mode(Sh("true", "/nonexistent/sandswim/dir")));
   ASSERT_FALSE(proc.ok());
   EXPECT_NE(proc.status().reason().find("/nonexistent/sandswim/dir"), std::string::npos) << proc.status().reason();
 }
 
-TEST(LauncherTest, CpuTimeIsCounted) {
+TEST_P(LauncherModes, CpuTimeIsCounted) {
   ProcessLauncher launcher;
-  auto proc = launcher.Start(Sh("i=0; while [ $i -lt 200000 ]; do i=$((i+1)); done"));
+  auto proc = launcher.Start(Mode(Sh("i=0; while [ $i -lt 200000 ]; do i=$((i+1)); done")));
   ASSERT_TRUE(proc.ok());
   ASSERT_TRUE((*proc)->WaitFor(30));
   EXPECT_GT((*proc)->exit_status().cpu_s, 0.01);
@@ -131,6 +143,7 @@ TEST(LauncherTest, EngineCommands) {
   LaunchSpec m = EngineCommand(LauncherKind::kMpirun, 2, "liggghts", "drive.in", "log.liggghts", "/d", true);
   EXPECT_EQ(m.argv, (std::vector<std::string>{"mpirun", "-np", "2", "--bind-to", "none", "liggghts", "-in",
                                               "drive.in", "-log", "log.liggghts", "-screen", "/dev/null"}));
+  EXPECT_FALSE(m.single_process);  // mpirun starts ranks: it needs its guard
   EXPECT_EQ(m.env.size(), 2u);
   EXPECT_EQ(m.cwd, "/d");
   EXPECT_TRUE(EngineCommand(LauncherKind::kMpirun, 1, "liggghts", "a", "b", "/d", false).env.empty());
@@ -138,6 +151,7 @@ TEST(LauncherTest, EngineCommands) {
   EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "--exclusive", "liggghts", "-in", "bed.in", "-log",
                                               "log.liggghts", "-screen", "/dev/null"}));
   LaunchSpec d = EngineCommand(LauncherKind::kDirect, 1, "/opt/liggghts", "x.in", "log", "/d", true);
+  EXPECT_TRUE(d.single_process);
   EXPECT_EQ(d.argv, (std::vector<std::string>{"/opt/liggghts", "-in", "x.in", "-log", "log", "-screen", "/dev/null"}));
 }
 
@@ -155,6 +169,80 @@ pid_t ReadPid(const std::string& path) {
   pid_t pid = 0;
   in >> pid;
   return pid;
+}
+
+// The engine inherits none of the worker's descriptors (sockets, other engines' pipes), nor a
+// signal the worker ignores or blocks: a worker that ignores SIGTERM still stops its engine with
+// SIGTERM, not only after the grace with SIGKILL.
+TEST_P(LauncherModes, EngineInheritsNoDescriptorsAndNoIgnoredOrBlockedSignals) {
+  const std::string dir = TempDir();
+  int leak[2];
+  ASSERT_EQ(pipe(leak), 0);  // not close-on-exec
+  struct sigaction ignore {}, old_term {};
+  ignore.sa_handler = SIG_IGN;
+  ASSERT_EQ(sigaction(SIGTERM, &ignore, &old_term), 0);
+  sigset_t block, old_mask;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &block, &old_mask);
+  ProcessLauncher launcher;
+  LaunchSpec fds = Sh("exec ls /proc/self/fd", dir);
+  fds.output_file = "fds.txt";
+  auto listed = launcher.Start(Mode(fds));
+  auto sleeper = launcher.Start(Mode(Sh("touch ready; exec sleep 30", dir)));
+  sigaction(SIGTERM, &old_term, nullptr);
+  pthread_sigmask(SIG_SETMASK, &old_mask, nullptr);
+  close(leak[0]);
+  close(leak[1]);
+  ASSERT_TRUE(listed.ok() && sleeper.ok());
+  ASSERT_TRUE((*listed)->WaitFor(10));
+  std::ifstream in(dir + "/fds.txt");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  EXPECT_EQ(ss.str(), "0\n1\n2\n3\n");  // ls's own: stdio and the directory it reads
+  for (int i = 0; i < 500 && access((dir + "/ready").c_str(), F_OK) != 0; ++i) usleep(10000);
+  (*sleeper)->Stop(5);
+  EXPECT_EQ((*sleeper)->exit_status().signal, SIGTERM);
+  // sh -c 'exec sleep' with SIGINT blocked would not die of it; unblocked, it does.
+  auto interrupted = launcher.Start(Mode(Sh("touch ready2; exec sleep 30", dir)));
+  ASSERT_TRUE(interrupted.ok());
+  for (int i = 0; i < 500 && access((dir + "/ready2").c_str(), F_OK) != 0; ++i) usleep(10000);
+  kill(-(*interrupted)->pid(), SIGINT);
+  ASSERT_TRUE((*interrupted)->WaitFor(5));
+  EXPECT_EQ((*interrupted)->exit_status().signal, SIGINT);
+}
+
+// A single-process engine has no guard: it dies with a worker killed by SIGKILL all by itself.
+TEST(LauncherTest, SingleProcessEngineDiesWithAWorkerKilledBySigkill) {
+  const std::string dir = TempDir();
+  pid_t worker = fork();
+  ASSERT_GE(worker, 0);
+  if (worker == 0) {
+    ProcessLauncher launcher;
+    LaunchSpec spec = Sh("echo $$ > engine.tmp && mv engine.tmp engine.pid && exec sleep 300", dir);
+    spec.single_process = true;
+    auto proc = launcher.Start(spec);
+    if (!proc.ok()) _exit(1);
+    while (true) pause();
+  }
+  pid_t engine = 0;
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while ((engine = ReadPid(dir + "/engine.pid")) == 0 && Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  if (engine <= 0) {
+    kill(worker, SIGKILL);
+    waitpid(worker, nullptr, 0);
+    FAIL() << "the engine did not start";
+  }
+  EXPECT_TRUE(Alive(engine));
+  EXPECT_EQ(getpgid(engine), engine);  // the leader of its own group
+  kill(worker, SIGKILL);
+  ASSERT_EQ(waitpid(worker, nullptr, 0), worker);
+  const auto gone_by = Clock::now() + std::chrono::seconds(10);
+  while (Alive(engine) && Clock::now() < gone_by) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_FALSE(Alive(engine)) << "the engine outlived its worker";
+  if (Alive(engine)) kill(engine, SIGKILL);
 }
 
 // A worker killed with SIGKILL takes its engine with it: the engine (here a shell) and the
@@ -213,9 +301,9 @@ TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
 }
 
 // The guard passes the engine's way of ending on: a signal reads as that signal.
-TEST(LauncherTest, EngineKilledBySignalReadsAsThatSignal) {
+TEST_P(LauncherModes, EngineKilledBySignalReadsAsThatSignal) {
   ProcessLauncher launcher;
-  auto proc = launcher.Start(Sh("kill -SEGV $$"));
+  auto proc = launcher.Start(Mode(Sh("kill -SEGV $$")));
   ASSERT_TRUE(proc.ok());
   ASSERT_TRUE((*proc)->WaitFor(10));
   EXPECT_EQ((*proc)->exit_status().signal, SIGSEGV);

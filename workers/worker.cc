@@ -77,14 +77,16 @@ class Progress {
   api::Heartbeat Read() {
     if (kind_ == api::JobKind::kRun) {
       std::string bytes = dump_.ReadNew();
-      if (!bytes.empty() && reader_.Feed(bytes).ok()) {
-        for (const DumpFrame& f : reader_.TakeFrames()) {
+      if (!bytes.empty()) {
+        // Frames are lent one by one (no copies); an error stops the reader for good.
+        DumpFrameFn sink([this](const DumpFrameView& f) {
           int cz = f.Column("z");
           if (cz >= 0 && f.atoms > 0) {
             beat_.step = f.step;
             beat_.so_z = f.At(0, cz);
           }
-        }
+        });
+        (void)reader_.Feed(bytes, sink);
       }
     } else {
       EngineLog log = ParseEngineLog(ReadTail(log_path_, 64 * 1024));
@@ -176,7 +178,20 @@ void Worker::Run() {
 void Worker::SlotLoop() {
   double backoff = 0.5;
   auto idle_since = Clock::now();
+  // A job leased together with the previous completion (one round trip per job).
+  std::optional<api::LeaseGrant> next;
   while (!stopping_) {
+    if (next) {
+      api::LeaseGrant grant = std::move(*next);
+      next.reset();
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        ++stats_.leased;
+      }
+      RunJob(grant, &next);
+      idle_since = Clock::now();
+      continue;
+    }
     if (!RunFitsAllocation()) break;
     api::LeaseRequest request{options_.name, options_.host, options_.ranks};
     auto lease = client_.Lease(request);
@@ -211,13 +226,19 @@ void Worker::SlotLoop() {
       std::lock_guard<std::mutex> lock(mu_);
       ++stats_.leased;
     }
-    RunJob(**lease);
+    RunJob(**lease, &next);
     if (options_.once) break;
     idle_since = Clock::now();
   }
+  if (next) {
+    // Leased with the last completion just as the worker stopped: give it straight back.
+    auto reply = client_.Release(next->token, "the worker stopped before starting it");
+    spdlog::info("{}: handed back unstarted ({})", JobName(*next),
+                 reply.ok() ? reply->state : reply.status().ToString() + "; its lease will expire");
+  }
 }
 
-void Worker::RunJob(const api::LeaseGrant& grant) {
+void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next) {
   const auto leased_at = Clock::now();
   const std::string name = JobName(grant);
   const bool is_bed = grant.kind == api::JobKind::kBed;
@@ -245,6 +266,10 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
     ++stats_.released;
   };
   auto complete = [&](const RunDir* dir) {
+    // Ask for the next job in the same call unless this slot is about to end.
+    if (next != nullptr && !options_.once && !stopping_ && RunFitsAllocation()) {
+      completion.next = api::LeaseRequest{options_.name, options_.host, options_.ranks};
+    }
     auto reply = client_.Complete(grant.token, completion);
     if (!reply.ok()) {
       if (reply.status().code() == StatusCode::kConflict) {
@@ -258,6 +283,7 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
       std::lock_guard<std::mutex> lock(mu_);
       ++stats_.completed;
     }
+    if (next != nullptr) *next = std::move(reply->next);
     if (completion.ok) {
       spdlog::info("{}: completed ({})", name, reply->state);
       if (!is_bed) {
@@ -409,10 +435,11 @@ void Worker::RunJob(const api::LeaseGrant& grant) {
     return complete(&*dir);
   }
 
-  auto frames = ReadDump(ReadFileOr(dir->File(kTrajectoryDumpFile), ""));
-  if (!frames.ok()) return fail(&*dir, "bad_output", std::string(kTrajectoryDumpFile) + ": " + frames.status().reason());
-  auto samples = SamplesFromFrames(*frames, drive.dt);
-  if (!samples.ok()) return fail(&*dir, "bad_output", samples.status().reason());
+  // Streamed into samples: no DumpFrame per frame.
+  auto samples = SamplesFromDump(ReadFileOr(dir->File(kTrajectoryDumpFile), ""), drive.dt);
+  if (!samples.ok()) {
+    return fail(&*dir, "bad_output", std::string(kTrajectoryDumpFile) + ": " + samples.status().reason());
+  }
   auto result = AnalyzeTrajectory(*samples, drive.f, log.drive_start, log.drive_stop);
   if (!result.ok()) return fail(&*dir, "bad_output", result.status().reason());
   completion.ok = true;

@@ -88,8 +88,10 @@ class Worker {
   void RequestStop();
   bool stopping() const { return stopping_.load(); }
 
-  // Runs one leased job to its end (used by the slots; public for tests).
-  void RunJob(const api::LeaseGrant& grant);
+  // Runs one leased job to its end (used by the slots; public for tests). With `next`, and when
+  // the slot goes on, the completion also asks for the next job (one round trip per job); a grant
+  // that came with the reply is left in `*next` for the caller to run or hand back.
+  void RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next = nullptr);
 
   WorkerStats stats() const;
 

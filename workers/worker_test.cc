@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <deque>
+#include <functional>
 #include <fstream>
 #include <mutex>
 #include <sstream>
@@ -50,10 +51,15 @@ class FakeClient : public ServerClient {
   bool conflict_on_beat = false;
   std::string bed_bytes = kBedBytes;
   std::atomic<int> downloads{0};
+  bool piggyback = false;  // answer a completion's `next` with the next grant, as the daemon does
+  int granted_by_lease = 0;  // grants handed out by Lease() (not with a completion)
+  std::vector<std::string> released;  // tokens handed back
+  std::function<void()> on_complete;  // runs inside Complete (e.g. a stop request arriving then)
 
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest&) override {
     std::lock_guard<std::mutex> l(mu);
     if (grants.empty()) return std::optional<api::LeaseGrant>();
+    ++granted_by_lease;
     api::LeaseGrant g = grants.front();
     grants.pop_front();
     return std::optional<api::LeaseGrant>(g);
@@ -79,7 +85,18 @@ class FakeClient : public ServerClient {
   Result<api::CompletionReply> Complete(const std::string&, const api::Completion& c) override {
     std::lock_guard<std::mutex> l(mu);
     completions.push_back(c);
-    return api::CompletionReply{c.ok ? "done" : "failed"};
+    if (on_complete) on_complete();
+    api::CompletionReply reply{c.ok ? "done" : "failed"};
+    if (piggyback && c.next && !grants.empty()) {
+      reply.next = grants.front();
+      grants.pop_front();
+    }
+    return reply;
+  }
+  Result<api::CompletionReply> Release(const std::string& token, const std::string&) override {
+    std::lock_guard<std::mutex> l(mu);
+    released.push_back(token);
+    return api::CompletionReply{"queued"};
   }
 };
 
@@ -365,8 +382,10 @@ TEST(WorkerTest, StopRequestStopsRunningJobsWithoutCompleting) {
   EXPECT_EQ(worker.stats().leased, 1);
 }
 
+// A once-worker runs one job and never asks for a next one with its completion.
 TEST(WorkerTest, OnceTakesOneJobAndReturns) {
   FakeClient client;
+  client.piggyback = true;
   client.grants = {RunGrant(), RunGrant()};
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
@@ -376,8 +395,56 @@ TEST(WorkerTest, OnceTakesOneJobAndReturns) {
   o.slots = 4;
   Worker worker(o, client, launcher);
   worker.Run();
-  EXPECT_EQ(client.completions.size(), 1u);
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_FALSE(client.completions[0].next.has_value());
   EXPECT_EQ(client.grants.size(), 1u);
+}
+
+// Each completion asks for the next job, and a job that came with the reply runs without a
+// lease call of its own: one round trip per job.
+TEST(WorkerTest, JobsLeasedWithTheCompletionRunWithoutAnotherLease) {
+  FakeClient client;
+  client.piggyback = true;
+  client.grants = {RunGrant(), RunGrant(), RunGrant()};
+  client.grants[1].token = "tok-2";
+  client.grants[2].token = "tok-3";
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
+                    {"so.dump", Fixture("so_omega_minus80.dump")}};
+  WorkerOptions o = Options(TempDir());
+  o.idle_poll_s = 0.01;
+  o.exit_when_idle_s = 0.05;
+  Worker worker(o, client, launcher);
+  worker.Run();
+  ASSERT_EQ(client.completions.size(), 3u);
+  for (const api::Completion& c : client.completions) {
+    ASSERT_TRUE(c.next.has_value());
+    EXPECT_EQ(c.next->worker, o.name);
+  }
+  EXPECT_EQ(worker.stats().leased, 3);
+  EXPECT_EQ(launcher.started.size(), 3u);
+  // Only the first job came from a lease call.
+  std::lock_guard<std::mutex> l(client.mu);
+  EXPECT_EQ(client.granted_by_lease, 1);
+  EXPECT_TRUE(client.grants.empty());
+  EXPECT_TRUE(client.released.empty());
+}
+
+// A job that came with the last completion as the worker was stopping is handed back unstarted.
+TEST(WorkerTest, NextJobArrivingAsTheWorkerStopsIsHandedBack) {
+  FakeClient client;
+  client.piggyback = true;
+  client.grants = {RunGrant(), RunGrant()};
+  client.grants[1].token = "tok-next";
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
+                    {"so.dump", Fixture("so_omega_minus80.dump")}};
+  Worker worker(Options(TempDir()), client, launcher);
+  client.on_complete = [&] { worker.RequestStop(); };
+  worker.Run();
+  EXPECT_EQ(launcher.started.size(), 1u);
+  ASSERT_EQ(client.released.size(), 1u);
+  EXPECT_EQ(client.released[0], "tok-next");
 }
 
 TEST(WorkerTest, ExitWhenIdleReturnsWithNoWork) {

@@ -9,8 +9,12 @@
 //            each with its own keep-alive connection, looping POST /api/v1/leases then
 //            POST /api/v1/leases/{token}/complete (a small ok completion), on a queue pre-filled
 //            with runs whose bed was made done through the same API.              goal >= 5,000/s
+//   piggyback  the same cycles as the worker makes them: each completion also asks for the next
+//            job (Completion.next), so a cycle is one request (one lease call to start).
+//   inproc   the two-request cycles calling LeaseQueue directly, no HTTP (what REST adds).
 //
-// Usage: bench_daemon [--runs N] [--clients C] [--cycles M] [--dir DIR] [--only submit|cycles|inproc]
+// Usage: bench_daemon [--runs N] [--clients C] [--cycles M] [--dir DIR]
+//                     [--only submit|cycles|piggyback|inproc]
 // Everything binds 127.0.0.1 on an ephemeral port; DIR (default: a fresh temp dir) is removed.
 #include <algorithm>
 #include <atomic>
@@ -224,10 +228,14 @@ std::string SmallCompletion() {
   return json(c).dump();
 }
 
-// rest = false: the same cycles calling LeaseQueue directly (what the REST layer adds is the
-// difference).
-void BenchCycles(const fs::path& root, int clients, int cycles, bool rest) {
-  const fs::path dir = root / (rest ? "cycles" : "cycles-inproc");
+enum class CycleMode { kRest, kRestPiggyback, kInProcess };
+
+// kInProcess: the same cycles calling LeaseQueue directly (what the REST layer adds is the
+// difference). kRestPiggyback: one request per cycle, as the worker does it.
+void BenchCycles(const fs::path& root, int clients, int cycles, CycleMode mode) {
+  const bool rest = mode != CycleMode::kInProcess;
+  const bool piggyback = mode == CycleMode::kRestPiggyback;
+  const fs::path dir = root / (!rest ? "cycles-inproc" : piggyback ? "cycles-piggyback" : "cycles");
   fs::create_directories(dir);
   Daemon d(dir, kEngine);
   httplib::Client client("127.0.0.1", d.port);
@@ -289,7 +297,43 @@ void BenchCycles(const fs::path& root, int clients, int cycles, bool rest) {
       c.set_keep_alive(true);
       c.set_tcp_nodelay(std::getenv("BENCH_NO_NODELAY") == nullptr);
       c.set_read_timeout(60, 0);
-      const std::string req = json{{"worker", "bench-" + std::to_string(i)}, {"host", "bench"}, {"ranks", 1}}.dump();
+      const json lease_request = {{"worker", "bench-" + std::to_string(i)}, {"host", "bench"}, {"ranks", 1}};
+      const std::string req = lease_request.dump();
+      if (piggyback) {
+        json with_next = json::parse(completion);
+        with_next["next"] = lease_request;
+        const std::string body = with_next.dump();
+        std::string token;
+        for (int k = 0; k < per_client; ++k) {
+          double a = Seconds();
+          if (token.empty()) {  // the first job, or after a completion that found none
+            auto r = c.Post("/api/v1/leases", req, "application/json");
+            if (!r || r->status != 200) {
+              ++failures;
+              continue;
+            }
+            token = json::parse(r->body).at("lease").at("token").get<std::string>();
+          }
+          double b = Seconds();
+          // The last completion asks for nothing more: every job leased is completed.
+          auto done = c.Post(("/api/v1/leases/" + token + "/complete").c_str(),
+                             k + 1 < per_client ? body : completion, "application/json");
+          double e = Seconds();
+          token.clear();
+          if (!done || done->status != 200) {
+            ++failures;
+            continue;
+          }
+          const json reply = json::parse(done->body);
+          if (k + 1 < per_client && reply.contains("next")) {
+            token = reply["next"].at("token").get<std::string>();
+          }
+          lease_ms[i].push_back((b - a) * 1e3);
+          complete_ms[i].push_back((e - b) * 1e3);
+        }
+        if (!token.empty()) ++failures;  // a leased job left uncompleted
+        return;
+      }
       for (int k = 0; k < per_client; ++k) {
         double a = Seconds();
         auto r = c.Post("/api/v1/leases", req, "application/json");
@@ -326,7 +370,7 @@ void BenchCycles(const fs::path& root, int clients, int cycles, bool rest) {
     Die("done runs " + std::to_string(sweep->counts.done) + " != completed cycles " + std::to_string(ok_cycles));
   }
   Stats l = Summarise(all_lease), c = Summarise(all_complete);
-  const char* how = rest ? "rest" : "inproc";
+  const char* how = !rest ? "inproc" : piggyback ? "rest_piggyback" : "rest";
   std::printf("cycles_%s_clients %d\n", how, clients);
   std::printf("cycles_%s_done %lld failures %d in %.3f s\n", how, ok_cycles, failures.load(), elapsed);
   std::printf("cycles_%s_per_s %.0f%s\n", how, ok_cycles / elapsed, rest ? "   (goal >= 5000)" : "");
@@ -357,15 +401,16 @@ int main(int argc, char** argv) {
     else if (a == "--cycles") cycles = std::atoi(next().c_str());
     else if (a == "--dir") dir = next();
     else if (a == "--only") only = next();
-    else Die("unknown argument " + a + " (--runs N --clients C --cycles M --dir DIR --only submit|cycles|inproc)");
+    else Die("unknown argument " + a + " (--runs N --clients C --cycles M --dir DIR --only submit|cycles|piggyback|inproc)");
   }
   if (runs < 1 || clients < 1 || cycles < clients) Die("need runs >= 1 and cycles >= clients >= 1");
   fs::path root = dir.empty() ? fs::temp_directory_path() / ("bench_daemon." + std::to_string(::getpid())) : fs::path(dir);
   fs::remove_all(root);
   fs::create_directories(root);
   if (only.empty() || only == "submit") BenchSubmitAndStatus(root, runs);
-  if (only.empty() || only == "cycles") BenchCycles(root, clients, cycles, /*rest=*/true);
-  if (only.empty() || only == "inproc") BenchCycles(root, clients, cycles, /*rest=*/false);
+  if (only.empty() || only == "cycles") BenchCycles(root, clients, cycles, CycleMode::kRest);
+  if (only.empty() || only == "piggyback") BenchCycles(root, clients, cycles, CycleMode::kRestPiggyback);
+  if (only.empty() || only == "inproc") BenchCycles(root, clients, cycles, CycleMode::kInProcess);
   fs::remove_all(root);
   return 0;
 }

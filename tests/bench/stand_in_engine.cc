@@ -4,10 +4,15 @@
 // worker reads, a short SO dump (drive decks) or a small bed.restart (bed decks), and exits 0 at
 // once. Its version line says what it is, so no result it produces can pass for a real one.
 // No real test uses it.
+//
+// It is written with plain POSIX calls and snprintf, not iostreams, so that it costs as little
+// as a static program can: what the benchmark measures is sandswim's orchestration, not this.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
+#include <cstring>
 #include <string>
 
 namespace {
@@ -24,32 +29,53 @@ double After(const std::string& deck, const std::string& key, double fallback) {
   return fallback;
 }
 
+bool ReadAll(const char* path, std::string* out) {
+  int fd = open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  char buf[16384];
+  ssize_t n;
+  while ((n = read(fd, buf, sizeof buf)) > 0) out->append(buf, static_cast<size_t>(n));
+  close(fd);
+  return n == 0;
+}
+
+bool WriteAll(const char* path, const std::string& text) {
+  int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return false;
+  const char* p = text.data();
+  size_t left = text.size();
+  while (left > 0) {
+    ssize_t n = write(fd, p, left);
+    if (n <= 0) break;
+    p += n;
+    left -= static_cast<size_t>(n);
+  }
+  close(fd);
+  return left == 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string deck_file, log_file = "log.lammps";
+  const char* deck_file = nullptr;
+  const char* log_file = "log.lammps";
   for (int i = 1; i + 1 < argc; ++i) {
-    std::string a = argv[i];
-    if (a == "-in") deck_file = argv[++i];
-    else if (a == "-log") log_file = argv[++i];
-    else if (a == "-screen" || a == "-var") ++i;
+    if (std::strcmp(argv[i], "-in") == 0) deck_file = argv[++i];
+    else if (std::strcmp(argv[i], "-log") == 0) log_file = argv[++i];
+    else if (std::strcmp(argv[i], "-screen") == 0 || std::strcmp(argv[i], "-var") == 0) ++i;
   }
-  std::ifstream in(deck_file);
-  if (!in) {
-    std::fprintf(stderr, "ERROR: Cannot open input script %s\n", deck_file.c_str());
+  std::string deck;
+  if (deck_file == nullptr || !ReadAll(deck_file, &deck)) {
+    std::fprintf(stderr, "ERROR: Cannot open input script %s\n", deck_file ? deck_file : "(none)");
     return 1;
   }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string deck = ss.str();
-  std::ofstream log(log_file);
-  log << "LIGGGHTS (Version sandswim-stand-in-engine 0, NOT LIGGGHTS: a benchmark stand-in)\n";
+  std::string log = "LIGGGHTS (Version sandswim-stand-in-engine 0, NOT LIGGGHTS: a benchmark stand-in)\n";
   if (deck.find("read_restart") == std::string::npos) {  // a bed deck
-    std::ofstream("bed.restart") << "stand-in bed restart: no grains were simulated\n";
-    log << "SANDSWIM bed equilibrated ke 0 ke_peak 1\n"
-        << "SANDSWIM bed grains 1 so_z 0 grain_top 0.2 step 1\n"
-        << "SANDSWIM bed done\n";
-    return 0;
+    WriteAll("bed.restart", "stand-in bed restart: no grains were simulated\n");
+    log += "SANDSWIM bed equilibrated ke 0 ke_peak 1\n"
+           "SANDSWIM bed grains 1 so_z 0 grain_top 0.2 step 1\n"
+           "SANDSWIM bed done\n";
+    return WriteAll(log_file, log) ? 0 : 1;
   }
   // Steps the worker expects: chunks x steps per chunk, as the drive deck loops.
   const long long chunks = static_cast<long long>(After(deck, "variable c loop ", 1));
@@ -62,14 +88,20 @@ int main(int argc, char** argv) {
   }
   const long long steps = chunks * per_chunk;
   const double dt = After(deck, "timestep", 1e-5);
-  std::ofstream dump("so.dump");
+  std::string dump;
+  char line[256];
   for (int k = 0; k <= 10; ++k) {
-    long long step = steps * k / 10;
-    dump << "ITEM: TIMESTEP\n" << step << "\nITEM: NUMBER OF ATOMS\n1\nITEM: BOX BOUNDS pp pp ff\n"
-         << "-0.1 0.1\n-0.1 0.1\n-0.25 0.5\nITEM: ATOMS id x y z vx vy vz omegax omegay omegaz\n"
-         << "1 0 0 " << 0.001 * k << " 0 0 0 0 0 0\n";
+    int n = std::snprintf(line, sizeof line,
+                          "ITEM: TIMESTEP\n%lld\nITEM: NUMBER OF ATOMS\n1\nITEM: BOX BOUNDS pp pp ff\n"
+                          "-0.1 0.1\n-0.1 0.1\n-0.25 0.5\nITEM: ATOMS id x y z vx vy vz omegax omegay omegaz\n"
+                          "1 0 0 %g 0 0 0 0 0 0\n",
+                          steps * k / 10, 0.001 * k);
+    dump.append(line, static_cast<size_t>(n));
   }
-  log << "SANDSWIM drive start grains 1 so_z 0 surface 0.2\n"
-      << "SANDSWIM drive stop duration step " << steps << " t " << steps * dt << " z 0.01\n";
-  return 0;
+  int n = std::snprintf(line, sizeof line,
+                        "SANDSWIM drive start grains 1 so_z 0 surface 0.2\n"
+                        "SANDSWIM drive stop duration step %lld t %g z 0.01\n",
+                        steps, steps * dt);
+  log.append(line, static_cast<size_t>(n));
+  return WriteAll("so.dump", dump) && WriteAll(log_file, log) ? 0 : 1;
 }
