@@ -34,11 +34,15 @@ enum class JobKind { kBed, kRun };
 NLOHMANN_JSON_SERIALIZE_ENUM(JobKind, {{JobKind::kBed, "bed"}, {JobKind::kRun, "run"}})
 
 struct LeaseRequest {
-  std::string worker;  // a stable name, "host:pid" by default
+  LeaseRequest() = default;
+  LeaseRequest(std::string w, std::string h, int r, std::string job = "")
+      : worker(std::move(w)), host(std::move(h)), ranks(r), slurm_job(std::move(job)) {}
+  std::string worker;     // a stable name, "host:pid" by default
   std::string host;
-  int ranks = 1;       // MPI ranks this worker gives one job
+  int ranks = 1;          // MPI ranks this worker gives one job
+  std::string slurm_job;  // the Slurm job the worker runs in (SLURM_JOB_ID), "" outside Slurm
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(LeaseRequest, worker, host, ranks)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(LeaseRequest, worker, host, ranks, slurm_job)
 
 struct BedRef {
   int64_t id = 0;

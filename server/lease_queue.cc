@@ -137,7 +137,10 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
   return state;
 }
 
-Result<int64_t> ExpireIn(Transaction& t, double now, int default_max) {
+// Running jobs whose lease is lost -- expired before `now` or, when `slurm_job` is set, granted to
+// that Slurm job (which Slurm no longer runs) -- go back to the queue, their attempt counted, or
+// fail at max_attempts. Returns how many.
+Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std::string& slurm_job = "") {
   int64_t expired = 0;
   for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
     struct Expired {
@@ -147,11 +150,18 @@ Result<int64_t> ExpireIn(Transaction& t, double now, int default_max) {
     };
     std::vector<Expired> rows;
     {
-      Statement st = t.Prepare(std::string("SELECT id, lease_token, attempts, max_attempts, worker "
+      const std::string lost = slurm_job.empty()
+                                   ? "j.lease_expires_at < ?"
+                                   : "j.lease_token IN (SELECT token FROM leases WHERE slurm_job = ? AND "
+                                     "completed_at IS NULL)";
+      Statement st = t.Prepare(std::string("SELECT j.id, j.lease_token, j.attempts, j.max_attempts, j.worker "
                                            "FROM ") +
-                               Table(kind) +
-                               " WHERE state = 'running' AND lease_expires_at < ? ORDER BY id");
-      st.Bind(1, now);
+                               Table(kind) + " j WHERE j.state = 'running' AND " + lost + " ORDER BY j.id");
+      if (slurm_job.empty()) {
+        st.Bind(1, now);
+      } else {
+        st.Bind(1, slurm_job);
+      }
       while (true) {
         Result<bool> row = st.Step();
         if (!row.ok()) return row.status();
@@ -168,9 +178,13 @@ Result<int64_t> ExpireIn(Transaction& t, double now, int default_max) {
     }
     for (const Expired& e : rows) {
       Result<std::string> state =
-          RetryOrFail(t, kind, e.id, e.job, "lease_expired",
-                      "worker " + e.worker + " stopped heartbeating (lease expired)",
-                      /*retryable=*/true, now);
+          slurm_job.empty()
+              ? RetryOrFail(t, kind, e.id, e.job, "lease_expired",
+                            "worker " + e.worker + " stopped heartbeating (lease expired)", /*retryable=*/true, now)
+              : RetryOrFail(t, kind, e.id, e.job, "pilot_gone",
+                            "Slurm no longer runs job " + slurm_job + " of worker " + e.worker +
+                                " (its leases were reclaimed before they expired)",
+                            /*retryable=*/true, now);
       if (!state.ok()) return state.status();
       Statement st = t.Prepare("UPDATE leases SET outcome = 'expired' WHERE token = ?");
       st.Bind(1, e.job.lease_token);
@@ -178,7 +192,7 @@ Result<int64_t> ExpireIn(Transaction& t, double now, int default_max) {
       ++expired;
     }
   }
-  if (expired > 0) SANDSWIM_RETURN_IF_ERROR(t.Count("expirations", expired));
+  if (expired > 0) SANDSWIM_RETURN_IF_ERROR(t.Count(slurm_job.empty() ? "expirations" : "pilots_gone", expired));
   return expired;
 }
 
@@ -200,7 +214,13 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest
 Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const api::LeaseRequest& request,
                                                            double now) {
   using Out = std::optional<api::LeaseGrant>;
-  Result<int64_t> expired = ExpireIn(t, now, options_.max_attempts);
+  // The job id goes to squeue (server/pilot_watch.h): digits only, so that it can name no other.
+  const std::string& job = request.slurm_job;
+  if (job.size() > 20 || job.find_first_not_of("0123456789") != std::string::npos) {
+    return Status::InvalidArgument("slurm_job", "must be a Slurm job id (up to 20 digits), got \"" +
+                                                    job.substr(0, 40) + "\"");
+  }
+  Result<int64_t> expired = ReclaimIn(t, now, options_.max_attempts);
   if (!expired.ok()) return expired.status();
 
   api::LeaseGrant g;
@@ -304,10 +324,15 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   }
   {
     Statement st = t.Prepare(
-        "INSERT INTO leases (token, kind, job_id, attempt, worker, host, ranks, granted_at) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
+        "INSERT INTO leases (token, kind, job_id, attempt, worker, host, ranks, granted_at, slurm_job) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)");
     st.Bind(1, g.token).Bind(2, Noun(g.kind)).Bind(3, g.id).Bind(4, g.attempt);
     st.Bind(5, request.worker).Bind(6, request.host).Bind(7, request.ranks).Bind(8, now);
+    if (request.slurm_job.empty()) {
+      st.BindNull(9);
+    } else {
+      st.Bind(9, request.slurm_job);
+    }
     SANDSWIM_RETURN_IF_ERROR(st.Run());
   }
   SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
@@ -562,11 +587,35 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   return api::CompletionReply{wanted ? "queued" : "cancelled"};
 }
 
+Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
+  Result<Transaction> t = store_->BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT DISTINCT l.slurm_job FROM leases l WHERE l.slurm_job IS NOT NULL AND l.completed_at IS NULL "
+      "AND l.outcome IS NULL AND (EXISTS (SELECT 1 FROM runs r WHERE r.lease_token = l.token AND "
+      "r.state = 'running') OR EXISTS (SELECT 1 FROM beds b WHERE b.lease_token = l.token AND "
+      "b.state = 'running')) ORDER BY l.slurm_job");
+  std::vector<std::string> jobs;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    jobs.push_back(st.Text(0));
+  }
+  return jobs;
+}
+
+Result<int64_t> LeaseQueue::ReclaimSlurmJob(const std::string& slurm_job) {
+  if (slurm_job.empty()) return Status::InvalidArgument("slurm_job", "names no Slurm job");
+  return store_->WriteResult<int64_t>(
+      [&](Transaction& t) { return ReclaimIn(t, clock_->Now(), options_.max_attempts, slurm_job); });
+}
+
 Result<int64_t> LeaseQueue::ExpireLeases() {
   const double now = clock_->Now();
   Result<Transaction> begun = store_->Begin();
   if (!begun.ok()) return begun.status();
-  Result<int64_t> n = ExpireIn(*begun, now, options_.max_attempts);
+  Result<int64_t> n = ReclaimIn(*begun, now, options_.max_attempts);
   if (!n.ok()) return n.status();
   SANDSWIM_RETURN_IF_ERROR(begun->Commit());
   return n;

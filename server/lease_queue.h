@@ -30,6 +30,8 @@
 //              again answers "duplicate".
 //   ExpireLeases  running jobs past their lease expiry go back to queued (the attempt stays
 //              counted) or, at max_attempts, to failed with kind "lease_expired".
+//   ReclaimSlurmJob  the same, at once, for the leases granted to a Slurm job that is gone
+//              (kind "pilot_gone"); the daemon's PilotWatch asks Slurm which ones those are.
 //   Cancel     a sweep: its queued runs that belong to no other live sweep become cancelled;
 //              its running runs are told to stop at their next heartbeat.
 //
@@ -45,6 +47,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/api.h"
 #include "core/status.h"
@@ -98,6 +101,13 @@ class LeaseQueue {
 
   // Reclaims every lease that expired before the clock's now. Returns how many.
   Result<int64_t> ExpireLeases();
+
+  // The Slurm jobs (LeaseRequest::slurm_job) that hold a lease on a running job now, sorted.
+  Result<std::vector<std::string>> RunningSlurmJobs();
+  // Reclaims, as if they had expired now, the leases of running jobs granted to `slurm_job`
+  // (Slurm no longer runs it: see server/pilot_watch.h); the failure kind is "pilot_gone".
+  // Returns how many jobs went back to the queue or failed.
+  Result<int64_t> ReclaimSlurmJob(const std::string& slurm_job);
 
   // kNotFound for an unknown sweep. Cancelling twice is harmless.
   Result<CancelSummary> Cancel(int64_t sweep_id);

@@ -6,6 +6,7 @@
 #include <random>
 #include <string>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
@@ -320,6 +321,51 @@ TEST_F(LeaseQueueTest, RefusedCompletionLeasesNoNextJob) {
   EXPECT_EQ(RunState(g.id), "running");
   api::LeaseGrant other = MustLease("other");
   EXPECT_NE(other.id, g.id);
+}
+
+// The leases of a Slurm job that is gone are reclaimed at once, like an expiry (the attempt
+// counts); other jobs' leases and leases outside Slurm stay; the old token can no longer complete.
+TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedAtOnce) {
+  nlohmann::json sweep = OmegaSignSweep();
+  sweep["axes"][0]["values"] = {-80, -40, 40};
+  SubmitJson(sweep);
+  PrepareBed();
+  auto a = queue_->Lease({"pilot-a", "node1", 1, "4242"});
+  auto b = queue_->Lease({"pilot-b", "node2", 1, "4243"});
+  auto c = queue_->Lease({"laptop", "here", 1});
+  ASSERT_TRUE(a.ok() && a->has_value() && b.ok() && b->has_value() && c.ok() && c->has_value());
+  EXPECT_EQ(queue_->RunningSlurmJobs().value(), (std::vector<std::string>{"4242", "4243"}));
+
+  auto n = queue_->ReclaimSlurmJob("4242");
+  ASSERT_TRUE(n.ok()) << n.status().ToString();
+  EXPECT_EQ(*n, 1);
+  auto run = store_->GetRun((*a)->id);
+  EXPECT_EQ(run->summary.state, "queued");
+  ASSERT_TRUE(run->summary.last_error.has_value());
+  EXPECT_EQ(run->summary.last_error->kind, "pilot_gone");
+  EXPECT_THAT(run->summary.last_error->message, ::testing::HasSubstr("4242"));
+  EXPECT_EQ(run->summary.attempts, 1);
+  EXPECT_EQ(RunState((*b)->id), "running");
+  EXPECT_EQ(RunState((*c)->id), "running");
+  EXPECT_EQ(queue_->Complete((*a)->token, OkRun()).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(queue_->RunningSlurmJobs().value(), (std::vector<std::string>{"4243"}));
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4242").value(), 0);  // nothing left to reclaim
+  // A completed run of a job that is gone later is not touched.
+  ASSERT_EQ(queue_->Complete((*b)->token, OkRun())->state, "done");
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4243").value(), 0);
+  EXPECT_EQ(RunState((*b)->id), "done");
+}
+
+// A job id is only digits: anything else never reaches squeue.
+TEST_F(LeaseQueueTest, SlurmJobMustBeAJobId) {
+  SubmitJson(OmegaSignSweep());
+  for (const char* bad : {"12,13", "-j", "12 13", "abc", "123456789012345678901"}) {
+    auto g = queue_->Lease({"w", "h", 1, bad});
+    ASSERT_FALSE(g.ok()) << bad;
+    EXPECT_EQ(g.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(g.status().field(), "slurm_job");
+  }
+  EXPECT_EQ(Rows("leases"), 0);
 }
 
 TEST_F(LeaseQueueTest, UnknownTokenConflicts) {

@@ -1,4 +1,5 @@
-// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the lease-expiry thread and the
+// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the lease-expiry thread, the
+// Slurm pilot watch thread (server/pilot_watch.h) and the
 // local-worker supervisor, the scheduler thread (nightly reruns and drift reports); SIGTERM/SIGINT
 // stop them in reverse order.
 #include <signal.h>
@@ -22,6 +23,7 @@
 #include "server/engine_probe.h"
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
+#include "server/pilot_watch.h"
 #include "server/routes.h"
 #include "server/scheduler.h"
 #include "server/store.h"
@@ -42,6 +44,7 @@ struct Flags {
   std::string log_level = "info";
   std::vector<std::string> schedules;  // NAME[:SCALE]
   double scheduler_tick_s = 20;
+  double slurm_check_s = 30;
 };
 
 
@@ -73,6 +76,10 @@ int main(int argc, char** argv) {
   app.add_option("--scheduler-tick", flags.scheduler_tick_s,
                  "seconds between looks for due reruns and finished ones (drift reports)")
       ->capture_default_str()->check(CLI::Range(0.05, 3600.0));
+  app.add_option("--slurm-check", flags.slurm_check_s,
+                 "seconds between asking Slurm (squeue) whether the jobs holding leases still run; "
+                 "the runs of a job that is gone are queued again at once (0: never ask)")
+      ->capture_default_str()->check(CLI::Range(0.0, 86400.0));
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr; stdout carries only the "listening on" line that scripts wait for.
   spdlog::set_default_logger(spdlog::stderr_color_mt("sandswimd"));
@@ -164,6 +171,34 @@ int main(int argc, char** argv) {
     }
   });
 
+  // Pilots that died without handing their runs back (node lost, SIGKILL, time limit): ask Slurm.
+  sandswim::slurm::ProcessSlurmCommands slurm_commands;
+  sandswim::PilotWatch pilot_watch(&leases, &slurm_commands);
+  std::thread pilots([&] {
+    if (flags.slurm_check_s <= 0) return;
+    bool warned = false;  // squeue failing is said once, not every look
+    std::unique_lock<std::mutex> lock(stop_mu);
+    while (!stop_cv.wait_for(lock, std::chrono::duration<double>(flags.slurm_check_s), [&] { return stopping; })) {
+      lock.unlock();
+      auto check = pilot_watch.CheckOnce();
+      if (!check.ok()) {
+        if (!warned) {
+          spdlog::warn("cannot ask Slurm about the jobs holding leases ({}); their runs wait for the lease TTL. "
+                       "Run sandswimd where squeue works, or pass --slurm-check 0",
+                       check.status().ToString());
+        }
+        warned = true;
+      } else {
+        warned = false;
+        for (const std::string& job : check->gone) {
+          spdlog::warn("Slurm job {} is gone without handing its runs back: reclaimed its leases", job);
+        }
+        if (check->reclaimed > 0) spdlog::info("{} job(s) of gone Slurm pilots queued again", check->reclaimed);
+      }
+      lock.lock();
+    }
+  });
+
   auto scheduler_pass = [&] {
     auto tick = scheduler.Tick();
     if (!tick.ok()) {
@@ -223,6 +258,7 @@ int main(int argc, char** argv) {
   }
   stop_cv.notify_all();
   expiry.join();
+  pilots.join();
   nightly.join();
   server.Stop();
   serve.join();

@@ -25,6 +25,7 @@ constexpr Migration kMigrations[] = {
     {3, "schema/003_perf.sql"},
     {4, "schema/004_lease_to_start.sql"},
     {5, "schema/005_releases.sql"},
+    {6, "schema/006_slurm_jobs.sql"},
 };
 
 constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",

@@ -96,6 +96,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<sandswim::slurm::AllocationDeadline> deadline;
   std::mutex deadline_mu;
   if (const char* job = getenv("SLURM_JOB_ID"); job != nullptr && *job != '\0') {
+    options.slurm_job = job;  // the daemon frees this job's leases as soon as Slurm no longer runs it
     const auto t0 = std::chrono::steady_clock::now();
     deadline = std::make_unique<sandswim::slurm::AllocationDeadline>(slurm_commands, job, [t0] {
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -193,7 +193,7 @@ void Worker::SlotLoop() {
       continue;
     }
     if (!RunFitsAllocation()) break;
-    api::LeaseRequest request{options_.name, options_.host, options_.ranks};
+    api::LeaseRequest request{options_.name, options_.host, options_.ranks, options_.slurm_job};
     auto lease = client_.Lease(request);
     if (!lease.ok()) {
       if (lease.status().code() == StatusCode::kUnauthenticated) {
@@ -268,7 +268,7 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
   auto complete = [&](const RunDir* dir) {
     // Ask for the next job in the same call unless this slot is about to end.
     if (next != nullptr && !options_.once && !stopping_ && RunFitsAllocation()) {
-      completion.next = api::LeaseRequest{options_.name, options_.host, options_.ranks};
+      completion.next = api::LeaseRequest{options_.name, options_.host, options_.ranks, options_.slurm_job};
     }
     auto reply = client_.Complete(grant.token, completion);
     if (!reply.ok()) {

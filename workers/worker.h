@@ -51,6 +51,7 @@ namespace sandswim::worker {
 struct WorkerOptions {
   std::string name;               // "host:pid" by default (main.cc)
   std::string host;
+  std::string slurm_job;          // SLURM_JOB_ID inside an allocation (sent with every lease request)
   int ranks = 1;
   int slots = 1;
   LauncherKind launcher = LauncherKind::kMpirun;

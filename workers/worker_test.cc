@@ -414,12 +414,14 @@ TEST(WorkerTest, JobsLeasedWithTheCompletionRunWithoutAnotherLease) {
   WorkerOptions o = Options(TempDir());
   o.idle_poll_s = 0.01;
   o.exit_when_idle_s = 0.05;
+  o.slurm_job = "77";  // inside an allocation, every request says which job it is
   Worker worker(o, client, launcher);
   worker.Run();
   ASSERT_EQ(client.completions.size(), 3u);
   for (const api::Completion& c : client.completions) {
     ASSERT_TRUE(c.next.has_value());
     EXPECT_EQ(c.next->worker, o.name);
+    EXPECT_EQ(c.next->slurm_job, "77");
   }
   EXPECT_EQ(worker.stats().leased, 3);
   EXPECT_EQ(launcher.started.size(), 3u);

@@ -75,7 +75,7 @@ class SlurmTest : public ::testing::Test {
     std::filesystem::remove_all(*dir_);
     std::filesystem::create_directories(*dir_);
     bed_ = new std::string(testing::PrepareBed(*FindScale("smoke")));
-    daemon_ = new Daemon(*dir_ + "/daemon", {"--lease-ttl", "10", "--max-attempts", "3"});
+    daemon_ = new Daemon(*dir_ + "/daemon", {"--lease-ttl", "10", "--max-attempts", "3", "--slurm-check", "1"});
   }
   static void TearDownTestSuite() {
     if (skip_ == nullptr) Shell(kCluster + " stop");
@@ -137,6 +137,19 @@ class SlurmTest : public ::testing::Test {
     return false;
   }
 
+  // A one-run sweep (0.1 s of simulated time) and a 1-CPU pilot, returned once the pilot's engine
+  // has made progress on the run.
+  void PilotInTheMiddleOfARun(const std::string& name, double omega, int64_t* sweep, int64_t* pilot,
+                              int64_t* run_id) {
+    *sweep = Submit(testing::OmegaSweep(name, {omega}, 0.1));
+    *pilot = SlurmSubmit("--nodes 1 --tasks-per-node 1");
+    ASSERT_GT(*pilot, 0);
+    ASSERT_TRUE(WaitForRuns(*sweep, 120, [&](const std::vector<json>& runs) {
+      *run_id = runs.at(0)["id"];
+      return runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0;
+    })) << JobLog(*pilot);
+  }
+
   static std::string* skip_;
   static std::string* dir_;
   static std::string* bed_;
@@ -182,14 +195,8 @@ TEST_F(SlurmTest, PilotOfTwoCpusRunsAFourRunSweep) {
 // scancel of a pilot in the middle of a run: the worker hands the run back (not counted as an
 // attempt) and a second pilot finishes it; exactly one result.
 TEST_F(SlurmTest, CancelledPilotsRunIsFinishedByTheNextPilotOnce) {
-  int64_t sweep = Submit(testing::OmegaSweep("slurm-scancel", {-60}, 0.1));
-  int64_t first = SlurmSubmit("--nodes 1 --tasks-per-node 1");
-  ASSERT_GT(first, 0);
-  int64_t run_id = 0;
-  ASSERT_TRUE(WaitForRuns(sweep, 120, [&](const std::vector<json>& runs) {
-    run_id = runs.at(0)["id"];
-    return runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0;
-  })) << JobLog(first);
+  int64_t sweep = 0, first = 0, run_id = 0;
+  ASSERT_NO_FATAL_FAILURE(PilotInTheMiddleOfARun("slurm-scancel", -60, &sweep, &first, &run_id));
   ASSERT_EQ(Shell("scancel " + std::to_string(first)), 0);
   // Handed back: queued again well before the 10 s lease would have expired.
   const auto cancelled = Clock::now();
@@ -208,6 +215,35 @@ TEST_F(SlurmTest, CancelledPilotsRunIsFinishedByTheNextPilotOnce) {
   json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run_id));
   EXPECT_EQ(detail["attempts"], 1) << "the handed-back lease must not count as an attempt";
   EXPECT_THAT(detail["result"]["host"].get<std::string>(), ::testing::Not(::testing::IsEmpty()));
+}
+
+// A pilot whose worker is SIGKILLed mid-run (the OOM killer, a crash) cannot hand its run back;
+// its job then ends, the daemon sees (squeue) that the job is gone and queues the run again
+// before the lease would have expired ("pilot_gone", not "lease_expired"). (`scancel -s KILL`
+// would not do: Slurm turns it into a normal cancel, SIGTERM first, and the worker hands back.)
+TEST_F(SlurmTest, KilledPilotsRunIsReclaimedFromSlurmBeforeItsLeaseExpires) {
+  int64_t sweep = 0, pilot = 0, run_id = 0;
+  ASSERT_NO_FATAL_FAILURE(PilotInTheMiddleOfARun("slurm-kill", -70, &sweep, &pilot, &run_id));
+  EXPECT_EQ(daemon_->Sql("SELECT slurm_job FROM leases WHERE job_id = " + std::to_string(run_id) +
+                         " AND kind = 'run'"),
+            std::to_string(pilot));
+  // The worker is the batch shell itself (pilot.sbatch execs it), named after its job. ("[-]-name"
+  // keeps the pattern from matching the shell that runs pkill.)
+  ASSERT_EQ(Shell("pkill -KILL -f -- '[-]-name slurm-" + std::to_string(pilot) + "@'"), 0) << JobLog(pilot);
+  const auto killed = Clock::now();
+  json queued;
+  ASSERT_TRUE(WaitForRuns(sweep, 60, [&](const std::vector<json>& runs) {
+    queued = runs[0];
+    return runs[0]["state"] == "queued";
+  })) << JobLog(pilot);
+  const double took = Since(killed);
+  std::printf("SLURM pilot's worker SIGKILLed -> run queued again in %.2f s (lease TTL 10 s)\n", took);
+  EXPECT_EQ(queued["last_error"]["kind"], "pilot_gone") << queued.dump();
+  EXPECT_LT(took, 9.0) << "reclaimed only when the lease expired";
+  // Nothing else needs it: cancel the sweep so later tests' pilots do not run it.
+  int status = 0;
+  daemon_->Post("/api/v1/sweeps/" + std::to_string(sweep) + "/cancel", json::object(), &status);
+  EXPECT_EQ(status, 200);
 }
 
 // A job array of 2 one-shot workers, throttled to one at a time, runs a 2-run sweep.
