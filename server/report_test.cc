@@ -20,6 +20,7 @@
 #include "server/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
+#include "server/loopback_server_test_util.h"
 #include "server/submission.h"
 
 namespace sandswim {
@@ -123,20 +124,13 @@ class ReportTest : public ::testing::Test {
     deps_.clock = &clock_;
     deps_.data_dir = dir_ + "/data";
     deps_.engine_version = kEngine;
-    server_ = std::make_unique<httplib::Server>();
-    RegisterRoutes(*server_, deps_);
-    port_ = server_->bind_to_any_port("127.0.0.1");
-    ASSERT_GT(port_, 0);
-    thread_ = std::thread([this] { server_->listen_after_bind(); });
-    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+    server_ = std::make_unique<LoopbackServer>(deps_);
+    client_ = &server_->client();
   }
 
   void StopServer() {
-    if (!server_) return;
-    while (!server_->is_running()) std::this_thread::yield();
-    server_->stop();
-    thread_.join();
     server_.reset();
+    client_ = nullptr;
   }
 
   std::string dir_;
@@ -146,10 +140,8 @@ class ReportTest : public ::testing::Test {
   int64_t campaign_run_ = 0;
   std::vector<int64_t> sweeps_;
   Deps deps_;
-  std::unique_ptr<httplib::Server> server_;
-  std::thread thread_;
-  int port_ = 0;
-  std::unique_ptr<httplib::Client> client_;
+  std::unique_ptr<LoopbackServer> server_;
+  httplib::Client* client_ = nullptr;
 };
 
 TEST_F(ReportTest, AnalyzeSweepFitsTheFinishedRuns) {

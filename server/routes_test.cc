@@ -17,6 +17,7 @@
 #include "core/keys.h"
 #include "core/point.h"
 #include "core/sweep.h"
+#include "server/loopback_server_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -47,24 +48,16 @@ class RoutesTest : public ::testing::Test {
     deps_.data_dir = dir_ + "/data";
     deps_.engine_version = "LIGGGHTS (Version test)";
     deps_.token = token;
-    server_ = std::make_unique<httplib::Server>();
-    RegisterRoutes(*server_, deps_);
-    port_ = server_->bind_to_any_port("127.0.0.1");
-    ASSERT_GT(port_, 0);
-    // The socket listens from bind on; requests queue until the loop accepts them.
-    thread_ = std::thread([this] { server_->listen_after_bind(); });
-    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+    server_ = std::make_unique<LoopbackServer>(deps_);
+    client_ = &server_->client();
   }
 
   void TearDown() override { Shutdown(); }
 
   void Shutdown() {
     if (!server_) return;
-    while (!server_->is_running()) std::this_thread::yield();
-    server_->stop();
-    thread_.join();
     server_.reset();
-    client_.reset();
+    client_ = nullptr;
     leases_.reset();
     store_.reset();
     std::filesystem::remove_all(dir_);
@@ -99,10 +92,8 @@ class RoutesTest : public ::testing::Test {
   std::unique_ptr<Store> store_;
   std::unique_ptr<LeaseQueue> leases_;
   Deps deps_;
-  std::unique_ptr<httplib::Server> server_;
-  std::thread thread_;
-  int port_ = 0;
-  std::unique_ptr<httplib::Client> client_;
+  std::unique_ptr<LoopbackServer> server_;
+  httplib::Client* client_ = nullptr;
 };
 
 TEST_F(RoutesTest, SubmitExampleSweepAnswersCreatedWithLocationAndCounts) {

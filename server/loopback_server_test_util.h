@@ -1,0 +1,50 @@
+// LoopbackServer (tests only): the routes of RegisterRoutes served for real -- an httplib::Server
+// on 127.0.0.1 and an ephemeral port, its accept loop in a thread of the test -- with a client.
+// Requests sent right after construction queue on the bound socket until the loop accepts them.
+// The destructor stops the server and joins its thread.
+//
+// Ownership: keeps a copy of `deps`; what its pointers name (store, queue, clock) must outlive it.
+#ifndef SANDSWIM_SERVER_LOOPBACK_SERVER_TEST_UTIL_H_
+#define SANDSWIM_SERVER_LOOPBACK_SERVER_TEST_UTIL_H_
+
+#include <httplib.h>
+
+#include <memory>
+#include <stdexcept>
+#include <thread>
+
+#include "server/routes.h"
+
+namespace sandswim {
+
+class LoopbackServer {
+ public:
+  explicit LoopbackServer(const Deps& deps) : deps_(deps) {
+    RegisterRoutes(server_, deps_);
+    port_ = server_.bind_to_any_port("127.0.0.1");
+    if (port_ <= 0) throw std::runtime_error("LoopbackServer: cannot bind 127.0.0.1");
+    thread_ = std::thread([this] { server_.listen_after_bind(); });
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  }
+  ~LoopbackServer() {
+    while (!server_.is_running()) std::this_thread::yield();
+    server_.stop();
+    thread_.join();
+  }
+  LoopbackServer(const LoopbackServer&) = delete;
+  LoopbackServer& operator=(const LoopbackServer&) = delete;
+
+  int port() const { return port_; }
+  httplib::Client& client() { return *client_; }
+
+ private:
+  Deps deps_;
+  httplib::Server server_;
+  int port_ = 0;
+  std::thread thread_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_LOOPBACK_SERVER_TEST_UTIL_H_
