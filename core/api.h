@@ -14,8 +14,10 @@
 //   POST /api/v1/leases/{token}/release      ReleaseRequest -> 200 CompletionReply | 409: hands a
 //                                            job back unfinished (worker stopping, e.g. its Slurm
 //                                            allocation ends); the attempt does not count
-// A lease token is the only proof of ownership; completion is idempotent per token, and a
-// completion or heartbeat under a token that is no longer current never changes anything.
+// A lease token is the only proof of ownership; a completion is recorded once per token (a
+// repeat answers "duplicate"; with `next` it also swaps the job its lost reply carried for a
+// fresh grant), and a completion or heartbeat under a token that is no longer current never
+// changes anything.
 //
 // Thread safety: values.
 #ifndef SANDSWIM_CORE_API_H_

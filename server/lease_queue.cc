@@ -62,6 +62,15 @@ Result<LeaseRow> FindLease(Transaction& t, const std::string& token) {
   return l;
 }
 
+// The job id goes to squeue (server/pilot_watch.h): digits only, so that it can name no other.
+Status CheckLeaseRequest(const api::LeaseRequest& request, const std::string& field) {
+  const std::string& job = request.slurm_job;
+  if (job.size() > 20 || job.find_first_not_of("0123456789") != std::string::npos) {
+    return Status::InvalidArgument(field, "must be a Slurm job id (up to 20 digits), got \"" + job.substr(0, 40) + "\"");
+  }
+  return Status::Ok();
+}
+
 struct JobRow {
   std::string state;
   std::string lease_token;
@@ -137,10 +146,41 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
   return state;
 }
 
+// The job leased together with the completion of `token` (leases.next_token), put back in the
+// queue as if never leased (attempt uncounted) when it is still running under that grant.
+Status TakeBackUnreceivedGrant(Transaction& t, const std::string& token, double now) {
+  Statement find = t.Prepare(
+      "SELECT n.token, n.kind, n.job_id FROM leases l JOIN leases n ON n.token = l.next_token "
+      "WHERE l.token = ? AND n.completed_at IS NULL AND n.outcome IS NULL");
+  find.Bind(1, token);
+  Result<bool> row = find.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Ok();
+  const std::string next_token = find.Text(0);
+  const api::JobKind kind = find.Text(1) == "bed" ? api::JobKind::kBed : api::JobKind::kRun;
+  const int64_t id = find.Int(2);
+  Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
+                           " SET state = 'queued', attempts = attempts - 1, lease_token = NULL, "
+                           "lease_expires_at = NULL WHERE id = ? AND state = 'running' AND lease_token = ?");
+  st.Bind(1, id).Bind(2, next_token);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  if (t.Changes() == 0) return Status::Ok();  // it has moved on (expired, heartbeated, ...)
+  Statement done = t.Prepare("UPDATE leases SET completed_at = ?, outcome = 'unreceived' WHERE token = ?");
+  done.Bind(1, now).Bind(2, next_token);
+  SANDSWIM_RETURN_IF_ERROR(done.Run());
+  return t.Event(now, std::string(Noun(kind)) + ".requeued", Subject(kind, id),
+                 {{"kind", "unreceived"},
+                  {"message", "leased with a completion whose reply was lost; the worker asked again"}});
+}
+
 // Running jobs whose lease is lost -- expired before `now` or, when `slurm_job` is set, granted to
 // that Slurm job (which Slurm no longer runs) -- go back to the queue, their attempt counted, or
 // fail at max_attempts. Returns how many.
-Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std::string& slurm_job = "") {
+// A Slurm job's leases are only reclaimed when they were granted at or before `asked_at` (when
+// Slurm was asked) and their worker has been silent for at least `silent_s` (no heartbeat since
+// now - silent_s): a worker that still heartbeats is alive, whatever squeue said.
+Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std::string& slurm_job = "",
+                          double asked_at = 0, double silent_s = 0, double ttl_s = 0) {
   int64_t expired = 0;
   for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
     struct Expired {
@@ -150,17 +190,19 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
     };
     std::vector<Expired> rows;
     {
+      // lease_expires_at is the last heartbeat (or the grant) plus the TTL.
       const std::string lost = slurm_job.empty()
-                                   ? "j.lease_expires_at < ?"
-                                   : "j.lease_token IN (SELECT token FROM leases WHERE slurm_job = ? AND "
-                                     "completed_at IS NULL)";
+                                   ? "j.lease_expires_at < ?1"
+                                   : "j.lease_expires_at <= ?1 AND j.lease_token IN (SELECT token FROM leases "
+                                     "WHERE slurm_job = ?2 AND completed_at IS NULL AND outcome IS NULL AND "
+                                     "granted_at <= ?3)";
       Statement st = t.Prepare(std::string("SELECT j.id, j.lease_token, j.attempts, j.max_attempts, j.worker "
                                            "FROM ") +
                                Table(kind) + " j WHERE j.state = 'running' AND " + lost + " ORDER BY j.id");
       if (slurm_job.empty()) {
         st.Bind(1, now);
       } else {
-        st.Bind(1, slurm_job);
+        st.Bind(1, now - silent_s + ttl_s).Bind(2, slurm_job).Bind(3, asked_at);
       }
       while (true) {
         Result<bool> row = st.Step();
@@ -214,12 +256,7 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest
 Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const api::LeaseRequest& request,
                                                            double now) {
   using Out = std::optional<api::LeaseGrant>;
-  // The job id goes to squeue (server/pilot_watch.h): digits only, so that it can name no other.
-  const std::string& job = request.slurm_job;
-  if (job.size() > 20 || job.find_first_not_of("0123456789") != std::string::npos) {
-    return Status::InvalidArgument("slurm_job", "must be a Slurm job id (up to 20 digits), got \"" +
-                                                    job.substr(0, 40) + "\"");
-  }
+  SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(request, "slurm_job"));
   Result<int64_t> expired = ReclaimIn(t, now, options_.max_attempts);
   if (!expired.ok()) return expired.status();
 
@@ -385,12 +422,23 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
                                                   const api::Completion& c) {
   return store_->WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
     const double now = clock_->Now();
+    if (c.next) SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(*c.next, "next.slurm_job"));
     Result<api::CompletionReply> reply = CompleteIn(t, token, c, now);
     if (!reply.ok() || !c.next) return reply;
-    // The worker's next job, in the same transaction: the completion is applied first, so the
-    // job just finished is never handed out again, and its bed (just done) counts.
+    if (reply->state == "duplicate") {
+      // A retry: the reply to the first completion was lost, and with it the job it leased. That
+      // job was never started: take it back (queued, attempt uncounted) before leasing again.
+      SANDSWIM_RETURN_IF_ERROR(TakeBackUnreceivedGrant(t, token, now));
+    }
+    // The worker's next job, in the same transaction, after the completion (so the bed just
+    // done counts; a run just failed and queued for a retry may come straight back).
     Result<std::optional<api::LeaseGrant>> next = LeaseIn(t, *c.next, now);
     if (!next.ok()) return next.status();
+    if (*next) {
+      Statement st = t.Prepare("UPDATE leases SET next_token = ? WHERE token = ?");
+      st.Bind(1, (*next)->token).Bind(2, token);
+      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    }
     reply->next = std::move(*next);
     return reply;
   });
@@ -590,11 +638,12 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
 Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
   Result<Transaction> t = store_->BeginRead();
   if (!t.ok()) return t.status();
+  // Open leases (the partial index leases_open_by_slurm_job), their jobs found by primary key.
   Statement st = t->Prepare(
       "SELECT DISTINCT l.slurm_job FROM leases l WHERE l.slurm_job IS NOT NULL AND l.completed_at IS NULL "
-      "AND l.outcome IS NULL AND (EXISTS (SELECT 1 FROM runs r WHERE r.lease_token = l.token AND "
-      "r.state = 'running') OR EXISTS (SELECT 1 FROM beds b WHERE b.lease_token = l.token AND "
-      "b.state = 'running')) ORDER BY l.slurm_job");
+      "AND l.outcome IS NULL AND ((l.kind = 'run' AND EXISTS (SELECT 1 FROM runs r WHERE r.id = l.job_id AND "
+      "r.lease_token = l.token AND r.state = 'running')) OR (l.kind = 'bed' AND EXISTS (SELECT 1 FROM beds b "
+      "WHERE b.id = l.job_id AND b.lease_token = l.token AND b.state = 'running'))) ORDER BY l.slurm_job");
   std::vector<std::string> jobs;
   while (true) {
     Result<bool> row = st.Step();
@@ -605,10 +654,12 @@ Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
   return jobs;
 }
 
-Result<int64_t> LeaseQueue::ReclaimSlurmJob(const std::string& slurm_job) {
+Result<int64_t> LeaseQueue::ReclaimSlurmJob(const std::string& slurm_job, double asked_at) {
   if (slurm_job.empty()) return Status::InvalidArgument("slurm_job", "names no Slurm job");
-  return store_->WriteResult<int64_t>(
-      [&](Transaction& t) { return ReclaimIn(t, clock_->Now(), options_.max_attempts, slurm_job); });
+  return store_->WriteResult<int64_t>([&](Transaction& t) {
+    return ReclaimIn(t, clock_->Now(), options_.max_attempts, slurm_job, asked_at, options_.ttl_s / 2,
+                     options_.ttl_s);
+  });
 }
 
 Result<int64_t> LeaseQueue::ExpireLeases() {

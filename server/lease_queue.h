@@ -21,6 +21,10 @@
 //              unknown) gets kConflict and changes nothing. So there is never a second result.
 //              A completion may also ask for the worker's next job (Completion::next): it is
 //              leased in the same transaction, after the completion, and returned with the reply.
+//              A repeated completion with `next` (the first reply was lost) first takes back the
+//              job the first one leased, if it is still running under that grant (queued again,
+//              attempt uncounted, lease outcome "unreceived"), then leases afresh: no job waits
+//              out a lease its worker never received.
 //   Release    under the current token: the worker hands the job back unfinished (it is
 //              stopping: Slurm signalled its allocation's end, or it was asked to stop). The job
 //              goes back to queued and the attempt is not counted (attempts - 1): it was not the
@@ -30,8 +34,9 @@
 //              again answers "duplicate".
 //   ExpireLeases  running jobs past their lease expiry go back to queued (the attempt stays
 //              counted) or, at max_attempts, to failed with kind "lease_expired".
-//   ReclaimSlurmJob  the same, at once, for the leases granted to a Slurm job that is gone
-//              (kind "pilot_gone"); the daemon's PilotWatch asks Slurm which ones those are.
+//   ReclaimSlurmJob  the same, before the expiry, for the leases of a Slurm job that is gone and
+//              whose worker has been silent for half the TTL (kind "pilot_gone"); the daemon's
+//              PilotWatch asks Slurm which jobs are gone.
 //   Cancel     a sweep: its queued runs that belong to no other live sweep become cancelled;
 //              its running runs are told to stop at their next heartbeat.
 //
@@ -81,7 +86,8 @@ class LeaseQueue {
 
   const LeaseQueueOptions& options() const { return options_; }
 
-  // The next job for this worker, or nullopt when nothing is leasable now.
+  // The next job for this worker, or nullopt when nothing is leasable now. kInvalidArgument
+  // ("slurm_job") when request.slurm_job is not a Slurm job id (digits).
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest& request);
 
   // kConflict when `token` is not the current lease of a running job.
@@ -92,7 +98,8 @@ class LeaseQueue {
   // bed without bed_result, failure without failure); kFailedPrecondition for an ok bed whose
   // restart was not uploaded (or whose bed_result.sha256 differs from the upload).
   // With `c.next`, also leases the next job for that request in the same transaction (as Lease
-  // would, after the completion) and returns it in `next`; on any error nothing happens.
+  // would, after the completion) and returns it in `next`; on any error nothing happens
+  // (kInvalidArgument "next.slurm_job" for a bad job id). See "Complete" above for a retry.
   Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& c);
 
   // kConflict as for Complete; {"queued"} once released, {"duplicate"} for a token that already
@@ -104,10 +111,12 @@ class LeaseQueue {
 
   // The Slurm jobs (LeaseRequest::slurm_job) that hold a lease on a running job now, sorted.
   Result<std::vector<std::string>> RunningSlurmJobs();
-  // Reclaims, as if they had expired now, the leases of running jobs granted to `slurm_job`
-  // (Slurm no longer runs it: see server/pilot_watch.h); the failure kind is "pilot_gone".
-  // Returns how many jobs went back to the queue or failed.
-  Result<int64_t> ReclaimSlurmJob(const std::string& slurm_job);
+  // Reclaims, as if they had expired now, the leases of running jobs granted to `slurm_job` at or
+  // before `asked_at` (when Slurm said it no longer runs that job: see server/pilot_watch.h) whose
+  // worker has not heartbeated for half the TTL -- a worker that still heartbeats is alive,
+  // whatever Slurm said. The failure kind is "pilot_gone". Returns how many jobs went back to
+  // the queue or failed.
+  Result<int64_t> ReclaimSlurmJob(const std::string& slurm_job, double asked_at);
 
   // kNotFound for an unknown sweep. Cancelling twice is harmless.
   Result<CancelSummary> Cancel(int64_t sweep_id);

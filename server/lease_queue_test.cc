@@ -306,6 +306,36 @@ TEST_F(LeaseQueueTest, CompletionCanLeaseTheNextJob) {
   EXPECT_FALSE(nlohmann::json(*r).contains("next"));
 }
 
+// The reply to a completion with `next` is lost and the worker sends it again: the job the first
+// one leased (never received) is taken back unstarted, attempt uncounted, and a job is leased
+// afresh -- no job waits out a lease nobody holds.
+TEST_F(LeaseQueueTest, RepeatedCompletionTakesBackTheGrantItsLostReplyCarried) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant first = MustLease();
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w1", "host", 1};
+  auto lost = queue_->Complete(first.token, c);
+  ASSERT_TRUE(lost.ok() && lost->next.has_value());
+  const api::LeaseGrant unreceived = *lost->next;
+  auto again = queue_->Complete(first.token, c);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->state, "duplicate");
+  ASSERT_TRUE(again->next.has_value());
+  EXPECT_EQ(again->next->id, unreceived.id);  // the only queued run: the same one, a new grant
+  EXPECT_NE(again->next->token, unreceived.token);
+  EXPECT_EQ(again->next->attempt, 1);  // the unreceived grant did not count
+  EXPECT_EQ(queue_->Heartbeat(unreceived.token, {}).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(Rows("results"), 1);
+  auto run = store_->GetRun(unreceived.id);
+  EXPECT_EQ(run->summary.state, "running");
+  EXPECT_EQ(run->summary.attempts, 1);
+  ASSERT_EQ(queue_->Complete(again->next->token, OkRun())->state, "done");
+  // A plain repeated completion (no next) still changes nothing.
+  EXPECT_EQ(queue_->Complete(first.token, OkRun())->state, "duplicate");
+  EXPECT_EQ(RunState(unreceived.id), "done");
+}
+
 // A completion that is refused leases nothing: the next job stays queued for someone else.
 TEST_F(LeaseQueueTest, RefusedCompletionLeasesNoNextJob) {
   SubmitJson(OmegaSignSweep());
@@ -317,17 +347,25 @@ TEST_F(LeaseQueueTest, RefusedCompletionLeasesNoNextJob) {
   api::Completion bad = c;
   bad.result.reset();  // an ok run without its result
   EXPECT_EQ(queue_->Complete(g.token, bad).status().code(), StatusCode::kInvalidArgument);
+  api::Completion bad_next = c;
+  bad_next.next->slurm_job = "12,13";
+  auto refused = queue_->Complete(g.token, bad_next);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(refused.status().field(), "next.slurm_job");
+  EXPECT_EQ(Rows("results"), 0);
   EXPECT_EQ(Rows("leases"), 2);  // the bed's and g's: no other lease was granted
   EXPECT_EQ(RunState(g.id), "running");
   api::LeaseGrant other = MustLease("other");
   EXPECT_NE(other.id, g.id);
 }
 
-// The leases of a Slurm job that is gone are reclaimed at once, like an expiry (the attempt
-// counts); other jobs' leases and leases outside Slurm stay; the old token can no longer complete.
-TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedAtOnce) {
+// The leases of a Slurm job that is gone are reclaimed before they expire, like an expiry (the
+// attempt counts) -- but only once the worker has been silent for half the TTL, and only leases
+// granted before Slurm was asked. Other jobs' leases and leases outside Slurm stay; the old token
+// can no longer complete.
+TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedBeforeTheyExpire) {
   nlohmann::json sweep = OmegaSignSweep();
-  sweep["axes"][0]["values"] = {-80, -40, 40};
+  sweep["axes"][0]["values"] = {-80, -40, 40, 80};
   SubmitJson(sweep);
   PrepareBed();
   auto a = queue_->Lease({"pilot-a", "node1", 1, "4242"});
@@ -336,7 +374,15 @@ TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedAtOnce) {
   ASSERT_TRUE(a.ok() && a->has_value() && b.ok() && b->has_value() && c.ok() && c->has_value());
   EXPECT_EQ(queue_->RunningSlurmJobs().value(), (std::vector<std::string>{"4242", "4243"}));
 
-  auto n = queue_->ReclaimSlurmJob("4242");
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4242", clock_.Now()).value(), 0);  // silent for 0 s only
+  clock_.Advance(31);  // half the 60 s TTL
+  // A lease granted after Slurm was asked is not judged by that answer.
+  const double asked_at = clock_.Now() - 1;
+  auto d = queue_->Lease({"pilot-a2", "node1", 1, "4242"});
+  ASSERT_TRUE(d.ok() && d->has_value());
+  clock_.Advance(31);
+  ASSERT_TRUE(queue_->Heartbeat((*b)->token, {}).ok());  // b's worker is alive, whatever Slurm says
+  auto n = queue_->ReclaimSlurmJob("4242", asked_at);
   ASSERT_TRUE(n.ok()) << n.status().ToString();
   EXPECT_EQ(*n, 1);
   auto run = store_->GetRun((*a)->id);
@@ -345,14 +391,15 @@ TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedAtOnce) {
   EXPECT_EQ(run->summary.last_error->kind, "pilot_gone");
   EXPECT_THAT(run->summary.last_error->message, ::testing::HasSubstr("4242"));
   EXPECT_EQ(run->summary.attempts, 1);
+  EXPECT_EQ(RunState((*d)->id), "running");
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4243", clock_.Now()).value(), 0);  // it just heartbeated
   EXPECT_EQ(RunState((*b)->id), "running");
   EXPECT_EQ(RunState((*c)->id), "running");
   EXPECT_EQ(queue_->Complete((*a)->token, OkRun()).status().code(), StatusCode::kConflict);
-  EXPECT_EQ(queue_->RunningSlurmJobs().value(), (std::vector<std::string>{"4243"}));
-  EXPECT_EQ(queue_->ReclaimSlurmJob("4242").value(), 0);  // nothing left to reclaim
   // A completed run of a job that is gone later is not touched.
   ASSERT_EQ(queue_->Complete((*b)->token, OkRun())->state, "done");
-  EXPECT_EQ(queue_->ReclaimSlurmJob("4243").value(), 0);
+  clock_.Advance(31);
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4243", clock_.Now()).value(), 0);
   EXPECT_EQ(RunState((*b)->id), "done");
 }
 

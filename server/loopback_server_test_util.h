@@ -9,6 +9,7 @@
 
 #include <httplib.h>
 
+#include <chrono>
 #include <memory>
 #include <stdexcept>
 #include <thread>
@@ -27,7 +28,8 @@ class LoopbackServer {
     client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
   }
   ~LoopbackServer() {
-    while (!server_.is_running()) std::this_thread::yield();
+    // stop() before the loop runs would be lost; a loop that never starts is not waited for long.
+    for (int i = 0; i < 5000 && !server_.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     server_.stop();
     thread_.join();
   }

@@ -172,8 +172,8 @@ int main(int argc, char** argv) {
   });
 
   // Pilots that died without handing their runs back (node lost, SIGKILL, time limit): ask Slurm.
-  sandswim::slurm::ProcessSlurmCommands slurm_commands;
-  sandswim::PilotWatch pilot_watch(&leases, &slurm_commands);
+  sandswim::slurm::ProcessSlurmCommands slurm_commands(/*timeout_s=*/20);
+  sandswim::PilotWatch pilot_watch(&leases, &slurm_commands, &clock);
   std::thread pilots([&] {
     if (flags.slurm_check_s <= 0) return;
     bool warned = false;  // squeue failing is said once, not every look

@@ -39,6 +39,7 @@ Result<std::vector<std::string>> GoneSlurmJobs(const std::vector<std::string>& a
 
 Result<PilotCheck> PilotWatch::CheckOnce() {
   PilotCheck check;
+  const double asked_at = clock_->Now();  // leases granted later are not judged by this answer
   Result<std::vector<std::string>> jobs = leases_->RunningSlurmJobs();
   if (!jobs.ok()) return jobs.status();
   check.jobs = static_cast<int64_t>(jobs->size());
@@ -50,7 +51,7 @@ Result<PilotCheck> PilotWatch::CheckOnce() {
   Result<std::vector<std::string>> gone = GoneSlurmJobs(*jobs, *out);
   if (!gone.ok()) return gone.status();
   for (const std::string& job : *gone) {
-    Result<int64_t> n = leases_->ReclaimSlurmJob(job);
+    Result<int64_t> n = leases_->ReclaimSlurmJob(job, asked_at);
     if (!n.ok()) return n.status();
     check.reclaimed += *n;
   }

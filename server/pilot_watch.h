@@ -1,12 +1,14 @@
-// PilotWatch: frees the runs of Slurm jobs that are gone, without waiting for their leases to
-// expire. A worker inside an allocation sends its SLURM_JOB_ID with every lease request; a pilot
-// killed with its node, by `scancel -s KILL` or at its time limit cannot hand its runs back, and
+// PilotWatch: frees the runs of Slurm jobs that are gone, sooner than their leases expire. A
+// worker inside an allocation sends its SLURM_JOB_ID with every lease request; a pilot killed
+// with its node, its worker SIGKILLed or killed at its time limit cannot hand its runs back, and
 // they would otherwise wait out the lease TTL. CheckOnce() asks Slurm about the jobs that hold
 // leases on running jobs now -- one `squeue -h -t all -o "%A %T" -j ID,ID,...` -- and reclaims
 // (LeaseQueue::ReclaimSlurmJob) the leases of each job Slurm reports in a finished state or no
-// longer knows. A job that is pending, running, suspended or still completing is left alone, and
-// when squeue cannot answer (not installed, controller down) nothing is reclaimed: "unknown" is
-// never taken for "gone"; the TTL still applies.
+// longer knows, granted before it asked, whose worker has been silent for half the lease TTL.
+// A job that is pending, running, suspended or still completing is left alone; when squeue cannot
+// answer (not installed, controller down) nothing is reclaimed; and a worker that heartbeats is
+// never reclaimed, even if squeue does not see its job (another cluster, PrivateData=jobs, a
+// stale SLURM_JOB_ID). The TTL still applies to everything.
 //
 // GoneSlurmJobs is the pure part: which of the asked jobs squeue's output says are gone.
 //
@@ -19,6 +21,7 @@
 #include <vector>
 
 #include "core/status.h"
+#include "server/clock.h"
 #include "server/lease_queue.h"
 #include "workers/slurm.h"
 
@@ -40,7 +43,8 @@ struct PilotCheck {
 class PilotWatch {
  public:
   // REQUIRES: both outlive the watch.
-  PilotWatch(LeaseQueue* leases, slurm::SlurmCommands* slurm) : leases_(leases), slurm_(slurm) {}
+  PilotWatch(LeaseQueue* leases, slurm::SlurmCommands* slurm, Clock* clock)
+      : leases_(leases), slurm_(slurm), clock_(clock) {}
 
   // One look: no squeue at all when no lease belongs to a Slurm job.
   Result<PilotCheck> CheckOnce();
@@ -48,6 +52,7 @@ class PilotWatch {
  private:
   LeaseQueue* leases_;
   slurm::SlurmCommands* slurm_;
+  Clock* clock_;
 };
 
 }  // namespace sandswim

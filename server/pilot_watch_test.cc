@@ -90,7 +90,7 @@ class PilotWatchTest : public ::testing::Test {
 
 TEST_F(PilotWatchTest, NoSlurmLeaseNoSqueue) {
   ASSERT_TRUE(queue_->Lease({"laptop", "here", 1}).ok());
-  PilotWatch watch(queue_.get(), &slurm_);
+  PilotWatch watch(queue_.get(), &slurm_, &clock_);
   auto check = watch.CheckOnce();
   ASSERT_TRUE(check.ok());
   EXPECT_EQ(check->jobs, 0);
@@ -101,8 +101,9 @@ TEST_F(PilotWatchTest, ReclaimsOnlyTheRunsOfJobsSlurmNoLongerRuns) {
   auto a = queue_->Lease({"p1", "n1", 1, "501"});
   auto b = queue_->Lease({"p2", "n2", 1, "502"});
   ASSERT_TRUE(a.ok() && a->has_value() && b.ok() && b->has_value());
+  clock_.Advance(31);  // both workers silent for half the TTL
   slurm_.answer = Out(0, "501 CANCELLED\n502 RUNNING\n");
-  PilotWatch watch(queue_.get(), &slurm_);
+  PilotWatch watch(queue_.get(), &slurm_, &clock_);
   auto check = watch.CheckOnce();
   ASSERT_TRUE(check.ok()) << check.status().ToString();
   EXPECT_EQ(check->jobs, 2);
@@ -118,7 +119,7 @@ TEST_F(PilotWatchTest, SlurmNotAnsweringReclaimsNothing) {
   auto a = queue_->Lease({"p1", "n1", 1, "601"});
   ASSERT_TRUE(a.ok() && a->has_value());
   slurm_.answer = Out(1, "", "slurm_load_jobs error: Unable to contact slurm controller (connect failure)");
-  PilotWatch watch(queue_.get(), &slurm_);
+  PilotWatch watch(queue_.get(), &slurm_, &clock_);
   EXPECT_EQ(watch.CheckOnce().status().code(), StatusCode::kUnavailable);
   slurm_.answer = Status::Unavailable("'squeue' not found on PATH");
   EXPECT_EQ(watch.CheckOnce().status().code(), StatusCode::kUnavailable);

@@ -715,6 +715,8 @@ std::string MetricsText(const Metrics& m, HttpCounters& http) {
   counter("sandswim_leases_granted_total", "Leases granted to workers.", m.leases_granted);
   counter("sandswim_completions_total", "Completions accepted.", m.completions);
   counter("sandswim_lease_expirations_total", "Leases that ran out.", m.expirations);
+  counter("sandswim_pilots_gone_total", "Leases reclaimed early because Slurm no longer ran their job.",
+          m.pilots_gone);
   counter("sandswim_duplicate_completions_total", "Repeated completions answered duplicate.", m.duplicates);
   out << "# HELP sandswim_http_requests_total HTTP requests answered, by status code.\n"
          "# TYPE sandswim_http_requests_total counter\n";

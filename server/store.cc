@@ -323,6 +323,7 @@ void to_json(nlohmann::json& j, const Metrics& m) {
                      {"leases_granted", m.leases_granted},
                      {"completions", m.completions},
                      {"expirations", m.expirations},
+                     {"pilots_gone", m.pilots_gone},
                      {"duplicates", m.duplicates}};
 }
 
@@ -1014,6 +1015,7 @@ Result<Metrics> Store::GetMetrics() {
     if (name == "leases_granted") m.leases_granted = st.Int(1);
     else if (name == "completions") m.completions = st.Int(1);
     else if (name == "expirations") m.expirations = st.Int(1);
+    else if (name == "pilots_gone") m.pilots_gone = st.Int(1);
     else if (name == "duplicates") m.duplicates = st.Int(1);
   }
   return m;

@@ -269,6 +269,7 @@ struct Metrics {
   int64_t leases_granted = 0;
   int64_t completions = 0;   // accepted completions (not duplicates)
   int64_t expirations = 0;   // leases that ran out
+  int64_t pilots_gone = 0;   // leases reclaimed early: their Slurm job was gone (server/pilot_watch.h)
   int64_t duplicates = 0;    // repeated completions answered "duplicate"
 };
 void to_json(nlohmann::json& j, const Metrics& m);

@@ -88,11 +88,30 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM runs"), "2");
 }
 
-// A worker killed with SIGKILL in the middle of a run: its lease expires, a second worker runs it
-// again, and exactly one result exists.
+// Processes (not zombies) whose working directory is under `dir`: the engines a worker started
+// there.
+int ProcessesUnder(const std::string& dir) {
+  int n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+    std::error_code ec;
+    const std::string cwd = std::filesystem::read_symlink(entry.path() / "cwd", ec).string();
+    if (ec || cwd.compare(0, dir.size(), dir) != 0) continue;
+    std::ifstream stat(entry.path() / "stat");
+    std::string line;
+    std::getline(stat, line);
+    const size_t paren = line.rfind(')');
+    if (paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] != 'Z') ++n;
+  }
+  return n;
+}
+
+// A worker killed with SIGKILL in the middle of a run: its engine dies with it, its lease
+// expires, a second worker runs the run again, and exactly one result exists. The first worker
+// starts LIGGGHTS directly (no mpirun, no guard process), the second through mpirun.
 TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
   int64_t id = Submit(testing::OmegaSweep("killed-worker", {-40}, 0.3));
-  auto first = testing::StartWorker(*daemon_, *dir_ + "/worker-killed", 1);
+  const std::string first_dir = *dir_ + "/worker-killed";
+  auto first = testing::StartWorker(*daemon_, first_dir, 1, {"--launcher", "direct"});
   int64_t run_id = 0;
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(kTimeoutS));
   while (std::chrono::steady_clock::now() < deadline) {
@@ -102,7 +121,12 @@ TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
     if (runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0.02) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
+  ASSERT_GE(ProcessesUnder(first_dir + "/"), 1) << "no engine runs in " << first_dir;
   first->Kill(SIGKILL);
+  for (int i = 0; i < 100 && ProcessesUnder(first_dir + "/") > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(ProcessesUnder(first_dir + "/"), 0) << "the engine outlived its SIGKILLed worker";
   auto second = testing::StartWorker(*daemon_, *dir_ + "/worker-second", 1);
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nsecond worker:\n" << second->Output();

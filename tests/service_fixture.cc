@@ -102,11 +102,12 @@ std::string Daemon::Sql(const std::string& query) {
   return s;
 }
 
-std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots) {
-  return std::make_unique<ChildProcess>(
-      std::vector<std::string>{SANDSWIM_WORKER_PATH, "--server", daemon.url(), "--slots", std::to_string(slots),
-                               "--ranks", "1", "--workdir", dir, "--heartbeat", "1"},
-      dir, "worker.out");
+std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,
+                                          const std::vector<std::string>& extra) {
+  std::vector<std::string> argv = {SANDSWIM_WORKER_PATH, "--server", daemon.url(), "--slots", std::to_string(slots),
+                                   "--ranks", "1", "--workdir", dir, "--heartbeat", "1"};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return std::make_unique<ChildProcess>(argv, dir, "worker.out");
 }
 
 nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration) {

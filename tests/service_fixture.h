@@ -59,7 +59,10 @@ class Daemon {
   std::unique_ptr<ChildProcess> process_;
 };
 
-std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots);
+// A sandswim-worker of `slots` 1-rank slots (mpirun unless `extra` says otherwise, e.g.
+// {"--launcher", "direct"}) with its workdir and output (worker.out) in `dir`.
+std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,
+                                          const std::vector<std::string>& extra = {});
 
 // A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz) over the given Omega values, each run
 // `duration` s long: the sweep JSON to POST.

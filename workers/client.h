@@ -8,7 +8,8 @@
 //   Lease, Heartbeat,
 //   Release                  one attempt (the loop calls again on its own schedule);
 //   DownloadBed, UploadBed,
-//   Complete                 until `retry_for_s` has passed (completion is idempotent per token).
+//   Complete                 until `retry_for_s` has passed (a completion is recorded once per
+//                            token; a retried one with `next` gets a fresh next job).
 // Status codes: Conflict for 409 (lease lost), Unavailable when the daemon cannot be reached or
 // answers 5xx, Unauthenticated for 401/403, InvalidArgument for other 4xx (with the body).
 //

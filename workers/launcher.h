@@ -77,7 +77,8 @@ class Launcher {
   virtual Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) = 0;
 };
 
-// The real thing: a guard process leading a new process group, and the engine in it.
+// The real thing: a guard process leading a new process group and the engine in it, or the
+// engine itself as the group leader for a single_process spec.
 class ProcessLauncher : public Launcher {
  public:
   Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) override;

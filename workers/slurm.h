@@ -43,10 +43,16 @@ class SlurmCommands {
                                     const std::vector<std::pair<std::string, std::string>>& env = {}) = 0;
 };
 
+// A command that has not finished after `timeout_s` is killed (SIGKILL) and reported Unavailable:
+// a hung squeue never holds up the daemon's or the worker's shutdown.
 class ProcessSlurmCommands : public SlurmCommands {
  public:
+  explicit ProcessSlurmCommands(double timeout_s = 60) : timeout_s_(timeout_s) {}
   Result<CommandOutput> Run(const std::vector<std::string>& argv,
                             const std::vector<std::pair<std::string, std::string>>& env = {}) override;
+
+ private:
+  double timeout_s_;
 };
 
 // Slurm's duration syntax, in seconds: "M", "M:S", "H:M:S", "D-H", "D-H:M", "D-H:M:S" (as sbatch

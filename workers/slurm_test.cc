@@ -1,9 +1,10 @@
 #include "workers/slurm.h"
 
+#include <chrono>
+#include <deque>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include <deque>
 
 namespace sandswim::slurm {
 namespace {
@@ -212,6 +213,18 @@ TEST(ProcessSlurmCommandsTest, CapturesOutputAndExitCode) {
   auto missing = real.Run({"sandswim-no-such-command"});
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.status().code(), StatusCode::kUnavailable);
+}
+
+// A command that hangs (a controller that never answers) is killed after the timeout.
+TEST(ProcessSlurmCommandsTest, AHungCommandIsKilledAfterTheTimeout) {
+  ProcessSlurmCommands real(/*timeout_s=*/0.3);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto r = real.Run({"sleep", "30"});
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kUnavailable);
+  EXPECT_NE(r.status().reason().find("did not finish"), std::string::npos) << r.status().ToString();
+  EXPECT_LT(took, 10.0);
 }
 
 }  // namespace

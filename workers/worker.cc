@@ -266,6 +266,11 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
     ++stats_.released;
   };
   auto complete = [&](const RunDir* dir) {
+    // How long a run takes, known before deciding whether the next one fits the allocation.
+    if (completion.ok && !is_bed) {
+      std::lock_guard<std::mutex> lock(mu_);
+      longest_run_s_ = std::max(longest_run_s_.value_or(0.0), Since(leased_at));
+    }
     // Ask for the next job in the same call unless this slot is about to end.
     if (next != nullptr && !options_.once && !stopping_ && RunFitsAllocation()) {
       completion.next = api::LeaseRequest{options_.name, options_.host, options_.ranks, options_.slurm_job};
@@ -286,10 +291,6 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
     if (next != nullptr) *next = std::move(reply->next);
     if (completion.ok) {
       spdlog::info("{}: completed ({})", name, reply->state);
-      if (!is_bed) {
-        std::lock_guard<std::mutex> lock(mu_);
-        longest_run_s_ = std::max(longest_run_s_.value_or(0.0), Since(leased_at));
-      }
     } else {
       spdlog::warn("{}: failed {}: {} ({})", name, completion.failure->kind, completion.failure->message, reply->state);
     }

@@ -105,10 +105,18 @@ class FakeClient : public ServerClient {
 class FakeProcess : public EngineProcess {
  public:
   // `stops` outlives the process (the worker destroys it when the job ends): tests read it.
-  FakeProcess(bool runs_until_stopped, std::atomic<int>* stops) : running_(runs_until_stopped), stops_(stops) {}
+  FakeProcess(bool runs_until_stopped, std::atomic<int>* stops, double runs_for_s = 0)
+      : running_(runs_until_stopped), stops_(stops),
+        until_(std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                      std::chrono::duration<double>(runs_for_s))) {}
   pid_t pid() const override { return 0; }
   bool WaitFor(double seconds) override {
-    if (!running_) return true;
+    if (!running_) {
+      std::this_thread::sleep_until(std::min(until_, std::chrono::steady_clock::now() +
+                                                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                             std::chrono::duration<double>(seconds))));
+      return std::chrono::steady_clock::now() >= until_;
+    }
     std::this_thread::sleep_for(std::chrono::duration<double>(std::min(seconds, 0.005)));
     return !running_;
   }
@@ -122,6 +130,7 @@ class FakeProcess : public EngineProcess {
  private:
   std::atomic<bool> running_;
   std::atomic<int>* stops_;
+  std::chrono::steady_clock::time_point until_;  // exits by itself then (runs_for_s)
   ExitStatus status_;
 };
 
@@ -129,6 +138,7 @@ class FakeLauncher : public Launcher {
  public:
   std::map<std::string, std::string> files;  // written into the run directory at start
   bool runs_until_stopped = false;
+  double runs_for_s = 0;  // wall time a process takes before it exits by itself
   bool missing = false;
   std::vector<LaunchSpec> started;
   std::atomic<int> stops{0};  // Stop() calls on any process this launcher started
@@ -137,7 +147,7 @@ class FakeLauncher : public Launcher {
     if (missing) return Status::Unavailable("'liggghts' not found on PATH or not executable");
     started.push_back(spec);
     for (const auto& [name, text] : files) WriteFile(spec.cwd + "/" + name, text);
-    return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(runs_until_stopped, &stops));
+    return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(runs_until_stopped, &stops, runs_for_s));
   }
 };
 
@@ -430,6 +440,27 @@ TEST(WorkerTest, JobsLeasedWithTheCompletionRunWithoutAnotherLease) {
   EXPECT_EQ(client.granted_by_lease, 1);
   EXPECT_TRUE(client.grants.empty());
   EXPECT_TRUE(client.released.empty());
+}
+
+// Whether the next job fits the allocation is judged with the run just done counted: a first
+// run longer than the time left asks for no next job (before any run, the margin is the guess).
+TEST(WorkerTest, NextJobIsAskedForOnlyWhenItFitsTheAllocation) {
+  FakeClient client;
+  client.piggyback = true;
+  client.grants = {RunGrant(), RunGrant()};
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
+                    {"so.dump", Fixture("so_omega_minus80.dump")}};
+  launcher.runs_for_s = 0.3;
+  WorkerOptions o = Options(TempDir());
+  o.end_margin_s = 0.01;
+  o.allocation_seconds_left = []() -> Result<std::optional<double>> { return std::optional<double>(0.2); };
+  Worker worker(o, client, launcher);
+  worker.Run();  // one run, then nothing fits
+  ASSERT_EQ(client.completions.size(), 1u);
+  EXPECT_FALSE(client.completions[0].next.has_value());
+  EXPECT_TRUE(worker.stats().allocation_ending);
+  EXPECT_EQ(client.grants.size(), 1u);
 }
 
 // A job that came with the last completion as the worker was stopping is handed back unstarted.
