@@ -59,6 +59,10 @@ void from_json(const nlohmann::json& j, Completion& c) {
   GetOptional(j, "next", c.next);
 }
 
+std::string ToJsonText(const nlohmann::json& j) {
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 void to_json(nlohmann::json& j, const CompletionReply& r) {
   j = nlohmann::json{{"state", r.state}};
   PutOptional(j, "next", r.next);

@@ -179,6 +179,11 @@ struct CompletionReply {
 void to_json(nlohmann::json& j, const CompletionReply& r);
 void from_json(const nlohmann::json& j, CompletionReply& r);
 
+// JSON text of `j` for the wire or the store. Strings that are not valid UTF-8 -- engine output
+// is not always: LIGGGHTS has been seen to print stray bytes after an ERROR line -- have the bad
+// bytes replaced by U+FFFD instead of throwing.
+std::string ToJsonText(const nlohmann::json& j);
+
 // A job handed back unfinished by a worker that is stopping (not the job's fault).
 struct ReleaseRequest {
   std::string reason;  // for the event log, e.g. "slurm allocation 123 ends"

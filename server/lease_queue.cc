@@ -520,7 +520,7 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
     Statement st = t.Prepare(
         "UPDATE beds SET state = 'done', lease_expires_at = NULL, finished_at = ?, grains = ?, "
         "result = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
-    st.Bind(1, now).Bind(2, b.grains).Bind(3, nlohmann::json(b).dump()).Bind(4, id);
+    st.Bind(1, now).Bind(2, b.grains).Bind(3, api::ToJsonText(nlohmann::json(b))).Bind(4, id);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
     state = "done";
   } else {

@@ -75,13 +75,13 @@ struct Call {
 
 void SendJson(Call& c, int http_status, const json& body) {
   c.res.status = http_status;
-  c.res.set_content(body.dump(), "application/json");
+  c.res.set_content(api::ToJsonText(body), "application/json");
 }
 
 void SendProblem(httplib::Response& res, const Status& status, int http_status = 0) {
   if (http_status == 0) http_status = HttpStatusFor(status.code());
   res.status = http_status;
-  res.set_content(ProblemFor(status, http_status).dump(), kProblemType);
+  res.set_content(api::ToJsonText(ProblemFor(status, http_status)), kProblemType);
   if (http_status >= 500) {
     spdlog::error("HTTP {}: {} (check the daemon's --db and --data paths and disk space; "
                   "the request can be retried)",
@@ -975,7 +975,7 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
                       : res.status >= 500 ? StatusCode::kInternal
                                           : StatusCode::kInvalidArgument;
     std::string field = res.status == 413 ? "body" : "";
-    res.set_content(ProblemFor(Status(code, reason, field), res.status).dump(), kProblemType);
+    res.set_content(api::ToJsonText(ProblemFor(Status(code, reason, field), res.status)), kProblemType);
     return httplib::Server::HandlerResponse::Handled;
   };
   server.set_error_handler(on_error);

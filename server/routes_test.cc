@@ -292,6 +292,34 @@ TEST_F(TokenRoutesTest, WritesAndWorkerCallsNeedTheTokenReadsStayOpenOnLoopback)
 
 // lease (bed) -> upload restart -> complete bed -> lease (run) -> heartbeat -> complete run ->
 // the result is visible in GET /runs/{id} and the sweep's results as JSON and CSV.
+// A run whose stored log tail is not valid UTF-8 (written by an older worker, or straight into
+// the store) is still served, the bad bytes replaced by U+FFFD.
+TEST_F(RoutesTest, RunWithInvalidUtf8InItsLogIsServed) {
+  SubmitExample();
+  for (int i = 0; i < 2; ++i) {  // the bed, then a run, completed in-process (no JSON on the way)
+    auto g = leases_->Lease({"test:1", "test", 1});
+    ASSERT_TRUE(g.ok() && g->has_value());
+    api::Completion c;
+    if ((*g)->kind == api::JobKind::kBed) {
+      ASSERT_TRUE(leases_->PutBedRestart((*g)->token, "r", Sha256Hex("r"), deps_.data_dir).ok());
+      c.ok = true;
+      c.bed_result = api::BedResult{};
+    } else {
+      c.ok = false;
+      c.failure = api::Failure{"deck_error", "ERROR: Invalid pair style \xF4oU`"};
+      c.log_tail = "ERROR: Invalid pair style\n \xF4oU`\n";
+    }
+    auto done = leases_->Complete((*g)->token, c);
+    ASSERT_TRUE(done.ok()) << done.status().ToString();
+    if ((*g)->kind == api::JobKind::kRun) {
+      auto got = client_->Get(("/api/v1/runs/" + std::to_string((*g)->id)).c_str());
+      ASSERT_EQ(got->status, 200) << got->body;
+      json run = Body(got);
+      EXPECT_EQ(run["log_tail"], "ERROR: Invalid pair style\n \xEF\xBF\xBDoU`\n") << got->body;
+    }
+  }
+}
+
 TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   int64_t sweep = SubmitExample();
   auto lease = Post("/api/v1/leases", R"({"worker": "test:1", "host": "test", "ranks": 1})");

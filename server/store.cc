@@ -454,7 +454,7 @@ int64_t Transaction::Changes() const { return sqlite3_changes(store_->db_); }
 Status Transaction::Event(double time, std::string_view kind, std::string_view subject,
                           const nlohmann::json& detail) {
   Statement st = Prepare("INSERT INTO events (time, kind, subject, detail) VALUES (?, ?, ?, ?)");
-  st.Bind(1, time).Bind(2, kind).Bind(3, subject).Bind(4, detail.dump());
+  st.Bind(1, time).Bind(2, kind).Bind(3, subject).Bind(4, api::ToJsonText(detail));
   return st.Run();
 }
 

@@ -99,7 +99,7 @@ Result<T> ParseJson(const std::string& body, const std::string& what) {
 
 Result<std::optional<api::LeaseGrant>> HttpServerClient::Lease(const api::LeaseRequest& request) {
   auto cli = MakeClient(options_);
-  Exchange ex = FromResult(cli->Post("/api/v1/leases", nlohmann::json(request).dump(), "application/json"),
+  Exchange ex = FromResult(cli->Post("/api/v1/leases", api::ToJsonText(nlohmann::json(request)), "application/json"),
                            "POST /api/v1/leases");
   if (!ex.status.ok()) return ex.status;
   if (ex.code == 204 || ex.body.empty()) return std::optional<api::LeaseGrant>();
@@ -115,7 +115,7 @@ Result<std::optional<api::LeaseGrant>> HttpServerClient::Lease(const api::LeaseR
 Result<api::HeartbeatReply> HttpServerClient::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
   const std::string path = "/api/v1/leases/" + token + "/heartbeat";
   auto cli = MakeClient(options_);
-  Exchange ex = FromResult(cli->Post(path, nlohmann::json(beat).dump(), "application/json"), "POST heartbeat");
+  Exchange ex = FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(beat)), "application/json"), "POST heartbeat");
   if (!ex.status.ok()) return ex.status;
   return ParseJson<api::HeartbeatReply>(ex.body, "heartbeat");
 }
@@ -124,7 +124,7 @@ Result<api::CompletionReply> HttpServerClient::Release(const std::string& token,
   const std::string path = "/api/v1/leases/" + token + "/release";
   auto cli = MakeClient(options_);
   api::ReleaseRequest request{reason};
-  Exchange ex = FromResult(cli->Post(path, nlohmann::json(request).dump(), "application/json"), "POST release");
+  Exchange ex = FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(request)), "application/json"), "POST release");
   if (!ex.status.ok()) return ex.status;
   return ParseJson<api::CompletionReply>(ex.body, "release");
 }
@@ -181,7 +181,7 @@ Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, con
 
 Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token, const api::Completion& completion) {
   const std::string path = "/api/v1/leases/" + token + "/complete";
-  const std::string body = nlohmann::json(completion).dump();
+  const std::string body = api::ToJsonText(nlohmann::json(completion));
   return WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<api::CompletionReply> {
     auto cli = MakeClient(options_);
     Exchange ex = FromResult(cli->Post(path, body, "application/json"), "POST complete");

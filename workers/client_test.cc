@@ -116,6 +116,29 @@ TEST(ClientTest, CompleteRetriesWhileTheDaemonAnswers503) {
   EXPECT_EQ(calls.load(), 3);
 }
 
+// Engine text that is not valid UTF-8 (LIGGGHTS has printed stray bytes after an ERROR line)
+// reaches the daemon as valid JSON, the bad bytes replaced by U+FFFD; it never throws.
+TEST(ClientTest, CompletionWithInvalidUtf8FromTheEngineIsSentReplaced) {
+  FakeDaemon d;
+  std::string log_tail, message;
+  d.server().Post(R"(/api/v1/leases/([^/]+)/complete)", [&](const httplib::Request& req, httplib::Response& res) {
+    auto c = nlohmann::json::parse(req.body).get<api::Completion>();  // throws on invalid UTF-8
+    log_tail = c.log_tail;
+    message = c.failure ? c.failure->message : "";
+    res.set_content(R"({"state": "failed"})", "application/json");
+  });
+  HttpServerClient client(Options(d.url()));
+  api::Completion c;
+  c.ok = false;
+  c.failure = api::Failure{"deck_error", "ERROR: Invalid pair style \xF4oU` (./src/force.cpp:247)"};
+  c.log_tail = "ERROR: Invalid pair style (./src/force.cpp:247)\n \xF4oU`\x05 (./src/force.cpp:247)\n";
+  auto reply = client.Complete("t1", c);
+  ASSERT_TRUE(reply.ok()) << reply.status().ToString();
+  EXPECT_EQ(reply->state, "failed");
+  EXPECT_EQ(log_tail, "ERROR: Invalid pair style (./src/force.cpp:247)\n \xEF\xBF\xBDoU`\x05 (./src/force.cpp:247)\n");
+  EXPECT_NE(message.find("\xEF\xBF\xBDoU`"), std::string::npos) << message;
+}
+
 TEST(ClientTest, DaemonDownIsUnavailableAndRetriesStopWhenStopping) {
   // A port nobody listens on: bind one, then close it.
   int port = 0;
