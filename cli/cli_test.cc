@@ -255,9 +255,10 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
   std::getline(lines, row1);
   std::getline(lines, row2);
   EXPECT_FALSE(std::getline(lines, extra));
-  EXPECT_EQ(header, "run_id,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz,Uz_stderr,dz,"
-                    "broke_surface,near_floor,stop_reason,key");
-  EXPECT_THAT(row1, MatchesRegex("[0-9]+,queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,,,,,,,[0-9a-f]{64}"));
+  EXPECT_EQ(header, "run_id,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz,Uz_stderr,Uz_ci95,"
+                    "Uz_blocks,conclusive,inconclusive_reason,window_end,dz,dz_rate,broke_surface,near_floor,"
+                    "stop_reason,analysis,key");
+  EXPECT_THAT(row1, MatchesRegex("[0-9]+,queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,,,,,,,,,,,,,,[0-9a-f]{64}"));
 
   for (std::vector<std::string> args : {std::vector<std::string>{"--format", "json"}, {"--json"}}) {
     std::vector<std::string> argv = {"results", std::to_string(id)};

@@ -1,5 +1,6 @@
 #include "cli/commands.h"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -10,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli/analyze.h"
 #include "cli/format.h"
 #include "cli/slurm_submit.h"
 #include "cli/snapshot.h"
@@ -48,6 +50,12 @@ struct Args {
   std::string engine_version;
   std::string out_file;  // `report --out`
   SlurmSubmitOptions slurm;  // `slurm submit`
+  // `analyze`: NaN / -1 mean "not given".
+  std::vector<std::string> dumps;
+  double an_f = NAN, an_dt = NAN, an_floor = NAN, an_surface = NAN;
+  int64_t an_id = -1;
+  std::string an_deck, an_log;
+  WindowRule an_rule;
 };
 
 class Context {
@@ -628,6 +636,63 @@ int RunReport(Context& c) {
   return kExitOk;
 }
 
+void SetupAnalyze(CLI::App& sub, Args& a) {
+  sub.add_option("DUMP", a.dumps, "LIGGGHTS dump files of the SO (a run directory's so.dump, or any dump custom "
+                                  "with id, x, y, z)")
+      ->required();
+  sub.add_option("--f", a.an_f, "drive frequency in Hz, 0 for constant rotation (default: from drive.in beside the dump)");
+  sub.add_option("--dt", a.an_dt, "time step in s (default: from the deck, else Table 1's 1e-5)");
+  sub.add_option("--id", a.an_id, "the SO's atom id (default: the only atom, else the largest particle)");
+  sub.add_option("--floor", a.an_floor, "z of the floor in m (default: from the deck; unknown: not checked)");
+  sub.add_option("--surface", a.an_surface,
+                 "z of the bed surface in m (default: from log.liggghts beside the dump; unknown: not checked)");
+  sub.add_option("--deck", a.an_deck, "the run's deck (default: drive.in beside the dump)");
+  sub.add_option("--log", a.an_log, "the run's engine log (default: log.liggghts beside the dump)");
+  sub.add_option("--transient-periods", a.an_rule.transient_blocks, "periods skipped at the start")
+      ->capture_default_str();
+  sub.add_option("--clearance", a.an_rule.clearance_m,
+                 "m of grains kept between the SO and the surface or floor: the window ends before")
+      ->capture_default_str();
+  sub.add_option("--min-periods", a.an_rule.min_periods, "fewer whole periods in the window: inconclusive")
+      ->capture_default_str();
+  sub.add_flag("--json", a.json, "print JSON instead of text");
+}
+
+// Analyses each dump as the worker would; goes on past a dump it cannot read (exit 1 at the end).
+int RunAnalyze(Context& c) {
+  AnalyzeOptions o;
+  if (!std::isnan(c.args.an_f)) o.f = c.args.an_f;
+  if (!std::isnan(c.args.an_dt)) o.dt = c.args.an_dt;
+  if (!std::isnan(c.args.an_floor)) o.floor = c.args.an_floor;
+  if (!std::isnan(c.args.an_surface)) o.surface = c.args.an_surface;
+  if (c.args.an_id >= 0) o.so_id = c.args.an_id;
+  o.deck = c.args.an_deck;
+  o.log = c.args.an_log;
+  o.rule = c.args.an_rule;
+  if (!(o.rule.transient_blocks >= 0) || !(o.rule.clearance_m >= 0) || o.rule.min_periods < 1) {
+    return Fail(c, Status::InvalidArgument("--transient-periods/--clearance/--min-periods",
+                                           "must be >= 0, >= 0 and >= 1"),
+                kExitUsage);
+  }
+  json all = json::array();
+  int code = kExitOk;
+  for (const std::string& dump : c.args.dumps) {
+    auto a = AnalyzeDumpFile(dump, o);
+    if (!a.ok()) {
+      code = a.status().code() == StatusCode::kInvalidArgument ? kExitUsage : kExitError;
+      Fail(c, a.status(), code);
+      continue;
+    }
+    if (c.args.json) {
+      all.push_back(DumpAnalysisJson(*a));
+    } else {
+      c.out() << RenderDumpAnalysis(*a);
+    }
+  }
+  if (c.args.json) PrintJson(c, all);
+  return code;
+}
+
 void SetupVersion(CLI::App& sub, Args& a) { AddJson(sub, a); }
 
 int RunVersion(Context& c) {
@@ -767,6 +832,11 @@ const Command kCommands[] = {
    "  sandswim report paper-58 --scale smoke --out paper-58.html\n"
    "  sandswim report cr:7",
    SetupReport, RunReport},
+  {"analyze", "offline: U_z of LIGGGHTS dumps of the SO, analysed exactly as the worker does (no daemon needed)",
+   "  sandswim analyze var/data/runs/42/so.dump       # drive.in and log.liggghts beside it are read\n"
+   "  sandswim analyze old/*.dump --f 3 --floor -0.5 --json\n"
+   "  sandswim analyze bed.dump --id 2621 --f 3        # a dump of every particle: the SO by its id",
+   SetupAnalyze, RunAnalyze},
   {"version", "the client's version and the daemon's /healthz answer",
    "  sandswim version\n"
    "  sandswim version --json",

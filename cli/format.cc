@@ -337,7 +337,7 @@ std::string RenderRunsTable(const json& runs, const RenderOptions& options) {
         progress_text = NumCell(progress, "sim_time_s", 4) + "/" + NumCell(r, "run_duration_s", 4) + " s";
       }
       std::string worker = Str(r, "worker");
-      t.rows.push_back({Str(r, "id"), StateCell(state), progress_text, NumCell(r, "uz", 4),
+      t.rows.push_back({Str(r, "id"), StateCell(state), progress_text, Str(r, "uz_text", "-"),
                         FormatPoint(r.value("point", json::object())), worker.empty() ? "-" : worker});
       t.color.push_back({"", options.color ? StateColor(state) : ""});
     }
@@ -369,9 +369,20 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
   }
   if (run.contains("result") && run["result"].is_object()) {
     const json& r = run["result"];
-    out << "  result:    U_z = " << NumCell(r, "uz", 4) << " m/s (± " << NumCell(r, "uz_stderr", 2)
-        << "), dz = " << NumCell(r, "dz", 4) << " m, x drift = " << NumCell(r, "x_drift", 4)
-        << " m, stop: " << Str(r, "stop_reason", "?") << "\n";
+    out << "  result:    U_z = " << Str(r, "uz_text", "?") << "\n";
+    if (r.contains("uz_ci95")) {
+      out << "             95 % interval ± " << NumCell(r, "uz_ci95", 2) << " m/s (Student t, "
+          << Str(r, "uz_blocks", "?") << " whole " << Str(r, "block_kind", "period") << " rates)\n";
+    }
+    std::string note = Str(r, "uz_stderr_note");
+    if (!note.empty()) out << "             no error: " << note << "\n";
+    std::string why = Str(r, "inconclusive_reason");
+    if (!why.empty()) out << "             inconclusive: " << why << "\n";
+    out << "  window:    " << NumCell(r, "window_t0", 4) << " .. " << NumCell(r, "window_t1", 4)
+        << " s, ended by " << Str(r, "window_end", "?") << "\n";
+    out << "  motion:    dz = " << NumCell(r, "dz", 4) << " m (dz/T over the whole run " << NumCell(r, "dz_rate", 3)
+        << " m/s), x drift = " << NumCell(r, "x_drift", 4) << " m, z oscillation at f "
+        << NumCell(r, "z_osc_amplitude", 3) << " m, stop: " << Str(r, "stop_reason", "?") << "\n";
     out << "  executed:  " << Str(r, "engine_version", "?") << " on " << Str(r, "host", "?") << ", "
         << Str(r, "ranks", "?") << " rank(s), " << FormatDuration(Num(r, "wall_s").value_or(-1)) << " wall\n";
   }
@@ -398,6 +409,9 @@ std::string ResultFlags(const json& row) {
   std::string flags;
   if (Bool(row, "broke_surface")) flags = "surface";
   if (Bool(row, "near_floor")) flags += flags.empty() ? "floor" : ",floor";
+  // The steady window was cut short by the SO nearing the surface or the floor.
+  std::string end = Str(row, "window_end");
+  if (end == "surface" || end == "floor") flags += (flags.empty() ? "window<" : ",window<") + end;
   return flags;
 }
 
@@ -407,9 +421,10 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
     for (const auto& r : rows) with_sweeps = with_sweeps || r.contains("sweeps");
   }
   Table t;
-  t.header = {"RUN", "STATE", "MODE", "A", "f", "Omega/omega", "AXIS", "DURATION", "U_z (m/s)", "Δz (m)", "FLAGS"};
+  t.header = {"RUN", "STATE", "MODE", "A", "f", "Omega/omega", "AXIS", "DURATION", "U_z (m/s)", "Δz/T (m/s)",
+              "Δz (m)", "FLAGS"};
   t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight, Align::kRight,
-             Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
+             Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
   if (with_sweeps) t.header.push_back("SWEEPS");
   if (rows.is_array()) {
     for (const auto& r : rows) {
@@ -419,7 +434,8 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
       std::vector<std::string> row = {Str(r, "run_id"), StateCell(state), Str(r, "mode", "-"),
                                       NumCell(r, "A"), NumCell(r, "f"), OmegaCell(r),
                                       axis.empty() ? "-" : axis, NumCell(r, "duration_s"),
-                                      NumCell(r, "Uz", 4), NumCell(r, "dz", 4), flags.empty() ? "-" : flags};
+                                      Str(r, "Uz_text", "-"), NumCell(r, "dz_rate", 2), NumCell(r, "dz", 3),
+                                      flags.empty() ? "-" : flags};
       if (with_sweeps) {
         std::string sweeps;
         for (const auto& s : r.value("sweeps", json::array())) {
@@ -437,7 +453,8 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
 const std::vector<std::string>& ResultCsvColumns() {
   static const std::vector<std::string> kColumns = {
       "run_id", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s", "run_duration_s",
-      "Uz", "Uz_stderr", "dz", "broke_surface", "near_floor", "stop_reason", "key"};
+      "Uz", "Uz_stderr", "Uz_ci95", "Uz_blocks", "conclusive", "inconclusive_reason", "window_end", "dz",
+      "dz_rate", "broke_surface", "near_floor", "stop_reason", "analysis", "key"};
   return kColumns;
 }
 

@@ -14,8 +14,10 @@ json TwoResultRows() {
   return json::parse(R"([
     {"run_id": 1, "key": "k1", "state": "done", "mode": "oscillatory", "A": 0.03, "f": 3.0,
      "Omega": -80.0, "omega": null, "axis": null, "duration_s": 5.0, "run_duration_s": 5.0,
-     "Uz": 0.0123456, "Uz_stderr": 0.0001, "dz": 0.061728, "broke_surface": true,
-     "near_floor": false, "stop_reason": "surface"},
+     "Uz_text": "0.0123 ± 0.0001, 4 periods", "Uz": 0.0123456, "Uz_stderr": 0.0001, "Uz_ci95": 0.000318,
+     "Uz_blocks": 4, "conclusive": true, "inconclusive_reason": "", "window_end": "surface",
+     "dz": 0.061728, "dz_rate": 0.012346, "broke_surface": true, "near_floor": false,
+     "stop_reason": "surface", "analysis": 2},
     {"run_id": 12, "key": "k,2", "state": "failed", "mode": "vibration+rotation", "A": 0.03,
      "f": 3.0, "Omega": null, "omega": 80.0, "axis": "xz", "duration_s": 4.0,
      "run_duration_s": 4.0, "Uz": null, "Uz_stderr": null, "dz": null, "broke_surface": null,
@@ -93,9 +95,12 @@ TEST(FormatTest, CountsAndPoints) {
 
 TEST(FormatTest, ResultsTableGolden) {
   EXPECT_EQ(RenderResultsTable(TwoResultRows(), {}),
-            "RUN  STATE   MODE                   A  f  Omega/omega  AXIS  DURATION  U_z (m/s)   Δz (m)  FLAGS\n"
-            "  1  done    oscillatory         0.03  3          -80  -            5    0.01235  0.06173  surface\n"
-            " 12  failed  vibration+rotation  0.03  3           80  xz           4          -        -  -\n");
+            "RUN  STATE   MODE                   A  f  Omega/omega  AXIS  DURATION                   U_z (m/s)  "
+            "Δz/T (m/s)  Δz (m)  FLAGS\n"
+            "  1  done    oscillatory         0.03  3          -80  -            5  0.0123 ± 0.0001, 4 periods  "
+            "     0.012  0.0617  surface,window<surface\n"
+            " 12  failed  vibration+rotation  0.03  3           80  xz           4                           -  "
+            "         -       -  -\n");
 }
 
 TEST(FormatTest, ResultsTableNamesSweepsOfCampaignRows) {
@@ -109,10 +114,11 @@ TEST(FormatTest, ResultsTableNamesSweepsOfCampaignRows) {
 
 TEST(FormatTest, ResultsCsvGolden) {
   EXPECT_EQ(RenderResultsCsv(TwoResultRows()),
-            "run_id,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz,Uz_stderr,dz,"
-            "broke_surface,near_floor,stop_reason,key\n"
-            "1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,0.0123456,0.0001,0.061728,true,false,surface,k1\n"
-            "12,failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,\"k,2\"\n");
+            "run_id,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz,Uz_stderr,Uz_ci95,Uz_blocks,"
+            "conclusive,inconclusive_reason,window_end,dz,dz_rate,broke_surface,near_floor,stop_reason,analysis,key\n"
+            "1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,0.0123456,0.0001,0.000318,4,true,,surface,0.061728,0.012346,"
+            "true,false,surface,2,k1\n"
+            "12,failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,\"k,2\"\n");
 }
 
 TEST(FormatTest, ResultFlags) {
@@ -205,14 +211,18 @@ TEST(FormatTest, RunDetailShowsDeckResultAndLog) {
       "bed_id": 1, "bed_state": "done", "sweeps": [2, 3], "attempts": 1, "worker": "n1:3",
       "point": {"mode":"vibration","A":0.03,"f":3,"duration_s":5},
       "progress": {"sim_time_s": 5.0, "so_z": 0.4, "step": 500000},
-      "result": {"uz": 0.012, "uz_stderr": 0.0001, "dz": 0.06, "x_drift": 0.001, "stop_reason": "duration",
+      "result": {"uz": 0.012, "uz_stderr": 0.0001, "uz_ci95": 0.00032, "uz_blocks": 4, "block_kind": "period",
+                 "uz_text": "0.0120 ± 0.0001 m/s, 4 periods", "window_t0": 0.333, "window_t1": 1.667,
+                 "window_end": "run_end", "dz": 0.06, "x_drift": 0.001, "stop_reason": "duration",
                  "engine_version": "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0)", "host": "n1", "ranks": 2,
                  "wall_s": 95},
       "deck": "run 1000\n", "log_tail": "Loop time of 95"})J");
   std::string text = RenderRunDetail(run, {});
   EXPECT_THAT(text, HasSubstr("run 4  done\n"));
   EXPECT_THAT(text, HasSubstr("sweeps:    2, 3\n"));
-  EXPECT_THAT(text, HasSubstr("U_z = 0.012 m/s"));
+  EXPECT_THAT(text, HasSubstr("U_z = 0.0120 ± 0.0001 m/s, 4 periods\n"));
+  EXPECT_THAT(text, HasSubstr("95 % interval ± 0.00032 m/s (Student t, 4 whole period rates)"));
+  EXPECT_THAT(text, HasSubstr("window:    0.333 .. 1.667 s, ended by run_end"));
   EXPECT_THAT(text, HasSubstr("--- deck ---\nrun 1000\n--- log tail ---\nLoop time of 95\n"));
 }
 

@@ -17,6 +17,61 @@ void GetOptional(const nlohmann::json& j, const char* name, std::optional<T>& v)
 
 }  // namespace
 
+void to_json(nlohmann::json& j, const RunResult& r) {
+  j = nlohmann::json{{"uz_stderr_note", r.uz_stderr_note},
+                     {"uz_blocks", r.uz_blocks},
+                     {"block_s", r.block_s},
+                     {"block_kind", r.block_kind},
+                     {"window_t0", r.window_t0},
+                     {"window_t1", r.window_t1},
+                     {"window_end", r.window_end},
+                     {"conclusive", r.conclusive},
+                     {"inconclusive_reason", r.inconclusive_reason},
+                     {"dz", r.dz},
+                     {"dz_rate", r.dz_rate},
+                     {"z_osc_amplitude", r.z_osc_amplitude},
+                     {"x_drift", r.x_drift},
+                     {"broke_surface", r.broke_surface},
+                     {"near_floor", r.near_floor},
+                     {"stop_reason", r.stop_reason},
+                     {"sim_time_s", r.sim_time_s},
+                     {"steps", r.steps},
+                     {"grains", r.grains},
+                     {"z0", r.z0},
+                     {"analysis", r.analysis}};
+  PutOptional(j, "uz", r.uz);
+  PutOptional(j, "uz_stderr", r.uz_stderr);
+  PutOptional(j, "uz_ci95", r.uz_ci95);
+}
+
+void from_json(const nlohmann::json& j, RunResult& r) {
+  GetOptional(j, "uz", r.uz);
+  GetOptional(j, "uz_stderr", r.uz_stderr);
+  GetOptional(j, "uz_ci95", r.uz_ci95);
+  r.uz_stderr_note = j.value("uz_stderr_note", "");
+  r.uz_blocks = j.value("uz_blocks", 0);
+  r.block_s = j.value("block_s", 0.0);
+  r.block_kind = j.value("block_kind", "");
+  r.window_t0 = j.value("window_t0", 0.0);
+  r.window_t1 = j.value("window_t1", 0.0);
+  r.window_end = j.value("window_end", "");
+  r.conclusive = j.value("conclusive", false);
+  r.inconclusive_reason = j.value("inconclusive_reason", "");
+  r.dz = j.value("dz", 0.0);
+  r.dz_rate = j.value("dz_rate", 0.0);
+  r.z_osc_amplitude = j.value("z_osc_amplitude", 0.0);
+  r.x_drift = j.value("x_drift", 0.0);
+  r.broke_surface = j.value("broke_surface", false);
+  r.near_floor = j.value("near_floor", false);
+  r.stop_reason = j.value("stop_reason", "");
+  r.sim_time_s = j.value("sim_time_s", 0.0);
+  r.steps = j.value("steps", int64_t{0});
+  r.grains = j.value("grains", int64_t{0});
+  r.z0 = j.value("z0", 0.0);
+  // A result without "analysis" was made by a worker that predates it: the old estimator.
+  r.analysis = j.value("analysis", 1);
+}
+
 void to_json(nlohmann::json& j, const LeaseGrant& g) {
   j = nlohmann::json{{"token", g.token},       {"kind", g.kind},           {"id", g.id},
                      {"key", g.key},           {"deck", g.deck},           {"attempt", g.attempt},

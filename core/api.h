@@ -82,26 +82,40 @@ struct HeartbeatReply {
 };
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(HeartbeatReply, ttl_s, cancel)
 
-// What a drive run measured (SPEC.md "Results a run produces").
+// What a drive run measured (SPEC.md "Results a run produces"; how U_z and its window are found:
+// core/trajectory.h).
+// The version of that analysis: 1 was a least-squares line + sinusoid at f over [1/f, end] with
+// the fit's own standard error (too small, biased by the harmonics); results made by it are
+// re-analysed from their stored trajectories when the daemon upgrades its database.
+inline constexpr int kAnalysisVersion = 2;
 struct RunResult {
-  double uz = 0;              // m/s, least-squares slope of z(t) over [window_t0, window_t1]
-  double uz_stderr = 0;       // m/s, standard error of that slope
-  double window_t0 = 0;       // s, start of the steady window
-  double window_t1 = 0;       // s, end of the steady window
-  double dz = 0;              // m, z(end) - z(0)
-  double z_osc_amplitude = 0; // m, amplitude of z's oscillation at the drive frequency f
-  double x_drift = 0;         // m, x(end) - x(0)
-  bool broke_surface = false; // stopped because the SO broke the top surface
-  bool near_floor = false;    // stopped within one SO diameter of the floor
-  std::string stop_reason;    // "duration" | "surface" | "floor"
-  double sim_time_s = 0;      // physical time simulated
+  std::optional<double> uz;         // m/s, mean rate over the window's whole blocks; absent: none
+  std::optional<double> uz_stderr;  // m/s, from the scatter of the block rates; absent: too few
+  std::optional<double> uz_ci95;    // m/s, half-width of the 95 % interval (Student t, blocks - 1)
+  std::string uz_stderr_note;       // why uz_stderr is absent ("" when present)
+  int uz_blocks = 0;                // whole blocks (independent rates) U_z rests on
+  double block_s = 0;               // s, a block: the drive period 1/f, or the undriven block
+  std::string block_kind;           // "period" (driven modes) | "block" (no period: rotation only)
+  double window_t0 = 0;             // s, start of the steady window (after the transient)
+  double window_t1 = 0;             // s, its end: window_t0 + uz_blocks * block_s
+  std::string window_end;           // why it ends: "run_end" | "surface" | "floor"
+  bool conclusive = false;          // enough whole blocks for U_z; else shown, left out of fits
+  std::string inconclusive_reason;  // "" when conclusive
+  double dz = 0;                    // m, z(end) - z(0)
+  double dz_rate = 0;               // m/s, dz over the whole run's duration
+  double z_osc_amplitude = 0;       // m, amplitude of z's oscillation at the drive frequency f
+  double x_drift = 0;               // m, x(end) - x(0)
+  bool broke_surface = false;       // the engine stopped because the SO broke the top surface
+  bool near_floor = false;          // the engine stopped within one SO diameter of the floor
+  std::string stop_reason;          // "duration" | "surface" | "floor"
+  double sim_time_s = 0;            // physical time simulated
   int64_t steps = 0;
   int64_t grains = 0;
-  double z0 = 0;              // m, the SO's z at t = 0
+  double z0 = 0;                    // m, the SO's z at t = 0
+  int analysis = kAnalysisVersion;  // the analysis that made this result
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunResult, uz, uz_stderr, window_t0, window_t1, dz,
-                                                z_osc_amplitude, x_drift, broke_surface, near_floor,
-                                                stop_reason, sim_time_s, steps, grains, z0)
+void to_json(nlohmann::json& j, const RunResult& r);
+void from_json(const nlohmann::json& j, RunResult& r);
 
 // What a bed preparation produced.
 struct BedResult {

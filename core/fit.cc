@@ -17,6 +17,8 @@
 #include <gsl/gsl_multifit_nlinear.h>
 #include <gsl/gsl_vector.h>
 
+#include "core/sweep.h"
+
 namespace sandswim {
 namespace {
 
@@ -28,6 +30,11 @@ void QuietGsl() {
 
 bool AllFinite(const std::vector<double>& v) {
   return std::all_of(v.begin(), v.end(), [](double d) { return std::isfinite(d); });
+}
+
+// Every one of the n points has an error > 0 (then fits are weighted by them).
+bool HasAllErrors(const std::vector<double>& e, size_t n) {
+  return e.size() == n && n > 0 && std::all_of(e.begin(), e.end(), [](double v) { return v > 0; });
 }
 
 // R^2 = 1 - SSR / SST, SST about the mean; 1 when SST is 0 and the fit is exact.
@@ -107,16 +114,22 @@ double SaturationModel(const SaturationFit& fit, double x) {
   return fit.sign * fit.c1 * (1.0 - std::exp(-fit.c2 * x));
 }
 
-Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign) {
+Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign,
+                                    const std::vector<double>& y_stderr) {
   QuietGsl();
-  if (x.size() != y.size()) return Status::InvalidArgument("points", "x and U_z differ in length");
+  if (x.size() != y.size() || (!y_stderr.empty() && y_stderr.size() != y.size())) {
+    return Status::InvalidArgument("points", "x, U_z and their errors differ in length");
+  }
   if (x.size() < 3) {
     return Status::InvalidArgument("points", "eq. 8 has 2 parameters: it needs at least 3 points, got " +
                                                  std::to_string(x.size()));
   }
-  if (!AllFinite(x) || !AllFinite(y)) return Status::InvalidArgument("points", "a value is not finite");
+  if (!AllFinite(x) || !AllFinite(y) || !AllFinite(y_stderr)) {
+    return Status::InvalidArgument("points", "a value is not finite");
+  }
   if (sign != 1 && sign != -1) return Status::InvalidArgument("sign", "must be +1 or -1");
   const size_t n = x.size();
+  const bool weighted = HasAllErrors(y_stderr, n);
 
   // Start: C1 from the largest signed U_z, C2 from where the data first reach half of it.
   std::vector<size_t> order(n);
@@ -151,7 +164,9 @@ Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vec
   gsl_vector_set(p0, 0, c1_0);
   gsl_vector_set(p0, 1, c2_0);
   int info = 0;
-  int status = gsl_multifit_nlinear_init(p0, &fdf, w);
+  gsl_vector* weights = gsl_vector_alloc(n);
+  for (size_t i = 0; i < n; ++i) gsl_vector_set(weights, i, weighted ? 1.0 / (y_stderr[i] * y_stderr[i]) : 1.0);
+  int status = gsl_multifit_nlinear_winit(p0, weights, &fdf, w);
   if (status == GSL_SUCCESS) {
     status = gsl_multifit_nlinear_driver(500, 1e-10, 1e-10, 1e-12, nullptr, nullptr, &info, w);
   }
@@ -164,9 +179,14 @@ Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vec
   double chisq = 0;
   gsl_blas_ddot(gsl_multifit_nlinear_residual(w), gsl_multifit_nlinear_residual(w), &chisq);
   int covar_status = gsl_multifit_nlinear_covar(gsl_multifit_nlinear_jac(w), 0.0, covar);
-  double scale = chisq / static_cast<double>(n - 2);
+  // chisq is weighted when the fit is: (J'WJ)^-1 is then the covariance the points' errors give,
+  // widened when the scatter about the law is larger than they say.
+  double reduced = chisq / static_cast<double>(n - 2);
+  double scale = weighted ? std::max(1.0, reduced) : reduced;
+  fit.weighted = weighted;
   fit.c1_stderr = std::sqrt(scale * gsl_matrix_get(covar, 0, 0));
   fit.c2_stderr = std::sqrt(scale * gsl_matrix_get(covar, 1, 1));
+  gsl_vector_free(weights);
   gsl_vector_free(p0);
   gsl_matrix_free(covar);
   gsl_multifit_nlinear_free(w);
@@ -204,13 +224,24 @@ Result<LinearFit> FitThroughOrigin(const std::vector<double>& a, const std::vect
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](size_t i, size_t j) { return a[i] < a[j]; });
 
+  const bool weighted = HasAllErrors(y_stderr, n);
+  // The first k points by A. Weighted: cov from the errors, widened by the scatter when larger
+  // (chi^2 / (k - 1) > 1); sumsq is then the weighted chi^2, turned back into a residual variance
+  // in U_z's units for the range rule below by the mean error^2.
   auto fit_first = [&](size_t k, double* c3, double* cov, double* sumsq) {
-    std::vector<double> xs(k), ys(k);
+    std::vector<double> xs(k), ys(k), ws(k);
     for (size_t i = 0; i < k; ++i) {
       xs[i] = a[order[i]];
       ys[i] = y[order[i]];
+      ws[i] = weighted ? 1.0 / (y_stderr[order[i]] * y_stderr[order[i]]) : 1.0;
     }
-    return gsl_fit_mul(xs.data(), 1, ys.data(), 1, k, c3, cov, sumsq);
+    if (!weighted) return gsl_fit_mul(xs.data(), 1, ys.data(), 1, k, c3, cov, sumsq);
+    int status = gsl_fit_wmul(xs.data(), 1, ws.data(), 1, ys.data(), 1, k, c3, cov, sumsq);
+    if (k > 1) *cov *= std::max(1.0, *sumsq / static_cast<double>(k - 1));
+    double mean_var = 0;
+    for (size_t i = 0; i < k; ++i) mean_var += 1.0 / ws[i];
+    *sumsq *= mean_var / static_cast<double>(k);
+    return status;
   };
 
   size_t k = std::min<size_t>(3, n);
@@ -231,6 +262,7 @@ Result<LinearFit> FitThroughOrigin(const std::vector<double>& a, const std::vect
     fit_first(k, &c3, &cov, &sumsq);
   }
   LinearFit fit;
+  fit.weighted = weighted;
   fit.c3 = c3;
   fit.c3_stderr = std::sqrt(std::max(0.0, cov));
   fit.n = static_cast<int>(k);
@@ -392,8 +424,16 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples) {
 SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& choice) {
   SweepFits fits;
   fits.choice = choice;
+  std::vector<SweepSample> conclusive;
+  for (const SweepSample& s : samples) {
+    if (s.conclusive) {
+      conclusive.push_back(s);
+    } else {
+      fits.left_out.push_back({s.run_id, s.point, s.inconclusive_reason});
+    }
+  }
   if (fits.choice.kind == FitKind::kNone) return fits;
-  for (auto& [name, branch] : Branches(samples)) {
+  for (auto& [name, branch] : Branches(conclusive)) {
     BranchFit b;
     b.branch = name;
     b.points = static_cast<int>(branch.size());
@@ -406,7 +446,7 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& cho
     }
     switch (fits.choice.kind) {
       case FitKind::kSaturation: {
-        auto r = FitSaturation(x, y, sign);
+        auto r = FitSaturation(x, y, sign, e);
         if (r.ok()) {
           b.saturation = *r;
           b.sign_matches_paper = r->c1 > 0;
@@ -451,12 +491,14 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& cho
 void to_json(nlohmann::json& j, const SaturationFit& f) {
   j = {{"law", "U_z = sign * C1 * (1 - exp(-C2 |Omega|))"},
        {"sign", f.sign}, {"C1", f.c1}, {"C1_stderr", f.c1_stderr}, {"C2", f.c2}, {"C2_stderr", f.c2_stderr},
-       {"r2", f.r2}, {"n", f.n}, {"iterations", f.iterations}, {"units", {{"C1", "m/s"}, {"C2", "s/rad"}}}};
+       {"r2", f.r2}, {"n", f.n}, {"iterations", f.iterations}, {"weighted", f.weighted},
+       {"units", {{"C1", "m/s"}, {"C2", "s/rad"}}}};
 }
 
 void to_json(nlohmann::json& j, const LinearFit& f) {
   j = {{"law", "U_z = C3 * A"}, {"C3", f.c3}, {"C3_stderr", f.c3_stderr}, {"r2", f.r2}, {"n", f.n},
-       {"n_total", f.n_total}, {"A_from", f.a_from}, {"A_to", f.a_to}, {"units", {{"C3", "1/s"}, {"A", "m"}}}};
+       {"n_total", f.n_total}, {"A_from", f.a_from}, {"A_to", f.a_to}, {"weighted", f.weighted},
+       {"units", {{"C3", "1/s"}, {"A", "m"}}}};
 }
 
 void to_json(nlohmann::json& j, const FastestRise& f) {
@@ -475,6 +517,11 @@ void to_json(nlohmann::json& j, const BranchFit& b) {
 void to_json(nlohmann::json& j, const SweepFits& s) {
   j = {{"kind", FitKindName(s.choice.kind)}, {"param", s.choice.param}, {"reason", s.choice.reason},
        {"branches", s.branches}};
+  nlohmann::json left_out = nlohmann::json::array();
+  for (const LeftOut& l : s.left_out) {
+    left_out.push_back({{"run_id", l.run_id}, {"point", PointToJson(l.point)}, {"reason", l.reason}});
+  }
+  j["left_out"] = std::move(left_out);
 }
 
 }  // namespace sandswim

@@ -9,11 +9,16 @@
 //   f sweeps      the frequency f_c of the fastest rise: a quadratic through the largest U_z of
 //                 the rising branch and its two neighbours in f, its vertex, with an interval.
 //
-// Standard errors of the nonlinear and the linear fits are the usual least-squares ones: the
-// covariance (J'J)^-1 scaled by the residual variance SSR / (n - p). R^2 is 1 - SSR / SST with
-// SST about the mean (so a law through the origin can score below 0 when it fits worse than a
-// constant). No fit is weighted by the points' own U_z errors except the f_c quadratic (it has no
-// residual degrees of freedom, so its only error estimate is the points').
+// Weights: when every point of a branch has its own U_z error (core/trajectory.h: from the scatter
+// of its whole-period block rates), eqs. 8 and 9 are weighted least squares, weights 1 / stderr^2,
+// and a parameter's error is the covariance (J'WJ)^-1 scaled by max(1, chi^2 / (n - p)): the
+// points' own errors, or the scatter about the law when that is larger (the law does not hold
+// exactly, or the errors are too small). When some point has no error (its window held fewer than
+// 3 periods) the fit is unweighted and its errors are the usual (J'J)^-1 SSR / (n - p);
+// `weighted` says which. Inconclusive runs never reach a fit: FitSweep leaves them out and lists
+// them. R^2 is 1 - SSR / SST (unweighted) with SST about the mean (so a law through the origin can
+// score below 0 when it fits worse than a constant). The f_c quadratic uses the points' errors
+// (it has no residual degrees of freedom).
 //
 // Which law applies is decided by what the sweep's points vary (ChooseFit): oscillatory points
 // that differ only in |Omega| (and the sign of Omega), only in A, or only in f. Anything else
@@ -45,11 +50,14 @@ struct SaturationFit {
   double r2 = 0;
   int n = 0;                     // points fitted
   int iterations = 0;
+  bool weighted = false;         // by the points' U_z errors (see above)
 };
 // REQUIRES: x.size() == y.size(). InvalidArgument (field "points") with fewer than 3 points or
 // non-finite values; FailedPrecondition ("fit") when the solver does not converge to finite
 // parameters (e.g. U_z growing linearly with no sign of saturation: C2 -> 0, C1 -> infinity).
-Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign);
+// `y_stderr` may be empty, or hold a 0 for a point with no error: then the fit is unweighted.
+Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign,
+                                    const std::vector<double>& y_stderr = {});
 double SaturationModel(const SaturationFit& fit, double x);  // sign * c1 * (1 - exp(-c2 x))
 
 // eq. 9 on one branch: U_z = c3 * A through the origin, over [a_from, a_to].
@@ -64,6 +72,7 @@ struct LinearFit {
   int n = 0;                     // points in the range
   int n_total = 0;               // points of the branch
   double a_from = 0, a_to = 0;   // m: the range of A the law holds over
+  bool weighted = false;         // by the points' U_z errors (see above)
 };
 // InvalidArgument ("points") with fewer than 2 points, non-finite values, or all A = 0.
 // `y_stderr` may be empty (no point errors).
@@ -92,6 +101,10 @@ struct SweepSample {
   Point point;
   double uz = 0;         // m/s
   double uz_stderr = 0;  // m/s (0: unknown)
+  double uz_ci95 = 0;    // m/s, half-width of its 95 % interval (0: unknown); figures draw it
+  int64_t run_id = 0;
+  bool conclusive = true;  // false: left out of the fit (listed in SweepFits::left_out)
+  std::string inconclusive_reason;
 };
 
 enum class FitKind { kNone, kSaturation, kLinear, kFastestRise };
@@ -117,9 +130,17 @@ struct BranchFit {
   std::optional<bool> sign_matches_paper;
 };
 
+// A finished run a fit leaves out, and why.
+struct LeftOut {
+  int64_t run_id = 0;
+  Point point;
+  std::string reason;
+};
+
 struct SweepFits {
   FitChoice choice;
   std::vector<BranchFit> branches;  // rising first; a branch with no points is left out
+  std::vector<LeftOut> left_out;    // inconclusive runs
 };
 // Fits the law ChooseFit() picks for the samples' points. Never fails: a branch that cannot be
 // fitted says why in its `error`.
@@ -130,7 +151,7 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& cho
 
 // JSON (field names as above; absent optionals are left out):
 // {"kind","param","reason","branches":[{"branch","points","saturation"?:{...},"linear"?:{...},
-//  "fastest_rise"?:{...},"error","sign_matches_paper"?}]}
+//  "fastest_rise"?:{...},"error","sign_matches_paper"?}],"left_out":[{"run_id","point","reason"}]}
 void to_json(nlohmann::json& j, const SaturationFit& f);
 void to_json(nlohmann::json& j, const LinearFit& f);
 void to_json(nlohmann::json& j, const FastestRise& f);

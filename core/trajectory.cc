@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <string>
+
+#include <gsl/gsl_cdf.h>
 
 namespace sandswim {
 namespace {
@@ -39,66 +42,35 @@ std::optional<double> LineValue(std::string_view deck, std::string_view prefix) 
   return std::nullopt;
 }
 
-struct LineFit {
-  double slope = 0, intercept = 0, slope_stderr = 0;
-};
-
-// Least squares z = intercept + slope * t over samples [i0, i1).
-LineFit FitLine(const std::vector<SoSample>& s, size_t i0, size_t i1) {
-  const double n = static_cast<double>(i1 - i0);
-  double tm = 0, zm = 0;
-  for (size_t i = i0; i < i1; ++i) {
-    tm += s[i].t;
-    zm += s[i].z;
-  }
-  tm /= n;
-  zm /= n;
-  double sxx = 0, sxz = 0;
-  for (size_t i = i0; i < i1; ++i) {
-    sxx += (s[i].t - tm) * (s[i].t - tm);
-    sxz += (s[i].t - tm) * (s[i].z - zm);
-  }
-  LineFit fit;
-  fit.slope = sxx > 0 ? sxz / sxx : 0;
-  fit.intercept = zm - fit.slope * tm;
-  double ssr = 0;
-  for (size_t i = i0; i < i1; ++i) {
-    double r = s[i].z - fit.intercept - fit.slope * s[i].t;
-    ssr += r * r;
-  }
-  fit.slope_stderr = (n > 2 && sxx > 0) ? std::sqrt(ssr / (n - 2) / sxx) : 0;
-  return fit;
-}
-
-// Least squares of z = c0 + c1 (t - tm) + a sin(2 pi f t) + b cos(2 pi f t) over [i0, i1): the
-// oscillation is fitted together with the trend, so a window that is not a whole number of
-// periods does not bias the slope (a plain line fit of a sinusoid is off by ~ amp / (f T)).
-// Returns false when the samples cannot resolve f (then the caller keeps the plain line fit).
-bool FitLineAndOscillation(const std::vector<SoSample>& s, size_t i0, size_t i1, double f, LineFit* line,
-                           double* amplitude) {
-  constexpr int k = 4;
+// Least squares of z = c0 + c1 (t - tm) + sum_{h=1..3} a_h sin(2 pi h f t) + b_h cos(2 pi h f t)
+// over [i0, i1); returns the amplitude at f, sqrt(a_1^2 + b_1^2), or nullopt when the samples
+// cannot resolve the harmonics. The harmonics 2f and 3f are in the model so that they do not leak
+// into the amplitude at f.
+std::optional<double> OscillationAmplitude(const std::vector<SoSample>& s, size_t i0, size_t i1, double f) {
+  constexpr int k = 8;
+  if (i1 - i0 < 4 * k) return std::nullopt;
   const double n = static_cast<double>(i1 - i0);
   double tm = 0;
   for (size_t i = i0; i < i1; ++i) tm += s[i].t;
   tm /= n;
-  double m[k][2 * k] = {};  // [X'X | I], reduced to [I | (X'X)^-1]
-  double rhs[k] = {};
+  double m[k][k + 1] = {};  // [X'X | X'z], reduced to [I | coef]
   auto basis = [&](const SoSample& p, double* x) {
-    double w = 2 * kPi * f * p.t;
     x[0] = 1;
     x[1] = p.t - tm;
-    x[2] = std::sin(w);
-    x[3] = std::cos(w);
+    for (int h = 1; h <= 3; ++h) {
+      double w = 2 * kPi * h * f * p.t;
+      x[2 * h] = std::sin(w);
+      x[2 * h + 1] = std::cos(w);
+    }
   };
   for (size_t i = i0; i < i1; ++i) {
     double x[k];
     basis(s[i], x);
     for (int a = 0; a < k; ++a) {
-      rhs[a] += x[a] * s[i].z;
+      m[a][k] += x[a] * s[i].z;
       for (int b = 0; b < k; ++b) m[a][b] += x[a] * x[b];
     }
   }
-  for (int a = 0; a < k; ++a) m[a][k + a] = 1;
   double scale[k];
   for (int a = 0; a < k; ++a) scale[a] = m[a][a];
   for (int c = 0; c < k; ++c) {
@@ -106,33 +78,34 @@ bool FitLineAndOscillation(const std::vector<SoSample>& s, size_t i0, size_t i1,
     for (int r = c + 1; r < k; ++r) {
       if (std::fabs(m[r][c]) > std::fabs(m[p][c])) p = r;
     }
-    if (std::fabs(m[p][c]) < 1e-9 * std::max(scale[c], 1e-300)) return false;
-    for (int j = 0; j < 2 * k; ++j) std::swap(m[c][j], m[p][j]);
+    if (std::fabs(m[p][c]) < 1e-9 * std::max(scale[c], 1e-300)) return std::nullopt;
+    for (int j = 0; j <= k; ++j) std::swap(m[c][j], m[p][j]);
     double d = m[c][c];
-    for (int j = 0; j < 2 * k; ++j) m[c][j] /= d;
+    for (int j = 0; j <= k; ++j) m[c][j] /= d;
     for (int r = 0; r < k; ++r) {
       if (r == c) continue;
       double q = m[r][c];
-      for (int j = 0; j < 2 * k; ++j) m[r][j] -= q * m[c][j];
+      for (int j = 0; j <= k; ++j) m[r][j] -= q * m[c][j];
     }
   }
-  double coef[k] = {};
-  for (int a = 0; a < k; ++a) {
-    for (int b = 0; b < k; ++b) coef[a] += m[a][k + b] * rhs[b];
-  }
-  double ssr = 0;
-  for (size_t i = i0; i < i1; ++i) {
-    double x[k];
-    basis(s[i], x);
-    double r = s[i].z;
-    for (int a = 0; a < k; ++a) r -= coef[a] * x[a];
-    ssr += r * r;
-  }
-  line->slope = coef[1];
-  line->intercept = coef[0] - coef[1] * tm;
-  line->slope_stderr = n > k ? std::sqrt(std::max(0.0, ssr / (n - k) * m[1][k + 1])) : 0;
-  *amplitude = std::sqrt(coef[2] * coef[2] + coef[3] * coef[3]);
-  return true;
+  return std::hypot(m[2][k], m[3][k]);
+}
+
+// z at time t, linearly interpolated between the samples around it.
+// REQUIRES: samples ascending in t, samples.front().t <= t <= samples.back().t.
+double ZAt(const std::vector<SoSample>& s, double t) {
+  auto it = std::lower_bound(s.begin(), s.end(), t, [](const SoSample& p, double v) { return p.t < v; });
+  if (it == s.end()) return s.back().z;
+  if (it == s.begin() || it->t == t) return it->z;
+  const SoSample& b = *it;
+  const SoSample& a = *(it - 1);
+  return a.z + (b.z - a.z) * (t - a.t) / (b.t - a.t);
+}
+
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
 }
 
 }  // namespace
@@ -145,11 +118,19 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
   info.f = LineValue(deck, "variable f equal ").value_or(0.0);
   info.A = LineValue(deck, "variable A equal ").value_or(0.0);
   if (info.f < 0) return Status::InvalidArgument("deck", "'variable f equal' is negative");
+  // "fix floor all wall/gran model ... primitive type 1 zplane Z"
+  size_t at = deck.find("\nfix floor ");
+  if (at != std::string_view::npos) {
+    std::string_view line = deck.substr(at + 1, deck.find('\n', at + 1) - at - 1);
+    size_t z = line.find(" zplane ");
+    double v;
+    if (z != std::string_view::npos && ToDouble(line.substr(z + 8), &v)) info.z_floor = v;
+  }
   return info;
 }
 
-Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt) {
-  SoSampleSink sink(dt);
+Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt, SoSelector so) {
+  SoSampleSink sink(dt, so);
   for (const DumpFrame& f : frames) {
     DumpFrameView view;
     view.step = f.step;
@@ -167,6 +148,9 @@ void SoSampleSink::OnFrame(const DumpFrameView& f) {
     cx_ = f.Column("x");
     cy_ = f.Column("y");
     cz_ = f.Column("z");
+    cid_ = f.Column("id");
+    crad_ = f.Column("radius");
+    if (crad_ < 0) crad_ = f.Column("diameter");
     serial_ = f.columns_serial;
   }
   if (cx_ < 0 || cy_ < 0 || cz_ < 0) {
@@ -182,12 +166,14 @@ void SoSampleSink::OnFrame(const DumpFrameView& f) {
                                  std::to_string(f.step));
     return;
   }
+  const int64_t row = SoRow(f);
+  if (row < 0) return;
   SoSample s;
   s.step = f.step;
   s.t = static_cast<double>(f.step) * dt_;
-  s.x = f.values[cx_];  // atom 0
-  s.y = f.values[cy_];
-  s.z = f.values[cz_];
+  s.x = f.At(row, cx_);
+  s.y = f.At(row, cy_);
+  s.z = f.At(row, cz_);
   if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z)) {
     status_ = Status::Corruption("dump frame at step " + std::to_string(f.step) + " has a non-finite position");
     return;
@@ -195,63 +181,153 @@ void SoSampleSink::OnFrame(const DumpFrameView& f) {
   samples_.push_back(s);
 }
 
+int64_t SoSampleSink::SoRow(const DumpFrameView& f) {
+  const std::string at = "dump frame at step " + std::to_string(f.step);
+  if (!id_ && f.atoms == 1) return 0;
+  if (!id_) {
+    // The largest particle of this (the first) frame is the SO from now on.
+    if (crad_ < 0) {
+      status_ = Status::Corruption(at + " has " + std::to_string(f.atoms) +
+                                   " atoms and no radius or diameter column to tell the SO by: give the SO's id");
+      return -1;
+    }
+    if (cid_ < 0) {
+      status_ = Status::Corruption(at + " has " + std::to_string(f.atoms) +
+                                   " atoms and no id column to follow the SO by");
+      return -1;
+    }
+    int64_t best = 0;
+    for (int64_t i = 1; i < f.atoms; ++i) {
+      if (f.At(i, crad_) > f.At(best, crad_)) best = i;
+    }
+    id_ = static_cast<int64_t>(std::llround(f.At(best, cid_)));
+    return best;
+  }
+  if (cid_ < 0) {
+    if (f.atoms == 1) return 0;
+    status_ = Status::Corruption(at + " has no id column to find atom " + std::to_string(*id_) + " by");
+    return -1;
+  }
+  for (int64_t i = 0; i < f.atoms; ++i) {
+    if (std::llround(f.At(i, cid_)) == *id_) return i;
+  }
+  status_ = Status::Corruption(at + " has no atom with id " + std::to_string(*id_));
+  return -1;
+}
+
 Result<std::vector<SoSample>> SoSampleSink::Take() {
   if (!status_.ok()) return status_;
   return std::move(samples_);
 }
 
-Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt) {
-  SoSampleSink sink(dt);
+Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt, SoSelector so) {
+  SoSampleSink sink(dt, so);
   if (Status s = ReadDump(text, sink); !s.ok()) return s;
   return sink.Take();
 }
 
-double SteadyWindowStart(double f, double duration) {
-  double skip = f > 0 ? 1.0 / f : 0.1 * duration;
-  return std::min(skip, 0.5 * duration);
+double StudentT95(int dof) { return gsl_cdf_tdist_Pinv(0.975, std::max(dof, 1)); }
+
+BlockRate MeanBlockRate(const std::vector<SoSample>& samples, double t0, double block_s, int blocks,
+                        int min_blocks_for_error) {
+  BlockRate out;
+  out.blocks = blocks;
+  out.t0 = t0;
+  out.t1 = t0 + blocks * block_s;
+  std::vector<double> rates;
+  rates.reserve(blocks);
+  double z_prev = ZAt(samples, t0);
+  for (int k = 1; k <= blocks; ++k) {
+    double z = ZAt(samples, t0 + k * block_s);
+    rates.push_back((z - z_prev) / block_s);
+    z_prev = z;
+  }
+  double mean = 0;
+  for (double r : rates) mean += r;
+  mean /= blocks;
+  out.rate = mean;
+  if (blocks >= std::max(min_blocks_for_error, 2)) {
+    double ss = 0;
+    for (double r : rates) ss += (r - mean) * (r - mean);
+    out.se = std::sqrt(ss / (blocks - 1) / blocks);
+    out.ci95 = StudentT95(blocks - 1) * *out.se;
+  }
+  return out;
 }
 
-Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, double f,
+Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, double f, BedBounds bounds,
                                          const std::optional<DriveStartMarker>& start,
-                                         const std::optional<DriveStopMarker>& stop) {
+                                         const std::optional<DriveStopMarker>& stop, const WindowRule& rule) {
   if (samples.size() < 3) {
     return Status::FailedPrecondition("trajectory", "the SO dump has " + std::to_string(samples.size()) +
                                                         " frames; at least 3 are needed");
   }
   const SoSample& first = samples.front();
   const SoSample& last = samples.back();
-  const double duration = last.t - first.t;
-  const double t0 = first.t + SteadyWindowStart(f, duration);
-  size_t i0 = 0;
-  while (i0 < samples.size() && samples[i0].t < t0 - 1e-12) ++i0;
-  const size_t i1 = samples.size();
-  if (i1 - i0 < 3) {
-    return Status::FailedPrecondition("trajectory", "fewer than 3 samples in the steady window");
-  }
-  LineFit line = FitLine(samples, i0, i1);
-  double amplitude = 0;
-  // The oscillation is fitted only over at least one whole period and 8 samples; over less, a
-  // sinusoid and a trend cannot be told apart (the fit swings wildly), so the plain line stands
-  // and the amplitude is reported as 0.
-  // Each sample stands for one sampling interval, so n samples cover n intervals: a window of
-  // samples 0.334 .. 0.667 s at 1 ms covers one whole 3 Hz period.
-  const double spacing = (samples[i1 - 1].t - samples[i0].t) / static_cast<double>(i1 - i0 - 1);
-  const double window = samples[i1 - 1].t - samples[i0].t + spacing;
-  if (f > 0 && i1 - i0 >= 8 && window * f >= 1.0 - 1e-9 &&
-      !FitLineAndOscillation(samples, i0, i1, f, &line, &amplitude)) {
-    line = FitLine(samples, i0, i1);
-    amplitude = 0;
-  }
+  if (!bounds.surface && start) bounds.surface = start->surface;
 
   api::RunResult r;
-  r.uz = line.slope;
-  r.uz_stderr = line.slope_stderr;
-  r.window_t0 = samples[i0].t;
-  r.window_t1 = last.t;
+  r.block_s = f > 0 ? 1.0 / f : rule.undriven_block_s;
+  r.block_kind = f > 0 ? "period" : "block";
+  r.window_t0 = first.t + rule.transient_blocks * r.block_s;
+
+  // The last moment the SO keeps its clearance from the surface and the floor.
+  double t_end = last.t;
+  r.window_end = "run_end";
+  const double reach = bounds.so_radius + rule.clearance_m;
+  for (const SoSample& p : samples) {
+    if (bounds.surface && p.z > *bounds.surface - reach) {
+      t_end = p.t;
+      r.window_end = "surface";
+      break;
+    }
+    if (bounds.floor && p.z < *bounds.floor + reach) {
+      t_end = p.t;
+      r.window_end = "floor";
+      break;
+    }
+  }
+  // Whole blocks only; the tolerance lets a window that ends on its last sample keep that block.
+  const double span = t_end - r.window_t0;
+  r.uz_blocks = span > 0 ? static_cast<int>(std::floor(span / r.block_s + 1e-6)) : 0;
+  if (r.uz_blocks >= 1) {
+    BlockRate b = MeanBlockRate(samples, r.window_t0, r.block_s, r.uz_blocks, rule.min_blocks_for_error);
+    r.uz = b.rate;
+    r.uz_stderr = b.se;
+    r.uz_ci95 = b.ci95;
+    r.window_t1 = b.t1;
+  } else {
+    r.window_t1 = r.window_t0;
+  }
+  const std::string& what = r.block_kind;
+  const std::string whole = std::to_string(r.uz_blocks) + " whole " + what + (r.uz_blocks == 1 ? "" : "s") +
+                            " of " + Num(r.block_s) + " s";
+  const std::string ended = r.window_end == "run_end" ? "the run ended"
+                            : "the SO came within " + Num(rule.clearance_m) + " m of the " +
+                                  (r.window_end == "surface" ? std::string("bed surface") : std::string("floor")) +
+                                  " at t = " + Num(t_end) + " s";
+  if (!r.uz_stderr) {
+    r.uz_stderr_note = "the window holds " + whole + "; an error needs at least " +
+                       std::to_string(rule.min_blocks_for_error) + " (" + ended + ")";
+  }
+  r.conclusive = r.uz_blocks >= rule.min_periods;
+  if (!r.conclusive) {
+    r.inconclusive_reason = "the steady window after the " + Num(rule.transient_blocks * r.block_s) +
+                            " s transient holds " + whole + ", fewer than " + std::to_string(rule.min_periods) +
+                            " (" + ended + ")";
+  }
+  if (f > 0 && r.uz_blocks >= 1) {
+    size_t i0 = 0;
+    while (i0 < samples.size() && samples[i0].t < r.window_t0 - 1e-9) ++i0;
+    size_t i1 = i0;
+    while (i1 < samples.size() && samples[i1].t <= r.window_t1 + 1e-9) ++i1;
+    r.z_osc_amplitude = OscillationAmplitude(samples, i0, i1, f).value_or(0.0);
+  }
+
   r.dz = last.z - first.z;
+  r.dz_rate = last.t > first.t ? r.dz / (last.t - first.t) : 0;
   r.x_drift = last.x - first.x;
   r.z0 = first.z;
-  r.z_osc_amplitude = amplitude;
   r.sim_time_s = last.t;
   r.steps = last.step;
   r.stop_reason = "duration";
@@ -264,6 +340,67 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   }
   if (start) r.grains = start->grains;
   return r;
+}
+
+RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log) {
+  RunInputs in;
+  in.f = drive.f;
+  if (drive.dt > 0) in.dt = drive.dt;
+  in.bounds.floor = drive.z_floor;
+  in.start = log.drive_start;
+  in.stop = log.drive_stop;
+  if (in.start) in.bounds.surface = in.start->surface;
+  return in;
+}
+
+Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const RunInputs& in, const WindowRule& rule) {
+  return AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule);
+}
+
+namespace {
+
+// v with `digits` significant digits, or, given a precision `step` (a power of ten), to that step.
+std::string Round(double v, int digits) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.*g", std::max(digits, 1), v);
+  return buf;
+}
+
+// v and err, err to 2 significant digits and v to the same decimal place.
+std::string WithError(double v, double err) {
+  if (!(err > 0)) return Round(v, 3) + " ± 0";
+  const int exponent = static_cast<int>(std::floor(std::log10(err))) - 1;  // place of err's 2nd digit
+  char vb[48], eb[48];
+  if (exponent < 0) {
+    std::snprintf(vb, sizeof vb, "%.*f", -exponent, v);
+    std::snprintf(eb, sizeof eb, "%.*f", -exponent, err);
+  } else {
+    const double q = std::pow(10.0, exponent);
+    std::snprintf(vb, sizeof vb, "%.0f", std::round(v / q) * q);
+    std::snprintf(eb, sizeof eb, "%.0f", std::round(err / q) * q);
+  }
+  return std::string(vb) + " ± " + eb;
+}
+
+}  // namespace
+
+std::string DescribeUz(const api::RunResult& r, bool with_units) {
+  const std::string units = with_units ? " m/s" : "";
+  const std::string noun = r.block_kind.empty() ? std::string("period") : r.block_kind;
+  const std::string what = std::to_string(r.uz_blocks) + " " + noun + (r.uz_blocks == 1 ? "" : "s");
+  std::string out;
+  if (r.analysis < api::kAnalysisVersion) {
+    out = "old estimator";
+    if (r.uz) out += " (" + Round(*r.uz, 1) + units + ")";
+    return out;
+  }
+  if (!r.conclusive) {
+    if (!r.uz) return "inconclusive (no whole " + noun + ")";
+    return "inconclusive (≈" + Round(*r.uz, 1) + units + ", " + what + ")";
+  }
+  if (!r.uz) return "inconclusive";
+  if (!r.uz_stderr) return "≈" + Round(*r.uz, 2) + units + ", no error: " + what;
+  return WithError(*r.uz, *r.uz_stderr) + units + ", " + what;
 }
 
 api::Trajectory Downsample(const std::vector<SoSample>& samples, size_t max_points) {

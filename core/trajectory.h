@@ -1,19 +1,35 @@
 // Trajectory analysis: from the SO's dump frames to the results of a run (SPEC.md "Results a run
-// produces").
+// produces", "Statistics").
 //
-// U_z is the least-squares slope of z(t) over a stated steady window [window_t0, window_t1]:
-//   window_t1 = the last sample (runs stop themselves at the surface or the floor, so the whole
-//               run lies before them);
-//   window_t0 = skips the start-up transient: one drive period 1/f when the drive vibrates
-//               (f > 0), else the first 10 % of the run; never more than half of the run.
-// When the drive vibrates (f > 0) the fit is z = c0 + U_z t + a sin(2 pi f t) + b cos(2 pi f t),
-// one least-squares fit of the trend and the oscillation at f together (a plain line through a
-// sinusoid is biased by ~ amplitude / (f T) when the window is short); z_osc_amplitude =
-// sqrt(a^2 + b^2). When f = 0, or the window is shorter than one period 1/f (a run shorter than
-// two periods, which the scales do not make), it is a plain line and the amplitude is 0. The standard error of
-// U_z is that fit's: sqrt(SSR / (n - p) * [(X'X)^-1]_slope), whatever remains in the residuals
-// (grain collisions) counted as scatter.
-// dz = z(end) - z(0), x_drift = x(end) - x(0), z0 = z(0).
+// U_z is the SO's mean vertical rate over whole blocks of the steady window (the paper's
+// U_z = <d(dz)/dt>). A block is one drive period 1/f when the drive vibrates; for modes with no
+// period (constant rotation only) it is WindowRule::undriven_block_s.
+//   The window starts after the start-up transient (WindowRule::transient_blocks blocks), and ends
+//   at the last whole block before the SO first comes within WindowRule::clearance_m of the bed
+//   surface or the floor (the gap between the SO's own surface and theirs; SPEC.md: closer, they
+//   change the motion) or before the run ends, whichever is first: it always covers whole blocks.
+//   z is read once per block, at the window's phase: z_k = z(t0 + k T), k = 0..n (linearly
+//   interpolated between samples). The block rates r_k = (z_{k+1} - z_k) / T hold no trace of
+//   the oscillation at f, 2f, 3f, ... (every z_k is taken at the same phase), and
+//   U_z = mean(r_k) = (z_n - z_0) / (n T).
+//   Its standard error is the scatter of the block rates, sd(r_k) / sqrt(n) (batch means with whole
+//   periods as blocks): it comes from the data's own correlation, not from per-sample residuals
+//   (consecutive samples are correlated ~0.99). With fewer than WindowRule::min_blocks_for_error
+//   blocks there is no error (uz_stderr absent, uz_stderr_note says why); the 95 % interval is
+//   +- t(0.975, n - 1) * stderr.
+// Why this estimator and not a regression on the samples (measured, see trajectory_test.cc and
+// tests/bench/bench_uz_estimator.cc): on trajectories with a drift, harmonics at f, 2f, 3f and
+// correlated noise, a line + sinusoid at f is biased by the unmodelled harmonics over short
+// windows, and any per-sample least-squares error is ~10x too small; the per-block rates are
+// unbiased by construction and their scatter gives intervals that cover the true drift at the
+// stated rate. On real trajectories the SO's deviation from its mean drift wanders from period to
+// period like a random walk, for which the block rates are independent and their mean is the best
+// estimate of the drift.
+// A run is conclusive when its window holds at least WindowRule::min_periods whole blocks;
+// otherwise it is kept and shown, marked inconclusive with the reason, and the fits leave it out.
+// z_osc_amplitude: the amplitude at f of a least-squares fit of a line and harmonics f, 2f, 3f
+// over the window (0 when the window holds no whole period or the mode does not vibrate).
+// dz = z(end) - z(0) and dz_rate = dz / (t_end - t_0) over the whole run; x_drift = x(end) - x(0).
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_TRAJECTORY_H_
@@ -27,6 +43,7 @@
 #include "core/api.h"
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
+#include "core/scale.h"
 #include "core/status.h"
 
 namespace sandswim {
@@ -37,48 +54,117 @@ struct SoSample {
   double x = 0, y = 0, z = 0;
 };
 
-// Drive facts a rendered drive deck states (its `timestep` and `variable f/A equal` lines).
+// Drive facts a rendered drive deck states (its `timestep`, `variable f/A equal` and floor wall
+// `zplane` lines).
 struct DriveInfo {
   double dt = 0;  // s
   double f = 0;   // Hz; 0 when the mode does not vibrate
   double A = 0;   // m
+  std::optional<double> z_floor;  // m, the floor wall's height, when the deck has one
 };
 // InvalidArgument naming the missing line when the deck does not state dt.
 Result<DriveInfo> ReadDriveInfo(std::string_view deck);
 
-// The SO's samples from dump frames (columns x, y, z; the SO is atom 0 of each frame, the only
-// atom of the SO dump). Corruption when a column is missing or a frame is empty; steps must rise.
-Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt);
+// How the steady window is chosen. The defaults are the service's; `sandswim analyze` can change
+// them. Each number is a stated choice, not fitted to any result:
+struct WindowRule {
+  double transient_blocks = 1;     // blocks skipped at the start (the paper's start-up transient)
+  double undriven_block_s = 0.25;  // s, the block of a mode with no period (constant rotation only)
+  double clearance_m = kMaterials.d_so;  // m of grains kept between the SO and the surface/floor
+  int min_periods = 2;             // fewer whole blocks in the window: inconclusive
+  int min_blocks_for_error = 3;    // fewer blocks: no standard error
+};
+
+// Where the bed's boundaries are, as far as the caller knows (absent: not checked).
+struct BedBounds {
+  std::optional<double> surface;  // m, the bed surface (highest grain centre at the drive's start)
+  std::optional<double> floor;    // m, the floor wall
+  double so_radius = kMaterials.d_so / 2;
+};
+
+// The mean rate over whole blocks of [t0, t1], see above. No samples are dropped or smoothed.
+struct BlockRate {
+  double rate = 0;                  // m/s
+  std::optional<double> se;         // m/s, standard error
+  std::optional<double> ci95;       // m/s, half-width of the 95 % interval
+  int blocks = 0;
+  double t0 = 0, t1 = 0;            // s, the whole blocks used: t1 = t0 + blocks * block_s
+};
+// REQUIRES: samples in ascending t covering [t0, t0 + blocks * block_s]; blocks >= 1.
+BlockRate MeanBlockRate(const std::vector<SoSample>& samples, double t0, double block_s, int blocks,
+                        int min_blocks_for_error = WindowRule{}.min_blocks_for_error);
+
+// Two-sided 95 % quantile of Student's t with `dof` degrees of freedom (dof >= 1).
+double StudentT95(int dof);
+
+// Which atom of a dump is the SO: the one with this `id` (column "id"); else, when frames hold one
+// atom (the service's SO dump), that atom; else the largest particle of the first frame (column
+// "radius" or "diameter"), followed by its id.
+struct SoSelector {
+  std::optional<int64_t> id;
+};
+
+// The SO's samples from dump frames (columns x, y, z). Corruption when a column is missing, a
+// frame is empty or lacks the SO, or the SO cannot be told apart; steps must rise.
+Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt,
+                                                SoSelector so = {});
 
 // The same, frame by frame as a DumpReader hands them over (DumpReader::Feed(chunk, sink)): no
 // DumpFrame is made. Frames after the first problem are ignored; Take() reports it.
 class SoSampleSink final : public DumpFrameSink {
  public:
-  explicit SoSampleSink(double dt) : dt_(dt) {}
+  explicit SoSampleSink(double dt, SoSelector so = {}) : dt_(dt), id_(so.id) {}
   void OnFrame(const DumpFrameView& frame) override;
   // The samples so far, or the first problem (the Status SamplesFromFrames would return).
   Result<std::vector<SoSample>> Take();
 
  private:
+  // The row of the SO in `f`, or -1 with status_ set.
+  int64_t SoRow(const DumpFrameView& f);
+
   double dt_;
+  std::optional<int64_t> id_;  // the SO's id, once known (given, or found as the largest)
   uint64_t serial_ = 0;  // columns_serial the indices below were found for (0: none)
-  int cx_ = -1, cy_ = -1, cz_ = -1;
+  int cx_ = -1, cy_ = -1, cz_ = -1, cid_ = -1, crad_ = -1;
   std::vector<SoSample> samples_;
   Status status_;
 };
 
 // SamplesFromFrames(ReadDump(text)) without the frames: a dump Corruption, or a frame's problem.
-Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt);
+Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt, SoSelector so = {});
 
-// Where the steady window starts for a run of `duration` seconds (see above).
-double SteadyWindowStart(double f, double duration);
-
-// REQUIRES: samples in ascending t. FailedPrecondition when fewer than 3 samples lie in the window.
-// `start`/`stop` (from the log) fill grains, the stop reason and flags; without `stop` the
-// reason is "duration" and steps are the last sample's.
-Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, double f,
+// REQUIRES: samples in ascending t. FailedPrecondition when there are fewer than 3 samples.
+// `f` is the drive frequency (0: no period). `start`/`stop` (from the log) fill grains, the stop
+// reason and flags, and the bed surface when `bounds` has none; without `stop` the reason is
+// "duration" and steps are the last sample's.
+Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, double f, BedBounds bounds,
                                          const std::optional<DriveStartMarker>& start,
-                                         const std::optional<DriveStopMarker>& stop);
+                                         const std::optional<DriveStopMarker>& stop,
+                                         const WindowRule& rule = {});
+
+// What the analysis of a run reads besides its dump: the drive (from the run's deck), the bed's
+// surface and the engine's stop (from its log: the drive start and stop markers), the floor (from
+// the deck). The worker and `sandswim analyze` both build it here, so an offline analysis of a
+// run's files gives the worker's numbers.
+struct RunInputs {
+  double f = 0;               // Hz, 0: no period
+  double dt = kMaterials.dt;  // s per step
+  BedBounds bounds;
+  std::optional<DriveStartMarker> start;
+  std::optional<DriveStopMarker> stop;
+};
+RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log);
+// AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule).
+Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const RunInputs& in,
+                                  const WindowRule& rule = {});
+
+// U_z as every surface writes it (CLI, report, dashboard), so that no surface shows more than the
+// data holds: a value with its error is rounded to the error's second significant digit
+// ("0.0467 ± 0.0031 m/s, 4 periods"); a value without an error gets two significant digits and
+// says why ("≈0.047 m/s, no error: 2 periods"); an inconclusive one one digit and the word
+// ("inconclusive (≈0.05 m/s, 1 period)"); none at all, "inconclusive (no whole period)". A result
+// of an older analysis says so. `with_units` = false leaves out " m/s" (for table columns).
+std::string DescribeUz(const api::RunResult& r, bool with_units = true);
 
 // At most `max_points` samples, evenly spaced in index, always keeping the first and the last.
 api::Trajectory Downsample(const std::vector<SoSample>& samples, size_t max_points = 2000);

@@ -9,6 +9,7 @@
 
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
+#include "tests/synthetic_trajectory.h"
 
 namespace sandswim {
 namespace {
@@ -36,78 +37,191 @@ std::vector<SoSample> Synthetic(double duration, double z0, double u, double amp
   return s;
 }
 
-TEST(TrajectoryTest, RecoversSlopeAndAmplitudeOfASyntheticRun) {
-  // A start-up transient in the first period that the window must skip.
+const BedBounds kNoBounds{};
+
+TEST(TrajectoryTest, RecoversTheDriftOfANoiselessRunExactly) {
+  // A start-up transient in the first period that the window must skip; harmonics at f and 2f.
   auto s = Synthetic(4.0, -0.1, 0.02, 0.004, 3.0, 0.7, 0.001);
   for (auto& p : s) {
+    p.z += 0.009 * std::sin(2 * kPi * 6.0 * p.t + 0.3);
     if (p.t < 1.0 / 3.0) p.z += 0.05 * (1.0 / 3.0 - p.t);
   }
-  auto r = AnalyzeTrajectory(s, 3.0, std::nullopt, std::nullopt);
+  auto r = AnalyzeTrajectory(s, 3.0, kNoBounds, std::nullopt, std::nullopt);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_NEAR(r->window_t0, 1.0 / 3.0, 1e-3);
-  EXPECT_DOUBLE_EQ(r->window_t1, 4.0);
-  EXPECT_NEAR(r->uz, 0.02, 2e-5);
-  EXPECT_GT(r->uz_stderr, 0.0);
-  EXPECT_LT(r->uz_stderr, 1e-4);
+  EXPECT_NEAR(r->window_t0, 1.0 / 3.0, 1e-12);
+  EXPECT_EQ(r->uz_blocks, 11);  // [1/3, 4] holds 11 whole periods
+  EXPECT_NEAR(r->window_t1, 4.0, 1e-9);
+  EXPECT_EQ(r->window_end, "run_end");
+  ASSERT_TRUE(r->uz);
+  EXPECT_NEAR(*r->uz, 0.02, 1e-5);  // linear interpolation between 1 ms samples: 1e-4 relative
+  ASSERT_TRUE(r->uz_stderr);
+  EXPECT_LT(*r->uz_stderr, 1e-5);
+  EXPECT_NEAR(*r->uz_ci95, StudentT95(10) * *r->uz_stderr, 1e-15);
+  EXPECT_TRUE(r->conclusive);
+  EXPECT_EQ(r->inconclusive_reason, "");
   EXPECT_NEAR(r->z_osc_amplitude, 0.004, 2e-5);
   EXPECT_NEAR(r->dz, s.back().z - s.front().z, 1e-15);
+  EXPECT_NEAR(r->dz_rate, r->dz / 4.0, 1e-15);
   EXPECT_NEAR(r->x_drift, 0.004, 1e-12);
   EXPECT_DOUBLE_EQ(r->z0, s.front().z);
   EXPECT_EQ(r->steps, 400000);
   EXPECT_EQ(r->stop_reason, "duration");
+  EXPECT_EQ(r->analysis, api::kAnalysisVersion);
 }
 
-TEST(TrajectoryTest, ShortWindowAmplitudeNotFittedPlainSlope) {
-  // 0.5 s at 1 Hz: window [0.25, 0.5] is a quarter period; the line fit stands.
-  auto s = Synthetic(0.5, 0.0, 0.1, 0.0, 1.0, 0.0, 0.0);
-  auto r = AnalyzeTrajectory(s, 1.0, std::nullopt, std::nullopt);
-  ASSERT_TRUE(r.ok());
-  EXPECT_NEAR(r->uz, 0.1, 1e-12);
-  EXPECT_DOUBLE_EQ(r->z_osc_amplitude, 0.0);
+// A window holding fewer than 3 whole periods has no error; fewer than 2 is inconclusive. The
+// block rates are exact for any window length: no harmonic leaks in.
+TEST(TrajectoryTest, FewPeriodsGiveNoErrorAndFewerAreInconclusive) {
+  for (int periods : {0, 1, 2, 3}) {
+    auto s = Synthetic((1 + periods + 0.5) / 3.0, 0.0, -0.05, 0.01, 3.0, 0.4, 0.0);
+    auto r = AnalyzeTrajectory(s, 3.0, kNoBounds, std::nullopt, std::nullopt);
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->uz_blocks, periods);
+    EXPECT_EQ(r->conclusive, periods >= 2) << periods;
+    EXPECT_EQ(r->uz.has_value(), periods >= 1);
+    if (r->uz) EXPECT_NEAR(*r->uz, -0.05, 1e-6);
+    EXPECT_EQ(r->uz_stderr.has_value(), periods >= 3);
+    EXPECT_EQ(r->uz_ci95.has_value(), periods >= 3);
+    if (periods < 3) EXPECT_NE(r->uz_stderr_note.find("at least 3"), std::string::npos) << r->uz_stderr_note;
+    if (periods < 2) EXPECT_NE(r->inconclusive_reason.find("fewer than 2"), std::string::npos);
+  }
 }
 
-TEST(TrajectoryTest, SinkingAndNoOscillation) {
-  auto s = Synthetic(1.0, 0.0, -0.05, 0.0, 5.0, 0.0, 0.0);
-  auto r = AnalyzeTrajectory(s, 5.0, std::nullopt, std::nullopt);
-  ASSERT_TRUE(r.ok());
-  EXPECT_NEAR(r->uz, -0.05, 1e-12);
-  EXPECT_NEAR(r->uz_stderr, 0.0, 1e-12);
-  EXPECT_NEAR(r->z_osc_amplitude, 0.0, 1e-12);
-}
-
-TEST(TrajectoryTest, ConstantRotationSkipsTenPercent) {
+TEST(TrajectoryTest, ConstantRotationUsesUndrivenBlocks) {
   auto s = Synthetic(2.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0);
-  auto r = AnalyzeTrajectory(s, 0.0, std::nullopt, std::nullopt);
+  auto r = AnalyzeTrajectory(s, 0.0, kNoBounds, std::nullopt, std::nullopt);
   ASSERT_TRUE(r.ok());
-  EXPECT_NEAR(r->window_t0, 0.2, 1e-9);
+  WindowRule rule;
+  EXPECT_DOUBLE_EQ(r->block_s, rule.undriven_block_s);
+  EXPECT_NEAR(r->window_t0, rule.undriven_block_s, 1e-12);
+  EXPECT_EQ(r->uz_blocks, 7);
+  EXPECT_NEAR(*r->uz, 0.01, 1e-12);
   EXPECT_DOUBLE_EQ(r->z_osc_amplitude, 0.0);
 }
 
-TEST(TrajectoryTest, ShortRunWindowStartsAtMostHalfway) {
-  EXPECT_DOUBLE_EQ(SteadyWindowStart(3.0, 0.3), 0.15);
-  EXPECT_DOUBLE_EQ(SteadyWindowStart(3.0, 4.0), 1.0 / 3.0);
-  EXPECT_DOUBLE_EQ(SteadyWindowStart(0.0, 4.0), 0.4);
+// The window ends at the last whole period before the SO first comes within the clearance of
+// the surface or the floor; a run that gets there within two periods is inconclusive.
+TEST(TrajectoryTest, WindowEndsBeforeTheSurfaceAndTheFloor) {
+  const double r_so = kMaterials.d_so / 2, clear = WindowRule{}.clearance_m;
+  // Rising at 0.1 m/s from 0: reaches surface - r - clearance at t = 0.2 / 0.1 = 2 s.
+  auto s = Synthetic(4.0, 0.0, 0.1, 0.002, 3.0, 0.0, 0.0);
+  BedBounds bounds;
+  bounds.surface = 0.2 + r_so + clear;
+  auto r = AnalyzeTrajectory(s, 3.0, bounds, std::nullopt, std::nullopt);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->window_end, "surface");
+  EXPECT_EQ(r->uz_blocks, 5);  // [1/3, 2] holds 5 whole periods
+  EXPECT_TRUE(r->conclusive);
+  EXPECT_LE(r->window_t1, 2.0 + 1e-9);
+  EXPECT_NEAR(*r->uz, 0.1, 1e-4);
+  // The surface from the drive-start marker when the bounds have none.
+  DriveStartMarker start{5000, 0.0, *bounds.surface};
+  auto r2 = AnalyzeTrajectory(s, 3.0, kNoBounds, start, std::nullopt);
+  EXPECT_EQ(r2->window_end, "surface");
+  EXPECT_EQ(r2->uz_blocks, 5);
+
+  // Sinking at 0.1 m/s: reaches the floor's clearance at 0.5 s, before two whole periods.
+  auto down = Synthetic(1.0, 0.0, -0.1, 0.002, 3.0, 0.0, 0.0);
+  BedBounds floor;
+  floor.floor = -0.05 - r_so - clear;
+  DriveStopMarker stop{"floor", 100000, 1.0, -0.1};
+  auto r3 = AnalyzeTrajectory(down, 3.0, floor, std::nullopt, stop);
+  ASSERT_TRUE(r3.ok());
+  EXPECT_EQ(r3->window_end, "floor");
+  EXPECT_EQ(r3->uz_blocks, 0);
+  EXPECT_FALSE(r3->uz);
+  EXPECT_FALSE(r3->conclusive);
+  EXPECT_NE(r3->inconclusive_reason.find("floor"), std::string::npos) << r3->inconclusive_reason;
+  EXPECT_TRUE(r3->near_floor);
+}
+
+// The estimator against a known answer: a drift of 0.05 m/s with harmonics at f, 2f and 3f (2f
+// dominating) and correlated noise of the size measured in real smoke runs (each period's advance
+// varies by ~2 mm: AR(1) velocity noise, lag-1 autocorrelation 0.99 per 1 ms sample; plus a
+// stationary AR(1) jitter of 0.5 mm in z). Over 2, 4 and 10 periods after a one-period transient,
+// 1,000 seeds each: the mean error is under 2 % of the drift, and the stated 95 % interval holds
+// the true drift 90-98 % of the time.
+TEST(TrajectoryTest, UnbiasedWithHonestIntervalsOnSyntheticTrajectories) {
+  testing::SyntheticSo so;
+  so.drift = 0.05;
+  so.z_noise_sd = 0.0005;
+  so.z_noise_phi = 0.99;
+  so.v_noise_sd = 0.008;
+  so.v_noise_phi = 0.99;
+  constexpr int kSeeds = 1000;
+  for (int periods : {2, 4, 10}) {
+    so.duration = (periods + 1) / so.f + 1e-3;  // runs end on the step after the last whole period
+    double sum_err = 0, sum_err2 = 0;
+    int covered = 0, with_interval = 0;
+    for (int seed = 1; seed <= kSeeds; ++seed) {
+      auto s = testing::MakeSyntheticSo(so, static_cast<uint64_t>(seed) * 7919 + periods);
+      auto r = AnalyzeTrajectory(s, so.f, kNoBounds, std::nullopt, std::nullopt);
+      ASSERT_TRUE(r.ok());
+      ASSERT_EQ(r->uz_blocks, periods);
+      ASSERT_TRUE(r->uz);
+      const double err = *r->uz - so.drift;
+      sum_err += err;
+      sum_err2 += err * err;
+      ASSERT_EQ(r->uz_ci95.has_value(), periods >= 3);
+      if (r->uz_ci95) {
+        ++with_interval;
+        if (std::fabs(err) <= *r->uz_ci95) ++covered;
+      }
+    }
+    const double bias = sum_err / kSeeds, rms = std::sqrt(sum_err2 / kSeeds);
+    // The bias must be resolvable at 2 %: the Monte Carlo error of the mean is rms / sqrt(seeds).
+    ASSERT_LT(rms / std::sqrt(kSeeds), 0.005 * so.drift) << periods << " periods: too noisy to judge the bias";
+    EXPECT_LT(std::fabs(bias), 0.02 * so.drift) << periods << " periods";
+    if (with_interval > 0) {
+      const double coverage = static_cast<double>(covered) / with_interval;
+      EXPECT_GE(coverage, 0.90) << periods << " periods";
+      EXPECT_LE(coverage, 0.98) << periods << " periods";
+      std::printf("%2d periods: bias %+.2f %%, rms %.1f %%, 95 %% coverage %.1f %%\n", periods, 100 * bias / so.drift,
+                  100 * rms / so.drift, 100 * coverage);
+    } else {
+      std::printf("%2d periods: bias %+.2f %%, rms %.1f %% (no interval)\n", periods, 100 * bias / so.drift,
+                  100 * rms / so.drift);
+    }
+  }
+}
+
+// With a jitter that does not accumulate (stationary noise in z), consecutive block rates are
+// anticorrelated and their scatter overstates the error: the interval is conservative, never too
+// narrow.
+TEST(TrajectoryTest, IntervalIsConservativeForStationaryJitter) {
+  testing::SyntheticSo so;
+  so.z_noise_sd = 0.002;
+  so.z_noise_phi = 0.99;
+  so.v_noise_sd = 0;
+  so.duration = 5 / so.f + 1e-3;
+  int covered = 0;
+  for (int seed = 1; seed <= 500; ++seed) {
+    auto r = AnalyzeTrajectory(testing::MakeSyntheticSo(so, seed), so.f, kNoBounds, std::nullopt, std::nullopt);
+    ASSERT_TRUE(r.ok() && r->uz_ci95);
+    if (std::fabs(*r->uz - so.drift) <= *r->uz_ci95) ++covered;
+  }
+  EXPECT_GE(covered, 0.95 * 500);
 }
 
 TEST(TrajectoryTest, StopMarkerSetsFlags) {
   auto s = Synthetic(0.5, 0.0, 0.3, 0.0, 3.0, 0.0, 0.0);
   DriveStopMarker stop{"surface", 50000, 0.5, 0.15};
-  DriveStartMarker start{5024, 0.0, 0.2};
-  auto r = AnalyzeTrajectory(s, 3.0, start, stop);
+  DriveStartMarker start{5024, 0.0, 1.0};
+  auto r = AnalyzeTrajectory(s, 3.0, kNoBounds, start, stop);
   ASSERT_TRUE(r.ok());
   EXPECT_TRUE(r->broke_surface);
   EXPECT_FALSE(r->near_floor);
   EXPECT_EQ(r->stop_reason, "surface");
   EXPECT_EQ(r->grains, 5024);
   stop.reason = "floor";
-  r = AnalyzeTrajectory(s, 3.0, start, stop);
+  r = AnalyzeTrajectory(s, 3.0, kNoBounds, start, stop);
   EXPECT_TRUE(r->near_floor);
   EXPECT_FALSE(r->broke_surface);
 }
 
 TEST(TrajectoryTest, TooFewSamplesIsRefused) {
   auto s = Synthetic(0.001, 0.0, 0.3, 0.0, 3.0, 0.0, 0.0);
-  auto r = AnalyzeTrajectory(s, 3.0, std::nullopt, std::nullopt);
+  auto r = AnalyzeTrajectory(s, 3.0, kNoBounds, std::nullopt, std::nullopt);
   EXPECT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), StatusCode::kFailedPrecondition);
 }
@@ -129,36 +243,10 @@ TEST(TrajectoryTest, ReadDriveInfoFromARealDeck) {
   EXPECT_DOUBLE_EQ(info->dt, 1e-5);
   EXPECT_DOUBLE_EQ(info->f, 3.0);
   EXPECT_DOUBLE_EQ(info->A, 0.03);
+  ASSERT_TRUE(info->z_floor);
+  EXPECT_DOUBLE_EQ(*info->z_floor, -0.25);
   EXPECT_FALSE(ReadDriveInfo("units si\n").ok());
-}
-
-// The real smoke runs: Omega = -80 rose, Omega = +80 sank (signs read from the first and last
-// frames independently of the fit).
-TEST(TrajectoryTest, RealFixturesRiseAndSink) {
-  for (const char* name : {"so_omega_minus80.dump", "so_omega_plus80.dump"}) {
-    auto frames = ReadDump(Fixture(name));
-    ASSERT_TRUE(frames.ok());
-    const DumpFrame& a = frames->front();
-    const DumpFrame& b = frames->back();
-    const double dz_frames = b.At(0, b.Column("z")) - a.At(0, a.Column("z"));
-    auto samples = SamplesFromFrames(*frames, 1e-5);
-    ASSERT_TRUE(samples.ok());
-    auto r = AnalyzeTrajectory(*samples, 3.0, std::nullopt, std::nullopt);
-    ASSERT_TRUE(r.ok());
-    EXPECT_TRUE(std::isfinite(r->uz));
-    EXPECT_DOUBLE_EQ(r->dz, dz_frames);
-    EXPECT_DOUBLE_EQ(r->window_t1, 0.3);
-    EXPECT_NEAR(r->window_t0, 0.15, 1e-9);
-    if (std::string(name) == "so_omega_minus80.dump") {
-      EXPECT_GT(dz_frames, 0.01) << "Omega = -80 rose in this run";
-      EXPECT_GT(r->uz, 0.0);
-    } else {
-      EXPECT_LT(dz_frames, -0.01) << "Omega = +80 sank in this run";
-      EXPECT_LT(r->uz, 0.0);
-    }
-    // 0.15 s of window is less than one period at 3 Hz: no oscillation fit.
-    EXPECT_DOUBLE_EQ(r->z_osc_amplitude, 0.0);
-  }
+  EXPECT_FALSE(ReadDriveInfo("timestep 1e-5\n")->z_floor);
 }
 
 TEST(TrajectoryTest, SamplesNeedRisingStepsAndColumns) {

@@ -111,6 +111,8 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
       p.state = row.state;
       if (row.state == "done" && row.result) {
         p.uz = row.result->result.uz;
+        // Only conclusive rates are compared: an inconclusive one is too short to judge a change by.
+        p.inconclusive = !row.result->result.conclusive || !p.uz;
         p.reused = row.result->created_at < info.created_at;
       }
       report.rows.push_back(std::move(p));
@@ -124,7 +126,8 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
 void to_json(json& j, const DriftPoint& p) {
   j = {{"point", p.point}, {"run_id", p.run_id},          {"key", p.key},
        {"state", p.state},              {"uz", OrNull(p.uz)},          {"uz_previous", OrNull(p.uz_previous)},
-       {"difference", OrNull(p.difference)}, {"drifted", p.drifted}, {"reused", p.reused}};
+       {"difference", OrNull(p.difference)}, {"drifted", p.drifted}, {"reused", p.reused},
+       {"inconclusive", p.inconclusive}};
 }
 
 void from_json(const json& j, DriftPoint& p) {
@@ -137,6 +140,7 @@ void from_json(const json& j, DriftPoint& p) {
   p.difference = OptField<double>(j, "difference");
   p.drifted = j.value("drifted", false);
   p.reused = j.value("reused", false);
+  p.inconclusive = j.value("inconclusive", false);
 }
 
 void to_json(json& j, const DriftReport& r) {
@@ -152,7 +156,7 @@ void to_json(json& j, const DriftReport& r) {
        {"points", r.points},
        {"reused", r.reused},
        {"ran", r.ran},
-       {"missing", r.missing},
+       {"missing", r.missing}, {"inconclusive", r.inconclusive},
        {"compared", r.compared},
        {"drifted", r.drifted},
        {"summary", r.summary},
@@ -173,6 +177,7 @@ void from_json(const json& j, DriftReport& r) {
   r.reused = j.value("reused", int64_t{0});
   r.ran = j.value("ran", int64_t{0});
   r.missing = j.value("missing", int64_t{0});
+  r.inconclusive = j.value("inconclusive", int64_t{0});
   r.compared = j.value("compared", int64_t{0});
   r.drifted = j.value("drifted", int64_t{0});
   r.summary = j.value("summary", "");
@@ -186,18 +191,22 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     for (const DriftPoint& p : previous->rows) before[PointIdentity(p.point)] = &p;
   }
   report.points = static_cast<int64_t>(report.rows.size());
-  report.reused = report.ran = report.missing = report.compared = report.drifted = 0;
+  report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
   for (DriftPoint& p : report.rows) {
     p.uz_previous.reset();
     p.difference.reset();
     p.drifted = false;
-    if (!p.uz) {
+    if (!p.uz && !p.inconclusive) {
       ++report.missing;
       continue;
     }
     ++(p.reused ? report.reused : report.ran);
+    if (p.inconclusive) {
+      ++report.inconclusive;
+      continue;
+    }
     auto it = before.find(PointIdentity(p.point));
-    if (it == before.end() || !it->second->uz) continue;
+    if (it == before.end() || !it->second->uz || it->second->inconclusive) continue;
     p.uz_previous = it->second->uz;
     p.difference = *p.uz - *p.uz_previous;
     p.drifted = std::fabs(*p.difference) > report.tolerance_mps;
@@ -215,6 +224,7 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
                      std::to_string(report.reused) + " reused, " + std::to_string(report.ran) + " run, " +
                      std::to_string(report.drifted) + " drifted beyond " + Tolerance(report.tolerance_mps) +
                      " m/s";
+  if (report.inconclusive > 0) line += ", " + std::to_string(report.inconclusive) + " inconclusive (not compared)";
   if (report.missing > 0) line += ", " + std::to_string(report.missing) + " failed or cancelled";
   if (previous == nullptr) line += "; first report, nothing to compare";
   report.summary = line;

@@ -42,8 +42,10 @@ struct DriftPoint {
   std::optional<double> difference;  // uz - uz_previous, when both exist
   bool drifted = false;              // |difference| > tolerance
   bool reused = false;               // the result predates this campaign run
+  bool inconclusive = false;         // done, but too few whole periods: never compared
 };
-// {"point":{...},"run_id","key","state","uz","uz_previous","difference","drifted","reused"}
+// {"point":{...},"run_id","key","state","uz","uz_previous","difference","drifted","reused",
+//  "inconclusive"}
 // (absent values are null).
 void to_json(nlohmann::json& j, const DriftPoint& p);
 void from_json(const nlohmann::json& j, DriftPoint& p);
@@ -58,7 +60,7 @@ struct DriftReport {
   std::optional<int64_t> previous_campaign_run_id;
   double tolerance_mps = 0;
   double created_at = 0;
-  int64_t points = 0, reused = 0, ran = 0, missing = 0, compared = 0, drifted = 0;
+  int64_t points = 0, reused = 0, ran = 0, missing = 0, compared = 0, drifted = 0, inconclusive = 0;
   std::vector<DriftPoint> rows;             // the campaign run's distinct runs, in sweep order
   std::string summary;                      // the one-line summary the daemon logs
 };

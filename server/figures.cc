@@ -296,29 +296,37 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
   const std::string& param = fits.choice.param;
   Plot plot;
   plot.title = title;
-  plot.y_label = "U#dz#u (m/s)";
+  plot.y_label = "U#dz#u (m/s), bars: 95 % interval";
   plot.x_label = param == "A" ? "A (m)" : param == "f" ? "f (Hz)" : "Ω (rad/s)";
   auto x_of = [&](const Point& p) { return param == "A" ? p.A : param == "f" ? p.f : p.Omega; };
   for (const char* branch : {"rising", "sinking"}) {
     Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")", {}, {}, {}, true, false};
     for (const SweepSample& sample : samples) {
       bool rising = sample.point.Omega < 0;
-      if (sample.point.Omega == 0 || rising != (std::string(branch) == "rising")) continue;
+      if (!sample.conclusive || sample.point.Omega == 0 || rising != (std::string(branch) == "rising")) continue;
       s.x.push_back(x_of(sample.point));
       s.y.push_back(sample.uz);
-      s.y_err.push_back(sample.uz_stderr);
+      s.y_err.push_back(sample.uz_ci95);
     }
     if (!s.x.empty()) plot.series.push_back(std::move(s));
   }
   // Points of neither branch (Omega = 0, or other modes): one series of their own.
   Series other{"Ω = 0 or other drive", {}, {}, {}, true, false};
   for (const SweepSample& sample : samples) {
-    if (sample.point.Omega != 0) continue;
+    if (!sample.conclusive || sample.point.Omega != 0) continue;
     other.x.push_back(x_of(sample.point));
     other.y.push_back(sample.uz);
-    other.y_err.push_back(sample.uz_stderr);
+    other.y_err.push_back(sample.uz_ci95);
   }
   if (!other.x.empty()) plot.series.push_back(std::move(other));
+  // Inconclusive runs (too few whole periods): drawn without error bars, not fitted.
+  Series inconclusive{"inconclusive (not fitted)", {}, {}, {}, true, false};
+  for (const SweepSample& sample : samples) {
+    if (sample.conclusive) continue;
+    inconclusive.x.push_back(x_of(sample.point));
+    inconclusive.y.push_back(sample.uz);
+  }
+  if (!inconclusive.x.empty()) plot.series.push_back(std::move(inconclusive));
 
   for (const BranchFit& b : fits.branches) {
     if (b.saturation) {
@@ -345,8 +353,9 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
       const FastestRise& fr = *b.fastest_rise;
       double lo = 0, hi = 0;
       for (const SweepSample& s : samples) {
-        lo = std::min(lo, s.uz - s.uz_stderr);
-        hi = std::max(hi, s.uz + s.uz_stderr);
+        if (!s.conclusive) continue;
+        lo = std::min(lo, s.uz - s.uz_ci95);
+        hi = std::max(hi, s.uz + s.uz_ci95);
       }
       Series mark{"f#dc#u = " + Num(fr.f_c, 3) + " Hz" + (fr.at_edge ? " (at the sweep's edge)" : ""),
                   {fr.f_c, fr.f_c}, {lo, hi}, {}, false, true};

@@ -482,14 +482,18 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
           "INSERT OR REPLACE INTO results (run_id, uz, uz_stderr, window_t0, window_t1, dz, "
           "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
           "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at, "
-          "lease_to_start_s) "
-          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+          "lease_to_start_s, uz_ci95, uz_stderr_note, uz_blocks, block_s, window_end, conclusive, "
+          "inconclusive_reason, dz_rate, analysis, block_kind) "
+          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
       st.Bind(1, id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
       st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
       st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
       st.Bind(14, r.grains).Bind(15, r.z0).Bind(16, e.engine_version).Bind(17, e.host);
       st.Bind(18, e.ranks).Bind(19, e.launcher).Bind(20, e.wall_s).Bind(21, e.cpu_s);
       st.Bind(22, key.Text(0)).Bind(23, now).Bind(24, e.lease_to_start_s);
+      st.Bind(25, r.uz_ci95).Bind(26, r.uz_stderr_note).Bind(27, r.uz_blocks).Bind(28, r.block_s);
+      st.Bind(29, r.window_end).Bind(30, r.conclusive).Bind(31, r.inconclusive_reason).Bind(32, r.dz_rate);
+      st.Bind(33, r.analysis).Bind(34, r.block_kind);
       SANDSWIM_RETURN_IF_ERROR(st.Run());
     }
     if (c.trajectory) {

@@ -229,7 +229,7 @@ TEST_F(LeaseQueueTest, CompletionIsIdempotentPerToken) {
   EXPECT_EQ(Rows("events"), events);
   auto run = store_->GetRun(g.id);
   EXPECT_EQ(run->summary.state, "done");
-  EXPECT_DOUBLE_EQ(run->result->result.uz, -0.01);
+  EXPECT_EQ(run->result->result.uz, -0.01);
   ASSERT_TRUE(run->trajectory.has_value());
   EXPECT_EQ(run->trajectory->z.size(), 2u);
   EXPECT_EQ(run->log_tail, "Total wall time: 0:00:01");
@@ -250,7 +250,7 @@ TEST_F(LeaseQueueTest, LateCompletionFromAnExpiredLeaseAfterReleaseConflicts) {
   EXPECT_EQ(queue_->Complete(fresh.token, OkRun(-0.02))->state, "done");
   EXPECT_EQ(queue_->Complete(old.token, OkRun(0.9)).status().code(), StatusCode::kConflict);
   EXPECT_EQ(Rows("results"), 1);
-  EXPECT_DOUBLE_EQ(store_->GetRun(old.id)->result->result.uz, -0.02);
+  EXPECT_EQ(store_->GetRun(old.id)->result->result.uz, -0.02);
 }
 
 // The worker's lease -> engine start time is kept with the result and read back with the run.

@@ -116,6 +116,13 @@ int main(int argc, char** argv) {
 
   auto store = sandswim::Store::Open(flags.db);
   if (!store.ok()) return Die(store.status(), "check that --db " + flags.db + " is writable (or pick another path)");
+  if (auto re = (*store)->ReanalyzeOldResults(); !re.ok()) {
+    return Die(re.status(), "the database's results could not be re-analysed; restore a backup of " + flags.db);
+  } else if (re->reanalysed + re->kept_old > 0) {
+    spdlog::info("re-analysed {} result(s) made by an older U_z analysis from their stored trajectories; {} had "
+                 "no trajectory and are shown as inconclusive",
+                 re->reanalysed, re->kept_old);
+  }
   sandswim::SystemClock clock;
   sandswim::LeaseQueueOptions lease_options;
   lease_options.ttl_s = flags.lease_ttl_s;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/sweep.h"
+#include "core/trajectory.h"
 
 namespace sandswim {
 namespace {
@@ -66,6 +67,16 @@ std::string FitRows(const ReportSweep& s) {
            "</a></td><td>none</td><td colspan=\"5\">" +
            Escape(fits.choice.kind == FitKind::kNone ? fits.choice.reason : "no finished runs") + "</td></tr>\n";
   }
+  // Inconclusive runs are not fitted: say which, under the sweep's first row.
+  std::string left_out;
+  if (!fits.left_out.empty()) {
+    left_out = "<br><small>left out, inconclusive: ";
+    for (size_t i = 0; i < fits.left_out.size(); ++i) {
+      left_out += (i ? ", " : "") + std::string("<a href=\"#run-") + std::to_string(fits.left_out[i].run_id) +
+                  "\">run " + std::to_string(fits.left_out[i].run_id) + "</a>";
+    }
+    left_out += "</small>";
+  }
   for (const BranchFit& b : fits.branches) {
     std::string law, params, r2, range, signs = b.sign_matches_paper ? (*b.sign_matches_paper ? "yes" : "NO") : "–";
     if (b.saturation) {
@@ -73,13 +84,14 @@ std::string FitRows(const ReportSweep& s) {
       params = "C1 = " + PlusMinus(b.saturation->c1, b.saturation->c1_stderr) + " m/s<br>C2 = " +
                PlusMinus(b.saturation->c2, b.saturation->c2_stderr) + " s/rad";
       r2 = Num(b.saturation->r2, 3);
-      range = std::to_string(b.saturation->n) + " points";
+      range = std::to_string(b.saturation->n) + " points" + (b.saturation->weighted ? ", weighted" : ", unweighted");
     } else if (b.linear) {
       law = "eq. 9: U<sub>z</sub> = C3 A";
       params = "C3 = " + PlusMinus(b.linear->c3, b.linear->c3_stderr) + " 1/s";
       r2 = Num(b.linear->r2, 3);
       range = "A = " + Num(b.linear->a_from) + " … " + Num(b.linear->a_to) + " m (" + std::to_string(b.linear->n) +
-              " of " + std::to_string(b.linear->n_total) + " points)";
+              " of " + std::to_string(b.linear->n_total) + " points" + (b.linear->weighted ? ", weighted" : ", unweighted") +
+              ")";
     } else if (b.fastest_rise) {
       law = "fastest rise";
       params = "f<sub>c</sub> = " + Num(b.fastest_rise->f_c) + " Hz, interval [" + Num(b.fastest_rise->interval_lo) +
@@ -91,7 +103,7 @@ std::string FitRows(const ReportSweep& s) {
       params = "not fitted: " + Escape(b.error);
     }
     rows += "<tr><td><a href=\"#sweep-" + std::to_string(s.info.id) + "\">" + Escape(s.info.name) + "</a> (" +
-            Escape(b.branch) + ")</td><td>" + law + "</td><td>" + params + "</td><td>" + r2 + "</td><td>" + range +
+            Escape(b.branch) + ")" + (&b == &fits.branches.front() ? left_out : "") + "</td><td>" + law + "</td><td>" + params + "</td><td>" + r2 + "</td><td>" + range +
             "</td><td>" + signs + "</td><td>" + std::to_string(b.points) + "</td></tr>\n";
   }
   return rows;
@@ -125,7 +137,16 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   if (!rows.ok()) return rows.status();
   for (const ResultRow& row : *rows) {
     if (row.state != "done" || !row.result) continue;
-    a.samples.push_back({row.point, row.result->result.uz, row.result->result.uz_stderr});
+    const api::RunResult& r = row.result->result;
+    SweepSample sample;
+    sample.point = row.point;
+    sample.run_id = row.run_id;
+    sample.conclusive = r.conclusive && r.uz.has_value();
+    sample.uz = r.uz.value_or(0);
+    sample.uz_stderr = r.uz_stderr.value_or(0);
+    sample.uz_ci95 = r.uz_ci95.value_or(0);
+    sample.inconclusive_reason = r.inconclusive_reason.empty() && !r.conclusive ? DescribeUz(r) : r.inconclusive_reason;
+    a.samples.push_back(std::move(sample));
     auto run = store.GetRun(row.run_id);
     if (!run.ok()) return run.status();
     if (run->trajectory && !run->trajectory->t.empty()) a.runs.push_back({row.run_id, row.point, *run->trajectory});
@@ -202,11 +223,14 @@ std::string RenderReportHtml(const ReportInput& in) {
     html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz", "U_z of sweep " + id + " against " +
                                      (s.fits.choice.param.empty() ? std::string("its point") : s.fits.choice.param) +
                                      ", with the fitted law");
-    html += "<table><tr><th>run</th><th>point</th><th>state</th><th>U<sub>z</sub> (m/s)</th></tr>\n";
+    html += "<table><tr><th>run</th><th>point</th><th>state</th><th>U<sub>z</sub> (m/s, ± standard error, "
+            "whole periods)</th><th>Δz/T (m/s, whole run)</th><th>window ends</th></tr>\n";
     for (const ReportRun& r : s.runs) {
       html += "<tr><td><a href=\"#run-" + std::to_string(r.run_id) + "\">" + std::to_string(r.run_id) + "</a></td><td>" +
-              Escape(r.label) + "</td><td>" + Escape(r.state) + "</td><td>" +
-              (r.uz ? PlusMinus(*r.uz, r.uz_stderr.value_or(0)) : std::string("–")) + "</td></tr>\n";
+              Escape(r.label) + "</td><td>" + Escape(r.state) + "</td><td" +
+              (r.inconclusive_reason.empty() ? std::string(">") : " title=\"" + Escape(r.inconclusive_reason) + "\">") +
+              (r.uz_text.empty() ? std::string("–") : Escape(r.uz_text)) + "</td><td>" +
+              (r.dz_rate ? Num(*r.dz_rate, 2) : std::string("–")) + "</td><td>" + Escape(r.window_end) + "</td></tr>\n";
     }
     html += "</table>\n";
     for (const ReportRun& r : s.runs) {
@@ -258,8 +282,10 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
       r.label = PointLabel(row.point, "");
       r.state = row.state;
       if (row.result) {
-        r.uz = row.result->result.uz;
-        r.uz_stderr = row.result->result.uz_stderr;
+        r.uz_text = DescribeUz(row.result->result, false);
+        r.dz_rate = row.result->result.dz_rate;
+        r.window_end = row.result->result.window_end;
+        r.inconclusive_reason = row.result->result.inconclusive_reason;
       }
       for (const RunTrajectory& t : a->runs) {
         if (t.run_id != row.run_id || !r.anchored) continue;

@@ -100,6 +100,11 @@ class ReportTest : public ::testing::Test {
         api::RunResult r;
         r.uz = SyntheticUz(omega);
         r.uz_stderr = 2e-4;
+        r.uz_ci95 = 3.18 * 2e-4;
+        r.uz_blocks = 4;
+        r.block_s = 1.0 / 3;
+        r.block_kind = "period";
+        r.conclusive = true;
         r.stop_reason = "duration";
         c.result = r;
         api::Trajectory t;
@@ -108,7 +113,7 @@ class ReportTest : public ::testing::Test {
           t.t.push_back(time);
           t.x.push_back(1e-4 * i);
           t.y.push_back(0);
-          t.z.push_back(r.uz * time + 0.002 * std::sin(2 * M_PI * 3 * time));
+          t.z.push_back(*r.uz * time + 0.002 * std::sin(2 * M_PI * 3 * time));
         }
         c.trajectory = t;
         ++done;

@@ -25,6 +25,7 @@
 
 #include "core/embedded.h"
 #include "core/sweep.h"
+#include "core/trajectory.h"
 #include "server/drift_report.h"
 #include "server/figures.h"
 #include "server/report.h"
@@ -179,8 +180,9 @@ bool WantsCsv(const Call& c) {
 const std::vector<std::string>& ResultColumns() {
   static const std::vector<std::string> kColumns = {
       "run_id", "key", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s",
-      "run_duration_s", "Uz", "Uz_stderr", "dz", "z_osc_amplitude", "x_drift", "broke_surface",
-      "near_floor", "stop_reason", "sim_time_s", "grains", "engine_version"};
+      "run_duration_s", "Uz_text", "Uz", "Uz_stderr", "Uz_ci95", "Uz_blocks", "block_s", "block_kind", "window_t0", "window_t1",
+      "window_end", "conclusive", "inconclusive_reason", "dz", "dz_rate", "z_osc_amplitude", "x_drift",
+      "broke_surface", "near_floor", "stop_reason", "sim_time_s", "grains", "analysis", "engine_version"};
   return kColumns;
 }
 
@@ -195,9 +197,21 @@ json ResultRowJson(const ResultRow& row) {
   j["run_duration_s"] = row.run_duration_s;
   if (row.result) {
     const api::RunResult& r = row.result->result;
-    j["Uz"] = r.uz;
-    j["Uz_stderr"] = r.uz_stderr;
+    j["Uz_text"] = DescribeUz(r, false);
+    if (r.uz) j["Uz"] = *r.uz;
+    if (r.uz_stderr) j["Uz_stderr"] = *r.uz_stderr;
+    if (r.uz_ci95) j["Uz_ci95"] = *r.uz_ci95;
+    j["Uz_blocks"] = r.uz_blocks;
+    j["block_s"] = r.block_s;
+    j["block_kind"] = r.block_kind;
+    j["window_t0"] = r.window_t0;
+    j["window_t1"] = r.window_t1;
+    j["window_end"] = r.window_end;
+    j["conclusive"] = r.conclusive;
+    j["inconclusive_reason"] = r.inconclusive_reason;
     j["dz"] = r.dz;
+    j["dz_rate"] = r.dz_rate;
+    j["analysis"] = r.analysis;
     j["z_osc_amplitude"] = r.z_osc_amplitude;
     j["x_drift"] = r.x_drift;
     j["broke_surface"] = r.broke_surface;

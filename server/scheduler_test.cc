@@ -112,6 +112,8 @@ class SchedulerTest : public ::testing::Test {
         ASSERT_TRUE(run.ok());
         c.result = api::RunResult{};
         c.result->uz = run->summary.point.Omega < 0 ? uz_minus : uz_plus;
+        c.result->uz_blocks = 4;
+        c.result->conclusive = inconclusive_omega_ == 0 || run->summary.point.Omega != inconclusive_omega_;
         c.result->stop_reason = "duration";
         c.trajectory = api::Trajectory{{0, 0.1}, {0, 0}, {0, 0}, {0, -0.001}};
       }
@@ -132,6 +134,7 @@ class SchedulerTest : public ::testing::Test {
   std::unique_ptr<Store> store_;
   std::unique_ptr<LeaseQueue> queue_;
   std::unique_ptr<Scheduler> scheduler_;
+  double inconclusive_omega_ = 0;  // CompleteAll marks this point's result inconclusive (0: none)
 };
 
 TEST_F(SchedulerTest, FiresExactlyOncePerDueTime) {
@@ -276,6 +279,34 @@ TEST_F(SchedulerTest, RegistrationErrorsNameTheFlag) {
   flag = ParseScheduleFlag("paper-58");
   ASSERT_TRUE(flag.ok());
   EXPECT_FALSE(flag->scale.has_value());
+}
+
+// An inconclusive result (too few whole periods) is counted as such and never compared, however
+// far it moved.
+TEST_F(SchedulerTest, DriftReportNeverComparesAnInconclusiveResult) {
+  Register();
+  clock_.Set(Utc(2026, 11, 23, 2, 0, 10));
+  ASSERT_EQ(Tick().size(), 1u);
+  CompleteAll(-0.010, 0.020);
+  ASSERT_EQ(Reports().size(), 1u);
+  Restart(kNewEngine);
+  Register();
+  inconclusive_omega_ = 80;
+  clock_.Set(Utc(2026, 11, 24, 2, 0, 10));
+  ASSERT_EQ(Tick().size(), 1u);
+  CompleteAll(-0.010, 0.090);
+  auto second = Reports();
+  ASSERT_EQ(second.size(), 1u);
+  EXPECT_EQ(second[0].inconclusive, 1);
+  EXPECT_EQ(second[0].compared, 1);
+  EXPECT_EQ(second[0].drifted, 0);
+  EXPECT_EQ(second[0].summary,
+            "tiny@smoke night 2026-11-24 02:00: 2 points, 0 reused, 2 run, 0 drifted beyond 0.005 m/s, "
+            "1 inconclusive (not compared)");
+  for (const DriftPoint& p : second[0].rows) {
+    EXPECT_EQ(p.inconclusive, p.point["Omega"].get<double>() > 0);
+    EXPECT_EQ(p.difference.has_value(), p.point["Omega"].get<double>() < 0);
+  }
 }
 
 TEST_F(SchedulerTest, DriftReportFlagsOnlyChangesBeyondTheTolerance) {

@@ -10,6 +10,7 @@
 #include "core/embedded.h"
 #include "core/scale.h"
 #include "core/sweep.h"
+#include "core/trajectory.h"
 
 namespace sandswim {
 namespace {
@@ -26,6 +27,7 @@ constexpr Migration kMigrations[] = {
     {4, "schema/004_lease_to_start.sql"},
     {5, "schema/005_releases.sql"},
     {6, "schema/006_slurm_jobs.sql"},
+    {7, "schema/007_uz_blocks.sql"},
 };
 
 constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
@@ -67,14 +69,18 @@ constexpr const char* kRunColumns =
     "r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
     "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
     "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, res.uz, r.last_error_kind, "
-    "r.last_error";
-constexpr int kRunColumnCount = 25;
+    "r.last_error, res.uz_stderr, res.uz_blocks, res.block_kind, res.block_s, res.conclusive, res.analysis, "
+    "res.run_id";
+constexpr int kRunColumnCount = 32;
 
 constexpr const char* kResultColumns =
     "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
     "res.x_drift, res.broke_surface, res.near_floor, res.stop_reason, res.sim_time_s, res.steps, "
     "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
-    "res.cpu_s, res.key, res.created_at, res.lease_to_start_s";
+    "res.cpu_s, res.key, res.created_at, res.lease_to_start_s, res.uz_ci95, res.uz_stderr_note, "
+    "res.uz_blocks, res.block_s, res.window_end, res.conclusive, res.inconclusive_reason, res.dz_rate, "
+    "res.analysis, res.block_kind";
+constexpr int kResultColumnCount = 33;
 
 Point PointFromRow(const Statement& st, int c) {
   Point p;
@@ -108,15 +114,26 @@ RunSummary RunSummaryFromRow(const Statement& st) {
   r.finished_at = st.OptDouble(21);
   r.uz = st.OptDouble(22);
   if (!st.IsNull(23)) r.last_error = api::Failure{st.Text(23), st.Text(24)};
+  if (!st.IsNull(31)) {  // a result row exists
+    api::RunResult res;
+    res.uz = r.uz;
+    res.uz_stderr = st.OptDouble(25);
+    res.uz_blocks = static_cast<int>(st.Int(26));
+    res.block_kind = st.Text(27);
+    res.block_s = st.Double(28);
+    res.conclusive = st.Int(29) != 0;
+    res.analysis = static_cast<int>(st.Int(30));
+    r.uz_text = DescribeUz(res);
+  }
   return r;
 }
 
 std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
-  if (st.IsNull(c)) return std::nullopt;
+  if (st.IsNull(c + 20)) return std::nullopt;  // res.key: NOT NULL in every result row
   StoredResult s;
   api::RunResult& r = s.result;
-  r.uz = st.Double(c);
-  r.uz_stderr = st.Double(c + 1);
+  r.uz = st.OptDouble(c);
+  r.uz_stderr = st.OptDouble(c + 1);
   r.window_t0 = st.Double(c + 2);
   r.window_t1 = st.Double(c + 3);
   r.dz = st.Double(c + 4);
@@ -138,6 +155,16 @@ std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
   s.key = st.Text(c + 20);
   s.created_at = st.Double(c + 21);
   s.execution.lease_to_start_s = st.OptDouble(c + 22).value_or(0);
+  r.uz_ci95 = st.OptDouble(c + 23);
+  r.uz_stderr_note = st.Text(c + 24);
+  r.uz_blocks = static_cast<int>(st.Int(c + 25));
+  r.block_s = st.Double(c + 26);
+  r.window_end = st.Text(c + 27);
+  r.conclusive = st.Int(c + 28) != 0;
+  r.inconclusive_reason = st.Text(c + 29);
+  r.dz_rate = st.Double(c + 30);
+  r.analysis = static_cast<int>(st.Int(c + 31));
+  r.block_kind = st.Text(c + 32);
   return s;
 }
 
@@ -240,6 +267,7 @@ void to_json(nlohmann::json& j, const Progress& p) {
 
 void to_json(nlohmann::json& j, const StoredResult& r) {
   j = r.result;
+  j["uz_text"] = DescribeUz(r.result);
   j["engine_version"] = r.execution.engine_version;
   j["host"] = r.execution.host;
   j["ranks"] = r.execution.ranks;
@@ -266,6 +294,7 @@ void to_json(nlohmann::json& j, const RunSummary& r) {
   PutOpt(j, "started_at", r.started_at);
   PutOpt(j, "finished_at", r.finished_at);
   PutOpt(j, "uz", r.uz);
+  if (!r.uz_text.empty()) j["uz_text"] = r.uz_text;
   PutOpt(j, "last_error", r.last_error);
 }
 
@@ -292,7 +321,7 @@ void to_json(nlohmann::json& j, const ResultRow& r) {
                      {"point", PointToJson(r.point)},
                      {"run_duration_s", r.run_duration_s}};
   if (r.result) {
-    j["Uz"] = r.result->result.uz;
+    PutOpt(j, "Uz", r.result->result.uz);
     j["result"] = *r.result;
   }
 }
@@ -570,6 +599,93 @@ Status Store::Migrate() {
   return Status::Ok();
 }
 
+Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
+  struct Old {
+    int64_t run_id = 0;
+    double f = 0;
+    std::string scale, bed_result, trajectory, stop_reason;
+    double sim_time_s = 0, z0 = 0;
+    int64_t steps = 0, grains = 0;
+    bool vibrates = false;
+  };
+  std::vector<Old> old;
+  {
+    Result<Transaction> t = BeginRead();
+    if (!t.ok()) return t.status();
+    Statement st = t->Prepare(
+        "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), res.stop_reason, "
+        "res.sim_time_s, res.steps, res.grains, res.z0 FROM results res JOIN runs r ON r.id = res.run_id "
+        "JOIN beds b ON b.id = r.bed_id LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
+        "WHERE res.analysis < ? ORDER BY res.run_id");
+    st.Bind(1, api::kAnalysisVersion);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      Old o;
+      o.run_id = st.Int(0);
+      o.f = st.Double(1);
+      auto mode = ParseMode(st.Text(2));
+      o.vibrates = mode && Point{*mode}.has_vibration();
+      o.scale = st.Text(3);
+      o.bed_result = st.Text(4);
+      o.trajectory = st.Text(5);
+      o.stop_reason = st.Text(6);
+      o.sim_time_s = st.Double(7);
+      o.steps = st.Int(8);
+      o.grains = st.Int(9);
+      o.z0 = st.Double(10);
+      old.push_back(std::move(o));
+    }
+  }
+  Reanalysis out;
+  for (const Old& o : old) {
+    std::optional<api::RunResult> fresh;
+    nlohmann::json tj = ParseJsonOr(o.trajectory, nullptr);
+    if (tj.is_object()) {
+      try {
+        api::Trajectory tr = tj.get<api::Trajectory>();
+        std::vector<SoSample> samples;
+        for (size_t i = 0; i < tr.t.size() && i < tr.x.size() && i < tr.y.size() && i < tr.z.size(); ++i) {
+          samples.push_back({std::llround(tr.t[i] / kMaterials.dt), tr.t[i], tr.x[i], tr.y[i], tr.z[i]});
+        }
+        BedBounds bounds;
+        if (const Scale* scale = FindScale(o.scale)) bounds.floor = scale->z_floor;
+        nlohmann::json bed = ParseJsonOr(o.bed_result, nullptr);
+        if (bed.is_object() && bed.contains("grain_top")) bounds.surface = bed["grain_top"].get<double>();
+        DriveStartMarker start{o.grains, o.z0, bounds.surface.value_or(0)};
+        DriveStopMarker stop{o.stop_reason, o.steps, o.sim_time_s, samples.empty() ? 0 : samples.back().z};
+        auto r = AnalyzeTrajectory(samples, o.vibrates ? o.f : 0.0, bounds,
+                                   bounds.surface ? std::optional(start) : std::nullopt, stop);
+        if (r.ok()) {
+          fresh = *r;
+          fresh->grains = o.grains;  // as the engine reported it
+        }
+      } catch (const nlohmann::json::exception&) {
+      }
+    }
+    if (!fresh) {
+      ++out.kept_old;
+      continue;
+    }
+    const api::RunResult& r = *fresh;
+    Status s = Write([&](Transaction& t) {
+      Statement st = t.Prepare(
+          "UPDATE results SET uz = ?, uz_stderr = ?, uz_ci95 = ?, uz_stderr_note = ?, uz_blocks = ?, "
+          "block_s = ?, window_t0 = ?, window_t1 = ?, window_end = ?, conclusive = ?, inconclusive_reason = ?, "
+          "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ? WHERE run_id = ?");
+      st.Bind(1, r.uz).Bind(2, r.uz_stderr).Bind(3, r.uz_ci95).Bind(4, r.uz_stderr_note).Bind(5, r.uz_blocks);
+      st.Bind(6, r.block_s).Bind(7, r.window_t0).Bind(8, r.window_t1).Bind(9, r.window_end);
+      st.Bind(10, r.conclusive).Bind(11, r.inconclusive_reason).Bind(12, r.dz_rate).Bind(13, r.z_osc_amplitude);
+      st.Bind(14, r.analysis).Bind(15, r.block_kind).Bind(16, o.run_id);
+      return st.Run();
+    });
+    if (!s.ok()) return s;
+    ++out.reanalysed;
+  }
+  return out;
+}
+
 Result<Transaction> Store::Begin() {
   std::unique_lock<std::mutex> lock(mu_);
   SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
@@ -796,7 +912,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     if (st.IsNull(c)) {
       // Not stored since migration 3: the deck is a pure function of the point and the scale
       // (the lease queue renders the same bytes and checks them against the run's key).
-      const Scale* scale = FindScale(st.Text(c + 28));
+      const Scale* scale = FindScale(st.Text(c + 3 + kResultColumnCount + 2));
       if (scale == nullptr) return Status::Corruption("run " + std::to_string(id) + "'s bed has an unknown scale");
       try {
         d.deck = RenderDriveDeck(d.summary.point, *scale);
@@ -807,8 +923,8 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     d.bed_key = st.Text(c + 1);
     d.bed_state = st.Text(c + 2);
     d.result = ResultFromRow(st, c + 3);
-    if (!st.IsNull(c + 26)) {
-      nlohmann::json tj = ParseJsonOr(st.Text(c + 26), nullptr);
+    if (!st.IsNull(c + 3 + kResultColumnCount)) {
+      nlohmann::json tj = ParseJsonOr(st.Text(c + 3 + kResultColumnCount), nullptr);
       if (tj.is_object()) {
         try {
           d.trajectory = tj.get<api::Trajectory>();
@@ -817,7 +933,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
         }
       }
     }
-    d.log_tail = st.Text(c + 27);
+    d.log_tail = st.Text(c + 3 + kResultColumnCount + 1);
   }
   Statement st = t->Prepare("SELECT sweep_id FROM sweep_runs WHERE run_id = ? ORDER BY sweep_id");
   st.Bind(1, id);

@@ -196,10 +196,12 @@ struct RunSummary {
   double created_at = 0;
   std::optional<double> started_at, finished_at;
   std::optional<double> uz;               // from the result row, when there is one
+  std::string uz_text;                    // DescribeUz of that result ("" without one)
   std::optional<api::Failure> last_error;
 };
 // {"id","key","state","point":{PointToJson},"run_duration_s","steps","bed_id","attempts",
-//  "worker","progress":{...},"created_at","started_at"?,"finished_at"?,"uz"?,"last_error"?}
+//  "worker","progress":{...},"created_at","started_at"?,"finished_at"?,"uz"?,"uz_text"?,
+//  "last_error"?}
 void to_json(nlohmann::json& j, const RunSummary& r);
 
 struct RunFilter {
@@ -324,6 +326,16 @@ class Store {
   Result<Metrics> GetMetrics();
   // OK when the file answers a trivial query and the schema is current.
   Status HealthCheck();
+
+  // Re-analyses every result made by an older analysis than api::kAnalysisVersion from its stored
+  // trajectory (the run's drive frequency, its bed's surface and its scale's floor, the stop the
+  // engine reported), one write per result. A result with no readable trajectory keeps its old
+  // numbers and stays inconclusive with the reason. Idempotent: the daemon calls it at start-up.
+  struct Reanalysis {
+    int64_t reanalysed = 0;
+    int64_t kept_old = 0;  // no stored trajectory to re-analyse
+  };
+  Result<Reanalysis> ReanalyzeOldResults();
   // Rows in a table (tests and diagnostics). REQUIRES: `table` is one of the schema's tables.
   Result<int64_t> CountRows(const std::string& table);
 

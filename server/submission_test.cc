@@ -135,13 +135,13 @@ TEST_F(SubmissionTest, ResubmittingReusesRunsAndForceRequeuesDoneOnes) {
   EXPECT_EQ(detail->summary.state, "queued");
   EXPECT_EQ(detail->summary.attempts, 0);
   ASSERT_TRUE(detail->result.has_value());  // the old result stays until replaced
-  EXPECT_DOUBLE_EQ(detail->result->result.uz, 0.25);
+  EXPECT_EQ(detail->result->result.uz, 0.25);
   auto again = queue.Lease({"w", "h", 1});
   ASSERT_TRUE(again->has_value());
   rc.result->uz = 0.5;
   ASSERT_EQ(queue.Complete((*again)->token, rc)->state, "done");
   EXPECT_EQ(Rows("results"), 1);
-  EXPECT_DOUBLE_EQ(store_->GetRun((*run)->id)->result->result.uz, 0.5);
+  EXPECT_EQ(store_->GetRun((*run)->id)->result->result.uz, 0.5);
 }
 
 TEST_F(SubmissionTest, IdempotencyKeyReplaysSameBodyAndRefusesAnother) {

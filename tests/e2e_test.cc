@@ -12,6 +12,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "core/api.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
 
@@ -54,35 +55,42 @@ class EndToEndTest : public ::testing::Test {
 std::string* EndToEndTest::dir_ = nullptr;
 Daemon* EndToEndTest::daemon_ = nullptr;
 
-// The issue's pair: Omega = -80 and +80 at smoke. Both finish with a finite U_z and a trajectory;
-// the bed was prepared once for both.
+// The issue's pair: Omega = -80 and +80 at smoke, at 10 Hz for 0.4 s so that the steady window
+// (after a 0.1 s transient) holds 3 whole periods: both finish with a conclusive U_z, its error and
+// a trajectory; the bed was prepared once for both.
 TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
-  int64_t id = Submit(testing::OmegaSweep("omega-sign", {-80, 80}, 0.3));
+  int64_t id = Submit(testing::OmegaSweep("omega-sign", {-80, 80}, 0.4, 10));
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
   for (const json& run : Runs(id)) {
     json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()));
     const json& res = detail["result"];
     ASSERT_TRUE(res.is_object()) << detail.dump();
+    ASSERT_TRUE(res.contains("uz")) << res.dump();
     EXPECT_TRUE(std::isfinite(res["uz"].get<double>()));
+    EXPECT_EQ(res["analysis"], api::kAnalysisVersion);
+    EXPECT_EQ(res["uz_blocks"], 3) << res.dump();
+    EXPECT_EQ(res["conclusive"], true) << res.dump();
+    EXPECT_GT(res["uz_stderr"].get<double>(), 0.0);
+    EXPECT_EQ(res["window_end"], "run_end");
     EXPECT_EQ(res["stop_reason"], "duration");
-    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.3, 1e-9);
+    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.4, 1e-9);
     EXPECT_GT(res["grains"].get<int64_t>(), 4000);
     EXPECT_GT(detail["trajectory"]["t"].size(), 100u);
     EXPECT_EQ(detail["trajectory"]["t"].size(), detail["trajectory"]["z"].size());
     EXPECT_EQ(res["launcher"], "mpirun");
     EXPECT_EQ(detail["attempts"], 1);
     // Figures for the closing note of issue 4.
-    std::printf("E2E Omega=%+g: U_z=%+.4f m/s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
-                run["point"]["Omega"].get<double>(), res["uz"].get<double>(), res["dz"].get<double>(),
+    std::printf("E2E Omega=%+g at 10 Hz: U_z=%s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
+                run["point"]["Omega"].get<double>(), res.value("uz_text", "?").c_str(), res["dz"].get<double>(),
                 res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
   }
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM beds"), "1");
   EXPECT_EQ(daemon_->Sql("SELECT attempts FROM beds"), "1");
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results"), "2");
   // Submitting the same sweep again reuses both results: nothing is queued.
-  int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.3));
+  int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.4, 10));
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
   EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM runs"), "2");

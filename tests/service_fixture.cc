@@ -110,11 +110,11 @@ std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::strin
   return std::make_unique<ChildProcess>(argv, dir, "worker.out");
 }
 
-nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration) {
+nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration, double f) {
   using nlohmann::json;
   return {{"name", name},
           {"scale", "smoke"},
-          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", omegas.at(0)}, {"duration_s", duration}}},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", f}, {"Omega", omegas.at(0)}, {"duration_s", duration}}},
           {"axes", json::array({{{"param", "Omega"}, {"values", omegas}}})},
           {"combine", "product"}};
 }

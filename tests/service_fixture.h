@@ -66,7 +66,8 @@ std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::strin
 
 // A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz) over the given Omega values, each run
 // `duration` s long: the sweep JSON to POST.
-nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration);
+nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration,
+                          double f = 3);
 
 }  // namespace sandswim::testing
 

@@ -437,11 +437,12 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
   }
 
   // Streamed into samples: no DumpFrame per frame.
-  auto samples = SamplesFromDump(ReadFileOr(dir->File(kTrajectoryDumpFile), ""), drive.dt);
+  const RunInputs inputs = RunInputsFrom(drive, log);
+  auto samples = SamplesFromDump(ReadFileOr(dir->File(kTrajectoryDumpFile), ""), inputs.dt);
   if (!samples.ok()) {
     return fail(&*dir, "bad_output", std::string(kTrajectoryDumpFile) + ": " + samples.status().reason());
   }
-  auto result = AnalyzeTrajectory(*samples, drive.f, log.drive_start, log.drive_stop);
+  auto result = AnalyzeRun(*samples, inputs);
   if (!result.ok()) return fail(&*dir, "bad_output", result.status().reason());
   completion.ok = true;
   completion.result = *result;

@@ -105,7 +105,7 @@ void BenchScale(const Scale& scale, bool trajectories) {
       std::printf("Omega = %g: %s\n", Omega, samples.status().ToString().c_str());
       continue;
     }
-    auto res = AnalyzeTrajectory(*samples, q.f, log.drive_start, log.drive_stop);
+    auto res = AnalyzeTrajectory(*samples, q.f, BedBounds{std::nullopt, scale.z_floor}, log.drive_start, log.drive_stop);
     if (!res.ok()) {
       std::printf("Omega = %g: %s\n", Omega, res.status().ToString().c_str());
       continue;
@@ -114,10 +114,14 @@ void BenchScale(const Scale& scale, bool trajectories) {
                 res->sim_time_s, std::string(scale.name).c_str());
     for (size_t i = 0; i < samples->size(); i += 50)
       std::printf("  %.3f  %+.4f\n", (*samples)[i].t, (*samples)[i].z);
-    std::printf("  U_z = %+.4f +- %.4f m/s over [%.3f, %.3f] s; dz = %+.4f m; z oscillation %.4f m; x drift %+.4f m; "
-                "stop: %s\n",
-                res->uz, res->uz_stderr, res->window_t0, res->window_t1, res->dz, res->z_osc_amplitude, res->x_drift,
-                res->stop_reason.c_str());
+    std::printf("  U_z = %s over [%.3f, %.3f] s (%d blocks, window end: %s)%s%s; dz = %+.4f m; z oscillation %.4f m; "
+                "x drift %+.4f m; stop: %s\n",
+                res->uz ? (std::to_string(*res->uz) + " +- " + (res->uz_stderr ? std::to_string(*res->uz_stderr) : "?") +
+                           " m/s").c_str()
+                        : "none",
+                res->window_t0, res->window_t1, res->uz_blocks, res->window_end.c_str(),
+                res->conclusive ? "" : "; inconclusive: ", res->inconclusive_reason.c_str(), res->dz,
+                res->z_osc_amplitude, res->x_drift, res->stop_reason.c_str());
   }
 }
 
