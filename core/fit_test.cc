@@ -222,5 +222,64 @@ TEST(FitSweepTest, ABranchTooSmallToFitSaysWhy) {
   EXPECT_FALSE(fits.branches[0].sign_matches_paper.has_value());
 }
 
+// Points with their own errors (some ten times others) are weighted by them: over many noisy
+// draws the stated standard error of C1 covers the truth about two times in three, and a point with
+// no error turns weighting off.
+TEST(FitSaturationTest, WeightsByThePointsErrors) {
+  std::mt19937 rng(7);
+  const std::vector<double> x = OmegaGrid();
+  std::vector<double> e;
+  for (size_t i = 0; i < x.size(); ++i) e.push_back(i % 2 ? 2e-3 : 2e-4);
+  int within = 0, trials = 300;
+  for (int trial = 0; trial < trials; ++trial) {
+    std::vector<double> y;
+    for (size_t i = 0; i < x.size(); ++i) {
+      std::normal_distribution<double> gauss(0.0, e[i]);
+      y.push_back(0.02 * (1 - std::exp(-0.02 * x[i])) + gauss(rng));
+    }
+    auto fit = FitSaturation(x, y, 1, e);
+    ASSERT_TRUE(fit.ok()) << fit.status().ToString();
+    ASSERT_TRUE(fit->weighted);
+    if (std::fabs(fit->c1 - 0.02) <= fit->c1_stderr) ++within;
+  }
+  EXPECT_GT(within, 0.55 * trials);
+  EXPECT_LT(within, 0.85 * trials);
+  std::vector<double> y = Saturating(x, 1, 0.02, 0.02, 2e-4, rng);
+  e[3] = 0;
+  auto unweighted = FitSaturation(x, y, 1, e);
+  ASSERT_TRUE(unweighted.ok());
+  EXPECT_FALSE(unweighted->weighted);
+  auto linear = FitThroughOrigin({0.01, 0.02, 0.03}, {0.011, 0.019, 0.031}, {1e-3, 1e-3, 1e-3});
+  ASSERT_TRUE(linear.ok());
+  EXPECT_TRUE(linear->weighted);
+  EXPECT_FALSE(FitThroughOrigin({0.01, 0.02, 0.03}, {0.011, 0.019, 0.031})->weighted);
+}
+
+// Inconclusive runs never reach a fit: they are listed as left out, with their reason.
+TEST(FitSweepTest, LeavesOutInconclusiveRunsAndListsThem) {
+  std::mt19937 rng(3);
+  const std::vector<double> x = OmegaGrid();
+  std::vector<double> up = Saturating(x, 1, 0.02, 0.02, 3e-4, rng);
+  std::vector<SweepSample> samples;
+  for (size_t i = 0; i < x.size(); ++i) {
+    SweepSample s{OscillatoryPoint(0.03, 3, -x[i], 4), up[i], 3e-4};
+    s.run_id = static_cast<int64_t>(i + 1);
+    samples.push_back(s);
+  }
+  samples[7].uz = -5;  // would wreck the fit
+  samples[7].conclusive = false;
+  samples[7].inconclusive_reason = "the steady window holds 1 whole period";
+  SweepFits fits = FitSweep(samples);
+  ASSERT_EQ(fits.branches.size(), 1u);
+  EXPECT_EQ(fits.branches[0].points, 7);
+  ASSERT_TRUE(fits.branches[0].saturation.has_value());
+  EXPECT_NEAR(fits.branches[0].saturation->c1, 0.02, 3 * fits.branches[0].saturation->c1_stderr);
+  ASSERT_EQ(fits.left_out.size(), 1u);
+  EXPECT_EQ(fits.left_out[0].run_id, 8);
+  nlohmann::json j = fits;
+  EXPECT_EQ(j["left_out"][0]["reason"], "the steady window holds 1 whole period");
+  EXPECT_EQ(j["branches"][0]["saturation"]["weighted"], true);
+}
+
 }  // namespace
 }  // namespace sandswim

@@ -9,6 +9,7 @@
 
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
+#include "core/scale.h"
 #include "tests/synthetic_trajectory.h"
 
 namespace sandswim {
@@ -247,6 +248,70 @@ TEST(TrajectoryTest, ReadDriveInfoFromARealDeck) {
   EXPECT_DOUBLE_EQ(*info->z_floor, -0.25);
   EXPECT_FALSE(ReadDriveInfo("units si\n").ok());
   EXPECT_FALSE(ReadDriveInfo("timestep 1e-5\n")->z_floor);
+}
+
+// A real run directory of tests/fixtures/runs/ (README there): its samples and inputs, read as
+// the worker reads them.
+struct RealRun {
+  std::vector<SoSample> samples;
+  RunInputs inputs;
+};
+RealRun LoadRun(const std::string& name) {
+  const std::string dir = "runs/" + name + "/";
+  auto drive = ReadDriveInfo(Fixture(dir + "drive.in"));
+  EXPECT_TRUE(drive.ok()) << drive.status().ToString();
+  RealRun run;
+  run.inputs = RunInputsFrom(*drive, ParseEngineLog(Fixture(dir + "log.liggghts")));
+  auto samples = SamplesFromDump(Fixture(dir + "so.dump"), run.inputs.dt);
+  EXPECT_TRUE(samples.ok()) << samples.status().ToString();
+  run.samples = std::move(*samples);
+  return run;
+}
+
+// The once-per-period rate from z read at another phase of the drive: an independent reading of
+// the same trajectory, which must agree with U_z within U_z's own interval.
+double OncePerPeriodRate(const std::vector<SoSample>& s, double t0, double period, int periods) {
+  auto at = [&](double t) {
+    size_t i = 0;
+    while (i + 1 < s.size() && s[i + 1].t <= t) ++i;
+    return s[i].z;  // the sample at or just before t (no interpolation: independent of ZAt)
+  };
+  return (at(t0 + periods * period) - at(t0)) / (periods * period);
+}
+
+// Vibration only, 3 s at smoke (A = 0.03 m, f = 3 Hz): it rises, and the window stops when the SO
+// comes within the clearance of the surface. U_z agrees with the once-per-period rate read at other
+// phases, within its 95 % interval.
+TEST(TrajectoryTest, RealVibrationRunAgreesWithTheOncePerPeriodRate) {
+  RealRun run = LoadRun("vibration-3s");
+  ASSERT_EQ(run.samples.size(), 3001u);
+  ASSERT_TRUE(run.inputs.bounds.surface && run.inputs.bounds.floor);
+  auto r = AnalyzeRun(run.samples, run.inputs);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_TRUE(r->conclusive);
+  EXPECT_GE(r->uz_blocks, 3);
+  ASSERT_TRUE(r->uz && r->uz_ci95);
+  EXPECT_GT(*r->uz - *r->uz_ci95, 0.0) << "vibration alone rose in this run: " << DescribeUz(*r);
+  // Where the window ended: the first sample closer to the surface than the clearance lies within
+  // one period after it.
+  const double limit = *run.inputs.bounds.surface - kMaterials.d_so / 2 - WindowRule{}.clearance_m;
+  double t_cross = run.samples.back().t;
+  for (const SoSample& p : run.samples) {
+    if (p.z > limit) {
+      t_cross = p.t;
+      break;
+    }
+  }
+  EXPECT_LE(r->window_t1, t_cross + 1e-9);
+  EXPECT_GT(r->window_t1 + r->block_s, t_cross);
+  EXPECT_EQ(r->window_end, t_cross < run.samples.back().t ? "surface" : "run_end");
+  const double T = 1.0 / run.inputs.f;
+  for (double phase : {0.25, 0.5, 0.75}) {
+    const int periods = static_cast<int>((r->window_t1 - r->window_t0) / T - phase + 1e-9);
+    ASSERT_GE(periods, 2);
+    const double rate = OncePerPeriodRate(run.samples, r->window_t0 + phase * T, T, periods);
+    EXPECT_NEAR(rate, *r->uz, *r->uz_ci95) << "phase " << phase;
+  }
 }
 
 TEST(TrajectoryTest, SamplesNeedRisingStepsAndColumns) {

@@ -322,7 +322,7 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
   // Inconclusive runs (too few whole periods): drawn without error bars, not fitted.
   Series inconclusive{"inconclusive (not fitted)", {}, {}, {}, true, false};
   for (const SweepSample& sample : samples) {
-    if (sample.conclusive) continue;
+    if (sample.conclusive || !sample.has_uz) continue;
     inconclusive.x.push_back(x_of(sample.point));
     inconclusive.y.push_back(sample.uz);
   }

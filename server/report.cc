@@ -143,6 +143,7 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
     sample.run_id = row.run_id;
     sample.conclusive = r.conclusive && r.uz.has_value();
     sample.uz = r.uz.value_or(0);
+    sample.has_uz = r.uz.has_value();
     sample.uz_stderr = r.uz_stderr.value_or(0);
     sample.uz_ci95 = r.uz_ci95.value_or(0);
     sample.inconclusive_reason = r.inconclusive_reason.empty() && !r.conclusive ? DescribeUz(r) : r.inconclusive_reason;

@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/trajectory.h"
 #include "server/clock.h"
 #include "server/submission.h"
 
@@ -77,6 +78,84 @@ TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
   }
   auto s = Store::Open(path_);
   EXPECT_EQ(s.status().code(), StatusCode::kFailedPrecondition);
+}
+
+// A database from before migration 7 (results of the old estimator, analysis 1): the upgrade keeps
+// every row and marks it; the daemon's start-up re-analysis recomputes each result that has a
+// stored trajectory, and leaves one without a trajectory visibly inconclusive.
+TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
+  int64_t with_trajectory = 0, without = 0;
+  {
+    auto store = MustOpen();
+    auto req = ParseSubmitRequest(Sweep("old", 2));
+    auto sub = Submit(*store, *req, "engine", 1.7e9);
+    ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+    auto runs = store->ListRuns({});
+    ASSERT_EQ(runs->runs.size(), 2u);
+    with_trajectory = runs->runs[0].id;
+    without = runs->runs[1].id;
+    // Back to schema 6: its results table, two results of analysis 1, one with a trajectory.
+    auto t = store->Begin();
+    ASSERT_TRUE(t->Exec(
+        "DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
+        "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
+        "uz_stderr REAL NOT NULL, window_t0 REAL NOT NULL, window_t1 REAL NOT NULL, dz REAL NOT NULL, "
+        "z_osc_amplitude REAL NOT NULL, x_drift REAL NOT NULL, broke_surface INTEGER NOT NULL, "
+        "near_floor INTEGER NOT NULL, stop_reason TEXT NOT NULL, sim_time_s REAL NOT NULL, steps INTEGER NOT NULL, "
+        "grains INTEGER NOT NULL, z0 REAL NOT NULL, engine_version TEXT NOT NULL, host TEXT NOT NULL, "
+        "ranks INTEGER NOT NULL, launcher TEXT NOT NULL, wall_s REAL NOT NULL, cpu_s REAL NOT NULL, "
+        "key TEXT NOT NULL, created_at REAL NOT NULL, lease_to_start_s REAL);"
+        "UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}';"
+        "UPDATE runs SET state = 'done';").ok());
+    for (int64_t id : {with_trajectory, without}) {
+      ASSERT_TRUE(t->Exec("INSERT INTO results VALUES (" + std::to_string(id) +
+                          ", -0.0066, 0.0002, 0.3333, 0.6667, 0.001, 0.004, 0, 0, 0, 'duration', 1.0, 100000, "
+                          "5000, 0, 'engine', 'h', 1, 'mpirun', 60, 60, 'k', 1.7e9, 0.1)")
+                      .ok());
+    }
+    // z = 0.03 t + 0.004 sin(4 pi f t) at 3 Hz over 1 s, every 1 ms: 2 whole periods after one.
+    api::Trajectory tr;
+    for (int i = 0; i <= 1000; ++i) {
+      double time = i * 1e-3;
+      tr.t.push_back(time);
+      tr.x.push_back(0);
+      tr.y.push_back(0);
+      tr.z.push_back(0.03 * time + 0.004 * std::sin(2 * 3.14159265358979 * 6 * time));
+    }
+    Statement st = t->Prepare("INSERT INTO trajectories (run_id, data) VALUES (?, ?)");
+    st.Bind(1, with_trajectory).Bind(2, nlohmann::json(tr).dump());
+    ASSERT_TRUE(st.Run().ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto store = MustOpen();
+  ASSERT_TRUE(store);
+  EXPECT_EQ(store->schema_version(), 7);
+  EXPECT_EQ(*store->CountRows("results"), 2);
+  auto before = store->GetRun(without);
+  ASSERT_TRUE(before->result.has_value());
+  EXPECT_EQ(before->result->result.analysis, 1);
+  EXPECT_FALSE(before->result->result.conclusive);
+  EXPECT_EQ(before->result->result.uz, -0.0066);  // kept, never shown as a result of this analysis
+
+  auto re = store->ReanalyzeOldResults();
+  ASSERT_TRUE(re.ok()) << re.status().ToString();
+  EXPECT_EQ(re->reanalysed, 1);
+  EXPECT_EQ(re->kept_old, 1);
+  const api::RunResult fresh = store->GetRun(with_trajectory)->result->result;
+  EXPECT_EQ(fresh.analysis, api::kAnalysisVersion);
+  EXPECT_TRUE(fresh.conclusive);
+  EXPECT_EQ(fresh.uz_blocks, 2);
+  ASSERT_TRUE(fresh.uz.has_value());
+  EXPECT_NEAR(*fresh.uz, 0.03, 1e-4);
+  EXPECT_EQ(fresh.grains, 5000);
+  const api::RunResult kept = store->GetRun(without)->result->result;
+  EXPECT_EQ(kept.analysis, 1);
+  EXPECT_NE(kept.inconclusive_reason.find("old estimator"), std::string::npos);
+  EXPECT_EQ(DescribeUz(kept), "old estimator (-0.007 m/s)");
+  // Idempotent: nothing is left to re-analyse but the result without a trajectory.
+  auto again = store->ReanalyzeOldResults();
+  EXPECT_EQ(again->reanalysed, 0);
+  EXPECT_EQ(again->kept_old, 1);
 }
 
 TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {

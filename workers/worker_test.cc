@@ -12,6 +12,7 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "core/dump_reader.h"
 #include "core/keys.h"
@@ -217,6 +218,49 @@ TEST(WorkerTest, CompletedRunCarriesItsResultAndTrajectory) {
   // A second run from the same bed does not download it again.
   worker.RunJob(RunGrant());
   EXPECT_EQ(client.downloads.load(), 1);
+}
+
+// `sandswim analyze` on the run directory the worker leaves gives the numbers the worker reported:
+// a real 3 s vibration run (tests/fixtures/runs/vibration-3s), analysed by the worker, then by the
+// real CLI binary from the files alone.
+TEST(WorkerTest, OfflineAnalysisOfTheRunDirectoryGivesTheWorkersNumbers) {
+  const std::string work = TempDir();
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("runs/vibration-3s/log.liggghts")},
+                    {"so.dump", Fixture("runs/vibration-3s/so.dump")}};
+  Worker worker(Options(work), client, launcher);
+  api::LeaseGrant grant = RunGrant();
+  grant.deck = Fixture("runs/vibration-3s/drive.in");
+  grant.steps = 300000;
+  grant.duration_s = 3;
+  worker.RunJob(grant);
+  ASSERT_EQ(client.completions.size(), 1u);
+  ASSERT_TRUE(client.completions[0].ok);
+  const api::RunResult& mine = *client.completions[0].result;
+  ASSERT_TRUE(mine.conclusive && mine.uz && mine.uz_stderr);
+
+  const std::string out = work + "/analyze.json";
+  const std::string cmd = std::string(SANDSWIM_CLI_PATH) + " analyze " + work + "/run-42-a2/so.dump --json > " + out;
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(out));
+  ASSERT_EQ(j.size(), 1u);
+  api::RunResult theirs = j[0]["result"].get<api::RunResult>();
+  EXPECT_EQ(j[0]["inputs"]["surface_from"], "log " + work + "/run-42-a2/log.liggghts");
+  // The same numbers, to the last bit: one analysis, the same inputs.
+  EXPECT_EQ(theirs.uz, mine.uz);
+  EXPECT_EQ(theirs.uz_stderr, mine.uz_stderr);
+  EXPECT_EQ(theirs.uz_ci95, mine.uz_ci95);
+  EXPECT_EQ(theirs.uz_blocks, mine.uz_blocks);
+  EXPECT_EQ(theirs.window_t0, mine.window_t0);
+  EXPECT_EQ(theirs.window_t1, mine.window_t1);
+  EXPECT_EQ(theirs.window_end, mine.window_end);
+  EXPECT_EQ(theirs.conclusive, mine.conclusive);
+  EXPECT_EQ(theirs.dz, mine.dz);
+  EXPECT_EQ(theirs.dz_rate, mine.dz_rate);
+  EXPECT_EQ(theirs.z_osc_amplitude, mine.z_osc_amplitude);
+  EXPECT_EQ(theirs.grains, mine.grains);
+  EXPECT_EQ(theirs.stop_reason, mine.stop_reason);
 }
 
 TEST(WorkerTest, DeckErrorIsReportedWithItsLine) {
