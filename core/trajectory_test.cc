@@ -314,6 +314,23 @@ TEST(TrajectoryTest, RealVibrationRunAgreesWithTheOncePerPeriodRate) {
   }
 }
 
+// Omega = +80 at smoke sinks into the floor's clearance before two whole periods: kept, with its
+// one-period rate and dz/T, but inconclusive, and it says why.
+TEST(TrajectoryTest, RealRunStoppedByTheFloorIsInconclusive) {
+  RealRun run = LoadRun("omega-plus80-floor");
+  auto r = AnalyzeRun(run.samples, run.inputs);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->stop_reason, "floor");
+  EXPECT_TRUE(r->near_floor);
+  EXPECT_EQ(r->window_end, "floor");
+  EXPECT_LT(r->uz_blocks, 2);
+  EXPECT_FALSE(r->conclusive);
+  EXPECT_FALSE(r->uz_stderr.has_value());
+  EXPECT_NE(r->inconclusive_reason.find("floor"), std::string::npos) << r->inconclusive_reason;
+  EXPECT_LT(r->dz_rate, 0.0);
+  EXPECT_EQ(DescribeUz(*r).rfind("inconclusive", 0), 0u) << DescribeUz(*r);
+}
+
 TEST(TrajectoryTest, SamplesNeedRisingStepsAndColumns) {
   DumpFrame f;
   f.step = 5;
