@@ -298,8 +298,11 @@ int RunCampaignStatus(Context& c, DaemonClient& client) {
       point += (point.empty() ? "" : " ") + k + "=" + (v.is_string() ? v.get<std::string>() : FormatNumber(v.get<double>()));
     }
     bool drifted = row.value("drifted", false);
+    // An inconclusive rate is never compared: no number that looks like one is shown for it.
+    const bool inconclusive = row.value("inconclusive", false);
     t.rows.push_back({std::to_string(row.value("run_id", int64_t{0})), point, row.value("state", ""),
-                      number(row, "uz"), number(row, "uz_previous"), number(row, "difference"),
+                      inconclusive ? "inconclusive" : number(row, "uz"), number(row, "uz_previous"),
+                      number(row, "difference"),
                       drifted ? "DRIFT" : (row.value("reused", false) ? "reused" : "")});
     t.color.push_back({"", "", StateColor(row.value("state", "")), "", "", "", drifted ? "1;31" : ""});
   }

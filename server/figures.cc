@@ -17,6 +17,7 @@
 #include <plplot.h>
 
 #include "core/keys.h"
+#include "core/trajectory.h"
 
 namespace sandswim {
 namespace {
@@ -253,7 +254,8 @@ std::string PointLabel(const Point& p, const std::string& param) {
   return label;
 }
 
-Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory& trajectory) {
+Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory& trajectory,
+                       const api::RunResult* result) {
   Plot plot;
   plot.title = "run " + std::to_string(run_id) + ": " + PointLabel(point, "");
   plot.x_label = "t (s)";
@@ -265,6 +267,29 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
   for (double z : trajectory.z) dz.y.push_back(z - z0);
   for (double x : trajectory.x) dx.y.push_back(x - x0);
   plot.series = {dz, dx};
+  if (result != nullptr && result->uz && result->uz_blocks >= 1 && trajectory.t.size() >= 2) {
+    plot.title += ": U#dz#u " + DescribeUz(*result);
+    // z at t, linearly interpolated in the stored (possibly downsampled) trajectory.
+    auto z_at = [&](double t) {
+      auto it = std::lower_bound(trajectory.t.begin(), trajectory.t.end(), t);
+      if (it == trajectory.t.end()) return trajectory.z.back() - z0;
+      size_t i = static_cast<size_t>(it - trajectory.t.begin());
+      if (i == 0 || trajectory.t[i] == t) return trajectory.z[i] - z0;
+      double w = (t - trajectory.t[i - 1]) / (trajectory.t[i] - trajectory.t[i - 1]);
+      return trajectory.z[i - 1] + w * (trajectory.z[i] - trajectory.z[i - 1]) - z0;
+    };
+    Series blocks{"Δz once per period (the window's blocks)", {}, {}, {}, true, false};
+    for (int k = 0; k <= result->uz_blocks; ++k) {
+      double t = result->window_t0 + k * result->block_s;
+      blocks.x.push_back(t);
+      blocks.y.push_back(z_at(t));
+    }
+    const double start = blocks.y.front();
+    Series line{"slope U#dz#u over the steady window", {result->window_t0, result->window_t1},
+                {start, start + *result->uz * (result->window_t1 - result->window_t0)}, {}, false, true};
+    plot.series.push_back(std::move(blocks));
+    plot.series.push_back(std::move(line));
+  }
   return plot;
 }
 

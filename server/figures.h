@@ -72,8 +72,11 @@ std::string PlplotLiteral(const std::string& text);
 // for param "" the whole drive.
 std::string PointLabel(const Point& point, const std::string& param);
 
-// Δz(t) and Δx(t) of one run. REQUIRES: the trajectory has at least one sample.
-Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory& trajectory);
+// Δz(t) and Δx(t) of one run. With its result: also Δz read once per period over the steady
+// window (the points U_z is the mean rate of) and the line of slope U_z through the first of them,
+// and U_z (DescribeUz) in the title. REQUIRES: the trajectory has at least one sample.
+Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory& trajectory,
+                       const api::RunResult* result = nullptr);
 
 struct RunTrajectory {
   int64_t run_id = 0;

@@ -75,6 +75,28 @@ TEST(FiguresTest, ARunPlotHasZAndXWithUnits) {
   EXPECT_EQ(png->substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
 }
 
+// With its result, a run's plot shows what U_z is made of: Δz at the window's period boundaries and
+// the line of slope U_z through the first of them, and says U_z in the title.
+TEST(FiguresTest, ARunPlotWithItsResultShowsTheBlocksOfUz) {
+  api::Trajectory t = Wiggle(0.01, 0);  // 0.6 s at 3 Hz
+  api::RunResult r;
+  r.uz = 0.01;
+  r.uz_blocks = 0;
+  EXPECT_EQ(RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), t, &r).series.size(), 2u);
+  r.uz_blocks = 1;
+  r.block_s = 1.0 / 3;
+  r.window_t0 = 0.2;
+  r.window_t1 = 0.2 + 1.0 / 3;
+  r.conclusive = false;
+  Plot plot = RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), t, &r);
+  ASSERT_EQ(plot.series.size(), 4u);
+  EXPECT_EQ(plot.series[2].x.size(), 2u);  // the window's two period boundaries
+  EXPECT_TRUE(plot.series[2].markers);
+  EXPECT_NEAR(plot.series[3].y[1] - plot.series[3].y[0], 0.01 / 3, 1e-12);
+  EXPECT_THAT(plot.title, HasSubstr("inconclusive"));
+  EXPECT_TRUE(RenderPlot(plot, ImageFormat::kSvg).ok());
+}
+
 TEST(FiguresTest, ASweepTrajectoryPlotHasOneSeriesPerRun) {
   std::vector<RunTrajectory> runs;
   for (int n = 0; n < 5; ++n) {

@@ -177,7 +177,8 @@ Result<Plot> RunFigure(Store& store, int64_t run_id) {
     return Status::FailedPrecondition("id", "run " + std::to_string(run_id) + " has no trajectory yet (state " +
                                                 run->summary.state + ")");
   }
-  return RunTrajectoryPlot(run_id, run->summary.point, *run->trajectory);
+  return RunTrajectoryPlot(run_id, run->summary.point, *run->trajectory,
+                           run->result ? &run->result->result : nullptr);
 }
 
 std::string RunFigureName(int64_t run_id) { return "run-" + std::to_string(run_id) + "-trajectory"; }
@@ -290,7 +291,9 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
       }
       for (const RunTrajectory& t : a->runs) {
         if (t.run_id != row.run_id || !r.anchored) continue;
-        auto svg = figures.Get(RunFigureName(t.run_id), RunTrajectoryPlot(t.run_id, t.point, t.trajectory),
+        auto svg = figures.Get(RunFigureName(t.run_id),
+                               RunTrajectoryPlot(t.run_id, t.point, t.trajectory,
+                                                 row.result ? &row.result->result : nullptr),
                                ImageFormat::kSvg);
         if (!svg.ok()) return svg.status();
         r.trajectory_svg = *svg;
