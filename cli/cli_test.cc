@@ -20,6 +20,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <httplib.h>
 #include <nlohmann/json.hpp>
 
 extern char** environ;
@@ -249,16 +250,22 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
 
   o = Sandswim({"results", std::to_string(id), "--format", "csv"});
   ASSERT_EQ(o.code, 0) << o.err;
+  // The CLI's CSV is the daemon's, byte for byte.
+  httplib::Client http(*server_);
+  auto daemon_csv = http.Get("/api/v1/sweeps/" + std::to_string(id) + "/results?format=csv");
+  ASSERT_TRUE(daemon_csv);
+  EXPECT_EQ(o.out, daemon_csv->body);
   std::istringstream lines(o.out);
   std::string header, row1, row2, extra;
   std::getline(lines, header);
   std::getline(lines, row1);
   std::getline(lines, row2);
   EXPECT_FALSE(std::getline(lines, extra));
-  EXPECT_EQ(header, "run_id,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz,Uz_stderr,Uz_ci95,"
-                    "Uz_blocks,conclusive,inconclusive_reason,window_end,dz,dz_rate,broke_surface,near_floor,"
-                    "stop_reason,analysis,key");
-  EXPECT_THAT(row1, MatchesRegex("[0-9]+,queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,,,,,,,,,,,,,,[0-9a-f]{64}"));
+  EXPECT_EQ(header, "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz_text,Uz,Uz_stderr,"
+                    "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,"
+                    "inconclusive_reason,dz,dz_rate,z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,"
+                    "sim_time_s,grains,analysis,engine_version");
+  EXPECT_THAT(row1, MatchesRegex("[0-9]+,[0-9a-f]{64},queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3(,){23}"));
 
   for (std::vector<std::string> args : {std::vector<std::string>{"--format", "json"}, {"--json"}}) {
     std::vector<std::string> argv = {"results", std::to_string(id)};

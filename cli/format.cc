@@ -150,21 +150,6 @@ std::string ProgressBar(double fraction, int width) {
   return "[" + std::string(filled, '#') + std::string(width - filled, '.') + "] " + percent;
 }
 
-std::string CsvCell(const json& value) {
-  if (value.is_null()) return "";
-  if (value.is_array()) {
-    std::string joined;
-    for (const auto& e : value) joined += (joined.empty() ? "" : ";") + (e.is_string() ? e.get<std::string>() : e.dump());
-    return CsvCell(json(joined));
-  }
-  if (!value.is_string()) return value.dump();
-  std::string s = value.get<std::string>();
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string quoted = "\"";
-  for (char ch : s) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-  return quoted + "\"";
-}
-
 // ---- Domain values -----------------------------------------------------------------------------
 
 Counts CountsFromJson(const json& j) {
@@ -450,34 +435,18 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
   return RenderTable(t);
 }
 
-const std::vector<std::string>& ResultCsvColumns() {
-  static const std::vector<std::string> kColumns = {
-      "run_id", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s", "run_duration_s",
-      "Uz", "Uz_stderr", "Uz_ci95", "Uz_blocks", "conclusive", "inconclusive_reason", "window_end", "dz",
-      "dz_rate", "broke_surface", "near_floor", "stop_reason", "analysis", "key"};
-  return kColumns;
-}
-
 std::string RenderResultsCsv(const json& rows) {
-  std::vector<std::string> columns = ResultCsvColumns();
+  std::vector<std::string> columns = ResultColumns();
+  std::vector<json> list;
   bool with_sweeps = false;
   if (rows.is_array()) {
-    for (const auto& r : rows) with_sweeps = with_sweeps || r.contains("sweeps");
+    for (const auto& r : rows) {
+      with_sweeps = with_sweeps || r.contains("sweeps");
+      list.push_back(r);
+    }
   }
   if (with_sweeps) columns.push_back("sweeps");
-  std::string out;
-  for (size_t i = 0; i < columns.size(); ++i) out += (i ? "," : "") + columns[i];
-  out += "\n";
-  if (!rows.is_array()) return out;
-  for (const auto& r : rows) {
-    for (size_t i = 0; i < columns.size(); ++i) {
-      if (i) out += ",";
-      auto it = r.find(columns[i]);
-      if (it != r.end()) out += CsvCell(*it);
-    }
-    out += "\n";
-  }
-  return out;
+  return RowsToCsv(list, columns);
 }
 
 }  // namespace sandswim::cli

@@ -21,6 +21,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/result_table.h"  // CsvCell, ResultColumns: the daemon's CSV
+
 namespace sandswim::cli {
 
 struct RenderOptions {
@@ -54,10 +56,6 @@ std::string FormatDuration(double seconds);
 // "[#########...........]  45%" with `width` cells between the brackets; fraction clamped to
 // [0, 1]. Partial cells are not drawn: the bar shows floor(fraction * width) '#'.
 std::string ProgressBar(double fraction, int width = 20);
-
-// One CSV cell: null -> "", strings quoted when they hold , " or a newline, numbers in the
-// shortest round-trip form, booleans as true/false.
-std::string CsvCell(const nlohmann::json& value);
 
 // ---- Domain values -----------------------------------------------------------------------------
 
@@ -142,9 +140,9 @@ std::string RenderRunDetail(const nlohmann::json& run, const RenderOptions& opti
 // Results rows (the flat rows of GET .../results): one row per run.
 // Table columns: RUN STATE MODE A f Omega/omega AXIS DURATION U_z (m/s) Δz (m) FLAGS [SWEEPS].
 std::string RenderResultsTable(const nlohmann::json& rows, const RenderOptions& options);
-// CSV columns: ResultCsvColumns() (+ "sweeps" when any row has them).
+// The daemon's CSV of the same rows, byte for byte (core/result_table.h: ResultColumns(), plus
+// "sweeps" when any row has them).
 std::string RenderResultsCsv(const nlohmann::json& rows);
-const std::vector<std::string>& ResultCsvColumns();
 // "surface", "floor", "surface,floor" or "" from a row's broke_surface / near_floor.
 std::string ResultFlags(const nlohmann::json& row);
 

@@ -24,6 +24,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/embedded.h"
+#include "core/result_table.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
 #include "server/drift_report.h"
@@ -177,15 +178,6 @@ bool WantsCsv(const Call& c) {
 
 // ---- Result rows (JSON objects and CSV rows share the columns) ---------------------------------
 
-const std::vector<std::string>& ResultColumns() {
-  static const std::vector<std::string> kColumns = {
-      "run_id", "key", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s",
-      "run_duration_s", "Uz_text", "Uz", "Uz_stderr", "Uz_ci95", "Uz_blocks", "block_s", "block_kind", "window_t0", "window_t1",
-      "window_end", "conclusive", "inconclusive_reason", "dz", "dz_rate", "z_osc_amplitude", "x_drift",
-      "broke_surface", "near_floor", "stop_reason", "sim_time_s", "grains", "analysis", "engine_version"};
-  return kColumns;
-}
-
 json ResultRowJson(const ResultRow& row) {
   json j = json::object();
   for (const auto& col : ResultColumns()) j[col] = nullptr;
@@ -222,36 +214,6 @@ json ResultRowJson(const ResultRow& row) {
     j["engine_version"] = row.result->execution.engine_version;
   }
   return j;
-}
-
-std::string CsvCell(const json& v) {
-  if (v.is_null()) return "";
-  if (v.is_array()) {
-    std::string joined;
-    for (const auto& e : v) joined += (joined.empty() ? "" : ";") + (e.is_string() ? e.get<std::string>() : e.dump());
-    return CsvCell(json(joined));
-  }
-  if (!v.is_string()) return v.dump();  // shortest round-trip form for numbers
-  std::string s = v.get<std::string>();
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string quoted = "\"";
-  for (char ch : s) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-  return quoted + "\"";
-}
-
-std::string RowsToCsv(const std::vector<json>& rows, const std::vector<std::string>& columns) {
-  std::string out;
-  for (size_t i = 0; i < columns.size(); ++i) out += (i ? "," : "") + columns[i];
-  out += "\n";
-  for (const auto& row : rows) {
-    for (size_t i = 0; i < columns.size(); ++i) {
-      if (i) out += ",";
-      auto it = row.find(columns[i]);
-      if (it != row.end()) out += CsvCell(*it);
-    }
-    out += "\n";
-  }
-  return out;
 }
 
 void SendRows(Call& c, int64_t id, const std::vector<json>& rows, bool with_sweeps) {
