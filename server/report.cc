@@ -65,7 +65,11 @@ std::string FitRows(const ReportSweep& s) {
   if (fits.choice.kind == FitKind::kNone || fits.branches.empty()) {
     return "<tr><td><a href=\"#sweep-" + std::to_string(s.info.id) + "\">" + Escape(s.info.name) +
            "</a></td><td>none</td><td colspan=\"5\">" +
-           Escape(fits.choice.kind == FitKind::kNone ? fits.choice.reason : "no finished runs") + "</td></tr>\n";
+           Escape(fits.choice.kind == FitKind::kNone ? fits.choice.reason
+                  : fits.left_out.empty()          ? std::string("no finished runs")
+                                                   : "no conclusive runs: " + std::to_string(fits.left_out.size()) +
+                                                         " finished run(s) left out as inconclusive") +
+           "</td></tr>\n";
   }
   // Inconclusive runs are not fitted: say which, under the sweep's first row.
   std::string left_out;

@@ -79,6 +79,8 @@ class ReportTest : public ::testing::Test {
     std::filesystem::remove_all(dir_);
   }
 
+  bool inconclusive_ = false;  // RunAll's results: inconclusive (one period) instead
+
   // Prepares the bed and completes up to `runs` runs with synthetic results.
   void RunAll(int runs = 1000) {
     for (int done = 0; done < runs;) {
@@ -105,6 +107,13 @@ class ReportTest : public ::testing::Test {
         r.block_s = 1.0 / 3;
         r.block_kind = "period";
         r.conclusive = true;
+        if (inconclusive_) {  // one period, as every smoke run of paper-58 today
+          r.uz_stderr.reset();
+          r.uz_ci95.reset();
+          r.uz_blocks = 1;
+          r.conclusive = false;
+          r.inconclusive_reason = "the steady window holds 1 whole period, fewer than 2";
+        }
         r.stop_reason = "duration";
         c.result = r;
         api::Trajectory t;
@@ -166,6 +175,25 @@ TEST_F(ReportTest, AnalyzeSweepFitsTheFinishedRuns) {
   EXPECT_EQ(SweepTrajectoriesFigure(*a).series.size(), 8u);
   EXPECT_EQ(SweepUzFigure(*a).series.size(), 4u);
   EXPECT_EQ(AnalyzeSweep(*store_, 999).status().code(), StatusCode::kNotFound);
+}
+
+// Inconclusive runs are shown (their one-period rate, not fitted) and the fit says it has none.
+TEST_F(ReportTest, InconclusiveRunsAreShownButNotFitted) {
+  inconclusive_ = true;
+  RunAll();
+  auto a = AnalyzeSweep(*store_, sweeps_[0]);
+  ASSERT_TRUE(a.ok());
+  EXPECT_TRUE(a->fits.branches.empty());
+  EXPECT_EQ(a->fits.left_out.size(), 8u);
+  Plot uz = SweepUzFigure(*a);
+  ASSERT_EQ(uz.series.size(), 1u);
+  EXPECT_EQ(uz.series[0].label, "inconclusive (not fitted)");
+  EXPECT_EQ(uz.series[0].x.size(), 8u);
+  FigureCache figures(dir_ + "/figures");
+  auto html = CampaignReport(*store_, figures, campaign_run_, 1.7e9);
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  EXPECT_NE(html->find("no conclusive runs: 8 finished run(s) left out as inconclusive"), std::string::npos);
+  EXPECT_NE(html->find("inconclusive (≈0.0"), std::string::npos);
 }
 
 TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {

@@ -55,12 +55,13 @@ class EndToEndTest : public ::testing::Test {
 std::string* EndToEndTest::dir_ = nullptr;
 Daemon* EndToEndTest::daemon_ = nullptr;
 
-// The issue's pair: Omega = -80 and +80 at smoke, at 10 Hz for 0.4 s so that the steady window
-// (after a 0.1 s transient) holds 3 whole periods: both finish with a conclusive U_z, its error and
-// a trajectory; the bed was prepared once for both.
+// The issue's pair: Omega = -80 and +80 at smoke. Smoke caps a run at max(0.25 s, 2/f), so at the
+// paper's 3 Hz its window holds one period (inconclusive); at 20 Hz the 0.25 s run keeps a 0.05 s
+// transient and 4 whole periods: both finish with a conclusive U_z, its error and a trajectory; the
+// bed was prepared once for both.
 TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
-  int64_t id = Submit(testing::OmegaSweep("omega-sign", {-80, 80}, 0.4, 10));
+  int64_t id = Submit(testing::OmegaSweep("omega-sign", {-80, 80}, 0.25, 20));
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
   for (const json& run : Runs(id)) {
@@ -70,19 +71,21 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
     ASSERT_TRUE(res.contains("uz")) << res.dump();
     EXPECT_TRUE(std::isfinite(res["uz"].get<double>()));
     EXPECT_EQ(res["analysis"], api::kAnalysisVersion);
-    EXPECT_EQ(res["uz_blocks"], 3) << res.dump();
+    // 0.25 s at 20 Hz: one period of transient, then 4 whole periods, enough for an error.
+    EXPECT_EQ(res["uz_blocks"], 4) << res.dump();
     EXPECT_EQ(res["conclusive"], true) << res.dump();
+    ASSERT_TRUE(res.contains("uz_stderr")) << res.dump();
     EXPECT_GT(res["uz_stderr"].get<double>(), 0.0);
     EXPECT_EQ(res["window_end"], "run_end");
     EXPECT_EQ(res["stop_reason"], "duration");
-    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.4, 1e-9);
+    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.25, 1e-9);
     EXPECT_GT(res["grains"].get<int64_t>(), 4000);
     EXPECT_GT(detail["trajectory"]["t"].size(), 100u);
     EXPECT_EQ(detail["trajectory"]["t"].size(), detail["trajectory"]["z"].size());
     EXPECT_EQ(res["launcher"], "mpirun");
     EXPECT_EQ(detail["attempts"], 1);
     // Figures for the closing note of issue 4.
-    std::printf("E2E Omega=%+g at 10 Hz: U_z=%s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
+    std::printf("E2E Omega=%+g at 20 Hz: U_z=%s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
                 run["point"]["Omega"].get<double>(), res.value("uz_text", "?").c_str(), res["dz"].get<double>(),
                 res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
   }
@@ -90,7 +93,7 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
   EXPECT_EQ(daemon_->Sql("SELECT attempts FROM beds"), "1");
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results"), "2");
   // Submitting the same sweep again reuses both results: nothing is queued.
-  int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.4, 10));
+  int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.25, 20));
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
   EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
   EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM runs"), "2");

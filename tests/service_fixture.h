@@ -64,8 +64,8 @@ class Daemon {
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,
                                           const std::vector<std::string>& extra = {});
 
-// A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz) over the given Omega values, each run
-// `duration` s long: the sweep JSON to POST.
+// A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz unless `f` says otherwise) over the
+// given Omega values, each run `duration` s long: the sweep JSON to POST.
 nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration,
                           double f = 3);
 
