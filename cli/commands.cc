@@ -303,7 +303,10 @@ int RunCampaignStatus(Context& c, DaemonClient& client) {
     t.rows.push_back({std::to_string(row.value("run_id", int64_t{0})), point, row.value("state", ""),
                       inconclusive ? "inconclusive" : number(row, "uz"), number(row, "uz_previous"),
                       number(row, "difference"),
-                      drifted ? "DRIFT" : (row.value("reused", false) ? "reused" : "")});
+                      drifted                                   ? "DRIFT"
+                      : row.value("estimator_changed", false) ? "analysis changed"
+                      : row.value("reused", false)            ? "reused"
+                                                              : ""});
     t.color.push_back({"", "", StateColor(row.value("state", "")), "", "", "", drifted ? "1;31" : ""});
   }
   if (!c.OutRender().color) t.color.clear();

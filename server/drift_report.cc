@@ -113,6 +113,7 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
         p.uz = row.result->result.uz;
         // Only conclusive rates are compared: an inconclusive one is too short to judge a change by.
         p.inconclusive = !row.result->result.conclusive || !p.uz;
+        p.analysis = row.result->result.analysis;
         p.reused = row.result->created_at < info.created_at;
       }
       report.rows.push_back(std::move(p));
@@ -127,7 +128,7 @@ void to_json(json& j, const DriftPoint& p) {
   j = {{"point", p.point}, {"run_id", p.run_id},          {"key", p.key},
        {"state", p.state},              {"uz", OrNull(p.uz)},          {"uz_previous", OrNull(p.uz_previous)},
        {"difference", OrNull(p.difference)}, {"drifted", p.drifted}, {"reused", p.reused},
-       {"inconclusive", p.inconclusive}};
+       {"inconclusive", p.inconclusive}, {"analysis", p.analysis}, {"estimator_changed", p.estimator_changed}};
 }
 
 void from_json(const json& j, DriftPoint& p) {
@@ -141,6 +142,9 @@ void from_json(const json& j, DriftPoint& p) {
   p.drifted = j.value("drifted", false);
   p.reused = j.value("reused", false);
   p.inconclusive = j.value("inconclusive", false);
+  // Reports stored before the field existed were all made by the first analysis.
+  p.analysis = j.value("analysis", p.uz ? 1 : 0);
+  p.estimator_changed = j.value("estimator_changed", false);
 }
 
 void to_json(json& j, const DriftReport& r) {
@@ -156,7 +160,7 @@ void to_json(json& j, const DriftReport& r) {
        {"points", r.points},
        {"reused", r.reused},
        {"ran", r.ran},
-       {"missing", r.missing}, {"inconclusive", r.inconclusive},
+       {"missing", r.missing}, {"inconclusive", r.inconclusive}, {"estimator_changed", r.estimator_changed},
        {"compared", r.compared},
        {"drifted", r.drifted},
        {"summary", r.summary},
@@ -178,6 +182,7 @@ void from_json(const json& j, DriftReport& r) {
   r.ran = j.value("ran", int64_t{0});
   r.missing = j.value("missing", int64_t{0});
   r.inconclusive = j.value("inconclusive", int64_t{0});
+  r.estimator_changed = j.value("estimator_changed", int64_t{0});
   r.compared = j.value("compared", int64_t{0});
   r.drifted = j.value("drifted", int64_t{0});
   r.summary = j.value("summary", "");
@@ -192,10 +197,12 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
   }
   report.points = static_cast<int64_t>(report.rows.size());
   report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
+  report.estimator_changed = 0;
   for (DriftPoint& p : report.rows) {
     p.uz_previous.reset();
     p.difference.reset();
     p.drifted = false;
+    p.estimator_changed = false;
     if (!p.uz && !p.inconclusive) {
       ++report.missing;
       continue;
@@ -207,6 +214,11 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     }
     auto it = before.find(PointIdentity(p.point));
     if (it == before.end() || !it->second->uz || it->second->inconclusive) continue;
+    if (it->second->analysis != p.analysis) {
+      p.estimator_changed = true;
+      ++report.estimator_changed;
+      continue;
+    }
     p.uz_previous = it->second->uz;
     p.difference = *p.uz - *p.uz_previous;
     p.drifted = std::fabs(*p.difference) > report.tolerance_mps;
@@ -225,6 +237,9 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
                      std::to_string(report.drifted) + " drifted beyond " + Tolerance(report.tolerance_mps) +
                      " m/s";
   if (report.inconclusive > 0) line += ", " + std::to_string(report.inconclusive) + " inconclusive (not compared)";
+  if (report.estimator_changed > 0) {
+    line += ", " + std::to_string(report.estimator_changed) + " not compared (U_z analysis changed)";
+  }
   if (report.missing > 0) line += ", " + std::to_string(report.missing) + " failed or cancelled";
   if (previous == nullptr) line += "; first report, nothing to compare";
   report.summary = line;

@@ -43,9 +43,13 @@ struct DriftPoint {
   bool drifted = false;              // |difference| > tolerance
   bool reused = false;               // the result predates this campaign run
   bool inconclusive = false;         // done, but too few whole periods: never compared
+  int analysis = 0;                  // api::RunResult::analysis of uz (0: no result); a report
+                                     // stored before the field existed reads as 1
+  bool estimator_changed = false;    // the previous report's uz came from another analysis:
+                                     // never compared
 };
 // {"point":{...},"run_id","key","state","uz","uz_previous","difference","drifted","reused",
-//  "inconclusive"}
+//  "inconclusive","analysis","estimator_changed"}
 // (absent values are null).
 void to_json(nlohmann::json& j, const DriftPoint& p);
 void from_json(const nlohmann::json& j, DriftPoint& p);
@@ -61,12 +65,13 @@ struct DriftReport {
   double tolerance_mps = 0;
   double created_at = 0;
   int64_t points = 0, reused = 0, ran = 0, missing = 0, compared = 0, drifted = 0, inconclusive = 0;
+  int64_t estimator_changed = 0;            // points not compared: the U_z analysis changed
   std::vector<DriftPoint> rows;             // the campaign run's distinct runs, in sweep order
   std::string summary;                      // the one-line summary the daemon logs
 };
 // {"campaign_run_id","campaign","scale","trigger","due_time","campaign_run_created_at",
 //  "previous_campaign_run_id","tolerance_mps","created_at","points","reused","ran","missing",
-//  "compared","drifted","summary","rows":[DriftPoint...]}
+//  "compared","drifted","inconclusive","estimator_changed","summary","rows":[DriftPoint...]}
 void to_json(nlohmann::json& j, const DriftReport& r);
 void from_json(const nlohmann::json& j, DriftReport& r);
 
@@ -74,7 +79,10 @@ void from_json(const nlohmann::json& j, DriftReport& r);
 // (nullptr: the first report), then the summary line (times in `zone`'s wall clock):
 //   "paper-58@smoke night 2026-11-23 02:00: 58 points, 56 reused, 2 run, 1 drifted beyond 0.005 m/s"
 //   "paper-58@smoke rerun cr:7 (manual, 2026-11-23 14:05): ..."
-// plus ", N failed or cancelled" and "; first report, nothing to compare" when they apply.
+// plus ", N inconclusive (not compared)", ", N not compared (U_z analysis changed)",
+// ", N failed or cancelled" and "; first report, nothing to compare" when they apply. A rate is
+// compared only with one made by the same analysis (api::kAnalysisVersion): after an upgrade the
+// first report compares nothing it cannot.
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone);
 
 // Makes, stores and returns a report for every campaign run that has none yet and whose runs

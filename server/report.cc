@@ -119,11 +119,16 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
                      "<th>U<sub>z</sub> (m/s)</th><th>before (m/s)</th><th>difference (m/s)</th><th></th></tr>\n";
   auto cell = [](const std::optional<double>& v) { return v ? Num(*v) : std::string("–"); };
   for (const DriftPoint& p : drift->rows) {
+    // An inconclusive rate is never compared: no number that looks like one is shown for it.
+    const std::string now = p.inconclusive ? "inconclusive" : cell(p.uz);
+    const std::string note = p.drifted             ? "drifted"
+                             : p.estimator_changed ? "not compared: U_z analysis changed"
+                             : p.reused            ? "reused"
+                                                   : "";
     html += "<tr" + std::string(p.drifted ? " class=\"drifted\"" : "") + "><td><a href=\"#run-" +
             std::to_string(p.run_id) + "\">" + std::to_string(p.run_id) + "</a></td><td>" + Escape(p.point.dump()) +
-            "</td><td>" + Escape(p.state) + "</td><td>" + cell(p.uz) + "</td><td>" + cell(p.uz_previous) +
-            "</td><td>" + cell(p.difference) + "</td><td>" + (p.drifted ? "drifted" : p.reused ? "reused" : "") +
-            "</td></tr>\n";
+            "</td><td>" + Escape(p.state) + "</td><td>" + now + "</td><td>" + cell(p.uz_previous) + "</td><td>" +
+            cell(p.difference) + "</td><td>" + note + "</td></tr>\n";
   }
   return html + "</table>\n";
 }

@@ -309,6 +309,47 @@ TEST_F(SchedulerTest, DriftReportNeverComparesAnInconclusiveResult) {
   }
 }
 
+// After an upgrade of the U_z analysis, the first report compares no rate with one the old
+// analysis made (a stored report without the field was made by analysis 1), however far it moved.
+TEST(DriftReportTest, RatesOfDifferentAnalysesAreNotCompared) {
+  const nlohmann::json point = {{"mode", "oscillatory"}, {"Omega", 80}};
+  DriftPoint old_row = nlohmann::json{{"point", point}, {"run_id", 1}, {"state", "done"}, {"uz", 0.010}}
+                           .get<DriftPoint>();
+  EXPECT_EQ(old_row.analysis, 1);
+  DriftReport previous;
+  previous.campaign_run_id = 1;
+  previous.rows = {old_row};
+  DriftReport now;
+  now.campaign = "tiny";
+  now.scale = "smoke";
+  now.trigger = "manual";
+  now.campaign_run_id = 2;
+  now.tolerance_mps = 0.005;
+  DriftPoint p;
+  p.point = point;
+  p.run_id = 2;
+  p.state = "done";
+  p.uz = 0.090;
+  p.analysis = api::kAnalysisVersion;
+  now.rows = {p};
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_EQ(now.compared, 0);
+  EXPECT_EQ(now.drifted, 0);
+  EXPECT_EQ(now.estimator_changed, 1);
+  EXPECT_TRUE(now.rows[0].estimator_changed);
+  EXPECT_FALSE(now.rows[0].difference.has_value());
+  EXPECT_NE(now.summary.find(", 1 not compared (U_z analysis changed)"), std::string::npos) << now.summary;
+  // The same analysis on both sides is compared.
+  previous.rows[0].analysis = api::kAnalysisVersion;
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_EQ(now.compared, 1);
+  EXPECT_EQ(now.drifted, 1);
+  EXPECT_EQ(now.estimator_changed, 0);
+  // Round trip through the stored JSON.
+  DriftReport back = nlohmann::json(now).get<DriftReport>();
+  EXPECT_EQ(back.rows[0].analysis, api::kAnalysisVersion);
+}
+
 TEST_F(SchedulerTest, DriftReportFlagsOnlyChangesBeyondTheTolerance) {
   Register();
   clock_.Set(Utc(2026, 11, 23, 2, 0, 10));
