@@ -115,5 +115,30 @@ TEST_F(AnalyzeTest, UnreadableDumpsAreNamedAndTheRestAnalysed) {
   EXPECT_EQ(bad.Run({"analyze", good.c_str(), "--min-periods", "0"}), 2);
 }
 
+// Numbers that would silently mean something else are usage errors naming the option: nan or inf
+// (no "default" from a NaN), an atom id < 1, a frequency whose period is shorter than a sample, a
+// deck that states no frequency.
+TEST_F(AnalyzeTest, OptionsThatCannotBeRightAreRefused) {
+  const std::string good = kRun + "/so.dump";
+  for (const char* opt : {"--f", "--dt", "--floor", "--surface"}) {
+    for (const char* v : {"nan", "inf", "-inf"}) {
+      Cli cli;
+      EXPECT_EQ(cli.Run({"analyze", good.c_str(), opt, v}), 2) << opt << " " << v;
+      EXPECT_THAT(cli.err.str(), HasSubstr(opt)) << opt << " " << v;
+      EXPECT_TRUE(cli.out.str().empty());
+    }
+  }
+  Cli id;
+  EXPECT_EQ(id.Run({"analyze", good.c_str(), "--id", "-3"}), 2);
+  EXPECT_THAT(id.err.str(), HasSubstr("--id"));
+  Cli huge;
+  EXPECT_EQ(huge.Run({"analyze", good.c_str(), "--f", "1e300"}), 2);
+  EXPECT_THAT(huge.err.str(), HasSubstr("shorter than the dump's sample interval"));
+  const std::string deck = Write("no-f.in", "timestep 1e-5\n");
+  Cli no_f;
+  EXPECT_EQ(no_f.Run({"analyze", good.c_str(), "--deck", deck.c_str()}), 2);
+  EXPECT_THAT(no_f.err.str(), HasSubstr("variable f equal"));
+}
+
 }  // namespace
 }  // namespace sandswim::cli

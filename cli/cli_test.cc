@@ -223,7 +223,7 @@ TEST_F(CliTest, RunsInTableAndJson) {
   int64_t id = SubmitSweep("runs-sweep", 20);
   Outcome o = Sandswim({"runs", "--sweep", std::to_string(id)});
   ASSERT_EQ(o.code, 0) << o.err;
-  EXPECT_THAT(o.out, StartsWith("ID  STATE   PROGRESS  U_z (m/s)  POINT"));
+  EXPECT_THAT(o.out, StartsWith("ID  STATE   PROGRESS  U_z  POINT"));
   EXPECT_THAT(o.out, HasSubstr("oscillatory A=0.03 f=3 Omega=20 T=0.3s"));
 
   o = Sandswim({"runs", "--sweep", std::to_string(id), "--state", "queued", "--json"});

@@ -642,19 +642,32 @@ int RunReport(Context& c) {
   return kExitOk;
 }
 
+// A number option that must be finite: "nan" or "inf" is a usage error, not a silent default.
+const CLI::Validator kFinite(
+    [](std::string& s) {
+      double v = 0;
+      return CLI::detail::lexical_cast(s, v) && std::isfinite(v) ? std::string() : "must be a finite number";
+    },
+    "FINITE");
+
 void SetupAnalyze(CLI::App& sub, Args& a) {
   sub.add_option("DUMP", a.dumps, "LIGGGHTS dump files of the SO (a run directory's so.dump, or any dump custom "
                                   "with id, x, y, z)")
       ->required();
-  sub.add_option("--f", a.an_f, "drive frequency in Hz, 0 for constant rotation (default: from drive.in beside the dump)");
-  sub.add_option("--dt", a.an_dt, "time step in s (default: from the deck, else Table 1's 1e-5)");
-  sub.add_option("--id", a.an_id, "the SO's atom id (default: the only atom, else the largest particle)");
-  sub.add_option("--floor", a.an_floor, "z of the floor in m (default: from the deck; unknown: not checked)");
+  sub.add_option("--f", a.an_f, "drive frequency in Hz, 0 for constant rotation (default: from drive.in beside the dump)")
+      ->check(kFinite);
+  sub.add_option("--dt", a.an_dt, "time step in s (default: from the deck, else Table 1's 1e-5)")->check(kFinite);
+  sub.add_option("--id", a.an_id, "the SO's atom id (default: the only atom, else the largest particle)")
+      ->check(CLI::PositiveNumber);
+  sub.add_option("--floor", a.an_floor, "z of the floor in m (default: from the deck; unknown: not checked)")
+      ->check(kFinite);
   sub.add_option("--surface", a.an_surface,
-                 "z of the bed surface in m (default: from log.liggghts beside the dump; unknown: not checked)");
+                 "z of the bed surface in m (default: from log.liggghts beside the dump; unknown: not checked)")
+      ->check(kFinite);
   sub.add_option("--deck", a.an_deck, "the run's deck (default: drive.in beside the dump)");
   sub.add_option("--log", a.an_log, "the run's engine log (default: log.liggghts beside the dump)");
-  sub.add_option("--transient-periods", a.an_rule.transient_blocks, "periods skipped at the start")
+  sub.add_option("--transient-periods", a.an_rule.transient_blocks,
+                 "whole periods (blocks, for constant rotation) skipped at the start")
       ->capture_default_str();
   sub.add_option("--clearance", a.an_rule.clearance_m,
                  "m of grains kept between the SO and the surface or floor: the window ends before")
@@ -664,7 +677,8 @@ void SetupAnalyze(CLI::App& sub, Args& a) {
   sub.add_flag("--json", a.json, "print JSON instead of text");
 }
 
-// Analyses each dump as the worker would; goes on past a dump it cannot read (exit 1 at the end).
+// Analyses each dump as the worker would; goes on past a dump it cannot read (at the end, the exit
+// code of the first failure: 2 for a usage error, 1 for an unreadable file).
 int RunAnalyze(Context& c) {
   AnalyzeOptions o;
   if (!std::isnan(c.args.an_f)) o.f = c.args.an_f;
@@ -685,8 +699,9 @@ int RunAnalyze(Context& c) {
   for (const std::string& dump : c.args.dumps) {
     auto a = AnalyzeDumpFile(dump, o);
     if (!a.ok()) {
-      code = a.status().code() == StatusCode::kInvalidArgument ? kExitUsage : kExitError;
-      Fail(c, a.status(), code);
+      const int failed = a.status().code() == StatusCode::kInvalidArgument ? kExitUsage : kExitError;
+      Fail(c, a.status(), failed);
+      if (code == kExitOk) code = failed;  // the first failure decides the exit code
       continue;
     }
     if (c.args.json) {

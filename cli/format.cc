@@ -311,7 +311,7 @@ std::string RenderSweepsTable(const json& sweeps, const RenderOptions&) {
 
 std::string RenderRunsTable(const json& runs, const RenderOptions& options) {
   Table t;
-  t.header = {"ID", "STATE", "PROGRESS", "U_z (m/s)", "POINT", "WORKER"};
+  t.header = {"ID", "STATE", "PROGRESS", "U_z", "POINT", "WORKER"};  // uz_text carries its unit
   t.align = {Align::kRight, Align::kLeft, Align::kRight, Align::kRight, Align::kLeft, Align::kLeft};
   if (runs.is_array()) {
     for (const auto& r : runs) {

@@ -204,8 +204,8 @@ TEST(FormatTest, SweepsAndRunsTables) {
       "point": {"mode":"vibration","A":0.03,"f":3,"duration_s":5},
       "progress": {"sim_time_s": 1.25, "so_z": 0.4, "step": 125000}}])");
   EXPECT_EQ(RenderRunsTable(runs, {}),
-            "ID  STATE    PROGRESS  U_z (m/s)  POINT                      WORKER\n"
-            " 4  running  1.25/5 s          -  vibration A=0.03 f=3 T=5s  n1:3\n");
+            "ID  STATE    PROGRESS  U_z  POINT                      WORKER\n"
+            " 4  running  1.25/5 s    -  vibration A=0.03 f=3 T=5s  n1:3\n");
 }
 
 TEST(FormatTest, RunDetailShowsDeckResultAndLog) {

@@ -115,9 +115,13 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
   auto dt = LineValue(deck, "timestep");
   if (!dt || *dt <= 0) return Status::InvalidArgument("deck", "the deck has no 'timestep <dt>' line with dt > 0");
   info.dt = *dt;
-  info.f = LineValue(deck, "variable f equal ").value_or(0.0);
+  // Every drive deck states f (0 for constant rotation): a deck without it is not one of ours, and
+  // guessing "no period" would analyse a vibrating run with the wrong blocks.
+  auto f = LineValue(deck, "variable f equal ");
+  if (!f) return Status::InvalidArgument("deck", "the deck has no 'variable f equal <Hz>' line (0 for constant rotation)");
+  info.f = *f;
   info.A = LineValue(deck, "variable A equal ").value_or(0.0);
-  if (info.f < 0) return Status::InvalidArgument("deck", "'variable f equal' is negative");
+  if (!(info.f >= 0) || !std::isfinite(info.f)) return Status::InvalidArgument("deck", "'variable f equal' is not a finite f >= 0");
   // "fix floor all wall/gran model ... primitive type 1 zplane Z"
   size_t at = deck.find("\nfix floor ");
   if (at != std::string_view::npos) {
@@ -262,9 +266,18 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
     return Status::FailedPrecondition("trajectory", "the SO dump has " + std::to_string(samples.size()) +
                                                         " frames; at least 3 are needed");
   }
+  if (!std::isfinite(f) || f < 0) return Status::InvalidArgument("f", "the drive frequency must be finite and >= 0 Hz");
   const SoSample& first = samples.front();
   const SoSample& last = samples.back();
   if (!bounds.surface && start) bounds.surface = start->surface;
+  // A block shorter than the dump's mean sample interval has no samples of its own (and a huge f
+  // would ask for billions of blocks): the frequency or the dump is wrong.
+  const double sample_interval = (last.t - first.t) / static_cast<double>(samples.size() - 1);
+  if (f > 0 && 1.0 / f < sample_interval) {
+    return Status::InvalidArgument("f", "a period of " + Num(1.0 / f) + " s (f = " + Num(f) +
+                                            " Hz) is shorter than the dump's sample interval of " +
+                                            Num(sample_interval) + " s: check f, or dump the SO more often");
+  }
 
   api::RunResult r;
   r.block_s = f > 0 ? 1.0 / f : rule.undriven_block_s;
@@ -272,20 +285,21 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   r.window_t0 = first.t + rule.transient_blocks * r.block_s;
 
   // The last moment the SO keeps its clearance from the surface and the floor.
+  // It ends at the last sample that keeps it (the first sample inside is already under the
+  // boundary's influence).
   double t_end = last.t;
   r.window_end = "run_end";
   const double reach = bounds.so_radius + rule.clearance_m;
+  double t_kept = first.t;
   for (const SoSample& p : samples) {
-    if (bounds.surface && p.z > *bounds.surface - reach) {
-      t_end = p.t;
-      r.window_end = "surface";
+    const bool near_surface = bounds.surface && p.z > *bounds.surface - reach;
+    const bool near_floor = bounds.floor && p.z < *bounds.floor + reach;
+    if (near_surface || near_floor) {
+      t_end = t_kept;
+      r.window_end = near_surface ? "surface" : "floor";
       break;
     }
-    if (bounds.floor && p.z < *bounds.floor + reach) {
-      t_end = p.t;
-      r.window_end = "floor";
-      break;
-    }
+    t_kept = p.t;
   }
   // Whole blocks only; the tolerance lets a window that ends on its last sample keep that block.
   const double span = t_end - r.window_t0;

@@ -66,7 +66,8 @@ struct DriveInfo {
   double A = 0;   // m
   std::optional<double> z_floor;  // m, the floor wall's height, when the deck has one
 };
-// InvalidArgument naming the missing line when the deck does not state dt.
+// InvalidArgument naming the missing line when the deck does not state dt or f (every drive deck
+// states "variable f equal", 0 for constant rotation).
 Result<DriveInfo> ReadDriveInfo(std::string_view deck);
 
 // How the steady window is chosen. The defaults are the service's; `sandswim analyze` can change
@@ -137,8 +138,10 @@ class SoSampleSink final : public DumpFrameSink {
 // SamplesFromFrames(ReadDump(text)) without the frames: a dump Corruption, or a frame's problem.
 Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt, SoSelector so = {});
 
-// REQUIRES: samples in ascending t. FailedPrecondition when there are fewer than 3 samples.
-// `f` is the drive frequency (0: no period). `start`/`stop` (from the log) fill grains, the stop
+// REQUIRES: samples in ascending t. FailedPrecondition when there are fewer than 3 samples;
+// InvalidArgument ("f") when `f` is not finite and >= 0, or its period is shorter than the mean
+// sample interval. `f` is the drive frequency (0: no period). The window ends at the last sample
+// that keeps the clearance from the surface and the floor, else at the last sample. `start`/`stop` (from the log) fill grains, the stop
 // reason and flags, and the bed surface when `bounds` has none; without `stop` the reason is
 // "duration" and steps are the last sample's.
 Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, double f, BedBounds bounds,

@@ -247,7 +247,12 @@ TEST(TrajectoryTest, ReadDriveInfoFromARealDeck) {
   ASSERT_TRUE(info->z_floor);
   EXPECT_DOUBLE_EQ(*info->z_floor, -0.25);
   EXPECT_FALSE(ReadDriveInfo("units si\n").ok());
-  EXPECT_FALSE(ReadDriveInfo("timestep 1e-5\n")->z_floor);
+  EXPECT_FALSE(ReadDriveInfo("timestep 1e-5\nvariable f equal 0\n")->z_floor);
+  // A deck that does not state f is refused rather than read as "no period".
+  auto no_f = ReadDriveInfo("timestep 1e-5\n");
+  ASSERT_FALSE(no_f.ok());
+  EXPECT_EQ(no_f.status().field(), "deck");
+  EXPECT_FALSE(ReadDriveInfo("timestep 1e-5\nvariable f equal -3\n").ok());
 }
 
 // A real run directory of tests/fixtures/runs/ (README there): its samples and inputs, read as

@@ -12,7 +12,7 @@
 --   analysis             the analysis that made the row: 1 (line + sinusoid at f, the old
 --                        estimator) or 2. Rows kept from before this migration are analysis 1,
 --                        inconclusive, until the daemon re-analyses them from their stored
---                        trajectories at start-up (Store::ReanalyzeResults).
+--                        trajectories at start-up (Store::ReanalyzeOldResults).
 -- SQLite cannot drop NOT NULL in place: the table is rebuilt, rows and run ids kept.
 CREATE TABLE results_v7 (
   run_id              INTEGER PRIMARY KEY REFERENCES runs (id),

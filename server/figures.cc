@@ -278,7 +278,9 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
       double w = (t - trajectory.t[i - 1]) / (trajectory.t[i] - trajectory.t[i - 1]);
       return trajectory.z[i - 1] + w * (trajectory.z[i] - trajectory.z[i - 1]) - z0;
     };
-    Series blocks{"Δz once per period (the window's blocks)", {}, {}, {}, true, false};
+    Series blocks{result->block_kind == "block" ? "Δz at the window's block boundaries"
+                                                : "Δz once per period (the window's blocks)",
+                  {}, {}, {}, true, false};
     for (int k = 0; k <= result->uz_blocks; ++k) {
       double t = result->window_t0 + k * result->block_s;
       blocks.x.push_back(t);
