@@ -38,7 +38,8 @@ void to_json(nlohmann::json& j, const RunResult& r) {
                      {"steps", r.steps},
                      {"grains", r.grains},
                      {"z0", r.z0},
-                     {"analysis", r.analysis}};
+                     {"analysis", r.analysis},
+                     {"analysed_from", r.analysed_from}};
   PutOptional(j, "uz", r.uz);
   PutOptional(j, "uz_stderr", r.uz_stderr);
   PutOptional(j, "uz_ci95", r.uz_ci95);
@@ -70,6 +71,7 @@ void from_json(const nlohmann::json& j, RunResult& r) {
   r.z0 = j.value("z0", 0.0);
   // A result without "analysis" was made by a worker that predates it: the old estimator.
   r.analysis = j.value("analysis", 1);
+  r.analysed_from = j.value("analysed_from", "dump");
 }
 
 void to_json(nlohmann::json& j, const LeaseGrant& g) {

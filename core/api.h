@@ -113,6 +113,10 @@ struct RunResult {
   int64_t grains = 0;
   double z0 = 0;                    // m, the SO's z at t = 0
   int analysis = kAnalysisVersion;  // the analysis that made this result
+  // What it was computed from: "dump" (the worker, the engine's full dump) | "trajectory" (the
+  // daemon re-analysed an old result from its stored, downsampled trajectory) | "unreadable" (an
+  // old result that could not be re-analysed: old numbers, inconclusive). Set by the store only.
+  std::string analysed_from = "dump";
 };
 void to_json(nlohmann::json& j, const RunResult& r);
 void from_json(const nlohmann::json& j, RunResult& r);

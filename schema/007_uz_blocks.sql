@@ -13,6 +13,11 @@
 --                        estimator) or 2. Rows kept from before this migration are analysis 1,
 --                        inconclusive, until the daemon re-analyses them from their stored
 --                        trajectories at start-up (Store::ReanalyzeOldResults).
+--   analysed_from        what the numbers were computed from: "dump" (the worker, from the
+--                        engine's full dump), "trajectory" (re-analysed at start-up from the
+--                        stored trajectory, at most 2000 points, with the bed's grain_top as the
+--                        surface), "unreadable" (no stored trajectory that can be re-analysed:
+--                        the old numbers are kept, inconclusive, and never tried again)
 -- SQLite cannot drop NOT NULL in place: the table is rebuilt, rows and run ids kept.
 CREATE TABLE results_v7 (
   run_id              INTEGER PRIMARY KEY REFERENCES runs (id),
@@ -40,6 +45,8 @@ CREATE TABLE results_v7 (
   grains              INTEGER NOT NULL,
   z0                  REAL NOT NULL,
   analysis            INTEGER NOT NULL DEFAULT 1,
+  analysed_from       TEXT NOT NULL DEFAULT 'dump'
+                      CHECK (analysed_from IN ('dump', 'trajectory', 'unreadable')),
   engine_version      TEXT NOT NULL,
   host                TEXT NOT NULL,
   ranks               INTEGER NOT NULL,

@@ -119,8 +119,9 @@ int main(int argc, char** argv) {
   if (auto re = (*store)->ReanalyzeOldResults(); !re.ok()) {
     return Die(re.status(), "the database's results could not be re-analysed; restore a backup of " + flags.db);
   } else if (re->reanalysed + re->kept_old > 0) {
-    spdlog::info("re-analysed {} result(s) made by an older U_z analysis from their stored trajectories; {} had "
-                 "no trajectory and are shown as inconclusive",
+    spdlog::info("re-analysed {} result(s) made by an older U_z analysis from their stored trajectories "
+                 "(analysed_from \"trajectory\"); {} could not be and are shown as inconclusive (analysed_from "
+                 "\"unreadable\"): submit their sweeps again with --force for results of this analysis",
                  re->reanalysed, re->kept_old);
   }
   sandswim::SystemClock clock;

@@ -204,6 +204,7 @@ json ResultRowJson(const ResultRow& row) {
     j["dz"] = r.dz;
     j["dz_rate"] = r.dz_rate;
     j["analysis"] = r.analysis;
+    j["analysed_from"] = r.analysed_from;
     j["z_osc_amplitude"] = r.z_osc_amplitude;
     j["x_drift"] = r.x_drift;
     j["broke_surface"] = r.broke_surface;

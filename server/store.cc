@@ -79,8 +79,8 @@ constexpr const char* kResultColumns =
     "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
     "res.cpu_s, res.key, res.created_at, res.lease_to_start_s, res.uz_ci95, res.uz_stderr_note, "
     "res.uz_blocks, res.block_s, res.window_end, res.conclusive, res.inconclusive_reason, res.dz_rate, "
-    "res.analysis, res.block_kind";
-constexpr int kResultColumnCount = 33;
+    "res.analysis, res.block_kind, res.analysed_from";
+constexpr int kResultColumnCount = 34;
 
 Point PointFromRow(const Statement& st, int c) {
   Point p;
@@ -165,6 +165,7 @@ std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
   r.dz_rate = st.Double(c + 30);
   r.analysis = static_cast<int>(st.Int(c + 31));
   r.block_kind = st.Text(c + 32);
+  r.analysed_from = st.Text(c + 33);
   return s;
 }
 
@@ -599,91 +600,125 @@ Status Store::Migrate() {
   return Status::Ok();
 }
 
-Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
-  struct Old {
-    int64_t run_id = 0;
-    double f = 0;
-    std::string scale, bed_result, trajectory, stop_reason;
-    double sim_time_s = 0, z0 = 0;
-    int64_t steps = 0, grains = 0;
-    bool vibrates = false;
-  };
-  std::vector<Old> old;
-  {
-    Result<Transaction> t = BeginRead();
-    if (!t.ok()) return t.status();
-    Statement st = t->Prepare(
-        "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), res.stop_reason, "
-        "res.sim_time_s, res.steps, res.grains, res.z0 FROM results res JOIN runs r ON r.id = res.run_id "
-        "JOIN beds b ON b.id = r.bed_id LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
-        "WHERE res.analysis < ? ORDER BY res.run_id");
-    st.Bind(1, api::kAnalysisVersion);
-    while (true) {
-      Result<bool> row = st.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      Old o;
-      o.run_id = st.Int(0);
-      o.f = st.Double(1);
-      auto mode = ParseMode(st.Text(2));
-      o.vibrates = mode && Point{*mode}.has_vibration();
-      o.scale = st.Text(3);
-      o.bed_result = st.Text(4);
-      o.trajectory = st.Text(5);
-      o.stop_reason = st.Text(6);
-      o.sim_time_s = st.Double(7);
-      o.steps = st.Int(8);
-      o.grains = st.Int(9);
-      o.z0 = st.Double(10);
-      old.push_back(std::move(o));
+namespace {
+
+// An old result as ReanalyzeOldResults reads it.
+struct OldResult {
+  int64_t run_id = 0;
+  double f = 0;
+  std::string scale, bed_result, trajectory, stop_reason;
+  double sim_time_s = 0, z0 = 0;
+  int64_t steps = 0, grains = 0;
+  bool vibrates = false;
+};
+
+// The result analysis `kAnalysisVersion` makes of `o`'s stored trajectory, or why there is none.
+Result<api::RunResult> Reanalyse(const OldResult& o) {
+  nlohmann::json tj = ParseJsonOr(o.trajectory, nullptr);
+  if (!tj.is_object()) return Status::FailedPrecondition("trajectory", "no stored trajectory");
+  try {
+    api::Trajectory tr = tj.get<api::Trajectory>();
+    std::vector<SoSample> samples;
+    for (size_t i = 0; i < tr.t.size() && i < tr.x.size() && i < tr.y.size() && i < tr.z.size(); ++i) {
+      samples.push_back({std::llround(tr.t[i] / kMaterials.dt), tr.t[i], tr.x[i], tr.y[i], tr.z[i]});
     }
+    BedBounds bounds;
+    if (const Scale* scale = FindScale(o.scale)) bounds.floor = scale->z_floor;
+    nlohmann::json bed = ParseJsonOr(o.bed_result, nullptr);
+    if (bed.is_object() && bed.contains("grain_top")) bounds.surface = bed["grain_top"].get<double>();
+    DriveStartMarker start{o.grains, o.z0, bounds.surface.value_or(0)};
+    DriveStopMarker stop{o.stop_reason, o.steps, o.sim_time_s, samples.empty() ? 0 : samples.back().z};
+    auto r = AnalyzeTrajectory(samples, o.vibrates ? o.f : 0.0, bounds,
+                               bounds.surface ? std::optional(start) : std::nullopt, stop);
+    if (!r.ok()) return r.status();
+    r->grains = o.grains;  // as the engine reported it
+    r->analysed_from = "trajectory";
+    return r;
+  } catch (const nlohmann::json::exception& e) {
+    return Status::Corruption("the stored trajectory cannot be read: " + std::string(e.what()));
   }
+}
+
+}  // namespace
+
+Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
+  // Pages of kPage rows by run id, each written in one transaction: memory and the write lock
+  // are bounded however many results an old database holds.
+  constexpr int kPage = 200;
   Reanalysis out;
-  for (const Old& o : old) {
-    std::optional<api::RunResult> fresh;
-    nlohmann::json tj = ParseJsonOr(o.trajectory, nullptr);
-    if (tj.is_object()) {
-      try {
-        api::Trajectory tr = tj.get<api::Trajectory>();
-        std::vector<SoSample> samples;
-        for (size_t i = 0; i < tr.t.size() && i < tr.x.size() && i < tr.y.size() && i < tr.z.size(); ++i) {
-          samples.push_back({std::llround(tr.t[i] / kMaterials.dt), tr.t[i], tr.x[i], tr.y[i], tr.z[i]});
-        }
-        BedBounds bounds;
-        if (const Scale* scale = FindScale(o.scale)) bounds.floor = scale->z_floor;
-        nlohmann::json bed = ParseJsonOr(o.bed_result, nullptr);
-        if (bed.is_object() && bed.contains("grain_top")) bounds.surface = bed["grain_top"].get<double>();
-        DriveStartMarker start{o.grains, o.z0, bounds.surface.value_or(0)};
-        DriveStopMarker stop{o.stop_reason, o.steps, o.sim_time_s, samples.empty() ? 0 : samples.back().z};
-        auto r = AnalyzeTrajectory(samples, o.vibrates ? o.f : 0.0, bounds,
-                                   bounds.surface ? std::optional(start) : std::nullopt, stop);
-        if (r.ok()) {
-          fresh = *r;
-          fresh->grains = o.grains;  // as the engine reported it
-        }
-      } catch (const nlohmann::json::exception&) {
+  int64_t after = 0;
+  while (true) {
+    std::vector<OldResult> page;
+    {
+      Result<Transaction> t = BeginRead();
+      if (!t.ok()) return t.status();
+      Statement st = t->Prepare(
+          "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), "
+          "res.stop_reason, res.sim_time_s, res.steps, res.grains, res.z0 FROM results res "
+          "JOIN runs r ON r.id = res.run_id JOIN beds b ON b.id = r.bed_id "
+          "LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
+          "WHERE res.analysis < ? AND res.analysed_from != 'unreadable' AND res.run_id > ? "
+          "ORDER BY res.run_id LIMIT ?");
+      st.Bind(1, api::kAnalysisVersion).Bind(2, after).Bind(3, kPage);
+      while (true) {
+        Result<bool> row = st.Step();
+        if (!row.ok()) return row.status();
+        if (!*row) break;
+        OldResult o;
+        o.run_id = st.Int(0);
+        o.f = st.Double(1);
+        auto mode = ParseMode(st.Text(2));
+        o.vibrates = mode && Point{*mode}.has_vibration();
+        o.scale = st.Text(3);
+        o.bed_result = st.Text(4);
+        o.trajectory = st.Text(5);
+        o.stop_reason = st.Text(6);
+        o.sim_time_s = st.Double(7);
+        o.steps = st.Int(8);
+        o.grains = st.Int(9);
+        o.z0 = st.Double(10);
+        page.push_back(std::move(o));
       }
     }
-    if (!fresh) {
-      ++out.kept_old;
-      continue;
-    }
-    const api::RunResult& r = *fresh;
+    if (page.empty()) return out;
+    after = page.back().run_id;
+    Reanalysis counts;
     Status s = Write([&](Transaction& t) {
-      Statement st = t.Prepare(
+      counts = {};
+      Statement fresh = t.Prepare(
           "UPDATE results SET uz = ?, uz_stderr = ?, uz_ci95 = ?, uz_stderr_note = ?, uz_blocks = ?, "
           "block_s = ?, window_t0 = ?, window_t1 = ?, window_end = ?, conclusive = ?, inconclusive_reason = ?, "
-          "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ? WHERE run_id = ?");
-      st.Bind(1, r.uz).Bind(2, r.uz_stderr).Bind(3, r.uz_ci95).Bind(4, r.uz_stderr_note).Bind(5, r.uz_blocks);
-      st.Bind(6, r.block_s).Bind(7, r.window_t0).Bind(8, r.window_t1).Bind(9, r.window_end);
-      st.Bind(10, r.conclusive).Bind(11, r.inconclusive_reason).Bind(12, r.dz_rate).Bind(13, r.z_osc_amplitude);
-      st.Bind(14, r.analysis).Bind(15, r.block_kind).Bind(16, o.run_id);
-      return st.Run();
+          "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ?, analysed_from = ? WHERE run_id = ?");
+      Statement kept = t.Prepare(
+          "UPDATE results SET analysed_from = 'unreadable', conclusive = 0, inconclusive_reason = ? "
+          "WHERE run_id = ?");
+      for (const OldResult& o : page) {
+        Result<api::RunResult> r = Reanalyse(o);
+        if (!r.ok()) {
+          kept.Reset();
+          kept.Bind(1, "made by the old estimator (analysis 1: a line and a sinusoid fitted over one period, "
+                       "with a standard error ~10x too small); it cannot be re-analysed: " +
+                           r.status().reason());
+          kept.Bind(2, o.run_id);
+          SANDSWIM_RETURN_IF_ERROR(kept.Run());
+          ++counts.kept_old;
+          continue;
+        }
+        fresh.Reset();
+        fresh.Bind(1, r->uz).Bind(2, r->uz_stderr).Bind(3, r->uz_ci95).Bind(4, r->uz_stderr_note);
+        fresh.Bind(5, r->uz_blocks).Bind(6, r->block_s).Bind(7, r->window_t0).Bind(8, r->window_t1);
+        fresh.Bind(9, r->window_end).Bind(10, r->conclusive).Bind(11, r->inconclusive_reason);
+        fresh.Bind(12, r->dz_rate).Bind(13, r->z_osc_amplitude).Bind(14, r->analysis).Bind(15, r->block_kind);
+        fresh.Bind(16, r->analysed_from).Bind(17, o.run_id);
+        SANDSWIM_RETURN_IF_ERROR(fresh.Run());
+        ++counts.reanalysed;
+      }
+      return Status::Ok();
     });
     if (!s.ok()) return s;
-    ++out.reanalysed;
+    out.reanalysed += counts.reanalysed;
+    out.kept_old += counts.kept_old;
   }
-  return out;
 }
 
 Result<Transaction> Store::Begin() {

@@ -329,11 +329,13 @@ class Store {
 
   // Re-analyses every result made by an older analysis than api::kAnalysisVersion from its stored
   // trajectory (the run's drive frequency, its bed's surface and its scale's floor, the stop the
-  // engine reported), one write per result. A result with no readable trajectory keeps its old
-  // numbers and stays inconclusive with the reason. Idempotent: the daemon calls it at start-up.
+  // engine reported), in pages of rows written one transaction each; such a result says
+  // analysed_from "trajectory". A result with no trajectory that can be re-analysed keeps its old
+  // numbers, stays inconclusive with the reason and is marked "unreadable", never tried again.
+  // Idempotent: the daemon calls it at start-up.
   struct Reanalysis {
     int64_t reanalysed = 0;
-    int64_t kept_old = 0;  // no stored trajectory to re-analyse
+    int64_t kept_old = 0;  // marked unreadable by this call
   };
   Result<Reanalysis> ReanalyzeOldResults();
   // Rows in a table (tests and diagnostics). REQUIRES: `table` is one of the schema's tables.

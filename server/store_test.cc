@@ -83,15 +83,21 @@ TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
 // A database from before migration 7 (results of the old estimator, analysis 1): the upgrade keeps
 // every row and marks it; the daemon's start-up re-analysis recomputes each result that has a
 // stored trajectory, and leaves one without a trajectory visibly inconclusive.
+// One result with a trajectory, and more without one than a page of the re-analysis holds.
 TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
+  constexpr int kOld = 450;
   int64_t with_trajectory = 0, without = 0;
+  std::vector<int64_t> ids;
   {
     auto store = MustOpen();
-    auto req = ParseSubmitRequest(Sweep("old", 2));
+    auto req = ParseSubmitRequest(Sweep("old", kOld));
     auto sub = Submit(*store, *req, "engine", 1.7e9);
     ASSERT_TRUE(sub.ok()) << sub.status().ToString();
-    auto runs = store->ListRuns({});
-    ASSERT_EQ(runs->runs.size(), 2u);
+    RunFilter all;
+    all.limit = kOld;
+    auto runs = store->ListRuns(all);
+    ASSERT_EQ(runs->runs.size(), static_cast<size_t>(kOld));
+    for (const auto& r : runs->runs) ids.push_back(r.id);
     with_trajectory = runs->runs[0].id;
     without = runs->runs[1].id;
     // Back to schema 6: its results table, two results of analysis 1, one with a trajectory.
@@ -107,7 +113,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
         "key TEXT NOT NULL, created_at REAL NOT NULL, lease_to_start_s REAL);"
         "UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}';"
         "UPDATE runs SET state = 'done';").ok());
-    for (int64_t id : {with_trajectory, without}) {
+    for (int64_t id : ids) {
       ASSERT_TRUE(t->Exec("INSERT INTO results VALUES (" + std::to_string(id) +
                           ", -0.0066, 0.0002, 0.3333, 0.6667, 0.001, 0.004, 0, 0, 0, 'duration', 1.0, 100000, "
                           "5000, 0, 'engine', 'h', 1, 'mpirun', 60, 60, 'k', 1.7e9, 0.1)")
@@ -130,7 +136,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   auto store = MustOpen();
   ASSERT_TRUE(store);
   EXPECT_EQ(store->schema_version(), 7);
-  EXPECT_EQ(*store->CountRows("results"), 2);
+  EXPECT_EQ(*store->CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());
   EXPECT_EQ(before->result->result.analysis, 1);
@@ -140,7 +146,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   auto re = store->ReanalyzeOldResults();
   ASSERT_TRUE(re.ok()) << re.status().ToString();
   EXPECT_EQ(re->reanalysed, 1);
-  EXPECT_EQ(re->kept_old, 1);
+  EXPECT_EQ(re->kept_old, kOld - 1);
   const api::RunResult fresh = store->GetRun(with_trajectory)->result->result;
   EXPECT_EQ(fresh.analysis, api::kAnalysisVersion);
   EXPECT_TRUE(fresh.conclusive);
@@ -148,14 +154,18 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   ASSERT_TRUE(fresh.uz.has_value());
   EXPECT_NEAR(*fresh.uz, 0.03, 1e-4);
   EXPECT_EQ(fresh.grains, 5000);
+  EXPECT_EQ(fresh.analysed_from, "trajectory");
   const api::RunResult kept = store->GetRun(without)->result->result;
   EXPECT_EQ(kept.analysis, 1);
   EXPECT_NE(kept.inconclusive_reason.find("old estimator"), std::string::npos);
+  EXPECT_NE(kept.inconclusive_reason.find("cannot be re-analysed: no stored trajectory"), std::string::npos)
+      << kept.inconclusive_reason;
+  EXPECT_EQ(kept.analysed_from, "unreadable");
   EXPECT_EQ(DescribeUz(kept), "old estimator (-0.007 m/s)");
-  // Idempotent: nothing is left to re-analyse but the result without a trajectory.
+  // Idempotent, and a result that cannot be re-analysed is not tried again at the next start.
   auto again = store->ReanalyzeOldResults();
   EXPECT_EQ(again->reanalysed, 0);
-  EXPECT_EQ(again->kept_old, 1);
+  EXPECT_EQ(again->kept_old, 0);
 }
 
 TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
