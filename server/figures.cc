@@ -194,11 +194,27 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
     text_colors.push_back(kInk);
     texts.push_back(s.label.c_str());
   }
+  // Labels longer than the space right of the plot holds (about 46 characters at the usual size)
+  // are drawn smaller rather than cut at the page's edge.
+  size_t longest = 0;
+  for (const Series& s : plot.series) {
+    size_t chars = 0;
+    for (size_t k = 0; k < s.label.size(); ++k) {
+      if (s.label[k] == '#' && k + 1 < s.label.size()) {  // a PLplot escape (#d, #u) draws nothing
+        ++k;
+        continue;
+      }
+      if ((static_cast<unsigned char>(s.label[k]) & 0xC0) != 0x80) ++chars;  // UTF-8 code points
+    }
+    longest = std::max(longest, chars);
+  }
+  const PLFLT base_scale = n_series > 12 ? 0.65 : 0.75;
+  const PLFLT text_scale = longest > 46 ? base_scale * 46.0 / static_cast<PLFLT>(longest) : base_scale;
   PLFLT legend_width = 0, legend_height = 0;
   plcol0(kInk);
   pllegend(&legend_width, &legend_height, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
            PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0.0, 0.06, kBackground, kInk, 1,
-           0, 0, n_series, opts.data(), 0.5, n_series > 12 ? 0.65 : 0.75, 2.0, 0.0, text_colors.data(),
+           0, 0, n_series, opts.data(), 0.5, text_scale, 2.0, 0.0, text_colors.data(),
            texts.data(), nullptr, nullptr, nullptr, nullptr, colors.data(), styles.data(), widths.data(),
            colors.data(), symbol_scales.data(), symbol_numbers.data(), symbols.data());
   plend();
@@ -268,7 +284,6 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
   for (double x : trajectory.x) dx.y.push_back(x - x0);
   plot.series = {dz, dx};
   if (result != nullptr && result->uz && result->uz_blocks >= 1 && trajectory.t.size() >= 2) {
-    plot.title += ": U#dz#u " + DescribeUz(*result);
     // z at t, linearly interpolated in the stored (possibly downsampled) trajectory.
     auto z_at = [&](double t) {
       auto it = std::lower_bound(trajectory.t.begin(), trajectory.t.end(), t);
@@ -287,7 +302,8 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
       blocks.y.push_back(z_at(t));
     }
     const double start = blocks.y.front();
-    Series line{"slope U#dz#u over the steady window", {result->window_t0, result->window_t1},
+    // U_z goes in the legend, not the title: a title holding the point and U_z overflows the plot.
+    Series line{"slope U#dz#u: " + DescribeUz(*result), {result->window_t0, result->window_t1},
                 {start, start + *result->uz * (result->window_t1 - result->window_t0)}, {}, false, true};
     plot.series.push_back(std::move(blocks));
     plot.series.push_back(std::move(line));
@@ -330,17 +346,29 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
     Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")", {}, {}, {}, true, false};
     for (const SweepSample& sample : samples) {
       bool rising = sample.point.Omega < 0;
-      if (!sample.conclusive || sample.point.Omega == 0 || rising != (std::string(branch) == "rising")) continue;
+      if (!sample.conclusive || sample.uz_stderr <= 0 || sample.point.Omega == 0 ||
+          rising != (std::string(branch) == "rising")) {
+        continue;
+      }
       s.x.push_back(x_of(sample.point));
       s.y.push_back(sample.uz);
       s.y_err.push_back(sample.uz_ci95);
     }
     if (!s.x.empty()) plot.series.push_back(std::move(s));
   }
+  // Conclusive points whose window held too few blocks for an error: drawn apart, so that a dot
+  // without a bar never reads as a precise one.
+  Series no_error{"conclusive, no error (< 3 periods)", {}, {}, {}, true, false};
+  for (const SweepSample& sample : samples) {
+    if (!sample.conclusive || sample.uz_stderr > 0) continue;
+    no_error.x.push_back(x_of(sample.point));
+    no_error.y.push_back(sample.uz);
+  }
+  if (!no_error.x.empty()) plot.series.push_back(std::move(no_error));
   // Points of neither branch (Omega = 0, or other modes): one series of their own.
   Series other{"Ω = 0 or other drive", {}, {}, {}, true, false};
   for (const SweepSample& sample : samples) {
-    if (!sample.conclusive || sample.point.Omega != 0) continue;
+    if (!sample.conclusive || sample.uz_stderr <= 0 || sample.point.Omega != 0) continue;
     other.x.push_back(x_of(sample.point));
     other.y.push_back(sample.uz);
     other.y_err.push_back(sample.uz_ci95);

@@ -76,7 +76,7 @@ TEST(FiguresTest, ARunPlotHasZAndXWithUnits) {
 }
 
 // With its result, a run's plot shows what U_z is made of: Δz at the window's period boundaries and
-// the line of slope U_z through the first of them, and says U_z in the title.
+// the line of slope U_z through the first of them, and says U_z in that line's legend entry.
 TEST(FiguresTest, ARunPlotWithItsResultShowsTheBlocksOfUz) {
   api::Trajectory t = Wiggle(0.01, 0);  // 0.6 s at 3 Hz
   api::RunResult r;
@@ -93,7 +93,7 @@ TEST(FiguresTest, ARunPlotWithItsResultShowsTheBlocksOfUz) {
   EXPECT_EQ(plot.series[2].x.size(), 2u);  // the window's two period boundaries
   EXPECT_TRUE(plot.series[2].markers);
   EXPECT_NEAR(plot.series[3].y[1] - plot.series[3].y[0], 0.01 / 3, 1e-12);
-  EXPECT_THAT(plot.title, HasSubstr("inconclusive"));
+  EXPECT_THAT(plot.series[3].label, HasSubstr("inconclusive"));
   EXPECT_TRUE(RenderPlot(plot, ImageFormat::kSvg).ok());
 }
 
@@ -133,10 +133,15 @@ TEST(FiguresTest, AUzPlotHasTheBranchesAndTheirFittedCurves) {
   ASSERT_TRUE(svg.ok()) << svg.status().ToString();
   EXPECT_EQ(SeriesColorsIn(*svg), FirstColors(4));
 
-  // An A sweep with no fit: just the points.
-  std::vector<SweepSample> two = {{OscillatoryPoint(0.03, 3, -80, 4), 0.01, 0}, {OscillatoryPoint(0.03, 3, 80, 4), -0.01, 0}};
+  // A sweep with no fit: just the points. Points with no error (too few periods for one) are a
+  // series of their own, never drawn as if they were precise.
+  std::vector<SweepSample> two = {{OscillatoryPoint(0.03, 3, -80, 4), 0.01, 2e-3},
+                                  {OscillatoryPoint(0.03, 3, 80, 4), -0.01, 0}};
   Plot baseline = SweepUzPlot("baseline", two, FitSweep(two));
-  EXPECT_EQ(baseline.series.size(), 2u);
+  ASSERT_EQ(baseline.series.size(), 2u);
+  EXPECT_EQ(baseline.series[0].label, "rising (Ω < 0)");
+  EXPECT_EQ(baseline.series[1].label, "conclusive, no error (< 3 periods)");
+  EXPECT_EQ(baseline.series[1].x, std::vector<double>{80});
 }
 
 TEST(FiguresTest, BadPlotsAreRefused) {

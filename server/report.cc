@@ -54,8 +54,9 @@ std::string InlineSvg(const std::string& svg, const std::string& prefix) {
   return std::regex_replace(svg.substr(at), kIds, "$1" + prefix + "-");
 }
 
-std::string FigureHtml(const std::string& svg, const std::string& id, const std::string& caption) {
-  if (svg.empty()) return "<p class=\"none\">" + Escape(caption) + ": nothing finished yet.</p>\n";
+std::string FigureHtml(const std::string& svg, const std::string& id, const std::string& caption,
+                       const std::string& why_none = "nothing finished yet") {
+  if (svg.empty()) return "<p class=\"none\">" + Escape(caption) + ": " + Escape(why_none) + ".</p>\n";
   return "<figure>" + InlineSvg(svg, id) + "<figcaption>" + Escape(caption) + "</figcaption></figure>\n";
 }
 
@@ -179,6 +180,15 @@ Plot SweepUzFigure(const SweepAnalysis& a) {
                      a.samples, a.fits);
 }
 
+std::string NoUzToPlot(const SweepAnalysis& a) {
+  if (a.samples.empty()) return "nothing finished yet";
+  for (const SweepSample& s : a.samples) {
+    if (s.has_uz) return "";
+  }
+  return "no U_z to plot: none of its " + std::to_string(a.samples.size()) +
+         " finished run(s) has a whole period (or block) in its steady window";
+}
+
 Result<Plot> RunFigure(Store& store, int64_t run_id) {
   auto run = store.GetRun(run_id);
   if (!run.ok()) return run.status();
@@ -233,7 +243,8 @@ std::string RenderReportHtml(const ReportInput& in) {
     html += FigureHtml(s.trajectories_svg, "fig-sweep-" + id + "-trajectories", "Δz(t) of every finished run of sweep " + id);
     html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz", "U_z of sweep " + id + " against " +
                                      (s.fits.choice.param.empty() ? std::string("its point") : s.fits.choice.param) +
-                                     ", with the fitted law");
+                                     ", with the fitted law",
+                       s.no_uz);
     html += "<table><tr><th>run</th><th>point</th><th>state</th><th>U<sub>z</sub> (m/s, ± standard error, "
             "whole periods)</th><th>Δz/T (m/s, whole run)</th><th>window ends</th></tr>\n";
     for (const ReportRun& r : s.runs) {
@@ -279,7 +290,8 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
       if (!svg.ok()) return svg.status();
       s.trajectories_svg = *svg;
     }
-    if (!a->samples.empty()) {
+    s.no_uz = NoUzToPlot(*a);
+    if (s.no_uz.empty()) {
       auto svg = figures.Get(SweepUzName(sweep_id), SweepUzFigure(*a), ImageFormat::kSvg);
       if (!svg.ok()) return svg.status();
       s.uz_svg = *svg;

@@ -41,6 +41,9 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
 // The two figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished.
 Plot SweepTrajectoriesFigure(const SweepAnalysis& analysis);
 Plot SweepUzFigure(const SweepAnalysis& analysis);
+// Why the sweep has no U_z figure ("" when it has one): no finished run has a U_z (each one's
+// window held no whole period).
+std::string NoUzToPlot(const SweepAnalysis& analysis);
 // FailedPrecondition when the run has no trajectory yet.
 Result<Plot> RunFigure(Store& store, int64_t run_id);
 
@@ -67,7 +70,8 @@ struct ReportRun {
 struct ReportSweep {
   SweepInfo info;
   SweepFits fits;
-  std::string trajectories_svg, uz_svg;  // "" when nothing is finished
+  std::string trajectories_svg, uz_svg;  // "" when nothing is finished (or, uz, nothing to plot)
+  std::string no_uz;                     // NoUzToPlot
   std::vector<ReportRun> runs;
 };
 struct ReportInput {

@@ -80,6 +80,7 @@ class ReportTest : public ::testing::Test {
   }
 
   bool inconclusive_ = false;  // RunAll's results: inconclusive (one period) instead
+  bool no_period_ = false;     // ... and with no whole period: no U_z at all
 
   // Prepares the bed and completes up to `runs` runs with synthetic results.
   void RunAll(int runs = 1000) {
@@ -113,6 +114,11 @@ class ReportTest : public ::testing::Test {
           r.uz_blocks = 1;
           r.conclusive = false;
           r.inconclusive_reason = "the steady window holds 1 whole period, fewer than 2";
+        }
+        if (no_period_) {
+          r.uz.reset();
+          r.uz_blocks = 0;
+          r.inconclusive_reason = "the steady window holds no whole period";
         }
         r.stop_reason = "duration";
         c.result = r;
@@ -194,6 +200,29 @@ TEST_F(ReportTest, InconclusiveRunsAreShownButNotFitted) {
   ASSERT_TRUE(html.ok()) << html.status().ToString();
   EXPECT_NE(html->find("no conclusive runs: 8 finished run(s) left out as inconclusive"), std::string::npos);
   EXPECT_NE(html->find("inconclusive (≈0.0"), std::string::npos);
+}
+
+// Finished runs none of which has a U_z (no whole period): the report is still made and says why
+// it has no U_z figure; no empty plot is rendered.
+TEST_F(ReportTest, ASweepWithNoUzHasNoUzFigureAndSaysWhy) {
+  inconclusive_ = no_period_ = true;
+  RunAll();
+  auto a = AnalyzeSweep(*store_, sweeps_[0]);
+  ASSERT_TRUE(a.ok());
+  EXPECT_NE(NoUzToPlot(*a).find("no U_z to plot"), std::string::npos) << NoUzToPlot(*a);
+  FigureCache figures(dir_ + "/figures");
+  auto html = CampaignReport(*store_, figures, campaign_run_, 1.7e9);
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  EXPECT_NE(html->find("no U_z to plot: none of its 8 finished run(s)"), std::string::npos);
+  EXPECT_NE(html->find("inconclusive (no whole period)"), std::string::npos);
+  StartServer();
+  const std::string sweep = "/api/v1/sweeps/" + std::to_string(sweeps_[0]);
+  auto uz = client_->Get((sweep + "/uz.svg").c_str());
+  ASSERT_TRUE(uz);
+  EXPECT_EQ(uz->status, 422);
+  EXPECT_THAT(uz->body, HasSubstr("no U_z to plot"));
+  auto trajectories = client_->Get((sweep + "/trajectories.svg").c_str());
+  EXPECT_EQ(trajectories->status, 200);
 }
 
 TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {

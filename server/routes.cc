@@ -472,6 +472,9 @@ template <ImageFormat kFormat>
 void GetSweepUzFigure(Call& c) {
   auto a = FinishedSweep(c);
   if (!a.ok()) return Fail(c, a.status());
+  if (std::string why = NoUzToPlot(*a); !why.empty()) {
+    return Fail(c, Status::FailedPrecondition("id", "sweep " + std::to_string(a->info.id) + ": " + why));
+  }
   SendFigure(c, SweepUzName(a->info.id), SweepUzFigure(*a), kFormat);
 }
 
