@@ -1,6 +1,7 @@
 // Files compiled into the binary (the list is in templates/CMakeLists.txt): deck templates
 // ("templates/bed.in", "templates/drive.in"), shipped campaigns
-// ("templates/campaigns/paper-58.json"), and whatever else that list names (SQL migrations).
+// ("templates/campaigns/paper-58.json"), every SQL migration (schema/NNN_*.sql) and the OpenAPI
+// document.
 //
 // Thread safety: immutable data.
 #ifndef SANDSWIM_CORE_EMBEDDED_H_
@@ -8,11 +9,15 @@
 
 #include <optional>
 #include <string_view>
+#include <vector>
 
 namespace sandswim {
 
 // The bytes of a compiled-in file, by its path relative to the source root.
 std::optional<std::string_view> EmbeddedFile(std::string_view name);
+
+// Every compiled-in file's name, sorted (e.g. the migrations: "schema/001_init.sql", ...).
+const std::vector<std::string_view>& EmbeddedFileNames();
 
 }  // namespace sandswim
 

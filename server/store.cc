@@ -15,20 +15,27 @@
 namespace sandswim {
 namespace {
 
-// The migrations this binary knows, in order. Versions are the file numbers.
-struct Migration {
-  int version;
-  const char* file;
-};
-constexpr Migration kMigrations[] = {
-    {1, "schema/001_init.sql"},
-    {2, "schema/002_nightly.sql"},
-    {3, "schema/003_perf.sql"},
-    {4, "schema/004_lease_to_start.sql"},
-    {5, "schema/005_releases.sql"},
-    {6, "schema/006_slurm_jobs.sql"},
-    {7, "schema/007_uz_blocks.sql"},
-};
+}  // namespace
+
+std::vector<Migration> Migrations() {
+  std::vector<Migration> out;
+  constexpr std::string_view kPrefix = "schema/";
+  for (std::string_view name : EmbeddedFileNames()) {
+    if (name.substr(0, kPrefix.size()) != kPrefix) continue;
+    std::string_view base = name.substr(kPrefix.size());
+    if (base.size() < 9 || base[3] != '_' || base.substr(base.size() - 4) != ".sql") continue;
+    int version = 0;
+    bool digits = true;
+    for (char c : base.substr(0, 3)) {
+      digits = digits && c >= '0' && c <= '9';
+      version = version * 10 + (c - '0');
+    }
+    if (digits) out.push_back({version, std::string(name)});
+  }
+  return out;  // sorted by name, hence by version
+}
+
+namespace {
 
 constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
                                    "beds",      "runs",          "run_decks",   "sweep_runs",  "leases",
@@ -571,16 +578,24 @@ Status Store::Migrate() {
     return v;
   };
   int current = user_version();
-  int latest = kMigrations[std::size(kMigrations) - 1].version;
+  const std::vector<Migration> migrations = Migrations();
+  for (size_t i = 0; i < migrations.size(); ++i) {
+    if (migrations[i].version != static_cast<int>(i) + 1) {
+      return Status::Internal("migration " + migrations[i].file + " should be number " + std::to_string(i + 1) +
+                              ": the schema/NNN_*.sql files must be numbered 001, 002, ... without gaps");
+    }
+  }
+  if (migrations.empty()) return Status::Internal("no migration compiled in (schema/NNN_*.sql)");
+  int latest = migrations.back().version;
   if (current > latest) {
     return Status::FailedPrecondition(
         "schema", "database " + path_ + " has schema version " + std::to_string(current) +
                       "; this sandswimd knows up to " + std::to_string(latest));
   }
-  for (const Migration& m : kMigrations) {
+  for (const Migration& m : migrations) {
     if (m.version <= current) continue;
     std::optional<std::string_view> sql = EmbeddedFile(m.file);
-    if (!sql) return Status::Internal(std::string("migration not compiled in: ") + m.file);
+    if (!sql) return Status::Internal("migration not compiled in: " + m.file);
     SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
     Status s = ExecRaw(db_, std::string(*sql));
     if (s.ok()) {

@@ -136,6 +136,14 @@ class Transaction {
 
 // ---- Read models (values; JSON shapes are those of the REST API) -------------------------------
 
+// A database migration compiled in: schema/NNN_name.sql applies version NNN. Migrations() lists
+// every one, by version; Store::Open requires them numbered 1, 2, ... without gaps.
+struct Migration {
+  int version = 0;
+  std::string file;  // "schema/007_uz_blocks.sql"
+};
+std::vector<Migration> Migrations();
+
 struct RunCounts {
   int64_t queued = 0, running = 0, done = 0, failed = 0, cancelled = 0;
   int64_t total() const { return queued + running + done + failed + cancelled; }

@@ -1,5 +1,7 @@
 #include "server/store.h"
 
+#include <algorithm>
+#include <cctype>
 #include <atomic>
 #include <filesystem>
 #include <memory>
@@ -84,6 +86,25 @@ TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
 // every row and marks it; the daemon's start-up re-analysis recomputes each result that has a
 // stored trajectory, and leaves one without a trajectory visibly inconclusive.
 // One result with a trajectory, and more without one than a page of the re-analysis holds.
+// Every schema/NNN_*.sql in the source tree is compiled in, numbered 1, 2, ... without gaps: adding
+// a migration is adding its file.
+TEST(MigrationsTest, EveryMigrationFileIsCompiledInAndNumberedInOrder) {
+  std::vector<std::string> on_disk;
+  for (const auto& e : fs::directory_iterator(std::string(SANDSWIM_SOURCE_DIR) + "/schema")) {
+    const std::string name = e.path().filename().string();
+    if (name.size() > 8 && std::isdigit(static_cast<unsigned char>(name[0])) && e.path().extension() == ".sql") {
+      on_disk.push_back("schema/" + name);
+    }
+  }
+  std::sort(on_disk.begin(), on_disk.end());
+  std::vector<Migration> migrations = Migrations();
+  ASSERT_EQ(migrations.size(), on_disk.size());
+  for (size_t i = 0; i < migrations.size(); ++i) {
+    EXPECT_EQ(migrations[i].file, on_disk[i]);
+    EXPECT_EQ(migrations[i].version, static_cast<int>(i) + 1);
+  }
+}
+
 TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   constexpr int kOld = 450;
   int64_t with_trajectory = 0, without = 0;
