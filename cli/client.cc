@@ -1,6 +1,6 @@
 #include "cli/client.h"
 
-#include "core/token.h"
+#include "platform/token.h"
 
 #include <cerrno>
 #include <cmath>

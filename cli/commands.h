@@ -25,7 +25,7 @@
 
 #include "cli/client.h"
 #include "core/status.h"
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 
 namespace sandswim::cli {
 

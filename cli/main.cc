@@ -10,7 +10,7 @@
 
 #include "cli/client.h"
 #include "cli/commands.h"
-#include "server/engine_probe.h"
+#include "platform/engine_probe.h"
 
 int main(int argc, char** argv) {
   signal(SIGPIPE, SIG_IGN);  // `sandswim results 12 | head` ends quietly

@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "core/status.h"
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 
 namespace sandswim::cli {
 

@@ -56,7 +56,7 @@
 
 #include "core/api.h"
 #include "core/status.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/store.h"
 
 namespace sandswim {

@@ -12,7 +12,7 @@
 #include "core/keys.h"
 #include "core/scale.h"
 #include "core/sweep.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/store.h"
 #include "server/submission.h"
 

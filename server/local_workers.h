@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "core/status.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 
 namespace sandswim {
 

@@ -17,10 +17,10 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/drift_report.h"
-#include "core/token.h"
-#include "server/engine_probe.h"
+#include "platform/token.h"
+#include "platform/engine_probe.h"
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
 #include "server/pilot_watch.h"

@@ -21,9 +21,9 @@
 #include <vector>
 
 #include "core/status.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 
 namespace sandswim {
 

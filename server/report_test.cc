@@ -17,7 +17,7 @@
 #include <httplib.h>
 
 #include "core/keys.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
 #include "server/loopback_server_test_util.h"

@@ -29,7 +29,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/status.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/store.h"
 

@@ -37,7 +37,7 @@
 
 #include "core/cron.h"
 #include "core/status.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/store.h"
 
 namespace sandswim {

@@ -14,7 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "core/trajectory.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/submission.h"
 
 namespace sandswim {

@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/store.h"
 

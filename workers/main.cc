@@ -14,10 +14,10 @@
 #include <string>
 #include <thread>
 
-#include "core/token.h"
+#include "platform/token.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 #include "workers/worker.h"
 
 int main(int argc, char** argv) {

@@ -13,7 +13,7 @@
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
 #include "core/trajectory.h"
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 
 namespace sandswim::worker {
 namespace {

@@ -35,7 +35,7 @@
 #include "core/keys.h"
 #include "core/scale.h"
 #include "core/sweep.h"
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
 #include "server/store.h"

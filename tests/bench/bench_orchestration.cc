@@ -28,7 +28,7 @@
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
 #include "server/store.h"

@@ -15,7 +15,7 @@
 #include <string>
 #include <thread>
 
-#include "server/clock.h"
+#include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
 #include "server/store.h"

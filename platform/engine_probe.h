@@ -6,8 +6,8 @@
 // line and waits for it to exit (killing it after `timeout_s`). It touches no files.
 //
 // Thread safety: free functions; safe from any thread.
-#ifndef SANDSWIM_SERVER_ENGINE_PROBE_H_
-#define SANDSWIM_SERVER_ENGINE_PROBE_H_
+#ifndef SANDSWIM_PLATFORM_ENGINE_PROBE_H_
+#define SANDSWIM_PLATFORM_ENGINE_PROBE_H_
 
 #include <optional>
 #include <string>
@@ -26,4 +26,4 @@ Result<std::string> ProbeEngineVersion(const std::string& engine = "liggghts", d
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_ENGINE_PROBE_H_
+#endif  // SANDSWIM_PLATFORM_ENGINE_PROBE_H_

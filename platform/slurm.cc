@@ -1,4 +1,4 @@
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 
 #include <fcntl.h>
 #include <poll.h>

@@ -1,4 +1,4 @@
-#include "server/engine_probe.h"
+#include "platform/engine_probe.h"
 
 #include <fcntl.h>
 #include <poll.h>

@@ -12,8 +12,8 @@
 //
 // Thread safety: ProcessSlurmCommands is thread-safe; AllocationDeadline is not (one per worker,
 // called from the slots under the worker's lock or from one thread).
-#ifndef SANDSWIM_WORKERS_SLURM_H_
-#define SANDSWIM_WORKERS_SLURM_H_
+#ifndef SANDSWIM_PLATFORM_SLURM_H_
+#define SANDSWIM_PLATFORM_SLURM_H_
 
 #include <cstdint>
 #include <functional>
@@ -114,4 +114,4 @@ class AllocationDeadline {
 
 }  // namespace sandswim::slurm
 
-#endif  // SANDSWIM_WORKERS_SLURM_H_
+#endif  // SANDSWIM_PLATFORM_SLURM_H_

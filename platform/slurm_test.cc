@@ -1,4 +1,4 @@
-#include "workers/slurm.h"
+#include "platform/slurm.h"
 
 #include <chrono>
 #include <deque>

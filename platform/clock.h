@@ -4,8 +4,8 @@
 // Times are seconds since the Unix epoch as a double (sub-millisecond resolution).
 //
 // Thread safety: SystemClock is stateless; FakeClock is safe to read and advance from any thread.
-#ifndef SANDSWIM_SERVER_CLOCK_H_
-#define SANDSWIM_SERVER_CLOCK_H_
+#ifndef SANDSWIM_PLATFORM_CLOCK_H_
+#define SANDSWIM_PLATFORM_CLOCK_H_
 
 #include <atomic>
 #include <chrono>
@@ -41,4 +41,4 @@ class FakeClock : public Clock {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_CLOCK_H_
+#endif  // SANDSWIM_PLATFORM_CLOCK_H_

@@ -1,4 +1,4 @@
-#include "core/token.h"
+#include "platform/token.h"
 
 #include <cstdlib>
 #include <fstream>

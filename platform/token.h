@@ -5,8 +5,8 @@
 // else "" (no token: the daemon serves loopback only).
 //
 // Thread safety: reads the file and the environment; no shared state.
-#ifndef SANDSWIM_CORE_TOKEN_H_
-#define SANDSWIM_CORE_TOKEN_H_
+#ifndef SANDSWIM_PLATFORM_TOKEN_H_
+#define SANDSWIM_PLATFORM_TOKEN_H_
 
 #include <cstdlib>
 #include <functional>
@@ -22,4 +22,4 @@ Result<std::string> LoadToken(const std::string& token_file,
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_CORE_TOKEN_H_
+#endif  // SANDSWIM_PLATFORM_TOKEN_H_
