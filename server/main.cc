@@ -1,16 +1,11 @@
-// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the lease-expiry thread, the
-// Slurm pilot watch thread (server/pilot_watch.h) and the
-// local-worker supervisor, the scheduler thread (nightly reruns and drift reports); SIGTERM/SIGINT
-// stop them in reverse order.
+// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the periodic jobs
+// (server/periodic.h: lease expiry, the Slurm pilot watch, the scheduler's nightly reruns and drift
+// reports) and the local-worker supervisor; SIGTERM/SIGINT stop them in reverse order.
 #include <signal.h>
 
-#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
-#include <mutex>
-#include <sstream>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -18,11 +13,12 @@
 #include <spdlog/spdlog.h>
 
 #include "platform/clock.h"
-#include "server/drift_report.h"
-#include "platform/token.h"
 #include "platform/engine_probe.h"
+#include "platform/token.h"
+#include "server/drift_report.h"
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
+#include "server/periodic.h"
 #include "server/pilot_watch.h"
 #include "server/routes.h"
 #include "server/scheduler.h"
@@ -48,16 +44,7 @@ struct Flags {
 };
 
 
-int Die(const Status& s, const std::string& next) {
-  spdlog::critical("{}; {}", s.ToString(), next);
-  return 1;
-}
-
-}  // namespace
-
-int main(int argc, char** argv) {
-  Flags flags;
-  CLI::App app{"sandswimd: the sandswim daemon (REST API, SQLite store, lease queue)"};
+void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--db", flags.db, "SQLite file")->capture_default_str();
   app.add_option("--listen", flags.listen, "HOST:PORT to serve on (port 0: any free port)")->capture_default_str();
   app.add_option("--data", flags.data, "directory for beds, dumps and artifacts")->capture_default_str();
@@ -80,6 +67,113 @@ int main(int argc, char** argv) {
                  "seconds between asking Slurm (squeue) whether the jobs holding leases still run; "
                  "the runs of a job that is gone are queued again at once (0: never ask)")
       ->capture_default_str()->check(CLI::Range(0.0, 86400.0));
+}
+
+int Die(const Status& s, const std::string& next) {
+  spdlog::critical("{}; {}", s.ToString(), next);
+  return 1;
+}
+
+// The engine the workers on this machine run, for content keys; "unknown" (with a warning) when
+// it cannot be asked.
+std::string ProbedEngineVersion() {
+  auto version = sandswim::ProbeEngineVersion();
+  if (version.ok()) return *version;
+  spdlog::warn("{}; using engine version \"unknown\" in content keys (install LIGGGHTS on PATH "
+               "or pass --engine-version to key results by the engine the workers run)",
+               version.status().ToString());
+  return "unknown";
+}
+
+// Results made by an older U_z analysis are re-analysed from their stored trajectories.
+Status ReanalyzeOldResults(sandswim::Store& store) {
+  auto re = store.ReanalyzeOldResults();
+  if (!re.ok()) return re.status();
+  if (re->reanalysed + re->kept_old > 0) {
+    spdlog::info("re-analysed {} result(s) made by an older U_z analysis from their stored trajectories "
+                 "(analysed_from \"trajectory\"); {} could not be and are shown as inconclusive (analysed_from "
+                 "\"unreadable\"): submit their sweeps again with --force for results of this analysis",
+                 re->reanalysed, re->kept_old);
+  }
+  return Status();
+}
+
+// Registers the --schedule flags (NAME[:SCALE]) with the scheduler and logs what is due when.
+Status RegisterSchedules(sandswim::Scheduler& scheduler, const std::vector<std::string>& flags,
+                         sandswim::Clock& clock) {
+  std::vector<sandswim::ScheduleRequest> requests;
+  for (const std::string& text : flags) {
+    auto request = sandswim::ParseScheduleFlag(text);
+    if (!request.ok()) return request.status();
+    requests.push_back(*request);
+  }
+  if (Status registered = scheduler.Register(requests); !registered.ok()) return registered;
+  spdlog::info("scheduling in local time zone {}", sandswim::LocalTimeZoneDescription(clock.Now()));
+  if (auto list = scheduler.List(); list.ok()) {
+    for (const sandswim::ScheduledCampaign& s : *list) {
+      if (!s.enabled) continue;
+      spdlog::info("schedule: {}@{} \"{}\", next due {}", s.campaign, s.scale, s.cron,
+                   s.next_due ? sandswim::FormatWallMinute(*s.next_due) : std::string("never"));
+    }
+  }
+  return Status();
+}
+
+// Leases run out by time: their jobs are queued again.
+void ExpireLeases(sandswim::LeaseQueue& leases, const std::string& db) {
+  auto expired = leases.ExpireLeases();
+  if (!expired.ok()) {
+    spdlog::error("expiring leases: {}; will retry in 1 s (check the disk holding {})", expired.status().ToString(),
+                  db);
+  } else if (*expired > 0) {
+    spdlog::info("{} lease(s) expired; their jobs are queued again", *expired);
+  }
+}
+
+// Asks Slurm about the jobs holding leases; `warned`: squeue failing is said once, not every look.
+void WatchPilots(sandswim::PilotWatch& pilot_watch, bool& warned) {
+  auto check = pilot_watch.CheckOnce();
+  if (!check.ok()) {
+    if (!warned) {
+      spdlog::warn("cannot ask Slurm about the jobs holding leases ({}); their runs wait for the lease TTL. "
+                   "Run sandswimd where squeue works, or pass --slurm-check 0",
+                   check.status().ToString());
+    }
+    warned = true;
+    return;
+  }
+  warned = false;
+  for (const std::string& job : check->gone) {
+    spdlog::warn("Slurm job {} is gone without handing its runs back: reclaimed its leases", job);
+  }
+  if (check->reclaimed > 0) spdlog::info("{} job(s) of gone Slurm pilots queued again", check->reclaimed);
+}
+
+// Due reruns are submitted; finished campaign runs get their drift reports.
+void SchedulerPass(sandswim::Scheduler& scheduler, sandswim::Store& store, sandswim::Clock& clock) {
+  auto tick = scheduler.Tick();
+  if (!tick.ok()) {
+    spdlog::error("scheduler: {}; will retry at the next tick", tick.status().ToString());
+  } else {
+    for (const auto& rerun : tick->submitted) spdlog::info("{}", sandswim::DescribeRerun(rerun, scheduler.zone()));
+    for (const auto& [campaign, why] : tick->errors) {
+      spdlog::error("scheduled rerun of {}: {}; will retry at the next tick", campaign, why.ToString());
+    }
+  }
+  auto reports = sandswim::ReportFinishedCampaignRuns(store, clock.Now(), scheduler.zone());
+  if (!reports.ok()) {
+    spdlog::error("drift reports: {}; will retry at the next tick", reports.status().ToString());
+  } else {
+    for (const auto& report : *reports) spdlog::info("{}", report.summary);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Flags flags;
+  CLI::App app{"sandswimd: the sandswim daemon (REST API, SQLite store, lease queue)"};
+  AddFlags(app, flags);
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr; stdout carries only the "listening on" line that scripts wait for.
   spdlog::set_default_logger(spdlog::stderr_color_mt("sandswimd"));
@@ -101,28 +195,13 @@ int main(int argc, char** argv) {
   Status policy = sandswim::CheckListenPolicy(*address, !token->empty());
   if (!policy.ok()) return Die(policy, "give a token or listen on a loopback address");
 
-  if (flags.engine_version.empty()) {
-    auto version = sandswim::ProbeEngineVersion();
-    if (version.ok()) {
-      flags.engine_version = *version;
-    } else {
-      flags.engine_version = "unknown";
-      spdlog::warn("{}; using engine version \"unknown\" in content keys (install LIGGGHTS on PATH "
-                   "or pass --engine-version to key results by the engine the workers run)",
-                   version.status().ToString());
-    }
-  }
+  if (flags.engine_version.empty()) flags.engine_version = ProbedEngineVersion();
   spdlog::info("engine: {}", flags.engine_version);
 
   auto store = sandswim::Store::Open(flags.db);
   if (!store.ok()) return Die(store.status(), "check that --db " + flags.db + " is writable (or pick another path)");
-  if (auto re = (*store)->ReanalyzeOldResults(); !re.ok()) {
-    return Die(re.status(), "the database's results could not be re-analysed; restore a backup of " + flags.db);
-  } else if (re->reanalysed + re->kept_old > 0) {
-    spdlog::info("re-analysed {} result(s) made by an older U_z analysis from their stored trajectories "
-                 "(analysed_from \"trajectory\"); {} could not be and are shown as inconclusive (analysed_from "
-                 "\"unreadable\"): submit their sweeps again with --force for results of this analysis",
-                 re->reanalysed, re->kept_old);
+  if (Status s = ReanalyzeOldResults(**store); !s.ok()) {
+    return Die(s, "the database's results could not be re-analysed; restore a backup of " + flags.db);
   }
   sandswim::SystemClock clock;
   sandswim::LeaseQueueOptions lease_options;
@@ -131,22 +210,9 @@ int main(int argc, char** argv) {
   sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
 
   // Nightly reruns: registered now (a --schedule left out is disabled), checked every tick.
-  std::vector<sandswim::ScheduleRequest> schedule_requests;
-  for (const std::string& text : flags.schedules) {
-    auto request = sandswim::ParseScheduleFlag(text);
-    if (!request.ok()) return Die(request.status(), "use --schedule NAME[:SCALE], e.g. paper-58:smoke");
-    schedule_requests.push_back(*request);
-  }
   sandswim::Scheduler scheduler(store->get(), &clock, flags.engine_version);
-  Status registered = scheduler.Register(schedule_requests);
-  if (!registered.ok()) return Die(registered, "fix or drop that --schedule");
-  spdlog::info("scheduling in local time zone {}", sandswim::LocalTimeZoneDescription(clock.Now()));
-  if (auto list = scheduler.List(); list.ok()) {
-    for (const sandswim::ScheduledCampaign& s : *list) {
-      if (!s.enabled) continue;
-      spdlog::info("schedule: {}@{} \"{}\", next due {}", s.campaign, s.scale, s.cron,
-                   s.next_due ? sandswim::FormatWallMinute(*s.next_due) : std::string("never"));
-    }
+  if (Status s = RegisterSchedules(scheduler, flags.schedules, clock); !s.ok()) {
+    return Die(s, "use --schedule NAME[:SCALE] (e.g. paper-58:smoke) with a campaign that exists, or drop it");
   }
   sandswim::Deps deps;
   deps.store = store->get();
@@ -160,78 +226,17 @@ int main(int argc, char** argv) {
   if (!port.ok()) return Die(port.status(), "stop whatever holds the port, or pass another --listen");
   std::thread serve([&server] { server.Serve(); });
 
-  // Leases run out by time: reclaim them every second.
-  std::mutex stop_mu;
-  std::condition_variable stop_cv;
-  bool stopping = false;
-  std::thread expiry([&] {
-    std::unique_lock<std::mutex> lock(stop_mu);
-    while (!stop_cv.wait_for(lock, std::chrono::seconds(1), [&] { return stopping; })) {
-      lock.unlock();
-      auto expired = leases.ExpireLeases();
-      if (!expired.ok()) {
-        spdlog::error("expiring leases: {}; will retry in 1 s (check the disk holding {})",
-                      expired.status().ToString(), flags.db);
-      } else if (*expired > 0) {
-        spdlog::info("{} lease(s) expired; their jobs are queued again", *expired);
-      }
-      lock.lock();
-    }
-  });
-
-  // Pilots that died without handing their runs back (node lost, SIGKILL, time limit): ask Slurm.
+  // Background work, every so often: leases that ran out (every second), Slurm pilots that died
+  // without handing their runs back (node lost, SIGKILL, time limit), nightly reruns and drift
+  // reports (at once, then every tick).
   sandswim::slurm::ProcessSlurmCommands slurm_commands(/*timeout_s=*/20);
   sandswim::PilotWatch pilot_watch(&leases, &slurm_commands, &clock);
-  std::thread pilots([&] {
-    if (flags.slurm_check_s <= 0) return;
-    bool warned = false;  // squeue failing is said once, not every look
-    std::unique_lock<std::mutex> lock(stop_mu);
-    while (!stop_cv.wait_for(lock, std::chrono::duration<double>(flags.slurm_check_s), [&] { return stopping; })) {
-      lock.unlock();
-      auto check = pilot_watch.CheckOnce();
-      if (!check.ok()) {
-        if (!warned) {
-          spdlog::warn("cannot ask Slurm about the jobs holding leases ({}); their runs wait for the lease TTL. "
-                       "Run sandswimd where squeue works, or pass --slurm-check 0",
-                       check.status().ToString());
-        }
-        warned = true;
-      } else {
-        warned = false;
-        for (const std::string& job : check->gone) {
-          spdlog::warn("Slurm job {} is gone without handing its runs back: reclaimed its leases", job);
-        }
-        if (check->reclaimed > 0) spdlog::info("{} job(s) of gone Slurm pilots queued again", check->reclaimed);
-      }
-      lock.lock();
-    }
-  });
-
-  auto scheduler_pass = [&] {
-    auto tick = scheduler.Tick();
-    if (!tick.ok()) {
-      spdlog::error("scheduler: {}; will retry at the next tick", tick.status().ToString());
-    } else {
-      for (const auto& rerun : tick->submitted) spdlog::info("{}", sandswim::DescribeRerun(rerun, scheduler.zone()));
-      for (const auto& [campaign, why] : tick->errors) {
-        spdlog::error("scheduled rerun of {}: {}; will retry at the next tick", campaign, why.ToString());
-      }
-    }
-    auto reports = sandswim::ReportFinishedCampaignRuns(**store, clock.Now(), scheduler.zone());
-    if (!reports.ok()) {
-      spdlog::error("drift reports: {}; will retry at the next tick", reports.status().ToString());
-    } else {
-      for (const auto& report : *reports) spdlog::info("{}", report.summary);
-    }
-  };
-  std::thread nightly([&] {
-    std::unique_lock<std::mutex> lock(stop_mu);
-    do {
-      lock.unlock();
-      scheduler_pass();
-      lock.lock();
-    } while (!stop_cv.wait_for(lock, std::chrono::duration<double>(flags.scheduler_tick_s), [&] { return stopping; }));
-  });
+  sandswim::PeriodicJobs periodic;
+  periodic.Add("lease expiry", 1, [&] { ExpireLeases(leases, flags.db); });
+  periodic.Add("pilot watch", flags.slurm_check_s, [&, warned = false]() mutable { WatchPilots(pilot_watch, warned); });
+  periodic.Add("scheduler", flags.scheduler_tick_s, [&] { SchedulerPass(scheduler, **store, clock); },
+               /*run_at_start=*/true);
+  periodic.Start();
 
   std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
 
@@ -260,14 +265,7 @@ int main(int argc, char** argv) {
   workers.RequestStop();
   if (supervisor.joinable()) supervisor.join();
   workers.Stop();
-  {
-    std::lock_guard<std::mutex> lock(stop_mu);
-    stopping = true;
-  }
-  stop_cv.notify_all();
-  expiry.join();
-  pilots.join();
-  nightly.join();
+  periodic.Stop();
   server.Stop();
   serve.join();
   spdlog::info("sandswimd stopped");
