@@ -339,23 +339,8 @@ DumpFrame DumpFrameView::ToFrame() const {
   return f;
 }
 
-// Feed(chunk)'s sink: copies each frame into the TakeFrames() queue.
-class DumpReader::QueueSink final : public DumpFrameSink {
- public:
-  explicit QueueSink(std::vector<DumpFrame>* out) : out_(out) {}
-  void OnFrame(const DumpFrameView& frame) override { out_->push_back(frame.ToFrame()); }
-
- private:
-  std::vector<DumpFrame>* out_;
-};
-
 Status DumpReader::Error(const std::string& what) const {
   return Status::Corruption("dump line " + std::to_string(line_) + ": " + what);
-}
-
-Status DumpReader::Feed(std::string_view chunk) {
-  QueueSink queue(&done_);
-  return Feed(chunk, queue);
 }
 
 Status DumpReader::Feed(std::string_view chunk, DumpFrameSink& sink) {
@@ -708,19 +693,14 @@ Status DumpReader::ParseLine(std::string_view line) {
   return Status::Internal("unreachable dump reader state");
 }
 
-std::vector<DumpFrame> DumpReader::TakeFrames() {
-  std::vector<DumpFrame> out;
-  out.swap(done_);
-  return out;
-}
-
 Status DumpReader::Finish() { return status_; }
 
 Result<std::vector<DumpFrame>> ReadDump(std::string_view text) {
   DumpReader reader;
-  Status s = reader.Feed(text);
+  DumpFrameCollector frames;
+  Status s = reader.Feed(text, frames);
   if (!s.ok()) return s;
-  return reader.TakeFrames();
+  return frames.Take();
 }
 
 Status ReadDump(std::string_view text, DumpFrameSink& sink) {

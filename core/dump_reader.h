@@ -20,14 +20,11 @@
 // denormals and exponents are accepted. Lines may end in "\r\n" and carry trailing blanks; blank
 // lines between frames are skipped.
 //
-// Two ways to take the frames out:
-//   - Feed(chunk, sink): each complete frame is handed to sink.OnFrame() as a DumpFrameView the
-//     moment its last atom line is parsed, before Feed returns. Nothing is allocated per frame:
-//     the view's values live in one buffer the reader reuses frame after frame (valid only during
-//     the call; copy what you keep). This is the fast path the worker uses.
-//   - Feed(chunk) + TakeFrames(): frames are copied into DumpFrame values and queued (a thin
-//     wrapper over the sink path). ReadDump() reads a whole text either way.
-// Both obey the same rules: a frame is delivered only when complete, in order, exactly once.
+// Frames come out through a sink: Feed(chunk, sink) hands each complete frame to sink.OnFrame() as
+// a DumpFrameView the moment its last atom line is parsed, before Feed returns, in order, exactly
+// once. Nothing is allocated per frame: the view's values live in one buffer the reader reuses
+// frame after frame (valid only during the call; copy what you keep). DumpFrameCollector keeps
+// copies (DumpFrame values); ReadDump() reads a whole text either way.
 //
 // Speed: the common case (complete lines in a large chunk) is parsed without splitting lines and
 // with an 8-byte-at-a-time number parser; a frame header whose text equals the previous frame's
@@ -112,6 +109,17 @@ class DumpFrameFn final : public DumpFrameSink {
   Fn fn_;
 };
 
+// A DumpFrameSink that keeps a copy of every frame (ReadDump(text), tests, tools).
+class DumpFrameCollector final : public DumpFrameSink {
+ public:
+  void OnFrame(const DumpFrameView& frame) override { frames_.push_back(frame.ToFrame()); }
+  // Moves out the frames collected so far, oldest first.
+  std::vector<DumpFrame> Take() { return std::exchange(frames_, {}); }
+
+ private:
+  std::vector<DumpFrame> frames_;
+};
+
 class DumpReader {
  public:
   DumpReader() = default;
@@ -120,12 +128,6 @@ class DumpReader {
   // to sink.OnFrame() (oldest first) before returning. Returns Corruption ("dump line N: ...")
   // on text that is not a dump; frames completed before the bad line were delivered.
   Status Feed(std::string_view chunk, DumpFrameSink& sink);
-
-  // The same, with complete frames copied and queued for TakeFrames().
-  Status Feed(std::string_view chunk);
-
-  // Moves out the frames completed so far, oldest first.
-  std::vector<DumpFrame> TakeFrames();
 
   // Declares the end of the input. OK whether or not a torn frame was held back (it is dropped);
   // torn() then says whether one was. Returns the error state if Feed() failed before.
@@ -141,7 +143,6 @@ class DumpReader {
  private:
   enum class State { kItemTimestep, kTimestep, kItemNumber, kNumber, kItemBox, kBox, kItemAtoms, kAtoms };
 
-  class QueueSink;
   struct Header {
     int64_t step = 0;
     int64_t atoms = 0;
@@ -187,7 +188,6 @@ class DumpReader {
   uint64_t bytes_fed_ = 0;
   Status status_;
   DumpFrameSink* sink_ = nullptr;  // during Feed
-  std::vector<DumpFrame> done_;
 };
 
 // Convenience: every complete frame of a whole dump text (a torn last frame is dropped).

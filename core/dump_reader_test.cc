@@ -68,10 +68,11 @@ TEST(DumpReaderTest, ChunkBoundariesDoNotMatter) {
   const std::string text = kTwoFrames;
   for (size_t chunk = 1; chunk <= 17; ++chunk) {
     DumpReader r;
+    DumpFrameCollector collector;
     std::vector<DumpFrame> frames;
     for (size_t i = 0; i < text.size(); i += chunk) {
-      ASSERT_TRUE(r.Feed(std::string_view(text).substr(i, chunk)).ok());
-      for (auto& f : r.TakeFrames()) frames.push_back(std::move(f));
+      ASSERT_TRUE(r.Feed(std::string_view(text).substr(i, chunk), collector).ok());
+      for (auto& f : collector.Take()) frames.push_back(std::move(f));
     }
     ASSERT_TRUE(r.Finish().ok());
     EXPECT_FALSE(r.torn());
@@ -87,8 +88,9 @@ TEST(DumpReaderTest, TornFrameAtEveryCutIsHeldBack) {
   const size_t first_frame_end = text.find("ITEM: TIMESTEP\n100");
   for (size_t cut = 0; cut < text.size(); ++cut) {
     DumpReader r;
-    ASSERT_TRUE(r.Feed(std::string_view(text).substr(0, cut)).ok()) << "cut " << cut;
-    auto frames = r.TakeFrames();
+    DumpFrameCollector collector;
+    ASSERT_TRUE(r.Feed(std::string_view(text).substr(0, cut), collector).ok()) << "cut " << cut;
+    auto frames = collector.Take();
     ASSERT_TRUE(r.Finish().ok());
     size_t expected = cut >= first_frame_end ? 1 : 0;
     ASSERT_EQ(frames.size(), expected) << "cut " << cut;
@@ -105,8 +107,9 @@ TEST(DumpReaderTest, CutInsideANumberIsNotReadAsAShorterNumber) {
   std::string text = kTwoFrames;
   text.resize(text.size() - 2);  // drop "5\n"
   DumpReader r;
-  ASSERT_TRUE(r.Feed(text).ok());
-  EXPECT_EQ(r.TakeFrames().size(), 1u);
+  DumpFrameCollector collector;
+  ASSERT_TRUE(r.Feed(text, collector).ok());
+  EXPECT_EQ(collector.Take().size(), 1u);
   EXPECT_TRUE(r.torn());
 }
 
@@ -144,8 +147,9 @@ TEST(DumpReaderTest, CorruptStructureIsReported) {
 
 TEST(DumpReaderTest, ErrorStateIsSticky) {
   DumpReader r;
-  EXPECT_FALSE(r.Feed("ITEM: NONSENSE\n").ok());
-  EXPECT_FALSE(r.Feed("ITEM: TIMESTEP\n").ok());
+  DumpFrameCollector collector;
+  EXPECT_FALSE(r.Feed("ITEM: NONSENSE\n", collector).ok());
+  EXPECT_FALSE(r.Feed("ITEM: TIMESTEP\n", collector).ok());
   EXPECT_FALSE(r.Finish().ok());
 }
 
@@ -173,11 +177,12 @@ TEST(DumpReaderTest, RealDumpTornAtSeveralCuts) {
   ASSERT_TRUE(all.ok());
   for (size_t cut : {text.size() - 1, text.size() - 30, text.size() / 2 + 7, size_t{1000}}) {
     DumpReader r;
+    DumpFrameCollector collector;
     // Feed in 4 KB chunks, as the worker does while tailing.
     for (size_t i = 0; i < cut; i += 4096) {
-      ASSERT_TRUE(r.Feed(std::string_view(text).substr(i, std::min<size_t>(4096, cut - i))).ok());
+      ASSERT_TRUE(r.Feed(std::string_view(text).substr(i, std::min<size_t>(4096, cut - i)), collector).ok());
     }
-    auto frames = r.TakeFrames();
+    auto frames = collector.Take();
     EXPECT_TRUE(r.torn());
     ASSERT_LT(frames.size(), all->size());
     ASSERT_FALSE(frames.empty());
@@ -346,10 +351,11 @@ class CopySink final : public DumpFrameSink {
   uint64_t last_serial_ = 0;
 };
 
-// Feeds `text` in random chunks, through Feed + TakeFrames or (use_sink) through Feed(chunk, sink).
+// Feeds `text` in random chunks, into a DumpFrameCollector or (use_sink) into the given sink.
 std::vector<DumpFrame> FeedInChunks(const std::string& text, std::mt19937* rng, bool* ok, bool use_sink = false) {
   DumpReader r;
   CopySink sink;
+  DumpFrameCollector collector;
   std::vector<DumpFrame> frames;
   *ok = true;
   for (size_t i = 0; i < text.size();) {
@@ -360,18 +366,19 @@ std::vector<DumpFrame> FeedInChunks(const std::string& text, std::mt19937* rng, 
       default: n = 1 + (*rng)() % 100000; break;
     }
     n = std::min(n, text.size() - i);
-    Status s = use_sink ? r.Feed(std::string_view(text).substr(i, n), sink) : r.Feed(std::string_view(text).substr(i, n));
+    Status s = use_sink ? r.Feed(std::string_view(text).substr(i, n), sink)
+                        : r.Feed(std::string_view(text).substr(i, n), collector);
     if (!s.ok()) {
       ADD_FAILURE() << s.ToString();
       *ok = false;
       return frames;
     }
-    for (auto& f : r.TakeFrames()) frames.push_back(std::move(f));
+    for (auto& f : collector.Take()) frames.push_back(std::move(f));
     i += n;
   }
   EXPECT_TRUE(r.Finish().ok());
   if (use_sink) {
-    EXPECT_TRUE(frames.empty());  // nothing queued on the sink path
+    EXPECT_TRUE(frames.empty());  // the collector saw nothing on the sink path
     return std::move(sink.frames);
   }
   return frames;
@@ -424,9 +431,10 @@ TEST(DumpReaderPropertyTest, TornAtEveryByteIsDropped) {
       ExpectSameFrames(*got, head, "cut " + std::to_string(cut));
       // And fed in two pieces around the cut's middle.
       DumpReader r;
-      ASSERT_TRUE(r.Feed(std::string_view(prefix).substr(0, cut / 2)).ok());
-      ASSERT_TRUE(r.Feed(std::string_view(prefix).substr(cut / 2)).ok());
-      ExpectSameFrames(r.TakeFrames(), head, "two pieces, cut " + std::to_string(cut));
+      DumpFrameCollector collector;
+      ASSERT_TRUE(r.Feed(std::string_view(prefix).substr(0, cut / 2), collector).ok());
+      ASSERT_TRUE(r.Feed(std::string_view(prefix).substr(cut / 2), collector).ok());
+      ExpectSameFrames(collector.Take(), head, "two pieces, cut " + std::to_string(cut));
       // And through a sink, in three pieces.
       DumpReader rs;
       CopySink sink;
@@ -495,7 +503,7 @@ TEST(DumpReaderSinkTest, FramesAreLentInOrderFromAReusedBuffer) {
   DumpReader r;
   for (size_t i = 0; i < text.size(); i += 13) ASSERT_TRUE(r.Feed(std::string_view(text).substr(i, 13), sink).ok());
   EXPECT_EQ(steps, (std::vector<int64_t>{0, 10, 20, 30, 40, 50}));
-  EXPECT_TRUE(r.TakeFrames().empty());
+
   EXPECT_FALSE(r.torn());
 }
 

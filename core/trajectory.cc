@@ -133,19 +133,6 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
   return info;
 }
 
-Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt, SoSelector so) {
-  SoSampleSink sink(dt, so);
-  for (const DumpFrame& f : frames) {
-    DumpFrameView view;
-    view.step = f.step;
-    view.atoms = f.atoms;
-    view.names = &f.columns;
-    view.values = f.values.data();  // columns_serial 0: the sink looks the columns up
-    sink.OnFrame(view);
-  }
-  return sink.Take();
-}
-
 void SoSampleSink::OnFrame(const DumpFrameView& f) {
   if (!status_.ok()) return;
   if (f.columns_serial == 0 || f.columns_serial != serial_) {

@@ -109,18 +109,15 @@ struct SoSelector {
   std::optional<int64_t> id;
 };
 
-// The SO's samples from dump frames (columns x, y, z). Corruption when a column is missing, a
-// frame is empty or lacks the SO, or the SO cannot be told apart; steps must rise.
-Result<std::vector<SoSample>> SamplesFromFrames(const std::vector<DumpFrame>& frames, double dt,
-                                                SoSelector so = {});
-
-// The same, frame by frame as a DumpReader hands them over (DumpReader::Feed(chunk, sink)): no
-// DumpFrame is made. Frames after the first problem are ignored; Take() reports it.
+// The SO's samples (columns x, y, z; t = step x dt), frame by frame as a DumpReader hands them
+// over (DumpReader::Feed(chunk, sink)): no DumpFrame is made. Corruption when a column is missing,
+// a frame is empty or lacks the SO, or the SO cannot be told apart; steps must rise. Frames after
+// the first problem are ignored; Take() reports it.
 class SoSampleSink final : public DumpFrameSink {
  public:
   explicit SoSampleSink(double dt, SoSelector so = {}) : dt_(dt), id_(so.id) {}
   void OnFrame(const DumpFrameView& frame) override;
-  // The samples so far, or the first problem (the Status SamplesFromFrames would return).
+  // The samples so far, or the first problem.
   Result<std::vector<SoSample>> Take();
 
  private:
@@ -135,7 +132,7 @@ class SoSampleSink final : public DumpFrameSink {
   Status status_;
 };
 
-// SamplesFromFrames(ReadDump(text)) without the frames: a dump Corruption, or a frame's problem.
+// The SO's samples of a whole dump text: a dump Corruption, or a frame's problem (SoSampleSink).
 Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt, SoSelector so = {});
 
 // REQUIRES: samples in ascending t. FailedPrecondition when there are fewer than 3 samples;

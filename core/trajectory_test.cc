@@ -336,35 +336,46 @@ TEST(TrajectoryTest, RealRunStoppedByTheFloorIsInconclusive) {
   EXPECT_EQ(DescribeUz(*r).rfind("inconclusive", 0), 0u) << DescribeUz(*r);
 }
 
-TEST(TrajectoryTest, SamplesNeedRisingStepsAndColumns) {
-  DumpFrame f;
-  f.step = 5;
-  f.columns = DumpFrame::Names({"id", "x", "z"});
-  f.atoms = 1;
-  f.values = {1, 0, 0};
-  EXPECT_EQ(SamplesFromFrames({f}, 1e-5).status().code(), StatusCode::kCorruption);
-  f.columns = DumpFrame::Names({"x", "y", "z"});
-  EXPECT_TRUE(SamplesFromFrames({f}, 1e-5).ok());
-  EXPECT_EQ(SamplesFromFrames({f, f}, 1e-5).status().code(), StatusCode::kCorruption);
+// One frame of a one-atom dump at `step` with these columns and values.
+std::string OneAtomFrame(int64_t step, const std::string& columns, const std::string& values) {
+  return "ITEM: TIMESTEP\n" + std::to_string(step) + "\nITEM: NUMBER OF ATOMS\n1\nITEM: BOX BOUNDS ff ff ff\n" +
+         "0 1\n0 1\n0 1\nITEM: ATOMS " + columns + "\n" + values + "\n";
 }
 
-// The streaming form (no DumpFrames) gives exactly the samples of SamplesFromFrames(ReadDump()),
-// and the same errors.
-TEST(TrajectoryTest, SamplesFromDumpEqualsSamplesFromFrames) {
+TEST(TrajectoryTest, SamplesNeedRisingStepsAndColumns) {
+  EXPECT_EQ(SamplesFromDump(OneAtomFrame(5, "id x z", "1 0 0"), 1e-5).status().code(), StatusCode::kCorruption);
+  const std::string frame = OneAtomFrame(5, "x y z", "0 0 0");
+  EXPECT_TRUE(SamplesFromDump(frame, 1e-5).ok());
+  EXPECT_EQ(SamplesFromDump(frame + frame, 1e-5).status().code(), StatusCode::kCorruption);
+}
+
+// The streaming form gives exactly the SO's coordinates of every frame ReadDump() reads, at
+// t = step x dt, and the same errors.
+TEST(TrajectoryTest, SamplesFromDumpAreTheFramesCoordinates) {
   const std::string text = Fixture("so_omega_minus80.dump");
   auto frames = ReadDump(text);
   ASSERT_TRUE(frames.ok());
-  auto want = SamplesFromFrames(*frames, 1e-5);
+  std::vector<SoSample> want;
+  for (const DumpFrame& f : *frames) {
+    ASSERT_EQ(f.atoms, 1);
+    SoSample s;
+    s.step = f.step;
+    s.t = static_cast<double>(f.step) * 1e-5;
+    s.x = f.At(0, f.Column("x"));
+    s.y = f.At(0, f.Column("y"));
+    s.z = f.At(0, f.Column("z"));
+    want.push_back(s);
+  }
   auto got = SamplesFromDump(text, 1e-5);
-  ASSERT_TRUE(want.ok() && got.ok());
-  ASSERT_EQ(got->size(), want->size());
+  ASSERT_TRUE(got.ok());
+  ASSERT_EQ(got->size(), want.size());
   ASSERT_GT(got->size(), 3u);
   for (size_t i = 0; i < got->size(); ++i) {
-    EXPECT_EQ((*got)[i].step, (*want)[i].step);
-    EXPECT_EQ((*got)[i].t, (*want)[i].t);
-    EXPECT_EQ((*got)[i].x, (*want)[i].x);
-    EXPECT_EQ((*got)[i].y, (*want)[i].y);
-    EXPECT_EQ((*got)[i].z, (*want)[i].z);
+    EXPECT_EQ((*got)[i].step, want[i].step);
+    EXPECT_EQ((*got)[i].t, want[i].t);
+    EXPECT_EQ((*got)[i].x, want[i].x);
+    EXPECT_EQ((*got)[i].y, want[i].y);
+    EXPECT_EQ((*got)[i].z, want[i].z);
   }
   // Steps that do not rise (the file twice), a missing column, text that is not a dump.
   EXPECT_EQ(SamplesFromDump(text + text, 1e-5).status().code(), StatusCode::kCorruption);

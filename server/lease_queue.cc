@@ -808,10 +808,4 @@ Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {
   return BedFile{bed_id, st.Text(0), st.Text(2), st.Text(3)};
 }
 
-Result<std::string> LeaseQueue::GetBedRestartPath(int64_t bed_id) {
-  Result<BedFile> f = GetBedRestart(bed_id);
-  if (!f.ok()) return f.status();
-  return f->path;
-}
-
 }  // namespace sandswim

@@ -131,7 +131,6 @@ class LeaseQueue {
   // The restart file of a done bed (kNotFound for an unknown bed, kFailedPrecondition when the
   // bed is not done yet).
   Result<BedFile> GetBedRestart(int64_t bed_id);
-  Result<std::string> GetBedRestartPath(int64_t bed_id);
 
  private:
   // The bodies of Lease and Complete, inside a caller's transaction at time `now`.

@@ -322,18 +322,6 @@ void to_json(nlohmann::json& j, const RunDetail& r) {
   j["log_tail"] = r.log_tail;
 }
 
-void to_json(nlohmann::json& j, const ResultRow& r) {
-  j = nlohmann::json{{"run_id", r.run_id},
-                     {"key", r.key},
-                     {"state", r.state},
-                     {"point", PointToJson(r.point)},
-                     {"run_duration_s", r.run_duration_s}};
-  if (r.result) {
-    PutOpt(j, "Uz", r.result->result.uz);
-    j["result"] = *r.result;
-  }
-}
-
 void to_json(nlohmann::json& j, const CampaignRunInfo& c) {
   j = nlohmann::json{{"id", c.id},
                      {"campaign", c.campaign},

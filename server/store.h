@@ -248,8 +248,7 @@ struct ResultRow {
   double run_duration_s = 0;
   std::optional<StoredResult> result;
 };
-// {"run_id","key","state","point":{...},"run_duration_s","Uz"?: m/s,"result"?: {...}}
-void to_json(nlohmann::json& j, const ResultRow& r);
+// The API's JSON of a result row is core/result_table.h's (server/routes.cc ResultRowJson).
 
 struct CampaignRunInfo {
   int64_t id = 0;

@@ -23,11 +23,12 @@ struct Frame {
 
 std::vector<Frame> ReadTrajectory(const std::string& dir) {
   DumpReader reader;
-  EXPECT_TRUE(reader.Feed(testing::ReadFile(dir + "/" + kTrajectoryDumpFile)).ok());
+  DumpFrameCollector frames;
+  EXPECT_TRUE(reader.Feed(testing::ReadFile(dir + "/" + kTrajectoryDumpFile), frames).ok());
   EXPECT_TRUE(reader.Finish().ok());
   EXPECT_FALSE(reader.torn());
   std::vector<Frame> out;
-  for (const DumpFrame& f : reader.TakeFrames()) {
+  for (const DumpFrame& f : frames.Take()) {
     EXPECT_EQ(f.atoms, 1);
     auto c = [&](const char* name) { return f.At(0, f.Column(name)); };
     out.push_back({f.step * kMaterials.dt, c("x"), c("y"), c("z"), c("vy"), c("omegax"), c("omegay"), c("omegaz")});

@@ -1,8 +1,8 @@
 // bench_dump_parse: how fast the streaming DumpReader (core/dump_reader.h) reads a LIGGGHTS dump,
 // next to `wc -l` on the same file (issue 4's goal: at least half of wc -l's speed). The figure
 // compared is the worker's path: the file in 1 MB chunks fed to DumpReader::Feed(chunk, sink) with
-// the SoSampleSink that makes the run's samples (core/trajectory.h); the legacy Feed(chunk) +
-// TakeFrames() path is timed too.
+// the SoSampleSink that makes the run's samples (core/trajectory.h); a DumpFrameCollector (every
+// frame copied into a DumpFrame, what tools and tests use) is timed too.
 //
 // Usage: bench_dump_parse [FILE] [MB]
 //   With no FILE, generates a dump of about MB megabytes (default 200) of 10-column granular
@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   if (std::system(("cat '" + path + "' > /dev/null").c_str()) != 0) return 1;
 
   // The path the worker uses (workers/worker.cc): frames lent to a sink, SoSampleSink making the
-  // SO's samples (SamplesFromDump); the legacy Feed + TakeFrames copies next to it.
+  // SO's samples (SamplesFromDump); a DumpFrameCollector's copies next to it.
   struct Timing {
     double cpu = 0, wall = 0;
     long frames = 0, atoms = 0;
@@ -103,19 +103,20 @@ int main(int argc, char** argv) {
         sink.OnFrame(f);
       }
     } samples;
+    sandswim::DumpFrameCollector copies;
     std::ifstream in(path, std::ios::binary);
     std::vector<char> buf(1 << 20);
     while (in) {
       in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
       if (in.gcount() <= 0) break;
       const std::string_view chunk(buf.data(), static_cast<size_t>(in.gcount()));
-      sandswim::Status s = sink_path ? reader.Feed(chunk, samples) : reader.Feed(chunk);
+      sandswim::Status s = sink_path ? reader.Feed(chunk, samples) : reader.Feed(chunk, copies);
       if (!s.ok()) {
         std::fprintf(stderr, "%s\n", s.ToString().c_str());
         return false;
       }
       if (!sink_path) {
-        for (const auto& f : reader.TakeFrames()) {
+        for (const auto& f : copies.Take()) {
           ++t->frames;
           t->atoms += f.atoms;
         }
@@ -146,7 +147,7 @@ int main(int argc, char** argv) {
   std::printf("DumpReader, worker path (1 MB chunks -> Feed(chunk, SoSampleSink), %ld samples):\n", sink.frames);
   std::printf("DumpReader: %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s)\n", parse_cpu, mb / parse_cpu, parse_s,
               mb / parse_s);
-  std::printf("Feed + TakeFrames (DumpFrame copies): %.3f s CPU = %.0f MB/s\n", queue.cpu, mb / queue.cpu);
+  std::printf("DumpFrameCollector (DumpFrame copies): %.3f s CPU = %.0f MB/s\n", queue.cpu, mb / queue.cpu);
   std::printf("wc -l:      %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s, includes sh)\n", wc_cpu, mb / wc_cpu,
               wc_s, mb / wc_s);
   std::printf("ratio DumpReader / wc -l = %.2f by CPU time, %.2f by wall time (goal >= 0.5)\n", wc_cpu / parse_cpu,

@@ -96,10 +96,7 @@ void BenchScale(const Scale& scale, bool trajectories) {
     std::string dir = testing::CacheDir() + "/bench/" + std::string(scale.name) + "-omega" + std::to_string(int(Omega));
     std::filesystem::remove_all(dir);
     EngineRun r = testing::RunDeck(dir, RenderDriveDeck(q, scale), bed, 1);
-    DumpReader reader;
-    reader.Feed(testing::ReadFile(dir + "/" + kTrajectoryDumpFile));
-    reader.Finish();
-    auto samples = SamplesFromFrames(reader.TakeFrames(), kMaterials.dt);
+    auto samples = SamplesFromDump(testing::ReadFile(dir + "/" + kTrajectoryDumpFile), kMaterials.dt);
     EngineLog log = ParseEngineLog(r.log);
     if (!samples.ok()) {
       std::printf("Omega = %g: %s\n", Omega, samples.status().ToString().c_str());
