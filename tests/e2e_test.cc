@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "core/api.h"
+#include "core/trajectory.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
 
@@ -84,19 +85,26 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
     EXPECT_EQ(detail["trajectory"]["t"].size(), detail["trajectory"]["z"].size());
     EXPECT_EQ(res["launcher"], "mpirun");
     EXPECT_EQ(detail["attempts"], 1);
+    // The sign (Sec. 3.2): Omega < 0 rises, Omega > 0 sinks. The run's net displacement shows it
+    // (at 20 Hz over 0.25 s: +33 mm and -13 mm when last run, against sub-mm jitter); U_z must
+    // agree wherever its 95 % interval excludes zero (4 periods may leave the sign open).
+    const double sign = run["point"]["Omega"].get<double>() < 0 ? 1.0 : -1.0;
+    EXPECT_GT(sign * res["dz"].get<double>(), 0.0) << res.dump();
+    const double half = StudentT95(res["uz_blocks"].get<int>() - 1) * res["uz_stderr"].get<double>();
+    if (std::fabs(res["uz"].get<double>()) > half) EXPECT_GT(sign * res["uz"].get<double>(), 0.0) << res.dump();
     // Figures for the closing note of issue 4.
     std::printf("E2E Omega=%+g at 20 Hz: U_z=%s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
                 run["point"]["Omega"].get<double>(), res.value("uz_text", "?").c_str(), res["dz"].get<double>(),
                 res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
   }
-  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM beds"), "1");
-  EXPECT_EQ(daemon_->Sql("SELECT attempts FROM beds"), "1");
-  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results"), "2");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "1");
+  EXPECT_EQ(daemon_->Query("SELECT attempts FROM beds"), "1");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "2");
   // Submitting the same sweep again reuses both results: nothing is queued.
   int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.25, 20));
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
   EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
-  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM runs"), "2");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "2");
 }
 
 // Processes (not zombies) whose working directory is under `dir`: the engines a worker started
@@ -143,7 +151,7 @@ TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
   ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nsecond worker:\n" << second->Output();
   json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run_id));
   EXPECT_EQ(detail["attempts"], 2);
-  EXPECT_EQ(daemon_->Sql("SELECT count(*) FROM results WHERE run_id = " + std::to_string(run_id)), "1");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results WHERE run_id = " + std::to_string(run_id)), "1");
 }
 
 // A deck LIGGGHTS rejects fails its run with the ERROR: line, without retries; the sweep's other
@@ -158,10 +166,8 @@ TEST_F(EndToEndTest, RejectedDeckFailsItsRunOnly) {
   const std::string good_line = "pair_style      gran";
   ASSERT_NE(deck.find(good_line), std::string::npos);
   deck.replace(deck.find(good_line), good_line.size(), "pair_style      no_such_style");
-  const std::string deck_file = *dir_ + "/bad-deck.in";
-  { std::ofstream(deck_file, std::ios::binary) << deck; }
-  daemon_->Sql("INSERT INTO run_decks (run_id, deck) VALUES (" + bad + ", CAST(readfile('" + deck_file + "') AS TEXT))");
-  ASSERT_EQ(daemon_->Sql("SELECT count(*) FROM run_decks WHERE run_id = " + bad), "1");
+  daemon_->StoreDeckForRun(runs[0]["id"].get<int64_t>(), deck);
+  ASSERT_EQ(daemon_->Query("SELECT count(*) FROM run_decks WHERE run_id = " + bad), "1");
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-bad-deck", 2);
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   EXPECT_EQ(sweep["counts"]["done"], 1) << sweep.dump();

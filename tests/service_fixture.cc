@@ -10,8 +10,13 @@
 #include <thread>
 
 #include <httplib.h>
+#include <sqlite3.h>
 
+#include "core/deck.h"
+#include "core/engine_log.h"
 #include "tests/engine_fixture.h"
+#include "workers/client.h"
+#include "workers/run_dir.h"
 
 namespace sandswim::testing {
 namespace fs = std::filesystem;
@@ -93,13 +98,95 @@ nlohmann::json Daemon::WaitForSweep(int64_t sweep_id, double timeout_s) {
   return s;
 }
 
-std::string Daemon::Sql(const std::string& query) {
-  std::string out = dir_ + "/sql.out";
-  std::string cmd = "sqlite3 -cmd '.timeout 10000' '" + db_ + "' \"" + query + "\" > '" + out + "' 2>&1";
-  std::system(cmd.c_str());
-  std::string s = ReadFile(out);
-  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
-  return s;
+namespace {
+// The daemon's file opened beside it: read-only, or read-write for StoreDeckForRun.
+struct Connection {
+  Connection(const std::string& path, bool write) {
+    const int flags = write ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READONLY;
+    if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+      throw std::runtime_error("cannot open " + path + ": " + sqlite3_errmsg(db));
+    }
+    sqlite3_busy_timeout(db, 10000);
+  }
+  ~Connection() { sqlite3_close(db); }
+  sqlite3* db = nullptr;
+};
+
+void Check(int rc, sqlite3* db, const std::string& sql) {
+  if (rc != SQLITE_OK && rc != SQLITE_ROW && rc != SQLITE_DONE) {
+    throw std::runtime_error(sql + ": " + sqlite3_errmsg(db));
+  }
+}
+}  // namespace
+
+std::string Daemon::Query(const std::string& sql) const {
+  Connection c(db_, /*write=*/false);
+  sqlite3_stmt* st = nullptr;
+  Check(sqlite3_prepare_v2(c.db, sql.c_str(), -1, &st, nullptr), c.db, sql);
+  const int rc = sqlite3_step(st);
+  std::string out;
+  if (rc == SQLITE_ROW && sqlite3_column_type(st, 0) != SQLITE_NULL) {
+    out = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+  }
+  sqlite3_finalize(st);
+  Check(rc, c.db, sql);
+  return out;
+}
+
+void Daemon::StoreDeckForRun(int64_t run_id, const std::string& deck) {
+  Connection c(db_, /*write=*/true);
+  const std::string sql = "INSERT INTO run_decks (run_id, deck) VALUES (?, ?)";
+  sqlite3_stmt* st = nullptr;
+  Check(sqlite3_prepare_v2(c.db, sql.c_str(), -1, &st, nullptr), c.db, sql);
+  sqlite3_bind_int64(st, 1, run_id);
+  sqlite3_bind_text(st, 2, deck.data(), static_cast<int>(deck.size()), SQLITE_TRANSIENT);
+  const int rc = sqlite3_step(st);
+  sqlite3_finalize(st);
+  Check(rc, c.db, sql);
+}
+
+void HandInBeds(const Daemon& daemon, const std::string& restart) {
+  const std::string dir = fs::path(restart).parent_path().string();
+  const EngineLog log = ParseEngineLog(ReadFile(dir + "/" + kLogFile));
+  if (!log.bed_grains) throw std::runtime_error("no bed figures in " + dir + "/" + kLogFile);
+  auto sha = worker::Sha256OfFile(restart);
+  if (!sha.ok()) throw std::runtime_error(sha.status().ToString());
+  worker::ClientOptions options;
+  options.server = daemon.url();
+  options.retry_for_s = 30;
+  worker::HttpServerClient client(options);
+  const api::LeaseRequest request("test-bed-hand-in", "localhost", 1);
+  // Only while a bed waits: a lease would otherwise hand out a run.
+  while (daemon.Query("SELECT count(*) FROM beds WHERE state = 'queued'") != "0") {
+    auto grant = client.Lease(request);
+    if (!grant.ok()) throw std::runtime_error("lease: " + grant.status().ToString());
+    if (!grant->has_value()) throw std::runtime_error("a bed is queued, yet there was nothing to lease");
+    const api::LeaseGrant& g = **grant;
+    if (g.kind != api::JobKind::kBed) {
+      (void)client.Release(g.token, "only beds are handed in");
+      throw std::runtime_error("a bed is queued, yet the lease handed out a run");
+    }
+    if (Status s = client.UploadBed(g.id, g.token, restart, *sha); !s.ok()) {
+      throw std::runtime_error("bed upload: " + s.ToString());
+    }
+    api::Completion done;
+    done.ok = true;
+    api::BedResult bed;
+    bed.grains = log.bed_grains->grains;
+    bed.so_z = log.bed_grains->so_z;
+    bed.grain_top = log.bed_grains->grain_top;
+    if (log.bed_equilibrium) {
+      bed.equilibrated = log.bed_equilibrium->equilibrated;
+      bed.ke_ratio = log.bed_equilibrium->ke_peak > 0 ? log.bed_equilibrium->ke / log.bed_equilibrium->ke_peak : 0;
+    }
+    bed.sha256 = *sha;
+    bed.bytes = static_cast<int64_t>(fs::file_size(restart));
+    done.bed_result = bed;
+    auto reply = client.Complete(g.token, done);
+    if (!reply.ok() || reply->state != "done") {
+      throw std::runtime_error("bed completion: " + (reply.ok() ? reply->state : reply.status().ToString()));
+    }
+  }
 }
 
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,

@@ -51,13 +51,23 @@ class Daemon {
 
   // Polls GET /api/v1/sweeps/{id} until no run is queued or running; returns the last answer.
   nlohmann::json WaitForSweep(int64_t sweep_id, double timeout_s);
-  // One value from the SQLite file, through the sqlite3 command-line shell.
-  std::string Sql(const std::string& query);
+  // The first column of the first row of a read-only query on the daemon's SQLite file (opened
+  // read-only beside the daemon), as text; "" when there is no row. Fails the test on an error.
+  std::string Query(const std::string& sql) const;
+  // Stores `deck` as the run's deck in the table the daemon reads a stored deck from (runs
+  // submitted before migration 3 have one), so a run can be given a deck the engine rejects,
+  // which no sweep can render. The one write a test makes past the API.
+  void StoreDeckForRun(int64_t run_id, const std::string& deck);
 
  private:
   std::string dir_, db_, url_;
   std::unique_ptr<ChildProcess> process_;
 };
+
+// Hands the prepared bed restart at `restart` (a bed directory made by testing::PrepareBed, with
+// its engine log beside it) to the daemon for every bed job it has queued, through the worker
+// protocol a worker uses (lease, upload, complete), so tests need not prepare the bed again.
+void HandInBeds(const Daemon& daemon, const std::string& restart);
 
 // A sandswim-worker of `slots` 1-rank slots (mpirun unless `extra` says otherwise, e.g.
 // {"--launcher", "direct"}) with its workdir and output (worker.out) in `dir`.
