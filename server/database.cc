@@ -1,0 +1,470 @@
+#include "server/database.h"
+
+#include <sqlite3.h>
+
+#include <chrono>
+#include <filesystem>
+#include <utility>
+
+#include "core/api.h"
+#include "core/embedded.h"
+
+namespace sandswim {
+
+std::vector<Migration> Migrations() {
+  std::vector<Migration> out;
+  constexpr std::string_view kPrefix = "schema/";
+  for (std::string_view name : EmbeddedFileNames()) {
+    if (name.substr(0, kPrefix.size()) != kPrefix) continue;
+    std::string_view base = name.substr(kPrefix.size());
+    if (base.size() < 9 || base[3] != '_' || base.substr(base.size() - 4) != ".sql") continue;
+    int version = 0;
+    bool digits = true;
+    for (char c : base.substr(0, 3)) {
+      digits = digits && c >= '0' && c <= '9';
+      version = version * 10 + (c - '0');
+    }
+    if (digits) out.push_back({version, std::string(name)});
+  }
+  return out;  // sorted by name, hence by version
+}
+
+namespace {
+
+constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
+                                   "beds",      "runs",          "run_decks",   "sweep_runs",  "leases",
+                                   "results",   "trajectories",  "run_logs",    "events",
+                                   "counters",  "schema_migrations", "sweep_counts", "campaign_schedules",
+                                   "drift_reports"};
+
+Status SqlError(sqlite3* db, const std::string& what) {
+  int code = sqlite3_extended_errcode(db);
+  std::string msg = what + ": " + sqlite3_errmsg(db);
+  if ((code & 0xff) == SQLITE_BUSY || (code & 0xff) == SQLITE_LOCKED) {
+    return Status::Unavailable(msg);
+  }
+  if ((code & 0xff) == SQLITE_CONSTRAINT) return Status::Conflict(msg);
+  if ((code & 0xff) == SQLITE_CORRUPT || (code & 0xff) == SQLITE_NOTADB) {
+    return Status::Corruption(msg);
+  }
+  if ((code & 0xff) == SQLITE_IOERR || (code & 0xff) == SQLITE_FULL ||
+      (code & 0xff) == SQLITE_CANTOPEN) {
+    return Status::IOError(msg);
+  }
+  return Status::Internal(msg);
+}
+
+Status ExecRaw(sqlite3* db, const std::string& sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : "unknown error";
+    sqlite3_free(err);
+    Status s = SqlError(db, "sql");
+    return Status(s.code(), msg);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+// ---- Statement ----------------------------------------------------------------------------------
+
+Statement::Statement(sqlite3_stmt* stmt, Database* db, bool owned)
+    : stmt_(stmt), database_(db), owned_(owned) {}
+
+Statement::Statement(Statement&& o) noexcept
+    : stmt_(o.stmt_), database_(o.database_), owned_(o.owned_), bind_error_(std::move(o.bind_error_)) {
+  o.stmt_ = nullptr;
+}
+
+Statement::~Statement() {
+  if (stmt_ == nullptr) return;
+  sqlite3_reset(stmt_);
+  sqlite3_clear_bindings(stmt_);
+  if (owned_) {
+    sqlite3_finalize(stmt_);
+  } else {
+    database_->in_use_.erase(stmt_);
+  }
+}
+
+#define SANDSWIM_BIND(call)                                                 \
+  do {                                                                      \
+    if (stmt_ != nullptr && (call) != SQLITE_OK && bind_error_.ok()) {      \
+      bind_error_ = SqlError(database_->db_, "bind " + std::to_string(index));         \
+    }                                                                       \
+    return *this;                                                           \
+  } while (0)
+
+Statement& Statement::Bind(int index, int64_t v) { SANDSWIM_BIND(sqlite3_bind_int64(stmt_, index, v)); }
+Statement& Statement::Bind(int index, double v) { SANDSWIM_BIND(sqlite3_bind_double(stmt_, index, v)); }
+Statement& Statement::Bind(int index, std::string_view v) {
+  SANDSWIM_BIND(sqlite3_bind_text64(stmt_, index, v.data(), v.size(), SQLITE_TRANSIENT, SQLITE_UTF8));
+}
+Statement& Statement::BindBlob(int index, std::string_view v) {
+  SANDSWIM_BIND(sqlite3_bind_blob64(stmt_, index, v.data(), v.size(), SQLITE_TRANSIENT));
+}
+Statement& Statement::BindNull(int index) { SANDSWIM_BIND(sqlite3_bind_null(stmt_, index)); }
+#undef SANDSWIM_BIND
+
+Result<bool> Statement::Step() {
+  if (stmt_ == nullptr) return bind_error_.ok() ? Status::Internal("statement not prepared") : bind_error_;
+  if (!bind_error_.ok()) return bind_error_;
+  int rc = sqlite3_step(stmt_);
+  if (rc == SQLITE_ROW) return true;
+  if (rc == SQLITE_DONE) return false;
+  Status s = SqlError(database_->db_, "step");
+  sqlite3_reset(stmt_);
+  return s;
+}
+
+Status Statement::Run() {
+  while (true) {
+    Result<bool> r = Step();
+    if (!r.ok()) return r.status();
+    if (!*r) return Status::Ok();
+  }
+}
+
+void Statement::Reset() {
+  if (stmt_ != nullptr) sqlite3_reset(stmt_);
+  if (stmt_ != nullptr) bind_error_ = Status::Ok();
+}
+
+bool Statement::IsNull(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
+int64_t Statement::Int(int col) const { return sqlite3_column_int64(stmt_, col); }
+double Statement::Double(int col) const { return sqlite3_column_double(stmt_, col); }
+std::string Statement::Text(int col) const {
+  const unsigned char* p = sqlite3_column_text(stmt_, col);
+  if (p == nullptr) return "";
+  return std::string(reinterpret_cast<const char*>(p), sqlite3_column_bytes(stmt_, col));
+}
+std::optional<int64_t> Statement::OptInt(int col) const {
+  if (IsNull(col)) return std::nullopt;
+  return Int(col);
+}
+std::optional<double> Statement::OptDouble(int col) const {
+  if (IsNull(col)) return std::nullopt;
+  return Double(col);
+}
+std::optional<std::string> Statement::OptText(int col) const {
+  if (IsNull(col)) return std::nullopt;
+  return Text(col);
+}
+
+// ---- Transaction --------------------------------------------------------------------------------
+
+Transaction::Transaction(Database* db, std::unique_lock<std::mutex> lock)
+    : database_(db), lock_(std::move(lock)), open_(true) {}
+
+Transaction::Transaction(Transaction&& o) noexcept
+    : database_(o.database_), lock_(std::move(o.lock_)), open_(o.open_) {
+  o.open_ = false;
+}
+
+Transaction::~Transaction() {
+  if (open_) ExecRaw(database_->db_, "ROLLBACK");
+}
+
+Statement Transaction::Prepare(const std::string& sql) {
+  Status error;
+  sqlite3_stmt* stmt = database_->Cached(sql, &error);
+  if (stmt != nullptr && database_->in_use_.insert(stmt).second) {
+    return Statement(stmt, database_, /*owned=*/false);
+  }
+  if (stmt != nullptr) {
+    // Its cached twin is held by a live Statement (nested use of one SQL text): a private copy.
+    stmt = nullptr;
+    if (sqlite3_prepare_v2(database_->db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+      error = SqlError(database_->db_, "prepare");
+      sqlite3_finalize(stmt);
+      stmt = nullptr;
+    }
+    if (stmt != nullptr) return Statement(stmt, database_, /*owned=*/true);
+  }
+  Statement st(nullptr, database_, /*owned=*/true);
+  st.bind_error_ = error;
+  return st;
+}
+
+Status Transaction::Exec(const std::string& sql) { return ExecRaw(database_->db_, sql); }
+int64_t Transaction::LastInsertId() const { return sqlite3_last_insert_rowid(database_->db_); }
+int64_t Transaction::Changes() const { return sqlite3_changes(database_->db_); }
+
+Status Transaction::Event(double time, std::string_view kind, std::string_view subject,
+                          const nlohmann::json& detail) {
+  Statement st = Prepare("INSERT INTO events (time, kind, subject, detail) VALUES (?, ?, ?, ?)");
+  st.Bind(1, time).Bind(2, kind).Bind(3, subject).Bind(4, api::ToJsonText(detail));
+  return st.Run();
+}
+
+Status Transaction::Count(std::string_view counter, int64_t delta) {
+  Statement st = Prepare(
+      "INSERT INTO counters (name, value) VALUES (?, ?) "
+      "ON CONFLICT (name) DO UPDATE SET value = value + excluded.value");
+  st.Bind(1, counter).Bind(2, delta);
+  return st.Run();
+}
+
+Status Transaction::Commit() {
+  if (!open_) return Status::Internal("transaction already finished");
+  Status s = ExecRaw(database_->db_, "COMMIT");
+  if (!s.ok()) return s;  // still open: the destructor rolls back
+  open_ = false;
+  return Status::Ok();
+}
+
+// ---- Database -----------------------------------------------------------------------------------
+
+Status Database::OpenFile(const std::string& path) {
+  path_ = path;
+  if (path != ":memory:") {
+    std::error_code ec;
+    std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+    if (ec) return Status::IOError("cannot create " + parent.string() + ": " + ec.message());
+  }
+  // No global memory statistics: they take a process-wide mutex on every allocation (~6% of a
+  // 100,000-run submission). Only possible before SQLite initialises; later calls are no-ops.
+  static const bool kConfigured = [] {
+    sqlite3_config(SQLITE_CONFIG_MEMSTATUS, 0);
+    return true;
+  }();
+  (void)kConfigured;
+  int rc = sqlite3_open_v2(path.c_str(), &db_,
+                           SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
+                           nullptr);
+  if (rc != SQLITE_OK) {
+    std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    return Status::IOError("cannot open database " + path + ": " + msg);
+  }
+  sqlite3_busy_timeout(db_, 5000);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_,
+                                   "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
+                                   "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = -65536; PRAGMA wal_autocheckpoint = 10000;"));
+  SANDSWIM_RETURN_IF_ERROR(Migrate());
+  return Status::Ok();
+}
+
+Database::~Database() {
+  for (auto& [sql, stmt] : cache_) sqlite3_finalize(stmt);
+  if (db_ != nullptr) sqlite3_close_v2(db_);
+}
+
+sqlite3_stmt* Database::Cached(const std::string& sql, Status* error) {
+  auto it = cache_.find(sql);
+  if (it != cache_.end()) return it->second;
+  sqlite3_stmt* stmt = nullptr;
+  if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+    *error = SqlError(db_, "prepare \"" + sql.substr(0, 60) + "\"");
+    return nullptr;
+  }
+  cache_.emplace(sql, stmt);
+  return stmt;
+}
+
+Status Database::Migrate() {
+  std::unique_lock<std::mutex> lock(mu_);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_,
+                                   "CREATE TABLE IF NOT EXISTS schema_migrations ("
+                                   " version INTEGER PRIMARY KEY, name TEXT NOT NULL,"
+                                   " applied_at REAL NOT NULL)"));
+  auto user_version = [this]() -> int {
+    sqlite3_stmt* st = nullptr;
+    int v = 0;
+    if (sqlite3_prepare_v2(db_, "PRAGMA user_version", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW) {
+      v = sqlite3_column_int(st, 0);
+    }
+    sqlite3_finalize(st);
+    return v;
+  };
+  int current = user_version();
+  const std::vector<Migration> migrations = Migrations();
+  for (size_t i = 0; i < migrations.size(); ++i) {
+    if (migrations[i].version != static_cast<int>(i) + 1) {
+      return Status::Internal("migration " + migrations[i].file + " should be number " + std::to_string(i + 1) +
+                              ": the schema/NNN_*.sql files must be numbered 001, 002, ... without gaps");
+    }
+  }
+  if (migrations.empty()) return Status::Internal("no migration compiled in (schema/NNN_*.sql)");
+  int latest = migrations.back().version;
+  if (current > latest) {
+    return Status::FailedPrecondition(
+        "schema", "database " + path_ + " has schema version " + std::to_string(current) +
+                      "; this sandswimd knows up to " + std::to_string(latest));
+  }
+  for (const Migration& m : migrations) {
+    if (m.version <= current) continue;
+    std::optional<std::string_view> sql = EmbeddedFile(m.file);
+    if (!sql) return Status::Internal("migration not compiled in: " + m.file);
+    SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
+    Status s = ExecRaw(db_, std::string(*sql));
+    if (s.ok()) {
+      s = ExecRaw(db_, "INSERT INTO schema_migrations (version, name, applied_at) VALUES (" +
+                           std::to_string(m.version) + ", '" + m.file +
+                           "', CAST(strftime('%s','now') AS REAL))");
+    }
+    if (s.ok()) s = ExecRaw(db_, "PRAGMA user_version = " + std::to_string(m.version));
+    if (s.ok()) s = ExecRaw(db_, "COMMIT");
+    if (!s.ok()) {
+      ExecRaw(db_, "ROLLBACK");
+      return Status(s.code(), std::string("migration ") + m.file + ": " + s.reason());
+    }
+    current = m.version;
+  }
+  schema_version_ = current;
+  return Status::Ok();
+}
+
+Result<Transaction> Database::Begin() {
+  std::unique_lock<std::mutex> lock(mu_);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
+  return Transaction(this, std::move(lock));
+}
+
+Result<Transaction> Database::BeginRead() {
+  std::unique_lock<std::mutex> lock(mu_);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN"));
+  return Transaction(this, std::move(lock));
+}
+
+// ---- Group commit -------------------------------------------------------------------------------
+
+struct Database::PendingWrite {
+  const std::function<Status(Transaction&)>* change;
+  Status result;
+  bool done = false;
+};
+
+// A group bounded so that no caller waits behind an unbounded number of others.
+constexpr size_t kMaxGroup = 256;
+// How long a leader waits for a group to fill (far less than one commit costs here).
+constexpr std::chrono::microseconds kGather(200);
+
+Status Database::Write(const std::function<Status(Transaction&)>& change) {
+  PendingWrite mine{&change, Status::Ok(), false};
+  std::unique_lock<std::mutex> g(group_mu_);
+  pending_.push_back(&mine);
+  if (gathering_ && pending_.size() >= last_group_) leader_cv_.notify_one();
+  while (!mine.done) {
+    if (leading_) {
+      group_cv_.wait(g);
+      continue;
+    }
+    // Lead: take what has queued up (while the previous group committed) and run it. Callers
+    // answered by the previous group come back within microseconds; when that group was larger
+    // than what is queued now, wait a moment (at most kGather) for them to join this one.
+    leading_ = true;
+    if (last_group_ > 1 && pending_.size() < last_group_) {
+      gathering_ = true;
+      leader_cv_.wait_for(g, kGather, [this] { return pending_.size() >= last_group_; });
+      gathering_ = false;
+    }
+    std::vector<PendingWrite*> group;
+    const size_t n = std::min(pending_.size(), kMaxGroup);
+    group.assign(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+    last_group_ = n;
+    g.unlock();
+    try {
+      RunGroup(group);
+    } catch (...) {  // bad_alloc and the like: fail the group, never leave its callers waiting
+      for (PendingWrite* w : group) {
+        if (w->result.ok()) w->result = Status::Internal("the commit group failed (out of memory?)");
+      }
+    }
+    g.lock();
+    for (PendingWrite* w : group) w->done = true;
+    leading_ = false;
+    group_cv_.notify_all();
+  }
+  return mine.result;
+}
+
+void Database::RunGroup(const std::vector<PendingWrite*>& group) {
+  size_t i = 0;
+  while (i < group.size()) {
+    Result<Transaction> t = Begin();
+    if (!t.ok()) {
+      for (; i < group.size(); ++i) group[i]->result = t.status();
+      return;
+    }
+    std::vector<PendingWrite*> members;  // changes held by this transaction
+    Status broken;                       // set when the transaction itself was lost
+    for (; i < group.size() && broken.ok(); ++i) {
+      PendingWrite* w = group[i];
+      Status s = ExecRaw(db_, "SAVEPOINT grouped_change");
+      if (s.ok()) {
+        try {
+          s = (*w->change)(*t);
+        } catch (const std::exception& e) {
+          s = Status::Internal(std::string("exception in a store change: ") + e.what());
+        } catch (...) {
+          s = Status::Internal("exception in a store change");
+        }
+      }
+      if (sqlite3_get_autocommit(db_)) {
+        // SQLite rolled the whole transaction back (I/O error, disk full, ...): the changes
+        // already in it are gone too.
+        broken = s.ok() ? Status::Internal("the transaction ended inside a change") : s;
+        w->result = broken;
+        break;
+      }
+      if (s.ok()) {
+        s = ExecRaw(db_, "RELEASE grouped_change");
+      } else {
+        Status undo = ExecRaw(db_, "ROLLBACK TO grouped_change");
+        if (undo.ok()) undo = ExecRaw(db_, "RELEASE grouped_change");
+        if (!undo.ok()) {
+          // The failed change's writes could not be undone alone: drop the whole transaction
+          // rather than commit them with the others.
+          broken = Status::Internal("cannot roll back a failed change: " + undo.reason());
+          w->result = s;
+          break;
+        }
+      }
+      w->result = s;
+      if (s.ok()) members.push_back(w);
+    }
+    if (broken.ok()) {
+      Status c = t->Commit();
+      if (!c.ok()) {
+        for (PendingWrite* w : members) w->result = c;
+      }
+    } else {
+      ++i;  // past the change that broke it
+      for (PendingWrite* w : members) {
+        w->result = Status(broken.code(), "rolled back with its commit group: " + broken.reason());
+      }
+    }
+    // `t` ends here: a transaction that did not commit rolls back, and the lock is released so
+    // that reads get in between groups.
+  }
+}
+
+Status Database::HealthCheck() {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("PRAGMA user_version");
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row || st.Int(0) != schema_version_) {
+    return Status::Unavailable("database schema changed under the daemon");
+  }
+  return Status::Ok();
+}
+
+Result<int64_t> Database::CountRows(const std::string& table) {
+  bool known = false;
+  for (const char* t : kTables) known = known || table == t;
+  if (!known) return Status::InvalidArgument("table", "unknown table '" + table + "'");
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("SELECT COUNT(*) FROM " + table);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return st.Int(0);
+}
+
+}  // namespace sandswim

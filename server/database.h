@@ -1,0 +1,214 @@
+// Database: the daemon's one SQLite file (sweeps, runs, beds, results, trajectories, events) as
+// an adapter: statements, transactions, group commit and migrations. Its .cc is the only file that
+// includes sqlite3.h. What the rows mean lives elsewhere: the read views of the REST API in
+// server/store.h (Store is a Database with those reads), the writes in the modules that own them
+// (submission.h, lease_queue.h, scheduler.h, drift_report.h) through Transaction/Statement.
+//
+// Opening it (Store::Open) creates the file and its parent directory if needed, turns on WAL, foreign keys,
+// synchronous=NORMAL, temp_store=MEMORY (statement journals in memory: a file one cost 3 of every 4
+// write calls of the lease queue) and a busy timeout, and applies the numbered migrations of schema/*.sql
+// (compiled in) that the file has not seen yet, each in one transaction, recorded in
+// `schema_migrations` and in PRAGMA user_version. A file with a newer schema than this binary
+// knows is refused (Status kFailedPrecondition).
+//
+// Writes go through a Transaction (BEGIN IMMEDIATE): every state change of the daemon is one
+// transaction, so a crash at any instant leaves a consistent file. A Transaction that is
+// destroyed without Commit() rolls back. Submission (submission.h) and the lease queue
+// (lease_queue.h) write their SQL through Transaction/Statement; the read queries are methods of
+// Store (server/store.h).
+//
+// Group commit: Write() runs a change in a write transaction that it shares with the changes other
+// threads hand to Write() at the same time. One of the callers (the leader) runs the queued
+// changes one after the other, each inside its own SAVEPOINT (a change that returns an error or
+// throws is rolled back alone, as if it had never run), then commits them all at once; every
+// caller returns only after that COMMIT, so its change is as durable as with its own transaction.
+// If the COMMIT fails, every change of the group is rolled back and every caller gets the error.
+// This is how the lease queue's hot path (lease, heartbeat, complete) writes: one commit (one WAL
+// append of the pages the group dirtied) for many state changes.
+//
+// Thread safety: a Database owns one connection guarded by one mutex. A Transaction holds that mutex
+// for its whole life, and every read query takes it for its duration, so a Database is safe to use
+// from any number of threads (httplib's pool); work is serialised. Do not call a Database's (or
+// Store's) methods or open a second Transaction on the same thread while a Transaction is alive
+// (self-deadlock). Statements are only valid inside the Transaction that prepared them.
+#ifndef SANDSWIM_SERVER_DATABASE_H_
+#define SANDSWIM_SERVER_DATABASE_H_
+
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/status.h"
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace sandswim {
+
+class Database;
+
+// A prepared statement of the connection (cached by SQL text; reset when this handle dies).
+// Bind indexes are 1-based as in SQLite; column indexes are 0-based.
+class Statement {
+ public:
+  Statement(Statement&& other) noexcept;
+  Statement& operator=(Statement&&) = delete;
+  Statement(const Statement&) = delete;
+  ~Statement();
+
+  Statement& Bind(int index, int64_t v);
+  Statement& Bind(int index, int v) { return Bind(index, static_cast<int64_t>(v)); }
+  Statement& Bind(int index, bool v) { return Bind(index, static_cast<int64_t>(v ? 1 : 0)); }
+  Statement& Bind(int index, double v);
+  Statement& Bind(int index, std::string_view v);
+  Statement& Bind(int index, const std::string& v) { return Bind(index, std::string_view(v)); }
+  Statement& Bind(int index, const char* v) { return Bind(index, std::string_view(v)); }
+  Statement& BindBlob(int index, std::string_view bytes);
+  Statement& BindNull(int index);
+  template <typename T>
+  Statement& Bind(int index, const std::optional<T>& v) {
+    return v ? Bind(index, *v) : BindNull(index);
+  }
+
+  // Advances: true when a row is available, false when the statement is done.
+  Result<bool> Step();
+  // Steps until done (for INSERT/UPDATE/DELETE).
+  Status Run();
+  // Makes the statement ready to bind and step again (one statement reused across many rows of
+  // a transaction). Bindings not rebound keep their values.
+  void Reset();
+
+  bool IsNull(int col) const;
+  int64_t Int(int col) const;
+  double Double(int col) const;
+  std::string Text(int col) const;  // "" for NULL
+  std::optional<int64_t> OptInt(int col) const;
+  std::optional<double> OptDouble(int col) const;
+  std::optional<std::string> OptText(int col) const;
+
+ private:
+  friend class Transaction;
+  Statement(sqlite3_stmt* stmt, Database* db, bool owned);
+  sqlite3_stmt* stmt_;
+  Database* database_;
+  bool owned_;         // finalized on destruction (else: returned to the store's cache)
+  Status bind_error_;  // the first failed Bind(), reported by Step()
+};
+
+// A transaction holding the store's lock. Write transactions are BEGIN IMMEDIATE; read
+// transactions are deferred BEGIN (a consistent snapshot for multi-query reads).
+class Transaction {
+ public:
+  Transaction(Transaction&& other) noexcept;
+  Transaction& operator=(Transaction&&) = delete;
+  Transaction(const Transaction&) = delete;
+  ~Transaction();  // rolls back unless committed
+
+  Statement Prepare(const std::string& sql);  // a bad SQL text surfaces at Step()/Run()
+  Status Exec(const std::string& sql);        // one or more statements without parameters
+  int64_t LastInsertId() const;
+  int64_t Changes() const;  // rows changed by the last statement
+
+  // Appends an audit event (events table): kind like "run.leased", subject like "run/12".
+  Status Event(double time, std::string_view kind, std::string_view subject,
+               const nlohmann::json& detail = nlohmann::json::object());
+  // Adds `delta` to a persistent counter (counters table), for Metrics.
+  Status Count(std::string_view counter, int64_t delta = 1);
+
+  Status Commit();
+
+ private:
+  friend class Database;
+  Transaction(Database* db, std::unique_lock<std::mutex> lock);
+  Database* database_;
+  std::unique_lock<std::mutex> lock_;
+  bool open_ = false;
+};
+
+// A database migration compiled in: schema/NNN_name.sql applies version NNN. Migrations() lists
+// every one, by version; opening a Database requires them numbered 1, 2, ... without gaps.
+struct Migration {
+  int version = 0;
+  std::string file;  // "schema/007_uz_blocks.sql"
+};
+std::vector<Migration> Migrations();
+
+class Database {
+ public:
+  virtual ~Database();
+  Database(const Database&) = delete;
+  Database& operator=(const Database&) = delete;
+
+  const std::string& path() const { return path_; }
+  int schema_version() const { return schema_version_; }
+
+  // Blocks until the lock is free. Write: BEGIN IMMEDIATE.
+  Result<Transaction> Begin();
+  Result<Transaction> BeginRead();
+
+  // Runs `change` inside a grouped write transaction (see the top of this file) and returns its
+  // status once the group has committed (or the commit's error). `change` must not commit, must
+  // not call the Database, and may run on another thread than the caller's (it is called before
+  // Write returns, so it may capture the caller's locals by reference).
+  Status Write(const std::function<Status(Transaction&)>& change);
+
+  // Write() for a change that returns a value: the value once committed, else the error.
+  template <typename T>
+  Result<T> WriteResult(const std::function<Result<T>(Transaction&)>& change) {
+    std::optional<Result<T>> out;
+    Status s = Write([&](Transaction& t) {
+      out.emplace(change(t));
+      return out->status();
+    });
+    if (!s.ok()) return s;
+    return std::move(*out);
+  }
+
+  // OK when the file answers a trivial query and the schema is current.
+  Status HealthCheck();
+  // Rows in a table (tests and diagnostics). REQUIRES: `table` is one of the schema's tables.
+  Result<int64_t> CountRows(const std::string& table);
+
+ protected:
+  Database() = default;
+  // Opens (creating if needed) the SQLite file at `path` and migrates it (see the top of this file).
+  Status OpenFile(const std::string& path);
+
+ private:
+  friend class Transaction;
+  friend class Statement;
+  Status Migrate();
+  sqlite3_stmt* Cached(const std::string& sql, Status* error);
+  struct PendingWrite;
+  void RunGroup(const std::vector<PendingWrite*>& group);
+
+  std::string path_;
+  sqlite3* db_ = nullptr;
+  int schema_version_ = 0;
+  std::mutex mu_;
+  std::map<std::string, sqlite3_stmt*> cache_;  // guarded by mu_
+  std::set<sqlite3_stmt*> in_use_;              // cached statements held by a Statement
+
+  // Group commit (Write): changes waiting for a leader, and whether one is running a group.
+  std::mutex group_mu_;
+  std::condition_variable group_cv_;
+  std::vector<PendingWrite*> pending_;  // guarded by group_mu_
+  bool leading_ = false;                // guarded by group_mu_
+  bool gathering_ = false;              // the leader waits for a group to fill; guarded by group_mu_
+  size_t last_group_ = 1;               // size of the previous group; guarded by group_mu_
+  std::condition_variable leader_cv_;   // wakes a gathering leader
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_DATABASE_H_
