@@ -34,33 +34,10 @@ std::string Lower(std::string s) {
   return s;
 }
 
-const char* Table(api::JobKind kind) { return kind == api::JobKind::kBed ? "beds" : "runs"; }
-const char* Noun(api::JobKind kind) { return kind == api::JobKind::kBed ? "bed" : "run"; }
-std::string Subject(api::JobKind kind, int64_t id) {
-  return std::string(Noun(kind)) + "/" + std::to_string(id);
-}
-
-struct LeaseRow {
-  api::JobKind kind = api::JobKind::kRun;
-  int64_t job_id = 0;
-  bool completed = false;
-  std::string outcome;
-};
-
-// The lease a token names, or kConflict for a token this daemon never granted.
-Result<LeaseRow> FindLease(Transaction& t, const std::string& token) {
-  Statement st = t.Prepare("SELECT kind, job_id, completed_at, outcome FROM leases WHERE token = ?");
-  st.Bind(1, token);
-  Result<bool> row = st.Step();
-  if (!row.ok()) return row.status();
-  if (!*row) return Status::Conflict("unknown lease token");
-  LeaseRow l;
-  l.kind = st.Text(0) == "bed" ? api::JobKind::kBed : api::JobKind::kRun;
-  l.job_id = st.Int(1);
-  l.completed = !st.IsNull(2);
-  l.outcome = st.Text(3);
-  return l;
-}
+using jobs::JobRow;
+using jobs::LeaseRow;
+using jobs::Noun;
+using jobs::Subject;
 
 // The job id goes to squeue (server/pilot_watch.h): digits only, so that it can name no other.
 Status CheckLeaseRequest(const api::LeaseRequest& request, const std::string& field) {
@@ -69,28 +46,6 @@ Status CheckLeaseRequest(const api::LeaseRequest& request, const std::string& fi
     return Status::InvalidArgument(field, "must be a Slurm job id (up to 20 digits), got \"" + job.substr(0, 40) + "\"");
   }
   return Status::Ok();
-}
-
-struct JobRow {
-  std::string state;
-  std::string lease_token;
-  int attempts = 0;
-  int max_attempts = 0;
-};
-
-Result<JobRow> LoadJob(Transaction& t, api::JobKind kind, int64_t id, int default_max) {
-  Statement st = t.Prepare(std::string("SELECT state, lease_token, attempts, max_attempts FROM ") +
-                           Table(kind) + " WHERE id = ?");
-  st.Bind(1, id);
-  Result<bool> row = st.Step();
-  if (!row.ok()) return row.status();
-  if (!*row) return Status::Conflict(std::string(Noun(kind)) + " of this lease no longer exists");
-  JobRow j;
-  j.state = st.Text(0);
-  j.lease_token = st.Text(1);
-  j.attempts = static_cast<int>(st.Int(2));
-  j.max_attempts = static_cast<int>(st.OptInt(3).value_or(default_max));
-  return j;
 }
 
 // kConflict unless `token` is the current lease of a running job.
@@ -105,15 +60,11 @@ Status RequireCurrent(const JobRow& job, const std::string& token, api::JobKind 
 
 // Fails the queued runs waiting for a bed that failed for good.
 Status FailBedRuns(Transaction& t, int64_t bed_id, const std::string& reason, double now) {
-  Statement st = t.Prepare(
-      "UPDATE runs SET state = 'failed', finished_at = ?, last_error_kind = 'bed_failed', "
-      "last_error = ? WHERE bed_id = ? AND state = 'queued'");
-  st.Bind(1, now).Bind(2, reason).Bind(3, bed_id);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
-  int64_t n = t.Changes();
-  if (n > 0) {
+  Result<int64_t> n = jobs::FailRunsOfBed(t, bed_id, reason, now);
+  if (!n.ok()) return n.status();
+  if (*n > 0) {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, "runs.failed", "bed/" + std::to_string(bed_id),
-                                     {{"runs", n}, {"reason", reason}}));
+                                     {{"runs", *n}, {"reason", reason}}));
   }
   return Status::Ok();
 }
@@ -124,16 +75,7 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
                                 bool retryable, double now) {
   bool retry = retryable && job.attempts < job.max_attempts;
   std::string state = retry ? "queued" : "failed";
-  std::string sql = std::string("UPDATE ") + Table(kind) +
-                    " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
-                    "last_error = ?, finished_at = CASE WHEN ? = 'failed' THEN ? ELSE NULL END";
-  if (kind == api::JobKind::kRun) sql += ", queued_at = ?6";
-  sql += " WHERE id = ?7";
-  Statement st = t.Prepare(sql);
-  st.Bind(1, state).Bind(2, kind_text).Bind(3, message).Bind(4, state).Bind(5, now);
-  if (kind == api::JobKind::kRun) st.Bind(6, now);
-  st.Bind(7, id);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkRetriedOrFailed(t, kind, id, state, kind_text, message, now));
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"),
                                    Subject(kind, id),
                                    {{"kind", kind_text},
@@ -149,26 +91,13 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
 // The job leased together with the completion of `token` (leases.next_token), put back in the
 // queue as if never leased (attempt uncounted) when it is still running under that grant.
 Status TakeBackUnreceivedGrant(Transaction& t, const std::string& token, double now) {
-  Statement find = t.Prepare(
-      "SELECT n.token, n.kind, n.job_id FROM leases l JOIN leases n ON n.token = l.next_token "
-      "WHERE l.token = ? AND n.completed_at IS NULL AND n.outcome IS NULL");
-  find.Bind(1, token);
-  Result<bool> row = find.Step();
-  if (!row.ok()) return row.status();
-  if (!*row) return Status::Ok();
-  const std::string next_token = find.Text(0);
-  const api::JobKind kind = find.Text(1) == "bed" ? api::JobKind::kBed : api::JobKind::kRun;
-  const int64_t id = find.Int(2);
-  Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
-                           " SET state = 'queued', attempts = attempts - 1, lease_token = NULL, "
-                           "lease_expires_at = NULL WHERE id = ? AND state = 'running' AND lease_token = ?");
-  st.Bind(1, id).Bind(2, next_token);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
-  if (t.Changes() == 0) return Status::Ok();  // it has moved on (expired, heartbeated, ...)
-  Statement done = t.Prepare("UPDATE leases SET completed_at = ?, outcome = 'unreceived' WHERE token = ?");
-  done.Bind(1, now).Bind(2, next_token);
-  SANDSWIM_RETURN_IF_ERROR(done.Run());
-  return t.Event(now, std::string(Noun(kind)) + ".requeued", Subject(kind, id),
+  Result<std::optional<jobs::GrantRef>> grant = jobs::OpenNextGrant(t, token);
+  if (!grant.ok()) return grant.status();
+  if (!*grant) return Status::Ok();
+  Result<bool> taken = jobs::TakeBackGrant(t, **grant, now);
+  if (!taken.ok()) return taken.status();
+  if (!*taken) return Status::Ok();  // it has moved on (expired, heartbeated, ...)
+  return t.Event(now, std::string(Noun((*grant)->kind)) + ".requeued", Subject((*grant)->kind, (*grant)->job_id),
                  {{"kind", "unreceived"},
                   {"message", "leased with a completion whose reply was lost; the worker asked again"}});
 }
@@ -183,42 +112,11 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
                           double asked_at = 0, double silent_s = 0, double ttl_s = 0) {
   int64_t expired = 0;
   for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
-    struct Expired {
-      int64_t id;
-      JobRow job;
-      std::string worker;
-    };
-    std::vector<Expired> rows;
-    {
-      // lease_expires_at is the last heartbeat (or the grant) plus the TTL.
-      const std::string lost = slurm_job.empty()
-                                   ? "j.lease_expires_at < ?1"
-                                   : "j.lease_expires_at <= ?1 AND j.lease_token IN (SELECT token FROM leases "
-                                     "WHERE slurm_job = ?2 AND completed_at IS NULL AND outcome IS NULL AND "
-                                     "granted_at <= ?3)";
-      Statement st = t.Prepare(std::string("SELECT j.id, j.lease_token, j.attempts, j.max_attempts, j.worker "
-                                           "FROM ") +
-                               Table(kind) + " j WHERE j.state = 'running' AND " + lost + " ORDER BY j.id");
-      if (slurm_job.empty()) {
-        st.Bind(1, now);
-      } else {
-        st.Bind(1, now - silent_s + ttl_s).Bind(2, slurm_job).Bind(3, asked_at);
-      }
-      while (true) {
-        Result<bool> row = st.Step();
-        if (!row.ok()) return row.status();
-        if (!*row) break;
-        Expired e;
-        e.id = st.Int(0);
-        e.job.state = "running";
-        e.job.lease_token = st.Text(1);
-        e.job.attempts = static_cast<int>(st.Int(2));
-        e.job.max_attempts = static_cast<int>(st.OptInt(3).value_or(default_max));
-        e.worker = st.Text(4);
-        rows.push_back(std::move(e));
-      }
-    }
-    for (const Expired& e : rows) {
+    Result<std::vector<jobs::LostLease>> rows =
+        slurm_job.empty() ? jobs::ExpiredLeases(t, kind, now, default_max)
+                          : jobs::SlurmJobLeases(t, kind, slurm_job, now - silent_s + ttl_s, asked_at, default_max);
+    if (!rows.ok()) return rows.status();
+    for (const jobs::LostLease& e : *rows) {
       Result<std::string> state =
           slurm_job.empty()
               ? RetryOrFail(t, kind, e.id, e.job, "lease_expired",
@@ -228,9 +126,7 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
                                 " (its leases were reclaimed before they expired)",
                             /*retryable=*/true, now);
       if (!state.ok()) return state.status();
-      Statement st = t.Prepare("UPDATE leases SET outcome = 'expired' WHERE token = ?");
-      st.Bind(1, e.job.lease_token);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      SANDSWIM_RETURN_IF_ERROR(jobs::MarkLeaseExpired(t, e.job.lease_token));
       ++expired;
     }
   }
@@ -263,115 +159,15 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   api::LeaseGrant g;
   g.ttl_s = options_.ttl_s;
   g.wall_budget_s = options_.wall_budget_s;
-  bool found = false;
-  {
-    // Beds first: a bed some queued run is waiting for.
-    Statement st = t.Prepare(
-        "SELECT b.id, b.key, b.deck, b.attempts FROM beds b WHERE b.state = 'queued' AND "
-        "EXISTS (SELECT 1 FROM runs r WHERE r.bed_id = b.id AND r.state = 'queued') "
-        "ORDER BY b.id LIMIT 1");
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (*row) {
-      found = true;
-      g.kind = api::JobKind::kBed;
-      g.id = st.Int(0);
-      g.key = st.Text(1);
-      g.deck = st.Text(2);
-      g.attempt = static_cast<int>(st.Int(3)) + 1;
-    }
-  }
-  // Then the oldest queued run whose bed is done. Its deck is rendered from its point and its
-  // bed's scale (runs submitted before migration 3 have it stored in run_decks) and checked
-  // against the run's key; a run whose deck no longer renders to its key (the templates changed
-  // since it was submitted) fails with "deck_error" and the next run is tried.
-  while (!found) {
-    Statement st = t.Prepare(
-        "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256, "
-        "r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, b.scale, b.key, "
-        "b.engine_version "
-        "FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN run_decks d ON d.run_id = r.id "
-        "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    g.kind = api::JobKind::kRun;
-    g.id = st.Int(0);
-    g.key = st.Text(1);
-    g.attempt = static_cast<int>(st.Int(3)) + 1;
-    g.duration_s = st.Double(4);
-    g.steps = st.Int(5);
-    int64_t bed_id = st.Int(6);
-    g.bed = api::BedRef{bed_id, st.Text(7), "/api/v1/beds/" + std::to_string(bed_id) + "/restart"};
-    if (!st.IsNull(2)) {
-      g.deck = st.Text(2);
-      found = true;
-      break;
-    }
-    Point p;
-    std::optional<Mode> mode = ParseMode(st.Text(8));
-    std::optional<RotationAxis> axis = ParseAxis(st.Text(13));
-    p.A = st.Double(9);
-    p.f = st.Double(10);
-    p.Omega = st.Double(11);
-    p.omega = st.Double(12);
-    p.duration_s = st.Double(14);
-    const Scale* scale = FindScale(st.Text(15));
-    const std::string bed_key = st.Text(16);
-    const std::optional<std::string> engine_version = st.OptText(17);
-    std::string why;
-    if (!mode || !axis || scale == nullptr) {
-      why = "its stored point or scale no longer parses";
-    } else {
-      p.mode = *mode;
-      p.axis = *axis;
-      try {
-        g.deck = RenderDriveDeck(p, *scale);
-      } catch (const std::exception& e) {
-        why = std::string("its deck no longer renders: ") + e.what();
-      }
-      if (why.empty() && engine_version && RunKey(g.deck, bed_key, *engine_version) != g.key) {
-        why = "its deck no longer renders to its key (the deck templates changed since it was "
-              "submitted); submit its sweep again";
-      }
-    }
-    if (why.empty()) {
-      found = true;
-      break;
-    }
-    Statement fail = t.Prepare(
-        "UPDATE runs SET state = 'failed', finished_at = ?, last_error_kind = 'deck_error', "
-        "last_error = ? WHERE id = ?");
-    fail.Bind(1, now).Bind(2, why).Bind(3, g.id);
-    SANDSWIM_RETURN_IF_ERROR(fail.Run());
-    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, g.id),
-                                     {{"kind", "deck_error"}, {"message", why}}));
-  }
-  if (!found) return Out();  // committed with the group when it expired leases or failed decks
+  Result<bool> found = NextBed(t, g);
+  if (found.ok() && !*found) found = NextRun(t, g, now);
+  if (!found.ok()) return found.status();
+  if (!*found) return Out();  // committed with the group when it expired leases or failed decks
   Result<std::string> token = NewToken();
   if (!token.ok()) return token.status();
   g.token = *token;
-  {
-    Statement st = t.Prepare(std::string("UPDATE ") + Table(g.kind) +
-                             " SET state = 'running', attempts = attempts + 1, lease_token = ?, "
-                             "lease_expires_at = ?, worker = ?, started_at = ? WHERE id = ?");
-    st.Bind(1, g.token).Bind(2, now + options_.ttl_s).Bind(3, request.worker).Bind(4, now);
-    st.Bind(5, g.id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
-  {
-    Statement st = t.Prepare(
-        "INSERT INTO leases (token, kind, job_id, attempt, worker, host, ranks, granted_at, slurm_job) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)");
-    st.Bind(1, g.token).Bind(2, Noun(g.kind)).Bind(3, g.id).Bind(4, g.attempt);
-    st.Bind(5, request.worker).Bind(6, request.host).Bind(7, request.ranks).Bind(8, now);
-    if (request.slurm_job.empty()) {
-      st.BindNull(9);
-    } else {
-      st.Bind(9, request.slurm_job);
-    }
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkLeased(t, g.kind, g.id, g.token, now + options_.ttl_s, request.worker, now));
+  SANDSWIM_RETURN_IF_ERROR(jobs::InsertLease(t, g.token, g.kind, g.id, g.attempt, request, now));
   SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(g.kind)) + ".leased",
                                    Subject(g.kind, g.id),
@@ -382,37 +178,98 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   return Out(std::move(g));
 }
 
+Result<bool> LeaseQueue::NextBed(Transaction& t, api::LeaseGrant& g) {
+  // Beds first: a bed some queued run is waiting for.
+  Result<std::optional<jobs::QueuedBed>> bed = jobs::NextQueuedBed(t);
+  if (!bed.ok()) return bed.status();
+  if (!*bed) return false;
+  g.kind = api::JobKind::kBed;
+  g.id = (*bed)->id;
+  g.key = (*bed)->key;
+  g.deck = (*bed)->deck;
+  g.attempt = (*bed)->attempts + 1;
+  return true;
+}
+
+// The deck of a queued run, rendered from its point and its bed's scale and checked against the
+// run's key; else why it cannot be made (the run then fails with "deck_error").
+Result<std::string> LeaseQueue::RunDeck(const jobs::QueuedRun& run) {
+  if (run.stored_deck) return *run.stored_deck;  // runs submitted before migration 3
+  std::optional<Mode> mode = ParseMode(run.mode);
+  std::optional<RotationAxis> axis = ParseAxis(run.axis);
+  const Scale* scale = FindScale(run.scale);
+  if (!mode || !axis || scale == nullptr) {
+    return Status::FailedPrecondition("deck", "its stored point or scale no longer parses");
+  }
+  Point p;
+  p.mode = *mode;
+  p.axis = *axis;
+  p.A = run.A;
+  p.f = run.f;
+  p.Omega = run.Omega;
+  p.omega = run.omega;
+  p.duration_s = run.duration_s;
+  std::string deck;
+  try {
+    deck = RenderDriveDeck(p, *scale);
+  } catch (const std::exception& e) {
+    return Status::FailedPrecondition("deck", std::string("its deck no longer renders: ") + e.what());
+  }
+  if (run.engine_version && RunKey(deck, run.bed_key, *run.engine_version) != run.key) {
+    return Status::FailedPrecondition("deck",
+                                      "its deck no longer renders to its key (the deck templates changed since it "
+                                      "was submitted); submit its sweep again");
+  }
+  return deck;
+}
+
+Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now) {
+  // The oldest queued run whose bed is done. A run whose deck cannot be made (the templates
+  // changed since it was submitted) fails with "deck_error" and the next run is tried.
+  while (true) {
+    Result<std::optional<jobs::QueuedRun>> run = jobs::NextQueuedRun(t);
+    if (!run.ok()) return run.status();
+    if (!*run) return false;
+    const jobs::QueuedRun& r = **run;
+    Result<std::string> deck = RunDeck(r);
+    if (deck.ok()) {
+      g.kind = api::JobKind::kRun;
+      g.id = r.id;
+      g.key = r.key;
+      g.attempt = r.attempts + 1;
+      g.duration_s = r.run_duration_s;
+      g.steps = r.steps;
+      g.bed = api::BedRef{r.bed_id, r.bed_sha256, "/api/v1/beds/" + std::to_string(r.bed_id) + "/restart"};
+      g.deck = std::move(*deck);
+      return true;
+    }
+    const std::string why = deck.status().reason();
+    SANDSWIM_RETURN_IF_ERROR(jobs::FailRunDeck(t, r.id, why, now));
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, r.id),
+                                     {{"kind", "deck_error"}, {"message", why}}));
+  }
+}
+
 Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token,
                                                   const api::Heartbeat& beat) {
   return store_->WriteResult<api::HeartbeatReply>([&](Transaction& t) -> Result<api::HeartbeatReply> {
     const double now = clock_->Now();
-    Result<LeaseRow> lease = FindLease(t, token);
+    Result<LeaseRow> lease = jobs::FindLease(t, token);
     if (!lease.ok()) return lease.status();
-    Result<JobRow> job = LoadJob(t, lease->kind, lease->job_id, options_.max_attempts);
+    Result<JobRow> job = jobs::LoadJob(t, lease->kind, lease->job_id, options_.max_attempts);
     if (!job.ok()) return job.status();
     SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, lease->kind));
 
     api::HeartbeatReply reply;
     reply.ttl_s = options_.ttl_s;
     if (lease->kind == api::JobKind::kRun) {
-      Statement st = t.Prepare(
-          "UPDATE runs SET lease_expires_at = ?, sim_time_s = ?, so_z = ?, step = ?, "
-          "heartbeat_at = ? WHERE id = ?");
-      st.Bind(1, now + options_.ttl_s).Bind(2, beat.sim_time_s).Bind(3, beat.so_z);
-      st.Bind(4, beat.step).Bind(5, now).Bind(6, lease->job_id);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      SANDSWIM_RETURN_IF_ERROR(jobs::RecordProgress(t, lease->job_id, now + options_.ttl_s, beat, now));
       // Stop only when no live sweep wants the run any more (it may be shared).
-      Statement live = t.Prepare(
-          "SELECT EXISTS (SELECT 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
-          "WHERE sr.run_id = ? AND s.cancelled_at IS NULL)");
-      live.Bind(1, lease->job_id);
-      Result<bool> row = live.Step();
-      if (!row.ok()) return row.status();
-      reply.cancel = *row && live.Int(0) == 0;
+      Result<bool> wanted = jobs::RunWanted(t, lease->job_id);
+      if (!wanted.ok()) return wanted.status();
+      reply.cancel = !*wanted;
     } else {
-      Statement st = t.Prepare("UPDATE beds SET lease_expires_at = ? WHERE id = ?");
-      st.Bind(1, now + options_.ttl_s).Bind(2, lease->job_id);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
+      SANDSWIM_RETURN_IF_ERROR(jobs::ExtendBedLease(t, lease->job_id, now + options_.ttl_s));
     }
     return reply;
   });
@@ -434,11 +291,7 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
     // done counts; a run just failed and queued for a retry may come straight back).
     Result<std::optional<api::LeaseGrant>> next = LeaseIn(t, *c.next, now);
     if (!next.ok()) return next.status();
-    if (*next) {
-      Statement st = t.Prepare("UPDATE leases SET next_token = ? WHERE token = ?");
-      st.Bind(1, (*next)->token).Bind(2, token);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-    }
+    if (*next) SANDSWIM_RETURN_IF_ERROR(jobs::SetNextToken(t, token, (*next)->token));
     reply->next = std::move(*next);
     return reply;
   });
@@ -446,7 +299,7 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
 
 Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::string& token,
                                                     const api::Completion& c, double now) {
-  Result<LeaseRow> lease = FindLease(t, token);
+  Result<LeaseRow> lease = jobs::FindLease(t, token);
   if (!lease.ok()) return lease.status();
   if (lease->completed) {
     SANDSWIM_RETURN_IF_ERROR(t.Count("duplicates"));
@@ -454,7 +307,7 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
   }
   const api::JobKind kind = lease->kind;
   const int64_t id = lease->job_id;
-  Result<JobRow> job = LoadJob(t, kind, id, options_.max_attempts);
+  Result<JobRow> job = jobs::LoadJob(t, kind, id, options_.max_attempts);
   if (!job.ok()) return job.status();
   SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
 
@@ -468,104 +321,55 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
     return Status::InvalidArgument("failure", "a failed completion says why");
   }
 
-  std::string state;
-  if (c.ok && kind == api::JobKind::kRun) {
-    const api::RunResult& r = *c.result;
-    const api::Execution& e = c.execution;
-    {
-      Statement key = t.Prepare("SELECT key FROM runs WHERE id = ?");
-      key.Bind(1, id);
-      Result<bool> row = key.Step();
-      if (!row.ok()) return row.status();
-      // A forced rerun replaces the old result here, in the same transaction as the state.
-      Statement st = t.Prepare(
-          "INSERT OR REPLACE INTO results (run_id, uz, uz_stderr, window_t0, window_t1, dz, "
-          "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
-          "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at, "
-          "lease_to_start_s, uz_ci95, uz_stderr_note, uz_blocks, block_s, window_end, conclusive, "
-          "inconclusive_reason, dz_rate, analysis, block_kind) "
-          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
-      st.Bind(1, id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
-      st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
-      st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
-      st.Bind(14, r.grains).Bind(15, r.z0).Bind(16, e.engine_version).Bind(17, e.host);
-      st.Bind(18, e.ranks).Bind(19, e.launcher).Bind(20, e.wall_s).Bind(21, e.cpu_s);
-      st.Bind(22, key.Text(0)).Bind(23, now).Bind(24, e.lease_to_start_s);
-      st.Bind(25, r.uz_ci95).Bind(26, r.uz_stderr_note).Bind(27, r.uz_blocks).Bind(28, r.block_s);
-      st.Bind(29, r.window_end).Bind(30, r.conclusive).Bind(31, r.inconclusive_reason).Bind(32, r.dz_rate);
-      st.Bind(33, r.analysis).Bind(34, r.block_kind);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-    }
-    if (c.trajectory) {
-      Statement st = t.Prepare("INSERT OR REPLACE INTO trajectories (run_id, data) VALUES (?, ?)");
-      st.Bind(1, id).Bind(2, nlohmann::json(*c.trajectory).dump());
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-    }
-    Statement st = t.Prepare(
-        "UPDATE runs SET state = 'done', lease_expires_at = NULL, finished_at = ?, "
-        "last_error_kind = NULL, last_error = NULL, sim_time_s = ?, step = ? WHERE id = ?");
-    st.Bind(1, now).Bind(2, r.sim_time_s).Bind(3, r.steps).Bind(4, id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    state = "done";
-  } else if (c.ok) {
-    const api::BedResult& b = *c.bed_result;
-    Statement cur = t.Prepare("SELECT path, sha256 FROM beds WHERE id = ?");
-    cur.Bind(1, id);
-    Result<bool> row = cur.Step();
-    if (!row.ok()) return row.status();
-    if (cur.IsNull(0)) {
-      return Status::FailedPrecondition("bed_result",
-                                        "upload the bed's restart file before completing it");
-    }
-    if (!b.sha256.empty() && Lower(b.sha256) != cur.Text(1)) {
-      return Status::FailedPrecondition("bed_result.sha256",
-                                        "differs from the uploaded restart file's checksum");
-    }
-    Statement st = t.Prepare(
-        "UPDATE beds SET state = 'done', lease_expires_at = NULL, finished_at = ?, grains = ?, "
-        "result = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
-    st.Bind(1, now).Bind(2, b.grains).Bind(3, api::ToJsonText(nlohmann::json(b))).Bind(4, id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    state = "done";
-  } else {
-    const api::Failure& f = *c.failure;
-    if (f.kind == "cancelled") {
-      // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
-      std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";
-      Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
-                               " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
-                               "last_error = ?, finished_at = ? WHERE id = ?");
-      st.Bind(1, to).Bind(2, f.kind).Bind(3, f.message);
-      if (to == "cancelled") st.Bind(4, now); else st.BindNull(4);
-      st.Bind(5, id);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-      SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + "." + to,
-                                       Subject(kind, id), {{"message", f.message}}));
-      state = to;
-    } else {
-      Result<std::string> s = RetryOrFail(t, kind, id, *job, f.kind, f.message,
-                                          /*retryable=*/f.kind != "deck_error", now);
-      if (!s.ok()) return s.status();
-      state = *s;
-    }
-  }
+  Result<std::string> state = c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now) : CompleteBed(t, id, c, now))
+                                  : CompleteFailure(t, kind, id, *job, *c.failure, now);
+  if (!state.ok()) return state.status();
   if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
-    Statement st = t.Prepare("INSERT OR REPLACE INTO run_logs (run_id, log_tail) VALUES (?, ?)");
-    st.Bind(1, id).Bind(2, c.log_tail);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    SANDSWIM_RETURN_IF_ERROR(jobs::PutLogTail(t, id, c.log_tail));
   }
-  if (state == "done") {
+  if (*state == "done") {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
                                      {{"host", c.execution.host},
                                       {"wall_s", c.execution.wall_s}}));
   }
-  {
-    Statement st = t.Prepare("UPDATE leases SET completed_at = ?, outcome = ? WHERE token = ?");
-    st.Bind(1, now).Bind(2, state).Bind(3, token);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
+  SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, *state));
   SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));
-  return api::CompletionReply{state};
+  return api::CompletionReply{*state};
+}
+
+Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now) {
+  const api::RunResult& r = *c.result;
+  SANDSWIM_RETURN_IF_ERROR(jobs::PutResult(t, id, r, c.execution, now));
+  if (c.trajectory) SANDSWIM_RETURN_IF_ERROR(jobs::PutTrajectory(t, id, *c.trajectory));
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkRunDone(t, id, r.sim_time_s, r.steps, now));
+  return std::string("done");
+}
+
+Result<std::string> LeaseQueue::CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now) {
+  const api::BedResult& b = *c.bed_result;
+  Result<jobs::BedRow> bed = jobs::LoadBed(t, id);
+  if (!bed.ok()) return bed.status();
+  if (!bed->path) {
+    return Status::FailedPrecondition("bed_result", "upload the bed's restart file before completing it");
+  }
+  if (!b.sha256.empty() && Lower(b.sha256) != bed->sha256) {
+    return Status::FailedPrecondition("bed_result.sha256", "differs from the uploaded restart file's checksum");
+  }
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkBedDone(t, id, b, now));
+  return std::string("done");
+}
+
+Result<std::string> LeaseQueue::CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
+                                                const api::Failure& f, double now) {
+  if (f.kind != "cancelled") {
+    return RetryOrFail(t, kind, id, job, f.kind, f.message, /*retryable=*/f.kind != "deck_error", now);
+  }
+  // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
+  const std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkCancelledOrQueued(t, kind, id, to, f.kind, f.message, now));
+  SANDSWIM_RETURN_IF_ERROR(
+      t.Event(now, std::string(Noun(kind)) + "." + to, Subject(kind, id), {{"message", f.message}}));
+  return to;
 }
 
 Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const std::string& reason) {
@@ -573,36 +377,23 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   Result<Transaction> begun = store_->Begin();
   if (!begun.ok()) return begun.status();
   Transaction& t = *begun;
-  Result<LeaseRow> lease = FindLease(t, token);
+  Result<LeaseRow> lease = jobs::FindLease(t, token);
   if (!lease.ok()) return lease.status();
   if (lease->completed) return api::CompletionReply{"duplicate"};
   const api::JobKind kind = lease->kind;
   const int64_t id = lease->job_id;
-  Result<JobRow> job = LoadJob(t, kind, id, options_.max_attempts);
+  Result<JobRow> job = jobs::LoadJob(t, kind, id, options_.max_attempts);
   if (!job.ok()) return job.status();
   SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
-  int64_t released_before = 0;
-  {
-    Statement st = t.Prepare(std::string("SELECT releases FROM ") + Table(kind) + " WHERE id = ?");
-    st.Bind(1, id);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (*row) released_before = st.Int(0);
-  }
-  {
-    Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) + " SET releases = releases + 1 WHERE id = ?");
-    st.Bind(1, id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    Statement up = t.Prepare("UPDATE leases SET completed_at = ?, outcome = 'released' WHERE token = ?");
-    up.Bind(1, now).Bind(2, token);
-    SANDSWIM_RETURN_IF_ERROR(up.Run());
-  }
-  if (released_before >= job->max_attempts) {
+  Result<int64_t> released_before = jobs::CountRelease(t, kind, id);
+  if (!released_before.ok()) return released_before.status();
+  SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, "released"));
+  if (*released_before >= job->max_attempts) {
     // Handed back this often, the job does not fit where it is leased (a run longer than any
     // allocation): from now on a hand-back is an attempt, so the job ends failed, not leased for ever.
     Result<std::string> state = RetryOrFail(
         t, kind, id, *job, "released",
-        "handed back " + std::to_string(released_before + 1) + " times (" + reason +
+        "handed back " + std::to_string(*released_before + 1) + " times (" + reason +
             "): it never finished where it was leased; give the pilots a longer --time",
         /*retryable=*/true, now);
     if (!state.ok()) return state.status();
@@ -613,26 +404,12 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   // as Cancel() does with queued runs, rather than queued again.
   bool wanted = true;
   if (kind == api::JobKind::kRun) {
-    Statement live = t.Prepare(
-        "SELECT EXISTS (SELECT 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
-        "WHERE sr.run_id = ? AND s.cancelled_at IS NULL)");
-    live.Bind(1, id);
-    Result<bool> row = live.Step();
-    if (!row.ok()) return row.status();
-    wanted = !*row || live.Int(0) != 0;
+    Result<bool> live = jobs::RunWanted(t, id);
+    if (!live.ok()) return live.status();
+    wanted = *live;
   }
   // Otherwise back to the queue as if this lease had never been granted: the attempt is not counted.
-  std::string sql = std::string("UPDATE ") + Table(kind) +
-                    (wanted ? " SET state = 'queued', attempts = MAX(attempts - 1, 0), lease_expires_at = NULL"
-                            : " SET state = 'cancelled', attempts = MAX(attempts - 1, 0), lease_expires_at = NULL, "
-                              "finished_at = ?1, last_error_kind = 'cancelled', "
-                              "last_error = 'its sweeps were cancelled while it ran'");
-  if (kind == api::JobKind::kRun && wanted) sql += ", queued_at = ?1";
-  sql += " WHERE id = ?2";
-  Statement st = t.Prepare(sql);
-  if (kind == api::JobKind::kRun) st.Bind(1, now);
-  st.Bind(2, id);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkReleased(t, kind, id, wanted, now));
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (wanted ? ".released" : ".cancelled"),
                                    Subject(kind, id), {{"reason", reason}, {"attempts", job->attempts - 1}}));
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
@@ -642,20 +419,7 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
 Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
   Result<Transaction> t = store_->BeginRead();
   if (!t.ok()) return t.status();
-  // Open leases (the partial index leases_open_by_slurm_job), their jobs found by primary key.
-  Statement st = t->Prepare(
-      "SELECT DISTINCT l.slurm_job FROM leases l WHERE l.slurm_job IS NOT NULL AND l.completed_at IS NULL "
-      "AND l.outcome IS NULL AND ((l.kind = 'run' AND EXISTS (SELECT 1 FROM runs r WHERE r.id = l.job_id AND "
-      "r.lease_token = l.token AND r.state = 'running')) OR (l.kind = 'bed' AND EXISTS (SELECT 1 FROM beds b "
-      "WHERE b.id = l.job_id AND b.lease_token = l.token AND b.state = 'running'))) ORDER BY l.slurm_job");
-  std::vector<std::string> jobs;
-  while (true) {
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    jobs.push_back(st.Text(0));
-  }
-  return jobs;
+  return jobs::SlurmJobsWithOpenLeases(*t);
 }
 
 Result<int64_t> LeaseQueue::ReclaimSlurmJob(const std::string& slurm_job, double asked_at) {
@@ -681,39 +445,12 @@ Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
   Result<Transaction> begun = store_->Begin();
   if (!begun.ok()) return begun.status();
   Transaction& t = *begun;
-  {
-    Statement st = t.Prepare("SELECT cancelled_at FROM sweeps WHERE id = ?");
-    st.Bind(1, sweep_id);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) return Status::NotFound("no sweep " + std::to_string(sweep_id));
-  }
-  {
-    Statement st = t.Prepare("UPDATE sweeps SET cancelled_at = ? WHERE id = ? AND cancelled_at IS NULL");
-    st.Bind(1, now).Bind(2, sweep_id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
-  // Runs of this sweep that no live sweep still wants.
-  const std::string orphaned =
-      "id IN (SELECT run_id FROM sweep_runs WHERE sweep_id = ?2) AND NOT EXISTS ("
-      "SELECT 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
-      "WHERE sr.run_id = runs.id AND s.cancelled_at IS NULL)";
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkSweepCancelled(t, sweep_id, now));
+  Result<std::pair<int64_t, int64_t>> runs = jobs::CancelOrphanedRuns(t, sweep_id, now);
+  if (!runs.ok()) return runs.status();
   CancelSummary out;
-  {
-    Statement st = t.Prepare(
-        "UPDATE runs SET state = 'cancelled', finished_at = ?1, last_error_kind = 'cancelled', "
-        "last_error = 'sweep ' || ?2 || ' was cancelled' WHERE state = 'queued' AND " + orphaned);
-    st.Bind(1, now).Bind(2, sweep_id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    out.cancelled = t.Changes();
-  }
-  {
-    Statement st = t.Prepare("UPDATE runs SET cancel_requested = 1 WHERE ?1 = ?1 AND "
-                             "state = 'running' AND " + orphaned);
-    st.Bind(1, now).Bind(2, sweep_id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    out.stopping = t.Changes();
-  }
+  out.cancelled = runs->first;
+  out.stopping = runs->second;
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, "sweep.cancelled", "sweep/" + std::to_string(sweep_id),
                                    {{"cancelled", out.cancelled}, {"stopping", out.stopping}}));
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
@@ -731,18 +468,16 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
   // Check the lease, write the file without holding the store, then record it under a second
   // check: the token may have been lost while the bytes were being written.
   auto check = [&](Transaction& t) -> Result<std::pair<int64_t, std::string>> {
-    Result<LeaseRow> lease = FindLease(t, token);
+    Result<LeaseRow> lease = jobs::FindLease(t, token);
     if (!lease.ok()) return lease.status();
     if (lease->kind != api::JobKind::kBed) return Status::Conflict("this lease is not a bed's");
     if (lease->completed) return Status::Conflict("this bed lease already completed");
-    Result<JobRow> job = LoadJob(t, api::JobKind::kBed, lease->job_id, options_.max_attempts);
+    Result<JobRow> job = jobs::LoadJob(t, api::JobKind::kBed, lease->job_id, options_.max_attempts);
     if (!job.ok()) return job.status();
     SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, api::JobKind::kBed));
-    Statement st = t.Prepare("SELECT key FROM beds WHERE id = ?");
-    st.Bind(1, lease->job_id);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    return std::make_pair(lease->job_id, st.Text(0));
+    Result<jobs::BedRow> bed = jobs::LoadBed(t, lease->job_id);
+    if (!bed.ok()) return bed.status();
+    return std::make_pair(lease->job_id, bed->key);
   };
   std::string key;
   {
@@ -783,11 +518,7 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
   if (!t.ok()) return t.status();
   auto found = check(*t);
   if (!found.ok()) return found.status();
-  {
-    Statement st = t->Prepare("UPDATE beds SET path = ?, sha256 = ? WHERE id = ?");
-    st.Bind(1, path.string()).Bind(2, actual).Bind(3, found->first);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
+  SANDSWIM_RETURN_IF_ERROR(jobs::RecordBedUpload(*t, found->first, path.string(), actual));
   SANDSWIM_RETURN_IF_ERROR(t->Event(now, "bed.uploaded", "bed/" + std::to_string(found->first),
                                     {{"sha256", actual}, {"bytes", bytes.size()}}));
   return t->Commit();
@@ -796,16 +527,13 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
 Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {
   Result<Transaction> t = store_->BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare("SELECT key, state, path, sha256 FROM beds WHERE id = ?");
-  st.Bind(1, bed_id);
-  Result<bool> row = st.Step();
-  if (!row.ok()) return row.status();
-  if (!*row) return Status::NotFound("no bed " + std::to_string(bed_id));
-  if (st.Text(1) != "done" || st.IsNull(2)) {
-    return Status::FailedPrecondition("bed", "bed " + std::to_string(bed_id) +
-                                                 " is not prepared yet (" + st.Text(1) + ")");
+  Result<jobs::BedRow> bed = jobs::LoadBed(*t, bed_id);
+  if (!bed.ok()) return bed.status();
+  if (bed->state != "done" || !bed->path) {
+    return Status::FailedPrecondition("bed", "bed " + std::to_string(bed_id) + " is not prepared yet (" +
+                                                 bed->state + ")");
   }
-  return BedFile{bed_id, st.Text(0), st.Text(2), st.Text(3)};
+  return BedFile{bed_id, bed->key, *bed->path, bed->sha256};
 }
 
 }  // namespace sandswim

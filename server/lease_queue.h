@@ -57,6 +57,7 @@
 #include "core/api.h"
 #include "core/status.h"
 #include "platform/clock.h"
+#include "server/job_table.h"
 #include "server/store.h"
 
 namespace sandswim {
@@ -137,6 +138,15 @@ class LeaseQueue {
   Result<std::optional<api::LeaseGrant>> LeaseIn(Transaction& t, const api::LeaseRequest& request, double now);
   Result<api::CompletionReply> CompleteIn(Transaction& t, const std::string& token, const api::Completion& c,
                                           double now);
+  // LeaseIn's candidates: fill `g` and return true when a bed (a run) is leasable.
+  Result<bool> NextBed(Transaction& t, api::LeaseGrant& g);
+  Result<bool> NextRun(Transaction& t, api::LeaseGrant& g, double now);
+  static Result<std::string> RunDeck(const jobs::QueuedRun& run);
+  // CompleteIn's outcomes: the state the job ends in.
+  Result<std::string> CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now);
+  Result<std::string> CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now);
+  Result<std::string> CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const jobs::JobRow& job,
+                                      const api::Failure& f, double now);
 
   Store* store_;
   Clock* clock_;
