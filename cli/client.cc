@@ -22,19 +22,6 @@ using json = nlohmann::json;
 
 constexpr const char* kStartHint = "Start one with: build/bin/sandswimd --local-workers 2";
 
-StatusCode CodeForHttp(int http_status) {
-  switch (http_status) {
-    case 400: return StatusCode::kInvalidArgument;
-    case 401: case 403: return StatusCode::kUnauthenticated;
-    case 404: return StatusCode::kNotFound;
-    case 409: return StatusCode::kConflict;
-    case 413: return StatusCode::kResourceExhausted;
-    case 422: return StatusCode::kFailedPrecondition;
-    case 503: return StatusCode::kUnavailable;
-    default: return http_status >= 500 ? StatusCode::kInternal : StatusCode::kInvalidArgument;
-  }
-}
-
 // Why a connection to `url` fails, in words ("connection refused"): httplib only says that it
 // failed, and a user needs to know whether nothing listens there or the host is wrong.
 std::string WhyNoConnection(const std::string& url) {
@@ -72,18 +59,11 @@ std::string WhyNoConnection(const std::string& url) {
 
 class HttpDaemonClient : public DaemonClient {
  public:
-  explicit HttpDaemonClient(const ClientOptions& options) : options_(options), http_(options.base_url) {
-    auto seconds = [](double s) { return static_cast<time_t>(s); };
-    auto micros = [](double s) { return static_cast<time_t>(std::fmod(s, 1.0) * 1e6); };
-    http_.set_connection_timeout(seconds(options.connect_timeout_s), micros(options.connect_timeout_s));
-    http_.set_read_timeout(seconds(options.read_timeout_s), micros(options.read_timeout_s));
+  explicit HttpDaemonClient(const ClientOptions& options) : options_(options), client_(NewHttpClient(options)) {
     http_.set_keep_alive(true);
-    if (!options.token.empty()) {
-      http_.set_default_headers({{"Authorization", "Bearer " + options.token}});
-    }
   }
 
-  const std::string& base_url() const override { return options_.base_url; }
+  const std::string& base_url() const override { return options_.server; }
 
   Result<json> Healthz() override { return Get("/healthz"); }
 
@@ -182,10 +162,10 @@ class HttpDaemonClient : public DaemonClient {
       httplib::Error error = res.error();
       if (error == httplib::Error::Connection || error == httplib::Error::ConnectionTimeout) {
         std::string why = error == httplib::Error::ConnectionTimeout ? "connection timed out"
-                                                                      : WhyNoConnection(options_.base_url);
-        return Status::Unavailable("no daemon at " + options_.base_url + " (" + why + "). " + kStartHint);
+                                                                      : WhyNoConnection(options_.server);
+        return Status::Unavailable("no daemon at " + options_.server + " (" + why + "). " + kStartHint);
       }
-      return Status::Unavailable("the daemon at " + options_.base_url + " did not answer " + method + " " +
+      return Status::Unavailable("the daemon at " + options_.server + " did not answer " + method + " " +
                                  path + " (" + httplib::to_string(error) + ")");
     }
     json body;
@@ -204,18 +184,14 @@ class HttpDaemonClient : public DaemonClient {
       }
       return body;
     }
-    std::string detail;
-    if (parsed && body.is_object() && body.contains("detail") && body["detail"].is_string()) {
-      detail = body["detail"].get<std::string>();
-    } else {
-      detail = "HTTP " + std::to_string(res->status) + " for " + method + " " + path;
-    }
-    if (res->status == 401) detail += " (pass --token-file FILE or set SANDSWIM_TOKEN)";
-    return Status(CodeForHttp(res->status), detail);
+    Status error = StatusFromHttp(res->status, parsed ? res->body : "", method + " " + path);
+    if (res->status != 401) return error;
+    return Status(error.code(), error.reason() + " (pass --token-file FILE or set SANDSWIM_TOKEN)", error.field());
   }
 
   ClientOptions options_;
-  httplib::Client http_;
+  std::unique_ptr<httplib::Client> client_;
+  httplib::Client& http_ = *client_;
 };
 
 }  // namespace
@@ -239,7 +215,7 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
     return Status::InvalidArgument(field, "expected http://HOST:PORT (e.g. " + std::string(kDefaultServer) +
                                               "), got \"" + url + "\"");
   }
-  options.base_url = url;
+  options.server = url;
 
   auto token = LoadToken(token_file_flag, getenv);
   if (!token.ok()) return token.status();
@@ -247,7 +223,7 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
   return options;
 }
 
-std::unique_ptr<DaemonClient> NewHttpClient(const ClientOptions& options) {
+std::unique_ptr<DaemonClient> NewDaemonClient(const ClientOptions& options) {
   return std::make_unique<HttpDaemonClient>(options);
 }
 

@@ -7,9 +7,8 @@
 // act on:
 //   - no daemon at the URL: kUnavailable, "no daemon at http://127.0.0.1:8640 (connection
 //     refused). Start one with: build/bin/sandswimd --local-workers 2";
-//   - a problem+json answer: the code its HTTP status stands for (404 -> kNotFound, 400 ->
-//     kInvalidArgument, 401 -> kUnauthenticated, 409 -> kConflict, 422 -> kFailedPrecondition,
-//     5xx -> kUnavailable/kInternal), the reason being its "detail".
+//   - a problem+json answer: the code its HTTP status stands for (platform/http_client.h's one
+//     table, shared with the worker), the reason being its "detail".
 //
 // Where the daemon is: --server, else $SANDSWIM_SERVER, else http://127.0.0.1:8640. The bearer
 // token: --token-file, else $SANDSWIM_TOKEN, else none (reads from loopback need none).
@@ -27,10 +26,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/status.h"
+#include "platform/http_client.h"
 
 namespace sandswim::cli {
-
-inline constexpr const char* kDefaultServer = "http://127.0.0.1:8640";
 
 struct RunQuery {
   std::optional<int64_t> sweep;
@@ -70,20 +68,13 @@ class DaemonClient {
   }
 };
 
-struct ClientOptions {
-  std::string base_url = kDefaultServer;  // "http://HOST:PORT"
-  std::string token;                      // "" : no Authorization header
-  double connect_timeout_s = 3;
-  double read_timeout_s = 60;
-};
-
 // Resolves the daemon's URL and token from the flags and the environment (`getenv` is injected
 // for tests). Errors name the flag or variable ("--server", "--token-file", "SANDSWIM_TOKEN").
 Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const std::string& token_file_flag,
                                            const std::function<const char*(const char*)>& getenv);
 
-// The REST client over cpp-httplib. REQUIRES: options.base_url starts with "http://".
-std::unique_ptr<DaemonClient> NewHttpClient(const ClientOptions& options);
+// The REST client over cpp-httplib. REQUIRES: options.server starts with "http://".
+std::unique_ptr<DaemonClient> NewDaemonClient(const ClientOptions& options);
 
 }  // namespace sandswim::cli
 

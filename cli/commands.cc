@@ -288,14 +288,14 @@ int RunCampaignStatus(Context& c, DaemonClient& client) {
   t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
   auto number = [](const json& row, const char* name) {
     auto it = row.find(name);
-    return it != row.end() && it->is_number() ? FormatNumber(it->get<double>()) : std::string("-");
+    return it != row.end() && it->is_number() ? DisplayNumber(it->get<double>()) : std::string("-");
   };
   for (const json& row : report->value("rows", json::array())) {
     const json drive = row.value("point", json::object());
     std::string point = drive.value("mode", "");
     for (const auto& [k, v] : drive.items()) {
       if (k == "duration_s" || k == "mode") continue;
-      point += (point.empty() ? "" : " ") + k + "=" + (v.is_string() ? v.get<std::string>() : FormatNumber(v.get<double>()));
+      point += (point.empty() ? "" : " ") + k + "=" + (v.is_string() ? v.get<std::string>() : DisplayNumber(v.get<double>()));
     }
     bool drifted = row.value("drifted", false);
     // An inconclusive rate is never compared: no number that looks like one is shown for it.
@@ -583,7 +583,7 @@ int RunExpand(Context& c) {
       }
       std::string sweep_names;
       for (const auto& s : r.sweeps) sweep_names += (sweep_names.empty() ? "" : ",") + s;
-      lines += r.key.substr(0, 12) + "  " + FormatPoint(j) + "  (runs " + FormatNumber(r.run_duration_s, 4) + " s, " +
+      lines += r.key.substr(0, 12) + "  " + FormatPoint(j) + "  (runs " + DisplayNumber(r.run_duration_s, 4) + " s, " +
                std::to_string(r.steps) + " steps at " + name + ")  " + sweep_names + "\n";
     }
   }
@@ -773,7 +773,7 @@ int RunSlurm(Context& c) {
   auto options = ResolveClientOptions(c.args.server, c.args.token_file, c.env.getenv);
   if (!options.ok()) return FailUsageIfInvalid(c, options.status());
   SlurmSubmitOptions submit = c.args.slurm;
-  submit.server = options->base_url;
+  submit.server = options->server;
   submit.token = options->token;
   submit.scripts_dir = DefaultSlurmScriptsDir(c.env.getenv("SANDSWIM_SLURM_SCRIPTS"));
   std::unique_ptr<slurm::SlurmCommands> commands =

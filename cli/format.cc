@@ -45,14 +45,14 @@ std::string StateCell(const std::string& state) { return state.empty() ? "-" : s
 
 // The drive's angular velocity: Omega for oscillatory points, omega for the rotation modes.
 std::string OmegaCell(const json& p) {
-  if (auto v = Num(p, "Omega")) return FormatNumber(*v);
-  if (auto v = Num(p, "omega")) return FormatNumber(*v);
+  if (auto v = Num(p, "Omega")) return DisplayNumber(*v);
+  if (auto v = Num(p, "omega")) return DisplayNumber(*v);
   return "-";
 }
 
 std::string NumCell(const json& j, const char* key, int precision = 6) {
   auto v = Num(j, key);
-  return v ? FormatNumber(*v, precision) : "-";
+  return v ? DisplayNumber(*v, precision) : "-";
 }
 
 }  // namespace
@@ -116,7 +116,7 @@ std::string StateColor(const std::string& state) {
   return "";
 }
 
-std::string FormatNumber(double v, int precision) {
+std::string DisplayNumber(double v, int precision) {
   if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
   if (v == 0) return "0";  // never "-0"
   char buffer[64];
@@ -177,11 +177,11 @@ std::string FormatPoint(const json& p) {
   std::string out = Str(p, "mode", "?");
   const char* fields[] = {"A", "f", "Omega", "omega"};
   for (const char* f : fields) {
-    if (auto v = Num(p, f)) out += std::string(" ") + f + "=" + FormatNumber(*v);
+    if (auto v = Num(p, f)) out += std::string(" ") + f + "=" + DisplayNumber(*v);
   }
   std::string axis = Str(p, "axis");
   if (!axis.empty()) out += " axis=" + axis;
-  if (auto d = Num(p, "duration_s")) out += " T=" + FormatNumber(*d) + "s";
+  if (auto d = Num(p, "duration_s")) out += " T=" + DisplayNumber(*d) + "s";
   return out;
 }
 
@@ -233,8 +233,8 @@ std::string EtaText(const Snapshot& s) {
 
 std::string InFlightLine(const RunInFlight& r) {
   return "run " + std::to_string(r.id) + "  " + ProgressBar(r.fraction()) + "  " +
-         FormatNumber(r.sim_time_s, 4) + "/" + FormatNumber(r.duration_s, 4) + " s  z=" +
-         FormatNumber(r.so_z, 4) + " m  " + r.point;
+         DisplayNumber(r.sim_time_s, 4) + "/" + DisplayNumber(r.duration_s, 4) + " s  z=" +
+         DisplayNumber(r.so_z, 4) + " m  " + r.point;
 }
 
 }  // namespace
@@ -349,8 +349,8 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
     RunInFlight r;
     r.sim_time_s = Num(progress, "sim_time_s").value_or(0);
     r.duration_s = Num(run, "run_duration_s").value_or(0);
-    out << "  progress:  " << ProgressBar(r.fraction()) << "  " << FormatNumber(r.sim_time_s, 4) << "/"
-        << FormatNumber(r.duration_s, 4) << " s  z=" << NumCell(progress, "so_z", 4) << " m\n";
+    out << "  progress:  " << ProgressBar(r.fraction()) << "  " << DisplayNumber(r.sim_time_s, 4) << "/"
+        << DisplayNumber(r.duration_s, 4) << " s  z=" << NumCell(progress, "so_z", 4) << " m\n";
   }
   if (run.contains("result") && run["result"].is_object()) {
     const json& r = run["result"];

@@ -49,8 +49,9 @@ std::string Colorize(const std::string& text, const std::string& code, bool colo
 // The SGR code for a run state: done green, failed red, running yellow, cancelled dim.
 std::string StateColor(const std::string& state);
 
-// %g with up to `precision` significant digits ("0.03", "-80", "1.235e-05").
-std::string FormatNumber(double v, int precision = 6);
+// A number for people to read: %g with up to `precision` significant digits ("0.03", "-80",
+// "1.235e-05"). (Decks use core/deck.h FormatNumber, the shortest text that reads back exactly.)
+std::string DisplayNumber(double v, int precision = 6);
 // "45s", "3m20s", "1h02m", "2d03h"; negative or non-finite: "?".
 std::string FormatDuration(double seconds);
 // "[#########...........]  45%" with `width` cells between the brackets; fraction clamped to

@@ -50,10 +50,10 @@ TEST(FormatTest, DisplayWidthCountsCodePoints) {
 }
 
 TEST(FormatTest, NumbersAndDurations) {
-  EXPECT_EQ(FormatNumber(0.03), "0.03");
-  EXPECT_EQ(FormatNumber(-80.0), "-80");
-  EXPECT_EQ(FormatNumber(-0.0), "0");
-  EXPECT_EQ(FormatNumber(0.0123456, 4), "0.01235");
+  EXPECT_EQ(DisplayNumber(0.03), "0.03");
+  EXPECT_EQ(DisplayNumber(-80.0), "-80");
+  EXPECT_EQ(DisplayNumber(-0.0), "0");
+  EXPECT_EQ(DisplayNumber(0.0123456, 4), "0.01235");
   EXPECT_EQ(FormatDuration(45), "45s");
   EXPECT_EQ(FormatDuration(200), "3m20s");
   EXPECT_EQ(FormatDuration(3720), "1h02m");

@@ -25,7 +25,7 @@ int main(int argc, char** argv) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
   };
   env.sleep = [](double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); };
-  env.make_client = [](const sandswim::cli::ClientOptions& o) { return sandswim::cli::NewHttpClient(o); };
+  env.make_client = [](const sandswim::ClientOptions& o) { return sandswim::cli::NewDaemonClient(o); };
   env.probe_engine = [] { return sandswim::ProbeEngineVersion(); };
   return sandswim::cli::RunCli(argc, argv, env);
 }

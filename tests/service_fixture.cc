@@ -151,7 +151,7 @@ void HandInBeds(const Daemon& daemon, const std::string& restart) {
   if (!log.bed_grains) throw std::runtime_error("no bed figures in " + dir + "/" + kLogFile);
   auto sha = worker::Sha256OfFile(restart);
   if (!sha.ok()) throw std::runtime_error(sha.status().ToString());
-  worker::ClientOptions options;
+  ClientOptions options;
   options.server = daemon.url();
   options.retry_for_s = 30;
   worker::HttpServerClient client(options);

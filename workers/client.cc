@@ -23,19 +23,7 @@ struct Exchange {
   std::string body;
 };
 
-Status StatusFromResponse(int code, const std::string& body, const std::string& what) {
-  if (code >= 200 && code < 300) return Status::Ok();
-  std::string detail = what + ": HTTP " + std::to_string(code) + (body.empty() ? "" : " " + body.substr(0, 300));
-  if (code == 409) return Status::Conflict(detail);
-  if (code == 401 || code == 403) {
-    return Status(StatusCode::kUnauthenticated, detail + " (check --token-file or SANDSWIM_TOKEN)");
-  }
-  if (code == 404) return Status::NotFound(detail);
-  if (code >= 500) return Status::Unavailable(detail);
-  return Status::InvalidArgument("", detail);
-}
-
-bool Retryable(const Status& s) { return s.code() == StatusCode::kUnavailable; }
+bool Retryable(const Status& s) { return DaemonTrouble(s); }
 
 }  // namespace
 
@@ -62,17 +50,7 @@ auto WithRetries(double retry_for_s, const std::atomic<bool>* stopping, F call) 
   }
 }
 
-std::unique_ptr<httplib::Client> MakeClient(const ClientOptions& o) {
-  auto cli = std::make_unique<httplib::Client>(o.server);
-  cli->set_connection_timeout(static_cast<time_t>(o.connect_timeout_s),
-                              static_cast<time_t>((o.connect_timeout_s - static_cast<time_t>(o.connect_timeout_s)) * 1e6));
-  cli->set_read_timeout(static_cast<time_t>(o.read_timeout_s), 0);
-  cli->set_write_timeout(static_cast<time_t>(o.read_timeout_s), 0);
-  // Small requests go out at once (Nagle + the peer's delayed ACK cost ~40 ms per request).
-  cli->set_tcp_nodelay(true);
-  if (!o.token.empty()) cli->set_bearer_token_auth(o.token);
-  return cli;
-}
+std::unique_ptr<httplib::Client> MakeClient(const ClientOptions& o) { return NewHttpClient(o); }
 
 Exchange FromResult(const httplib::Result& res, const std::string& what) {
   Exchange ex;
@@ -82,7 +60,7 @@ Exchange FromResult(const httplib::Result& res, const std::string& what) {
   }
   ex.code = res->status;
   ex.body = res->body;
-  ex.status = StatusFromResponse(ex.code, ex.body, what);
+  if (ex.code < 200 || ex.code >= 300) ex.status = StatusFromHttp(ex.code, ex.body, what);
   return ex;
 }
 
@@ -153,7 +131,7 @@ Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& 
         });
     Exchange ex = FromResult(res, "GET " + path);
     if (!ex.status.ok()) return ex.status;
-    if (code != 200) return StatusFromResponse(code, error_body, "GET " + path);
+    if (code != 200) return StatusFromHttp(code, error_body, "GET " + path);
     out.flush();
     if (!out) return Status::IOError("cannot write " + dest_path);
     return true;

@@ -10,8 +10,8 @@
 //   DownloadBed, UploadBed,
 //   Complete                 until `retry_for_s` has passed (a completion is recorded once per
 //                            token; a retried one with `next` gets a fresh next job).
-// Status codes: Conflict for 409 (lease lost), Unavailable when the daemon cannot be reached or
-// answers 5xx, Unauthenticated for 401/403, InvalidArgument for other 4xx (with the body).
+// Status codes: platform/http_client.h's one table (Conflict for 409: the lease was lost).
+// Retried calls retry while the daemon cannot be reached or answers 5xx (DaemonTrouble()).
 //
 // Thread safety: HttpServerClient is thread-safe (one httplib::Client per call).
 #ifndef SANDSWIM_WORKERS_CLIENT_H_
@@ -23,6 +23,7 @@
 
 #include "core/api.h"
 #include "core/status.h"
+#include "platform/http_client.h"
 
 namespace sandswim::worker {
 
@@ -44,14 +45,6 @@ class ServerClient {
     (void)reason;
     return Status::Unavailable("release is not supported by this client");
   }
-};
-
-struct ClientOptions {
-  std::string server;           // "http://host:port"
-  std::string token;            // bearer token; empty: none
-  double retry_for_s = 3600;    // how long retried calls keep trying
-  double connect_timeout_s = 5;
-  double read_timeout_s = 60;
 };
 
 class HttpServerClient : public ServerClient {

@@ -86,9 +86,10 @@ int main(int argc, char** argv) {
 
   std::atomic<bool> stopping{false};
   std::atomic<bool> done{false};
-  ClientOptions client_options;
+  sandswim::ClientOptions client_options;
   client_options.server = server;
   client_options.token = *token;
+  client_options.connect_timeout_s = 5;
   HttpServerClient client(client_options, &stopping);
   ProcessLauncher launcher;
   // Inside a Slurm allocation, the worker stops leasing runs that would outlast it.

@@ -88,7 +88,7 @@ Figures Measure(const fs::path& dir, const std::string& engine, int runs, int sl
   if (!res || res->status != 201) Die("POST sweep: " + (res ? res->body : std::string("no answer")));
   const int64_t sweep = json::parse(res->body).at("id").get<int64_t>();
 
-  sandswim::worker::ClientOptions co;
+  sandswim::ClientOptions co;
   co.server = "http://127.0.0.1:" + std::to_string(d.port);
   sandswim::worker::HttpServerClient http(co);
   sandswim::worker::ProcessLauncher launcher;
