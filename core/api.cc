@@ -78,8 +78,10 @@ void to_json(nlohmann::json& j, const LeaseGrant& g) {
   j = nlohmann::json{{"token", g.token},       {"kind", g.kind},           {"id", g.id},
                      {"key", g.key},           {"deck", g.deck},           {"attempt", g.attempt},
                      {"ttl_s", g.ttl_s},       {"duration_s", g.duration_s}, {"steps", g.steps},
-                     {"wall_budget_s", g.wall_budget_s}};
+                     {"wall_budget_s", g.wall_budget_s}, {"dt_s", g.dt_s},     {"f_hz", g.f_hz},
+                     {"A_m", g.A_m}};
   PutOptional(j, "bed", g.bed);
+  PutOptional(j, "z_floor_m", g.z_floor_m);
 }
 
 void from_json(const nlohmann::json& j, LeaseGrant& g) {
@@ -94,6 +96,10 @@ void from_json(const nlohmann::json& j, LeaseGrant& g) {
   g.steps = j.value("steps", int64_t{0});
   g.wall_budget_s = j.value("wall_budget_s", 0.0);
   GetOptional(j, "bed", g.bed);
+  g.dt_s = j.value("dt_s", 0.0);
+  g.f_hz = j.value("f_hz", 0.0);
+  g.A_m = j.value("A_m", 0.0);
+  GetOptional(j, "z_floor_m", g.z_floor_m);
 }
 
 void to_json(nlohmann::json& j, const Completion& c) {

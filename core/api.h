@@ -65,6 +65,12 @@ struct LeaseGrant {
   int64_t steps = 0;         // steps a complete run makes (0 for beds: decided by the deck)
   double wall_budget_s = 0;  // stop the job after this much wall time (0: no budget)
   std::optional<BedRef> bed; // runs only
+  // What the deck states, typed (core/deck.h DriveFacts), for reading the job's dump: every job
+  // has its timestep; runs also their drive frequency, amplitude and floor.
+  double dt_s = 0;                  // 0: a daemon that predates these fields
+  double f_hz = 0;                  // 0 when the mode does not vibrate
+  double A_m = 0;
+  std::optional<double> z_floor_m;
 };
 void to_json(nlohmann::json& j, const LeaseGrant& g);
 void from_json(const nlohmann::json& j, LeaseGrant& g);
@@ -149,6 +155,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Trajectory, t, x, y, z)
 //   "incomplete"     the engine exited without doing all its steps
 //   "bad_output"     the dump or log could not be read
 //   "bed_mismatch"   the bed restart's checksum did not match
+//   "bad_lease"      the lease lacks what the worker needs (a daemon older than the worker)
 //   "cancelled"      stopped because the sweep was cancelled
 struct Failure {
   std::string kind;

@@ -76,7 +76,7 @@ Values CommonValues(const Scale& s) {
       {"e_gs", Fmt(m.e_so_grain)},
       {"mu_gg", Fmt(m.mu_grain_grain)},
       {"mu_gs", Fmt(m.mu_so_grain)},
-      {"dt", Fmt(m.dt)},
+      {"dt", Fmt(m.dt)},  // DriveFacts' dt
       {"gravity", Fmt(m.gravity)},
       {"z_floor", Fmt(s.z_floor)},
   };
@@ -145,8 +145,18 @@ long long DriveSteps(const Point& p, const Scale& scale) {
   return (steps + kOmegaUpdateSteps - 1) / kOmegaUpdateSteps * kOmegaUpdateSteps;
 }
 
+DriveInfo DriveFacts(const Point& p, const Scale& s) {
+  DriveInfo d;
+  d.dt = kMaterials.dt;
+  d.f = p.has_vibration() ? p.f : 0.0;
+  d.A = p.has_vibration() ? p.A : 0.0;
+  d.z_floor = s.z_floor;
+  return d;
+}
+
 std::string RenderDriveDeck(const Point& p, const Scale& s) {
   const Materials& m = kMaterials;
+  const DriveInfo drive = DriveFacts(p, s);
   Values v = CommonValues(s);
   // omega(t) = w0 + w1 cos(2 pi f t), along the mode's axis (core/point.h).
   std::array<double, 3> w0{0, 0, 0}, w1{0, 0, 0};
@@ -157,8 +167,8 @@ std::string RenderDriveDeck(const Point& p, const Scale& s) {
   if (p.mode == Mode::kOscillatory) w1[0] = p.Omega;
   const long long steps = DriveSteps(p, s);
   v.insert({
-      {"A", Fmt(p.has_vibration() ? p.A : 0.0)},
-      {"f", Fmt(p.has_vibration() ? p.f : 0.0)},
+      {"A", Fmt(drive.A)},
+      {"f", Fmt(drive.f)},
       {"w0x", Fmt(w0[0])}, {"w0y", Fmt(w0[1])}, {"w0z", Fmt(w0[2])},
       {"w1x", Fmt(w1[0])}, {"w1y", Fmt(w1[1])}, {"w1z", Fmt(w1[2])},
       {"omega_every", Fmt(static_cast<long long>(kOmegaUpdateSteps))},

@@ -12,6 +12,7 @@
 #ifndef SANDSWIM_CORE_DECK_H_
 #define SANDSWIM_CORE_DECK_H_
 
+#include <optional>
 #include <string>
 
 #include "core/point.h"
@@ -47,6 +48,19 @@ std::string RenderDriveDeck(const Point& p, const Scale& scale);
 
 // Number of steps a drive run of this point makes when it is not stopped early.
 long long DriveSteps(const Point& p, const Scale& scale);
+
+// Drive facts a drive deck states (its `timestep`, `variable f/A equal` and floor wall `zplane`
+// lines): what reading the run's dump needs besides the dump.
+struct DriveInfo {
+  double dt = 0;  // s
+  double f = 0;   // Hz; 0 when the mode does not vibrate
+  double A = 0;   // m
+  std::optional<double> z_floor;  // m, the floor wall's height, when the deck has one
+};
+
+// The drive facts of `p` at `scale`, exactly as RenderDriveDeck states them (the same numbers:
+// the lease grant carries these, so a worker never reads them back out of the deck text).
+DriveInfo DriveFacts(const Point& p, const Scale& scale);
 
 // The shortest decimal text that reads back as `v` ("0.03", "1e-05", "-80").
 std::string FormatNumber(double v);

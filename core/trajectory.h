@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "core/api.h"
+#include "core/deck.h"
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
 #include "core/scale.h"
@@ -58,15 +59,9 @@ struct SoSample {
   double x = 0, y = 0, z = 0;
 };
 
-// Drive facts a rendered drive deck states (its `timestep`, `variable f/A equal` and floor wall
-// `zplane` lines).
-struct DriveInfo {
-  double dt = 0;  // s
-  double f = 0;   // Hz; 0 when the mode does not vibrate
-  double A = 0;   // m
-  std::optional<double> z_floor;  // m, the floor wall's height, when the deck has one
-};
-// InvalidArgument naming the missing line when the deck does not state dt or f (every drive deck
+// The drive facts (core/deck.h DriveInfo) a deck text states, for a run directory read offline
+// (`sandswim analyze`) and decks stored before migration 3; the service's workers get them typed
+// in their lease. InvalidArgument naming the missing line when the deck does not state dt or f (every drive deck
 // states "variable f equal", 0 for constant rotation).
 Result<DriveInfo> ReadDriveInfo(std::string_view deck);
 

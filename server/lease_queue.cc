@@ -13,6 +13,7 @@
 #include "core/keys.h"
 #include "core/point.h"
 #include "core/scale.h"
+#include "core/trajectory.h"
 
 namespace sandswim {
 namespace {
@@ -188,13 +189,19 @@ Result<bool> LeaseQueue::NextBed(Transaction& t, api::LeaseGrant& g) {
   g.key = (*bed)->key;
   g.deck = (*bed)->deck;
   g.attempt = (*bed)->attempts + 1;
+  g.dt_s = kMaterials.dt;  // the bed deck's timestep (core/deck.cc)
   return true;
 }
 
 // The deck of a queued run, rendered from its point and its bed's scale and checked against the
-// run's key; else why it cannot be made (the run then fails with "deck_error").
-Result<std::string> LeaseQueue::RunDeck(const jobs::QueuedRun& run) {
-  if (run.stored_deck) return *run.stored_deck;  // runs submitted before migration 3
+// run's key, with the drive facts it states; else why it cannot be made (the run then fails with
+// "deck_error").
+Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) {
+  if (run.stored_deck) {  // runs submitted before migration 3: the stored deck says it
+    Result<DriveInfo> drive = ReadDriveInfo(*run.stored_deck);
+    if (!drive.ok()) return Status::FailedPrecondition("deck", "its stored deck: " + drive.status().reason());
+    return RunDeck{*run.stored_deck, *drive};
+  }
   std::optional<Mode> mode = ParseMode(run.mode);
   std::optional<RotationAxis> axis = ParseAxis(run.axis);
   const Scale* scale = FindScale(run.scale);
@@ -209,18 +216,19 @@ Result<std::string> LeaseQueue::RunDeck(const jobs::QueuedRun& run) {
   p.Omega = run.Omega;
   p.omega = run.omega;
   p.duration_s = run.duration_s;
-  std::string deck;
+  RunDeck out;
   try {
-    deck = RenderDriveDeck(p, *scale);
+    out.deck = RenderDriveDeck(p, *scale);
   } catch (const std::exception& e) {
     return Status::FailedPrecondition("deck", std::string("its deck no longer renders: ") + e.what());
   }
-  if (run.engine_version && RunKey(deck, run.bed_key, *run.engine_version) != run.key) {
+  if (run.engine_version && RunKey(out.deck, run.bed_key, *run.engine_version) != run.key) {
     return Status::FailedPrecondition("deck",
                                       "its deck no longer renders to its key (the deck templates changed since it "
                                       "was submitted); submit its sweep again");
   }
-  return deck;
+  out.drive = DriveFacts(p, *scale);
+  return out;
 }
 
 Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now) {
@@ -231,7 +239,7 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
     if (!run.ok()) return run.status();
     if (!*run) return false;
     const jobs::QueuedRun& r = **run;
-    Result<std::string> deck = RunDeck(r);
+    Result<RunDeck> deck = MakeRunDeck(r);
     if (deck.ok()) {
       g.kind = api::JobKind::kRun;
       g.id = r.id;
@@ -240,7 +248,11 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
       g.duration_s = r.run_duration_s;
       g.steps = r.steps;
       g.bed = api::BedRef{r.bed_id, r.bed_sha256, "/api/v1/beds/" + std::to_string(r.bed_id) + "/restart"};
-      g.deck = std::move(*deck);
+      g.deck = std::move(deck->deck);
+      g.dt_s = deck->drive.dt;
+      g.f_hz = deck->drive.f;
+      g.A_m = deck->drive.A;
+      g.z_floor_m = deck->drive.z_floor;
       return true;
     }
     const std::string why = deck.status().reason();

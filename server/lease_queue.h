@@ -55,6 +55,7 @@
 #include <vector>
 
 #include "core/api.h"
+#include "core/deck.h"
 #include "core/status.h"
 #include "platform/clock.h"
 #include "server/job_table.h"
@@ -141,7 +142,11 @@ class LeaseQueue {
   // LeaseIn's candidates: fill `g` and return true when a bed (a run) is leasable.
   Result<bool> NextBed(Transaction& t, api::LeaseGrant& g);
   Result<bool> NextRun(Transaction& t, api::LeaseGrant& g, double now);
-  static Result<std::string> RunDeck(const jobs::QueuedRun& run);
+  struct RunDeck {
+    std::string deck;
+    DriveInfo drive;
+  };
+  static Result<RunDeck> MakeRunDeck(const jobs::QueuedRun& run);
   // CompleteIn's outcomes: the state the job ends in.
   Result<std::string> CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now);
   Result<std::string> CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now);

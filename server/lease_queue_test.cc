@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
+#include "core/trajectory.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "platform/clock.h"
@@ -159,6 +160,40 @@ TEST_F(LeaseQueueTest, BedIsLeasedBeforeRunsAndRunsOnlyOnceTheBedIsDone) {
   EXPECT_GT(r1.duration_s, 0);
   auto none2 = queue_->Lease({"w3", "h", 1});
   EXPECT_FALSE(none2->has_value());
+}
+
+// A grant carries, typed, the numbers its deck states (core/deck.h DriveFacts): the worker reads
+// its dump with them and never parses the deck.
+TEST_F(LeaseQueueTest, GrantsCarryTheDrivesFactsTheirDeckStates) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  EXPECT_GT(bed.dt_s, 0.0);
+  EXPECT_NE(bed.deck.find("timestep        " + FormatNumber(bed.dt_s) + "\n"), std::string::npos) << bed.deck;
+  const std::string bytes = "restart bytes";
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion done;
+  done.ok = true;
+  done.bed_result = api::BedResult{};
+  done.bed_result->sha256 = Sha256Hex(bytes);
+  ASSERT_TRUE(queue_->Complete(bed.token, done).ok());
+  for (int i = 0; i < 2; ++i) {
+    api::LeaseGrant run = MustLease();
+    ASSERT_EQ(run.kind, api::JobKind::kRun);
+    Result<DriveInfo> stated = ReadDriveInfo(run.deck);
+    ASSERT_TRUE(stated.ok()) << stated.status().ToString();
+    EXPECT_EQ(run.dt_s, stated->dt);
+    EXPECT_EQ(run.f_hz, stated->f);
+    EXPECT_EQ(run.A_m, stated->A);
+    ASSERT_TRUE(run.z_floor_m.has_value());
+    EXPECT_EQ(run.z_floor_m, stated->z_floor);
+    EXPECT_GT(run.f_hz, 0.0);
+    // The same on the wire.
+    api::LeaseGrant back = nlohmann::json(run).get<api::LeaseGrant>();
+    EXPECT_EQ(back.dt_s, run.dt_s);
+    EXPECT_EQ(back.f_hz, run.f_hz);
+    EXPECT_EQ(back.z_floor_m, run.z_floor_m);
+  }
 }
 
 TEST_F(LeaseQueueTest, ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails) {

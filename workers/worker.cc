@@ -321,14 +321,12 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
     }
   }
 
-  DriveInfo drive;
-  if (auto info = ReadDriveInfo(grant.deck); info.ok()) {
-    drive = *info;
-  } else if (grant.steps > 0 && grant.duration_s > 0) {
-    drive.dt = grant.duration_s / static_cast<double>(grant.steps);
-  } else {
-    drive.dt = 1e-5;
+  // What the deck states, typed in the lease (core/deck.h DriveFacts): never read back from it.
+  if (!(grant.dt_s > 0) || !std::isfinite(grant.dt_s)) {
+    return fail(&*dir, "bad_lease",
+                "the lease carries no timestep (dt_s): the daemon is older than this worker; upgrade sandswimd");
   }
+  const DriveInfo drive{grant.dt_s, grant.f_hz, grant.A_m, grant.z_floor_m};
 
   LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile,
                                   dir->path(), options_.as_root);

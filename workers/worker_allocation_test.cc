@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
+#include "core/trajectory.h"
 #include "workers/worker.h"
 
 namespace sandswim::worker {
@@ -52,6 +53,12 @@ class QueueClient : public ServerClient {
     g.steps = 30000;
     g.duration_s = 0.3;
     g.bed = api::BedRef{1, Sha256Hex(kBed), "/api/v1/beds/1/restart"};
+    // What the daemon's lease carries besides the deck: the numbers the deck states.
+    auto drive = ReadDriveInfo(g.deck);
+    g.dt_s = drive.ok() ? drive->dt : 0;
+    g.f_hz = drive.ok() ? drive->f : 0;
+    g.A_m = drive.ok() ? drive->A : 0;
+    g.z_floor_m = drive.ok() ? drive->z_floor : std::nullopt;
     leased = true;
     return std::optional<api::LeaseGrant>(g);
   }

@@ -16,6 +16,7 @@
 
 #include "core/dump_reader.h"
 #include "core/keys.h"
+#include "core/trajectory.h"
 
 namespace sandswim::worker {
 namespace {
@@ -152,6 +153,19 @@ class FakeLauncher : public Launcher {
   }
 };
 
+// What the daemon's lease carries besides the deck (core/deck.h DriveFacts), here read from the
+// fixture deck, which states the very numbers it was rendered from.
+api::LeaseGrant WithDriveFacts(api::LeaseGrant g) {
+  Result<DriveInfo> drive = ReadDriveInfo(g.deck);
+  EXPECT_TRUE(drive.ok()) << drive.status().ToString();
+  if (!drive.ok()) return g;
+  g.dt_s = drive->dt;
+  g.f_hz = drive->f;
+  g.A_m = drive->A;
+  g.z_floor_m = drive->z_floor;
+  return g;
+}
+
 api::LeaseGrant RunGrant() {
   api::LeaseGrant g;
   g.token = "tok-1";
@@ -163,7 +177,7 @@ api::LeaseGrant RunGrant() {
   g.duration_s = 0.3;
   g.ttl_s = 60;
   g.bed = api::BedRef{7, Sha256Hex(kBedBytes), "/api/v1/beds/7/restart"};
-  return g;
+  return WithDriveFacts(g);
 }
 
 WorkerOptions Options(const std::string& workdir) {
@@ -234,6 +248,7 @@ TEST(WorkerTest, OfflineAnalysisOfTheRunDirectoryGivesTheWorkersNumbers) {
   grant.deck = Fixture("runs/vibration-3s/drive.in");
   grant.steps = 300000;
   grant.duration_s = 3;
+  grant = WithDriveFacts(grant);
   worker.RunJob(grant);
   ASSERT_EQ(client.completions.size(), 1u);
   ASSERT_TRUE(client.completions[0].ok);
@@ -391,6 +406,22 @@ TEST(WorkerTest, CorruptDumpIsBadOutput) {
       << client.completions[0].failure->message;
 }
 
+// The worker never guesses what the deck states: a lease without its typed timestep (a daemon
+// older than the worker) fails the job, saying so, without starting the engine.
+TEST(WorkerTest, ALeaseWithoutItsTimestepFailsWithoutStartingTheEngine) {
+  FakeClient client;
+  FakeLauncher launcher;
+  api::LeaseGrant g = RunGrant();
+  g.dt_s = 0;
+  Worker worker(Options(TempDir()), client, launcher);
+  worker.RunJob(g);
+  ASSERT_EQ(client.completions.size(), 1u);
+  ASSERT_FALSE(client.completions[0].ok);
+  EXPECT_EQ(client.completions[0].failure->kind, "bad_lease");
+  EXPECT_NE(client.completions[0].failure->message.find("dt_s"), std::string::npos);
+  EXPECT_TRUE(launcher.started.empty());
+}
+
 TEST(WorkerTest, BedJobUploadsTheRestartAndReportsTheBed) {
   FakeClient client;
   FakeLauncher launcher;
@@ -400,6 +431,7 @@ TEST(WorkerTest, BedJobUploadsTheRestartAndReportsTheBed) {
   g.kind = api::JobKind::kBed;
   g.id = 7;
   g.deck = "timestep 1e-05\n";
+  g.dt_s = 1e-5;
   Worker worker(Options(TempDir()), client, launcher);
   worker.RunJob(g);
   ASSERT_EQ(client.completions.size(), 1u);
