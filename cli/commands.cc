@@ -557,24 +557,16 @@ int RunExpand(Context& c) {
               << "; keys use engine version \"unknown\" (pass --engine-version to match the daemon's)\n";
     }
   }
-  // Plan per scale, in first-appearance order (as the daemon does).
-  std::vector<std::string> scales;
-  std::map<std::string, std::vector<SweepSpec>> by_scale;
-  for (const SweepSpec& s : *sweeps) {
-    if (!by_scale.count(s.scale)) scales.push_back(s.scale);
-    by_scale[s.scale].push_back(s);
-  }
+  // The daemon's planning (core/sweep.h PlanSubmission), offline.
+  PlanOptions options;
+  options.keep_decks = false;
+  auto plans = PlanSubmission(*sweeps, engine, options, /*campaign=*/false);
+  if (!plans.ok()) return FailUsageIfInvalid(c, plans.status());
   json all = json::array();
   std::string lines;
   size_t runs = 0;
-  for (const std::string& name : scales) {
-    const Scale* scale = FindScale(name);
-    if (scale == nullptr) return Fail(c, Status::InvalidArgument("scale", "unknown scale \"" + name + "\" (paper, mini, smoke)"), kExitUsage);
-    PlanOptions options;
-    options.keep_decks = false;
-    auto plan = PlanSweeps(by_scale[name], *scale, engine, options);
-    if (!plan.ok()) return FailUsageIfInvalid(c, plan.status());
-    for (const PlannedRun& r : plan->runs) {
+  for (const ScalePlan& group : *plans) {
+    for (const PlannedRun& r : group.plan.runs) {
       json j = PlannedRunToJson(r);
       ++runs;
       if (c.args.json) {
@@ -584,7 +576,7 @@ int RunExpand(Context& c) {
       std::string sweep_names;
       for (const auto& s : r.sweeps) sweep_names += (sweep_names.empty() ? "" : ",") + s;
       lines += r.key.substr(0, 12) + "  " + FormatPoint(j) + "  (runs " + DisplayNumber(r.run_duration_s, 4) + " s, " +
-               std::to_string(r.steps) + " steps at " + name + ")  " + sweep_names + "\n";
+               std::to_string(r.steps) + " steps at " + group.scale + ")  " + sweep_names + "\n";
     }
   }
   if (c.args.json) {

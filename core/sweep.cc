@@ -607,7 +607,7 @@ Result<Campaign> ParseCampaign(const json& j) {
 
 std::vector<std::string> BuiltinCampaignNames() { return {"paper-58"}; }
 
-Result<Campaign> BuiltinCampaign(const std::string& name) {
+Result<json> BuiltinCampaignDefinition(const std::string& name) {
   auto names = BuiltinCampaignNames();
   if (std::find(names.begin(), names.end(), name) == names.end())
     return Status::NotFound("no built-in campaign \"" + SafeKey(name) + "\" (built in: " + Join(names) + ")");
@@ -615,7 +615,13 @@ Result<Campaign> BuiltinCampaign(const std::string& name) {
   if (!text) return Status::Internal("campaign " + name + " is not compiled in");
   json j = json::parse(text->begin(), text->end(), nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded()) return Status::Internal(CampaignTemplatePath(name) + " is not valid JSON");
-  auto c = ParseCampaign(j);
+  return j;
+}
+
+Result<Campaign> BuiltinCampaign(const std::string& name) {
+  Result<json> j = BuiltinCampaignDefinition(name);
+  if (!j.ok()) return j.status();
+  auto c = ParseCampaign(*j);
   if (!c.ok()) return Status::Internal(CampaignTemplatePath(name) + ": " + c.status().ToString());
   return c;
 }
@@ -733,6 +739,47 @@ json PlannedRunToJson(const PlannedRun& r) {
   j["steps"] = r.steps;
   j["sweeps"] = r.sweeps;
   return j;
+}
+
+Result<std::vector<ScalePlan>> PlanSubmission(const std::vector<SweepSpec>& sweeps, const std::string& engine_version,
+                                              const PlanOptions& options, bool campaign) {
+  std::vector<ScalePlan> groups;
+  std::map<std::string, size_t> seen_names;
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    const std::string field = campaign ? "campaign" : "sweeps[" + std::to_string(i) + "]";
+    if (!seen_names.emplace(sweeps[i].name, i).second) {
+      return Status::InvalidArgument(field + ".name", "'" + sweeps[i].name + "' names two sweeps of one submission");
+    }
+    if (FindScale(sweeps[i].scale) == nullptr) {
+      return Status::InvalidArgument(campaign ? "scale" : field + ".scale",
+                                     "'" + sweeps[i].scale + "' is not one of paper, mini, smoke");
+    }
+    auto g = std::find_if(groups.begin(), groups.end(), [&](const ScalePlan& x) { return x.scale == sweeps[i].scale; });
+    if (g == groups.end()) {
+      groups.push_back(ScalePlan{sweeps[i].scale, {}, {}});
+      g = groups.end() - 1;
+    }
+    g->sweep_indexes.push_back(i);
+  }
+  size_t planned = 0;
+  for (ScalePlan& g : groups) {
+    std::vector<SweepSpec> group_sweeps;
+    for (size_t i : g.sweep_indexes) group_sweeps.push_back(sweeps[i]);
+    PlanOptions group_options = options;
+    group_options.max_runs = options.max_runs > planned ? options.max_runs - planned : 0;
+    Result<Plan> plan = PlanSweeps(group_sweeps, *FindScale(g.scale), engine_version, group_options);
+    if (!plan.ok()) {
+      Status s = plan.status();
+      // A single sweep's field paths are relative to it; name the sweep when there are several.
+      if (!campaign && sweeps.size() > 1 && g.sweep_indexes.size() == 1) {
+        s = s.WithFieldPrefix("sweeps[" + std::to_string(g.sweep_indexes[0]) + "]");
+      }
+      return s;
+    }
+    planned += plan->runs.size();
+    g.plan = std::move(plan).value();
+  }
+  return groups;
 }
 
 }  // namespace sandswim

@@ -73,6 +73,8 @@ Result<Campaign> ParseCampaign(const nlohmann::json& j);
 // Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58".
 std::vector<std::string> BuiltinCampaignNames();
 Result<Campaign> BuiltinCampaign(const std::string& name);
+// Its definition, the JSON file as shipped. NotFound for a name that is not built in.
+Result<nlohmann::json> BuiltinCampaignDefinition(const std::string& name);
 
 // One distinct run of a plan.
 struct PlannedRun {
@@ -112,6 +114,20 @@ struct PlanOptions {
 };
 Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
                         const std::string& engine_version, const PlanOptions& options);
+
+// A submission's plan: its sweeps grouped by scale (in first-appearance order), each group
+// planned together by PlanSweeps (a point shared by sweeps of one scale runs once), the run limit
+// (options.max_runs) shared by the groups. The daemon's submission (server/submission.h) and
+// `sandswim expand` both plan with this, so expand shows exactly the runs the daemon would make.
+// InvalidArgument when two sweeps share a name or a scale is unknown. Field paths name the
+// campaign ("campaign", "scale") when `campaign`, else "sweeps[i]" when there are several sweeps.
+struct ScalePlan {
+  std::string scale;
+  std::vector<size_t> sweep_indexes;  // into `sweeps`
+  Plan plan;
+};
+Result<std::vector<ScalePlan>> PlanSubmission(const std::vector<SweepSpec>& sweeps, const std::string& engine_version,
+                                              const PlanOptions& options, bool campaign);
 
 // The JSON object `sandswim expand --json` prints for a run: key, mode, A, f, Omega or omega +
 // axis, duration_s (asked), run_duration_s (at the scale), steps, sweeps.

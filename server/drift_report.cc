@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "core/sweep.h"
+#include "server/campaigns.h"
 
 namespace sandswim {
 namespace {
@@ -34,12 +35,10 @@ std::string Tolerance(double v) {
 
 // The campaign's drift tolerance: a stored definition's column, else the builtin campaign's.
 Result<double> ToleranceOf(Store& store, const std::string& campaign) {
-  auto stored = store.GetCampaign(campaign);
-  if (!stored.ok()) return stored.status();
-  if (stored->has_value()) return (*stored)->drift_tolerance_mps;
-  auto builtin = BuiltinCampaign(campaign);
-  if (builtin.ok()) return builtin->drift_tolerance_mps;
-  return 0.0;  // the campaign is gone: flag every change
+  Result<CatalogueEntry> found = FindCampaign(store, campaign);
+  if (found.ok()) return found->drift_tolerance_mps;
+  if (found.status().code() == StatusCode::kNotFound) return 0.0;  // the campaign is gone: flag every change
+  return found.status();
 }
 
 Result<std::optional<DriftReport>> ReadOne(Statement& st) {

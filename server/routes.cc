@@ -27,6 +27,7 @@
 #include "core/result_table.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
+#include "server/campaigns.h"
 #include "server/drift_report.h"
 #include "server/figures.h"
 #include "server/report.h"
@@ -406,11 +407,7 @@ void GetCampaignDrift(Call& c) {
   auto report = LatestDriftReport(*c.deps.store, name, scale);
   if (!report.ok()) return Fail(c, report.status());
   if (!report->has_value()) {
-    auto stored = c.deps.store->GetCampaign(name);
-    if (!stored.ok()) return Fail(c, stored.status());
-    if (!stored->has_value() && !BuiltinCampaign(name).ok()) {
-      return Fail(c, Status::NotFound("no campaign named '" + name + "'"));
-    }
+    if (auto found = FindCampaign(*c.deps.store, name); !found.ok()) return Fail(c, found.status());
     return Fail(c, Status::NotFound("no drift report for campaign '" + name + "'" +
                                     (scale.empty() ? "" : " at scale " + scale) +
                                     " yet: one is made when a rerun of it finishes"));

@@ -10,6 +10,7 @@
 
 #include "core/scale.h"
 #include "core/sweep.h"
+#include "server/campaigns.h"
 #include "server/submission.h"
 
 namespace sandswim {
@@ -23,25 +24,11 @@ struct CampaignSchedule {
   std::optional<std::string> schedule;
 };
 
-// A stored campaign (its columns), else a builtin one.
+// A registered campaign's default scale and schedule (server/campaigns.h).
 Result<CampaignSchedule> LookUpCampaign(Store& store, const std::string& name, const std::string& field) {
-  auto stored = store.GetCampaign(name);
-  if (!stored.ok()) return stored.status();
-  if (stored->has_value()) {
-    auto parsed = ParseCampaign((*stored)->definition);
-    if (!parsed.ok()) {
-      return Status::Corruption("stored campaign '" + name + "' no longer parses: " + parsed.status().ToString());
-    }
-    return CampaignSchedule{parsed->scale, (*stored)->schedule};
-  }
-  auto builtin = BuiltinCampaign(name);
-  if (!builtin.ok()) {
-    std::string names;
-    for (const std::string& n : BuiltinCampaignNames()) names += (names.empty() ? "" : ", ") + n;
-    return Status(StatusCode::kNotFound,
-                  "no campaign named '" + name + "' (builtin: " + names + "; or one stored in the daemon)", field);
-  }
-  return CampaignSchedule{builtin->scale, builtin->schedule};
+  Result<CatalogueEntry> found = FindCampaign(store, name, field);
+  if (!found.ok()) return found.status();
+  return CampaignSchedule{found->campaign.scale, found->schedule};
 }
 
 Result<std::optional<double>> LastScheduledDue(Store& store, const std::string& campaign) {

@@ -4,9 +4,9 @@
 #include <map>
 #include <utility>
 
-#include "core/embedded.h"
 #include "core/keys.h"
 #include "core/scale.h"
+#include "server/campaigns.h"
 
 namespace sandswim {
 namespace {
@@ -50,40 +50,6 @@ Result<SubmitResult> ResultFromJson(const std::string& text) {
   }
   return r;
 }
-
-// The sweeps a campaign submission stands for, their scale set to the submission's scale.
-Result<Campaign> ResolveCampaign(Store& store, const SubmitRequest& req,
-                                 std::optional<nlohmann::json>* builtin_definition) {
-  Result<std::optional<StoredCampaign>> stored = store.GetCampaign(*req.campaign);
-  if (!stored.ok()) return stored.status();
-  Result<Campaign> c = Status::NotFound("");
-  if (stored->has_value()) {
-    c = ParseCampaign((*stored)->definition);
-    if (!c.ok()) return Status::Corruption("stored campaign '" + *req.campaign +
-                                           "' no longer parses: " + c.status().ToString());
-  } else {
-    c = BuiltinCampaign(*req.campaign);
-    if (!c.ok()) {
-      return Status(StatusCode::kNotFound, "no campaign named '" + *req.campaign + "'",
-                    "campaign");
-    }
-    auto text = EmbeddedFile("templates/campaigns/" + *req.campaign + ".json");
-    if (text) {
-      nlohmann::json def = nlohmann::json::parse(*text, nullptr, false);
-      if (!def.is_discarded()) *builtin_definition = def;
-    }
-  }
-  std::string scale = req.scale.value_or(c->scale);
-  for (SweepSpec& s : c->sweeps) s.scale = scale;
-  return c;
-}
-
-// One scale's share of a submission: which sweeps, and their plan.
-struct ScaleGroup {
-  std::string scale;
-  std::vector<size_t> sweep_indexes;
-  Plan plan;
-};
 
 }  // namespace
 
@@ -167,61 +133,26 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
   if (req.idempotency_key) SANDSWIM_RETURN_IF_ERROR(CheckIdempotencyKey(*req.idempotency_key));
 
   std::vector<SweepSpec> sweeps = req.sweeps;
-  std::optional<Campaign> campaign;
-  std::optional<nlohmann::json> builtin_definition;
+  std::optional<CatalogueEntry> campaign;
   std::string campaign_scale;
   if (req.campaign) {
-    Result<Campaign> c = ResolveCampaign(store, req, &builtin_definition);
-    if (!c.ok()) return c.status();
-    campaign = std::move(c).value();
-    sweeps = campaign->sweeps;
-    campaign_scale = req.scale.value_or(campaign->scale);
+    Result<CatalogueEntry> found = FindCampaign(store, *req.campaign);
+    if (!found.ok()) return found.status();
+    campaign = std::move(found).value();
+    campaign_scale = req.scale.value_or(campaign->campaign.scale);
+    sweeps = campaign->campaign.sweeps;
+    for (SweepSpec& s : sweeps) s.scale = campaign_scale;
   }
 
-  // Group by scale (first-appearance order) and plan each group.
-  std::vector<ScaleGroup> groups;
-  std::map<std::string, size_t> seen_names;
-  for (size_t i = 0; i < sweeps.size(); ++i) {
-    std::string field = req.campaign ? "campaign" : "sweeps[" + std::to_string(i) + "]";
-    if (!seen_names.emplace(sweeps[i].name, i).second) {
-      return Status::InvalidArgument(field + ".name", "'" + sweeps[i].name +
-                                                          "' names two sweeps of one submission");
-    }
-    if (FindScale(sweeps[i].scale) == nullptr) {
-      return Status::InvalidArgument(req.campaign ? "scale" : field + ".scale",
-                                     "'" + sweeps[i].scale + "' is not one of paper, mini, smoke");
-    }
-    auto g = std::find_if(groups.begin(), groups.end(),
-                          [&](const ScaleGroup& x) { return x.scale == sweeps[i].scale; });
-    if (g == groups.end()) {
-      groups.push_back(ScaleGroup{sweeps[i].scale, {}, {}});
-      g = groups.end() - 1;
-    }
-    g->sweep_indexes.push_back(i);
-  }
-  size_t planned = 0;
-  for (ScaleGroup& g : groups) {
-    std::vector<SweepSpec> group_sweeps;
-    for (size_t i : g.sweep_indexes) group_sweeps.push_back(sweeps[i]);
-    size_t budget = req.max_runs > planned ? req.max_runs - planned : 0;
-    // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
-    // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
-    PlanOptions options;
-    options.max_runs = budget;
-    options.keep_decks = false;
-    options.threads = 2;
-    Result<Plan> plan = PlanSweeps(group_sweeps, *FindScale(g.scale), engine_version, options);
-    if (!plan.ok()) {
-      Status s = plan.status();
-      // A single sweep's field paths are relative to it; name the sweep when there are several.
-      if (!req.campaign && sweeps.size() > 1 && g.sweep_indexes.size() == 1) {
-        s = s.WithFieldPrefix("sweeps[" + std::to_string(g.sweep_indexes[0]) + "]");
-      }
-      return s;
-    }
-    planned += plan->runs.size();
-    g.plan = std::move(plan).value();
-  }
+  // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
+  // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
+  PlanOptions options;
+  options.max_runs = req.max_runs;
+  options.keep_decks = false;
+  options.threads = 2;
+  Result<std::vector<ScalePlan>> planned = PlanSubmission(sweeps, engine_version, options, req.campaign.has_value());
+  if (!planned.ok()) return planned.status();
+  const std::vector<ScalePlan>& groups = *planned;
 
   nlohmann::json fingerprint_json{{"force", req.force}, {"trigger", req.trigger}};
   if (req.campaign) {
@@ -289,11 +220,11 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
   }
 
   if (campaign) {
-    if (builtin_definition) {
+    if (!campaign->stored) {  // a built-in campaign is recorded when first submitted
       Statement st = t.Prepare(
           "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
           "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO NOTHING");
-      st.Bind(1, *req.campaign).Bind(2, builtin_definition->dump()).Bind(3, campaign->schedule);
+      st.Bind(1, *req.campaign).Bind(2, campaign->definition.dump()).Bind(3, campaign->schedule);
       st.Bind(4, campaign->drift_tolerance_mps).Bind(5, now);
       SANDSWIM_RETURN_IF_ERROR(st.Run());
     }
@@ -326,7 +257,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
   out.sweep_ids = sweep_ids;
 
   std::map<int64_t, int64_t> next_position;
-  for (const ScaleGroup& g : groups) {
+  for (const ScalePlan& g : groups) {
     // The bed: one per key; a failed one is given another chance.
     int64_t bed_id = 0;
     {
