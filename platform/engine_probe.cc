@@ -1,17 +1,5 @@
 #include "platform/engine_probe.h"
 
-#include <fcntl.h>
-#include <poll.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <chrono>
-#include <cstring>
-#include <vector>
-
-extern char** environ;
 
 namespace sandswim {
 
@@ -30,68 +18,19 @@ std::optional<std::string> EngineVersionFromBanner(std::string_view output) {
   return std::nullopt;
 }
 
-Result<std::string> ProbeEngineVersion(const std::string& engine, double timeout_s) {
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) return Status::Unavailable("pipe: " + std::string(strerror(errno)));
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_adddup2(&actions, fds[1], 1);
-  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
-  std::vector<std::string> args = {engine, "-log", "none"};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  int rc = posix_spawnp(&pid, engine.c_str(), &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  close(fds[1]);
-  if (rc != 0) {
-    close(fds[0]);
-    return Status::Unavailable("cannot start " + engine + ": " + strerror(rc));
-  }
-
-  // Read until EOF, a banner, or the deadline; the engine exits by itself on empty input.
-  std::string output;
-  auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  bool timed_out = false;
-  while (output.size() < 65536 && !EngineVersionFromBanner(output)) {
-    auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) {
-      timed_out = true;
-      break;
-    }
-    pollfd p{fds[0], POLLIN, 0};
-    int ready = poll(&p, 1, static_cast<int>(left.count()));
-    if (ready < 0 && errno == EINTR) continue;
-    if (ready <= 0) continue;
-    char buffer[4096];
-    ssize_t n = read(fds[0], buffer, sizeof buffer);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    output.append(buffer, static_cast<size_t>(n));
-  }
-  close(fds[0]);
-  // The banner is all we need; do not wait on an engine that hangs.
-  int status = 0;
-  if (timed_out && waitpid(pid, &status, WNOHANG) == 0) {
-    kill(pid, SIGKILL);
-    waitpid(pid, &status, 0);
-  } else if (!timed_out && waitpid(pid, &status, WNOHANG) == 0) {
-    auto grace = std::chrono::steady_clock::now() + std::chrono::seconds(2);
-    while (waitpid(pid, &status, WNOHANG) == 0) {
-      if (std::chrono::steady_clock::now() > grace) {
-        kill(pid, SIGKILL);
-        waitpid(pid, &status, 0);
-        break;
-      }
-      usleep(10000);
-    }
-  }
-  auto version = EngineVersionFromBanner(output);
-  if (version) return *version;
-  if (timed_out) return Status::Unavailable(engine + " printed no banner within " + std::to_string(timeout_s) + " s");
+Result<std::string> ProbeEngineVersion(const std::string& engine, double timeout_s, Subprocesses& processes) {
+  // The engine exits by itself on empty input; one that hangs is killed at the deadline, and a
+  // banner it printed before still counts.
+  Result<CommandOutput> run = processes.Run({engine, "-log", "none"}, {}, timeout_s);
+  if (!run.ok()) return Status::Unavailable("cannot start " + engine + ": " + run.status().reason());
+  if (auto version = EngineVersionFromBanner(run->out)) return *version;
+  if (run->timed_out) return Status::Unavailable(engine + " printed no banner within " + std::to_string(timeout_s) + " s");
   return Status::Unavailable(engine + " printed no \"LIGGGHTS (Version ...)\" banner");
+}
+
+Result<std::string> ProbeEngineVersion(const std::string& engine, double timeout_s) {
+  PosixSubprocesses processes;
+  return ProbeEngineVersion(engine, timeout_s, processes);
 }
 
 }  // namespace sandswim

@@ -1,19 +1,10 @@
 #include "platform/slurm.h"
 
-#include <fcntl.h>
-#include <poll.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cerrno>
 #include <cstring>
-
-extern char** environ;
 
 namespace sandswim::slurm {
 namespace {
@@ -44,93 +35,16 @@ std::string_view Trim(std::string_view s) {
 
 Result<CommandOutput> ProcessSlurmCommands::Run(const std::vector<std::string>& argv,
                                                 const std::vector<std::pair<std::string, std::string>>& env) {
-  if (argv.empty()) return Status::InvalidArgument("argv", "empty command");
-  std::vector<std::string> env_strings;
-  for (char** e = environ; *e != nullptr; ++e) {
-    std::string kv = *e;
-    const std::string key = kv.substr(0, kv.find('='));
-    if (std::none_of(env.begin(), env.end(), [&](const auto& p) { return p.first == key; })) {
-      env_strings.push_back(std::move(kv));
-    }
+  Result<CommandOutput> run = processes_->Run(argv, env, timeout_s_);
+  if (!run.ok()) {
+    if (run.status().code() != StatusCode::kUnavailable) return run.status();
+    return Status::Unavailable(run.status().reason() + ": are Slurm's client commands installed and on PATH?");
   }
-  for (const auto& [k, v] : env) env_strings.push_back(k + "=" + v);
-  std::vector<char*> envp;
-  for (auto& s : env_strings) envp.push_back(s.data());
-  envp.push_back(nullptr);
-  std::vector<std::string> args = argv;
-  std::vector<char*> cargv;
-  for (auto& a : args) cargv.push_back(a.data());
-  cargv.push_back(nullptr);
-
-  int out_pipe[2], err_pipe[2];
-  if (pipe2(out_pipe, O_CLOEXEC) != 0) return Status::IOError(std::string("pipe: ") + std::strerror(errno));
-  if (pipe2(err_pipe, O_CLOEXEC) != 0) {
-    close(out_pipe[0]);
-    close(out_pipe[1]);
-    return Status::IOError(std::string("pipe: ") + std::strerror(errno));
-  }
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_adddup2(&actions, out_pipe[1], 1);
-  posix_spawn_file_actions_adddup2(&actions, err_pipe[1], 2);
-  pid_t pid = 0;
-  int rc = posix_spawnp(&pid, args[0].c_str(), &actions, nullptr, cargv.data(), envp.data());
-  posix_spawn_file_actions_destroy(&actions);
-  close(out_pipe[1]);
-  close(err_pipe[1]);
-  if (rc != 0) {
-    close(out_pipe[0]);
-    close(err_pipe[0]);
-    return Status::Unavailable("cannot run '" + args[0] + "' (" + std::strerror(rc) +
-                               "): are Slurm's client commands installed and on PATH?");
-  }
-  CommandOutput result;
-  // Both pipes drained together, so a command that fills one cannot block on it.
-  struct pollfd fds[2] = {{out_pipe[0], POLLIN, 0}, {err_pipe[0], POLLIN, 0}};
-  std::string* sinks[2] = {&result.out, &result.err};
-  int open_fds = 2;
-  char buf[4096];
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                             std::chrono::duration<double>(timeout_s_));
-  bool timed_out = false;
-  while (open_fds > 0) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) {
-      timed_out = true;
-      kill(pid, SIGKILL);
-      break;
-    }
-    const int ready = poll(fds, 2, static_cast<int>(std::min<int64_t>(left.count(), 1000)));
-    if (ready < 0) {
-      if (errno == EINTR) continue;
-      break;
-    }
-    if (ready == 0) continue;
-    for (int i = 0; i < 2; ++i) {
-      if (fds[i].fd < 0 || fds[i].revents == 0) continue;
-      ssize_t n = read(fds[i].fd, buf, sizeof buf);
-      if (n > 0) {
-        sinks[i]->append(buf, static_cast<size_t>(n));
-      } else if (n == 0 || errno != EINTR) {
-        close(fds[i].fd);
-        fds[i].fd = -1;
-        --open_fds;
-      }
-    }
-  }
-  for (auto& f : fds) {
-    if (f.fd >= 0) close(f.fd);
-  }
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (timed_out) {
-    return Status::Unavailable("'" + args[0] + "' did not finish within " + std::to_string(static_cast<int>(timeout_s_)) +
+  if (run->timed_out) {
+    return Status::Unavailable("'" + argv[0] + "' did not finish within " + std::to_string(static_cast<int>(timeout_s_)) +
                                " s and was killed: is the Slurm controller answering?");
   }
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return result;
+  return run;
 }
 
 Result<std::optional<double>> ParseSlurmDuration(std::string_view text, const std::string& field) {

@@ -3,8 +3,8 @@
 //
 // SlurmCommands runs one client command and returns what it printed. It is abstract so the
 // pilot submission (cli `sandswim slurm submit`) and the worker's allocation deadline can be
-// tested with a fake; ProcessSlurmCommands is the real one (posix_spawnp, stdout and stderr
-// captured, no shell, so no argument is ever re-parsed).
+// tested with a fake; ProcessSlurmCommands is the real one (platform/subprocess.h: no shell, so no
+// argument is ever re-parsed; stdout and stderr captured).
 //
 // Pure functions (no processes): ParseSlurmDuration reads Slurm's time syntax (--time and
 // squeue's %L); PilotSbatchArgs builds the sbatch command line of a pilot or an array;
@@ -24,14 +24,11 @@
 #include <vector>
 
 #include "core/status.h"
+#include "platform/subprocess.h"
 
 namespace sandswim::slurm {
 
-struct CommandOutput {
-  int exit_code = 0;
-  std::string out;
-  std::string err;
-};
+using ::sandswim::CommandOutput;  // platform/subprocess.h
 
 class SlurmCommands {
  public:
@@ -47,12 +44,16 @@ class SlurmCommands {
 // a hung squeue never holds up the daemon's or the worker's shutdown.
 class ProcessSlurmCommands : public SlurmCommands {
  public:
-  explicit ProcessSlurmCommands(double timeout_s = 60) : timeout_s_(timeout_s) {}
+  // `processes` (default: the real ones) must outlive this.
+  explicit ProcessSlurmCommands(double timeout_s = 60, Subprocesses* processes = nullptr)
+      : timeout_s_(timeout_s), processes_(processes != nullptr ? processes : &posix_) {}
   Result<CommandOutput> Run(const std::vector<std::string>& argv,
                             const std::vector<std::pair<std::string, std::string>>& env = {}) override;
 
  private:
   double timeout_s_;
+  PosixSubprocesses posix_;
+  Subprocesses* processes_;
 };
 
 // Slurm's duration syntax, in seconds: "M", "M:S", "H:M:S", "D-H", "D-H:M", "D-H:M:S" (as sbatch

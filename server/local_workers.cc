@@ -1,7 +1,6 @@
 #include "server/local_workers.h"
 
 #include <signal.h>
-#include <spawn.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,46 +13,7 @@
 
 #include <spdlog/spdlog.h>
 
-extern char** environ;
-
 namespace sandswim {
-
-Result<pid_t> PosixLauncher::Spawn(const std::vector<std::string>& argv) {
-  std::vector<char*> args;
-  std::vector<std::string> copy = argv;
-  for (auto& a : copy) args.push_back(a.data());
-  args.push_back(nullptr);
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  // Its own process group, and default signal handling (the daemon blocks SIGTERM/SIGINT in
-  // every thread to receive them with sigwait; a child must not inherit that mask).
-  sigset_t none;
-  sigemptyset(&none);
-  posix_spawnattr_setsigmask(&attr, &none);
-  posix_spawnattr_setpgroup(&attr, 0);
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK);
-  pid_t pid = 0;
-  int rc = posix_spawn(&pid, copy[0].c_str(), nullptr, &attr, args.data(), environ);
-  posix_spawnattr_destroy(&attr);
-  if (rc != 0) return Status::Unavailable("cannot start " + argv[0] + ": " + strerror(rc));
-  return pid;
-}
-
-std::optional<int> PosixLauncher::Reap(pid_t pid) {
-  int status = 0;
-  pid_t r = waitpid(pid, &status, WNOHANG);
-  if (r == pid) return status;
-  if (r < 0 && errno == ECHILD) return 0;  // already gone
-  return std::nullopt;
-}
-
-void PosixLauncher::SignalGroup(pid_t pgid, int signal) {
-  if (pgid > 0) kill(-pgid, signal);
-}
-
-void PosixLauncher::Pause(double seconds) {
-  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
-}
 
 std::string ExecutableDir() {
   std::error_code ec;
@@ -72,8 +32,8 @@ std::string DescribeExit(int status) {
 
 }  // namespace
 
-LocalWorkers::LocalWorkers(LocalWorkersOptions options, ProcessLauncher* launcher, Clock* clock)
-    : options_(std::move(options)), launcher_(launcher), clock_(clock) {}
+LocalWorkers::LocalWorkers(LocalWorkersOptions options, Subprocesses* processes, Clock* clock)
+    : options_(std::move(options)), processes_(processes), clock_(clock) {}
 
 LocalWorkers::~LocalWorkers() { Stop(); }
 
@@ -94,7 +54,7 @@ Status LocalWorkers::Start() {
 }
 
 void LocalWorkers::Launch(Slot& slot) {
-  auto pid = launcher_->Spawn(options_.argv);
+  auto pid = processes_->Spawn(options_.argv);
   double now = clock_->Now();
   if (!pid.ok()) {
     spdlog::error("local worker: {}; retrying in {:.0f} s (check that {} runs by itself)",
@@ -114,14 +74,14 @@ void LocalWorkers::Tick() {
   double now = clock_->Now();
   for (Slot& slot : slots_) {
     if (slot.pid != 0) {
-      auto status = launcher_->Reap(slot.pid);
+      auto status = processes_->Reap(slot.pid);
       if (!status) continue;
       if (now - slot.started_at >= options_.healthy_after_s) slot.backoff_s = options_.min_backoff_s;
       spdlog::warn("local worker pid {} {}; restarting it in {:.0f} s (its log is in the daemon's "
                    "output; a worker that keeps dying usually cannot reach the daemon or the engine)",
                    slot.pid, DescribeExit(*status), slot.backoff_s);
       // Whatever the worker left in its group (an orphaned mpirun) goes with it.
-      launcher_->SignalGroup(slot.pid, SIGKILL);
+      processes_->SignalGroup(slot.pid, SIGKILL);
       slot.pid = 0;
       slot.restart_at = now + slot.backoff_s;
       slot.backoff_s = std::min(slot.backoff_s * 2, options_.max_backoff_s);
@@ -136,15 +96,15 @@ void LocalWorkers::Stop() {
   if (stopped_) return;
   stopped_ = true;
   for (Slot& slot : slots_) {
-    if (slot.pid != 0) launcher_->SignalGroup(slot.pid, SIGTERM);
+    if (slot.pid != 0) processes_->SignalGroup(slot.pid, SIGTERM);
   }
   double deadline = clock_->Now() + options_.grace_s;
   while (true) {
     bool any_alive = false;
     for (Slot& slot : slots_) {
       if (slot.pid == 0) continue;
-      if (launcher_->Reap(slot.pid)) {
-        launcher_->SignalGroup(slot.pid, SIGKILL);  // stragglers of its group
+      if (processes_->Reap(slot.pid)) {
+        processes_->SignalGroup(slot.pid, SIGKILL);  // stragglers of its group
         slot.pid = 0;
       } else {
         any_alive = true;
@@ -152,13 +112,13 @@ void LocalWorkers::Stop() {
     }
     if (!any_alive) return;
     if (clock_->Now() >= deadline) break;
-    launcher_->Pause(0.05);
+    processes_->Pause(0.05);
   }
   for (Slot& slot : slots_) {
     if (slot.pid == 0) continue;
     spdlog::warn("local worker pid {} ignored SIGTERM for {:.0f} s; killing it", slot.pid, options_.grace_s);
-    launcher_->SignalGroup(slot.pid, SIGKILL);
-    for (int i = 0; i < 100 && !launcher_->Reap(slot.pid); ++i) launcher_->Pause(0.01);
+    processes_->SignalGroup(slot.pid, SIGKILL);
+    for (int i = 0; i < 100 && !processes_->Reap(slot.pid); ++i) processes_->Pause(0.01);
     slot.pid = 0;
   }
 }

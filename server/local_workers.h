@@ -4,12 +4,12 @@
 // they keep dying young, and stops them all on shutdown: SIGTERM to every group, a grace
 // period, then SIGKILL.
 //
-// Process creation, reaping and signalling go through ProcessLauncher so the supervision logic
-// is tested with a fake launcher and a FakeClock; PosixLauncher is the real one.
+// Process creation, reaping and signalling go through platform/subprocess.h, so the supervision
+// logic is tested with FakeSubprocesses and a FakeClock.
 //
 // Thread safety: LocalWorkers is driven by one thread (Tick() from the supervisor loop, then
 // Stop()); Start()/Tick()/Stop() must not run concurrently. RunUntilStopped() is that loop.
-// REQUIRES: the launcher and clock outlive the supervisor.
+// REQUIRES: `processes` and `clock` outlive the supervisor.
 #ifndef SANDSWIM_SERVER_LOCAL_WORKERS_H_
 #define SANDSWIM_SERVER_LOCAL_WORKERS_H_
 
@@ -24,29 +24,9 @@
 
 #include "core/status.h"
 #include "platform/clock.h"
+#include "platform/subprocess.h"
 
 namespace sandswim {
-
-class ProcessLauncher {
- public:
-  virtual ~ProcessLauncher() = default;
-  // Starts argv[0] (a path) with argv, in a new process group whose id is the child's pid.
-  virtual Result<pid_t> Spawn(const std::vector<std::string>& argv) = 0;
-  // Non-blocking: the child's wait status once it has exited (and is reaped), else nullopt.
-  virtual std::optional<int> Reap(pid_t pid) = 0;
-  // Sends `signal` to the process group `pgid`.
-  virtual void SignalGroup(pid_t pgid, int signal) = 0;
-  // Waits a little (the real one sleeps; a fake may advance its clock).
-  virtual void Pause(double seconds) = 0;
-};
-
-class PosixLauncher : public ProcessLauncher {
- public:
-  Result<pid_t> Spawn(const std::vector<std::string>& argv) override;
-  std::optional<int> Reap(pid_t pid) override;
-  void SignalGroup(pid_t pgid, int signal) override;
-  void Pause(double seconds) override;
-};
 
 struct LocalWorkersOptions {
   int count = 0;
@@ -62,7 +42,7 @@ std::string ExecutableDir();
 
 class LocalWorkers {
  public:
-  LocalWorkers(LocalWorkersOptions options, ProcessLauncher* launcher, Clock* clock);
+  LocalWorkers(LocalWorkersOptions options, Subprocesses* processes, Clock* clock);
   ~LocalWorkers();
 
   // Spawns every worker. Fails (spawning none) when argv[0] is not an executable file.
@@ -90,7 +70,7 @@ class LocalWorkers {
   void Launch(Slot& slot);
 
   LocalWorkersOptions options_;
-  ProcessLauncher* launcher_;
+  Subprocesses* processes_;
   Clock* clock_;
   std::vector<Slot> slots_;
   int restarts_ = 0;

@@ -15,40 +15,10 @@
 
 #include <gtest/gtest.h>
 
+#include "platform/fake_subprocesses.h"
+
 namespace sandswim {
 namespace {
-
-// Children that live until told to die; SIGTERM kills them unless `ignore_term`.
-class FakeLauncher : public ProcessLauncher {
- public:
-  explicit FakeLauncher(FakeClock* clock) : clock_(clock) {}
-  Result<pid_t> Spawn(const std::vector<std::string>& argv) override {
-    last_argv = argv;
-    pid_t pid = next_pid_++;
-    alive.insert(pid);
-    ++spawned;
-    return pid;
-  }
-  std::optional<int> Reap(pid_t pid) override {
-    if (alive.count(pid)) return std::nullopt;
-    return 0;
-  }
-  void SignalGroup(pid_t pgid, int signal) override {
-    signals.emplace_back(pgid, signal);
-    if (signal == SIGKILL || (signal == SIGTERM && !ignore_term)) alive.erase(pgid);
-  }
-  void Pause(double seconds) override { clock_->Advance(seconds); }
-
-  std::set<pid_t> alive;
-  std::vector<std::pair<pid_t, int>> signals;
-  std::vector<std::string> last_argv;
-  int spawned = 0;
-  bool ignore_term = false;
-
- private:
-  FakeClock* clock_;
-  pid_t next_pid_ = 100;
-};
 
 LocalWorkersOptions Options(int count) {
   LocalWorkersOptions o;
@@ -63,93 +33,93 @@ LocalWorkersOptions Options(int count) {
 
 TEST(LocalWorkersTest, StartsEveryWorkerWithItsCommandLine) {
   FakeClock clock;
-  FakeLauncher launcher(&clock);
-  LocalWorkers workers(Options(3), &launcher, &clock);
+  FakeSubprocesses processes(&clock);
+  LocalWorkers workers(Options(3), &processes, &clock);
   ASSERT_TRUE(workers.Start().ok());
-  EXPECT_EQ(launcher.spawned, 3);
-  EXPECT_EQ(launcher.alive.size(), 3u);
-  EXPECT_EQ(launcher.last_argv, Options(3).argv);
+  EXPECT_EQ(processes.spawned, 3);
+  EXPECT_EQ(processes.alive.size(), 3u);
+  EXPECT_EQ(processes.last_argv, Options(3).argv);
 }
 
 TEST(LocalWorkersTest, RefusesAMissingWorkerBinary) {
   FakeClock clock;
-  FakeLauncher launcher(&clock);
+  FakeSubprocesses processes(&clock);
   LocalWorkersOptions o = Options(2);
   o.argv[0] = "/nonexistent/sandswim-worker";
-  LocalWorkers workers(o, &launcher, &clock);
+  LocalWorkers workers(o, &processes, &clock);
   Status s = workers.Start();
   EXPECT_FALSE(s.ok());
   EXPECT_EQ(s.field(), "--local-workers");
-  EXPECT_EQ(launcher.spawned, 0);
+  EXPECT_EQ(processes.spawned, 0);
 }
 
 TEST(LocalWorkersTest, RestartsADeadWorkerAfterADoublingBackoff) {
   FakeClock clock;
-  FakeLauncher launcher(&clock);
-  LocalWorkers workers(Options(1), &launcher, &clock);
+  FakeSubprocesses processes(&clock);
+  LocalWorkers workers(Options(1), &processes, &clock);
   ASSERT_TRUE(workers.Start().ok());
   pid_t first = workers.pids()[0];
 
-  launcher.alive.erase(first);  // dies young
+  processes.alive.erase(first);  // dies young
   workers.Tick();
   EXPECT_EQ(workers.pids()[0], 0);
   clock.Advance(0.5);
   workers.Tick();
-  EXPECT_EQ(launcher.spawned, 1);  // still backing off (1 s)
+  EXPECT_EQ(processes.spawned, 1);  // still backing off (1 s)
   clock.Advance(0.6);
   workers.Tick();
-  EXPECT_EQ(launcher.spawned, 2);
+  EXPECT_EQ(processes.spawned, 2);
   pid_t second = workers.pids()[0];
   EXPECT_NE(second, first);
 
-  launcher.alive.erase(second);  // dies young again: 2 s now
+  processes.alive.erase(second);  // dies young again: 2 s now
   workers.Tick();
   clock.Advance(1.5);
   workers.Tick();
-  EXPECT_EQ(launcher.spawned, 2);
+  EXPECT_EQ(processes.spawned, 2);
   clock.Advance(0.6);
   workers.Tick();
-  EXPECT_EQ(launcher.spawned, 3);
+  EXPECT_EQ(processes.spawned, 3);
   EXPECT_EQ(workers.restarts(), 2);
 
   // One that lived long resets the backoff to 1 s.
   clock.Advance(60);
-  launcher.alive.erase(workers.pids()[0]);
+  processes.alive.erase(workers.pids()[0]);
   workers.Tick();
   clock.Advance(1.1);
   workers.Tick();
-  EXPECT_EQ(launcher.spawned, 4);
+  EXPECT_EQ(processes.spawned, 4);
 }
 
 TEST(LocalWorkersTest, StopTermsThenKillsAfterTheGrace) {
   FakeClock clock;
-  FakeLauncher launcher(&clock);
-  launcher.ignore_term = true;
-  LocalWorkers workers(Options(2), &launcher, &clock);
+  FakeSubprocesses processes(&clock);
+  processes.ignore_term = true;
+  LocalWorkers workers(Options(2), &processes, &clock);
   ASSERT_TRUE(workers.Start().ok());
   double t0 = clock.Now();
   workers.Stop();
-  EXPECT_TRUE(launcher.alive.empty());
+  EXPECT_TRUE(processes.alive.empty());
   EXPECT_GE(clock.Now() - t0, 5.0);
   int terms = 0, kills = 0;
-  for (const auto& [pgid, sig] : launcher.signals) {
+  for (const auto& [pgid, sig] : processes.signals) {
     terms += sig == SIGTERM;
     kills += sig == SIGKILL;
   }
   EXPECT_EQ(terms, 2);
   EXPECT_EQ(kills, 2);
   workers.Tick();  // stopped: never restarts
-  EXPECT_EQ(launcher.spawned, 2);
+  EXPECT_EQ(processes.spawned, 2);
 }
 
 TEST(LocalWorkersTest, StopIsQuickWhenWorkersObeySigterm) {
   FakeClock clock;
-  FakeLauncher launcher(&clock);
-  LocalWorkers workers(Options(2), &launcher, &clock);
+  FakeSubprocesses processes(&clock);
+  LocalWorkers workers(Options(2), &processes, &clock);
   ASSERT_TRUE(workers.Start().ok());
   double t0 = clock.Now();
   workers.Stop();
-  EXPECT_TRUE(launcher.alive.empty());
+  EXPECT_TRUE(processes.alive.empty());
   EXPECT_LT(clock.Now() - t0, 0.1);
 }
 
@@ -174,7 +144,7 @@ int LiveGroupMembers(pid_t pgid) {
 // Real processes: each in its own group; one that ignores SIGTERM is killed with its children.
 TEST(LocalWorkersPosixTest, StopsRealChildrenIncludingOnesIgnoringSigterm) {
   SystemClock clock;
-  PosixLauncher launcher;
+  PosixSubprocesses processes;
   LocalWorkersOptions o;
   o.count = 2;
   char dir[] = "/tmp/sandswim-workers-XXXXXX";
@@ -182,7 +152,7 @@ TEST(LocalWorkersPosixTest, StopsRealChildrenIncludingOnesIgnoringSigterm) {
   // Each child says when its trap is set, so the SIGTERM surely meets it.
   o.argv = {"/bin/sh", "-c", std::string("trap '' TERM; sleep 30 & touch ") + dir + "/$$; wait"};
   o.grace_s = 0.3;
-  LocalWorkers workers(o, &launcher, &clock);
+  LocalWorkers workers(o, &processes, &clock);
   ASSERT_TRUE(workers.Start().ok());
   std::vector<pid_t> pids = workers.pids();
   for (pid_t pid : pids) {

@@ -240,7 +240,7 @@ int main(int argc, char** argv) {
 
   std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
 
-  sandswim::PosixLauncher launcher;
+  sandswim::PosixSubprocesses processes;
   sandswim::LocalWorkersOptions worker_options;
   worker_options.count = flags.local_workers;
   worker_options.argv = {sandswim::ExecutableDir() + "/sandswim-worker", "--server",
@@ -248,7 +248,7 @@ int main(int argc, char** argv) {
                          "--workdir", flags.data + "/worker"};
   // A token from SANDSWIM_TOKEN reaches the workers through the environment.
   if (!flags.token_file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", flags.token_file});
-  sandswim::LocalWorkers workers(worker_options, &launcher, &clock);
+  sandswim::LocalWorkers workers(worker_options, &processes, &clock);
   std::thread supervisor;
   int exit_code = 0;
   Status started = workers.Start();

@@ -28,7 +28,7 @@ ChildProcess::ChildProcess(std::vector<std::string> argv, const std::string& dir
   spec.argv = std::move(argv);
   spec.cwd = dir;
   spec.output_file = output_file;
-  worker::ProcessLauncher launcher;
+  worker::GuardedLauncher launcher;
   auto started = launcher.Start(spec);
   if (!started.ok()) throw std::runtime_error("cannot start " + spec.argv[0] + ": " + started.status().ToString());
   process_ = std::move(started.value());

@@ -348,7 +348,7 @@ LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine
   return spec;
 }
 
-Result<std::unique_ptr<EngineProcess>> ProcessLauncher::Start(const LaunchSpec& spec) {
+Result<std::unique_ptr<EngineProcess>> GuardedLauncher::Start(const LaunchSpec& spec) {
   if (spec.argv.empty()) return Status::InvalidArgument("argv", "empty command");
   const std::string exe = FindOnPath(spec.argv[0]);
   if (exe.empty()) return Status::Unavailable("'" + spec.argv[0] + "' not found on PATH or not executable");

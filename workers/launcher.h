@@ -1,7 +1,7 @@
 // Launcher: starts the engine (mpirun/srun/liggghts) as a child process in its own process group,
 // and stops and reaps it.
 //
-// Abstract so it can be faked in tests of the worker loop. The real one (ProcessLauncher)
+// Abstract so it can be faked in tests of the worker loop. The real one (GuardedLauncher)
 // spawns a small guard process (sandswim-engine-guard next to this program; a fork of this
 // process when that is missing) that leads a new process group and starts the engine in it, in the
 // run directory, with its stdout and stderr in a file there. A LaunchSpec marked single_process
@@ -12,6 +12,10 @@
 // exits as the engine did, so exit codes and signals read as the engine's own. Stop() sends SIGTERM to the whole group
 // (mpirun and every rank), waits up to a grace period, then sends SIGKILL. Wall and CPU time come
 // from wait4()'s rusage, which covers the ranks that mpirun reaped.
+//
+// Why not platform/subprocess.h, which starts every other program: the engine needs what a
+// general facility should not do -- a guard tied to the starting thread by PR_SET_PDEATHSIG,
+// vfork from a multi-threaded worker, the rusage of the whole rank tree.
 //
 // Thread safety: a Launcher may be shared by threads; one EngineProcess belongs to one thread.
 #ifndef SANDSWIM_WORKERS_LAUNCHER_H_
@@ -79,7 +83,7 @@ class Launcher {
 
 // The real thing: a guard process leading a new process group and the engine in it, or the
 // engine itself as the group leader for a single_process spec.
-class ProcessLauncher : public Launcher {
+class GuardedLauncher : public Launcher {
  public:
   Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) override;
 };

@@ -49,7 +49,7 @@ TEST_P(LauncherModes, ExitStatusAndOutputFile) {
   LaunchSpec spec = Sh("echo hello from $SANDSWIM_TEST_VAR; pwd; exit 3", dir);
   spec.env = {{"SANDSWIM_TEST_VAR", "the child"}};
   spec.output_file = "out.txt";
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(spec));
   ASSERT_TRUE(proc.ok()) << proc.status().ToString();
   ASSERT_TRUE((*proc)->WaitFor(10));
@@ -62,7 +62,7 @@ TEST_P(LauncherModes, ExitStatusAndOutputFile) {
 }
 
 TEST_P(LauncherModes, WaitForZeroDoesNotBlock) {
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(Sh("sleep 30")));
   ASSERT_TRUE(proc.ok());
   EXPECT_FALSE((*proc)->WaitFor(0));
@@ -72,7 +72,7 @@ TEST_P(LauncherModes, WaitForZeroDoesNotBlock) {
 
 TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
   const std::string dir = TempDir();
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   // The shell's child `sleep` writes its pid; Stop() must end it too (it is in the group).
   auto proc = launcher.Start(Sh("sleep 30 & echo $! > sleep.pid; wait", dir));
   ASSERT_TRUE(proc.ok());
@@ -101,7 +101,7 @@ TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
 
 TEST_P(LauncherModes, ProcessIgnoringSigtermGetsSigkill) {
   const std::string dir = TempDir();
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(Sh("trap '' TERM; touch ready; while :; do sleep 0.05; done", dir)));
   ASSERT_TRUE(proc.ok());
   for (int i = 0; i < 200 && access((dir + "/ready").c_str(), F_OK) != 0; ++i) usleep(10000);
@@ -114,7 +114,7 @@ TEST_P(LauncherModes, ProcessIgnoringSigtermGetsSigkill) {
 }
 
 TEST_P(LauncherModes, MissingCommandIsUnavailable) {
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   LaunchSpec spec;
   spec.argv = {"sandswim-no-such-engine-here"};
   auto proc = launcher.Start(Mode(spec));
@@ -124,14 +124,14 @@ TEST_P(LauncherModes, MissingCommandIsUnavailable) {
 }
 
 TEST_P(LauncherModes, BadWorkingDirectoryIsUnavailable) {
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(Sh("true", "/nonexistent/sandswim/dir")));
   ASSERT_FALSE(proc.ok());
   EXPECT_NE(proc.status().reason().find("/nonexistent/sandswim/dir"), std::string::npos) << proc.status().reason();
 }
 
 TEST_P(LauncherModes, CpuTimeIsCounted) {
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(Sh("i=0; while [ $i -lt 200000 ]; do i=$((i+1)); done")));
   ASSERT_TRUE(proc.ok());
   ASSERT_TRUE((*proc)->WaitFor(30));
@@ -185,7 +185,7 @@ TEST_P(LauncherModes, EngineInheritsNoDescriptorsAndNoIgnoredOrBlockedSignals) {
   sigemptyset(&block);
   sigaddset(&block, SIGINT);
   pthread_sigmask(SIG_BLOCK, &block, &old_mask);
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   LaunchSpec fds = Sh("exec ls /proc/self/fd", dir);
   fds.output_file = "fds.txt";
   auto listed = launcher.Start(Mode(fds));
@@ -218,7 +218,7 @@ TEST(LauncherTest, SingleProcessEngineDiesWithAWorkerKilledBySigkill) {
   pid_t worker = fork();
   ASSERT_GE(worker, 0);
   if (worker == 0) {
-    ProcessLauncher launcher;
+    GuardedLauncher launcher;
     LaunchSpec spec = Sh("echo $$ > engine.tmp && mv engine.tmp engine.pid && exec sleep 300", dir);
     spec.single_process = true;
     auto proc = launcher.Start(spec);
@@ -253,7 +253,7 @@ TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
   ASSERT_GE(worker, 0);
   if (worker == 0) {
     // The worker-like parent: starts the engine, then waits to be killed.
-    ProcessLauncher launcher;
+    GuardedLauncher launcher;
     // engine.pid is complete before rank.pid appears (renamed into place).
     auto proc = launcher.Start(Sh("echo $$ > engine.pid; sleep 300 & echo $! > rank.tmp && "
                                   "mv rank.tmp rank.pid; wait", dir));
@@ -302,7 +302,7 @@ TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
 
 // The guard passes the engine's way of ending on: a signal reads as that signal.
 TEST_P(LauncherModes, EngineKilledBySignalReadsAsThatSignal) {
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(Sh("kill -SEGV $$")));
   ASSERT_TRUE(proc.ok());
   ASSERT_TRUE((*proc)->WaitFor(10));

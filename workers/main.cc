@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
   client_options.token = *token;
   client_options.connect_timeout_s = 5;
   HttpServerClient client(client_options, &stopping);
-  ProcessLauncher launcher;
+  GuardedLauncher launcher;
   // Inside a Slurm allocation, the worker stops leasing runs that would outlast it.
   sandswim::slurm::ProcessSlurmCommands slurm_commands;
   std::unique_ptr<sandswim::slurm::AllocationDeadline> deadline;

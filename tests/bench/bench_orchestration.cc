@@ -3,7 +3,7 @@
 //
 //   throughput   end-to-end runs per second: an in-process daemon (store + lease queue + REST on
 //                127.0.0.1:ephemeral) and an in-process Worker with S slots (default 8), direct
-//                launcher, the real ProcessLauncher, HTTP client, run directories, dump parsing
+//                launcher, the real GuardedLauncher, HTTP client, run directories, dump parsing
 //                and completion; N runs (default 2000) of one sweep, timed from the first run
 //                lease to the last result stored.                                goal >= 500/s
 //   overhead     the same with 1 slot on a short sweep, per run, from what the store kept:
@@ -91,7 +91,7 @@ Figures Measure(const fs::path& dir, const std::string& engine, int runs, int sl
   sandswim::ClientOptions co;
   co.server = "http://127.0.0.1:" + std::to_string(d.port);
   sandswim::worker::HttpServerClient http(co);
-  sandswim::worker::ProcessLauncher launcher;
+  sandswim::worker::GuardedLauncher launcher;
   sandswim::worker::WorkerOptions wo;
   wo.name = "bench";
   wo.host = "bench";
