@@ -14,6 +14,7 @@
 #include "core/engine_log.h"
 #include "core/trajectory.h"
 #include "platform/slurm.h"
+#include "workers/job_outcome.h"
 
 namespace sandswim::worker {
 namespace {
@@ -68,26 +69,19 @@ std::string ReadTail(const std::string& path, size_t bytes) {
   return buf;
 }
 
-// Progress of a running job, for its heartbeats.
-class Progress {
+}  // namespace
+
+// Progress of a running job, for its heartbeats. A run's dump is read once, as it grows: each new
+// frame updates the heartbeat and becomes one of the SO's samples, so the end of the run only
+// reads what was appended last (Finish).
+class JobProgress {
  public:
-  Progress(const RunDir& dir, api::JobKind kind, double dt)
-      : kind_(kind), dt_(dt), dump_(dir.File(kTrajectoryDumpFile)), log_path_(dir.File(kLogFile)) {}
+  JobProgress(const RunDir& dir, api::JobKind kind, double dt)
+      : kind_(kind), dt_(dt), dump_(dir.File(kTrajectoryDumpFile)), log_path_(dir.File(kLogFile)), samples_(dt) {}
 
   api::Heartbeat Read() {
     if (kind_ == api::JobKind::kRun) {
-      std::string bytes = dump_.ReadNew();
-      if (!bytes.empty()) {
-        // Frames are lent one by one (no copies); an error stops the reader for good.
-        DumpFrameFn sink([this](const DumpFrameView& f) {
-          int cz = f.Column("z");
-          if (cz >= 0 && f.atoms > 0) {
-            beat_.step = f.step;
-            beat_.so_z = f.At(0, cz);
-          }
-        });
-        (void)reader_.Feed(bytes, sink);
-      }
+      FeedNew();
     } else {
       EngineLog log = ParseEngineLog(ReadTail(log_path_, 64 * 1024));
       if (log.last_thermo_step >= 0) beat_.step = log.last_thermo_step;
@@ -96,14 +90,41 @@ class Progress {
     return beat_;
   }
 
+  // The SO's samples of the whole dump (a torn last frame dropped), or why it cannot be read.
+  Result<std::vector<SoSample>> Finish() {
+    FeedNew();
+    if (!dump_status_.ok()) return dump_status_;
+    if (Status s = reader_.Finish(); !s.ok()) return s;
+    return samples_.Take();
+  }
+
  private:
+  void FeedNew() {
+    std::string bytes = dump_.ReadNew();
+    if (bytes.empty() || !dump_status_.ok()) return;
+    // Frames are lent one by one (no copies); an error stops the reader for good.
+    DumpFrameFn sink([this](const DumpFrameView& f) {
+      int cz = f.Column("z");
+      if (cz >= 0 && f.atoms > 0) {
+        beat_.step = f.step;
+        beat_.so_z = f.At(0, cz);
+      }
+      samples_.OnFrame(f);
+    });
+    dump_status_ = reader_.Feed(bytes, sink);
+  }
+
   api::JobKind kind_;
   double dt_;
   FileTail dump_;
   DumpReader reader_;
   std::string log_path_;
+  SoSampleSink samples_;
+  Status dump_status_;
   api::Heartbeat beat_;
 };
+
+namespace {
 
 std::string ReadFileOr(const std::string& path, const std::string& fallback) {
   std::ifstream in(path, std::ios::binary);
@@ -238,214 +259,231 @@ void Worker::SlotLoop() {
   }
 }
 
-void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next) {
-  const auto leased_at = Clock::now();
-  const std::string name = JobName(grant);
-  const bool is_bed = grant.kind == api::JobKind::kBed;
-  spdlog::info("{}: leased ({} steps, wall budget {} s)", name, grant.steps, grant.wall_budget_s);
-
+// One job as it is run: its lease, what will be reported, and where the reply's next grant goes.
+struct Worker::Job {
+  const api::LeaseGrant& grant;
+  std::optional<api::LeaseGrant>* next;
+  std::string name;
+  Clock::time_point leased_at;
   api::Completion completion;
-  completion.execution.host = options_.host;
-  completion.execution.ranks = options_.ranks;
-  completion.execution.launcher = LauncherName(options_.launcher);
+};
 
-  auto abandon = [this, &name](const std::string& why) {
-    spdlog::warn("{}: not completed: {}", name, why);
+void Worker::Abandon(Job& job, const std::string& why) {
+  spdlog::warn("{}: not completed: {}", job.name, why);
+  std::lock_guard<std::mutex> lock(mu_);
+  ++stats_.abandoned;
+}
+
+// The worker is stopping: give the job back so it is queued again at once, attempt uncounted.
+void Worker::HandBack(Job& job, const std::string& why) {
+  auto reply = client_.Release(job.grant.token, why);
+  if (!reply.ok()) {
+    return Abandon(job, why + "; handing it back failed (" + reply.status().ToString() +
+                            "), so the lease will expire and the job be leased again");
+  }
+  spdlog::info("{}: handed back to the daemon ({}): {}", job.name, reply->state, why);
+  std::lock_guard<std::mutex> lock(mu_);
+  ++stats_.released;
+}
+
+void Worker::Complete(Job& job, const RunDir* dir) {
+  api::Completion& completion = job.completion;
+  // How long a run takes, known before deciding whether the next one fits the allocation.
+  if (completion.ok && job.grant.kind == api::JobKind::kRun) {
     std::lock_guard<std::mutex> lock(mu_);
-    ++stats_.abandoned;
-  };
-  // The worker is stopping: give the job back so it is queued again at once, attempt uncounted.
-  auto hand_back = [&](const std::string& why) {
-    auto reply = client_.Release(grant.token, why);
-    if (!reply.ok()) {
-      return abandon(why + "; handing it back failed (" + reply.status().ToString() +
-                     "), so the lease will expire and the job be leased again");
-    }
-    spdlog::info("{}: handed back to the daemon ({}): {}", name, reply->state, why);
-    std::lock_guard<std::mutex> lock(mu_);
-    ++stats_.released;
-  };
-  auto complete = [&](const RunDir* dir) {
-    // How long a run takes, known before deciding whether the next one fits the allocation.
-    if (completion.ok && !is_bed) {
-      std::lock_guard<std::mutex> lock(mu_);
-      longest_run_s_ = std::max(longest_run_s_.value_or(0.0), Since(leased_at));
-    }
-    // Ask for the next job in the same call unless this slot is about to end.
-    if (next != nullptr && !options_.once && !stopping_ && RunFitsAllocation()) {
-      completion.next = api::LeaseRequest{options_.name, options_.host, options_.ranks, options_.slurm_job};
-    }
-    auto reply = client_.Complete(grant.token, completion);
-    if (!reply.ok()) {
-      if (reply.status().code() == StatusCode::kConflict) {
-        abandon("the lease was lost before completion (another worker has the run)");
-      } else {
-        abandon("completion failed: " + reply.status().ToString() + "; the lease will expire and the run be retried");
-      }
-      return;
-    }
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      ++stats_.completed;
-    }
-    if (next != nullptr) *next = std::move(reply->next);
-    if (completion.ok) {
-      spdlog::info("{}: completed ({})", name, reply->state);
+    longest_run_s_ = std::max(longest_run_s_.value_or(0.0), Since(job.leased_at));
+  }
+  // Ask for the next job in the same call unless this slot is about to end.
+  if (job.next != nullptr && !options_.once && !stopping_ && RunFitsAllocation()) {
+    completion.next = api::LeaseRequest{options_.name, options_.host, options_.ranks, options_.slurm_job};
+  }
+  auto reply = client_.Complete(job.grant.token, completion);
+  if (!reply.ok()) {
+    if (reply.status().code() == StatusCode::kConflict) {
+      Abandon(job, "the lease was lost before completion (another worker has the run)");
     } else {
-      spdlog::warn("{}: failed {}: {} ({})", name, completion.failure->kind, completion.failure->message, reply->state);
+      Abandon(job, "completion failed: " + reply.status().ToString() + "; the lease will expire and the run be retried");
     }
-    if (dir != nullptr && completion.ok && !options_.keep_run_dirs) dir->Remove();
-  };
-  auto fail = [&](const RunDir* dir, const std::string& kind, const std::string& message) {
-    completion.ok = false;
-    completion.failure = api::Failure{kind, message};
-    complete(dir);
-  };
-
-  auto dir = RunDir::Create(options_.workdir, grant.kind, grant.id, grant.attempt);
-  if (!dir.ok()) {
-    spdlog::error("{}: {} (check --workdir: it must be writable)", name, dir.status().ToString());
-    abandon(dir.status().ToString());
     return;
   }
-  const std::string deck_file = is_bed ? "bed.in" : "drive.in";
-  if (Status s = dir->Write(deck_file, grant.deck); !s.ok()) {
-    abandon(s.ToString());
-    return;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    ++stats_.completed;
   }
-  if (!is_bed) {
-    if (!grant.bed) return fail(&*dir, "bed_mismatch", "the run's lease names no bed");
-    if (Status s = beds_.Provide(*grant.bed, *dir); !s.ok()) {
-      if (stopping_) return hand_back("the worker stopped while fetching the bed");
-      return fail(&*dir, "bed_mismatch", s.reason());
-    }
+  if (job.next != nullptr) *job.next = std::move(reply->next);
+  if (completion.ok) {
+    spdlog::info("{}: completed ({})", job.name, reply->state);
+  } else {
+    spdlog::warn("{}: failed {}: {} ({})", job.name, completion.failure->kind, completion.failure->message,
+                 reply->state);
   }
+  if (dir != nullptr && completion.ok && !options_.keep_run_dirs) dir->Remove();
+}
 
+void Worker::Fail(Job& job, const RunDir* dir, const std::string& kind, const std::string& message) {
+  job.completion.ok = false;
+  job.completion.failure = api::Failure{kind, message};
+  Complete(job, dir);
+}
+
+void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next) {
+  Job job{grant, next, JobName(grant), Clock::now(), {}};
+  spdlog::info("{}: leased ({} steps, wall budget {} s)", job.name, grant.steps, grant.wall_budget_s);
+  job.completion.execution.host = options_.host;
+  job.completion.execution.ranks = options_.ranks;
+  job.completion.execution.launcher = LauncherName(options_.launcher);
+
+  auto dir = Prepare(job);
+  if (!dir) return;
   // What the deck states, typed in the lease (core/deck.h DriveFacts): never read back from it.
   if (!(grant.dt_s > 0) || !std::isfinite(grant.dt_s)) {
-    return fail(&*dir, "bad_lease",
+    return Fail(job, &*dir, "bad_lease",
                 "the lease carries no timestep (dt_s): the daemon is older than this worker; upgrade sandswimd");
   }
   const DriveInfo drive{grant.dt_s, grant.f_hz, grant.A_m, grant.z_floor_m};
-
-  LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile,
-                                  dir->path(), options_.as_root);
-  spec.output_file = kEngineOutputFile;
-  ExitFacts facts;
-  ExitStatus exit_status;
-  auto started = launcher_.Start(spec);
-  completion.execution.lease_to_start_s = Since(leased_at);
-  if (!started.ok()) {
-    facts.started = false;
-    facts.start_error = started.status().reason();
-  } else {
-    std::unique_ptr<EngineProcess> proc = std::move(*started);
-    const auto start = Clock::now();
-    const double hb_every = std::max(0.001, std::min(options_.heartbeat_every_s, grant.ttl_s / 3));
-    auto next_beat = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
-    Progress progress(*dir, grant.kind, drive.dt);
-    bool lease_lost = false;
-    while (true) {
-      // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
-      double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
-      if (proc->WaitFor(std::clamp(until_beat, 0.0, 0.25))) break;
-      if (stopping_) {
-        proc->Stop(options_.stop_grace_s);
-        return hand_back("the worker is stopping");
-      }
-      if (grant.wall_budget_s > 0 && Since(start) > grant.wall_budget_s) {
-        spdlog::warn("{}: wall-time budget of {} s used up; stopping the engine", name, grant.wall_budget_s);
-        facts.timed_out = true;
-        proc->Stop(options_.stop_grace_s);
-        break;
-      }
-      if (Clock::now() >= next_beat) {
-        auto reply = client_.Heartbeat(grant.token, progress.Read());
-        if (reply.ok()) {
-          if (reply->cancel) {
-            spdlog::info("{}: cancelled by the daemon; stopping the engine", name);
-            facts.cancelled = true;
-            proc->Stop(options_.stop_grace_s);
-            break;
-          }
-        } else if (reply.status().code() == StatusCode::kConflict) {
-          lease_lost = true;
-          proc->Stop(options_.stop_grace_s);
-          break;
-        } else {
-          spdlog::warn("{}: heartbeat failed ({}); the job keeps running", name, reply.status().ToString());
-        }
-        next_beat = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
-      }
-    }
-    exit_status = proc->exit_status();
-    if (lease_lost) return abandon("the lease was lost (409 on heartbeat); the engine was stopped");
-    facts.exit_code = exit_status.exit_code;
-    facts.signal = exit_status.signal;
-    completion.execution.wall_s = exit_status.wall_s;
-    completion.execution.cpu_s = exit_status.cpu_s;
-  }
+  JobProgress progress(*dir, grant.kind, drive.dt);
+  std::optional<ExitFacts> facts = Supervise(job, *dir, progress);
+  if (!facts) return;  // abandoned or handed back
 
   const std::string log_text = ReadFileOr(dir->File(kLogFile), "");
   const EngineLog log = ParseEngineLog(log_text);
-  completion.execution.engine_version = log.version_line;
-  completion.log_tail =
+  job.completion.execution.engine_version = log.version_line;
+  job.completion.log_tail =
       LastLines(log_text.empty() ? ReadFileOr(dir->File(kEngineOutputFile), "") : log_text, kLogTailLines);
-  if (auto failure = ClassifyExit(grant.kind, facts, log, grant.steps)) {
-    if (facts.started && !facts.cancelled && !facts.timed_out) {
-      // A stop of the whole worker (scancel, the allocation's end, systemd) also reaches the
-      // engine, which then exits -- with status 0 if it was LIGGGHTS that got SIGTERM -- short of
-      // its steps, at about the moment the worker hears of it: give the worker's own stop a moment
-      // to land. An engine stopped with its worker is handed back, not failed.
-      if (!stopping_ && options_.stop_settle_s > 0) {
-        std::unique_lock<std::mutex> lock(mu_);
-        cv_.wait_for(lock, std::chrono::duration<double>(options_.stop_settle_s),
-                     [this] { return stopping_.load(); });
+  const bool is_run = grant.kind == api::JobKind::kRun;
+  Result<std::vector<SoSample>> samples =
+      is_run && facts->started ? progress.Finish() : Result<std::vector<SoSample>>(std::vector<SoSample>());
+  JobOutcome outcome = JudgeJob(grant.kind, grant.steps, *facts, log, drive, samples);
+  if (outcome.failure) {
+    if (outcome.engine_exit && facts->started && !facts->cancelled && !facts->timed_out && StoppedWithTheWorker()) {
+      return HandBack(job, "the worker is stopping and its engine was stopped with it");
+    }
+    return Fail(job, &*dir, outcome.failure->kind, outcome.failure->message);
+  }
+  if (outcome.bed) return ReportBed(job, *dir, *outcome.bed);
+  job.completion.ok = true;
+  job.completion.result = std::move(outcome.result);
+  job.completion.trajectory = std::move(outcome.trajectory);
+  Complete(job, &*dir);
+}
+
+std::optional<RunDir> Worker::Prepare(Job& job) {
+  const api::LeaseGrant& grant = job.grant;
+  auto dir = RunDir::Create(options_.workdir, grant.kind, grant.id, grant.attempt);
+  if (!dir.ok()) {
+    spdlog::error("{}: {} (check --workdir: it must be writable)", job.name, dir.status().ToString());
+    Abandon(job, dir.status().ToString());
+    return std::nullopt;
+  }
+  const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
+  if (Status s = dir->Write(deck_file, grant.deck); !s.ok()) {
+    Abandon(job, s.ToString());
+    return std::nullopt;
+  }
+  if (grant.kind == api::JobKind::kRun) {
+    if (!grant.bed) {
+      Fail(job, &*dir, "bed_mismatch", "the run's lease names no bed");
+      return std::nullopt;
+    }
+    if (Status s = beds_.Provide(*grant.bed, *dir); !s.ok()) {
+      if (stopping_) {
+        HandBack(job, "the worker stopped while fetching the bed");
+      } else {
+        Fail(job, &*dir, "bed_mismatch", s.reason());
       }
-      if (stopping_) return hand_back("the worker is stopping and its engine was stopped with it");
+      return std::nullopt;
     }
-    completion.ok = false;
-    completion.failure = *failure;
-    return complete(&*dir);
   }
+  return std::move(dir).value();
+}
 
-  if (is_bed) {
-    const std::string restart = dir->File(kBedRestartFile);
-    auto sha = Sha256OfFile(restart);
-    if (!sha.ok()) return fail(&*dir, "bad_output", "the bed deck wrote no " + std::string(kBedRestartFile));
-    std::ifstream in(restart, std::ios::binary | std::ios::ate);
-    api::BedResult bed;
-    bed.grains = log.bed_grains->grains;
-    bed.so_z = log.bed_grains->so_z;
-    bed.grain_top = log.bed_grains->grain_top;
-    if (log.bed_equilibrium) {
-      bed.equilibrated = log.bed_equilibrium->equilibrated;
-      bed.ke_ratio = log.bed_equilibrium->ke_peak > 0 ? log.bed_equilibrium->ke / log.bed_equilibrium->ke_peak : 0;
-    }
-    bed.sha256 = *sha;
-    bed.bytes = static_cast<int64_t>(in.tellg());
-    if (Status s = client_.UploadBed(grant.id, grant.token, restart, *sha); !s.ok()) {
-      if (s.code() == StatusCode::kConflict) return abandon("the lease was lost before the bed upload");
-      if (stopping_) return hand_back("the worker stopped during the bed upload");
-      return fail(&*dir, "bad_output", "bed upload failed: " + s.ToString());
-    }
-    completion.ok = true;
-    completion.bed_result = bed;
-    return complete(&*dir);
+std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, JobProgress& progress) {
+  const api::LeaseGrant& grant = job.grant;
+  const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
+  LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile,
+                                  dir.path(), options_.as_root);
+  spec.output_file = kEngineOutputFile;
+  ExitFacts facts;
+  auto started = launcher_.Start(spec);
+  job.completion.execution.lease_to_start_s = Since(job.leased_at);
+  if (!started.ok()) {
+    facts.started = false;
+    facts.start_error = started.status().reason();
+    return facts;
   }
+  std::unique_ptr<EngineProcess> proc = std::move(*started);
+  const auto start = Clock::now();
+  const double hb_every = std::max(0.001, std::min(options_.heartbeat_every_s, grant.ttl_s / 3));
+  auto next_beat = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+  while (true) {
+    // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
+    double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
+    if (proc->WaitFor(std::clamp(until_beat, 0.0, 0.25))) break;
+    if (stopping_) {
+      proc->Stop(options_.stop_grace_s);
+      HandBack(job, "the worker is stopping");
+      return std::nullopt;
+    }
+    if (grant.wall_budget_s > 0 && Since(start) > grant.wall_budget_s) {
+      spdlog::warn("{}: wall-time budget of {} s used up; stopping the engine", job.name, grant.wall_budget_s);
+      facts.timed_out = true;
+      proc->Stop(options_.stop_grace_s);
+      break;
+    }
+    if (Clock::now() >= next_beat) {
+      auto reply = client_.Heartbeat(grant.token, progress.Read());
+      if (reply.ok()) {
+        if (reply->cancel) {
+          spdlog::info("{}: cancelled by the daemon; stopping the engine", job.name);
+          facts.cancelled = true;
+          proc->Stop(options_.stop_grace_s);
+          break;
+        }
+      } else if (reply.status().code() == StatusCode::kConflict) {
+        proc->Stop(options_.stop_grace_s);
+        Abandon(job, "the lease was lost (409 on heartbeat); the engine was stopped");
+        return std::nullopt;
+      } else {
+        spdlog::warn("{}: heartbeat failed ({}); the job keeps running", job.name, reply.status().ToString());
+      }
+      next_beat = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+    }
+  }
+  const ExitStatus exit_status = proc->exit_status();
+  facts.exit_code = exit_status.exit_code;
+  facts.signal = exit_status.signal;
+  job.completion.execution.wall_s = exit_status.wall_s;
+  job.completion.execution.cpu_s = exit_status.cpu_s;
+  return facts;
+}
 
-  // Streamed into samples: no DumpFrame per frame.
-  const RunInputs inputs = RunInputsFrom(drive, log);
-  auto samples = SamplesFromDump(ReadFileOr(dir->File(kTrajectoryDumpFile), ""), inputs.dt);
-  if (!samples.ok()) {
-    return fail(&*dir, "bad_output", std::string(kTrajectoryDumpFile) + ": " + samples.status().reason());
+// A stop of the whole worker (scancel, the allocation's end, systemd) also reaches the engine,
+// which then exits -- with status 0 if it was LIGGGHTS that got SIGTERM -- short of its steps, at
+// about the moment the worker hears of it: give the worker's own stop a moment to land. An engine
+// stopped with its worker is handed back, not failed.
+bool Worker::StoppedWithTheWorker() {
+  if (!stopping_ && options_.stop_settle_s > 0) {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait_for(lock, std::chrono::duration<double>(options_.stop_settle_s), [this] { return stopping_.load(); });
   }
-  auto result = AnalyzeRun(*samples, inputs);
-  if (!result.ok()) return fail(&*dir, "bad_output", result.status().reason());
-  completion.ok = true;
-  completion.result = *result;
-  completion.trajectory = Downsample(*samples);
-  complete(&*dir);
+  return stopping_;
+}
+
+void Worker::ReportBed(Job& job, const RunDir& dir, api::BedResult bed) {
+  const std::string restart = dir.File(kBedRestartFile);
+  auto sha = Sha256OfFile(restart);
+  if (!sha.ok()) return Fail(job, &dir, "bad_output", "the bed deck wrote no " + std::string(kBedRestartFile));
+  std::ifstream in(restart, std::ios::binary | std::ios::ate);
+  bed.sha256 = *sha;
+  bed.bytes = static_cast<int64_t>(in.tellg());
+  if (Status s = client_.UploadBed(job.grant.id, job.grant.token, restart, *sha); !s.ok()) {
+    if (s.code() == StatusCode::kConflict) return Abandon(job, "the lease was lost before the bed upload");
+    if (stopping_) return HandBack(job, "the worker stopped during the bed upload");
+    return Fail(job, &dir, "bad_output", "bed upload failed: " + s.ToString());
+  }
+  job.completion.ok = true;
+  job.completion.bed_result = bed;
+  Complete(job, &dir);
 }
 
 }  // namespace sandswim::worker

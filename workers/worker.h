@@ -9,9 +9,10 @@
 //   - a heartbeat gets 409 (lease lost)  -> does not complete (the lease is someone else's now);
 //   - the grant's wall-time budget ends  -> completes with failure "timeout";
 //   - the worker is asked to stop        -> hands the job back (see below).
-// When the engine exits, the job is judged from the log's markers and steps (ClassifyExit), the
-// dump is parsed into the run's results and downsampled trajectory (core/trajectory.h), a bed's
-// restart is uploaded with its SHA-256, and the job is completed with its execution facts.
+// When the engine exits, the job is judged by the pure workers/job_outcome.h (the log's markers
+// and steps, the run's results and downsampled trajectory from the dump, which was read once as it
+// grew), a bed's restart is uploaded with its SHA-256, and the job is completed with its execution
+// facts. The drive facts the dump is read with (dt, f, floor) come typed in the lease.
 //
 // Daemon down: heartbeats that fail are logged and the job keeps running; completion and
 // uploads retry with backoff (client.h). A daemon restart therefore loses nothing.
@@ -42,11 +43,14 @@
 #include <string>
 
 #include "core/api.h"
+#include "core/engine_log.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
 #include "workers/run_dir.h"
 
 namespace sandswim::worker {
+
+class JobProgress;  // a running job's progress, read from its growing dump or log (worker.cc)
 
 struct WorkerOptions {
   std::string name;               // "host:pid" by default (main.cc)
@@ -97,7 +101,21 @@ class Worker {
   WorkerStats stats() const;
 
  private:
+  struct Job;  // one job as it is run (worker.cc)
   void SlotLoop();
+  // RunJob's steps: the run directory with its deck and bed (nullopt: the job was reported); the
+  // engine started and watched, heartbeating (nullopt: the job was abandoned or handed back); a
+  // bed's restart uploaded and reported. The outcome between them is workers/job_outcome.h's.
+  std::optional<RunDir> Prepare(Job& job);
+  std::optional<ExitFacts> Supervise(Job& job, const RunDir& dir, JobProgress& progress);
+  void ReportBed(Job& job, const RunDir& dir, api::BedResult bed);
+  // Whether a failed engine was stopped with the worker (waits stop_settle_s for the worker's stop).
+  bool StoppedWithTheWorker();
+  // How a job ends: not completed (lease lost), handed back (worker stopping), completed.
+  void Abandon(Job& job, const std::string& why);
+  void HandBack(Job& job, const std::string& why);
+  void Complete(Job& job, const RunDir* dir);
+  void Fail(Job& job, const RunDir* dir, const std::string& kind, const std::string& message);
   // Sleeps up to `seconds`, less when asked to stop. False when stopping.
   bool Idle(double seconds);
   // False (and logs why, once) when the next run would not finish inside the allocation.

@@ -1,0 +1,39 @@
+// Job outcome: what a finished job's engine left behind means -- the pure half of running a job.
+// The worker's runner (worker.h) prepares the run directory, supervises the engine and reports;
+// this decides, from the exit facts, the engine log, the run's drive facts (its lease) and the
+// SO's samples (read once, as the dump grew), whether the job failed and why, or what it found:
+// a run's result and downsampled trajectory (core/trajectory.h), a bed's figures.
+//
+// Thread safety: a pure function.
+#ifndef SANDSWIM_WORKERS_JOB_OUTCOME_H_
+#define SANDSWIM_WORKERS_JOB_OUTCOME_H_
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "core/api.h"
+#include "core/deck.h"
+#include "core/engine_log.h"
+#include "core/status.h"
+#include "core/trajectory.h"
+
+namespace sandswim::worker {
+
+struct JobOutcome {
+  std::optional<api::Failure> failure;
+  // The failure is the engine's exit (ClassifyExit), which a stop of the whole worker may explain
+  // (the runner then hands the job back instead of failing it).
+  bool engine_exit = false;
+  std::optional<api::BedResult> bed;          // an ok bed: the log's figures (the runner adds the restart's checksum)
+  std::optional<api::RunResult> result;       // an ok run
+  std::optional<api::Trajectory> trajectory;  // an ok run, downsampled
+};
+
+// `samples` are the SO's samples of the run's dump (or why it could not be read); ignored for beds.
+JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& facts, const EngineLog& log,
+                    const DriveInfo& drive, const Result<std::vector<SoSample>>& samples);
+
+}  // namespace sandswim::worker
+
+#endif  // SANDSWIM_WORKERS_JOB_OUTCOME_H_
