@@ -118,9 +118,10 @@ Result<SubmitRequest> ParseSubmitRequest(const nlohmann::json& body) {
   return req;
 }
 
-Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
-                            const std::string& engine_version, double now) {
-  // ---- Everything that can be refused is decided before the transaction opens. ----
+namespace {
+
+// What can be refused before anything is planned: the request's shape.
+Status CheckRequest(const SubmitRequest& req) {
   if (req.sweeps.empty() == !req.campaign.has_value()) {
     return Status::InvalidArgument("sweeps", "give either sweeps or a campaign, not both or none");
   }
@@ -131,29 +132,12 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
     return Status::InvalidArgument("due_time", "a scheduled submission is a campaign with a due time");
   }
   if (req.idempotency_key) SANDSWIM_RETURN_IF_ERROR(CheckIdempotencyKey(*req.idempotency_key));
+  return Status::Ok();
+}
 
-  std::vector<SweepSpec> sweeps = req.sweeps;
-  std::optional<CatalogueEntry> campaign;
-  std::string campaign_scale;
-  if (req.campaign) {
-    Result<CatalogueEntry> found = FindCampaign(store, *req.campaign);
-    if (!found.ok()) return found.status();
-    campaign = std::move(found).value();
-    campaign_scale = req.scale.value_or(campaign->campaign.scale);
-    sweeps = campaign->campaign.sweeps;
-    for (SweepSpec& s : sweeps) s.scale = campaign_scale;
-  }
-
-  // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
-  // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
-  PlanOptions options;
-  options.max_runs = req.max_runs;
-  options.keep_decks = false;
-  options.threads = 2;
-  Result<std::vector<ScalePlan>> planned = PlanSubmission(sweeps, engine_version, options, req.campaign.has_value());
-  if (!planned.ok()) return planned.status();
-  const std::vector<ScalePlan>& groups = *planned;
-
+// The request, normalised and hashed: one idempotency key must always come with one request.
+std::string Fingerprint(const SubmitRequest& req, const std::vector<SweepSpec>& sweeps,
+                        const std::string& campaign_scale) {
   nlohmann::json fingerprint_json{{"force", req.force}, {"trigger", req.trigger}};
   if (req.campaign) {
     fingerprint_json["campaign"] = *req.campaign;
@@ -164,14 +148,13 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
     fingerprint_json["sweeps"] = arr;
   }
   if (req.due_time) fingerprint_json["due_time"] = *req.due_time;
-  const std::string fingerprint = Sha256Hex(fingerprint_json.dump());
+  return Sha256Hex(fingerprint_json.dump());
+}
 
-  // ---- One transaction: all rows or none. ----
-  Result<Transaction> begun = store.Begin();
-  if (!begun.ok()) return begun.status();
-  Transaction& t = *begun;
-  SubmitResult out;
-
+// The answer an earlier submission gave when this one repeats it (the same idempotency key, or
+// the same scheduled slot); kConflict for a key used before with a different request.
+Result<std::optional<SubmitResult>> Replayed(Transaction& t, const SubmitRequest& req, const std::string& fingerprint) {
+  using Out = std::optional<SubmitResult>;
   if (req.idempotency_key) {
     Statement st = t.Prepare("SELECT fingerprint, response FROM submissions WHERE idempotency_key = ?");
     st.Bind(1, *req.idempotency_key);
@@ -185,7 +168,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
       Result<SubmitResult> prior = ResultFromJson(st.Text(1));
       if (!prior.ok()) return prior.status();
       prior->replayed = true;
-      return prior;
+      return Out(std::move(prior).value());
     }
   }
   if (req.trigger == "schedule") {
@@ -205,176 +188,249 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
       Result<SubmitResult> prior = ResultFromJson(s2.Text(0));
       if (!prior.ok()) return prior.status();
       prior->replayed = true;
-      return prior;
+      return Out(std::move(prior).value());
     }
   }
+  return Out();
+}
 
-  int64_t submission_id = 0;
-  {
+Result<int64_t> InsertSubmission(Transaction& t, const SubmitRequest& req, const std::string& fingerprint, double now) {
+  Statement st = t.Prepare(
+      "INSERT INTO submissions (idempotency_key, fingerprint, response, created_at) "
+      "VALUES (?, ?, '{}', ?)");
+  st.Bind(1, req.idempotency_key).Bind(2, fingerprint).Bind(3, now);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  return t.LastInsertId();
+}
+
+// The campaign run's row; a built-in campaign's definition is recorded when first submitted.
+Result<int64_t> InsertCampaignRun(Transaction& t, const SubmitRequest& req, const CatalogueEntry& campaign,
+                                  const std::string& campaign_scale, double now) {
+  if (!campaign.stored) {
     Statement st = t.Prepare(
-        "INSERT INTO submissions (idempotency_key, fingerprint, response, created_at) "
-        "VALUES (?, ?, '{}', ?)");
-    st.Bind(1, req.idempotency_key).Bind(2, fingerprint).Bind(3, now);
+        "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
+        "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO NOTHING");
+    st.Bind(1, *req.campaign).Bind(2, campaign.definition.dump()).Bind(3, campaign.schedule);
+    st.Bind(4, campaign.drift_tolerance_mps).Bind(5, now);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
-    submission_id = t.LastInsertId();
   }
+  Statement st = t.Prepare(
+      "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at) "
+      "VALUES (?, ?, ?, ?, ?)");
+  st.Bind(1, *req.campaign).Bind(2, campaign_scale).Bind(3, req.trigger);
+  st.Bind(4, req.due_time).Bind(5, now);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  const int64_t id = t.LastInsertId();
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.created", "campaign_run/" + std::to_string(id),
+                                   {{"campaign", *req.campaign}, {"trigger", req.trigger}}));
+  return id;
+}
 
-  if (campaign) {
-    if (!campaign->stored) {  // a built-in campaign is recorded when first submitted
-      Statement st = t.Prepare(
-          "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
-          "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO NOTHING");
-      st.Bind(1, *req.campaign).Bind(2, campaign->definition.dump()).Bind(3, campaign->schedule);
-      st.Bind(4, campaign->drift_tolerance_mps).Bind(5, now);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
-    }
-    Statement st = t.Prepare(
-        "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at) "
-        "VALUES (?, ?, ?, ?, ?)");
-    st.Bind(1, *req.campaign).Bind(2, campaign_scale).Bind(3, req.trigger);
-    st.Bind(4, req.due_time).Bind(5, now);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    out.campaign_run_id = t.LastInsertId();
-    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.created",
-                                     "campaign_run/" + std::to_string(*out.campaign_run_id),
-                                     {{"campaign", *req.campaign}, {"trigger", req.trigger}}));
-  }
-
-  // Sweeps, in request order.
-  std::vector<int64_t> sweep_ids(sweeps.size());
-  std::map<std::string, int64_t> id_by_name;
+// The sweeps' rows, in request order.
+Result<std::vector<int64_t>> InsertSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps,
+                                          std::optional<int64_t> campaign_run_id, int64_t submission_id, bool force,
+                                          double now) {
+  std::vector<int64_t> ids(sweeps.size());
   for (size_t i = 0; i < sweeps.size(); ++i) {
     nlohmann::json spec = SweepToJson(sweeps[i]);
     Statement st = t.Prepare(
         "INSERT INTO sweeps (name, scale, spec, campaign_run_id, submission_id, force, created_at)"
         " VALUES (?, ?, ?, ?, ?, ?, ?)");
     st.Bind(1, sweeps[i].name).Bind(2, sweeps[i].scale).Bind(3, spec.dump());
-    st.Bind(4, out.campaign_run_id).Bind(5, submission_id).Bind(6, req.force).Bind(7, now);
+    st.Bind(4, campaign_run_id).Bind(5, submission_id).Bind(6, force).Bind(7, now);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
-    sweep_ids[i] = t.LastInsertId();
-    id_by_name[sweeps[i].name] = sweep_ids[i];
+    ids[i] = t.LastInsertId();
   }
-  out.sweep_ids = sweep_ids;
+  return ids;
+}
 
-  std::map<int64_t, int64_t> next_position;
-  for (const ScalePlan& g : groups) {
-    // The bed: one per key; a failed one is given another chance.
-    int64_t bed_id = 0;
-    {
-      // engine_version: what the run keys on this bed were made with, so a deck rendered again
-      // at lease time can be checked against its run's key (the bed key covers it too).
-      Statement ins = t.Prepare(
-          "INSERT INTO beds (key, scale, deck, state, created_at, engine_version) "
-          "VALUES (?, ?, ?, 'queued', ?, ?) "
-          "ON CONFLICT (key) DO UPDATE SET engine_version = excluded.engine_version "
-          "WHERE engine_version IS NULL");
-      ins.Bind(1, g.plan.bed.key).Bind(2, g.scale).Bind(3, g.plan.bed.deck).Bind(4, now);
-      ins.Bind(5, engine_version);
-      SANDSWIM_RETURN_IF_ERROR(ins.Run());
-      Statement sel = t.Prepare("SELECT id, state FROM beds WHERE key = ?");
-      sel.Bind(1, g.plan.bed.key);
+// A scale's bed: one per key; a failed one is given another chance.
+Result<int64_t> UpsertBed(Transaction& t, const ScalePlan& g, const std::string& engine_version, double now) {
+  // engine_version: what the run keys on this bed were made with, so a deck rendered again
+  // at lease time can be checked against its run's key (the bed key covers it too).
+  Statement ins = t.Prepare(
+      "INSERT INTO beds (key, scale, deck, state, created_at, engine_version) "
+      "VALUES (?, ?, ?, 'queued', ?, ?) "
+      "ON CONFLICT (key) DO UPDATE SET engine_version = excluded.engine_version "
+      "WHERE engine_version IS NULL");
+  ins.Bind(1, g.plan.bed.key).Bind(2, g.scale).Bind(3, g.plan.bed.deck).Bind(4, now);
+  ins.Bind(5, engine_version);
+  SANDSWIM_RETURN_IF_ERROR(ins.Run());
+  Statement sel = t.Prepare("SELECT id, state FROM beds WHERE key = ?");
+  sel.Bind(1, g.plan.bed.key);
+  Result<bool> row = sel.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Internal("bed row vanished");
+  const int64_t bed_id = sel.Int(0);
+  if (sel.Text(1) == "failed") {
+    Statement up = t.Prepare(
+        "UPDATE beds SET state = 'queued', attempts = 0, lease_token = NULL, "
+        "lease_expires_at = NULL, last_error_kind = NULL, last_error = NULL WHERE id = ?");
+    up.Bind(1, bed_id);
+    SANDSWIM_RETURN_IF_ERROR(up.Run());
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
+  }
+  return bed_id;
+}
+
+// A run whose key exists already: re-queued when it failed, was cancelled or is forced again;
+// else reused (done) or shared (queued, running). Counted in `out`.
+Status ReuseRun(Transaction& t, int64_t run_id, const std::string& state, bool force, double now, SubmitResult& out) {
+  const bool requeue = state == "failed" || state == "cancelled" || (state == "done" && force);
+  if (!requeue) {
+    ++(state == "done" ? out.runs_reused : out.runs_shared);
+    return Status::Ok();
+  }
+  // The old result row (if any) stays until the new completion replaces it.
+  Statement up = t.Prepare(
+      "UPDATE runs SET state = 'queued', attempts = 0, lease_token = NULL, "
+      "lease_expires_at = NULL, worker = NULL, sim_time_s = NULL, so_z = NULL, "
+      "step = NULL, heartbeat_at = NULL, cancel_requested = 0, queued_at = ?, "
+      "started_at = NULL, finished_at = NULL, last_error_kind = NULL, last_error = NULL "
+      "WHERE id = ?");
+  up.Bind(1, now).Bind(2, run_id);
+  SANDSWIM_RETURN_IF_ERROR(up.Run());
+  SANDSWIM_RETURN_IF_ERROR(
+      t.Event(now, "run.requeued", "run/" + std::to_string(run_id), {{"from", state}, {"force", force}}));
+  ++out.runs_requeued;
+  return Status::Ok();
+}
+
+// A scale's runs (inserted, or reused by key) and their sweeps' membership, in plan order.
+// `next_position` is each sweep's next membership position.
+Status WriteRuns(Transaction& t, const ScalePlan& g, int64_t bed_id, const std::map<std::string, int64_t>& id_by_name,
+                 bool force, double now, std::map<int64_t, int64_t>& next_position, SubmitResult& out) {
+  // One prepared statement each, reused for every row (100,000 rows in one transaction).
+  Statement ins = t.Prepare(
+      "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
+      "run_duration_s, steps, state, created_at, queued_at) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?) "
+      "ON CONFLICT (key) DO NOTHING");
+  Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
+  Statement sr = t.Prepare(
+      "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
+      "ON CONFLICT DO NOTHING");
+  for (const PlannedRun& r : g.plan.runs) {
+    int64_t run_id = 0;
+    ins.Reset();
+    ins.Bind(1, r.key).Bind(2, bed_id).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
+    ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
+    ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
+    ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
+    ins.Bind(12, now).Bind(13, now);
+    SANDSWIM_RETURN_IF_ERROR(ins.Run());
+    if (t.Changes() == 1) {
+      run_id = t.LastInsertId();
+      ++out.runs_new;
+    } else {
+      sel.Reset();
+      sel.Bind(1, r.key);
       Result<bool> row = sel.Step();
       if (!row.ok()) return row.status();
-      if (!*row) return Status::Internal("bed row vanished");
-      bed_id = sel.Int(0);
-      if (sel.Text(1) == "failed") {
-        Statement up = t.Prepare(
-            "UPDATE beds SET state = 'queued', attempts = 0, lease_token = NULL, "
-            "lease_expires_at = NULL, last_error_kind = NULL, last_error = NULL WHERE id = ?");
-        up.Bind(1, bed_id);
-        SANDSWIM_RETURN_IF_ERROR(up.Run());
-        SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
-      }
+      if (!*row) return Status::Internal("run row vanished");
+      run_id = sel.Int(0);
+      const std::string state = sel.Text(1);
+      sel.Reset();
+      SANDSWIM_RETURN_IF_ERROR(ReuseRun(t, run_id, state, force, now, out));
     }
-
-    // One prepared statement each, reused for every row (100,000 rows in one transaction).
-    Statement ins = t.Prepare(
-        "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-        "run_duration_s, steps, state, created_at, queued_at) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?) "
-        "ON CONFLICT (key) DO NOTHING");
-    Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
-    Statement sr = t.Prepare(
-        "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
-        "ON CONFLICT DO NOTHING");
-    for (const PlannedRun& r : g.plan.runs) {
-      int64_t run_id = 0;
-      ins.Reset();
-      ins.Bind(1, r.key).Bind(2, bed_id).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
-      ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
-      ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
-      ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
-      ins.Bind(12, now).Bind(13, now);
-      SANDSWIM_RETURN_IF_ERROR(ins.Run());
-      if (t.Changes() == 1) {
-        run_id = t.LastInsertId();
-        ++out.runs_new;
-      } else {
-        sel.Reset();
-        sel.Bind(1, r.key);
-        Result<bool> row = sel.Step();
-        if (!row.ok()) return row.status();
-        if (!*row) return Status::Internal("run row vanished");
-        run_id = sel.Int(0);
-        std::string state = sel.Text(1);
-        sel.Reset();
-        bool requeue = state == "failed" || state == "cancelled" || (state == "done" && req.force);
-        if (requeue) {
-          // The old result row (if any) stays until the new completion replaces it.
-          Statement up = t.Prepare(
-              "UPDATE runs SET state = 'queued', attempts = 0, lease_token = NULL, "
-              "lease_expires_at = NULL, worker = NULL, sim_time_s = NULL, so_z = NULL, "
-              "step = NULL, heartbeat_at = NULL, cancel_requested = 0, queued_at = ?, "
-              "started_at = NULL, finished_at = NULL, last_error_kind = NULL, last_error = NULL "
-              "WHERE id = ?");
-          up.Bind(1, now).Bind(2, run_id);
-          SANDSWIM_RETURN_IF_ERROR(up.Run());
-          SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.requeued", "run/" + std::to_string(run_id),
-                                           {{"from", state}, {"force", req.force}}));
-          ++out.runs_requeued;
-        } else if (state == "done") {
-          ++out.runs_reused;
-        } else {
-          ++out.runs_shared;
-        }
-      }
-      ++out.runs;
-      for (const std::string& name : r.sweeps) {
-        auto it = id_by_name.find(name);
-        if (it == id_by_name.end()) return Status::Internal("plan names unknown sweep " + name);
-        sr.Reset();
-        sr.Bind(1, it->second).Bind(2, run_id).Bind(3, next_position[it->second]++);
-        SANDSWIM_RETURN_IF_ERROR(sr.Run());
-      }
+    ++out.runs;
+    for (const std::string& name : r.sweeps) {
+      auto it = id_by_name.find(name);
+      if (it == id_by_name.end()) return Status::Internal("plan names unknown sweep " + name);
+      sr.Reset();
+      sr.Bind(1, it->second).Bind(2, run_id).Bind(3, next_position[it->second]++);
+      SANDSWIM_RETURN_IF_ERROR(sr.Run());
     }
   }
+  return Status::Ok();
+}
 
-  // Each new sweep's counts by state (sweep_counts, schema/003_perf.sql), from its membership
-  // rows, in this transaction: one aggregate per sweep instead of a trigger per row.
-  {
-    Statement recount = t.Prepare(
-        "UPDATE sweep_counts SET (queued, running, done, failed, cancelled) = ("
-        "SELECT COALESCE(SUM(r.state = 'queued'), 0), COALESCE(SUM(r.state = 'running'), 0), "
-        "COALESCE(SUM(r.state = 'done'), 0), COALESCE(SUM(r.state = 'failed'), 0), "
-        "COALESCE(SUM(r.state = 'cancelled'), 0) "
-        "FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE sr.sweep_id = ?1) "
-        "WHERE sweep_id = ?1");
-    for (int64_t id : sweep_ids) {
-      recount.Reset();
-      recount.Bind(1, id);
-      SANDSWIM_RETURN_IF_ERROR(recount.Run());
-    }
+// Each new sweep's counts by state (sweep_counts, schema/003_perf.sql), from its membership rows,
+// in this transaction (one aggregate per sweep instead of a trigger per row), and its event.
+Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const std::vector<int64_t>& sweep_ids,
+                    std::map<int64_t, int64_t>& runs_of, double now) {
+  Statement recount = t.Prepare(
+      "UPDATE sweep_counts SET (queued, running, done, failed, cancelled) = ("
+      "SELECT COALESCE(SUM(r.state = 'queued'), 0), COALESCE(SUM(r.state = 'running'), 0), "
+      "COALESCE(SUM(r.state = 'done'), 0), COALESCE(SUM(r.state = 'failed'), 0), "
+      "COALESCE(SUM(r.state = 'cancelled'), 0) "
+      "FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE sr.sweep_id = ?1) "
+      "WHERE sweep_id = ?1");
+  for (int64_t id : sweep_ids) {
+    recount.Reset();
+    recount.Bind(1, id);
+    SANDSWIM_RETURN_IF_ERROR(recount.Run());
   }
   for (size_t i = 0; i < sweeps.size(); ++i) {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
                                      {{"name", sweeps[i].name},
                                       {"scale", sweeps[i].scale},
-                                      {"runs", next_position[sweep_ids[i]]}}));
+                                      {"runs", runs_of[sweep_ids[i]]}}));
   }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
+                            const std::string& engine_version, double now) {
+  // ---- Everything that can be refused is decided before the transaction opens. ----
+  SANDSWIM_RETURN_IF_ERROR(CheckRequest(req));
+  std::vector<SweepSpec> sweeps = req.sweeps;
+  std::optional<CatalogueEntry> campaign;
+  std::string campaign_scale;
+  if (req.campaign) {
+    Result<CatalogueEntry> found = FindCampaign(store, *req.campaign);
+    if (!found.ok()) return found.status();
+    campaign = std::move(found).value();
+    campaign_scale = req.scale.value_or(campaign->campaign.scale);
+    sweeps = campaign->campaign.sweeps;
+    for (SweepSpec& s : sweeps) s.scale = campaign_scale;
+  }
+  // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
+  // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
+  PlanOptions options;
+  options.max_runs = req.max_runs;
+  options.keep_decks = false;
+  options.threads = 2;
+  Result<std::vector<ScalePlan>> planned = PlanSubmission(sweeps, engine_version, options, req.campaign.has_value());
+  if (!planned.ok()) return planned.status();
+  const std::string fingerprint = Fingerprint(req, sweeps, campaign_scale);
+
+  // ---- One transaction: all rows or none. ----
+  Result<Transaction> begun = store.Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  Result<std::optional<SubmitResult>> replayed = Replayed(t, req, fingerprint);
+  if (!replayed.ok()) return replayed.status();
+  if (*replayed) return std::move(**replayed);
+
+  SubmitResult out;
+  Result<int64_t> submission_id = InsertSubmission(t, req, fingerprint, now);
+  if (!submission_id.ok()) return submission_id.status();
+  if (campaign) {
+    Result<int64_t> id = InsertCampaignRun(t, req, *campaign, campaign_scale, now);
+    if (!id.ok()) return id.status();
+    out.campaign_run_id = *id;
+  }
+  Result<std::vector<int64_t>> sweep_ids =
+      InsertSweeps(t, sweeps, out.campaign_run_id, *submission_id, req.force, now);
+  if (!sweep_ids.ok()) return sweep_ids.status();
+  out.sweep_ids = *sweep_ids;
+  std::map<std::string, int64_t> id_by_name;
+  for (size_t i = 0; i < sweeps.size(); ++i) id_by_name[sweeps[i].name] = out.sweep_ids[i];
+
+  std::map<int64_t, int64_t> next_position;
+  for (const ScalePlan& g : *planned) {
+    Result<int64_t> bed_id = UpsertBed(t, g, engine_version, now);
+    if (!bed_id.ok()) return bed_id.status();
+    SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, *bed_id, id_by_name, req.force, now, next_position, out));
+  }
+  SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
   nlohmann::json response = out;
   {
     Statement st = t.Prepare("UPDATE submissions SET response = ? WHERE id = ?");
-    st.Bind(1, response.dump()).Bind(2, submission_id);
+    st.Bind(1, response.dump()).Bind(2, *submission_id);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
   }
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
