@@ -124,4 +124,21 @@ bool SameDrive(const Point& a, const Point& b) {
          (!a.has_constant_rotation() || a.axis == b.axis);
 }
 
+Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega,
+                          double omega, double duration_s) {
+  std::optional<Mode> m = ParseMode(mode);
+  if (!m) return Status(StatusCode::kCorruption, "stored mode \"" + std::string(mode) + "\" is not one of ours", "mode");
+  std::optional<RotationAxis> a = ParseAxis(axis);
+  if (!a) return Status(StatusCode::kCorruption, "stored axis \"" + std::string(axis) + "\" is not one of ours", "axis");
+  Point p;
+  p.mode = *m;
+  p.axis = *a;
+  p.A = A;
+  p.f = f;
+  p.Omega = Omega;
+  p.omega = omega;
+  p.duration_s = duration_s;
+  return p;
+}
+
 }  // namespace sandswim

@@ -56,6 +56,11 @@ struct Point {
   }
 };
 
+// A point as the database stores it (mode and axis by name): the one decoding the daemon's reads
+// and its lease queue share. Corruption naming the column when a name is not one of ours.
+Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega,
+                          double omega, double duration_s);
+
 // The paper's Sec. 3.2 drive (eq. 6): y = A sin(2 pi f t), omega_x = Omega cos(2 pi f t).
 Point OscillatoryPoint(double A, double f, double Omega, double duration_s);
 

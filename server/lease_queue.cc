@@ -202,20 +202,12 @@ Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) 
     if (!drive.ok()) return Status::FailedPrecondition("deck", "its stored deck: " + drive.status().reason());
     return RunDeck{*run.stored_deck, *drive};
   }
-  std::optional<Mode> mode = ParseMode(run.mode);
-  std::optional<RotationAxis> axis = ParseAxis(run.axis);
+  Result<Point> point = StoredPoint(run.mode, run.axis, run.A, run.f, run.Omega, run.omega, run.duration_s);
   const Scale* scale = FindScale(run.scale);
-  if (!mode || !axis || scale == nullptr) {
+  if (!point.ok() || scale == nullptr) {
     return Status::FailedPrecondition("deck", "its stored point or scale no longer parses");
   }
-  Point p;
-  p.mode = *mode;
-  p.axis = *axis;
-  p.A = run.A;
-  p.f = run.f;
-  p.Omega = run.Omega;
-  p.omega = run.omega;
-  p.duration_s = run.duration_s;
+  const Point& p = *point;
   RunDeck out;
   try {
     out.deck = RenderDriveDeck(p, *scale);

@@ -30,24 +30,20 @@ constexpr const char* kResultColumns =
     "res.analysis, res.block_kind, res.analysed_from";
 constexpr int kResultColumnCount = 34;
 
-Point PointFromRow(const Statement& st, int c) {
-  Point p;
-  p.mode = ParseMode(st.Text(c)).value_or(Mode::kOscillatory);
-  p.A = st.Double(c + 1);
-  p.f = st.Double(c + 2);
-  p.Omega = st.Double(c + 3);
-  p.omega = st.Double(c + 4);
-  p.axis = ParseAxis(st.Text(c + 5)).value_or(RotationAxis::kX);
-  p.duration_s = st.Double(c + 6);
-  return p;
+// Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s (core/point.h StoredPoint).
+Result<Point> PointFromRow(const Statement& st, int c) {
+  return StoredPoint(st.Text(c), st.Text(c + 5), st.Double(c + 1), st.Double(c + 2), st.Double(c + 3),
+                     st.Double(c + 4), st.Double(c + 6));
 }
 
-RunSummary RunSummaryFromRow(const Statement& st) {
+Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   RunSummary r;
   r.id = st.Int(0);
   r.key = st.Text(1);
   r.state = st.Text(2);
-  r.point = PointFromRow(st, 3);
+  Result<Point> point = PointFromRow(st, 3);
+  if (!point.ok()) return Status(point.status().code(), "run " + std::to_string(r.id) + ": " + point.status().reason());
+  r.point = *point;
   r.run_duration_s = st.Double(10);
   r.steps = st.Int(11);
   r.bed_id = st.Int(12);
@@ -495,7 +491,9 @@ Result<RunPage> Store::ListRuns(const RunFilter& f) {
       page.next_cursor = page.runs.back().id;
       break;
     }
-    page.runs.push_back(RunSummaryFromRow(st));
+    Result<RunSummary> run = RunSummaryFromRow(st);
+    if (!run.ok()) return run.status();
+    page.runs.push_back(std::move(run).value());
   }
   return page;
 }
@@ -516,7 +514,9 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
     if (!*row) return Status::NotFound("no run " + std::to_string(id));
-    d.summary = RunSummaryFromRow(st);
+    Result<RunSummary> summary = RunSummaryFromRow(st);
+    if (!summary.ok()) return summary.status();
+    d.summary = std::move(summary).value();
     int c = kRunColumnCount;
     d.deck = st.Text(c);
     if (st.IsNull(c)) {
@@ -582,7 +582,9 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
     r.run_id = st.Int(0);
     r.key = st.Text(1);
     r.state = st.Text(2);
-    r.point = PointFromRow(st, 3);
+    Result<Point> point = PointFromRow(st, 3);
+    if (!point.ok()) return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
+    r.point = *point;
     r.run_duration_s = st.Double(10);
     r.result = ResultFromRow(st, 11);
     rows.push_back(std::move(r));
