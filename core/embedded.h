@@ -1,7 +1,7 @@
-// Files compiled into the binary (the list is in templates/CMakeLists.txt): deck templates
-// ("templates/bed.in", "templates/drive.in"), shipped campaigns
-// ("templates/campaigns/paper-58.json"), every SQL migration (schema/NNN_*.sql) and the OpenAPI
-// document.
+// Files compiled into core (the list is in templates/CMakeLists.txt): deck templates
+// ("templates/bed.in", "templates/drive.in") and shipped campaigns
+// ("templates/campaigns/paper-58.json"). The migrations and the API document are the daemon's
+// (server/schema_files.h).
 //
 // Thread safety: immutable data.
 #ifndef SANDSWIM_CORE_EMBEDDED_H_
@@ -16,7 +16,7 @@ namespace sandswim {
 // The bytes of a compiled-in file, by its path relative to the source root.
 std::optional<std::string_view> EmbeddedFile(std::string_view name);
 
-// Every compiled-in file's name, sorted (e.g. the migrations: "schema/001_init.sql", ...).
+// Every compiled-in file's name, sorted.
 const std::vector<std::string_view>& EmbeddedFileNames();
 
 }  // namespace sandswim

@@ -7,14 +7,14 @@
 #include <utility>
 
 #include "core/api.h"
-#include "core/embedded.h"
+#include "server/schema_files.h"
 
 namespace sandswim {
 
 std::vector<Migration> Migrations() {
   std::vector<Migration> out;
   constexpr std::string_view kPrefix = "schema/";
-  for (std::string_view name : EmbeddedFileNames()) {
+  for (std::string_view name : SchemaFileNames()) {
     if (name.substr(0, kPrefix.size()) != kPrefix) continue;
     std::string_view base = name.substr(kPrefix.size());
     if (base.size() < 9 || base[3] != '_' || base.substr(base.size() - 4) != ".sql") continue;
@@ -296,7 +296,7 @@ Status Database::Migrate() {
   }
   for (const Migration& m : migrations) {
     if (m.version <= current) continue;
-    std::optional<std::string_view> sql = EmbeddedFile(m.file);
+    std::optional<std::string_view> sql = SchemaFile(m.file);
     if (!sql) return Status::Internal("migration not compiled in: " + m.file);
     SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
     Status s = ExecRaw(db_, std::string(*sql));

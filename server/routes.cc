@@ -23,7 +23,6 @@
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 
-#include "core/embedded.h"
 #include "core/result_table.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
@@ -31,6 +30,7 @@
 #include "server/drift_report.h"
 #include "server/figures.h"
 #include "server/report.h"
+#include "server/schema_files.h"
 #include "server/submission.h"
 
 namespace sandswim {
@@ -660,7 +660,7 @@ void DownloadBedRestart(Call& c) {
 }
 
 void OpenApi(Call& c) {
-  auto doc = EmbeddedFile("schema/openapi.json");
+  auto doc = SchemaFile("schema/openapi.json");
   if (!doc) return Fail(c, Status::Internal("schema/openapi.json was not compiled in; rebuild sandswimd"));
   c.res.status = 200;
   c.res.set_content(std::string(*doc), "application/json");
