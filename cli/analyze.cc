@@ -122,12 +122,12 @@ std::string RenderDumpAnalysis(const DumpAnalysis& a) {
   if (!r.uz_stderr_note.empty()) out << "            no error: " << r.uz_stderr_note << "\n";
   if (!r.inconclusive_reason.empty()) out << "            inconclusive: " << r.inconclusive_reason << "\n";
   out << "  window:   " << Num(r.window_t0) << " .. " << Num(r.window_t1) << " s, " << r.uz_blocks << " whole "
-      << (r.block_kind.empty() ? "period" : r.block_kind) << (r.uz_blocks == 1 ? "" : "s") << " of "
-      << Num(r.block_s) << " s, ended by " << r.window_end << "\n";
+      << (r.block_kind.empty() ? "period" : r.block_kind) << (r.uz_blocks == 1 ? "" : "s") << " of " << Num(r.block_s)
+      << " s, ended by " << r.window_end << "\n";
   out << "  motion:   dz = " << Num(r.dz) << " m over " << Num(r.sim_time_s) << " s (dz/T " << Num(r.dz_rate)
       << " m/s), x drift " << Num(r.x_drift) << " m, z oscillation at f " << Num(r.z_osc_amplitude) << " m\n";
-  out << "  inputs:   " << a.samples << " samples; f = " << Num(a.inputs.f) << " Hz (" << a.f_from << "), dt = "
-      << Num(a.inputs.dt) << " s (" << a.dt_from << ")\n";
+  out << "  inputs:   " << a.samples << " samples; f = " << Num(a.inputs.f) << " Hz (" << a.f_from
+      << "), dt = " << Num(a.inputs.dt) << " s (" << a.dt_from << ")\n";
   out << "            floor "
       << (a.inputs.bounds.floor ? Num(*a.inputs.bounds.floor) + " m (" + a.floor_from + ")"
                                 : std::string("unknown: not checked (--floor Z)"))

@@ -73,8 +73,8 @@ TEST_F(AnalyzeTest, AnyDumpCustomWithTheSoAmongOtherParticles) {
   for (int k = 0; k <= 1500; ++k) {
     const double t = k * 1e-3, z = 0.02 * t + 0.003 * std::sin(2 * 3.14159265358979 * 6 * t);
     text += "ITEM: TIMESTEP\n" + std::to_string(k * 100) + "\nITEM: NUMBER OF ATOMS\n2\n" +
-            "ITEM: BOX BOUNDS pp pp ff\n-1 1\n-1 1\n-1 1\nITEM: ATOMS id type x y z radius\n" +
-            "7 1 0.1 0.1 " + std::to_string(-0.3 + t) + " 0.01\n" + "9 2 0 0 " + std::to_string(z) + " 0.06\n";
+            "ITEM: BOX BOUNDS pp pp ff\n-1 1\n-1 1\n-1 1\nITEM: ATOMS id type x y z radius\n" + "7 1 0.1 0.1 " +
+            std::to_string(-0.3 + t) + " 0.01\n" + "9 2 0 0 " + std::to_string(z) + " 0.06\n";
   }
   const std::string dump = Write("all.dump", text);
   Cli no_f;

@@ -154,12 +154,13 @@ class CliTest : public ::testing::Test {
   // Submits a fresh two-point sweep (a distinct name and Omega pair so runs are not shared
   // with other tests) and returns its id.
   static int64_t SubmitSweep(const std::string& name, double omega) {
-    std::string file = WriteFile(name + ".json", json{{"name", name},
-                                                      {"scale", "smoke"},
-                                                      {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3},
-                                                                {"Omega", omega}, {"duration_s", 0.3}}},
-                                                      {"axes", {{{"param", "Omega"}, {"values", {omega, -omega}}}}}}
-                                                         .dump());
+    std::string file = WriteFile(
+        name + ".json",
+        json{{"name", name},
+             {"scale", "smoke"},
+             {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", omega}, {"duration_s", 0.3}}},
+             {"axes", {{{"param", "Omega"}, {"values", {omega, -omega}}}}}}
+            .dump());
     Outcome o = Sandswim({"submit", file});
     EXPECT_EQ(o.code, 0) << o.err;
     EXPECT_THAT(o.out, MatchesRegex("[0-9]+\n"));
@@ -261,10 +262,11 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
   std::getline(lines, row1);
   std::getline(lines, row2);
   EXPECT_FALSE(std::getline(lines, extra));
-  EXPECT_EQ(header, "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz_text,Uz,Uz_stderr,"
-                    "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,"
-                    "inconclusive_reason,dz,dz_rate,z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,"
-                    "sim_time_s,grains,analysis,analysed_from,engine_version");
+  EXPECT_EQ(header,
+            "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz_text,Uz,Uz_stderr,"
+            "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,"
+            "inconclusive_reason,dz,dz_rate,z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,"
+            "sim_time_s,grains,analysis,analysed_from,engine_version");
   EXPECT_THAT(row1, MatchesRegex("[0-9]+,[0-9a-f]{64},queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3(,){24}"));
 
   for (std::vector<std::string> args : {std::vector<std::string>{"--format", "json"}, {"--json"}}) {
@@ -305,7 +307,8 @@ TEST_F(CliTest, CancelCancelsTheRunsAndWatchEnds) {
   int64_t id = SubmitSweep("cancel-sweep", 50);
   Outcome o = Sandswim({"cancel", std::to_string(id)});
   ASSERT_EQ(o.code, 0) << o.err;
-  EXPECT_EQ(o.out, "sweep " + std::to_string(id) + " cancelled: 2 queued run(s) cancelled, 0 running run(s) told to stop\n");
+  EXPECT_EQ(o.out,
+            "sweep " + std::to_string(id) + " cancelled: 2 queued run(s) cancelled, 0 running run(s) told to stop\n");
   o = Sandswim({"runs", "--sweep", std::to_string(id), "--json"});
   ASSERT_EQ(o.code, 0) << o.err;
   for (const auto& r : json::parse(o.out)) EXPECT_EQ(r["state"], "cancelled");
@@ -428,7 +431,9 @@ TEST_F(CliTest, NoDaemonIsOneClearLine) {
 TEST_F(CliTest, VersionShowsTheDaemon) {
   Outcome o = Sandswim({"version"});
   ASSERT_EQ(o.code, 0) << o.err;
-  EXPECT_THAT(o.out, MatchesRegex("sandswim [0-9.]+\ndaemon at http://127.0.0.1:[0-9]+: ok, engine test-engine, schema [0-9]+\n"));
+  EXPECT_THAT(
+      o.out,
+      MatchesRegex("sandswim [0-9.]+\ndaemon at http://127.0.0.1:[0-9]+: ok, engine test-engine, schema [0-9]+\n"));
   o = Sandswim({"version", "--json"});
   ASSERT_EQ(o.code, 0) << o.err;
   EXPECT_EQ(json::parse(o.out)["server"]["engine_version"], "test-engine");

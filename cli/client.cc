@@ -77,9 +77,7 @@ class HttpDaemonClient : public DaemonClient {
 
   Result<json> GetSweep(int64_t id) override { return Get("/api/v1/sweeps/" + std::to_string(id)); }
 
-  Result<json> SweepResults(int64_t id) override {
-    return Get("/api/v1/sweeps/" + std::to_string(id) + "/results");
-  }
+  Result<json> SweepResults(int64_t id) override { return Get("/api/v1/sweeps/" + std::to_string(id) + "/results"); }
 
   Result<json> CancelSweep(int64_t id) override {
     return Post("/api/v1/sweeps/" + std::to_string(id) + "/cancel", json::object(), {});
@@ -94,9 +92,7 @@ class HttpDaemonClient : public DaemonClient {
 
   Result<json> GetRun(int64_t id) override { return Get("/api/v1/runs/" + std::to_string(id)); }
 
-  Result<json> GetCampaignRun(int64_t id) override {
-    return Get("/api/v1/campaign-runs/" + std::to_string(id));
-  }
+  Result<json> GetCampaignRun(int64_t id) override { return Get("/api/v1/campaign-runs/" + std::to_string(id)); }
 
   Result<json> CampaignRunResults(int64_t id) override {
     return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
@@ -143,8 +139,8 @@ class HttpDaemonClient : public DaemonClient {
       if (!reply.ok()) return reply.status();
       auto items = reply->find(key);
       if (items == reply->end() || !items->is_array()) {
-        return Status(StatusCode::kCorruption, std::string("the daemon's answer to GET ") + path +
-                                                   " has no \"" + key + "\" array");
+        return Status(StatusCode::kCorruption,
+                      std::string("the daemon's answer to GET ") + path + " has no \"" + key + "\" array");
       }
       for (auto& item : *items) all.push_back(std::move(item));
       if (limit > 0 && static_cast<int64_t>(all.size()) >= limit) break;
@@ -161,12 +157,12 @@ class HttpDaemonClient : public DaemonClient {
     if (!res) {
       httplib::Error error = res.error();
       if (error == httplib::Error::Connection || error == httplib::Error::ConnectionTimeout) {
-        std::string why = error == httplib::Error::ConnectionTimeout ? "connection timed out"
-                                                                      : WhyNoConnection(options_.server);
+        std::string why =
+            error == httplib::Error::ConnectionTimeout ? "connection timed out" : WhyNoConnection(options_.server);
         return Status::Unavailable("no daemon at " + options_.server + " (" + why + "). " + kStartHint);
       }
-      return Status::Unavailable("the daemon at " + options_.server + " did not answer " + method + " " +
-                                 path + " (" + httplib::to_string(error) + ")");
+      return Status::Unavailable("the daemon at " + options_.server + " did not answer " + method + " " + path + " (" +
+                                 httplib::to_string(error) + ")");
     }
     json body;
     bool parsed = false;
@@ -212,8 +208,8 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
   while (url.size() > 7 && url.back() == '/') url.pop_back();
   static const std::regex kUrl(R"(http://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)(:[0-9]{1,5})?)");
   if (!std::regex_match(url, kUrl)) {
-    return Status::InvalidArgument(field, "expected http://HOST:PORT (e.g. " + std::string(kDefaultServer) +
-                                              "), got \"" + url + "\"");
+    return Status::InvalidArgument(
+        field, "expected http://HOST:PORT (e.g. " + std::string(kDefaultServer) + "), got \"" + url + "\"");
   }
   options.server = url;
 

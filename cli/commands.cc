@@ -48,7 +48,7 @@ struct Args {
   int64_t campaign_run = 0;
   double interval_s = 1.0;
   std::string engine_version;
-  std::string out_file;  // `report --out`
+  std::string out_file;      // `report --out`
   SlurmSubmitOptions slurm;  // `slurm submit`
   // `analyze`: NaN / -1 mean "not given".
   std::vector<std::string> dumps;
@@ -113,8 +113,7 @@ struct Input {
 
 bool LooksLikeCampaignName(const std::string& text) {
   static const std::regex kName(R"([A-Za-z0-9._-]+)");
-  return std::regex_match(text, kName) && text.size() <= kMaxNameLength &&
-         text.find(".json") == std::string::npos;
+  return std::regex_match(text, kName) && text.size() <= kMaxNameLength && text.find(".json") == std::string::npos;
 }
 
 // "-": JSON on stdin; an existing file: its JSON; a name: a campaign.
@@ -138,14 +137,17 @@ Result<Input> ReadInput(Context& c, const std::string& arg) {
     input.campaign = arg;
     return input;
   } else {
-    return Status::InvalidArgument("FILE", "no such file: " + arg + " (give a sweep JSON file, - for stdin, or a campaign name such as paper-58)");
+    return Status::InvalidArgument(
+        "FILE", "no such file: " + arg + " (give a sweep JSON file, - for stdin, or a campaign name such as paper-58)");
   }
   try {
     input.body = json::parse(text);
   } catch (const json::parse_error& e) {
     return Status::InvalidArgument(where, "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
   }
-  if (!input.body.is_object()) return Status::InvalidArgument(where, "expected a JSON object (a sweep, {\"sweeps\": [...]} or {\"campaign\": NAME})");
+  if (!input.body.is_object())
+    return Status::InvalidArgument(where,
+                                   "expected a JSON object (a sweep, {\"sweeps\": [...]} or {\"campaign\": NAME})");
   return input;
 }
 
@@ -295,7 +297,8 @@ int RunCampaignStatus(Context& c, DaemonClient& client) {
     std::string point = drive.value("mode", "");
     for (const auto& [k, v] : drive.items()) {
       if (k == "duration_s" || k == "mode") continue;
-      point += (point.empty() ? "" : " ") + k + "=" + (v.is_string() ? v.get<std::string>() : DisplayNumber(v.get<double>()));
+      point += (point.empty() ? "" : " ") + k + "=" +
+               (v.is_string() ? v.get<std::string>() : DisplayNumber(v.get<double>()));
     }
     bool drifted = row.value("drifted", false);
     // An inconclusive rate is never compared: no number that looks like one is shown for it.
@@ -303,7 +306,7 @@ int RunCampaignStatus(Context& c, DaemonClient& client) {
     t.rows.push_back({std::to_string(row.value("run_id", int64_t{0})), point, row.value("state", ""),
                       inconclusive ? "inconclusive" : number(row, "uz"), number(row, "uz_previous"),
                       number(row, "difference"),
-                      drifted                                   ? "DRIFT"
+                      drifted                                 ? "DRIFT"
                       : row.value("estimator_changed", false) ? "analysis changed"
                       : row.value("reused", false)            ? "reused"
                                                               : ""});
@@ -398,11 +401,15 @@ int RunResults(Context& c) {
   Target target;
   if (c.args.campaign_run > 0) {
     if (!c.args.target.empty()) {
-      return Fail(c, Status::InvalidArgument("--campaign-run", "give either SWEEP|CAMPAIGN-RUN or --campaign-run, not both"), kExitUsage);
+      return Fail(
+          c, Status::InvalidArgument("--campaign-run", "give either SWEEP|CAMPAIGN-RUN or --campaign-run, not both"),
+          kExitUsage);
     }
     target = {Target::Kind::kCampaignRun, c.args.campaign_run};
   } else if (c.args.target.empty()) {
-    return Fail(c, Status::InvalidArgument("SWEEP", "name a sweep id (12) or a campaign run (cr:7 or --campaign-run 7)"), kExitUsage);
+    return Fail(c,
+                Status::InvalidArgument("SWEEP", "name a sweep id (12) or a campaign run (cr:7 or --campaign-run 7)"),
+                kExitUsage);
   } else {
     auto parsed = ParseTarget(c.args.target);
     if (!parsed.ok()) return Fail(c, parsed.status(), kExitUsage);
@@ -474,7 +481,9 @@ void SetupRerun(CLI::App& sub, Args& a) {
 
 int RunRerun(Context& c) {
   if (!LooksLikeCampaignName(c.args.target)) {
-    return Fail(c, Status::InvalidArgument("CAMPAIGN", "\"" + c.args.target + "\" is not a campaign name ([A-Za-z0-9._-]+)"), kExitUsage);
+    return Fail(
+        c, Status::InvalidArgument("CAMPAIGN", "\"" + c.args.target + "\" is not a campaign name ([A-Za-z0-9._-]+)"),
+        kExitUsage);
   }
   Input input;
   input.campaign = c.args.target;
@@ -498,9 +507,9 @@ Result<std::vector<SweepSpec>> SweepsOf(const Input& input, const std::string& s
     }
   };
   if (input.campaign || input.body.contains("campaign")) {
-    std::string name = input.campaign ? *input.campaign : input.body["campaign"].is_string()
-                                                              ? input.body["campaign"].get<std::string>()
-                                                              : "";
+    std::string name = input.campaign                       ? *input.campaign
+                       : input.body["campaign"].is_string() ? input.body["campaign"].get<std::string>()
+                                                            : "";
     auto campaign = BuiltinCampaign(name);
     if (!campaign.ok()) {
       std::string names;
@@ -534,7 +543,8 @@ Result<std::vector<SweepSpec>> SweepsOf(const Input& input, const std::string& s
     if (!scale_flag.empty() && specs[i].is_object()) specs[i]["scale"] = scale_flag;
     auto spec = ParseSweep(specs[i]);
     if (!spec.ok()) {
-      return body.contains("sweeps") ? spec.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]") : spec.status();
+      return body.contains("sweeps") ? spec.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]")
+                                     : spec.status();
     }
     sweeps.push_back(std::move(*spec));
   }
@@ -548,7 +558,8 @@ int RunExpand(Context& c) {
   if (!sweeps.ok()) return FailUsageIfInvalid(c, sweeps.status());
   std::string engine = c.args.engine_version;
   if (engine.empty()) {
-    auto probed = c.env.probe_engine ? c.env.probe_engine() : Result<std::string>(Status::Unavailable("no engine probe"));
+    auto probed =
+        c.env.probe_engine ? c.env.probe_engine() : Result<std::string>(Status::Unavailable("no engine probe"));
     if (probed.ok()) {
       engine = *probed;
     } else {
@@ -605,15 +616,19 @@ int RunReport(Context& c) {
   } else if (LooksLikeCampaignName(c.args.target)) {
     name = c.args.target;
   } else {
-    return Fail(c, Status::InvalidArgument("CAMPAIGN", "expected a campaign name (paper-58) or a campaign run (cr:7), got \"" +
-                                                           c.args.target + "\""), kExitUsage);
+    return Fail(
+        c,
+        Status::InvalidArgument(
+            "CAMPAIGN", "expected a campaign name (paper-58) or a campaign run (cr:7), got \"" + c.args.target + "\""),
+        kExitUsage);
   }
   auto client = c.Client();
   if (!client.ok()) return FailUsageIfInvalid(c, client.status());
   auto html = (*client)->CampaignReport(name, c.args.scale, campaign_run);
   if (!html.ok()) return Fail(c, html.status());
   std::string path = c.args.out_file;
-  if (path.empty()) path = "sandswim-report-" + (campaign_run > 0 ? "cr" + std::to_string(campaign_run) : name) + ".html";
+  if (path.empty())
+    path = "sandswim-report-" + (campaign_run > 0 ? "cr" + std::to_string(campaign_run) : name) + ".html";
   // Written aside and renamed: an interrupted write never leaves half a report under the name.
   const std::string temp = path + ".part";
   {
@@ -643,10 +658,12 @@ const CLI::Validator kFinite(
     "FINITE");
 
 void SetupAnalyze(CLI::App& sub, Args& a) {
-  sub.add_option("DUMP", a.dumps, "LIGGGHTS dump files of the SO (a run directory's so.dump, or any dump custom "
-                                  "with id, x, y, z)")
+  sub.add_option("DUMP", a.dumps,
+                 "LIGGGHTS dump files of the SO (a run directory's so.dump, or any dump custom "
+                 "with id, x, y, z)")
       ->required();
-  sub.add_option("--f", a.an_f, "drive frequency in Hz, 0 for constant rotation (default: from drive.in beside the dump)")
+  sub.add_option("--f", a.an_f,
+                 "drive frequency in Hz, 0 for constant rotation (default: from drive.in beside the dump)")
       ->check(kFinite);
   sub.add_option("--dt", a.an_dt, "time step in s (default: from the deck, else Table 1's 1e-5)")->check(kFinite);
   sub.add_option("--id", a.an_id, "the SO's atom id (default: the only atom, else the largest particle)")
@@ -682,8 +699,8 @@ int RunAnalyze(Context& c) {
   o.log = c.args.an_log;
   o.rule = c.args.an_rule;
   if (!(o.rule.transient_blocks >= 0) || !(o.rule.clearance_m >= 0) || o.rule.min_periods < 1) {
-    return Fail(c, Status::InvalidArgument("--transient-periods/--clearance/--min-periods",
-                                           "must be >= 0, >= 0 and >= 1"),
+    return Fail(c,
+                Status::InvalidArgument("--transient-periods/--clearance/--min-periods", "must be >= 0, >= 0 and >= 1"),
                 kExitUsage);
   }
   json all = json::array();
@@ -738,8 +755,9 @@ int RunVersion(Context& c) {
 void SetupSlurm(CLI::App& sub, Args& a) {
   sub.require_subcommand(1);
   CLI::App* submit = sub.add_subcommand(
-      "submit", "sbatch a pilot (one sandswim-worker for the allocation) or, with --array, one one-shot worker per "
-                "element; prints the Slurm job id");
+      "submit",
+      "sbatch a pilot (one sandswim-worker for the allocation) or, with --array, one one-shot worker per "
+      "element; prints the Slurm job id");
   slurm::PilotRequest& r = a.slurm.request;
   submit->add_option("--nodes", r.nodes, "nodes per allocation")->capture_default_str();
   submit->add_option("--ranks-per-run", r.ranks_per_run, "MPI ranks of each run (srun -n)")->capture_default_str();
@@ -755,8 +773,9 @@ void SetupSlurm(CLI::App& sub, Args& a) {
   submit->add_option("--script", r.script, "the batch script (default: pilot.sbatch / array.sbatch, see README)");
   submit->add_option("--worker", a.slurm.worker, "sandswim-worker on the compute nodes (default: on PATH)");
   submit->add_option("--workdir", a.slurm.workdir, "run directories on the compute nodes");
-  submit->add_option("--end-margin", a.slurm.end_margin_s,
-                     "seconds a run is expected to take before a worker has finished one")
+  submit
+      ->add_option("--end-margin", a.slurm.end_margin_s,
+                   "seconds a run is expected to take before a worker has finished one")
       ->check(CLI::NonNegativeNumber);
   AddJson(*submit, a);
 }
@@ -874,10 +893,9 @@ const char* ClientVersion() { return SANDSWIM_VERSION; }
 int RunCli(int argc, const char* const* argv, Environment& env) {
   Args args;
   CLI::App app{"sandswim: submit, follow and read DEM parameter studies run by sandswimd"};
-  app.footer(
-      "Where the daemon is: --server, else $SANDSWIM_SERVER, else " + std::string(kDefaultServer) +
-      ".\nSweeps are named by id (12), campaign runs by cr:ID (cr:7).\n"
-      "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed.\n");
+  app.footer("Where the daemon is: --server, else $SANDSWIM_SERVER, else " + std::string(kDefaultServer) +
+             ".\nSweeps are named by id (12), campaign runs by cr:ID (cr:7).\n"
+             "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed.\n");
   app.require_subcommand(1);
   app.fallthrough();
   app.add_option("--server", args.server, "daemon URL, http://HOST:PORT (else $SANDSWIM_SERVER)");

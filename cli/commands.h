@@ -41,8 +41,8 @@ struct Environment {
   bool out_is_tty = false;
   bool err_is_tty = false;
   std::function<const char*(const char*)> getenv;
-  std::function<double()> now;          // monotonic seconds
-  std::function<void(double)> sleep;    // seconds
+  std::function<double()> now;        // monotonic seconds
+  std::function<void(double)> sleep;  // seconds
   // Makes the REST client (tests: a fake).
   std::function<std::unique_ptr<DaemonClient>(const ClientOptions&)> make_client;
   // The LIGGGHTS version string for `expand` when --engine-version is not given.

@@ -58,8 +58,8 @@ void OneRunningRun(FakeClient& c) {
 }
 
 TEST(CommandsTest, TableReadsTopToBottom) {
-  EXPECT_THAT(CommandNames(), ElementsAre("submit", "status", "runs", "show", "results", "watch", "cancel",
-                                          "rerun", "expand", "report", "analyze", "version", "slurm"));
+  EXPECT_THAT(CommandNames(), ElementsAre("submit", "status", "runs", "show", "results", "watch", "cancel", "rerun",
+                                          "expand", "report", "analyze", "version", "slurm"));
 }
 
 TEST(CommandsTest, ColourOnlyOnATerminalWithoutNoColor) {
@@ -88,7 +88,9 @@ TEST(CommandsTest, ColourOnlyOnATerminalWithoutNoColor) {
 TEST(CommandsTest, WatchExitsThreeWhenRunsFailed) {
   Harness h;
   h.fill = [](FakeClient& c) {
-    c.sweeps[4] = {{"id", 4}, {"name", "s"}, {"scale", "smoke"},
+    c.sweeps[4] = {{"id", 4},
+                   {"name", "s"},
+                   {"scale", "smoke"},
                    {"counts", {{"queued", 0}, {"running", 0}, {"done", 1}, {"failed", 1}, {"cancelled", 0}}}};
   };
   EXPECT_EQ(h.Run({"watch", "4"}, false), kExitRunsFailed);
@@ -99,7 +101,8 @@ TEST(CommandsTest, ServerFromTheEnvironmentIsValidated) {
   Harness h;
   h.vars["SANDSWIM_SERVER"] = "not a url";
   EXPECT_EQ(h.Run({"status"}, false), kExitUsage);
-  EXPECT_EQ(h.err.str(), "sandswim: SANDSWIM_SERVER: expected http://HOST:PORT (e.g. http://127.0.0.1:8640), got \"not a url\"\n");
+  EXPECT_EQ(h.err.str(),
+            "sandswim: SANDSWIM_SERVER: expected http://HOST:PORT (e.g. http://127.0.0.1:8640), got \"not a url\"\n");
 }
 
 TEST(CommandsTest, ExpandWithoutEngineWarnsAndUsesUnknown) {

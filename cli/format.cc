@@ -88,8 +88,7 @@ std::string RenderTable(const Table& table) {
       if (colors != nullptr && i < colors->size() && !(*colors)[i].empty()) {
         // Colour the text only, not the padding around it.
         size_t start = padded.find(cell);
-        padded = padded.substr(0, start) + Colorize(cell, (*colors)[i], true) +
-                 padded.substr(start + cell.size());
+        padded = padded.substr(0, start) + Colorize(cell, (*colors)[i], true) + padded.substr(start + cell.size());
       }
       out += (i ? "  " : "") + padded;
     }
@@ -168,8 +167,8 @@ std::string FormatCounts(const Counts& c, const RenderOptions& options) {
     std::string text = std::to_string(n) + " " + state;
     return n > 0 ? Colorize(text, StateColor(state), options.color) : text;
   };
-  return part(c.queued, "queued") + ", " + part(c.running, "running") + ", " + part(c.done, "done") +
-         ", " + part(c.failed, "failed") + ", " + part(c.cancelled, "cancelled");
+  return part(c.queued, "queued") + ", " + part(c.running, "running") + ", " + part(c.done, "done") + ", " +
+         part(c.failed, "failed") + ", " + part(c.cancelled, "cancelled");
 }
 
 std::string FormatPoint(const json& p) {
@@ -232,9 +231,8 @@ std::string EtaText(const Snapshot& s) {
 }
 
 std::string InFlightLine(const RunInFlight& r) {
-  return "run " + std::to_string(r.id) + "  " + ProgressBar(r.fraction()) + "  " +
-         DisplayNumber(r.sim_time_s, 4) + "/" + DisplayNumber(r.duration_s, 4) + " s  z=" +
-         DisplayNumber(r.so_z, 4) + " m  " + r.point;
+  return "run " + std::to_string(r.id) + "  " + ProgressBar(r.fraction()) + "  " + DisplayNumber(r.sim_time_s, 4) +
+         "/" + DisplayNumber(r.duration_s, 4) + " s  z=" + DisplayNumber(r.so_z, 4) + " m  " + r.point;
 }
 
 }  // namespace
@@ -268,14 +266,22 @@ std::string RenderWatchFrame(const Snapshot& s, const RenderOptions& options) {
 json SnapshotToJson(const Snapshot& s) {
   json running = json::array(), failed = json::array();
   for (const auto& r : s.running) {
-    running.push_back({{"id", r.id}, {"point", r.point}, {"sim_time_s", r.sim_time_s},
-                       {"duration_s", r.duration_s}, {"so_z", r.so_z}, {"worker", r.worker}});
+    running.push_back({{"id", r.id},
+                       {"point", r.point},
+                       {"sim_time_s", r.sim_time_s},
+                       {"duration_s", r.duration_s},
+                       {"so_z", r.so_z},
+                       {"worker", r.worker}});
   }
   for (const auto& f : s.failed) failed.push_back({{"id", f.id}, {"point", f.point}, {"reason", f.reason}});
   auto eta = s.eta_s();
   return {{"title", s.title},
-          {"counts", {{"queued", s.counts.queued}, {"running", s.counts.running}, {"done", s.counts.done},
-                      {"failed", s.counts.failed}, {"cancelled", s.counts.cancelled}}},
+          {"counts",
+           {{"queued", s.counts.queued},
+            {"running", s.counts.running},
+            {"done", s.counts.done},
+            {"failed", s.counts.failed},
+            {"cancelled", s.counts.cancelled}}},
           {"running", running},
           {"failed", failed},
           {"eta_s", eta ? json(*eta) : json(nullptr)},
@@ -285,8 +291,8 @@ json SnapshotToJson(const Snapshot& s) {
 std::string RenderWatchLine(const Snapshot& s) {
   const Counts& c = s.counts;
   return s.title + ": " + std::to_string(c.done) + "/" + std::to_string(c.total()) + " done, " +
-         std::to_string(c.running) + " running, " + std::to_string(c.queued) + " queued, " +
-         std::to_string(c.failed) + " failed, " + std::to_string(c.cancelled) + " cancelled; " + EtaText(s);
+         std::to_string(c.running) + " running, " + std::to_string(c.queued) + " queued, " + std::to_string(c.failed) +
+         " failed, " + std::to_string(c.cancelled) + " cancelled; " + EtaText(s);
 }
 
 // ---- Lists and results -------------------------------------------------------------------------
@@ -294,16 +300,16 @@ std::string RenderWatchLine(const Snapshot& s) {
 std::string RenderSweepsTable(const json& sweeps, const RenderOptions&) {
   Table t;
   t.header = {"ID", "NAME", "SCALE", "RUNS", "QUEUED", "RUNNING", "DONE", "FAILED", "CANCELLED"};
-  t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight,
+  t.align = {Align::kRight, Align::kLeft,  Align::kLeft,  Align::kRight, Align::kRight,
              Align::kRight, Align::kRight, Align::kRight, Align::kRight};
   if (sweeps.is_array()) {
     for (const auto& s : sweeps) {
       Counts c = CountsFromJson(s.value("counts", json::object()));
       std::string name = Str(s, "name");
       if (Bool(s, "cancelled")) name += " (cancelled)";
-      t.rows.push_back({Str(s, "id"), name, Str(s, "scale"), std::to_string(c.total()),
-                        std::to_string(c.queued), std::to_string(c.running), std::to_string(c.done),
-                        std::to_string(c.failed), std::to_string(c.cancelled)});
+      t.rows.push_back({Str(s, "id"), name, Str(s, "scale"), std::to_string(c.total()), std::to_string(c.queued),
+                        std::to_string(c.running), std::to_string(c.done), std::to_string(c.failed),
+                        std::to_string(c.cancelled)});
     }
   }
   return RenderTable(t);
@@ -336,8 +342,7 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
   out << "run " << Str(run, "id") << "  " << Colorize(state, StateColor(state), options.color) << "\n";
   out << "  key:       " << Str(run, "key") << "\n";
   out << "  point:     " << FormatPoint(run.value("point", json::object())) << "\n";
-  out << "  runs for:  " << NumCell(run, "run_duration_s") << " s simulated, " << Str(run, "steps", "?")
-      << " steps\n";
+  out << "  runs for:  " << NumCell(run, "run_duration_s") << " s simulated, " << Str(run, "steps", "?") << " steps\n";
   out << "  bed:       " << Str(run, "bed_id", "?") << " (" << Str(run, "bed_state", "?") << ")\n";
   std::string sweeps;
   for (const auto& id : run.value("sweeps", json::array())) sweeps += (sweeps.empty() ? "" : ", ") + id.dump();
@@ -363,8 +368,8 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
     if (!note.empty()) out << "             no error: " << note << "\n";
     std::string why = Str(r, "inconclusive_reason");
     if (!why.empty()) out << "             inconclusive: " << why << "\n";
-    out << "  window:    " << NumCell(r, "window_t0", 4) << " .. " << NumCell(r, "window_t1", 4)
-        << " s, ended by " << Str(r, "window_end", "?") << "\n";
+    out << "  window:    " << NumCell(r, "window_t0", 4) << " .. " << NumCell(r, "window_t1", 4) << " s, ended by "
+        << Str(r, "window_end", "?") << "\n";
     out << "  motion:    dz = " << NumCell(r, "dz", 4) << " m (dz/T over the whole run " << NumCell(r, "dz_rate", 3)
         << " m/s), x drift = " << NumCell(r, "x_drift", 4) << " m, z oscillation at f "
         << NumCell(r, "z_osc_amplitude", 3) << " m, stop: " << Str(r, "stop_reason", "?") << "\n";
@@ -406,21 +411,20 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
     for (const auto& r : rows) with_sweeps = with_sweeps || r.contains("sweeps");
   }
   Table t;
-  t.header = {"RUN", "STATE", "MODE", "A", "f", "Omega/omega", "AXIS", "DURATION", "U_z (m/s)", "Δz/T (m/s)",
-              "Δz (m)", "FLAGS"};
-  t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight, Align::kRight,
-             Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
+  t.header = {"RUN",  "STATE",    "MODE",      "A",          "f",      "Omega/omega",
+              "AXIS", "DURATION", "U_z (m/s)", "Δz/T (m/s)", "Δz (m)", "FLAGS"};
+  t.align = {Align::kRight, Align::kLeft,  Align::kLeft,  Align::kRight, Align::kRight, Align::kRight,
+             Align::kLeft,  Align::kRight, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
   if (with_sweeps) t.header.push_back("SWEEPS");
   if (rows.is_array()) {
     for (const auto& r : rows) {
       std::string state = Str(r, "state");
       std::string axis = Str(r, "axis");
       std::string flags = ResultFlags(r);
-      std::vector<std::string> row = {Str(r, "run_id"), StateCell(state), Str(r, "mode", "-"),
-                                      NumCell(r, "A"), NumCell(r, "f"), OmegaCell(r),
-                                      axis.empty() ? "-" : axis, NumCell(r, "duration_s"),
-                                      Str(r, "Uz_text", "-"), NumCell(r, "dz_rate", 2), NumCell(r, "dz", 3),
-                                      flags.empty() ? "-" : flags};
+      std::vector<std::string> row = {Str(r, "run_id"),          StateCell(state),         Str(r, "mode", "-"),
+                                      NumCell(r, "A"),           NumCell(r, "f"),          OmegaCell(r),
+                                      axis.empty() ? "-" : axis, NumCell(r, "duration_s"), Str(r, "Uz_text", "-"),
+                                      NumCell(r, "dz_rate", 2),  NumCell(r, "dz", 3),      flags.empty() ? "-" : flags};
       if (with_sweeps) {
         std::string sweeps;
         for (const auto& s : r.value("sweeps", json::array())) {

@@ -35,7 +35,7 @@ enum class Align { kLeft, kRight };
 
 struct Table {
   std::vector<std::string> header;
-  std::vector<Align> align;                     // per column; missing columns are kLeft
+  std::vector<Align> align;  // per column; missing columns are kLeft
   std::vector<std::vector<std::string>> rows;
   std::vector<std::vector<std::string>> color;  // optional SGR code per cell ("31"), same shape
 };
@@ -90,7 +90,7 @@ std::optional<double> EstimateEtaSeconds(const std::vector<double>& done_wall_s,
 
 struct RunInFlight {
   int64_t id = 0;
-  std::string point;     // FormatPoint()
+  std::string point;      // FormatPoint()
   double sim_time_s = 0;  // simulated so far
   double duration_s = 0;  // the run's duration at its scale
   double so_z = 0;        // m

@@ -2,7 +2,6 @@
 
 #include <unistd.h>
 
-
 namespace sandswim::cli {
 
 #ifndef SANDSWIM_SLURM_SCRIPTS_INSTALLED
@@ -42,8 +41,8 @@ Result<SlurmSubmission> SubmitToSlurm(slurm::SlurmCommands& slurm, const SlurmSu
   }
   SlurmSubmission out;
   out.sbatch = *argv;
-  std::vector<std::pair<std::string, std::string>> env = {
-      {"SANDSWIM_SERVER", options.server}, {"SANDSWIM_RANKS", std::to_string(request.ranks_per_run)}};
+  std::vector<std::pair<std::string, std::string>> env = {{"SANDSWIM_SERVER", options.server},
+                                                          {"SANDSWIM_RANKS", std::to_string(request.ranks_per_run)}};
   if (!options.worker.empty()) env.emplace_back("SANDSWIM_WORKER", options.worker);
   if (!options.workdir.empty()) env.emplace_back("SANDSWIM_WORKDIR", options.workdir);
   if (options.end_margin_s >= 0) env.emplace_back("SANDSWIM_END_MARGIN", std::to_string(options.end_margin_s));

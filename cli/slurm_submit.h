@@ -34,7 +34,7 @@ struct SlurmSubmitOptions {
 
 struct SlurmSubmission {
   int64_t job_id = 0;
-  std::vector<std::string> sbatch;                        // the command run
+  std::vector<std::string> sbatch;                       // the command run
   std::vector<std::pair<std::string, std::string>> env;  // what it exported (token redacted)
 };
 

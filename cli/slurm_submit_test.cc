@@ -74,7 +74,8 @@ TEST(SubmitToSlurmTest, ArrayUsesTheArrayScript) {
 
 TEST(SubmitToSlurmTest, SlurmsRefusalIsPassedOn) {
   FakeSbatch sbatch;
-  sbatch.answer = {1, "", "sbatch: error: Batch job submission failed: Requested node configuration is not available\n"};
+  sbatch.answer = {1, "",
+                   "sbatch: error: Batch job submission failed: Requested node configuration is not available\n"};
   auto done = SubmitToSlurm(sbatch, Pilot());
   ASSERT_FALSE(done.ok());
   EXPECT_EQ(done.status().code(), StatusCode::kFailedPrecondition);
@@ -121,8 +122,8 @@ TEST(SlurmCommandTest, SubmitPrintsTheJobId) {
     f->to = fake;
     return std::unique_ptr<slurm::SlurmCommands>(std::move(f));
   };
-  const char* argv[] = {"sandswim", "--server", "http://10.0.0.1:8080", "slurm", "submit", "--nodes", "2",
-                        "--ranks-per-run", "4", "--tasks-per-node", "8", "--time", "1:00:00"};
+  const char* argv[] = {"sandswim",        "--server", "http://10.0.0.1:8080", "slurm", "submit", "--nodes", "2",
+                        "--ranks-per-run", "4",        "--tasks-per-node",     "8",     "--time", "1:00:00"};
   int code = RunCli(static_cast<int>(std::size(argv)), argv, env);
   ASSERT_EQ(code, kExitOk) << err.str();
   EXPECT_EQ(out.str(), "4711\n");

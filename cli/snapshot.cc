@@ -67,9 +67,7 @@ Status AddRuns(DaemonClient& client, int64_t sweep_id, const SnapshotOptions& op
 
 }  // namespace
 
-std::string Target::ToString() const {
-  return (kind == Kind::kCampaignRun ? "cr:" : "") + std::to_string(id);
-}
+std::string Target::ToString() const { return (kind == Kind::kCampaignRun ? "cr:" : "") + std::to_string(id); }
 
 Result<int64_t> ParseId(const std::string& text, const std::string& field) {
   int64_t v = 0;
@@ -141,8 +139,8 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const
 }
 
 Result<json> FetchResults(DaemonClient& client, const Target& target) {
-  auto reply = target.kind == Target::Kind::kSweep ? client.SweepResults(target.id)
-                                                   : client.CampaignRunResults(target.id);
+  auto reply =
+      target.kind == Target::Kind::kSweep ? client.SweepResults(target.id) : client.CampaignRunResults(target.id);
   if (!reply.ok()) return reply.status();
   auto rows = reply->find("results");
   if (rows == reply->end() || !rows->is_array()) {

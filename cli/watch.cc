@@ -4,12 +4,12 @@
 
 namespace sandswim::cli {
 
-Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options,
-                       const WatchClock& clock, std::ostream& out) {
+Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, const WatchClock& clock,
+                       std::ostream& out) {
   RenderOptions render;
   render.color = options.color;
-  int frame_lines = 0;             // tty: lines of the frame on screen
-  std::string last_line;           // piped: the last line written
+  int frame_lines = 0;    // tty: lines of the frame on screen
+  std::string last_line;  // piped: the last line written
   double last_line_at = -1e300;
   std::optional<int64_t> timed_done;  // the done count the cached wall times belong to
   std::vector<double> done_wall_s;

@@ -30,14 +30,14 @@ struct WatchOptions {
 };
 
 struct WatchClock {
-  std::function<double()> now;             // seconds, monotonic
-  std::function<void(double)> sleep;       // seconds
+  std::function<double()> now;        // seconds, monotonic
+  std::function<void(double)> sleep;  // seconds
 };
 
 // Follows `target` until it is finished; returns the last snapshot (the caller decides the exit
 // code from its counts). Errors from the daemon end the watch.
-Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options,
-                       const WatchClock& clock, std::ostream& out);
+Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, const WatchClock& clock,
+                       std::ostream& out);
 
 }  // namespace sandswim::cli
 

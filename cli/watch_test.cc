@@ -47,7 +47,8 @@ json MakeRun(int64_t id, const std::string& state, double sim_time = 0, double s
 
 void Phase(FakeClient& c, std::vector<json> runs) {
   json counts = {{"queued", 0}, {"running", 0}, {"done", 0}, {"failed", 0}, {"cancelled", 0}};
-  for (const json& r : runs) counts[r["state"].get<std::string>()] = counts[r["state"].get<std::string>()].get<int>() + 1;
+  for (const json& r : runs)
+    counts[r["state"].get<std::string>()] = counts[r["state"].get<std::string>()].get<int>() + 1;
   c.sweeps[1] = {{"id", 1}, {"name", "s"}, {"scale", "smoke"}, {"counts", counts}};
   c.runs = runs;
 }
@@ -55,9 +56,15 @@ void Phase(FakeClient& c, std::vector<json> runs) {
 std::unique_ptr<Scenario> TwoRunScenario(bool one_fails) {
   auto s = std::make_unique<Scenario>();
   s->phases = {
-      [](FakeClient& c) { Phase(c, {MakeRun(1, "running", 1.0), MakeRun(2, "queued")}); },
-      [](FakeClient& c) { Phase(c, {MakeRun(1, "running", 3.0), MakeRun(2, "queued")}); },
-      [](FakeClient& c) { Phase(c, {MakeRun(1, "done", 4, 100, 110), MakeRun(2, "running", 2.0)}); },
+      [](FakeClient& c) {
+        Phase(c, {MakeRun(1, "running", 1.0), MakeRun(2, "queued")});
+      },
+      [](FakeClient& c) {
+        Phase(c, {MakeRun(1, "running", 3.0), MakeRun(2, "queued")});
+      },
+      [](FakeClient& c) {
+        Phase(c, {MakeRun(1, "done", 4, 100, 110), MakeRun(2, "running", 2.0)});
+      },
       [one_fails](FakeClient& c) {
         Phase(c, {MakeRun(1, "done", 4, 100, 110), one_fails ? MakeRun(2, "failed") : MakeRun(2, "done", 4, 110, 120)});
       },
@@ -150,9 +157,10 @@ TEST(SnapshotTest, ParsesTargets) {
 
 TEST(SnapshotTest, CampaignRunDeduplicatesSharedRuns) {
   FakeClient client;
-  client.campaign_runs[3] = {{"id", 3}, {"campaign", "paper-58"}, {"scale", "smoke"}, {"trigger", "manual"},
-                             {"sweeps", {1, 2}},
-                             {"counts", {{"queued", 0}, {"running", 1}, {"done", 0}, {"failed", 0}, {"cancelled", 0}}}};
+  client.campaign_runs[3] = {
+      {"id", 3},          {"campaign", "paper-58"},
+      {"scale", "smoke"}, {"trigger", "manual"},
+      {"sweeps", {1, 2}}, {"counts", {{"queued", 0}, {"running", 1}, {"done", 0}, {"failed", 0}, {"cancelled", 0}}}};
   client.runs = {MakeRun(1, "running", 2.0)};
   auto s = FetchSnapshot(client, Target{Target::Kind::kCampaignRun, 3});
   ASSERT_TRUE(s.ok()) << s.status().ToString();

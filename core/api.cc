@@ -11,8 +11,10 @@ void PutOptional(nlohmann::json& j, const char* name, const std::optional<T>& v)
 template <typename T>
 void GetOptional(const nlohmann::json& j, const char* name, std::optional<T>& v) {
   auto it = j.find(name);
-  if (it != j.end() && !it->is_null()) v = it->template get<T>();
-  else v.reset();
+  if (it != j.end() && !it->is_null())
+    v = it->template get<T>();
+  else
+    v.reset();
 }
 
 }  // namespace
@@ -75,10 +77,12 @@ void from_json(const nlohmann::json& j, RunResult& r) {
 }
 
 void to_json(nlohmann::json& j, const LeaseGrant& g) {
-  j = nlohmann::json{{"token", g.token},       {"kind", g.kind},           {"id", g.id},
-                     {"key", g.key},           {"deck", g.deck},           {"attempt", g.attempt},
-                     {"ttl_s", g.ttl_s},       {"duration_s", g.duration_s}, {"steps", g.steps},
-                     {"wall_budget_s", g.wall_budget_s}, {"dt_s", g.dt_s},     {"f_hz", g.f_hz},
+  j = nlohmann::json{{"token", g.token}, {"kind", g.kind},
+                     {"id", g.id},       {"key", g.key},
+                     {"deck", g.deck},   {"attempt", g.attempt},
+                     {"ttl_s", g.ttl_s}, {"duration_s", g.duration_s},
+                     {"steps", g.steps}, {"wall_budget_s", g.wall_budget_s},
+                     {"dt_s", g.dt_s},   {"f_hz", g.f_hz},
                      {"A_m", g.A_m}};
   PutOptional(j, "bed", g.bed);
   PutOptional(j, "z_floor_m", g.z_floor_m);

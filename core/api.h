@@ -39,7 +39,7 @@ struct LeaseRequest {
   LeaseRequest() = default;
   LeaseRequest(std::string w, std::string h, int r, std::string job = "")
       : worker(std::move(w)), host(std::move(h)), ranks(r), slurm_job(std::move(job)) {}
-  std::string worker;     // a stable name, "host:pid" by default
+  std::string worker;  // a stable name, "host:pid" by default
   std::string host;
   int ranks = 1;          // MPI ranks this worker gives one job
   std::string slurm_job;  // the Slurm job the worker runs in (SLURM_JOB_ID), "" outside Slurm
@@ -56,19 +56,19 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedRef, id, sha256, url)
 struct LeaseGrant {
   std::string token;
   JobKind kind = JobKind::kRun;
-  int64_t id = 0;            // bed id or run id
-  std::string key;           // content key of the bed or run
-  std::string deck;          // LIGGGHTS input, rendered by the daemon
-  int attempt = 1;           // 1 for the first lease of this job
-  double ttl_s = 60;         // heartbeat before this runs out
-  double duration_s = 0;     // physical time the run simulates (0 for beds)
-  int64_t steps = 0;         // steps a complete run makes (0 for beds: decided by the deck)
-  double wall_budget_s = 0;  // stop the job after this much wall time (0: no budget)
-  std::optional<BedRef> bed; // runs only
+  int64_t id = 0;             // bed id or run id
+  std::string key;            // content key of the bed or run
+  std::string deck;           // LIGGGHTS input, rendered by the daemon
+  int attempt = 1;            // 1 for the first lease of this job
+  double ttl_s = 60;          // heartbeat before this runs out
+  double duration_s = 0;      // physical time the run simulates (0 for beds)
+  int64_t steps = 0;          // steps a complete run makes (0 for beds: decided by the deck)
+  double wall_budget_s = 0;   // stop the job after this much wall time (0: no budget)
+  std::optional<BedRef> bed;  // runs only
   // What the deck states, typed (core/deck.h DriveFacts), for reading the job's dump: every job
   // has its timestep; runs also their drive frequency, amplitude and floor.
-  double dt_s = 0;                  // 0: a daemon that predates these fields
-  double f_hz = 0;                  // 0 when the mode does not vibrate
+  double dt_s = 0;  // 0: a daemon that predates these fields
+  double f_hz = 0;  // 0 when the mode does not vibrate
   double A_m = 0;
   std::optional<double> z_floor_m;
 };
@@ -130,15 +130,15 @@ void from_json(const nlohmann::json& j, RunResult& r);
 // What a bed preparation produced.
 struct BedResult {
   int64_t grains = 0;
-  double so_z = 0;          // m, where the SO settled
-  double grain_top = 0;     // m, highest grain centre
+  double so_z = 0;       // m, where the SO settled
+  double grain_top = 0;  // m, highest grain centre
   bool equilibrated = false;
-  double ke_ratio = 0;      // final kinetic energy / its initial (peak) value
-  std::string sha256;       // of the uploaded restart file
+  double ke_ratio = 0;  // final kinetic energy / its initial (peak) value
+  std::string sha256;   // of the uploaded restart file
   int64_t bytes = 0;
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedResult, grains, so_z, grain_top, equilibrated,
-                                                ke_ratio, sha256, bytes)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedResult, grains, so_z, grain_top, equilibrated, ke_ratio, sha256,
+                                                bytes)
 
 // The SO's trajectory, downsampled for storage and plots (t ascending).
 struct Trajectory {
@@ -168,22 +168,22 @@ struct Execution {
   std::string engine_version;  // first line of the LIGGGHTS log
   std::string host;
   int ranks = 1;
-  std::string launcher;        // "mpirun" | "srun" | "direct"
+  std::string launcher;  // "mpirun" | "srun" | "direct"
   double wall_s = 0;
   double cpu_s = 0;
-  double lease_to_start_s = 0; // orchestration overhead before the engine ran
+  double lease_to_start_s = 0;  // orchestration overhead before the engine ran
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Execution, engine_version, host, ranks, launcher,
-                                                wall_s, cpu_s, lease_to_start_s)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Execution, engine_version, host, ranks, launcher, wall_s, cpu_s,
+                                                lease_to_start_s)
 
 struct Completion {
   bool ok = false;
-  std::optional<RunResult> result;      // ok run
-  std::optional<BedResult> bed_result;  // ok bed
-  std::optional<Trajectory> trajectory; // ok run
-  std::optional<Failure> failure;       // !ok
+  std::optional<RunResult> result;       // ok run
+  std::optional<BedResult> bed_result;   // ok bed
+  std::optional<Trajectory> trajectory;  // ok run
+  std::optional<Failure> failure;        // !ok
   Execution execution;
-  std::string log_tail;                 // last lines of the engine's log
+  std::string log_tail;  // last lines of the engine's log
   // Set by a worker that wants more work: lease its next job in the same call. The completion is
   // applied first; when it is refused (409, 4xx) nothing is leased either.
   std::optional<LeaseRequest> next;

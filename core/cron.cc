@@ -47,8 +47,8 @@ bool ParseNumber(const std::string& s, int* v) {
 }
 
 // Sets the bits one cron field names (indexes lo..hi of FieldSpec).
-Status ParseField(const std::string& text, const FieldSpec& spec, const std::string& field,
-                  const std::string& whole, std::vector<bool>* bits) {
+Status ParseField(const std::string& text, const FieldSpec& spec, const std::string& field, const std::string& whole,
+                  std::vector<bool>* bits) {
   auto bad = [&](const std::string& why) {
     return Status::InvalidArgument(field, std::string(spec.name) + ": " + why + " in \"" + whole +
                                               "\" (fields: minute hour day-of-month month day-of-week)");
@@ -75,8 +75,7 @@ Status ParseField(const std::string& text, const FieldSpec& spec, const std::str
       }
       for (int v : {lo, hi}) {
         if (v < spec.lo || v > spec.hi) {
-          return bad(std::to_string(v) + " is out of range " + std::to_string(spec.lo) + "-" +
-                     std::to_string(spec.hi));
+          return bad(std::to_string(v) + " is out of range " + std::to_string(spec.lo) + "-" + std::to_string(spec.hi));
         }
       }
       if (lo > hi) return bad("range " + base + " runs backwards");
@@ -181,8 +180,9 @@ Result<CronSchedule> ParseCron(const std::string& text, const std::string& field
     while (in >> f) fields.push_back(f);
   }
   if (fields.size() != 5 || text.size() > 200) {
-    return Status::InvalidArgument(field, "\"" + text + "\" must have five fields: minute hour day-of-month "
-                                          "month day-of-week, e.g. \"0 2 * * *\"");
+    return Status::InvalidArgument(field, "\"" + text +
+                                              "\" must have five fields: minute hour day-of-month "
+                                              "month day-of-week, e.g. \"0 2 * * *\"");
   }
   CronSchedule s;
   for (size_t i = 0; i < 5; ++i) s.text += (i ? " " : "") + fields[i];
@@ -192,11 +192,21 @@ Result<CronSchedule> ParseCron(const std::string& text, const std::string& field
     for (size_t v = 0; v < bits.size(); ++v) {
       if (!bits[v]) continue;
       switch (i) {
-        case 0: s.minutes.set(v); break;
-        case 1: s.hours.set(v); break;
-        case 2: s.days_of_month.set(v); break;
-        case 3: s.months.set(v); break;
-        case 4: s.days_of_week.set(v % 7); break;
+        case 0:
+          s.minutes.set(v);
+          break;
+        case 1:
+          s.hours.set(v);
+          break;
+        case 2:
+          s.days_of_month.set(v);
+          break;
+        case 3:
+          s.months.set(v);
+          break;
+        case 4:
+          s.days_of_week.set(v % 7);
+          break;
       }
     }
   }

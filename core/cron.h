@@ -31,7 +31,7 @@
 namespace sandswim {
 
 struct CronSchedule {
-  std::string text;             // as given (trimmed)
+  std::string text;  // as given (trimmed)
   std::bitset<60> minutes;
   std::bitset<24> hours;
   std::bitset<32> days_of_month;  // bit 0 unused

@@ -58,9 +58,9 @@ TEST(ParseCronTest, FieldsListsRangesSteps) {
 }
 
 TEST(ParseCronTest, RefusesBadExpressionsNamingTheField) {
-  for (const char* bad : {"", "0 2 * *", "0 2 * * * *", "60 2 * * *", "0 24 * * *", "0 2 0 * *",
-                          "0 2 * 13 *", "0 2 * * 8", "*/0 * * * *", "5-2 * * * *", "a * * * *",
-                          "1- * * * *", "1,,2 * * * *", "-1 * * * *", "1/2/3 * * * *", "JAN * * * *"}) {
+  for (const char* bad :
+       {"", "0 2 * *", "0 2 * * * *", "60 2 * * *", "0 24 * * *", "0 2 0 * *", "0 2 * 13 *", "0 2 * * 8", "*/0 * * * *",
+        "5-2 * * * *", "a * * * *", "1- * * * *", "1,,2 * * * *", "-1 * * * *", "1/2/3 * * * *", "JAN * * * *"}) {
     auto c = ParseCron(bad, "campaign.schedule");
     ASSERT_FALSE(c.ok()) << bad;
     EXPECT_EQ(c.status().code(), StatusCode::kInvalidArgument) << bad;
@@ -68,8 +68,7 @@ TEST(ParseCronTest, RefusesBadExpressionsNamingTheField) {
   }
   auto c = ParseCron("0 24 * * *");
   ASSERT_FALSE(c.ok());
-  EXPECT_NE(c.status().reason().find("hour: 24 is out of range 0-23"), std::string::npos)
-      << c.status().reason();
+  EXPECT_NE(c.status().reason().find("hour: 24 is out of range 0-23"), std::string::npos) << c.status().reason();
 }
 
 TEST(NextDueTest, NightlyIsStrictlyAfter) {

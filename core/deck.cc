@@ -1,7 +1,7 @@
 #include "core/deck.h"
 
-#include <charconv>
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -18,12 +18,12 @@ using Values = std::map<std::string, std::string>;
 // into a region tall enough that, packed at about 0.6 after settling, they fill the layer.
 constexpr double kInsertFraction = 0.25;
 constexpr double kPackedFraction = 0.60;
-constexpr int kSampleSteps = 1000;        // 10 ms: kinetic-energy sampling period
-constexpr double kViscousGamma = 0.2;     // N s/m: damping time m_grain / gamma ~ 50 ms
-constexpr int kViscousSteps = 20000;      // 0.2 s of damping
-constexpr int kCheckSamples = 100;        // at most 1 s of undamped checking
+constexpr int kSampleSteps = 1000;            // 10 ms: kinetic-energy sampling period
+constexpr double kViscousGamma = 0.2;         // N s/m: damping time m_grain / gamma ~ 50 ms
+constexpr int kViscousSteps = 20000;          // 0.2 s of damping
+constexpr int kCheckSamples = 100;            // at most 1 s of undamped checking
 constexpr double kKineticEnergyRatio = 1e-4;  // Sec. 2.3
-constexpr double kSkin = 0.01;            // m; fastest measured here (issue 2)
+constexpr double kSkin = 0.01;                // m; fastest measured here (issue 2)
 constexpr int kThermoEvery = 1000;
 
 std::string Fmt(double v) { return FormatNumber(v); }
@@ -169,8 +169,12 @@ std::string RenderDriveDeck(const Point& p, const Scale& s) {
   v.insert({
       {"A", Fmt(drive.A)},
       {"f", Fmt(drive.f)},
-      {"w0x", Fmt(w0[0])}, {"w0y", Fmt(w0[1])}, {"w0z", Fmt(w0[2])},
-      {"w1x", Fmt(w1[0])}, {"w1y", Fmt(w1[1])}, {"w1z", Fmt(w1[2])},
+      {"w0x", Fmt(w0[0])},
+      {"w0y", Fmt(w0[1])},
+      {"w0z", Fmt(w0[2])},
+      {"w1x", Fmt(w1[0])},
+      {"w1y", Fmt(w1[1])},
+      {"w1z", Fmt(w1[2])},
       {"omega_every", Fmt(static_cast<long long>(kOmegaUpdateSteps))},
       {"dump_every", Fmt(static_cast<long long>(kDumpEverySteps))},
       {"thermo_every", Fmt(static_cast<long long>(kThermoEvery))},

@@ -24,9 +24,9 @@ namespace sandswim {
 inline constexpr int kTemplateVersion = 1;
 
 // Files a deck reads or writes, relative to its run directory.
-inline constexpr char kBedRestartFile[] = "bed.restart";     // bed deck writes, drive deck reads
-inline constexpr char kTrajectoryDumpFile[] = "so.dump";     // drive deck: the SO, every 1 ms
-inline constexpr char kInitialDumpFile[] = "initial.dump";   // drive deck: all atoms at t = 0
+inline constexpr char kBedRestartFile[] = "bed.restart";    // bed deck writes, drive deck reads
+inline constexpr char kTrajectoryDumpFile[] = "so.dump";    // drive deck: the SO, every 1 ms
+inline constexpr char kInitialDumpFile[] = "initial.dump";  // drive deck: all atoms at t = 0
 inline constexpr char kLogFile[] = "log.liggghts";
 
 // Steps between updates of the SO's prescribed angular velocity (chunk M of the issue): the SO
@@ -52,9 +52,9 @@ long long DriveSteps(const Point& p, const Scale& scale);
 // Drive facts a drive deck states (its `timestep`, `variable f/A equal` and floor wall `zplane`
 // lines): what reading the run's dump needs besides the dump.
 struct DriveInfo {
-  double dt = 0;  // s
-  double f = 0;   // Hz; 0 when the mode does not vibrate
-  double A = 0;   // m
+  double dt = 0;                  // s
+  double f = 0;                   // Hz; 0 when the mode does not vibrate
+  double A = 0;                   // m
   std::optional<double> z_floor;  // m, the floor wall's height, when the deck has one
 };
 

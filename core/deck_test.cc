@@ -13,9 +13,7 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-std::string GoldenPath(const std::string& name) {
-  return std::string(SANDSWIM_SOURCE_DIR) + "/tests/golden/" + name;
-}
+std::string GoldenPath(const std::string& name) { return std::string(SANDSWIM_SOURCE_DIR) + "/tests/golden/" + name; }
 
 // Compares with tests/golden/<name>; SANDSWIM_UPDATE_GOLDEN=1 rewrites the file instead (then
 // review the diff: a changed deck changes every content key, so bump kTemplateVersion).

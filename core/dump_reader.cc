@@ -205,15 +205,8 @@ inline void Masks64(const char* p, uint64_t* blank, uint64_t* dot) {
 }
 
 // kLowMask[n]: the low n (0..8) bytes.
-constexpr uint64_t kLowMask[9] = {0,
-                                  0xFFULL,
-                                  0xFFFFULL,
-                                  0xFFFFFFULL,
-                                  0xFFFFFFFFULL,
-                                  0xFFFFFFFFFFULL,
-                                  0xFFFFFFFFFFFFULL,
-                                  0xFFFFFFFFFFFFFFULL,
-                                  ~0ULL};
+constexpr uint64_t kLowMask[9] = {
+    0, 0xFFULL, 0xFFFFULL, 0xFFFFFFULL, 0xFFFFFFFFULL, 0xFFFFFFFFFFULL, 0xFFFFFFFFFFFFULL, 0xFFFFFFFFFFFFFFULL, ~0ULL};
 constexpr uint64_t kPow10U64[] = {1,
                                   10,
                                   100,
@@ -367,8 +360,7 @@ Status DumpReader::Feed(std::string_view chunk, DumpFrameSink& sink) {
     if (!status_.ok()) return status_;
   }
   // Every complete line at once; the tail waits for the next chunk.
-  const char* last = chunk.empty() ? nullptr
-                                   : static_cast<const char*>(memrchr(chunk.data(), '\n', chunk.size()));
+  const char* last = chunk.empty() ? nullptr : static_cast<const char*>(memrchr(chunk.data(), '\n', chunk.size()));
   size_t complete = last == nullptr ? 0 : last - chunk.data() + 1;
   if (complete > 0) {
     status_ = ParseLines(chunk.data(), chunk.data() + complete);
@@ -479,8 +471,7 @@ const char* DumpReader::FastHeaderLine(const char* p, const char* end) {
 void DumpReader::StartAtoms() {
   ncol_ = names_->size();
   constexpr int64_t kMaxPresized = int64_t{1} << 22;  // values; more are added as lines arrive
-  const size_t want =
-      static_cast<size_t>(std::min(frame_.atoms, kMaxPresized / static_cast<int64_t>(ncol_))) * ncol_;
+  const size_t want = static_cast<size_t>(std::min(frame_.atoms, kMaxPresized / static_cast<int64_t>(ncol_))) * ncol_;
   if (want > values_cap_) Grow(want, 0);
   atoms_read_ = 0;
   state_ = State::kAtoms;
@@ -501,7 +492,8 @@ void DumpReader::FinishFrame() {
 void DumpReader::Grow(size_t need, size_t keep) {
   size_t grown = std::max(need, 2 * values_cap_);
   size_t total;
-  if (!__builtin_mul_overflow(static_cast<size_t>(frame_.atoms), ncol_, &total)) grown = std::min(grown, std::max(total, need));
+  if (!__builtin_mul_overflow(static_cast<size_t>(frame_.atoms), ncol_, &total))
+    grown = std::min(grown, std::max(total, need));
   // Not value-initialized: zero-filling would cost a pass over memory every value overwrites.
   std::unique_ptr<double[]> bigger(new double[grown]);
   if (keep > 0) std::memcpy(bigger.get(), values_.get(), keep * sizeof(double));
@@ -519,8 +511,8 @@ const char* DumpReader::FastAtomLines(const char* p, const char* end) {
   const char* line = p;  // start of the current line
   size_t col = 0;
   double* out = Row(atoms_read_);
-  const char* gap = p;   // end of the last token (or the line start)
-  const char* w = p;     // window base
+  const char* gap = p;  // end of the last token (or the line start)
+  const char* w = p;    // window base
   while (end - w >= kReadable) {
     uint64_t blank, dots;
     Masks64(w, &blank, &dots);

@@ -169,18 +169,18 @@ class DumpReader {
   void Grow(size_t need, size_t keep);
 
   State state_ = State::kItemTimestep;
-  std::string pending_;  // an incomplete line carried over between chunks
-  Header frame_;         // the frame being read
+  std::string pending_;               // an incomplete line carried over between chunks
+  Header frame_;                      // the frame being read
   std::unique_ptr<double[]> values_;  // its values, reused by every frame
   size_t values_cap_ = 0;
-  size_t ncol_ = 0;      // names_->size() once the ATOMS line is read
+  size_t ncol_ = 0;         // names_->size() once the ATOMS line is read
   std::string atoms_line_;  // text after "ITEM: ATOMS" of the last ATOMS line, with its '\n'
   DumpColumns names_;       // the names parsed from atoms_line_
   uint64_t names_serial_ = 0;
   // The text from "ITEM: BOX BOUNDS" through the ATOMS line's '\n' (5 lines) of the last frame
   // whose lines were checked one by one (so valid, and the source of names_); empty when unknown.
   std::string tail_text_;
-  std::string tail_build_;  // the same, being collected for the current frame
+  std::string tail_build_;     // the same, being collected for the current frame
   bool tail_matched_ = false;  // the current frame's tail was matched against tail_text_
   int box_lines_ = 0;
   int64_t atoms_read_ = 0;

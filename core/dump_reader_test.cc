@@ -140,8 +140,7 @@ TEST(DumpReaderTest, CorruptStructureIsReported) {
     auto frames = ReadDump(text);
     ASSERT_FALSE(frames.ok()) << c.to;
     EXPECT_EQ(frames.status().code(), StatusCode::kCorruption);
-    EXPECT_NE(frames.status().reason().find(c.needle), std::string::npos)
-        << frames.status().reason();
+    EXPECT_NE(frames.status().reason().find(c.needle), std::string::npos) << frames.status().reason();
   }
 }
 
@@ -288,12 +287,38 @@ void ExpectSameFrames(const std::vector<DumpFrame>& got, const std::vector<RefFr
 // A dump with awkward numbers and spacing: many digits, leading zeros, exponents, signs, negative
 // zero, denormals, 2^53 + 1, a 70-digit number, tabs, trailing blanks, "\r\n", blank lines.
 std::string AwkwardDump(uint32_t seed, int frames) {
-  static const char* kOdd[] = {"0", "-0", "-0.0", "+0", "000123.4500", "1e-320", "-4.9e-324", "+1.5",
-                               "9007199254740993", "9007199254740992", "123456789012345678901234", ".5", "5.",
-                               "2.2250738585072014e-308", "1.7976931348623157e308", "1E5", "1e+05", "-1.5e-05",
-                               "12345678.87654321", "1234567.1234567", "0.000000123", "1e22", "1e23", "1e-22",
+  static const char* kOdd[] = {"0",
+                               "-0",
+                               "-0.0",
+                               "+0",
+                               "000123.4500",
+                               "1e-320",
+                               "-4.9e-324",
+                               "+1.5",
+                               "9007199254740993",
+                               "9007199254740992",
+                               "123456789012345678901234",
+                               ".5",
+                               "5.",
+                               "2.2250738585072014e-308",
+                               "1.7976931348623157e308",
+                               "1E5",
+                               "1e+05",
+                               "-1.5e-05",
+                               "12345678.87654321",
+                               "1234567.1234567",
+                               "0.000000123",
+                               "1e22",
+                               "1e23",
+                               "1e-22",
                                "123456789012345678901234567890123456789012345678901234567890123456789.5",
-                               "0.1", "-80", "2621", "1e0", "7e-5", "99999999", "0.99999999"};
+                               "0.1",
+                               "-80",
+                               "2621",
+                               "1e0",
+                               "7e-5",
+                               "99999999",
+                               "0.99999999"};
   std::mt19937 rng(seed);
   auto pick = [&](int n) { return static_cast<int>(rng() % static_cast<uint32_t>(n)); };
   std::uniform_real_distribution<double> u(-1, 1);
@@ -361,9 +386,15 @@ std::vector<DumpFrame> FeedInChunks(const std::string& text, std::mt19937* rng, 
   for (size_t i = 0; i < text.size();) {
     size_t n;
     switch ((*rng)() % 3) {
-      case 0: n = 1 + (*rng)() % 8; break;
-      case 1: n = 1 + (*rng)() % 400; break;
-      default: n = 1 + (*rng)() % 100000; break;
+      case 0:
+        n = 1 + (*rng)() % 8;
+        break;
+      case 1:
+        n = 1 + (*rng)() % 400;
+        break;
+      default:
+        n = 1 + (*rng)() % 100000;
+        break;
     }
     n = std::min(n, text.size() - i);
     Status s = use_sink ? r.Feed(std::string_view(text).substr(i, n), sink)
@@ -390,7 +421,8 @@ TEST(DumpReaderPropertyTest, RandomChunkingsMatchAFromCharsReference) {
       {"so_omega_plus80.dump", Fixture("so_omega_plus80.dump")},
       {"two frames", kTwoFrames},
   };
-  for (uint32_t seed = 1; seed <= 4; ++seed) texts.push_back({"awkward " + std::to_string(seed), AwkwardDump(seed, 60)});
+  for (uint32_t seed = 1; seed <= 4; ++seed)
+    texts.push_back({"awkward " + std::to_string(seed), AwkwardDump(seed, 60)});
   std::mt19937 rng(7);
   for (const auto& [name, text] : texts) {
     ASSERT_FALSE(text.empty()) << name;
@@ -488,7 +520,8 @@ TEST(DumpReaderSinkTest, FramesAreLentInOrderFromAReusedBuffer) {
   for (int i = 0; i < 6; ++i) {
     text += "ITEM: TIMESTEP\n" + std::to_string(10 * i) + "\nITEM: NUMBER OF ATOMS\n" + std::to_string(atoms[i]) +
             "\nITEM: BOX BOUNDS pp pp ff\n-1 1\n-1 1\n-1 1\nITEM: ATOMS id z\n";
-    for (int a = 0; a < atoms[i]; ++a) text += std::to_string(a) + " " + std::to_string(i) + "." + std::to_string(a) + "\n";
+    for (int a = 0; a < atoms[i]; ++a)
+      text += std::to_string(a) + " " + std::to_string(i) + "." + std::to_string(a) + "\n";
   }
   std::vector<int64_t> steps;
   DumpFrameFn sink([&](const DumpFrameView& f) {

@@ -18,7 +18,9 @@ std::string_view Trim(std::string_view s) {
   return s;
 }
 
-bool StartsWith(std::string_view s, std::string_view p) { return s.size() >= p.size() && s.compare(0, p.size(), p) == 0; }
+bool StartsWith(std::string_view s, std::string_view p) {
+  return s.size() >= p.size() && s.compare(0, p.size(), p) == 0;
+}
 
 std::vector<std::string_view> Split(std::string_view s) {
   std::vector<std::string_view> out;
@@ -67,8 +69,7 @@ bool ParseMarker(std::string_view line, EngineLog* log) {
   if (t[1] == "bed" && t[2] == "grains") {
     BedGrainsMarker m;
     if (!Pairs(t, 2, {"grains", "so_z", "grain_top", "step"}, &v)) return false;
-    if (!ToInt(v[0], &m.grains) || !ToDouble(v[1], &m.so_z) || !ToDouble(v[2], &m.grain_top) ||
-        !ToInt(v[3], &m.step)) {
+    if (!ToInt(v[0], &m.grains) || !ToDouble(v[1], &m.so_z) || !ToDouble(v[2], &m.grain_top) || !ToInt(v[3], &m.step)) {
       return false;
     }
     log->bed_grains = m;
@@ -119,16 +120,26 @@ bool ThermoStep(std::string_view line, int64_t* step) {
 
 const char* SignalName(int sig) {
   switch (sig) {
-    case 1: return "SIGHUP";
-    case 2: return "SIGINT";
-    case 6: return "SIGABRT";
-    case 7: return "SIGBUS";
-    case 8: return "SIGFPE";
-    case 9: return "SIGKILL";
-    case 11: return "SIGSEGV";
-    case 13: return "SIGPIPE";
-    case 15: return "SIGTERM";
-    default: return "signal";
+    case 1:
+      return "SIGHUP";
+    case 2:
+      return "SIGINT";
+    case 6:
+      return "SIGABRT";
+    case 7:
+      return "SIGBUS";
+    case 8:
+      return "SIGFPE";
+    case 9:
+      return "SIGKILL";
+    case 11:
+      return "SIGSEGV";
+    case 13:
+      return "SIGPIPE";
+    case 15:
+      return "SIGTERM";
+    default:
+      return "signal";
   }
 }
 

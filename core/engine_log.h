@@ -60,11 +60,11 @@ struct EngineLog {
   std::optional<BedEquilibriumMarker> bed_equilibrium;
   std::optional<DriveStartMarker> drive_start;
   std::optional<DriveStopMarker> drive_stop;
-  std::string error_line;    // first line starting with "ERROR", trimmed; empty if none
+  std::string error_line;  // first line starting with "ERROR", trimmed; empty if none
   int64_t error_line_number = 0;
-  bool lost_atoms = false;   // a "Lost atoms" line was printed
+  bool lost_atoms = false;  // a "Lost atoms" line was printed
   int64_t last_thermo_step = -1;
-  std::string bad_marker;    // first SANDSWIM line that did not parse (the deck and reader disagree)
+  std::string bad_marker;  // first SANDSWIM line that did not parse (the deck and reader disagree)
 };
 
 EngineLog ParseEngineLog(std::string_view text);
@@ -74,12 +74,12 @@ std::string LastLines(std::string_view text, int n);
 
 // How the engine's process ended (filled in by the launcher and the worker).
 struct ExitFacts {
-  bool started = true;     // false: mpirun/srun/liggghts could not be executed
-  int exit_code = 0;       // when it exited normally
-  int signal = 0;          // non-zero: the process died on this signal
-  bool timed_out = false;  // the worker stopped it after its wall-time budget
-  bool cancelled = false;  // the worker stopped it because the sweep was cancelled
-  std::string start_error; // why it could not start
+  bool started = true;      // false: mpirun/srun/liggghts could not be executed
+  int exit_code = 0;        // when it exited normally
+  int signal = 0;           // non-zero: the process died on this signal
+  bool timed_out = false;   // the worker stopped it after its wall-time budget
+  bool cancelled = false;   // the worker stopped it because the sweep was cancelled
+  std::string start_error;  // why it could not start
 };
 
 // nullopt: the job completed. Otherwise the failure, with the line or fact that shows it.

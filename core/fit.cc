@@ -82,7 +82,7 @@ int SaturationJacobian(const gsl_vector* p, void* data, gsl_matrix* jac) {
 // ---- Sweeps ------------------------------------------------------------------------------------
 
 constexpr double kThreeSigmaQuantile = 0.99865;  // one-sided: P(|t| < q) = 99.73 %
-constexpr double kSame = 1e-12;  // relative: two parameter values this close are one value
+constexpr double kSame = 1e-12;                  // relative: two parameter values this close are one value
 
 bool Differ(double a, double b) { return std::fabs(a - b) > kSame * std::max({1.0, std::fabs(a), std::fabs(b)}); }
 
@@ -110,9 +110,7 @@ double ParamOf(const Point& p, const std::string& param) {
 
 // ---- The three laws ----------------------------------------------------------------------------
 
-double SaturationModel(const SaturationFit& fit, double x) {
-  return fit.sign * fit.c1 * (1.0 - std::exp(-fit.c2 * x));
-}
+double SaturationModel(const SaturationFit& fit, double x) { return fit.sign * fit.c1 * (1.0 - std::exp(-fit.c2 * x)); }
 
 Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign,
                                     const std::vector<double>& y_stderr) {
@@ -121,8 +119,8 @@ Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vec
     return Status::InvalidArgument("points", "x, U_z and their errors differ in length");
   }
   if (x.size() < 3) {
-    return Status::InvalidArgument("points", "eq. 8 has 2 parameters: it needs at least 3 points, got " +
-                                                 std::to_string(x.size()));
+    return Status::InvalidArgument(
+        "points", "eq. 8 has 2 parameters: it needs at least 3 points, got " + std::to_string(x.size()));
   }
   if (!AllFinite(x) || !AllFinite(y) || !AllFinite(y_stderr)) {
     return Status::InvalidArgument("points", "a value is not finite");
@@ -291,8 +289,8 @@ Result<FastestRise> FitFastestRise(const std::vector<double>& f, const std::vect
   std::map<double, std::vector<size_t>> by_f;
   for (size_t i = 0; i < f.size(); ++i) by_f[f[i]].push_back(i);
   if (by_f.size() < 3) {
-    return Status::InvalidArgument("points", "the fastest rise needs at least 3 distinct f, got " +
-                                                 std::to_string(by_f.size()));
+    return Status::InvalidArgument("points",
+                                   "the fastest rise needs at least 3 distinct f, got " + std::to_string(by_f.size()));
   }
   std::vector<double> fs, ys, es;
   for (const auto& [freq, idx] : by_f) {
@@ -371,10 +369,14 @@ Result<FastestRise> FitFastestRise(const std::vector<double>& f, const std::vect
 
 const char* FitKindName(FitKind kind) {
   switch (kind) {
-    case FitKind::kNone: return "none";
-    case FitKind::kSaturation: return "saturation";
-    case FitKind::kLinear: return "linear";
-    case FitKind::kFastestRise: return "fastest_rise";
+    case FitKind::kNone:
+      return "none";
+    case FitKind::kSaturation:
+      return "saturation";
+    case FitKind::kLinear:
+      return "linear";
+    case FitKind::kFastestRise:
+      return "fastest_rise";
   }
   return "none";
 }
@@ -479,7 +481,8 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& cho
         }
         break;
       }
-      case FitKind::kNone: break;
+      case FitKind::kNone:
+        break;
     }
     fits.branches.push_back(std::move(b));
   }
@@ -490,20 +493,39 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& cho
 
 void to_json(nlohmann::json& j, const SaturationFit& f) {
   j = {{"law", "U_z = sign * C1 * (1 - exp(-C2 |Omega|))"},
-       {"sign", f.sign}, {"C1", f.c1}, {"C1_stderr", f.c1_stderr}, {"C2", f.c2}, {"C2_stderr", f.c2_stderr},
-       {"r2", f.r2}, {"n", f.n}, {"iterations", f.iterations}, {"weighted", f.weighted},
+       {"sign", f.sign},
+       {"C1", f.c1},
+       {"C1_stderr", f.c1_stderr},
+       {"C2", f.c2},
+       {"C2_stderr", f.c2_stderr},
+       {"r2", f.r2},
+       {"n", f.n},
+       {"iterations", f.iterations},
+       {"weighted", f.weighted},
        {"units", {{"C1", "m/s"}, {"C2", "s/rad"}}}};
 }
 
 void to_json(nlohmann::json& j, const LinearFit& f) {
-  j = {{"law", "U_z = C3 * A"}, {"C3", f.c3}, {"C3_stderr", f.c3_stderr}, {"r2", f.r2}, {"n", f.n},
-       {"n_total", f.n_total}, {"A_from", f.a_from}, {"A_to", f.a_to}, {"weighted", f.weighted},
+  j = {{"law", "U_z = C3 * A"},
+       {"C3", f.c3},
+       {"C3_stderr", f.c3_stderr},
+       {"r2", f.r2},
+       {"n", f.n},
+       {"n_total", f.n_total},
+       {"A_from", f.a_from},
+       {"A_to", f.a_to},
+       {"weighted", f.weighted},
        {"units", {{"C3", "1/s"}, {"A", "m"}}}};
 }
 
 void to_json(nlohmann::json& j, const FastestRise& f) {
-  j = {{"f_c", f.f_c}, {"f_c_stderr", f.f_c_stderr}, {"interval", {f.interval_lo, f.interval_hi}},
-       {"Uz_max", f.uz_max}, {"at_edge", f.at_edge}, {"n", f.n}, {"units", {{"f_c", "Hz"}, {"Uz_max", "m/s"}}}};
+  j = {{"f_c", f.f_c},
+       {"f_c_stderr", f.f_c_stderr},
+       {"interval", {f.interval_lo, f.interval_hi}},
+       {"Uz_max", f.uz_max},
+       {"at_edge", f.at_edge},
+       {"n", f.n},
+       {"units", {{"f_c", "Hz"}, {"Uz_max", "m/s"}}}};
 }
 
 void to_json(nlohmann::json& j, const BranchFit& b) {
@@ -515,7 +537,9 @@ void to_json(nlohmann::json& j, const BranchFit& b) {
 }
 
 void to_json(nlohmann::json& j, const SweepFits& s) {
-  j = {{"kind", FitKindName(s.choice.kind)}, {"param", s.choice.param}, {"reason", s.choice.reason},
+  j = {{"kind", FitKindName(s.choice.kind)},
+       {"param", s.choice.param},
+       {"reason", s.choice.reason},
        {"branches", s.branches}};
   nlohmann::json left_out = nlohmann::json::array();
   for (const LeftOut& l : s.left_out) {

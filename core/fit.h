@@ -48,9 +48,9 @@ struct SaturationFit {
   double c1 = 0, c1_stderr = 0;  // m/s
   double c2 = 0, c2_stderr = 0;  // s/rad (1 / (rad/s))
   double r2 = 0;
-  int n = 0;                     // points fitted
+  int n = 0;  // points fitted
   int iterations = 0;
-  bool weighted = false;         // by the points' U_z errors (see above)
+  bool weighted = false;  // by the points' U_z errors (see above)
 };
 // REQUIRES: x.size() == y.size(). InvalidArgument (field "points") with fewer than 3 points or
 // non-finite values; FailedPrecondition ("fit") when the solver does not converge to finite
@@ -69,10 +69,10 @@ double SaturationModel(const SaturationFit& fit, double x);  // sign * c1 * (1 -
 struct LinearFit {
   double c3 = 0, c3_stderr = 0;  // (m/s) / m = 1/s
   double r2 = 0;
-  int n = 0;                     // points in the range
-  int n_total = 0;               // points of the branch
-  double a_from = 0, a_to = 0;   // m: the range of A the law holds over
-  bool weighted = false;         // by the points' U_z errors (see above)
+  int n = 0;                    // points in the range
+  int n_total = 0;              // points of the branch
+  double a_from = 0, a_to = 0;  // m: the range of A the law holds over
+  bool weighted = false;        // by the points' U_z errors (see above)
 };
 // InvalidArgument ("points") with fewer than 2 points, non-finite values, or all A = 0.
 // `y_stderr` may be empty (no point errors).
@@ -81,12 +81,12 @@ Result<LinearFit> FitThroughOrigin(const std::vector<double>& a, const std::vect
 
 // The frequency of the fastest rise.
 struct FastestRise {
-  double f_c = 0;              // Hz
-  double f_c_stderr = 0;       // Hz (0 when the maximum is at an edge)
+  double f_c = 0;                           // Hz
+  double f_c_stderr = 0;                    // Hz (0 when the maximum is at an edge)
   double interval_lo = 0, interval_hi = 0;  // Hz: f_c -/+ stderr, clipped to the neighbours
-  double uz_max = 0;           // m/s, the quadratic's value at f_c (or the largest U_z at an edge)
-  bool at_edge = false;        // the largest U_z is at the lowest or highest f of the sweep
-  int n = 0;                   // points in the local fit
+  double uz_max = 0;                        // m/s, the quadratic's value at f_c (or the largest U_z at an edge)
+  bool at_edge = false;                     // the largest U_z is at the lowest or highest f of the sweep
+  int n = 0;                                // points in the local fit
 };
 // InvalidArgument ("points") with fewer than 3 distinct f or non-finite values. Where the
 // largest U_z is at an edge, f_c is that f and the interval runs to the neighbour's f.
@@ -122,11 +122,11 @@ FitChoice ChooseFit(const std::vector<Point>& points);
 // One branch of a sweep's fit: "rising" (Omega < 0) or "sinking" (Omega > 0).
 struct BranchFit {
   std::string branch;
-  int points = 0;                        // finished runs of the branch
+  int points = 0;  // finished runs of the branch
   std::optional<SaturationFit> saturation;
   std::optional<LinearFit> linear;
   std::optional<FastestRise> fastest_rise;
-  std::string error;                     // why the law could not be fitted ("" when it was)
+  std::string error;  // why the law could not be fitted ("" when it was)
   // Does the branch move the paper's way (rising up, sinking down)? Unset without a fit.
   std::optional<bool> sign_matches_paper;
 };

@@ -46,7 +46,12 @@ class Hasher {
 std::string Sha256Hex(std::string_view bytes) { return Hasher().Raw(bytes).Hex(); }
 
 std::string BedKey(std::string_view bed_deck, std::string_view engine_version) {
-  return Hasher().Field("sandswim-bed").Field(std::to_string(kTemplateVersion)).Field(engine_version).Field(bed_deck).Hex();
+  return Hasher()
+      .Field("sandswim-bed")
+      .Field(std::to_string(kTemplateVersion))
+      .Field(engine_version)
+      .Field(bed_deck)
+      .Hex();
 }
 
 std::string RunKey(std::string_view drive_deck, std::string_view bed_key, std::string_view engine_version) {

@@ -32,22 +32,20 @@ std::string Num(double v) {
 Status CheckPositive(const char* field, double v, double cap, const char* unit) {
   if (!std::isfinite(v)) return Status::InvalidArgument(field, "must be a finite number");
   if (v <= 0) return Status::InvalidArgument(field, "must be > 0 " + std::string(unit) + ", got " + Num(v));
-  if (v > cap)
-    return Status::InvalidArgument(field, "must be <= " + Num(cap) + " " + unit + ", got " + Num(v));
+  if (v > cap) return Status::InvalidArgument(field, "must be <= " + Num(cap) + " " + unit + ", got " + Num(v));
   return Status::Ok();
 }
 
 Status CheckSigned(const char* field, double v, double cap, const char* unit) {
   if (!std::isfinite(v)) return Status::InvalidArgument(field, "must be a finite number");
   if (std::fabs(v) > cap)
-    return Status::InvalidArgument(field, "|" + std::string(field) + "| must be <= " + Num(cap) + " " + unit +
-                                              ", got " + Num(v));
+    return Status::InvalidArgument(
+        field, "|" + std::string(field) + "| must be <= " + Num(cap) + " " + unit + ", got " + Num(v));
   return Status::Ok();
 }
 
 Status CheckUnused(const char* field, double v, Mode mode) {
-  if (v != 0.0)
-    return Status::InvalidArgument(field, "is not used by mode \"" + std::string(ModeName(mode)) + "\"");
+  if (v != 0.0) return Status::InvalidArgument(field, "is not used by mode \"" + std::string(ModeName(mode)) + "\"");
   return Status::Ok();
 }
 
@@ -79,10 +77,14 @@ std::optional<RotationAxis> ParseAxis(std::string_view name) {
 
 std::array<double, 3> AxisVector(RotationAxis axis) {
   switch (axis) {
-    case RotationAxis::kX: return {1, 0, 0};
-    case RotationAxis::kY: return {0, 1, 0};
-    case RotationAxis::kZ: return {0, 0, 1};
-    case RotationAxis::kXZ: return {M_SQRT1_2, 0, M_SQRT1_2};
+    case RotationAxis::kX:
+      return {1, 0, 0};
+    case RotationAxis::kY:
+      return {0, 1, 0};
+    case RotationAxis::kZ:
+      return {0, 0, 1};
+    case RotationAxis::kXZ:
+      return {M_SQRT1_2, 0, M_SQRT1_2};
   }
   return {1, 0, 0};
 }
@@ -124,12 +126,14 @@ bool SameDrive(const Point& a, const Point& b) {
          (!a.has_constant_rotation() || a.axis == b.axis);
 }
 
-Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega,
-                          double omega, double duration_s) {
+Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
+                          double duration_s) {
   std::optional<Mode> m = ParseMode(mode);
-  if (!m) return Status(StatusCode::kCorruption, "stored mode \"" + std::string(mode) + "\" is not one of ours", "mode");
+  if (!m)
+    return Status(StatusCode::kCorruption, "stored mode \"" + std::string(mode) + "\" is not one of ours", "mode");
   std::optional<RotationAxis> a = ParseAxis(axis);
-  if (!a) return Status(StatusCode::kCorruption, "stored axis \"" + std::string(axis) + "\" is not one of ours", "axis");
+  if (!a)
+    return Status(StatusCode::kCorruption, "stored axis \"" + std::string(axis) + "\" is not one of ours", "axis");
   Point p;
   p.mode = *m;
   p.axis = *a;

@@ -27,9 +27,9 @@ namespace sandswim {
 enum class Mode { kVibration, kRotation, kVibrationRotation, kOscillatory };
 enum class RotationAxis { kX, kY, kZ, kXZ };
 
-std::string_view ModeName(Mode mode);                 // "vibration", ..., "oscillatory"
+std::string_view ModeName(Mode mode);  // "vibration", ..., "oscillatory"
 std::optional<Mode> ParseMode(std::string_view name);
-std::string_view AxisName(RotationAxis axis);         // "x", "y", "z", "xz"
+std::string_view AxisName(RotationAxis axis);  // "x", "y", "z", "xz"
 std::optional<RotationAxis> ParseAxis(std::string_view name);
 // Unit vector of the axis; xz is (1, 0, 1)/sqrt(2).
 std::array<double, 3> AxisVector(RotationAxis axis);
@@ -43,23 +43,21 @@ inline constexpr double kMaxDurationS = 86400.0;       // a day of physical time
 
 struct Point {
   Mode mode = Mode::kOscillatory;
-  double A = 0.0;          // m; vibration, vibration+rotation, oscillatory
-  double f = 0.0;          // Hz; vibration, vibration+rotation, oscillatory
-  double Omega = 0.0;      // rad/s; oscillatory only (eq. 6 amplitude)
-  double omega = 0.0;      // rad/s; rotation, vibration+rotation (constant)
+  double A = 0.0;                        // m; vibration, vibration+rotation, oscillatory
+  double f = 0.0;                        // Hz; vibration, vibration+rotation, oscillatory
+  double Omega = 0.0;                    // rad/s; oscillatory only (eq. 6 amplitude)
+  double omega = 0.0;                    // rad/s; rotation, vibration+rotation (constant)
   RotationAxis axis = RotationAxis::kX;  // rotation, vibration+rotation
-  double duration_s = 0.0; // physical time the user asks for
+  double duration_s = 0.0;               // physical time the user asks for
 
   bool has_vibration() const { return mode != Mode::kRotation; }
-  bool has_constant_rotation() const {
-    return mode == Mode::kRotation || mode == Mode::kVibrationRotation;
-  }
+  bool has_constant_rotation() const { return mode == Mode::kRotation || mode == Mode::kVibrationRotation; }
 };
 
 // A point as the database stores it (mode and axis by name): the one decoding the daemon's reads
 // and its lease queue share. Corruption naming the column when a name is not one of ours.
-Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega,
-                          double omega, double duration_s);
+Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
+                          double duration_s);
 
 // The paper's Sec. 3.2 drive (eq. 6): y = A sin(2 pi f t), omega_x = Omega cos(2 pi f t).
 Point OscillatoryPoint(double A, double f, double Omega, double duration_s);

@@ -3,12 +3,41 @@
 namespace sandswim {
 
 const std::vector<std::string>& ResultColumns() {
-  static const std::vector<std::string> kColumns = {
-      "run_id", "key", "state", "mode", "A", "f", "Omega", "omega", "axis", "duration_s",
-      "run_duration_s", "Uz_text", "Uz", "Uz_stderr", "Uz_ci95", "Uz_blocks", "block_s", "block_kind",
-      "window_t0", "window_t1", "window_end", "conclusive", "inconclusive_reason", "dz", "dz_rate",
-      "z_osc_amplitude", "x_drift", "broke_surface", "near_floor", "stop_reason", "sim_time_s", "grains",
-      "analysis", "analysed_from", "engine_version"};
+  static const std::vector<std::string> kColumns = {"run_id",
+                                                    "key",
+                                                    "state",
+                                                    "mode",
+                                                    "A",
+                                                    "f",
+                                                    "Omega",
+                                                    "omega",
+                                                    "axis",
+                                                    "duration_s",
+                                                    "run_duration_s",
+                                                    "Uz_text",
+                                                    "Uz",
+                                                    "Uz_stderr",
+                                                    "Uz_ci95",
+                                                    "Uz_blocks",
+                                                    "block_s",
+                                                    "block_kind",
+                                                    "window_t0",
+                                                    "window_t1",
+                                                    "window_end",
+                                                    "conclusive",
+                                                    "inconclusive_reason",
+                                                    "dz",
+                                                    "dz_rate",
+                                                    "z_osc_amplitude",
+                                                    "x_drift",
+                                                    "broke_surface",
+                                                    "near_floor",
+                                                    "stop_reason",
+                                                    "sim_time_s",
+                                                    "grains",
+                                                    "analysis",
+                                                    "analysed_from",
+                                                    "engine_version"};
   return kColumns;
 }
 

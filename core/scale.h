@@ -20,18 +20,18 @@ namespace sandswim {
 
 // Table 1 of the paper and Sec. 2.3. Nothing here is tuned.
 struct Materials {
-  double d_grain = 0.02;      // m
-  double rho_grain = 2500;    // kg/m^3
-  double d_so = 0.12;         // m
-  double rho_so = 2500;       // kg/m^3
-  double youngs = 1e7;        // Pa, grains and SO
-  double poisson = 0.25;      // grains and SO
-  double e_grain_grain = 0.9; // coefficient of restitution
+  double d_grain = 0.02;       // m
+  double rho_grain = 2500;     // kg/m^3
+  double d_so = 0.12;          // m
+  double rho_so = 2500;        // kg/m^3
+  double youngs = 1e7;         // Pa, grains and SO
+  double poisson = 0.25;       // grains and SO
+  double e_grain_grain = 0.9;  // coefficient of restitution
   double e_so_grain = 0.5;
   double mu_grain_grain = 0.45;  // coefficient of friction
   double mu_so_grain = 0.5;
-  double gravity = 9.81;      // m/s^2, along -z
-  double dt = 1e-5;           // s
+  double gravity = 9.81;  // m/s^2, along -z
+  double dt = 1e-5;       // s
 };
 inline constexpr Materials kMaterials{};
 

@@ -18,16 +18,16 @@ namespace sandswim {
 
 enum class StatusCode {
   kOk = 0,
-  kInvalidArgument,     // bad user input; `field` names it
+  kInvalidArgument,  // bad user input; `field` names it
   kNotFound,
   kAlreadyExists,
   kConflict,            // e.g. a lease that is no longer held
   kFailedPrecondition,  // e.g. a point the scale cannot take
   kResourceExhausted,   // e.g. a sweep past the run limit, a body too large
   kUnauthenticated,
-  kUnavailable,         // a peer (daemon, engine) that does not answer
+  kUnavailable,  // a peer (daemon, engine) that does not answer
   kIOError,
-  kCorruption,          // a file or row that does not parse
+  kCorruption,  // a file or row that does not parse
   kInternal,
 };
 
@@ -76,8 +76,8 @@ class Status {
 template <typename T>
 class Result {
  public:
-  Result(T value) : v_(std::move(value)) {}                     // NOLINT: implicit by design
-  Result(Status status) : v_(std::move(status)) {}              // NOLINT: implicit by design
+  Result(T value) : v_(std::move(value)) {}         // NOLINT: implicit by design
+  Result(Status status) : v_(std::move(status)) {}  // NOLINT: implicit by design
   bool ok() const { return std::holds_alternative<T>(v_); }
   const Status& status() const {
     static const Status kOk;
@@ -97,10 +97,10 @@ class Result {
 
 }  // namespace sandswim
 
-#define SANDSWIM_RETURN_IF_ERROR(expr)      \
-  do {                                      \
-    ::sandswim::Status _s = (expr);         \
-    if (!_s.ok()) return _s;                \
+#define SANDSWIM_RETURN_IF_ERROR(expr) \
+  do {                                 \
+    ::sandswim::Status _s = (expr);    \
+    if (!_s.ok()) return _s;           \
   } while (0)
 
 #endif  // SANDSWIM_CORE_STATUS_H_

@@ -111,8 +111,8 @@ Status CheckName(const std::string& field, const std::string& name) {
   if (name.empty() || name.size() > kMaxNameLength)
     return Status::InvalidArgument(field, "must be 1 to " + std::to_string(kMaxNameLength) + " characters");
   for (char c : name) {
-    bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' ||
-              c == '_' || c == '-';
+    bool ok =
+        (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
     if (!ok) return Status::InvalidArgument(field, "may hold only A-Z a-z 0-9 . _ -");
   }
   return Status::Ok();
@@ -186,8 +186,7 @@ Result<Point> ParseBase(const json& j) {
   if (!mode_name.ok()) return mode_name.status();
   auto mode = ParseMode(*mode_name);
   if (!mode)
-    return Status::InvalidArgument("mode",
-                                   "must be one of vibration, rotation, vibration+rotation, oscillatory");
+    return Status::InvalidArgument("mode", "must be one of vibration, rotation, vibration+rotation, oscillatory");
   Point p;
   p.mode = *mode;
   // Unknown fields first, then fields the mode does not use, then missing ones.
@@ -199,9 +198,8 @@ Result<Point> ParseBase(const json& j) {
     if (key == "mode") continue;
     bool used = key == "axis" ? ModeUsesAxis(p.mode) : ModeUsesParam(p.mode, key);
     if (!used)
-      return Status::InvalidArgument(key, "is not used by mode \"" + std::string(ModeName(p.mode)) +
-                                              "\" (it takes " + Join(ModeParams(p.mode)) +
-                                              (ModeUsesAxis(p.mode) ? ", axis" : "") + ")");
+      return Status::InvalidArgument(key, "is not used by mode \"" + std::string(ModeName(p.mode)) + "\" (it takes " +
+                                              Join(ModeParams(p.mode)) + (ModeUsesAxis(p.mode) ? ", axis" : "") + ")");
   }
   for (const auto& param : ModeParams(p.mode)) {
     auto v = ReadNumber(j, param);
@@ -234,8 +232,7 @@ Result<SweepAxis> ParseAxisSpec(const json& j) {
   if (!IsParam(*param)) return Status::InvalidArgument("param", "must be one of " + Join(AllParams()));
   axis.param = *param;
   int sources = static_cast<int>(j.count("values") + j.count("range") + j.count("geometric"));
-  if (sources != 1)
-    return Status::InvalidArgument("", "must give exactly one of \"values\", \"range\", \"geometric\"");
+  if (sources != 1) return Status::InvalidArgument("", "must give exactly one of \"values\", \"range\", \"geometric\"");
 
   if (j.count("values")) {
     axis.source = "values";
@@ -244,8 +241,7 @@ Result<SweepAxis> ParseAxisSpec(const json& j) {
     if (vs.empty()) return Status::InvalidArgument("values", "must hold at least one number");
     if (vs.size() > kMaxRunsPerSubmission)
       return Status::ResourceExhausted("values", "holds " + std::to_string(vs.size()) + " values; at most " +
-                                                     std::to_string(kMaxRunsPerSubmission) +
-                                                     " runs per submission");
+                                                     std::to_string(kMaxRunsPerSubmission) + " runs per submission");
     for (size_t i = 0; i < vs.size(); ++i) {
       std::string f = "values[" + std::to_string(i) + "]";
       if (!vs[i].is_number()) return WrongType(f, "a number", vs[i]);
@@ -275,10 +271,8 @@ Result<SweepAxis> ParseAxisSpec(const json& j) {
     double n = std::floor((*to - *from) / *step + 1e-9) + 1;
     if (!(n <= static_cast<double>(kMaxRunsPerSubmission)))
       return Status::ResourceExhausted("range", "gives " + Num(n) + " values; at most " +
-                                                    std::to_string(kMaxRunsPerSubmission) +
-                                                    " runs per submission");
-    for (long long i = 0; i < static_cast<long long>(n); ++i)
-      axis.values.push_back(Round12(*from + i * *step));
+                                                    std::to_string(kMaxRunsPerSubmission) + " runs per submission");
+    for (long long i = 0; i < static_cast<long long>(n); ++i) axis.values.push_back(Round12(*from + i * *step));
     return axis;
   }
 
@@ -300,31 +294,28 @@ Result<SweepAxis> ParseAxisSpec(const json& j) {
   if (g.count("signs")) {
     const json& sj = g["signs"];
     if (!sj.is_array()) return WrongType("geometric.signs", "an array of -1 and 1", sj);
-    if (sj.empty() || sj.size() > 2)
-      return Status::InvalidArgument("geometric.signs", "must hold one or two of -1, 1");
+    if (sj.empty() || sj.size() > 2) return Status::InvalidArgument("geometric.signs", "must hold one or two of -1, 1");
     signs.clear();
     for (size_t i = 0; i < sj.size(); ++i) {
       std::string f = "geometric.signs[" + std::to_string(i) + "]";
       if (!sj[i].is_number()) return WrongType(f, "-1 or 1", sj[i]);
       double s = sj[i].get<double>();
       if (s != 1.0 && s != -1.0) return Status::InvalidArgument(f, "must be -1 or 1");
-      if (std::find(signs.begin(), signs.end(), s) != signs.end())
-        return Status::InvalidArgument(f, "repeats a sign");
+      if (std::find(signs.begin(), signs.end(), s) != signs.end()) return Status::InvalidArgument(f, "repeats a sign");
       signs.push_back(s);
     }
   }
   double total = *count_d * static_cast<double>(signs.size());
   if (total > static_cast<double>(kMaxRunsPerSubmission))
-    return Status::ResourceExhausted("geometric.count", "gives " + Num(total) + " values; at most " +
-                                                            std::to_string(kMaxRunsPerSubmission) +
-                                                            " runs per submission");
+    return Status::ResourceExhausted(
+        "geometric.count",
+        "gives " + Num(total) + " values; at most " + std::to_string(kMaxRunsPerSubmission) + " runs per submission");
   const long long count = static_cast<long long>(*count_d);
   for (double s : signs) {
     for (long long i = 0; i < count; ++i) {
       double v = s * *start * std::pow(*ratio, static_cast<double>(i));
       if (!std::isfinite(v))
-        return Status::InvalidArgument("geometric",
-                                       "value " + std::to_string(i) + " of the series overflows");
+        return Status::InvalidArgument("geometric", "value " + std::to_string(i) + " of the series overflows");
       axis.values.push_back(Round12(v));
     }
   }
@@ -351,8 +342,7 @@ std::optional<size_t> PointCount(const std::vector<SweepAxis>& axes, Combine com
 
 Status TooMany(size_t cap) {
   return Status::ResourceExhausted("axes", "the sweep expands to more than " + std::to_string(cap) +
-                                               " points (at most " + std::to_string(cap) +
-                                               " runs per submission)");
+                                               " points (at most " + std::to_string(cap) + " runs per submission)");
 }
 
 // The path of an axis' i-th value, as the user wrote it.
@@ -361,8 +351,8 @@ Status AtAxisValue(const Status& s, const SweepAxis& axis, size_t axis_index, si
   if (axis.source == "values" || axis.source.empty())
     return Status(s.code(), s.reason(), path + ".values[" + std::to_string(value_index) + "]");
   return Status(s.code(),
-                "value [" + std::to_string(value_index) + "] of the series (" +
-                    Num(axis.values[value_index]) + "): " + s.reason(),
+                "value [" + std::to_string(value_index) + "] of the series (" + Num(axis.values[value_index]) +
+                    "): " + s.reason(),
                 path + "." + axis.source);
 }
 
@@ -409,8 +399,8 @@ Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::s
   if (j.count("description")) {
     if (!j["description"].is_string()) return WrongType("description", "a string", j["description"]);
     if (j["description"].get_ref<const std::string&>().size() > kMaxDescriptionLength)
-      return Status::InvalidArgument(
-          "description", "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
+      return Status::InvalidArgument("description",
+                                     "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
   }
 
   if (!j.count("base")) return Status::InvalidArgument("base", "is required");
@@ -439,24 +429,22 @@ Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::s
       if (!axis.ok()) return axis.status().WithFieldPrefix(path);
       if (!ModeUsesParam(s.base.mode, axis->param))
         return Status::InvalidArgument(path + ".param", "\"" + axis->param + "\" is not used by mode \"" +
-                                                            std::string(ModeName(s.base.mode)) +
-                                                            "\" (it takes " + Join(ModeParams(s.base.mode)) +
-                                                            ")");
+                                                            std::string(ModeName(s.base.mode)) + "\" (it takes " +
+                                                            Join(ModeParams(s.base.mode)) + ")");
       for (size_t k = 0; k < s.axes.size(); ++k)
         if (s.axes[k].param == axis->param)
           return Status::InvalidArgument(
-              path + ".param",
-              "\"" + axis->param + "\" already has an axis (axes[" + std::to_string(k) + "])");
+              path + ".param", "\"" + axis->param + "\" already has an axis (axes[" + std::to_string(k) + "])");
       s.axes.push_back(std::move(*axis));
     }
   }
   if (s.combine == Combine::kZip) {
     for (size_t i = 1; i < s.axes.size(); ++i)
       if (s.axes[i].values.size() != s.axes[0].values.size())
-        return Status::InvalidArgument(
-            "axes[" + std::to_string(i) + "]",
-            "\"zip\" needs axes of equal length: axes[0] has " + std::to_string(s.axes[0].values.size()) +
-                " values, axes[" + std::to_string(i) + "] has " + std::to_string(s.axes[i].values.size()));
+        return Status::InvalidArgument("axes[" + std::to_string(i) + "]",
+                                       "\"zip\" needs axes of equal length: axes[0] has " +
+                                           std::to_string(s.axes[0].values.size()) + " values, axes[" +
+                                           std::to_string(i) + "] has " + std::to_string(s.axes[i].values.size()));
   }
   if (!PointCount(s.axes, s.combine, kMaxRunsPerSubmission)) return TooMany(kMaxRunsPerSubmission);
 
@@ -488,8 +476,7 @@ Status CheckSchedule(const std::string& cron) {
     while (i < cron.size() && cron[i] != ' ') {
       char c = cron[i];
       if (!((c >= '0' && c <= '9') || c == '*' || c == ',' || c == '-' || c == '/'))
-        return Status::InvalidArgument("schedule",
-                                       "must be a five-field cron expression such as \"0 2 * * *\"");
+        return Status::InvalidArgument("schedule", "must be a five-field cron expression such as \"0 2 * * *\"");
       ++i;
     }
   }
@@ -503,12 +490,8 @@ std::string CampaignTemplatePath(const std::string& name) { return "templates/ca
 // Identity of a drive for merging (SameDrive): duration excluded, axis only where it matters.
 using DriveId = std::tuple<int, double, double, double, double, int>;
 DriveId DriveIdOf(const Point& p) {
-  return {static_cast<int>(p.mode),
-          p.A,
-          p.f,
-          p.Omega,
-          p.omega,
-          p.has_constant_rotation() ? static_cast<int>(p.axis) : -1};
+  return {
+      static_cast<int>(p.mode), p.A, p.f, p.Omega, p.omega, p.has_constant_rotation() ? static_cast<int>(p.axis) : -1};
 }
 
 void AddSweepName(std::vector<std::string>& names, const std::string& name) {
@@ -524,8 +507,7 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
   if (!scale) return Status::InvalidArgument("scale", "must be one of " + ScaleNames());
   for (size_t k = 0; k < s.axes.size(); ++k) {
     if (!IsParam(s.axes[k].param))
-      return Status::InvalidArgument("axes[" + std::to_string(k) + "].param",
-                                     "must be one of " + Join(AllParams()));
+      return Status::InvalidArgument("axes[" + std::to_string(k) + "].param", "must be one of " + Join(AllParams()));
     if (s.axes[k].values.empty())
       return Status::InvalidArgument("axes[" + std::to_string(k) + "]", "must hold at least one value");
     if (s.combine == Combine::kZip && s.axes[k].values.size() != s.axes[0].values.size())
@@ -557,8 +539,7 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
 
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  SANDSWIM_RETURN_IF_ERROR(
-      CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "sweeps"}));
+  SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "sweeps"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -567,8 +548,8 @@ Result<Campaign> ParseCampaign(const json& j) {
   auto description = ReadString(j, "description");
   if (!description.ok()) return description.status();
   if (description->size() > kMaxDescriptionLength)
-    return Status::InvalidArgument(
-        "description", "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
+    return Status::InvalidArgument("description",
+                                   "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
   c.description = *description;
   auto scale = ReadString(j, "scale");
   if (!scale.ok()) return scale.status();
@@ -596,8 +577,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     auto s = ParseSweepObject(sweeps[i], true, c.scale);
     if (!s.ok()) return s.status().WithFieldPrefix(path);
     for (const auto& other : c.sweeps)
-      if (other.name == s->name)
-        return Status::InvalidArgument(path + ".name", "repeats sweep \"" + s->name + "\"");
+      if (other.name == s->name) return Status::InvalidArgument(path + ".name", "repeats sweep \"" + s->name + "\"");
     total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission);
     if (total > kMaxRunsPerSubmission) return TooMany(kMaxRunsPerSubmission).WithFieldPrefix(path);
     c.sweeps.push_back(std::move(*s));
@@ -626,15 +606,15 @@ Result<Campaign> BuiltinCampaign(const std::string& name) {
   return c;
 }
 
-Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
-                        const std::string& engine_version, size_t max_runs) {
+Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale, const std::string& engine_version,
+                        size_t max_runs) {
   PlanOptions options;
   options.max_runs = max_runs;
   return PlanSweeps(sweeps, scale, engine_version, options);
 }
 
-Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
-                        const std::string& engine_version, const PlanOptions& options) {
+Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale, const std::string& engine_version,
+                        const PlanOptions& options) {
   Plan plan;
   plan.scale = std::string(scale.name);
   try {
@@ -674,8 +654,7 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
   // Render once the durations are final. Each run touches only its own slot, so the work splits
   // into contiguous slices, one per thread.
   const size_t n = plan.runs.size();
-  const size_t threads =
-      std::max<size_t>(1, std::min<size_t>(options.threads > 0 ? options.threads : 1, n / 1000 + 1));
+  const size_t threads = std::max<size_t>(1, std::min<size_t>(options.threads > 0 ? options.threads : 1, n / 1000 + 1));
   std::vector<std::string> errors(threads);
   auto render = [&](size_t t) {
     size_t begin = n * t / threads, end = n * (t + 1) / threads;

@@ -32,7 +32,7 @@ namespace sandswim {
 
 // Caps stated in the API description and in every refusal.
 inline constexpr size_t kMaxRunsPerSubmission = 100000;
-inline constexpr size_t kMaxNameLength = 100;  // names: [A-Za-z0-9._-]+
+inline constexpr size_t kMaxNameLength = 100;           // names: [A-Za-z0-9._-]+
 inline constexpr size_t kMaxDescriptionLength = 10000;  // "description" of a sweep or campaign
 
 enum class Combine { kProduct, kZip };
@@ -47,7 +47,7 @@ struct SweepAxis {
 
 struct SweepSpec {
   std::string name;
-  std::string scale;           // a FindScale() name
+  std::string scale;  // a FindScale() name
   Point base;
   std::vector<SweepAxis> axes;
   Combine combine = Combine::kProduct;
@@ -98,8 +98,7 @@ struct Plan {
 };
 
 // Expands every sweep at `scale` and merges shared points. `engine_version` enters every key.
-Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
-                        const std::string& engine_version,
+Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale, const std::string& engine_version,
                         size_t max_runs = kMaxRunsPerSubmission);
 
 // The same plan, with knobs for big submissions: a 100,000-run plan holds about 370 MB of decks
@@ -112,8 +111,8 @@ struct PlanOptions {
   bool keep_decks = true;
   int threads = 1;
 };
-Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale,
-                        const std::string& engine_version, const PlanOptions& options);
+Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale, const std::string& engine_version,
+                        const PlanOptions& options);
 
 // A submission's plan: its sweeps grouped by scale (in first-appearance order), each group
 // planned together by PlanSweeps (a point shared by sweeps of one scale runs once), the run limit

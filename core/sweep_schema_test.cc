@@ -119,8 +119,8 @@ TEST_F(SweepSchemaTest, AxisParamsFollowTheMode) {
   int rules = 0;
   for (const auto& rule : defs_.at("sweep").at("allOf")) {
     std::string mode = rule.at("if").at("properties").at("base").at("properties").at("mode").at("const");
-    std::set<std::string> allowed = Strings(
-        rule.at("then").at("properties").at("axes").at("items").at("properties").at("param").at("enum"));
+    std::set<std::string> allowed =
+        Strings(rule.at("then").at("properties").at("axes").at("items").at("properties").at("param").at("enum"));
     ++rules;
     json base = {{"mode", mode}};
     for (const auto& f : Strings(points.at(mode).at("required")))
@@ -162,8 +162,7 @@ TEST_F(SweepSchemaTest, AxisKeysAndCaps) {
   for (const json& a :
        {json{{"param", "Omega"}, {"values", {80}}},
         json{{"param", "Omega"}, {"range", {{"from", 10}, {"to", 20}, {"step", 10}}}},
-        json{{"param", "Omega"},
-             {"geometric", {{"start", 10}, {"ratio", 2}, {"count", 2}, {"signs", {-1, 1}}}}}}) {
+        json{{"param", "Omega"}, {"geometric", {{"start", 10}, {"ratio", 2}, {"count", 2}, {"signs", {-1, 1}}}}}}) {
     json s = sweep;
     s["axes"] = json::array({a});
     EXPECT_TRUE(ParseSweep(s).ok()) << a.dump();
@@ -172,8 +171,7 @@ TEST_F(SweepSchemaTest, AxisKeysAndCaps) {
   }
   // Values past the per-axis cap are refused.
   json s = sweep;
-  s["axes"] =
-      json::array({{{"param", "Omega"}, {"values", std::vector<double>(kMaxRunsPerSubmission + 1, 80)}}});
+  s["axes"] = json::array({{{"param", "Omega"}, {"values", std::vector<double>(kMaxRunsPerSubmission + 1, 80)}}});
   EXPECT_EQ(ParseSweep(s).status().code(), StatusCode::kResourceExhausted);
   s["axes"] = json::array({{{"param", "Omega"}, {"values", std::vector<double>(kMaxRunsPerSubmission, 80)}}});
   EXPECT_TRUE(ParseSweep(s).ok());
@@ -236,11 +234,10 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   EXPECT_EQ(Keys(sweep_schema),
             (std::set<std::string>{"name", "scale", "description", "base", "axes", "combine", "force"}));
   EXPECT_EQ(Strings(sweep_schema.at("required")), (std::set<std::string>{"name", "scale", "base"}));
-  json full = {
-      {"name", "s"},           {"scale", "smoke"},
-      {"description", "d"},    {"base", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 1}}},
-      {"axes", json::array()}, {"combine", "zip"},
-      {"force", false}};
+  json full = {{"name", "s"},           {"scale", "smoke"},
+               {"description", "d"},    {"base", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 1}}},
+               {"axes", json::array()}, {"combine", "zip"},
+               {"force", false}};
   EXPECT_TRUE(ParseSweep(full).ok());
   for (const auto& f : Strings(sweep_schema.at("required"))) {
     json missing = full;
@@ -255,10 +252,9 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   EXPECT_EQ(Keys(cs), in_campaign);
 
   const json& campaign = defs_.at("campaign");
-  EXPECT_EQ(Keys(campaign), (std::set<std::string>{"name", "description", "scale", "schedule",
-                                                   "drift_tolerance_mps", "sweeps"}));
-  EXPECT_EQ(Strings(campaign.at("required")),
-            (std::set<std::string>{"name", "description", "scale", "sweeps"}));
+  EXPECT_EQ(Keys(campaign),
+            (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps", "sweeps"}));
+  EXPECT_EQ(Strings(campaign.at("required")), (std::set<std::string>{"name", "description", "scale", "sweeps"}));
   json c = {{"name", "c"},
             {"description", "d"},
             {"scale", "smoke"},

@@ -154,8 +154,7 @@ TEST(SweepTest, BadInputNamesTheField) {
       {"A < 0", [](json& j) { j["base"]["A"] = -0.01; }, "base.A"},
       {"f = 0", [](json& j) { j["base"]["f"] = 0; }, "base.f"},
       {"f < 0", [](json& j) { j["base"]["f"] = -3; }, "base.f"},
-      {"|Omega| over the cap in an axis", [](json& j) { j["axes"][0]["values"][1] = 5001; },
-       "axes[0].values[1]"},
+      {"|Omega| over the cap in an axis", [](json& j) { j["axes"][0]["values"][1] = 5001; }, "axes[0].values[1]"},
       {"|Omega| over the cap in base", [](json& j) { j["base"]["Omega"] = -5001; }, "base.Omega"},
       {"duration over a day", [](json& j) { j["base"]["duration_s"] = 86401; }, "base.duration_s"},
       {"duration zero", [](json& j) { j["base"]["duration_s"] = 0; }, "base.duration_s"},
@@ -190,8 +189,7 @@ TEST(SweepTest, BadInputNamesTheField) {
        },
        "axes[0].geometric"},
       // The box: A = 0.2 m needs the paper's box, A = 0.105 m the mini one.
-      {"A too large for smoke", [](json& j) { j["base"]["A"] = 0.2; }, "base.A",
-       StatusCode::kFailedPrecondition},
+      {"A too large for smoke", [](json& j) { j["base"]["A"] = 0.2; }, "base.A", StatusCode::kFailedPrecondition},
       {"A too large for smoke in an axis",
        [](json& j) {
          j["axes"][0] = {{"param", "A"}, {"values", {0.03, 0.105}}};
@@ -303,8 +301,7 @@ TEST(SweepTest, GeometricWithSignsGivesEachSignInTurn) {
   ASSERT_TRUE(points.ok());
   std::vector<double> omegas;
   for (const Point& p : *points) omegas.push_back(p.Omega);
-  EXPECT_THAT(omegas,
-              ElementsAre(-10, -20, -40, -80, -160, -320, -640, -1280, 10, 20, 40, 80, 160, 320, 640, 1280));
+  EXPECT_THAT(omegas, ElementsAre(-10, -20, -40, -80, -160, -320, -640, -1280, 10, 20, 40, 80, 160, 320, 640, 1280));
   // Without signs: the positive series alone.
   j["axes"][0]["geometric"].erase("signs");
   j["axes"][0]["geometric"]["ratio"] = 0.5;
@@ -316,16 +313,15 @@ TEST(SweepTest, GeometricWithSignsGivesEachSignInTurn) {
 
 TEST(SweepTest, ProductVariesTheLastAxisFastestAndZipPairs) {
   json j = IssueExample();
-  j["axes"] =
-      json::parse(R"([{"param": "A", "values": [0.01, 0.02]}, {"param": "Omega", "values": [-80, 80]}])");
+  j["axes"] = json::parse(R"([{"param": "A", "values": [0.01, 0.02]}, {"param": "Omega", "values": [-80, 80]}])");
   auto s = ParseSweep(j);
   ASSERT_TRUE(s.ok());
   auto points = ExpandSweep(*s);
   ASSERT_TRUE(points.ok());
   std::vector<std::pair<double, double>> got;
   for (const Point& p : *points) got.emplace_back(p.A, p.Omega);
-  EXPECT_THAT(got, ElementsAre(std::pair(0.01, -80.0), std::pair(0.01, 80.0), std::pair(0.02, -80.0),
-                               std::pair(0.02, 80.0)));
+  EXPECT_THAT(
+      got, ElementsAre(std::pair(0.01, -80.0), std::pair(0.01, 80.0), std::pair(0.02, -80.0), std::pair(0.02, 80.0)));
   j["combine"] = "zip";
   s = ParseSweep(j);
   ASSERT_TRUE(s.ok());
@@ -446,8 +442,7 @@ TEST(CampaignTest, PlanMergesSameDriveWithinAndAcrossSweeps) {
     EXPECT_THAT(r.sweeps, ElementsAre("omega-sign", "twice"));
   }
   // The run limit counts every expanded point.
-  EXPECT_EQ(PlanSweeps({*s, twice}, *FindScale("smoke"), "e", 4).status().code(),
-            StatusCode::kResourceExhausted);
+  EXPECT_EQ(PlanSweeps({*s, twice}, *FindScale("smoke"), "e", 4).status().code(), StatusCode::kResourceExhausted);
   // A point the plan's scale cannot hold is refused naming the sweep.
   SweepSpec wide = *s;
   wide.scale = "paper";

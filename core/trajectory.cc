@@ -118,10 +118,12 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
   // Every drive deck states f (0 for constant rotation): a deck without it is not one of ours, and
   // guessing "no period" would analyse a vibrating run with the wrong blocks.
   auto f = LineValue(deck, "variable f equal ");
-  if (!f) return Status::InvalidArgument("deck", "the deck has no 'variable f equal <Hz>' line (0 for constant rotation)");
+  if (!f)
+    return Status::InvalidArgument("deck", "the deck has no 'variable f equal <Hz>' line (0 for constant rotation)");
   info.f = *f;
   info.A = LineValue(deck, "variable A equal ").value_or(0.0);
-  if (!(info.f >= 0) || !std::isfinite(info.f)) return Status::InvalidArgument("deck", "'variable f equal' is not a finite f >= 0");
+  if (!(info.f >= 0) || !std::isfinite(info.f))
+    return Status::InvalidArgument("deck", "'variable f equal' is not a finite f >= 0");
   // "fix floor all wall/gran model ... primitive type 1 zplane Z"
   size_t at = deck.find("\nfix floor ");
   if (at != std::string_view::npos) {
@@ -183,8 +185,8 @@ int64_t SoSampleSink::SoRow(const DumpFrameView& f) {
       return -1;
     }
     if (cid_ < 0) {
-      status_ = Status::Corruption(at + " has " + std::to_string(f.atoms) +
-                                   " atoms and no id column to follow the SO by");
+      status_ =
+          Status::Corruption(at + " has " + std::to_string(f.atoms) + " atoms and no id column to follow the SO by");
       return -1;
     }
     int64_t best = 0;
@@ -250,8 +252,8 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
                                          const std::optional<DriveStartMarker>& start,
                                          const std::optional<DriveStopMarker>& stop, const WindowRule& rule) {
   if (samples.size() < 3) {
-    return Status::FailedPrecondition("trajectory", "the SO dump has " + std::to_string(samples.size()) +
-                                                        " frames; at least 3 are needed");
+    return Status::FailedPrecondition(
+        "trajectory", "the SO dump has " + std::to_string(samples.size()) + " frames; at least 3 are needed");
   }
   if (!std::isfinite(f) || f < 0) return Status::InvalidArgument("f", "the drive frequency must be finite and >= 0 Hz");
   const SoSample& first = samples.front();
@@ -301,12 +303,13 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
     r.window_t1 = r.window_t0;
   }
   const std::string& what = r.block_kind;
-  const std::string whole = std::to_string(r.uz_blocks) + " whole " + what + (r.uz_blocks == 1 ? "" : "s") +
-                            " of " + Num(r.block_s) + " s";
-  const std::string ended = r.window_end == "run_end" ? "the run ended"
-                            : "the SO came within " + Num(rule.clearance_m) + " m of the " +
-                                  (r.window_end == "surface" ? std::string("bed surface") : std::string("floor")) +
-                                  " at t = " + Num(t_end) + " s";
+  const std::string whole =
+      std::to_string(r.uz_blocks) + " whole " + what + (r.uz_blocks == 1 ? "" : "s") + " of " + Num(r.block_s) + " s";
+  const std::string ended = r.window_end == "run_end"
+                                ? "the run ended"
+                                : "the SO came within " + Num(rule.clearance_m) + " m of the " +
+                                      (r.window_end == "surface" ? std::string("bed surface") : std::string("floor")) +
+                                      " at t = " + Num(t_end) + " s";
   if (!r.uz_stderr) {
     r.uz_stderr_note = "the window holds " + whole + "; an error needs at least " +
                        std::to_string(rule.min_blocks_for_error) + " (" + ended + ")";
@@ -314,8 +317,8 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   r.conclusive = r.uz_blocks >= rule.min_periods;
   if (!r.conclusive) {
     r.inconclusive_reason = "the steady window after the " + Num(rule.transient_blocks * r.block_s) +
-                            " s transient holds " + whole + ", fewer than " + std::to_string(rule.min_periods) +
-                            " (" + ended + ")";
+                            " s transient holds " + whole + ", fewer than " + std::to_string(rule.min_periods) + " (" +
+                            ended + ")";
   }
   if (f > 0 && r.uz_blocks >= 1) {
     size_t i0 = 0;

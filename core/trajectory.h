@@ -68,11 +68,11 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck);
 // How the steady window is chosen. The defaults are the service's; `sandswim analyze` can change
 // them. Each number is a stated choice, not fitted to any result:
 struct WindowRule {
-  double transient_blocks = 1;     // blocks skipped at the start (the paper's start-up transient)
-  double undriven_block_s = 0.25;  // s, the block of a mode with no period (constant rotation only)
+  double transient_blocks = 1;           // blocks skipped at the start (the paper's start-up transient)
+  double undriven_block_s = 0.25;        // s, the block of a mode with no period (constant rotation only)
   double clearance_m = kMaterials.d_so;  // m of grains kept between the SO and the surface/floor
-  int min_periods = 2;             // fewer whole blocks in the window: inconclusive
-  int min_blocks_for_error = 3;    // fewer blocks: no standard error
+  int min_periods = 2;                   // fewer whole blocks in the window: inconclusive
+  int min_blocks_for_error = 3;          // fewer blocks: no standard error
 };
 
 // Where the bed's boundaries are, as far as the caller knows (absent: not checked).
@@ -84,11 +84,11 @@ struct BedBounds {
 
 // The mean rate over whole blocks of [t0, t1], see above. No samples are dropped or smoothed.
 struct BlockRate {
-  double rate = 0;                  // m/s
-  std::optional<double> se;         // m/s, standard error
-  std::optional<double> ci95;       // m/s, half-width of the 95 % interval
+  double rate = 0;             // m/s
+  std::optional<double> se;    // m/s, standard error
+  std::optional<double> ci95;  // m/s, half-width of the 95 % interval
   int blocks = 0;
-  double t0 = 0, t1 = 0;            // s, the whole blocks used: t1 = t0 + blocks * block_s
+  double t0 = 0, t1 = 0;  // s, the whole blocks used: t1 = t0 + blocks * block_s
 };
 // REQUIRES: samples in ascending t covering [t0, t0 + blocks * block_s]; blocks >= 1.
 BlockRate MeanBlockRate(const std::vector<SoSample>& samples, double t0, double block_s, int blocks,
@@ -121,7 +121,7 @@ class SoSampleSink final : public DumpFrameSink {
 
   double dt_;
   std::optional<int64_t> id_;  // the SO's id, once known (given, or found as the largest)
-  uint64_t serial_ = 0;  // columns_serial the indices below were found for (0: none)
+  uint64_t serial_ = 0;        // columns_serial the indices below were found for (0: none)
   int cx_ = -1, cy_ = -1, cz_ = -1, cid_ = -1, crad_ = -1;
   std::vector<SoSample> samples_;
   Status status_;
@@ -133,13 +133,12 @@ Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt, 
 // REQUIRES: samples in ascending t. FailedPrecondition when there are fewer than 3 samples;
 // InvalidArgument ("f") when `f` is not finite and >= 0, or its period is shorter than the mean
 // sample interval. `f` is the drive frequency (0: no period). The window ends at the last sample
-// that keeps the clearance from the surface and the floor, else at the last sample. `start`/`stop` (from the log) fill grains, the stop
-// reason and flags, and the bed surface when `bounds` has none; without `stop` the reason is
+// that keeps the clearance from the surface and the floor, else at the last sample. `start`/`stop` (from the log) fill
+// grains, the stop reason and flags, and the bed surface when `bounds` has none; without `stop` the reason is
 // "duration" and steps are the last sample's.
 Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, double f, BedBounds bounds,
                                          const std::optional<DriveStartMarker>& start,
-                                         const std::optional<DriveStopMarker>& stop,
-                                         const WindowRule& rule = {});
+                                         const std::optional<DriveStopMarker>& stop, const WindowRule& rule = {});
 
 // What the analysis of a run reads besides its dump: the drive (from the run's deck), the bed's
 // surface and the engine's stop (from its log: the drive start and stop markers), the floor (from

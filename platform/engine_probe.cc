@@ -1,6 +1,5 @@
 #include "platform/engine_probe.h"
 
-
 namespace sandswim {
 
 std::optional<std::string> EngineVersionFromBanner(std::string_view output) {
@@ -24,7 +23,8 @@ Result<std::string> ProbeEngineVersion(const std::string& engine, double timeout
   Result<CommandOutput> run = processes.Run({engine, "-log", "none"}, {}, timeout_s);
   if (!run.ok()) return Status::Unavailable("cannot start " + engine + ": " + run.status().reason());
   if (auto version = EngineVersionFromBanner(run->out)) return *version;
-  if (run->timed_out) return Status::Unavailable(engine + " printed no banner within " + std::to_string(timeout_s) + " s");
+  if (run->timed_out)
+    return Status::Unavailable(engine + " printed no banner within " + std::to_string(timeout_s) + " s");
   return Status::Unavailable(engine + " printed no \"LIGGGHTS (Version ...)\" banner");
 }
 

@@ -9,13 +9,23 @@ namespace sandswim {
 
 StatusCode StatusCodeForHttp(int http_status) {
   switch (http_status) {
-    case 401: case 403: return StatusCode::kUnauthenticated;
-    case 404: return StatusCode::kNotFound;
-    case 409: return StatusCode::kConflict;
-    case 413: return StatusCode::kResourceExhausted;
-    case 422: return StatusCode::kFailedPrecondition;
-    case 502: case 503: case 504: return StatusCode::kUnavailable;
-    default: return http_status >= 500 ? StatusCode::kInternal : StatusCode::kInvalidArgument;
+    case 401:
+    case 403:
+      return StatusCode::kUnauthenticated;
+    case 404:
+      return StatusCode::kNotFound;
+    case 409:
+      return StatusCode::kConflict;
+    case 413:
+      return StatusCode::kResourceExhausted;
+    case 422:
+      return StatusCode::kFailedPrecondition;
+    case 502:
+    case 503:
+    case 504:
+      return StatusCode::kUnavailable;
+    default:
+      return http_status >= 500 ? StatusCode::kInternal : StatusCode::kInvalidArgument;
   }
 }
 

@@ -42,7 +42,7 @@ struct ClientOptions {
   std::string token;                    // bearer token; "" : no Authorization header
   double connect_timeout_s = 3;
   double read_timeout_s = 60;
-  double retry_for_s = 3600;            // how long the worker's retried calls keep trying
+  double retry_for_s = 3600;  // how long the worker's retried calls keep trying
 };
 
 // The table above, for an HTTP status outside 2xx.

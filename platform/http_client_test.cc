@@ -57,12 +57,12 @@ Status Ask(const StatusServer& server, int code) {
 TEST(HttpClientTest, EveryStatusMapsAsTheTableSays) {
   StatusServer server;
   const std::pair<int, StatusCode> table[] = {
-      {400, StatusCode::kInvalidArgument},   {401, StatusCode::kUnauthenticated},
-      {403, StatusCode::kUnauthenticated},   {404, StatusCode::kNotFound},
-      {409, StatusCode::kConflict},          {413, StatusCode::kResourceExhausted},
-      {418, StatusCode::kInvalidArgument},   {422, StatusCode::kFailedPrecondition},
-      {500, StatusCode::kInternal},          {501, StatusCode::kInternal},
-      {502, StatusCode::kUnavailable},       {503, StatusCode::kUnavailable},
+      {400, StatusCode::kInvalidArgument}, {401, StatusCode::kUnauthenticated},
+      {403, StatusCode::kUnauthenticated}, {404, StatusCode::kNotFound},
+      {409, StatusCode::kConflict},        {413, StatusCode::kResourceExhausted},
+      {418, StatusCode::kInvalidArgument}, {422, StatusCode::kFailedPrecondition},
+      {500, StatusCode::kInternal},        {501, StatusCode::kInternal},
+      {502, StatusCode::kUnavailable},     {503, StatusCode::kUnavailable},
       {504, StatusCode::kUnavailable},
   };
   for (const auto& [http, code] : table) {

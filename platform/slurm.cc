@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
-#include <chrono>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 
 namespace sandswim::slurm {
@@ -41,7 +41,8 @@ Result<CommandOutput> ProcessSlurmCommands::Run(const std::vector<std::string>& 
     return Status::Unavailable(run.status().reason() + ": are Slurm's client commands installed and on PATH?");
   }
   if (run->timed_out) {
-    return Status::Unavailable("'" + argv[0] + "' did not finish within " + std::to_string(static_cast<int>(timeout_s_)) +
+    return Status::Unavailable("'" + argv[0] + "' did not finish within " +
+                               std::to_string(static_cast<int>(timeout_s_)) +
                                " s and was killed: is the Slurm controller answering?");
   }
   return run;
@@ -52,8 +53,8 @@ Result<std::optional<double>> ParseSlurmDuration(std::string_view text, const st
   const std::string_view t = Trim(text);
   if (t == "UNLIMITED" || t == "INFINITE" || t == "NOT_SET" || t == "Partition_Limit") return Out();
   auto bad = [&] {
-    return Status::InvalidArgument(field, "'" + std::string(t) +
-                                              "' is not a Slurm time (minutes, M:S, H:M:S, D-H, D-H:M or D-H:M:S)");
+    return Status::InvalidArgument(
+        field, "'" + std::string(t) + "' is not a Slurm time (minutes, M:S, H:M:S, D-H, D-H:M or D-H:M:S)");
   };
   double days = 0;
   std::string_view clock = t;
@@ -113,8 +114,8 @@ Result<std::vector<std::string>> PilotSbatchArgs(const PilotRequest& r) {
         "time", "must be longer than the " + std::to_string(static_cast<int>(r.end_margin_s)) +
                     " s a worker expects its first run to take (--end-margin): it would lease nothing");
   }
-  std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name", r.job_name, "--time", r.time,
-                                   "--nodes", std::to_string(r.nodes)};
+  std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name", r.job_name,
+                                   "--time", r.time,       "--nodes",    std::to_string(r.nodes)};
   if (r.array > 0) {
     // One run per element: exactly the ranks of one run.
     argv.insert(argv.end(), {"--ntasks", std::to_string(r.ranks_per_run)});

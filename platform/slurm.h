@@ -65,17 +65,17 @@ Result<std::optional<double>> ParseSlurmDuration(std::string_view text, const st
 struct PilotRequest {
   int nodes = 1;
   int ranks_per_run = 1;
-  int tasks_per_node = 0;       // CPUs (tasks) per node the pilot asks for; 0: ranks_per_run
-  std::string time;             // Slurm duration, required
-  int array = 0;                // > 0: a job array of this many elements, one run each
-  int throttle = 0;             // array elements running at once (%k); 0: no limit
-  std::string partition;        // "" : the cluster's default
+  int tasks_per_node = 0;  // CPUs (tasks) per node the pilot asks for; 0: ranks_per_run
+  std::string time;        // Slurm duration, required
+  int array = 0;           // > 0: a job array of this many elements, one run each
+  int throttle = 0;        // array elements running at once (%k); 0: no limit
+  std::string partition;   // "" : the cluster's default
   std::string account;
   std::string job_name = "sandswim";
-  std::string script;           // deploy/slurm/pilot.sbatch or array.sbatch
-  std::string output;           // sbatch --output pattern; "" : Slurm's default
-  int signal_lead_s = 120;      // pilot: USR1 this long before the time limit (--signal=B:USR1@N)
-  double end_margin_s = 300;    // the workers' --end-margin: a time limit at or under it leases nothing
+  std::string script;         // deploy/slurm/pilot.sbatch or array.sbatch
+  std::string output;         // sbatch --output pattern; "" : Slurm's default
+  int signal_lead_s = 120;    // pilot: USR1 this long before the time limit (--signal=B:USR1@N)
+  double end_margin_s = 300;  // the workers' --end-margin: a time limit at or under it leases nothing
 };
 
 // The sbatch argv (starting with "sbatch"); InvalidArgument naming the field for bad values
@@ -97,8 +97,7 @@ bool ShouldLease(std::optional<double> seconds_left, std::optional<double> expec
 // `now` is a monotonic clock in seconds.
 class AllocationDeadline {
  public:
-  AllocationDeadline(SlurmCommands& slurm, std::string job_id, std::function<double()> now,
-                     double refresh_s = 60);
+  AllocationDeadline(SlurmCommands& slurm, std::string job_id, std::function<double()> now, double refresh_s = 60);
   // Seconds until the allocation ends; nullopt when it has no limit. When Slurm cannot be
   // asked, the last known answer counts down (and the error is returned when there is none).
   Result<std::optional<double>> SecondsLeft();

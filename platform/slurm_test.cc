@@ -32,8 +32,8 @@ class FakeSlurm : public SlurmCommands {
 double Seconds(const std::string& text) { return ParseSlurmDuration(text).value().value(); }
 
 TEST(ParseSlurmDurationTest, ReadsEverySyntaxSlurmPrintsAndTakes) {
-  EXPECT_EQ(Seconds("30"), 30 * 60);           // bare minutes
-  EXPECT_EQ(Seconds("5:07"), 5 * 60 + 7);      // M:S, how squeue %L prints under an hour
+  EXPECT_EQ(Seconds("30"), 30 * 60);       // bare minutes
+  EXPECT_EQ(Seconds("5:07"), 5 * 60 + 7);  // M:S, how squeue %L prints under an hour
   EXPECT_EQ(Seconds("1:58:03"), 3600 + 58 * 60 + 3);
   EXPECT_EQ(Seconds("2-03"), 2 * 86400 + 3 * 3600);
   EXPECT_EQ(Seconds("2-03:04"), 2 * 86400 + 3 * 3600 + 4 * 60);
@@ -76,8 +76,8 @@ TEST(PilotSbatchArgsTest, PilotAsksForNodesTasksAndTheWarningSignal) {
   r.script = "/opt/sandswim/pilot.sbatch";
   auto argv = PilotSbatchArgs(r);
   ASSERT_TRUE(argv.ok()) << argv.status().ToString();
-  EXPECT_THAT(*argv, ElementsAre("sbatch", "--parsable", "--job-name", "sandswim", "--time", "2:00:00", "--nodes",
-                                 "2", "--ntasks-per-node", "16", "--signal=B:USR1@120", "--partition", "compute",
+  EXPECT_THAT(*argv, ElementsAre("sbatch", "--parsable", "--job-name", "sandswim", "--time", "2:00:00", "--nodes", "2",
+                                 "--ntasks-per-node", "16", "--signal=B:USR1@120", "--partition", "compute",
                                  "--export=ALL", "/opt/sandswim/pilot.sbatch"));
 }
 
@@ -162,7 +162,8 @@ TEST(AllocationDeadlineTest, AsksSqueueOnceThenCountsDownUntilRefresh) {
   slurm.answers.push_back(CommandOutput{0, "10:00\n", ""});
   slurm.answers.push_back(CommandOutput{0, "1:00:00\n", ""});  // the limit was extended
   double now = 1000;
-  AllocationDeadline deadline(slurm, "42", [&] { return now; }, /*refresh_s=*/60);
+  AllocationDeadline deadline(
+      slurm, "42", [&] { return now; }, /*refresh_s=*/60);
   EXPECT_EQ(deadline.SecondsLeft().value().value(), 600);
   ASSERT_EQ(slurm.calls.size(), 1u);
   EXPECT_THAT(slurm.calls[0], ElementsAre("squeue", "-h", "-j", "42", "-o", "%L"));
@@ -179,7 +180,8 @@ TEST(AllocationDeadlineTest, KeepsCountingDownWhenSlurmStopsAnswering) {
   slurm.answers.push_back(CommandOutput{0, "5:00", ""});
   slurm.answers.push_back(CommandOutput{1, "", "slurm_load_jobs error: Socket timed out"});
   double now = 0;
-  AllocationDeadline deadline(slurm, "7", [&] { return now; }, 10);
+  AllocationDeadline deadline(
+      slurm, "7", [&] { return now; }, 10);
   EXPECT_EQ(deadline.SecondsLeft().value().value(), 300);
   now = 100;
   EXPECT_EQ(deadline.SecondsLeft().value().value(), 200);

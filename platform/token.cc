@@ -16,8 +16,7 @@ std::string Trim(std::string s) {
 
 }  // namespace
 
-Result<std::string> LoadToken(const std::string& token_file,
-                              const std::function<const char*(const char*)>& getenv) {
+Result<std::string> LoadToken(const std::string& token_file, const std::function<const char*(const char*)>& getenv) {
   if (!token_file.empty()) {
     std::ifstream in(token_file);
     if (!in) return Status::InvalidArgument("--token-file", "cannot read " + token_file);

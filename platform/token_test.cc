@@ -28,7 +28,9 @@ class TokenTest : public ::testing::Test {
   std::filesystem::path dir_;
 };
 
-const char* EnvWithToken(const char* name) { return std::strcmp(name, "SANDSWIM_TOKEN") == 0 ? " from-env\n" : nullptr; }
+const char* EnvWithToken(const char* name) {
+  return std::strcmp(name, "SANDSWIM_TOKEN") == 0 ? " from-env\n" : nullptr;
+}
 const char* EmptyEnv(const char*) { return nullptr; }
 
 TEST_F(TokenTest, FileWinsOverTheEnvironmentAndIsTrimmed) {

@@ -31,11 +31,11 @@ std::vector<Migration> Migrations() {
 
 namespace {
 
-constexpr const char* kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",
-                                   "beds",      "runs",          "run_decks",   "sweep_runs",  "leases",
-                                   "results",   "trajectories",  "run_logs",    "events",
-                                   "counters",  "schema_migrations", "sweep_counts", "campaign_schedules",
-                                   "drift_reports"};
+constexpr const char* kTables[] = {
+    "campaigns",    "campaign_runs",      "submissions",  "sweeps",   "beds",
+    "runs",         "run_decks",          "sweep_runs",   "leases",   "results",
+    "trajectories", "run_logs",           "events",       "counters", "schema_migrations",
+    "sweep_counts", "campaign_schedules", "drift_reports"};
 
 Status SqlError(sqlite3* db, const std::string& what) {
   int code = sqlite3_extended_errcode(db);
@@ -47,8 +47,7 @@ Status SqlError(sqlite3* db, const std::string& what) {
   if ((code & 0xff) == SQLITE_CORRUPT || (code & 0xff) == SQLITE_NOTADB) {
     return Status::Corruption(msg);
   }
-  if ((code & 0xff) == SQLITE_IOERR || (code & 0xff) == SQLITE_FULL ||
-      (code & 0xff) == SQLITE_CANTOPEN) {
+  if ((code & 0xff) == SQLITE_IOERR || (code & 0xff) == SQLITE_FULL || (code & 0xff) == SQLITE_CANTOPEN) {
     return Status::IOError(msg);
   }
   return Status::Internal(msg);
@@ -69,8 +68,7 @@ Status ExecRaw(sqlite3* db, const std::string& sql) {
 
 // ---- Statement ----------------------------------------------------------------------------------
 
-Statement::Statement(sqlite3_stmt* stmt, Database* db, bool owned)
-    : stmt_(stmt), database_(db), owned_(owned) {}
+Statement::Statement(sqlite3_stmt* stmt, Database* db, bool owned) : stmt_(stmt), database_(db), owned_(owned) {}
 
 Statement::Statement(Statement&& o) noexcept
     : stmt_(o.stmt_), database_(o.database_), owned_(o.owned_), bind_error_(std::move(o.bind_error_)) {
@@ -88,12 +86,12 @@ Statement::~Statement() {
   }
 }
 
-#define SANDSWIM_BIND(call)                                                 \
-  do {                                                                      \
-    if (stmt_ != nullptr && (call) != SQLITE_OK && bind_error_.ok()) {      \
-      bind_error_ = SqlError(database_->db_, "bind " + std::to_string(index));         \
-    }                                                                       \
-    return *this;                                                           \
+#define SANDSWIM_BIND(call)                                                    \
+  do {                                                                         \
+    if (stmt_ != nullptr && (call) != SQLITE_OK && bind_error_.ok()) {         \
+      bind_error_ = SqlError(database_->db_, "bind " + std::to_string(index)); \
+    }                                                                          \
+    return *this;                                                              \
   } while (0)
 
 Statement& Statement::Bind(int index, int64_t v) { SANDSWIM_BIND(sqlite3_bind_int64(stmt_, index, v)); }
@@ -157,8 +155,7 @@ std::optional<std::string> Statement::OptText(int col) const {
 Transaction::Transaction(Database* db, std::unique_lock<std::mutex> lock)
     : database_(db), lock_(std::move(lock)), open_(true) {}
 
-Transaction::Transaction(Transaction&& o) noexcept
-    : database_(o.database_), lock_(std::move(o.lock_)), open_(o.open_) {
+Transaction::Transaction(Transaction&& o) noexcept : database_(o.database_), lock_(std::move(o.lock_)), open_(o.open_) {
   o.open_ = false;
 }
 
@@ -191,8 +188,7 @@ Status Transaction::Exec(const std::string& sql) { return ExecRaw(database_->db_
 int64_t Transaction::LastInsertId() const { return sqlite3_last_insert_rowid(database_->db_); }
 int64_t Transaction::Changes() const { return sqlite3_changes(database_->db_); }
 
-Status Transaction::Event(double time, std::string_view kind, std::string_view subject,
-                          const nlohmann::json& detail) {
+Status Transaction::Event(double time, std::string_view kind, std::string_view subject, const nlohmann::json& detail) {
   Statement st = Prepare("INSERT INTO events (time, kind, subject, detail) VALUES (?, ?, ?, ?)");
   st.Bind(1, time).Bind(2, kind).Bind(3, subject).Bind(4, api::ToJsonText(detail));
   return st.Run();
@@ -231,9 +227,8 @@ Status Database::OpenFile(const std::string& path) {
     return true;
   }();
   (void)kConfigured;
-  int rc = sqlite3_open_v2(path.c_str(), &db_,
-                           SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
-                           nullptr);
+  int rc =
+      sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
     std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
     return Status::IOError("cannot open database " + path + ": " + msg);
@@ -241,7 +236,8 @@ Status Database::OpenFile(const std::string& path) {
   sqlite3_busy_timeout(db_, 5000);
   SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_,
                                    "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
-                                   "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = -65536; PRAGMA wal_autocheckpoint = 10000;"));
+                                   "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = "
+                                   "-65536; PRAGMA wal_autocheckpoint = 10000;"));
   SANDSWIM_RETURN_IF_ERROR(Migrate());
   return Status::Ok();
 }
@@ -290,9 +286,8 @@ Status Database::Migrate() {
   if (migrations.empty()) return Status::Internal("no migration compiled in (schema/NNN_*.sql)");
   int latest = migrations.back().version;
   if (current > latest) {
-    return Status::FailedPrecondition(
-        "schema", "database " + path_ + " has schema version " + std::to_string(current) +
-                      "; this sandswimd knows up to " + std::to_string(latest));
+    return Status::FailedPrecondition("schema", "database " + path_ + " has schema version " + std::to_string(current) +
+                                                    "; this sandswimd knows up to " + std::to_string(latest));
   }
   for (const Migration& m : migrations) {
     if (m.version <= current) continue;
@@ -302,8 +297,7 @@ Status Database::Migrate() {
     Status s = ExecRaw(db_, std::string(*sql));
     if (s.ok()) {
       s = ExecRaw(db_, "INSERT INTO schema_migrations (version, name, applied_at) VALUES (" +
-                           std::to_string(m.version) + ", '" + m.file +
-                           "', CAST(strftime('%s','now') AS REAL))");
+                           std::to_string(m.version) + ", '" + m.file + "', CAST(strftime('%s','now') AS REAL))");
     }
     if (s.ok()) s = ExecRaw(db_, "PRAGMA user_version = " + std::to_string(m.version));
     if (s.ok()) s = ExecRaw(db_, "COMMIT");

@@ -73,8 +73,8 @@ Result<std::vector<int64_t>> FinishedWithoutReport(Store& store) {
   return ids;
 }
 
-Result<std::optional<DriftReport>> PreviousReport(Store& store, const std::string& campaign,
-                                                  const std::string& scale, int64_t before_id) {
+Result<std::optional<DriftReport>> PreviousReport(Store& store, const std::string& campaign, const std::string& scale,
+                                                  int64_t before_id) {
   auto t = store.BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(
@@ -124,10 +124,18 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
 }  // namespace
 
 void to_json(json& j, const DriftPoint& p) {
-  j = {{"point", p.point}, {"run_id", p.run_id},          {"key", p.key},
-       {"state", p.state},              {"uz", OrNull(p.uz)},          {"uz_previous", OrNull(p.uz_previous)},
-       {"difference", OrNull(p.difference)}, {"drifted", p.drifted}, {"reused", p.reused},
-       {"inconclusive", p.inconclusive}, {"analysis", p.analysis}, {"estimator_changed", p.estimator_changed}};
+  j = {{"point", p.point},
+       {"run_id", p.run_id},
+       {"key", p.key},
+       {"state", p.state},
+       {"uz", OrNull(p.uz)},
+       {"uz_previous", OrNull(p.uz_previous)},
+       {"difference", OrNull(p.difference)},
+       {"drifted", p.drifted},
+       {"reused", p.reused},
+       {"inconclusive", p.inconclusive},
+       {"analysis", p.analysis},
+       {"estimator_changed", p.estimator_changed}};
 }
 
 void from_json(const json& j, DriftPoint& p) {
@@ -159,7 +167,9 @@ void to_json(json& j, const DriftReport& r) {
        {"points", r.points},
        {"reused", r.reused},
        {"ran", r.ran},
-       {"missing", r.missing}, {"inconclusive", r.inconclusive}, {"estimator_changed", r.estimator_changed},
+       {"missing", r.missing},
+       {"inconclusive", r.inconclusive},
+       {"estimator_changed", r.estimator_changed},
        {"compared", r.compared},
        {"drifted", r.drifted},
        {"summary", r.summary},
@@ -231,10 +241,9 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     head += "rerun cr:" + std::to_string(report.campaign_run_id) + " (" + report.trigger + ", " +
             FormatWallMinute(report.campaign_run_created_at, zone) + ")";
   }
-  std::string line = head + ": " + std::to_string(report.points) + " points, " +
-                     std::to_string(report.reused) + " reused, " + std::to_string(report.ran) + " run, " +
-                     std::to_string(report.drifted) + " drifted beyond " + Tolerance(report.tolerance_mps) +
-                     " m/s";
+  std::string line = head + ": " + std::to_string(report.points) + " points, " + std::to_string(report.reused) +
+                     " reused, " + std::to_string(report.ran) + " run, " + std::to_string(report.drifted) +
+                     " drifted beyond " + Tolerance(report.tolerance_mps) + " m/s";
   if (report.inconclusive > 0) line += ", " + std::to_string(report.inconclusive) + " inconclusive (not compared)";
   if (report.estimator_changed > 0) {
     line += ", " + std::to_string(report.estimator_changed) + " not compared (U_z analysis changed)";

@@ -33,20 +33,20 @@
 namespace sandswim {
 
 struct DriftPoint {
-  nlohmann::json point;              // PointToJson(point): the identity across reruns
+  nlohmann::json point;  // PointToJson(point): the identity across reruns
   int64_t run_id = 0;
   std::string key;
-  std::string state;                 // the run's state when the report was made
-  std::optional<double> uz;          // m/s now (done runs)
-  std::optional<double> uz_previous; // m/s in the previous report
-  std::optional<double> difference;  // uz - uz_previous, when both exist
-  bool drifted = false;              // |difference| > tolerance
-  bool reused = false;               // the result predates this campaign run
-  bool inconclusive = false;         // done, but too few whole periods: never compared
-  int analysis = 0;                  // api::RunResult::analysis of uz (0: no result); a report
-                                     // stored before the field existed reads as 1
-  bool estimator_changed = false;    // the previous report's uz came from another analysis:
-                                     // never compared
+  std::string state;                  // the run's state when the report was made
+  std::optional<double> uz;           // m/s now (done runs)
+  std::optional<double> uz_previous;  // m/s in the previous report
+  std::optional<double> difference;   // uz - uz_previous, when both exist
+  bool drifted = false;               // |difference| > tolerance
+  bool reused = false;                // the result predates this campaign run
+  bool inconclusive = false;          // done, but too few whole periods: never compared
+  int analysis = 0;                   // api::RunResult::analysis of uz (0: no result); a report
+                                      // stored before the field existed reads as 1
+  bool estimator_changed = false;     // the previous report's uz came from another analysis:
+                                      // never compared
 };
 // {"point":{...},"run_id","key","state","uz","uz_previous","difference","drifted","reused",
 //  "inconclusive","analysis","estimator_changed"}
@@ -58,16 +58,16 @@ struct DriftReport {
   int64_t campaign_run_id = 0;
   std::string campaign;
   std::string scale;
-  std::string trigger;                      // "manual" | "schedule"
-  std::optional<double> due_time;           // schedule: the due minute
+  std::string trigger;             // "manual" | "schedule"
+  std::optional<double> due_time;  // schedule: the due minute
   double campaign_run_created_at = 0;
   std::optional<int64_t> previous_campaign_run_id;
   double tolerance_mps = 0;
   double created_at = 0;
   int64_t points = 0, reused = 0, ran = 0, missing = 0, compared = 0, drifted = 0, inconclusive = 0;
-  int64_t estimator_changed = 0;            // points not compared: the U_z analysis changed
-  std::vector<DriftPoint> rows;             // the campaign run's distinct runs, in sweep order
-  std::string summary;                      // the one-line summary the daemon logs
+  int64_t estimator_changed = 0;  // points not compared: the U_z analysis changed
+  std::vector<DriftPoint> rows;   // the campaign run's distinct runs, in sweep order
+  std::string summary;            // the one-line summary the daemon logs
 };
 // {"campaign_run_id","campaign","scale","trigger","due_time","campaign_run_created_at",
 //  "previous_campaign_run_id","tolerance_mps","created_at","points","reused","ran","missing",
@@ -87,8 +87,7 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
 
 // Makes, stores and returns a report for every campaign run that has none yet and whose runs
 // are all terminal, oldest first. `now` stamps created_at.
-Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now,
-                                                            CronZone zone = CronZone::kLocal);
+Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now, CronZone zone = CronZone::kLocal);
 
 // The report of one campaign run (nullopt: none yet).
 Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign_run_id);

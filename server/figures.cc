@@ -42,10 +42,10 @@ struct Rgb {
 // Well-separated fixed colours, then golden-angle hues.
 Rgb SeriesRgb(size_t i) {
   // Tableau 10, then six more far from them (the paper's Ω sweep has 16 runs).
-  static const Rgb kBase[] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40},  {148, 103, 189},
-                              {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207},
-                              {0, 0, 139},    {128, 0, 0},    {0, 128, 128},  {255, 0, 255},  {85, 107, 47},
-                              {218, 165, 32}};
+  static const Rgb kBase[] = {{31, 119, 180},  {255, 127, 14}, {44, 160, 44},   {214, 39, 40},
+                              {148, 103, 189}, {140, 86, 75},  {227, 119, 194}, {127, 127, 127},
+                              {188, 189, 34},  {23, 190, 207}, {0, 0, 139},     {128, 0, 0},
+                              {0, 128, 128},   {255, 0, 255},  {85, 107, 47},   {218, 165, 32}};
   constexpr size_t kBaseCount = sizeof(kBase) / sizeof(kBase[0]);
   if (i < kBaseCount) return kBase[i];
   double h = std::fmod(static_cast<double>(i - kBaseCount) * 137.508 + 15.0, 360.0) / 60.0;
@@ -53,12 +53,24 @@ Rgb SeriesRgb(size_t i) {
   double c = v * s, x = c * (1 - std::fabs(std::fmod(h, 2.0) - 1)), m = v - c;
   double r = 0, g = 0, b = 0;
   switch (static_cast<int>(h)) {
-    case 0: r = c, g = x; break;
-    case 1: r = x, g = c; break;
-    case 2: g = c, b = x; break;
-    case 3: g = x, b = c; break;
-    case 4: r = x, b = c; break;
-    default: r = c, b = x; break;
+    case 0:
+      r = c, g = x;
+      break;
+    case 1:
+      r = x, g = c;
+      break;
+    case 2:
+      g = c, b = x;
+      break;
+    case 3:
+      g = x, b = c;
+      break;
+    case 4:
+      r = x, b = c;
+      break;
+    default:
+      r = c, b = x;
+      break;
   }
   return {static_cast<int>(std::lround((r + m) * 255)), static_cast<int>(std::lround((g + m) * 255)),
           static_cast<int>(std::lround((b + m) * 255))};
@@ -85,7 +97,8 @@ Status CheckPlot(const Plot& plot) {
     }
     for (const auto* v : {&s.x, &s.y, &s.y_err}) {
       for (double d : *v) {
-        if (!std::isfinite(d)) return Status::InvalidArgument("plot", "series \"" + s.label + "\" has a non-finite value");
+        if (!std::isfinite(d))
+          return Status::InvalidArgument("plot", "series \"" + s.label + "\" has a non-finite value");
       }
     }
   }
@@ -213,10 +226,10 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
   PLFLT legend_width = 0, legend_height = 0;
   plcol0(kInk);
   pllegend(&legend_width, &legend_height, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
-           PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0.0, 0.06, kBackground, kInk, 1,
-           0, 0, n_series, opts.data(), 0.5, text_scale, 2.0, 0.0, text_colors.data(),
-           texts.data(), nullptr, nullptr, nullptr, nullptr, colors.data(), styles.data(), widths.data(),
-           colors.data(), symbol_scales.data(), symbol_numbers.data(), symbols.data());
+           PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0.0, 0.06, kBackground, kInk, 1, 0, 0, n_series, opts.data(),
+           0.5, text_scale, 2.0, 0.0, text_colors.data(), texts.data(), nullptr, nullptr, nullptr, nullptr,
+           colors.data(), styles.data(), widths.data(), colors.data(), symbol_scales.data(), symbol_numbers.data(),
+           symbols.data());
   plend();
 }
 
@@ -225,15 +238,13 @@ std::string Signed(double v) { return Num(v); }
 }  // namespace
 
 const char* ImageExtension(ImageFormat format) { return format == ImageFormat::kSvg ? "svg" : "png"; }
-const char* ImageContentType(ImageFormat format) {
-  return format == ImageFormat::kSvg ? "image/svg+xml" : "image/png";
-}
+const char* ImageContentType(ImageFormat format) { return format == ImageFormat::kSvg ? "image/svg+xml" : "image/png"; }
 
 void to_json(json& j, const Plot& p) {
   json series = json::array();
   for (const Series& s : p.series) {
-    series.push_back({{"label", s.label}, {"x", s.x}, {"y", s.y}, {"y_err", s.y_err}, {"markers", s.markers},
-                      {"dashed", s.dashed}});
+    series.push_back(
+        {{"label", s.label}, {"x", s.x}, {"y", s.y}, {"y_err", s.y_err}, {"markers", s.markers}, {"dashed", s.dashed}});
   }
   j = {{"title", p.title}, {"x_label", p.x_label}, {"y_label", p.y_label}, {"series", series}};
 }
@@ -295,7 +306,11 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
     };
     Series blocks{result->block_kind == "block" ? "Δz at the window's block boundaries"
                                                 : "Δz once per period (the window's blocks)",
-                  {}, {}, {}, true, false};
+                  {},
+                  {},
+                  {},
+                  true,
+                  false};
     for (int k = 0; k <= result->uz_blocks; ++k) {
       double t = result->window_t0 + k * result->block_s;
       blocks.x.push_back(t);
@@ -303,8 +318,12 @@ Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory
     }
     const double start = blocks.y.front();
     // U_z goes in the legend, not the title: a title holding the point and U_z overflows the plot.
-    Series line{"slope U#dz#u: " + DescribeUz(*result), {result->window_t0, result->window_t1},
-                {start, start + *result->uz * (result->window_t1 - result->window_t0)}, {}, false, true};
+    Series line{"slope U#dz#u: " + DescribeUz(*result),
+                {result->window_t0, result->window_t1},
+                {start, start + *result->uz * (result->window_t1 - result->window_t0)},
+                {},
+                false,
+                true};
     plot.series.push_back(std::move(blocks));
     plot.series.push_back(std::move(line));
   }
@@ -320,8 +339,7 @@ std::string PlplotLiteral(const std::string& text) {
   return out;
 }
 
-Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs,
-                           const std::string& param) {
+Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param) {
   Plot plot;
   plot.title = title;
   plot.x_label = "t (s)";
@@ -343,7 +361,12 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
   plot.x_label = param == "A" ? "A (m)" : param == "f" ? "f (Hz)" : "Ω (rad/s)";
   auto x_of = [&](const Point& p) { return param == "A" ? p.A : param == "f" ? p.f : p.Omega; };
   for (const char* branch : {"rising", "sinking"}) {
-    Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")", {}, {}, {}, true, false};
+    Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")",
+             {},
+             {},
+             {},
+             true,
+             false};
     for (const SweepSample& sample : samples) {
       bool rising = sample.point.Omega < 0;
       if (!sample.conclusive || sample.uz_stderr <= 0 || sample.point.Omega == 0 ||
@@ -388,8 +411,12 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
       const SaturationFit& fit = *b.saturation;
       double max_abs = 0;
       for (const SweepSample& s : samples) max_abs = std::max(max_abs, std::fabs(s.point.Omega));
-      Series curve{b.branch + " fit: C1 = " + Num(fit.c1, 3) + " m/s, C2 = " + Num(fit.c2, 3) + " s/rad", {}, {}, {},
-                   false, false};
+      Series curve{b.branch + " fit: C1 = " + Num(fit.c1, 3) + " m/s, C2 = " + Num(fit.c2, 3) + " s/rad",
+                   {},
+                   {},
+                   {},
+                   false,
+                   false};
       const double side = fit.sign > 0 ? -1.0 : 1.0;  // rising is drawn at Ω < 0
       for (int k = 0; k <= 100; ++k) {
         double w = max_abs * k / 100.0;
@@ -401,7 +428,11 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
     if (b.linear) {
       const LinearFit& fit = *b.linear;
       Series line{b.branch + " fit: C3 = " + Num(fit.c3, 3) + " 1/s (A ≤ " + Num(fit.a_to, 3) + " m)",
-                  {0.0, fit.a_to}, {0.0, fit.c3 * fit.a_to}, {}, false, false};
+                  {0.0, fit.a_to},
+                  {0.0, fit.c3 * fit.a_to},
+                  {},
+                  false,
+                  false};
       plot.series.push_back(std::move(line));
     }
     if (b.fastest_rise) {
@@ -413,7 +444,11 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
         hi = std::max(hi, s.uz + s.uz_ci95);
       }
       Series mark{"f#dc#u = " + Num(fr.f_c, 3) + " Hz" + (fr.at_edge ? " (at the sweep's edge)" : ""),
-                  {fr.f_c, fr.f_c}, {lo, hi}, {}, false, true};
+                  {fr.f_c, fr.f_c},
+                  {lo, hi},
+                  {},
+                  false,
+                  true};
       plot.series.push_back(std::move(mark));
     }
   }

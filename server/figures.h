@@ -84,8 +84,7 @@ struct RunTrajectory {
   api::Trajectory trajectory;
 };
 // Every run's Δz(t), one series each, labelled by PointLabel(point, param).
-Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs,
-                           const std::string& param);
+Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param);
 
 // U_z against the swept parameter (signed Ω for an Ω sweep, else A or f), one series of points
 // with error bars per branch, plus the fitted law of each branch that has one (the curve of eq.

@@ -131,8 +131,8 @@ Result<std::vector<std::string>> SlurmJobsWithOpenLeases(Transaction& t) {
 // ---- Jobs ---------------------------------------------------------------------------------------
 
 Result<JobRow> LoadJob(Transaction& t, api::JobKind kind, int64_t id, int default_max) {
-  Statement st = t.Prepare(std::string("SELECT state, lease_token, attempts, max_attempts FROM ") + Table(kind) +
-                           " WHERE id = ?");
+  Statement st =
+      t.Prepare(std::string("SELECT state, lease_token, attempts, max_attempts FROM ") + Table(kind) + " WHERE id = ?");
   st.Bind(1, id);
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
@@ -419,8 +419,7 @@ Result<std::pair<int64_t, int64_t>> CancelOrphanedRuns(Transaction& t, int64_t s
     SANDSWIM_RETURN_IF_ERROR(st.Run());
     out.first = t.Changes();
   }
-  Statement st = t.Prepare("UPDATE runs SET cancel_requested = 1 WHERE ?1 = ?1 AND state = 'running' AND " +
-                           orphaned);
+  Statement st = t.Prepare("UPDATE runs SET cancel_requested = 1 WHERE ?1 = ?1 AND state = 'running' AND " + orphaned);
   st.Bind(1, now).Bind(2, sweep_id);
   SANDSWIM_RETURN_IF_ERROR(st.Run());
   out.second = t.Changes();

@@ -44,7 +44,8 @@ using jobs::Subject;
 Status CheckLeaseRequest(const api::LeaseRequest& request, const std::string& field) {
   const std::string& job = request.slurm_job;
   if (job.size() > 20 || job.find_first_not_of("0123456789") != std::string::npos) {
-    return Status::InvalidArgument(field, "must be a Slurm job id (up to 20 digits), got \"" + job.substr(0, 40) + "\"");
+    return Status::InvalidArgument(field,
+                                   "must be a Slurm job id (up to 20 digits), got \"" + job.substr(0, 40) + "\"");
   }
   return Status::Ok();
 }
@@ -54,7 +55,8 @@ Status RequireCurrent(const JobRow& job, const std::string& token, api::JobKind 
   if (job.state != "running" || job.lease_token != token) {
     return Status::Conflict("this lease on " + std::string(Noun(kind)) +
                             " is no longer held (it expired and the job was re-queued or "
-                            "leased again); the job is " + job.state);
+                            "leased again); the job is " +
+                            job.state);
   }
   return Status::Ok();
 }
@@ -64,27 +66,23 @@ Status FailBedRuns(Transaction& t, int64_t bed_id, const std::string& reason, do
   Result<int64_t> n = jobs::FailRunsOfBed(t, bed_id, reason, now);
   if (!n.ok()) return n.status();
   if (*n > 0) {
-    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "runs.failed", "bed/" + std::to_string(bed_id),
-                                     {{"runs", *n}, {"reason", reason}}));
+    SANDSWIM_RETURN_IF_ERROR(
+        t.Event(now, "runs.failed", "bed/" + std::to_string(bed_id), {{"runs", *n}, {"reason", reason}}));
   }
   return Status::Ok();
 }
 
 // Moves a running job to queued (retry) or failed, recording why. Returns the new state.
 Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
-                                const std::string& kind_text, const std::string& message,
-                                bool retryable, double now) {
+                                const std::string& kind_text, const std::string& message, bool retryable, double now) {
   bool retry = retryable && job.attempts < job.max_attempts;
   std::string state = retry ? "queued" : "failed";
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRetriedOrFailed(t, kind, id, state, kind_text, message, now));
-  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"),
-                                   Subject(kind, id),
-                                   {{"kind", kind_text},
-                                    {"message", message},
-                                    {"attempts", job.attempts}}));
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"), Subject(kind, id),
+                                   {{"kind", kind_text}, {"message", message}, {"attempts", job.attempts}}));
   if (!retry && kind == api::JobKind::kBed) {
-    SANDSWIM_RETURN_IF_ERROR(FailBedRuns(
-        t, id, "bed " + std::to_string(id) + " failed: " + kind_text + ": " + message, now));
+    SANDSWIM_RETURN_IF_ERROR(
+        FailBedRuns(t, id, "bed " + std::to_string(id) + " failed: " + kind_text + ": " + message, now));
   }
   return state;
 }
@@ -98,9 +96,9 @@ Status TakeBackUnreceivedGrant(Transaction& t, const std::string& token, double 
   Result<bool> taken = jobs::TakeBackGrant(t, **grant, now);
   if (!taken.ok()) return taken.status();
   if (!*taken) return Status::Ok();  // it has moved on (expired, heartbeated, ...)
-  return t.Event(now, std::string(Noun((*grant)->kind)) + ".requeued", Subject((*grant)->kind, (*grant)->job_id),
-                 {{"kind", "unreceived"},
-                  {"message", "leased with a completion whose reply was lost; the worker asked again"}});
+  return t.Event(
+      now, std::string(Noun((*grant)->kind)) + ".requeued", Subject((*grant)->kind, (*grant)->job_id),
+      {{"kind", "unreceived"}, {"message", "leased with a completion whose reply was lost; the worker asked again"}});
 }
 
 // Running jobs whose lease is lost -- expired before `now` or, when `slurm_job` is set, granted to
@@ -170,12 +168,9 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkLeased(t, g.kind, g.id, g.token, now + options_.ttl_s, request.worker, now));
   SANDSWIM_RETURN_IF_ERROR(jobs::InsertLease(t, g.token, g.kind, g.id, g.attempt, request, now));
   SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
-  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(g.kind)) + ".leased",
-                                   Subject(g.kind, g.id),
-                                   {{"worker", request.worker},
-                                    {"host", request.host},
-                                    {"ranks", request.ranks},
-                                    {"attempt", g.attempt}}));
+  SANDSWIM_RETURN_IF_ERROR(
+      t.Event(now, std::string(Noun(g.kind)) + ".leased", Subject(g.kind, g.id),
+              {{"worker", request.worker}, {"host", request.host}, {"ranks", request.ranks}, {"attempt", g.attempt}}));
   return Out(std::move(g));
 }
 
@@ -249,13 +244,12 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
     }
     const std::string why = deck.status().reason();
     SANDSWIM_RETURN_IF_ERROR(jobs::FailRunDeck(t, r.id, why, now));
-    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.failed", Subject(api::JobKind::kRun, r.id),
-                                     {{"kind", "deck_error"}, {"message", why}}));
+    SANDSWIM_RETURN_IF_ERROR(
+        t.Event(now, "run.failed", Subject(api::JobKind::kRun, r.id), {{"kind", "deck_error"}, {"message", why}}));
   }
 }
 
-Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token,
-                                                  const api::Heartbeat& beat) {
+Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
   return store_->WriteResult<api::HeartbeatReply>([&](Transaction& t) -> Result<api::HeartbeatReply> {
     const double now = clock_->Now();
     Result<LeaseRow> lease = jobs::FindLease(t, token);
@@ -279,8 +273,7 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token,
   });
 }
 
-Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
-                                                  const api::Completion& c) {
+Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, const api::Completion& c) {
   return store_->WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
     const double now = clock_->Now();
     if (c.next) SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(*c.next, "next.slurm_job"));
@@ -301,8 +294,8 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token,
   });
 }
 
-Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::string& token,
-                                                    const api::Completion& c, double now) {
+Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::string& token, const api::Completion& c,
+                                                    double now) {
   Result<LeaseRow> lease = jobs::FindLease(t, token);
   if (!lease.ok()) return lease.status();
   if (lease->completed) {
@@ -325,16 +318,16 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
     return Status::InvalidArgument("failure", "a failed completion says why");
   }
 
-  Result<std::string> state = c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now) : CompleteBed(t, id, c, now))
-                                  : CompleteFailure(t, kind, id, *job, *c.failure, now);
+  Result<std::string> state =
+      c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now) : CompleteBed(t, id, c, now))
+           : CompleteFailure(t, kind, id, *job, *c.failure, now);
   if (!state.ok()) return state.status();
   if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
     SANDSWIM_RETURN_IF_ERROR(jobs::PutLogTail(t, id, c.log_tail));
   }
   if (*state == "done") {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
-                                     {{"host", c.execution.host},
-                                      {"wall_s", c.execution.wall_s}}));
+                                     {{"host", c.execution.host}, {"wall_s", c.execution.wall_s}}));
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, *state));
   SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));
@@ -395,11 +388,11 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   if (*released_before >= job->max_attempts) {
     // Handed back this often, the job does not fit where it is leased (a run longer than any
     // allocation): from now on a hand-back is an attempt, so the job ends failed, not leased for ever.
-    Result<std::string> state = RetryOrFail(
-        t, kind, id, *job, "released",
-        "handed back " + std::to_string(*released_before + 1) + " times (" + reason +
-            "): it never finished where it was leased; give the pilots a longer --time",
-        /*retryable=*/true, now);
+    Result<std::string> state =
+        RetryOrFail(t, kind, id, *job, "released",
+                    "handed back " + std::to_string(*released_before + 1) + " times (" + reason +
+                        "): it never finished where it was leased; give the pilots a longer --time",
+                    /*retryable=*/true, now);
     if (!state.ok()) return state.status();
     SANDSWIM_RETURN_IF_ERROR(t.Commit());
     return api::CompletionReply{*state};
@@ -429,8 +422,7 @@ Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
 Result<int64_t> LeaseQueue::ReclaimSlurmJob(const std::string& slurm_job, double asked_at) {
   if (slurm_job.empty()) return Status::InvalidArgument("slurm_job", "names no Slurm job");
   return store_->WriteResult<int64_t>([&](Transaction& t) {
-    return ReclaimIn(t, clock_->Now(), options_.max_attempts, slurm_job, asked_at, options_.ttl_s / 2,
-                     options_.ttl_s);
+    return ReclaimIn(t, clock_->Now(), options_.max_attempts, slurm_job, asked_at, options_.ttl_s / 2, options_.ttl_s);
   });
 }
 
@@ -461,13 +453,13 @@ Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
   return out;
 }
 
-Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view bytes,
-                                 const std::string& sha256, const std::string& data_dir) {
+Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view bytes, const std::string& sha256,
+                                 const std::string& data_dir) {
   const std::string expected = Lower(sha256);
   const std::string actual = Sha256Hex(bytes);
   if (expected != actual) {
-    return Status::InvalidArgument("X-Sha256", "the body's SHA-256 is " + actual + ", not " +
-                                                   (expected.empty() ? "(none given)" : expected));
+    return Status::InvalidArgument(
+        "X-Sha256", "the body's SHA-256 is " + actual + ", not " + (expected.empty() ? "(none given)" : expected));
   }
   // Check the lease, write the file without holding the store, then record it under a second
   // check: the token may have been lost while the bytes were being written.
@@ -534,8 +526,8 @@ Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {
   Result<jobs::BedRow> bed = jobs::LoadBed(*t, bed_id);
   if (!bed.ok()) return bed.status();
   if (bed->state != "done" || !bed->path) {
-    return Status::FailedPrecondition("bed", "bed " + std::to_string(bed_id) + " is not prepared yet (" +
-                                                 bed->state + ")");
+    return Status::FailedPrecondition("bed",
+                                      "bed " + std::to_string(bed_id) + " is not prepared yet (" + bed->state + ")");
   }
   return BedFile{bed_id, bed->key, *bed->path, bed->sha256};
 }

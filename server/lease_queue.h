@@ -78,7 +78,7 @@ void to_json(nlohmann::json& j, const CancelSummary& c);
 struct BedFile {
   int64_t bed_id = 0;
   std::string key;
-  std::string path;    // absolute or as given by data_dir: <data>/beds/<key>.restart
+  std::string path;  // absolute or as given by data_dir: <data>/beds/<key>.restart
   std::string sha256;
 };
 

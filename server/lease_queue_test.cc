@@ -10,9 +10,9 @@
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
-#include "core/trajectory.h"
 #include "core/scale.h"
 #include "core/sweep.h"
+#include "core/trajectory.h"
 #include "platform/clock.h"
 #include "server/store.h"
 #include "server/submission.h"
@@ -410,7 +410,7 @@ TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedBeforeTheyExpire) {
   EXPECT_EQ(queue_->RunningSlurmJobs().value(), (std::vector<std::string>{"4242", "4243"}));
 
   EXPECT_EQ(queue_->ReclaimSlurmJob("4242", clock_.Now()).value(), 0);  // silent for 0 s only
-  clock_.Advance(31);  // half the 60 s TTL
+  clock_.Advance(31);                                                   // half the 60 s TTL
   // A lease granted after Slurm was asked is not judged by that answer.
   const double asked_at = clock_.Now() - 1;
   auto d = queue_->Lease({"pilot-a2", "node1", 1, "4242"});

@@ -57,8 +57,8 @@ void LocalWorkers::Launch(Slot& slot) {
   auto pid = processes_->Spawn(options_.argv);
   double now = clock_->Now();
   if (!pid.ok()) {
-    spdlog::error("local worker: {}; retrying in {:.0f} s (check that {} runs by itself)",
-                  pid.status().ToString(), slot.backoff_s, options_.argv[0]);
+    spdlog::error("local worker: {}; retrying in {:.0f} s (check that {} runs by itself)", pid.status().ToString(),
+                  slot.backoff_s, options_.argv[0]);
     slot.pid = 0;
     slot.restart_at = now + slot.backoff_s;
     slot.backoff_s = std::min(slot.backoff_s * 2, options_.max_backoff_s);
@@ -77,9 +77,10 @@ void LocalWorkers::Tick() {
       auto status = processes_->Reap(slot.pid);
       if (!status) continue;
       if (now - slot.started_at >= options_.healthy_after_s) slot.backoff_s = options_.min_backoff_s;
-      spdlog::warn("local worker pid {} {}; restarting it in {:.0f} s (its log is in the daemon's "
-                   "output; a worker that keeps dying usually cannot reach the daemon or the engine)",
-                   slot.pid, DescribeExit(*status), slot.backoff_s);
+      spdlog::warn(
+          "local worker pid {} {}; restarting it in {:.0f} s (its log is in the daemon's "
+          "output; a worker that keeps dying usually cannot reach the daemon or the engine)",
+          slot.pid, DescribeExit(*status), slot.backoff_s);
       // Whatever the worker left in its group (an orphaned mpirun) goes with it.
       processes_->SignalGroup(slot.pid, SIGKILL);
       slot.pid = 0;

@@ -33,8 +33,8 @@ struct LocalWorkersOptions {
   std::vector<std::string> argv;  // the worker command line, argv[0] a path
   double min_backoff_s = 1;       // delay before restarting a worker that died
   double max_backoff_s = 60;
-  double healthy_after_s = 30;    // a worker that lived this long resets its backoff
-  double grace_s = 10;            // SIGTERM -> SIGKILL
+  double healthy_after_s = 30;  // a worker that lived this long resets its backoff
+  double grace_s = 10;          // SIGTERM -> SIGKILL
 };
 
 // The directory of the running executable (/proc/self/exe), where sandswim-worker is installed.

@@ -8,9 +8,9 @@
 #include <iostream>
 #include <thread>
 
-#include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include "platform/clock.h"
 #include "platform/engine_probe.h"
@@ -43,30 +43,35 @@ struct Flags {
   double slurm_check_s = 30;
 };
 
-
 void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--db", flags.db, "SQLite file")->capture_default_str();
   app.add_option("--listen", flags.listen, "HOST:PORT to serve on (port 0: any free port)")->capture_default_str();
   app.add_option("--data", flags.data, "directory for beds, dumps and artifacts")->capture_default_str();
   app.add_option("--token-file", flags.token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
   app.add_option("--local-workers", flags.local_workers, "worker processes to run on this machine")
-      ->capture_default_str()->check(CLI::Range(0, 1024));
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1024));
   app.add_option("--lease-ttl", flags.lease_ttl_s, "seconds a lease lives without a heartbeat")
-      ->capture_default_str()->check(CLI::Range(1.0, 86400.0));
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 86400.0));
   app.add_option("--max-attempts", flags.max_attempts, "leases a job gets before it fails")
-      ->capture_default_str()->check(CLI::Range(1, 100));
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100));
   app.add_option("--engine-version", flags.engine_version, "LIGGGHTS version string (default: ask liggghts)");
-  app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")->capture_default_str()
+  app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")
+      ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
   app.add_option("--schedule", flags.schedules,
                  "rerun this campaign on its cron schedule, NAME[:SCALE] (repeatable; e.g. paper-58:smoke)");
   app.add_option("--scheduler-tick", flags.scheduler_tick_s,
                  "seconds between looks for due reruns and finished ones (drift reports)")
-      ->capture_default_str()->check(CLI::Range(0.05, 3600.0));
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 3600.0));
   app.add_option("--slurm-check", flags.slurm_check_s,
                  "seconds between asking Slurm (squeue) whether the jobs holding leases still run; "
                  "the runs of a job that is gone are queued again at once (0: never ask)")
-      ->capture_default_str()->check(CLI::Range(0.0, 86400.0));
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 86400.0));
 }
 
 int Die(const Status& s, const std::string& next) {
@@ -79,9 +84,10 @@ int Die(const Status& s, const std::string& next) {
 std::string ProbedEngineVersion() {
   auto version = sandswim::ProbeEngineVersion();
   if (version.ok()) return *version;
-  spdlog::warn("{}; using engine version \"unknown\" in content keys (install LIGGGHTS on PATH "
-               "or pass --engine-version to key results by the engine the workers run)",
-               version.status().ToString());
+  spdlog::warn(
+      "{}; using engine version \"unknown\" in content keys (install LIGGGHTS on PATH "
+      "or pass --engine-version to key results by the engine the workers run)",
+      version.status().ToString());
   return "unknown";
 }
 
@@ -90,10 +96,11 @@ Status ReanalyzeOldResults(sandswim::Store& store) {
   auto re = store.ReanalyzeOldResults();
   if (!re.ok()) return re.status();
   if (re->reanalysed + re->kept_old > 0) {
-    spdlog::info("re-analysed {} result(s) made by an older U_z analysis from their stored trajectories "
-                 "(analysed_from \"trajectory\"); {} could not be and are shown as inconclusive (analysed_from "
-                 "\"unreadable\"): submit their sweeps again with --force for results of this analysis",
-                 re->reanalysed, re->kept_old);
+    spdlog::info(
+        "re-analysed {} result(s) made by an older U_z analysis from their stored trajectories "
+        "(analysed_from \"trajectory\"); {} could not be and are shown as inconclusive (analysed_from "
+        "\"unreadable\"): submit their sweeps again with --force for results of this analysis",
+        re->reanalysed, re->kept_old);
   }
   return Status();
 }
@@ -135,9 +142,10 @@ void WatchPilots(sandswim::PilotWatch& pilot_watch, bool& warned) {
   auto check = pilot_watch.CheckOnce();
   if (!check.ok()) {
     if (!warned) {
-      spdlog::warn("cannot ask Slurm about the jobs holding leases ({}); their runs wait for the lease TTL. "
-                   "Run sandswimd where squeue works, or pass --slurm-check 0",
-                   check.status().ToString());
+      spdlog::warn(
+          "cannot ask Slurm about the jobs holding leases ({}); their runs wait for the lease TTL. "
+          "Run sandswimd where squeue works, or pass --slurm-check 0",
+          check.status().ToString());
     }
     warned = true;
     return;
@@ -234,8 +242,9 @@ int main(int argc, char** argv) {
   sandswim::PeriodicJobs periodic;
   periodic.Add("lease expiry", 1, [&] { ExpireLeases(leases, flags.db); });
   periodic.Add("pilot watch", flags.slurm_check_s, [&, warned = false]() mutable { WatchPilots(pilot_watch, warned); });
-  periodic.Add("scheduler", flags.scheduler_tick_s, [&] { SchedulerPass(scheduler, **store, clock); },
-               /*run_at_start=*/true);
+  periodic.Add(
+      "scheduler", flags.scheduler_tick_s, [&] { SchedulerPass(scheduler, **store, clock); },
+      /*run_at_start=*/true);
   periodic.Start();
 
   std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
@@ -243,11 +252,18 @@ int main(int argc, char** argv) {
   sandswim::PosixSubprocesses processes;
   sandswim::LocalWorkersOptions worker_options;
   worker_options.count = flags.local_workers;
-  worker_options.argv = {sandswim::ExecutableDir() + "/sandswim-worker", "--server",
-                         "http://127.0.0.1:" + std::to_string(*port), "--slots", "1", "--ranks", "1",
-                         "--workdir", flags.data + "/worker"};
+  worker_options.argv = {sandswim::ExecutableDir() + "/sandswim-worker",
+                         "--server",
+                         "http://127.0.0.1:" + std::to_string(*port),
+                         "--slots",
+                         "1",
+                         "--ranks",
+                         "1",
+                         "--workdir",
+                         flags.data + "/worker"};
   // A token from SANDSWIM_TOKEN reaches the workers through the environment.
-  if (!flags.token_file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", flags.token_file});
+  if (!flags.token_file.empty())
+    worker_options.argv.insert(worker_options.argv.end(), {"--token-file", flags.token_file});
   sandswim::LocalWorkers workers(worker_options, &processes, &clock);
   std::thread supervisor;
   int exit_code = 0;

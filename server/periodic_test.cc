@@ -48,7 +48,8 @@ TEST(PeriodicJobsTest, AJobRunsAgainAndAgainUntilStopped) {
 TEST(PeriodicJobsTest, RunAtStartRunsBeforeTheFirstPeriodAndStopDoesNotWaitForTheNext) {
   CallCounter counter;
   PeriodicJobs jobs;
-  jobs.Add("nightly", 3600, [&] { counter.Called(); }, /*run_at_start=*/true);
+  jobs.Add(
+      "nightly", 3600, [&] { counter.Called(); }, /*run_at_start=*/true);
   jobs.Add("hourly", 3600, [&] { ADD_FAILURE() << "ran before its first period"; });
   jobs.Start();
   counter.WaitFor(1);
@@ -61,13 +62,16 @@ TEST(PeriodicJobsTest, StopLetsARunningCallFinish) {
   std::mutex mu;
   std::condition_variable cv;
   PeriodicJobs jobs;
-  jobs.Add("slow", 3600, [&] {
-    entered = true;
-    cv.notify_all();
-    std::unique_lock<std::mutex> lock(mu);
-    cv.wait_for(lock, std::chrono::milliseconds(50));
-    finished = true;
-  }, /*run_at_start=*/true);
+  jobs.Add(
+      "slow", 3600,
+      [&] {
+        entered = true;
+        cv.notify_all();
+        std::unique_lock<std::mutex> lock(mu);
+        cv.wait_for(lock, std::chrono::milliseconds(50));
+        finished = true;
+      },
+      /*run_at_start=*/true);
   jobs.Start();
   {
     std::unique_lock<std::mutex> lock(mu);
@@ -79,7 +83,8 @@ TEST(PeriodicJobsTest, StopLetsARunningCallFinish) {
 
 TEST(PeriodicJobsTest, APeriodOfZeroDisablesTheJob) {
   PeriodicJobs jobs;
-  jobs.Add("off", 0, [] { ADD_FAILURE() << "a disabled job ran"; }, /*run_at_start=*/true);
+  jobs.Add(
+      "off", 0, [] { ADD_FAILURE() << "a disabled job ran"; }, /*run_at_start=*/true);
   jobs.Add("on", 1, [] {});
   EXPECT_THAT(jobs.names(), ::testing::ElementsAre("on"));
   jobs.Start();

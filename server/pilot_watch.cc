@@ -14,8 +14,7 @@ bool Final(const std::string& state) {
 
 }  // namespace
 
-Result<std::vector<std::string>> GoneSlurmJobs(const std::vector<std::string>& asked,
-                                               const slurm::CommandOutput& out) {
+Result<std::vector<std::string>> GoneSlurmJobs(const std::vector<std::string>& asked, const slurm::CommandOutput& out) {
   if (out.exit_code != 0) {
     if (out.err.find("Invalid job id") != std::string::npos) return asked;  // none of them is known
     return Status::Unavailable("squeue exited " + std::to_string(out.exit_code) + ": " + out.err.substr(0, 300));

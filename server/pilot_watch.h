@@ -22,8 +22,8 @@
 
 #include "core/status.h"
 #include "platform/clock.h"
-#include "server/lease_queue.h"
 #include "platform/slurm.h"
+#include "server/lease_queue.h"
 
 namespace sandswim {
 
@@ -31,8 +31,7 @@ namespace sandswim {
 // final state (COMPLETED, CANCELLED, FAILED, TIMEOUT, NODE_FAIL, PREEMPTED, BOOT_FAIL, DEADLINE,
 // OUT_OF_MEMORY) or not listed at all. squeue exits 1 with "Invalid job id" when it knows none of
 // them: all are gone. Unavailable for any other failure (the controller did not answer).
-Result<std::vector<std::string>> GoneSlurmJobs(const std::vector<std::string>& asked,
-                                               const slurm::CommandOutput& out);
+Result<std::vector<std::string>> GoneSlurmJobs(const std::vector<std::string>& asked, const slurm::CommandOutput& out);
 
 struct PilotCheck {
   int64_t jobs = 0;               // Slurm jobs holding leases on running jobs

@@ -16,11 +16,20 @@ std::string Escape(const std::string& text) {
   std::string out;
   for (char ch : text) {
     switch (ch) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += ch;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += ch;
     }
   }
   return out;
@@ -67,9 +76,9 @@ std::string FitRows(const ReportSweep& s) {
     return "<tr><td><a href=\"#sweep-" + std::to_string(s.info.id) + "\">" + Escape(s.info.name) +
            "</a></td><td>none</td><td colspan=\"5\">" +
            Escape(fits.choice.kind == FitKind::kNone ? fits.choice.reason
-                  : fits.left_out.empty()          ? std::string("no finished runs")
-                                                   : "no conclusive runs: " + std::to_string(fits.left_out.size()) +
-                                                         " finished run(s) left out as inconclusive") +
+                  : fits.left_out.empty()            ? std::string("no finished runs")
+                                                     : "no conclusive runs: " + std::to_string(fits.left_out.size()) +
+                                                " finished run(s) left out as inconclusive") +
            "</td></tr>\n";
   }
   // Inconclusive runs are not fitted: say which, under the sweep's first row.
@@ -86,8 +95,8 @@ std::string FitRows(const ReportSweep& s) {
     std::string law, params, r2, range, signs = b.sign_matches_paper ? (*b.sign_matches_paper ? "yes" : "NO") : "–";
     if (b.saturation) {
       law = "eq. 8: U<sub>z</sub> = ±C1 (1 − e<sup>−C2|Ω|</sup>)";
-      params = "C1 = " + PlusMinus(b.saturation->c1, b.saturation->c1_stderr) + " m/s<br>C2 = " +
-               PlusMinus(b.saturation->c2, b.saturation->c2_stderr) + " s/rad";
+      params = "C1 = " + PlusMinus(b.saturation->c1, b.saturation->c1_stderr) +
+               " m/s<br>C2 = " + PlusMinus(b.saturation->c2, b.saturation->c2_stderr) + " s/rad";
       r2 = Num(b.saturation->r2, 3);
       range = std::to_string(b.saturation->n) + " points" + (b.saturation->weighted ? ", weighted" : ", unweighted");
     } else if (b.linear) {
@@ -95,8 +104,8 @@ std::string FitRows(const ReportSweep& s) {
       params = "C3 = " + PlusMinus(b.linear->c3, b.linear->c3_stderr) + " 1/s";
       r2 = Num(b.linear->r2, 3);
       range = "A = " + Num(b.linear->a_from) + " … " + Num(b.linear->a_to) + " m (" + std::to_string(b.linear->n) +
-              " of " + std::to_string(b.linear->n_total) + " points" + (b.linear->weighted ? ", weighted" : ", unweighted") +
-              ")";
+              " of " + std::to_string(b.linear->n_total) + " points" +
+              (b.linear->weighted ? ", weighted" : ", unweighted") + ")";
     } else if (b.fastest_rise) {
       law = "fastest rise";
       params = "f<sub>c</sub> = " + Num(b.fastest_rise->f_c) + " Hz, interval [" + Num(b.fastest_rise->interval_lo) +
@@ -108,15 +117,17 @@ std::string FitRows(const ReportSweep& s) {
       params = "not fitted: " + Escape(b.error);
     }
     rows += "<tr><td><a href=\"#sweep-" + std::to_string(s.info.id) + "\">" + Escape(s.info.name) + "</a> (" +
-            Escape(b.branch) + ")" + (&b == &fits.branches.front() ? left_out : "") + "</td><td>" + law + "</td><td>" + params + "</td><td>" + r2 + "</td><td>" + range +
-            "</td><td>" + signs + "</td><td>" + std::to_string(b.points) + "</td></tr>\n";
+            Escape(b.branch) + ")" + (&b == &fits.branches.front() ? left_out : "") + "</td><td>" + law + "</td><td>" +
+            params + "</td><td>" + r2 + "</td><td>" + range + "</td><td>" + signs + "</td><td>" +
+            std::to_string(b.points) + "</td></tr>\n";
   }
   return rows;
 }
 
 std::string DriftHtml(const std::optional<DriftReport>& drift) {
   if (!drift) return "<p class=\"none\">No drift report yet: one is made when a campaign run finishes.</p>\n";
-  std::string html = "<p>" + Escape(drift->summary) + "</p>\n<table><tr><th>run</th><th>point</th><th>state</th>"
+  std::string html = "<p>" + Escape(drift->summary) +
+                     "</p>\n<table><tr><th>run</th><th>point</th><th>state</th>"
                      "<th>U<sub>z</sub> (m/s)</th><th>before (m/s)</th><th>difference (m/s)</th><th></th></tr>\n";
   auto cell = [](const std::optional<double>& v) { return v ? Num(*v) : std::string("–"); };
   for (const DriftPoint& p : drift->rows) {
@@ -170,14 +181,15 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
 }
 
 Plot SweepTrajectoriesFigure(const SweepAnalysis& a) {
-  return SweepTrajectoriesPlot("sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale +
-                                   "): Δz(t) of every run",
+  return SweepTrajectoriesPlot("sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" +
+                                   a.info.scale + "): Δz(t) of every run",
                                a.runs, a.fits.choice.param);
 }
 
 Plot SweepUzFigure(const SweepAnalysis& a) {
-  return SweepUzPlot("sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale + "): U#dz#u",
-                     a.samples, a.fits);
+  return SweepUzPlot(
+      "sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale + "): U#dz#u",
+      a.samples, a.fits);
 }
 
 std::string NoUzToPlot(const SweepAnalysis& a) {
@@ -193,11 +205,10 @@ Result<Plot> RunFigure(Store& store, int64_t run_id) {
   auto run = store.GetRun(run_id);
   if (!run.ok()) return run.status();
   if (!run->trajectory || run->trajectory->t.empty()) {
-    return Status::FailedPrecondition("id", "run " + std::to_string(run_id) + " has no trajectory yet (state " +
-                                                run->summary.state + ")");
+    return Status::FailedPrecondition(
+        "id", "run " + std::to_string(run_id) + " has no trajectory yet (state " + run->summary.state + ")");
   }
-  return RunTrajectoryPlot(run_id, run->summary.point, *run->trajectory,
-                           run->result ? &run->result->result : nullptr);
+  return RunTrajectoryPlot(run_id, run->summary.point, *run->trajectory, run->result ? &run->result->result : nullptr);
 }
 
 std::string RunFigureName(int64_t run_id) { return "run-" + std::to_string(run_id) + "-trajectory"; }
@@ -208,8 +219,8 @@ std::string SweepUzName(int64_t sweep_id) { return "sweep-" + std::to_string(swe
 
 std::string RenderReportHtml(const ReportInput& in) {
   const CampaignRunInfo& cr = in.campaign_run;
-  const std::string title = "sandswim report: " + cr.campaign + " at " + cr.scale + ", campaign run cr:" +
-                            std::to_string(cr.id);
+  const std::string title =
+      "sandswim report: " + cr.campaign + " at " + cr.scale + ", campaign run cr:" + std::to_string(cr.id);
   std::string html =
       "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + Escape(title) +
       "</title>\n<style>\n"
@@ -218,10 +229,10 @@ std::string RenderReportHtml(const ReportInput& in) {
       "figure{margin:1em 0}figure svg{width:100%;height:auto}figcaption{color:#555}"
       ".none{color:#777}.drifted{background:#fdd}details{margin:0.5em 0}\n"
       "</style>\n</head>\n<body>\n<h1 id=\"top\">" +
-      Escape(title) + "</h1>\n<p>Generated " + UtcTime(in.generated_at) + ". Created " + UtcTime(cr.created_at) +
-      " (" + Escape(cr.trigger) + "). Runs: " + std::to_string(cr.counts.done) + " done, " +
-      std::to_string(cr.counts.queued) + " queued, " + std::to_string(cr.counts.running) + " running, " +
-      std::to_string(cr.counts.failed) + " failed, " + std::to_string(cr.counts.cancelled) + " cancelled.</p>\n";
+      Escape(title) + "</h1>\n<p>Generated " + UtcTime(in.generated_at) + ". Created " + UtcTime(cr.created_at) + " (" +
+      Escape(cr.trigger) + "). Runs: " + std::to_string(cr.counts.done) + " done, " + std::to_string(cr.counts.queued) +
+      " queued, " + std::to_string(cr.counts.running) + " running, " + std::to_string(cr.counts.failed) + " failed, " +
+      std::to_string(cr.counts.cancelled) + " cancelled.</p>\n";
 
   html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#fits\">Fits</a></li>\n";
   for (const ReportSweep& s : in.sweeps) {
@@ -230,9 +241,10 @@ std::string RenderReportHtml(const ReportInput& in) {
   }
   html += "<li><a href=\"#drift\">Drift report</a></li>\n</ul></nav>\n";
 
-  html += "<h2 id=\"fits\">Fits</h2>\n<p>Least squares; ± is one standard error. \"paper's sign\": rising for "
-          "Ω &lt; 0, sinking for Ω &gt; 0.</p>\n<table><tr><th>sweep (branch)</th><th>law</th><th>parameters</th>"
-          "<th>R²</th><th>over</th><th>paper's sign</th><th>runs</th></tr>\n";
+  html +=
+      "<h2 id=\"fits\">Fits</h2>\n<p>Least squares; ± is one standard error. \"paper's sign\": rising for "
+      "Ω &lt; 0, sinking for Ω &gt; 0.</p>\n<table><tr><th>sweep (branch)</th><th>law</th><th>parameters</th>"
+      "<th>R²</th><th>over</th><th>paper's sign</th><th>runs</th></tr>\n";
   for (const ReportSweep& s : in.sweeps) html += FitRows(s);
   html += "</table>\n";
 
@@ -240,16 +252,19 @@ std::string RenderReportHtml(const ReportInput& in) {
     const std::string id = std::to_string(s.info.id);
     html += "<section id=\"sweep-" + id + "\">\n<h2>sweep " + id + ": " + Escape(s.info.name) + "</h2>\n<p>" +
             Escape(s.fits.choice.reason) + ". <a href=\"#top\">top</a></p>\n";
-    html += FigureHtml(s.trajectories_svg, "fig-sweep-" + id + "-trajectories", "Δz(t) of every finished run of sweep " + id);
-    html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz", "U_z of sweep " + id + " against " +
-                                     (s.fits.choice.param.empty() ? std::string("its point") : s.fits.choice.param) +
-                                     ", with the fitted law",
+    html += FigureHtml(s.trajectories_svg, "fig-sweep-" + id + "-trajectories",
+                       "Δz(t) of every finished run of sweep " + id);
+    html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz",
+                       "U_z of sweep " + id + " against " +
+                           (s.fits.choice.param.empty() ? std::string("its point") : s.fits.choice.param) +
+                           ", with the fitted law",
                        s.no_uz);
-    html += "<table><tr><th>run</th><th>point</th><th>state</th><th>U<sub>z</sub> (m/s, ± standard error, "
-            "whole periods)</th><th>Δz/T (m/s, whole run)</th><th>window ends</th></tr>\n";
+    html +=
+        "<table><tr><th>run</th><th>point</th><th>state</th><th>U<sub>z</sub> (m/s, ± standard error, "
+        "whole periods)</th><th>Δz/T (m/s, whole run)</th><th>window ends</th></tr>\n";
     for (const ReportRun& r : s.runs) {
-      html += "<tr><td><a href=\"#run-" + std::to_string(r.run_id) + "\">" + std::to_string(r.run_id) + "</a></td><td>" +
-              Escape(r.label) + "</td><td>" + Escape(r.state) + "</td><td" +
+      html += "<tr><td><a href=\"#run-" + std::to_string(r.run_id) + "\">" + std::to_string(r.run_id) +
+              "</a></td><td>" + Escape(r.label) + "</td><td>" + Escape(r.state) + "</td><td" +
               (r.inconclusive_reason.empty() ? std::string(">") : " title=\"" + Escape(r.inconclusive_reason) + "\">") +
               (r.uz_text.empty() ? std::string("–") : Escape(r.uz_text)) + "</td><td>" +
               (r.dz_rate ? Num(*r.dz_rate, 2) : std::string("–")) + "</td><td>" + Escape(r.window_end) + "</td></tr>\n";
@@ -259,7 +274,9 @@ std::string RenderReportHtml(const ReportInput& in) {
       if (!r.anchored) continue;
       html += "<details id=\"run-" + std::to_string(r.run_id) + "\"><summary>run " + std::to_string(r.run_id) + ": " +
               Escape(r.label) + "</summary>\n" +
-              FigureHtml(r.trajectory_svg, "fig-run-" + std::to_string(r.run_id), "Δz(t) and Δx(t) of run " + std::to_string(r.run_id)) + "</details>\n";
+              FigureHtml(r.trajectory_svg, "fig-run-" + std::to_string(r.run_id),
+                         "Δz(t) and Δx(t) of run " + std::to_string(r.run_id)) +
+              "</details>\n";
     }
     html += "</section>\n";
   }
@@ -312,10 +329,10 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
       }
       for (const RunTrajectory& t : a->runs) {
         if (t.run_id != row.run_id || !r.anchored) continue;
-        auto svg = figures.Get(RunFigureName(t.run_id),
-                               RunTrajectoryPlot(t.run_id, t.point, t.trajectory,
-                                                 row.result ? &row.result->result : nullptr),
-                               ImageFormat::kSvg);
+        auto svg =
+            figures.Get(RunFigureName(t.run_id),
+                        RunTrajectoryPlot(t.run_id, t.point, t.trajectory, row.result ? &row.result->result : nullptr),
+                        ImageFormat::kSvg);
         if (!svg.ok()) return svg.status();
         r.trajectory_svg = *svg;
       }

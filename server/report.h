@@ -58,11 +58,11 @@ struct ReportRun {
   int64_t run_id = 0;
   std::string label;  // PointLabel
   std::string state;
-  std::string uz_text;               // DescribeUz ("" without a result)
-  std::optional<double> dz_rate;     // m/s, dz over the whole run
-  std::string window_end;            // why the steady window ended
-  std::string inconclusive_reason;   // "" when conclusive
-  std::string trajectory_svg;  // "" when none
+  std::string uz_text;              // DescribeUz ("" without a result)
+  std::optional<double> dz_rate;    // m/s, dz over the whole run
+  std::string window_end;           // why the steady window ended
+  std::string inconclusive_reason;  // "" when conclusive
+  std::string trajectory_svg;       // "" when none
   // The run's figure and its "#run-ID" anchor are shown here (false where an earlier sweep of the
   // report, sharing the run, shows them).
   bool anchored = true;

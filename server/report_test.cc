@@ -19,8 +19,8 @@
 #include "core/keys.h"
 #include "platform/clock.h"
 #include "server/lease_queue.h"
-#include "server/routes.h"
 #include "server/loopback_server_test_util.h"
+#include "server/routes.h"
 #include "server/submission.h"
 
 namespace sandswim {

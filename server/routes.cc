@@ -44,13 +44,22 @@ constexpr size_t kDrainCapBytes = size_t{64} << 20;
 constexpr const char* kProblemType = "application/problem+json";
 
 std::string HttpTitle(int http_status) {
-  static const std::map<int, const char*> kTitles = {
-      {200, "OK"}, {201, "Created"}, {204, "No Content"}, {400, "Bad Request"},
-      {401, "Unauthorized"}, {403, "Forbidden"}, {404, "Not Found"},
-      {405, "Method Not Allowed"}, {409, "Conflict"}, {411, "Length Required"},
-      {413, "Content Too Large"}, {415, "Unsupported Media Type"},
-      {416, "Range Not Satisfiable"}, {422, "Unprocessable Content"},
-      {500, "Internal Server Error"}, {503, "Service Unavailable"}};
+  static const std::map<int, const char*> kTitles = {{200, "OK"},
+                                                     {201, "Created"},
+                                                     {204, "No Content"},
+                                                     {400, "Bad Request"},
+                                                     {401, "Unauthorized"},
+                                                     {403, "Forbidden"},
+                                                     {404, "Not Found"},
+                                                     {405, "Method Not Allowed"},
+                                                     {409, "Conflict"},
+                                                     {411, "Length Required"},
+                                                     {413, "Content Too Large"},
+                                                     {415, "Unsupported Media Type"},
+                                                     {416, "Range Not Satisfiable"},
+                                                     {422, "Unprocessable Content"},
+                                                     {500, "Internal Server Error"},
+                                                     {503, "Service Unavailable"}};
   auto it = kTitles.find(http_status);
   return it != kTitles.end() ? it->second : "HTTP " + std::to_string(http_status);
 }
@@ -86,9 +95,10 @@ void SendProblem(httplib::Response& res, const Status& status, int http_status =
   res.status = http_status;
   res.set_content(api::ToJsonText(ProblemFor(status, http_status)), kProblemType);
   if (http_status >= 500) {
-    spdlog::error("HTTP {}: {} (check the daemon's --db and --data paths and disk space; "
-                  "the request can be retried)",
-                  http_status, status.ToString());
+    spdlog::error(
+        "HTTP {}: {} (check the daemon's --db and --data paths and disk space; "
+        "the request can be retried)",
+        http_status, status.ToString());
   }
 }
 
@@ -103,8 +113,7 @@ Result<json> ParseJsonBody(const std::string& body, bool allow_empty) {
   try {
     return json::parse(body);
   } catch (const json::parse_error& e) {
-    return Status::InvalidArgument(
-        "body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+    return Status::InvalidArgument("body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
   } catch (const json::exception& e) {  // e.g. a number too large for a double (1e999)
     return Status::InvalidArgument("body", std::string("unreadable JSON: ") + e.what());
   }
@@ -367,8 +376,8 @@ void ListCampaigns(Call& c) {
   for (const StoredCampaign& s : *stored) {
     auto campaign = ParseCampaign(s.definition);
     if (!campaign.ok()) {
-      return Fail(c, Status::Corruption("stored campaign '" + s.name + "' no longer parses: " +
-                                        campaign.status().ToString()));
+      return Fail(
+          c, Status::Corruption("stored campaign '" + s.name + "' no longer parses: " + campaign.status().ToString()));
     }
     campaign->name = s.name;
     campaign->schedule = s.schedule;
@@ -428,7 +437,9 @@ void GetCampaignRunResults(Call& c) {
 // ---- Figures, fits and reports (server/figures.h, server/report.h) ----------------------------
 
 // Figures live next to the results, keyed by their data (FigureCache): never stale.
-FigureCache FiguresOf(const Deps& deps) { return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string()); }
+FigureCache FiguresOf(const Deps& deps) {
+  return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string());
+}
 
 void SendFigure(Call& c, const std::string& name, const Plot& plot, ImageFormat format) {
   auto bytes = FiguresOf(c.deps).Get(name, plot, format);
@@ -452,7 +463,8 @@ Result<SweepAnalysis> FinishedSweep(Call& c) {
   auto analysis = AnalyzeSweep(*c.deps.store, *id);
   if (!analysis.ok()) return analysis.status();
   if (analysis->samples.empty()) {
-    return Status::FailedPrecondition("id", "sweep " + std::to_string(*id) + " has no finished run yet: nothing to plot");
+    return Status::FailedPrecondition("id",
+                                      "sweep " + std::to_string(*id) + " has no finished run yet: nothing to plot");
   }
   return analysis;
 }
@@ -461,7 +473,8 @@ template <ImageFormat kFormat>
 void GetSweepTrajectoriesFigure(Call& c) {
   auto a = FinishedSweep(c);
   if (!a.ok()) return Fail(c, a.status());
-  if (a->runs.empty()) return Fail(c, Status::FailedPrecondition("id", "no finished run of this sweep has a trajectory"));
+  if (a->runs.empty())
+    return Fail(c, Status::FailedPrecondition("id", "no finished run of this sweep has a trajectory"));
   SendFigure(c, SweepTrajectoriesName(a->info.id), SweepTrajectoriesFigure(*a), kFormat);
 }
 
@@ -592,9 +605,8 @@ void UploadBedRestart(Call& c) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Fail(c, Status::IOError("cannot create " + dir.string() + ": " + ec.message()));
-  std::filesystem::path temp =
-      dir / ("bed-" + std::to_string(*id) + "-" + std::to_string(getpid()) + "-" +
-             std::to_string(upload_counter.fetch_add(1)) + ".part");
+  std::filesystem::path temp = dir / ("bed-" + std::to_string(*id) + "-" + std::to_string(getpid()) + "-" +
+                                      std::to_string(upload_counter.fetch_add(1)) + ".part");
   struct RemoveOnExit {
     std::filesystem::path path;
     ~RemoveOnExit() {
@@ -618,8 +630,9 @@ void UploadBedRestart(Call& c) {
   out.close();
   if (too_big) {
     c.res.set_header("Connection", "close");
-    return Fail(c, Status::ResourceExhausted("body", "a bed restart may be at most " +
-                                                         std::to_string(c.deps.max_restart_body) + " bytes"),
+    return Fail(c,
+                Status::ResourceExhausted(
+                    "body", "a bed restart may be at most " + std::to_string(c.deps.max_restart_body) + " bytes"),
                 413);
   }
   if (!out) return Fail(c, Status::IOError("cannot write " + temp.string() + " (disk full?)"));
@@ -647,16 +660,15 @@ void DownloadBedRestart(Call& c) {
   }
   c.res.status = 200;
   c.res.set_header("X-Sha256", bed->sha256);
-  c.res.set_content_provider(
-      static_cast<size_t>(size), "application/octet-stream",
-      [file](size_t offset, size_t length, httplib::DataSink& sink) {
-        std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
-        file->seekg(static_cast<std::streamoff>(offset));
-        file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-        std::streamsize got = file->gcount();
-        if (got <= 0) return false;
-        return sink.write(buffer.data(), static_cast<size_t>(got));
-      });
+  c.res.set_content_provider(static_cast<size_t>(size), "application/octet-stream",
+                             [file](size_t offset, size_t length, httplib::DataSink& sink) {
+                               std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
+                               file->seekg(static_cast<std::streamoff>(offset));
+                               file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+                               std::streamsize got = file->gcount();
+                               if (got <= 0) return false;
+                               return sink.write(buffer.data(), static_cast<size_t>(got));
+                             });
 }
 
 void OpenApi(Call& c) {
@@ -669,17 +681,20 @@ void OpenApi(Call& c) {
 void Healthz(Call& c) {
   Status s = c.deps.store->HealthCheck();
   if (!s.ok()) return Fail(c, Status::Unavailable("store: " + s.ToString()));
-  SendJson(c, 200, {{"status", "ok"},
-                    {"engine_version", c.deps.engine_version},
-                    {"schema_version", c.deps.store->schema_version()}});
+  SendJson(c, 200,
+           {{"status", "ok"},
+            {"engine_version", c.deps.engine_version},
+            {"schema_version", c.deps.store->schema_version()}});
 }
 
 std::string MetricsText(const Metrics& m, HttpCounters& http) {
   std::ostringstream out;
   auto gauge_by_state = [&out](const char* name, const char* help, const RunCounts& c) {
     out << "# HELP " << name << " " << help << "\n# TYPE " << name << " gauge\n";
-    const std::pair<const char*, int64_t> states[] = {{"queued", c.queued}, {"running", c.running},
-                                                      {"done", c.done}, {"failed", c.failed},
+    const std::pair<const char*, int64_t> states[] = {{"queued", c.queued},
+                                                      {"running", c.running},
+                                                      {"done", c.done},
+                                                      {"failed", c.failed},
                                                       {"cancelled", c.cancelled}};
     for (const auto& [state, n] : states) out << name << "{state=\"" << state << "\"} " << n << "\n";
   };
@@ -692,8 +707,7 @@ std::string MetricsText(const Metrics& m, HttpCounters& http) {
   counter("sandswim_leases_granted_total", "Leases granted to workers.", m.leases_granted);
   counter("sandswim_completions_total", "Completions accepted.", m.completions);
   counter("sandswim_lease_expirations_total", "Leases that ran out.", m.expirations);
-  counter("sandswim_pilots_gone_total", "Leases reclaimed early because Slurm no longer ran their job.",
-          m.pilots_gone);
+  counter("sandswim_pilots_gone_total", "Leases reclaimed early because Slurm no longer ran their job.", m.pilots_gone);
   counter("sandswim_duplicate_completions_total", "Repeated completions answered duplicate.", m.duplicates);
   out << "# HELP sandswim_http_requests_total HTTP requests answered, by status code.\n"
          "# TYPE sandswim_http_requests_total counter\n";
@@ -724,6 +738,7 @@ struct Route {
 };
 
 // clang-format off
+// clang-format off: one route a line, in columns, read top to bottom.
 const Route kRoutes[] = {
   // method  path                                   access            body                handler
   {"POST", "/api/v1/sweeps",                        Access::kWrite,  BodyKind::kJson,    SubmitSweeps},
@@ -759,6 +774,7 @@ const Route kRoutes[] = {
   {"GET",  "/healthz",                              Access::kPublic, BodyKind::kNone,    Healthz},
   {"GET",  "/metrics",                              Access::kRead,   BodyKind::kNone,    GetMetrics},
 };
+// clang-format on
 // clang-format on
 
 // "/api/v1/sweeps/{id}" -> "/api/v1/sweeps/(\d+)"; tokens are what LeaseQueue mints (hex).
@@ -803,14 +819,13 @@ std::optional<Status> CheckAuth(const Deps& deps, const Route& route, const http
   const std::string prefix = "Bearer ";
   if (header.rfind(prefix, 0) == 0) {
     std::string given = header.substr(prefix.size());
-    if (given.size() == deps.token.size() &&
-        CRYPTO_memcmp(given.data(), deps.token.data(), given.size()) == 0) {
+    if (given.size() == deps.token.size() && CRYPTO_memcmp(given.data(), deps.token.data(), given.size()) == 0) {
       return std::nullopt;
     }
     return Status(StatusCode::kUnauthenticated, "the bearer token is not the daemon's token", "Authorization");
   }
-  return Status(StatusCode::kUnauthenticated,
-                "this daemon has a token: send \"Authorization: Bearer <token>\"", "Authorization");
+  return Status(StatusCode::kUnauthenticated, "this daemon has a token: send \"Authorization: Bearer <token>\"",
+                "Authorization");
 }
 
 // Reads a JSON body up to `limit` bytes; past it, reads on (discarding) up to the drain cap.
@@ -843,8 +858,8 @@ void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const http
     if (denied) return SendProblem(res, *denied);
     if (!fits) {
       return SendProblem(res,
-                         Status::ResourceExhausted("body", "a JSON body may be at most " +
-                                                               std::to_string(deps.max_json_body) + " bytes"),
+                         Status::ResourceExhausted(
+                             "body", "a JSON body may be at most " + std::to_string(deps.max_json_body) + " bytes"),
                          413);
     }
   }
@@ -872,18 +887,30 @@ std::vector<RouteInfo> RouteTable() {
 
 int HttpStatusFor(StatusCode code) {
   switch (code) {
-    case StatusCode::kOk: return 200;
-    case StatusCode::kInvalidArgument: return 400;
-    case StatusCode::kUnauthenticated: return 401;
-    case StatusCode::kNotFound: return 404;
-    case StatusCode::kAlreadyExists: return 409;
-    case StatusCode::kConflict: return 409;
-    case StatusCode::kFailedPrecondition: return 422;
-    case StatusCode::kResourceExhausted: return 422;  // e.g. a sweep past the run limit
-    case StatusCode::kUnavailable: return 503;
-    case StatusCode::kIOError: return 500;
-    case StatusCode::kCorruption: return 500;
-    case StatusCode::kInternal: return 500;
+    case StatusCode::kOk:
+      return 200;
+    case StatusCode::kInvalidArgument:
+      return 400;
+    case StatusCode::kUnauthenticated:
+      return 401;
+    case StatusCode::kNotFound:
+      return 404;
+    case StatusCode::kAlreadyExists:
+      return 409;
+    case StatusCode::kConflict:
+      return 409;
+    case StatusCode::kFailedPrecondition:
+      return 422;
+    case StatusCode::kResourceExhausted:
+      return 422;  // e.g. a sweep past the run limit
+    case StatusCode::kUnavailable:
+      return 503;
+    case StatusCode::kIOError:
+      return 500;
+    case StatusCode::kCorruption:
+      return 500;
+    case StatusCode::kInternal:
+      return 500;
   }
   return 500;
 }
@@ -910,13 +937,16 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
       DispatchCounted(*r, *d, counters.get(), req, res, nullptr);
     };
     httplib::Server::HandlerWithContentReader with_body =
-        [r, d, counters](const httplib::Request& req, httplib::Response& res,
-                         const httplib::ContentReader& reader) { DispatchCounted(*r, *d, counters.get(), req, res, &reader);
+        [r, d, counters](const httplib::Request& req, httplib::Response& res, const httplib::ContentReader& reader) {
+          DispatchCounted(*r, *d, counters.get(), req, res, &reader);
         };
     std::string method = route.method;
-    if (method == "GET") server.Get(pattern, plain);
-    else if (method == "POST") server.Post(pattern, with_body);
-    else if (method == "PUT") server.Put(pattern, with_body);
+    if (method == "GET")
+      server.Get(pattern, plain);
+    else if (method == "POST")
+      server.Post(pattern, with_body);
+    else if (method == "PUT")
+      server.Put(pattern, with_body);
   }
 
   // Refuse what cannot be drained before any byte of the body is read.
@@ -929,12 +959,13 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
     auto length = ParseInt(req.get_header_value("Content-Length"), "Content-Length", 0, INT64_MAX);
     if (length.ok() && static_cast<uint64_t>(*length) <= limit) return httplib::Server::HandlerResponse::Unhandled;
     res.set_header("Connection", "close");
-    SendProblem(res, Status::ResourceExhausted("body", "the body is larger than this route takes (" +
-                                                           std::to_string(route->body == BodyKind::kRestart
-                                                                              ? d->max_restart_body
-                                                                              : d->max_json_body) +
-                                                           " bytes)"),
-                413);
+    SendProblem(
+        res,
+        Status::ResourceExhausted(
+            "body", "the body is larger than this route takes (" +
+                        std::to_string(route->body == BodyKind::kRestart ? d->max_restart_body : d->max_json_body) +
+                        " bytes)"),
+        413);
     counters->Count(413);
     return httplib::Server::HandlerResponse::Handled;
   });
@@ -945,10 +976,9 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
   httplib::Server::HandlerWithResponse on_error = [counters](const httplib::Request& req, httplib::Response& res) {
     if (!res.body.empty() || res.content_length_ > 0) return httplib::Server::HandlerResponse::Unhandled;
     counters->Count(res.status);  // answered by httplib itself (no route, unreadable request)
-    std::string reason = res.status == 404 ? "no route " + req.method + " " + req.path +
-                                                 " (see /api/v1/openapi.json)"
+    std::string reason = res.status == 404 ? "no route " + req.method + " " + req.path + " (see /api/v1/openapi.json)"
                                            : HttpTitle(res.status);
-    StatusCode code = res.status == 404 ? StatusCode::kNotFound
+    StatusCode code = res.status == 404   ? StatusCode::kNotFound
                       : res.status >= 500 ? StatusCode::kInternal
                                           : StatusCode::kInvalidArgument;
     std::string field = res.status == 413 ? "body" : "";
@@ -961,7 +991,8 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
     try {
       std::rethrow_exception(ep);
     } catch (const json::parse_error& e) {
-      SendProblem(res, Status::InvalidArgument("body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what()));
+      SendProblem(
+          res, Status::InvalidArgument("body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what()));
     } catch (const json::exception& e) {
       SendProblem(res, Status::InvalidArgument("body", e.what()));
     } catch (const std::exception& e) {

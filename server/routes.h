@@ -39,8 +39,8 @@ class Server;
 
 namespace sandswim {
 
-inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;           // 1 MiB
-inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;        // 2 GiB
+inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;     // 1 MiB
+inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;  // 2 GiB
 inline constexpr int kDefaultPort = 8640;
 
 struct Deps {

@@ -156,8 +156,7 @@ struct BadInput {
 
 TEST_F(RoutesTest, BadInputGetsProblemNamingTheFieldAndChangesNothing) {
   SubmitExample();  // something in the database to stay untouched
-  const std::string base =
-      R"("base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3})";
+  const std::string base = R"("base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3})";
   auto sweep = [&](const std::string& extra, const std::string& b) {
     return R"({"name": "bad", "scale": "smoke", )" + b + extra + "}";
   };
@@ -170,19 +169,28 @@ TEST_F(RoutesTest, BadInputGetsProblemNamingTheFieldAndChangesNothing) {
       {"unknown field", sweep(R"(, "colour": "red")", base), "colour"},
       {"wrong type", sweep(R"(, "axes": {"param": "A"})", base), "axes"},
       {"string where a number belongs", with_base(R"("A": "0.03", "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
-      {"deck injection in a number", with_base(R"("A": "0.03\nrun 1000000", "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
-      {"newline inside a value", with_base(R"("A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3, "axis": "x\nshell rm")"), "base.axis"},
-      {"newline in the mode", sweep("", R"("base": {"mode": "oscillatory\nrun 1", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3})"), "base.mode"},
+      {"deck injection in a number", with_base(R"("A": "0.03\nrun 1000000", "f": 3, "Omega": -80, "duration_s": 0.3)"),
+       "base.A"},
+      {"newline inside a value",
+       with_base(R"("A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3, "axis": "x\nshell rm")"), "base.axis"},
+      {"newline in the mode",
+       sweep("", R"("base": {"mode": "oscillatory\nrun 1", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3})"),
+       "base.mode"},
       {"newline in the name", R"({"name": "a\nb", "scale": "smoke", )" + base + "}", "name"},
-      {"number too large (no NaN in JSON)", with_base(R"("A": 1e999, "f": 3, "Omega": -80, "duration_s": 0.3)"), "body"},
+      {"number too large (no NaN in JSON)", with_base(R"("A": 1e999, "f": 3, "Omega": -80, "duration_s": 0.3)"),
+       "body"},
       {"negative A", with_base(R"("A": -0.03, "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
       {"zero A", with_base(R"("A": 0, "f": 3, "Omega": -80, "duration_s": 0.3)"), "base.A"},
       {"negative f", with_base(R"("A": 0.03, "f": -3, "Omega": -80, "duration_s": 0.3)"), "base.f"},
       {"zero f", with_base(R"("A": 0.03, "f": 0, "Omega": -80, "duration_s": 0.3)"), "base.f"},
       {"Omega beyond its cap", with_base(R"("A": 0.03, "f": 3, "Omega": 5001, "duration_s": 0.3)"), "base.Omega"},
-      {"Omega beyond its cap on an axis", sweep(R"(, "axes": [{"param": "Omega", "values": [80, 1e6]}])", base), "axes[0].values[1]"},
-      {"past the run limit", sweep(R"(, "axes": [{"param": "Omega", "range": {"from": 1, "to": 400, "step": 1}},
-                                                 {"param": "f", "range": {"from": 1, "to": 400, "step": 1}}])", base), "axes"},
+      {"Omega beyond its cap on an axis", sweep(R"(, "axes": [{"param": "Omega", "values": [80, 1e6]}])", base),
+       "axes[0].values[1]"},
+      {"past the run limit",
+       sweep(R"(, "axes": [{"param": "Omega", "range": {"from": 1, "to": 400, "step": 1}},
+                                                 {"param": "f", "range": {"from": 1, "to": 400, "step": 1}}])",
+             base),
+       "axes"},
       {"unknown scale", R"({"name": "bad", "scale": "galaxy", )" + base + "}", "scale"},
       {"unknown campaign", R"({"campaign": "nope"})", "campaign"},
   };
@@ -330,7 +338,8 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   const std::string restart = "restart bytes \n\0 of a bed";
   const std::string sha = Sha256Hex(restart);
   std::string put_path = "/api/v1/beds/" + std::to_string(bed.id) + "/restart?token=" + bed.token;
-  auto bad_sha = client_->Put(put_path.c_str(), {{"X-Sha256", std::string(64, '0')}}, restart, "application/octet-stream");
+  auto bad_sha =
+      client_->Put(put_path.c_str(), {{"X-Sha256", std::string(64, '0')}}, restart, "application/octet-stream");
   EXPECT_EQ(bad_sha->status, 400);
   EXPECT_EQ(Body(bad_sha)["field"], "X-Sha256");
   auto put = client_->Put(put_path.c_str(), {{"X-Sha256", sha}}, restart, "application/octet-stream");
@@ -355,7 +364,8 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   ASSERT_TRUE(run.bed.has_value());
   EXPECT_EQ(run.bed->sha256, sha);
 
-  auto beat = Post("/api/v1/leases/" + run.token + "/heartbeat", R"({"sim_time_s": 0.1, "so_z": 0.001, "step": 10000})");
+  auto beat =
+      Post("/api/v1/leases/" + run.token + "/heartbeat", R"({"sim_time_s": 0.1, "so_z": 0.001, "step": 10000})");
   ASSERT_EQ(beat->status, 200) << beat->body;
   EXPECT_EQ(Body(beat)["cancel"], false);
   auto lost = Post("/api/v1/leases/deadbeef/heartbeat", "{}");
@@ -482,7 +492,8 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
   SubmitExample();
   for (const RouteInfo& route : RouteTable()) {
     std::string path = route.path;
-    for (const auto& [param, value] : {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}, {"{name}", "paper-58"}}) {
+    for (const auto& [param, value] :
+         {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}, {"{name}", "paper-58"}}) {
       auto at = path.find(param);
       if (at != std::string::npos) path.replace(at, param.size(), value);
     }

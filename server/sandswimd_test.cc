@@ -115,8 +115,16 @@ class SandswimdTest : public ::testing::Test {
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
   std::vector<std::string> Flags(const std::string& listen = "127.0.0.1:0") {
-    return {"--db", dir_ + "/var/sandswim.db", "--data", dir_ + "/var/data", "--listen", listen,
-            "--engine-version", "LIGGGHTS (Version test)", "--lease-ttl", "600"};
+    return {"--db",
+            dir_ + "/var/sandswim.db",
+            "--data",
+            dir_ + "/var/data",
+            "--listen",
+            listen,
+            "--engine-version",
+            "LIGGGHTS (Version test)",
+            "--lease-ttl",
+            "600"};
   }
   std::string Log() { return dir_ + "/sandswimd.log"; }
 
@@ -154,12 +162,16 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
   api::Completion bed_done;
   bed_done.ok = true;
   bed_done.bed_result = api::BedResult{3700, 0, 0.22, true, 1e-4, Sha256Hex(restart), 13};
-  ASSERT_EQ(a.Post(("/api/v1/leases/" + bed.token + "/complete").c_str(), json(bed_done).dump(), "application/json")->status, 200);
+  ASSERT_EQ(
+      a.Post(("/api/v1/leases/" + bed.token + "/complete").c_str(), json(bed_done).dump(), "application/json")->status,
+      200);
   auto run_lease = a.Post("/api/v1/leases", R"({"worker": "w1"})", "application/json");
   ASSERT_EQ(run_lease->status, 200) << run_lease->body;
   auto run = Parse(run_lease)["lease"].get<api::LeaseGrant>();
   ASSERT_EQ(run.kind, api::JobKind::kRun);
-  ASSERT_EQ(a.Post(("/api/v1/leases/" + run.token + "/heartbeat").c_str(), R"({"sim_time_s": 0.1})", "application/json")->status, 200);
+  ASSERT_EQ(a.Post(("/api/v1/leases/" + run.token + "/heartbeat").c_str(), R"({"sim_time_s": 0.1})", "application/json")
+                ->status,
+            200);
 
   first.Kill(SIGKILL);
 
@@ -198,7 +210,9 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
   auto other = Parse(next)["lease"].get<api::LeaseGrant>();
   EXPECT_EQ(other.kind, api::JobKind::kRun);
   EXPECT_NE(other.id, run.id);
-  ASSERT_EQ(Parse(b.Post(("/api/v1/leases/" + other.token + "/complete").c_str(), json(done).dump(), "application/json"))["state"], "done");
+  ASSERT_EQ(Parse(b.Post(("/api/v1/leases/" + other.token + "/complete").c_str(), json(done).dump(),
+                         "application/json"))["state"],
+            "done");
   EXPECT_EQ(b.Post("/api/v1/leases", R"({"worker": "w2"})", "application/json")->status, 204);
 
   auto results = Parse(b.Get(("/api/v1/sweeps/" + std::to_string(sweep) + "/results").c_str()))["results"];

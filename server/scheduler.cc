@@ -34,8 +34,7 @@ Result<CampaignSchedule> LookUpCampaign(Store& store, const std::string& name, c
 Result<std::optional<double>> LastScheduledDue(Store& store, const std::string& campaign) {
   auto t = store.BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare(
-      "SELECT MAX(due_time) FROM campaign_runs WHERE campaign = ? AND trigger = 'schedule'");
+  Statement st = t->Prepare("SELECT MAX(due_time) FROM campaign_runs WHERE campaign = ? AND trigger = 'schedule'");
   st.Bind(1, campaign);
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
@@ -62,8 +61,9 @@ Result<ScheduleRequest> ParseScheduleFlag(const std::string& text, const std::st
   size_t colon = text.find(':');
   r.campaign = text.substr(0, colon);
   if (r.campaign.empty() || r.campaign.size() > kMaxNameLength || !std::regex_match(r.campaign, kName)) {
-    return Status::InvalidArgument(field, "\"" + text + "\" is not NAME or NAME:SCALE (a campaign name of "
-                                          "[A-Za-z0-9._-], e.g. paper-58 or paper-58:smoke)");
+    return Status::InvalidArgument(field, "\"" + text +
+                                              "\" is not NAME or NAME:SCALE (a campaign name of "
+                                              "[A-Za-z0-9._-], e.g. paper-58 or paper-58:smoke)");
   }
   if (colon != std::string::npos) {
     std::string scale = text.substr(colon + 1);
@@ -96,14 +96,16 @@ Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool ex
   std::set<std::string> names;
   for (const ScheduleRequest& r : requests) {
     if (!names.insert(r.campaign).second) {
-      return Status::InvalidArgument(field, "campaign '" + r.campaign + "' is scheduled twice; a campaign has one "
-                                            "schedule (at one scale)");
+      return Status::InvalidArgument(field, "campaign '" + r.campaign +
+                                                "' is scheduled twice; a campaign has one "
+                                                "schedule (at one scale)");
     }
     auto campaign = LookUpCampaign(*store_, r.campaign, field);
     if (!campaign.ok()) return campaign.status();
     if (!campaign->schedule) {
-      return Status::InvalidArgument(field, "campaign '" + r.campaign + "' has no \"schedule\"; give it one, "
-                                            "e.g. \"schedule\": \"0 2 * * *\"");
+      return Status::InvalidArgument(field, "campaign '" + r.campaign +
+                                                "' has no \"schedule\"; give it one, "
+                                                "e.g. \"schedule\": \"0 2 * * *\"");
     }
     auto cron = ParseCron(*campaign->schedule, field);
     if (!cron.ok()) {
@@ -236,9 +238,8 @@ std::string DescribeRerun(const ScheduledRerun& r, CronZone zone) {
     line += "already submitted as campaign run " + std::to_string(r.campaign_run_id);
   } else {
     line += "submitted campaign run " + std::to_string(r.campaign_run_id) + " (" + std::to_string(r.runs) +
-            " runs: " + std::to_string(r.runs_reused) + " reused, " +
-            std::to_string(r.runs_new + r.runs_requeued) + " to run, " + std::to_string(r.runs_shared) +
-            " already in flight)";
+            " runs: " + std::to_string(r.runs_reused) + " reused, " + std::to_string(r.runs_new + r.runs_requeued) +
+            " to run, " + std::to_string(r.runs_shared) + " already in flight)";
   }
   if (r.skipped > 0) {
     line += "; " + std::to_string(r.skipped) + " earlier due time(s) missed while the daemon was down were skipped";

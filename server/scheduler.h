@@ -67,9 +67,9 @@ struct ScheduledRerun {
   std::string campaign;
   std::string scale;
   double due_time = 0;
-  int skipped = 0;           // earlier due times missed while down and not run
+  int skipped = 0;  // earlier due times missed while down and not run
   int64_t campaign_run_id = 0;
-  bool replayed = false;     // Submit answered with an existing campaign run
+  bool replayed = false;  // Submit answered with an existing campaign run
   int64_t runs = 0, runs_reused = 0, runs_new = 0, runs_requeued = 0, runs_shared = 0;
 };
 

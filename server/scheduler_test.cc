@@ -37,7 +37,8 @@ double Utc(int y, int mo, int d, int h, int mi, int s = 0) {
 
 // Two points (Omega = -80 and +80) at smoke scale, due every night at 02:00.
 nlohmann::json TinyCampaign() {
-  return nlohmann::json::parse(R"({"name": "tiny", "description": "two points", "scale": "smoke", "schedule": "0 2 * * *",
+  return nlohmann::json::parse(
+      R"({"name": "tiny", "description": "two points", "scale": "smoke", "schedule": "0 2 * * *",
     "drift_tolerance_mps": 0.005,
     "sweeps": [{"name": "sign",
                 "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
@@ -313,8 +314,8 @@ TEST_F(SchedulerTest, DriftReportNeverComparesAnInconclusiveResult) {
 // analysis made (a stored report without the field was made by analysis 1), however far it moved.
 TEST(DriftReportTest, RatesOfDifferentAnalysesAreNotCompared) {
   const nlohmann::json point = {{"mode", "oscillatory"}, {"Omega", 80}};
-  DriftPoint old_row = nlohmann::json{{"point", point}, {"run_id", 1}, {"state", "done"}, {"uz", 0.010}}
-                           .get<DriftPoint>();
+  DriftPoint old_row =
+      nlohmann::json{{"point", point}, {"run_id", 1}, {"state", "done"}, {"uz", 0.010}}.get<DriftPoint>();
   EXPECT_EQ(old_row.analysis, 1);
   DriftReport previous;
   previous.campaign_run_id = 1;
@@ -400,7 +401,8 @@ TEST_F(SchedulerTest, DriftReportFlagsOnlyChangesBeyondTheTolerance) {
   EXPECT_EQ(fired[0].runs_reused, 2);
   auto third = Reports();
   ASSERT_EQ(third.size(), 1u);
-  EXPECT_EQ(third[0].summary, "tiny@smoke night 2026-11-25 02:00: 2 points, 2 reused, 0 run, 0 drifted beyond 0.005 m/s");
+  EXPECT_EQ(third[0].summary,
+            "tiny@smoke night 2026-11-25 02:00: 2 points, 2 reused, 0 run, 0 drifted beyond 0.005 m/s");
 
   // Read back: the latest report of the campaign, and each campaign run's own.
   auto latest = LatestDriftReport(*store_, "tiny");

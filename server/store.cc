@@ -32,8 +32,8 @@ constexpr int kResultColumnCount = 34;
 
 // Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s (core/point.h StoredPoint).
 Result<Point> PointFromRow(const Statement& st, int c) {
-  return StoredPoint(st.Text(c), st.Text(c + 5), st.Double(c + 1), st.Double(c + 2), st.Double(c + 3),
-                     st.Double(c + 4), st.Double(c + 6));
+  return StoredPoint(st.Text(c), st.Text(c + 5), st.Double(c + 1), st.Double(c + 2), st.Double(c + 3), st.Double(c + 4),
+                     st.Double(c + 6));
 }
 
 Result<RunSummary> RunSummaryFromRow(const Statement& st) {
@@ -114,11 +114,16 @@ std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
 }
 
 void AddState(RunCounts& c, const std::string& state, int64_t n) {
-  if (state == "queued") c.queued += n;
-  else if (state == "running") c.running += n;
-  else if (state == "done") c.done += n;
-  else if (state == "failed") c.failed += n;
-  else if (state == "cancelled") c.cancelled += n;
+  if (state == "queued")
+    c.queued += n;
+  else if (state == "running")
+    c.running += n;
+  else if (state == "done")
+    c.done += n;
+  else if (state == "failed")
+    c.failed += n;
+  else if (state == "cancelled")
+    c.cancelled += n;
 }
 
 bool IsRunState(const std::string& s) {
@@ -151,8 +156,7 @@ Result<RunCounts> CountsWhere(Transaction& t, const std::string& sql, int64_t id
 // One row of sweep_counts (schema/003_perf.sql: kept by triggers in every transaction that
 // changes a run's state or a sweep's membership), not a count over 10^5 membership rows.
 Result<RunCounts> SweepCounts(Transaction& t, int64_t sweep_id) {
-  Statement st = t.Prepare(
-      "SELECT queued, running, done, failed, cancelled FROM sweep_counts WHERE sweep_id = ?");
+  Statement st = t.Prepare("SELECT queued, running, done, failed, cancelled FROM sweep_counts WHERE sweep_id = ?");
   st.Bind(1, sweep_id);
   RunCounts c;
   Result<bool> row = st.Step();
@@ -174,16 +178,15 @@ SweepInfo SweepFromRow(const Statement& st) {
   return s;
 }
 
-constexpr const char* kSweepColumns =
-    "id, name, scale, spec, campaign_run_id, force, created_at, cancelled_at";
+constexpr const char* kSweepColumns = "id, name, scale, spec, campaign_run_id, force, created_at, cancelled_at";
 
 }  // namespace
 
 // ---- JSON ---------------------------------------------------------------------------------------
 
 void to_json(nlohmann::json& j, const RunCounts& c) {
-  j = nlohmann::json{{"queued", c.queued}, {"running", c.running},     {"done", c.done},
-                     {"failed", c.failed}, {"cancelled", c.cancelled}};
+  j = nlohmann::json{
+      {"queued", c.queued}, {"running", c.running}, {"done", c.done}, {"failed", c.failed}, {"cancelled", c.cancelled}};
 }
 
 void to_json(nlohmann::json& j, const SweepInfo& s) {
@@ -260,12 +263,8 @@ void to_json(nlohmann::json& j, const RunDetail& r) {
 }
 
 void to_json(nlohmann::json& j, const CampaignRunInfo& c) {
-  j = nlohmann::json{{"id", c.id},
-                     {"campaign", c.campaign},
-                     {"scale", c.scale},
-                     {"trigger", c.trigger},
-                     {"created_at", c.created_at},
-                     {"sweeps", c.sweep_ids},
+  j = nlohmann::json{{"id", c.id},           {"campaign", c.campaign},     {"scale", c.scale},
+                     {"trigger", c.trigger}, {"created_at", c.created_at}, {"sweeps", c.sweep_ids},
                      {"counts", c.counts}};
   PutOpt(j, "due_time", c.due_time);
 }
@@ -393,9 +392,10 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
         Result<api::RunResult> r = Reanalyse(o);
         if (!r.ok()) {
           kept.Reset();
-          kept.Bind(1, "made by the old estimator (analysis 1: a line and a sinusoid fitted over one period, "
-                       "with a standard error ~10x too small); it cannot be re-analysed: " +
-                           r.status().reason());
+          kept.Bind(1,
+                    "made by the old estimator (analysis 1: a line and a sinusoid fitted over one period, "
+                    "with a standard error ~10x too small); it cannot be re-analysed: " +
+                        r.status().reason());
           kept.Bind(2, o.run_id);
           SANDSWIM_RETURN_IF_ERROR(kept.Run());
           ++counts.kept_old;
@@ -424,8 +424,7 @@ Result<SweepPage> Store::ListSweeps(int64_t after_id, int limit) {
   if (!t.ok()) return t.status();
   SweepPage page;
   {
-    Statement st = t->Prepare(std::string("SELECT ") + kSweepColumns +
-                              " FROM sweeps WHERE id > ? ORDER BY id LIMIT ?");
+    Statement st = t->Prepare(std::string("SELECT ") + kSweepColumns + " FROM sweeps WHERE id > ? ORDER BY id LIMIT ?");
     st.Bind(1, after_id).Bind(2, limit + 1);
     while (true) {
       Result<bool> row = st.Step();
@@ -466,8 +465,8 @@ Result<SweepInfo> Store::GetSweep(int64_t id) {
 
 Result<RunPage> Store::ListRuns(const RunFilter& f) {
   if (f.state && !IsRunState(*f.state)) {
-    return Status::InvalidArgument(
-        "state", "'" + *f.state + "' is not one of queued, running, done, failed, cancelled");
+    return Status::InvalidArgument("state",
+                                   "'" + *f.state + "' is not one of queued, running, done, failed, cancelled");
   }
   int limit = std::clamp(f.limit, 1, 1000);
   Result<Transaction> t = BeginRead();
@@ -503,13 +502,11 @@ Result<RunDetail> Store::GetRun(int64_t id) {
   if (!t.ok()) return t.status();
   RunDetail d;
   {
-    Statement st = t->Prepare(std::string("SELECT ") + kRunColumns + ", d.deck, b.key, b.state, " +
-                              kResultColumns + ", tr.data, lg.log_tail, b.scale FROM runs r " +
-                              "JOIN beds b ON b.id = r.bed_id " +
-                              "LEFT JOIN run_decks d ON d.run_id = r.id " +
-                              "LEFT JOIN results res ON res.run_id = r.id " +
-                              "LEFT JOIN trajectories tr ON tr.run_id = r.id " +
-                              "LEFT JOIN run_logs lg ON lg.run_id = r.id WHERE r.id = ?");
+    Statement st = t->Prepare(
+        std::string("SELECT ") + kRunColumns + ", d.deck, b.key, b.state, " + kResultColumns +
+        ", tr.data, lg.log_tail, b.scale FROM runs r " + "JOIN beds b ON b.id = r.bed_id " +
+        "LEFT JOIN run_decks d ON d.run_id = r.id " + "LEFT JOIN results res ON res.run_id = r.id " +
+        "LEFT JOIN trajectories tr ON tr.run_id = r.id " + "LEFT JOIN run_logs lg ON lg.run_id = r.id WHERE r.id = ?");
     st.Bind(1, id);
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
@@ -566,12 +563,11 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
     if (!row.ok()) return row.status();
     if (!*row) return Status::NotFound("no sweep " + std::to_string(sweep_id));
   }
-  Statement st = t->Prepare(
-      std::string("SELECT r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, "
-                  "r.axis, r.duration_s, r.run_duration_s, ") +
-      kResultColumns +
-      " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
-      "LEFT JOIN results res ON res.run_id = r.id WHERE sr.sweep_id = ? ORDER BY sr.position");
+  Statement st = t->Prepare(std::string("SELECT r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, "
+                                        "r.axis, r.duration_s, r.run_duration_s, ") +
+                            kResultColumns +
+                            " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+                            "LEFT JOIN results res ON res.run_id = r.id WHERE sr.sweep_id = ? ORDER BY sr.position");
   st.Bind(1, sweep_id);
   std::vector<ResultRow> rows;
   while (true) {
@@ -583,7 +579,8 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
     r.key = st.Text(1);
     r.state = st.Text(2);
     Result<Point> point = PointFromRow(st, 3);
-    if (!point.ok()) return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
+    if (!point.ok())
+      return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
     r.point = *point;
     r.run_duration_s = st.Double(10);
     r.result = ResultFromRow(st, 11);
@@ -618,11 +615,11 @@ Result<std::vector<CampaignRunInfo>> ReadCampaignRuns(Transaction& t, Statement&
       if (!*row) break;
       c.sweep_ids.push_back(s.Int(0));
     }
-    Result<RunCounts> counts = CountsWhere(
-        t,
-        "SELECT state, COUNT(*) FROM runs WHERE id IN (SELECT sr.run_id FROM sweep_runs sr "
-        "JOIN sweeps s ON s.id = sr.sweep_id WHERE s.campaign_run_id = ?) GROUP BY state",
-        c.id);
+    Result<RunCounts> counts =
+        CountsWhere(t,
+                    "SELECT state, COUNT(*) FROM runs WHERE id IN (SELECT sr.run_id FROM sweep_runs sr "
+                    "JOIN sweeps s ON s.id = sr.sweep_id WHERE s.campaign_run_id = ?) GROUP BY state",
+                    c.id);
     if (!counts.ok()) return counts.status();
     c.counts = *counts;
   }
@@ -636,8 +633,7 @@ constexpr const char* kCampaignRunColumns = "id, campaign, scale, trigger, due_t
 Result<CampaignRunInfo> Store::GetCampaignRun(int64_t id) {
   Result<Transaction> t = BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns +
-                            " FROM campaign_runs WHERE id = ?");
+  Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns + " FROM campaign_runs WHERE id = ?");
   st.Bind(1, id);
   Result<std::vector<CampaignRunInfo>> rows = ReadCampaignRuns(*t, st);
   if (!rows.ok()) return rows.status();
@@ -657,8 +653,7 @@ Result<std::vector<CampaignRunInfo>> Store::ListCampaignRuns(const std::string& 
 }
 
 namespace {
-constexpr const char* kCampaignColumns =
-    "name, definition, schedule, drift_tolerance_mps, updated_at";
+constexpr const char* kCampaignColumns = "name, definition, schedule, drift_tolerance_mps, updated_at";
 StoredCampaign CampaignFromRow(const Statement& st) {
   StoredCampaign c;
   c.name = st.Text(0);
@@ -673,8 +668,7 @@ StoredCampaign CampaignFromRow(const Statement& st) {
 Result<std::optional<StoredCampaign>> Store::GetCampaign(const std::string& name) {
   Result<Transaction> t = BeginRead();
   if (!t.ok()) return t.status();
-  Statement st =
-      t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns WHERE name = ?");
+  Statement st = t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns WHERE name = ?");
   st.Bind(1, name);
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
@@ -685,8 +679,7 @@ Result<std::optional<StoredCampaign>> Store::GetCampaign(const std::string& name
 Result<std::vector<StoredCampaign>> Store::ListCampaigns() {
   Result<Transaction> t = BeginRead();
   if (!t.ok()) return t.status();
-  Statement st =
-      t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns ORDER BY name");
+  Statement st = t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns ORDER BY name");
   std::vector<StoredCampaign> out;
   while (true) {
     Result<bool> row = st.Step();
@@ -719,8 +712,7 @@ Result<Metrics> Store::GetMetrics() {
   if (!t.ok()) return t.status();
   Metrics m;
   for (const char* table : {"runs", "beds"}) {
-    Statement st = t->Prepare(std::string("SELECT state, COUNT(*) FROM ") + table +
-                              " GROUP BY state");
+    Statement st = t->Prepare(std::string("SELECT state, COUNT(*) FROM ") + table + " GROUP BY state");
     while (true) {
       Result<bool> row = st.Step();
       if (!row.ok()) return row.status();
@@ -740,11 +732,16 @@ Result<Metrics> Store::GetMetrics() {
     if (!row.ok()) return row.status();
     if (!*row) break;
     std::string name = st.Text(0);
-    if (name == "leases_granted") m.leases_granted = st.Int(1);
-    else if (name == "completions") m.completions = st.Int(1);
-    else if (name == "expirations") m.expirations = st.Int(1);
-    else if (name == "pilots_gone") m.pilots_gone = st.Int(1);
-    else if (name == "duplicates") m.duplicates = st.Int(1);
+    if (name == "leases_granted")
+      m.leases_granted = st.Int(1);
+    else if (name == "completions")
+      m.completions = st.Int(1);
+    else if (name == "expirations")
+      m.expirations = st.Int(1);
+    else if (name == "pilots_gone")
+      m.pilots_gone = st.Int(1);
+    else if (name == "duplicates")
+      m.duplicates = st.Int(1);
   }
   return m;
 }

@@ -46,8 +46,8 @@ struct SweepInfo {
 void to_json(nlohmann::json& j, const SweepInfo& s);
 
 struct SweepPage {
-  std::vector<SweepInfo> sweeps;          // ascending id
-  std::optional<int64_t> next_cursor;     // pass as after_id for the next page
+  std::vector<SweepInfo> sweeps;       // ascending id
+  std::optional<int64_t> next_cursor;  // pass as after_id for the next page
 };
 void to_json(nlohmann::json& j, const SweepPage& p);  // {"sweeps":[...], "next_cursor": id|null}
 
@@ -63,7 +63,7 @@ void to_json(nlohmann::json& j, const Progress& p);
 struct StoredResult {
   api::RunResult result;
   api::Execution execution;
-  std::string key;       // the run key the result was computed under
+  std::string key;  // the run key the result was computed under
   double created_at = 0;
 };
 // The RunResult fields flat, plus "engine_version","host","ranks","launcher","wall_s","cpu_s",
@@ -83,8 +83,8 @@ struct RunSummary {
   Progress progress;
   double created_at = 0;
   std::optional<double> started_at, finished_at;
-  std::optional<double> uz;               // from the result row, when there is one
-  std::string uz_text;                    // DescribeUz of that result ("" without one)
+  std::optional<double> uz;  // from the result row, when there is one
+  std::string uz_text;       // DescribeUz of that result ("" without one)
   std::optional<api::Failure> last_error;
 };
 // {"id","key","state","point":{PointToJson},"run_duration_s","steps","bed_id","attempts",
@@ -100,8 +100,8 @@ struct RunFilter {
 };
 
 struct RunPage {
-  std::vector<RunSummary> runs;       // ascending id
-  std::optional<int64_t> next_cursor; // set when more rows may follow
+  std::vector<RunSummary> runs;        // ascending id
+  std::optional<int64_t> next_cursor;  // set when more rows may follow
 };
 void to_json(nlohmann::json& j, const RunPage& p);  // {"runs":[...], "next_cursor": id|null}
 
@@ -152,14 +152,14 @@ struct StoredCampaign {
 void to_json(nlohmann::json& j, const StoredCampaign& c);
 
 struct Metrics {
-  RunCounts runs;   // by state
-  RunCounts beds;   // by state (cancelled is always 0)
+  RunCounts runs;  // by state
+  RunCounts beds;  // by state (cancelled is always 0)
   int64_t sweeps = 0;
   int64_t leases_granted = 0;
-  int64_t completions = 0;   // accepted completions (not duplicates)
-  int64_t expirations = 0;   // leases that ran out
-  int64_t pilots_gone = 0;   // leases reclaimed early: their Slurm job was gone (server/pilot_watch.h)
-  int64_t duplicates = 0;    // repeated completions answered "duplicate"
+  int64_t completions = 0;  // accepted completions (not duplicates)
+  int64_t expirations = 0;  // leases that ran out
+  int64_t pilots_gone = 0;  // leases reclaimed early: their Slurm job was gone (server/pilot_watch.h)
+  int64_t duplicates = 0;   // repeated completions answered "duplicate"
 };
 void to_json(nlohmann::json& j, const Metrics& m);
 

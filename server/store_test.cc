@@ -1,8 +1,8 @@
 #include "server/store.h"
 
 #include <algorithm>
-#include <cctype>
 #include <atomic>
+#include <cctype>
 #include <filesystem>
 #include <memory>
 #include <random>
@@ -44,8 +44,7 @@ nlohmann::json Sweep(const std::string& name, int points) {
   for (int i = 0; i < points; ++i) omegas.push_back(10 + 10 * i);
   return {{"name", name},
           {"scale", "smoke"},
-          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", 10},
-                    {"duration_s", 0.3}}},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", 10}, {"duration_s", 0.3}}},
           {"axes", {{{"param", "Omega"}, {"values", omegas}}}}};
 }
 
@@ -123,17 +122,18 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     without = runs->runs[1].id;
     // Back to schema 6: its results table, two results of analysis 1, one with a trajectory.
     auto t = store->Begin();
-    ASSERT_TRUE(t->Exec(
-        "DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
-        "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
-        "uz_stderr REAL NOT NULL, window_t0 REAL NOT NULL, window_t1 REAL NOT NULL, dz REAL NOT NULL, "
-        "z_osc_amplitude REAL NOT NULL, x_drift REAL NOT NULL, broke_surface INTEGER NOT NULL, "
-        "near_floor INTEGER NOT NULL, stop_reason TEXT NOT NULL, sim_time_s REAL NOT NULL, steps INTEGER NOT NULL, "
-        "grains INTEGER NOT NULL, z0 REAL NOT NULL, engine_version TEXT NOT NULL, host TEXT NOT NULL, "
-        "ranks INTEGER NOT NULL, launcher TEXT NOT NULL, wall_s REAL NOT NULL, cpu_s REAL NOT NULL, "
-        "key TEXT NOT NULL, created_at REAL NOT NULL, lease_to_start_s REAL);"
-        "UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}';"
-        "UPDATE runs SET state = 'done';").ok());
+    ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
+                        "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
+                        "uz_stderr REAL NOT NULL, window_t0 REAL NOT NULL, window_t1 REAL NOT NULL, dz REAL NOT NULL, "
+                        "z_osc_amplitude REAL NOT NULL, x_drift REAL NOT NULL, broke_surface INTEGER NOT NULL, "
+                        "near_floor INTEGER NOT NULL, stop_reason TEXT NOT NULL, sim_time_s REAL NOT NULL, steps "
+                        "INTEGER NOT NULL, "
+                        "grains INTEGER NOT NULL, z0 REAL NOT NULL, engine_version TEXT NOT NULL, host TEXT NOT NULL, "
+                        "ranks INTEGER NOT NULL, launcher TEXT NOT NULL, wall_s REAL NOT NULL, cpu_s REAL NOT NULL, "
+                        "key TEXT NOT NULL, created_at REAL NOT NULL, lease_to_start_s REAL);"
+                        "UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}';"
+                        "UPDATE runs SET state = 'done';")
+                    .ok());
     for (int64_t id : ids) {
       ASSERT_TRUE(t->Exec("INSERT INTO results VALUES (" + std::to_string(id) +
                           ", -0.0066, 0.0002, 0.3333, 0.6667, 0.001, 0.004, 0, 0, 0, 'duration', 1.0, 100000, "
@@ -264,8 +264,7 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   EXPECT_EQ(store->GetRun(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->GetSweep(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->SweepResults(12345).status().code(), StatusCode::kNotFound);
-  EXPECT_EQ(store->CountRows("sqlite_master; DROP TABLE runs").status().code(),
-            StatusCode::kInvalidArgument);
+  EXPECT_EQ(store->CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST_F(StoreTest, CampaignsRoundTrip) {
@@ -318,8 +317,10 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
   for (auto& t : threads) t.join();
   int want_refused = 0, want_thrown = 0;
   for (int n = 0; n < kThreads * kEach; ++n) {
-    if (n % 7 == 3) ++want_refused;
-    else if (n % 11 == 5) ++want_thrown;
+    if (n % 7 == 3)
+      ++want_refused;
+    else if (n % 11 == 5)
+      ++want_thrown;
   }
   EXPECT_EQ(refused.load(), want_refused);
   EXPECT_EQ(thrown.load(), want_thrown);

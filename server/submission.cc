@@ -54,12 +54,8 @@ Result<SubmitResult> ResultFromJson(const std::string& text) {
 }  // namespace
 
 void to_json(nlohmann::json& j, const SubmitResult& r) {
-  j = nlohmann::json{{"ids", r.sweep_ids},
-                     {"replayed", r.replayed},
-                     {"runs", r.runs},
-                     {"runs_new", r.runs_new},
-                     {"runs_reused", r.runs_reused},
-                     {"runs_requeued", r.runs_requeued},
+  j = nlohmann::json{{"ids", r.sweep_ids},          {"replayed", r.replayed},       {"runs", r.runs},
+                     {"runs_new", r.runs_new},      {"runs_reused", r.runs_reused}, {"runs_requeued", r.runs_requeued},
                      {"runs_shared", r.runs_shared}};
   if (!r.sweep_ids.empty()) j["id"] = r.sweep_ids.front();
   if (r.campaign_run_id) j["campaign_run_id"] = *r.campaign_run_id;
@@ -77,8 +73,9 @@ Result<SubmitRequest> ParseSubmitRequest(const nlohmann::json& body) {
   if (rest.contains("campaign")) {
     for (const auto& [k, v] : rest.items()) {
       if (k != "campaign" && k != "scale") {
-        return Status::InvalidArgument(k, "unknown field in a campaign submission "
-                                          "(allowed: campaign, scale, force)");
+        return Status::InvalidArgument(k,
+                                       "unknown field in a campaign submission "
+                                       "(allowed: campaign, scale, force)");
       }
     }
     if (!rest["campaign"].is_string() || rest["campaign"].get<std::string>().empty()) {
@@ -162,8 +159,8 @@ Result<std::optional<SubmitResult>> Replayed(Transaction& t, const SubmitRequest
     if (!row.ok()) return row.status();
     if (*row) {
       if (st.Text(0) != fingerprint) {
-        return Status(StatusCode::kConflict,
-                      "this Idempotency-Key was used with a different request", "Idempotency-Key");
+        return Status(StatusCode::kConflict, "this Idempotency-Key was used with a different request",
+                      "Idempotency-Key");
       }
       Result<SubmitResult> prior = ResultFromJson(st.Text(1));
       if (!prior.ok()) return prior.status();
@@ -362,18 +359,16 @@ Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const 
     SANDSWIM_RETURN_IF_ERROR(recount.Run());
   }
   for (size_t i = 0; i < sweeps.size(); ++i) {
-    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
-                                     {{"name", sweeps[i].name},
-                                      {"scale", sweeps[i].scale},
-                                      {"runs", runs_of[sweep_ids[i]]}}));
+    SANDSWIM_RETURN_IF_ERROR(
+        t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
+                {{"name", sweeps[i].name}, {"scale", sweeps[i].scale}, {"runs", runs_of[sweep_ids[i]]}}));
   }
   return Status::Ok();
 }
 
 }  // namespace
 
-Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
-                            const std::string& engine_version, double now) {
+Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::string& engine_version, double now) {
   // ---- Everything that can be refused is decided before the transaction opens. ----
   SANDSWIM_RETURN_IF_ERROR(CheckRequest(req));
   std::vector<SweepSpec> sweeps = req.sweeps;
@@ -413,8 +408,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req,
     if (!id.ok()) return id.status();
     out.campaign_run_id = *id;
   }
-  Result<std::vector<int64_t>> sweep_ids =
-      InsertSweeps(t, sweeps, out.campaign_run_id, *submission_id, req.force, now);
+  Result<std::vector<int64_t>> sweep_ids = InsertSweeps(t, sweeps, out.campaign_run_id, *submission_id, req.force, now);
   if (!sweep_ids.ok()) return sweep_ids.status();
   out.sweep_ids = *sweep_ids;
   std::map<std::string, int64_t> id_by_name;

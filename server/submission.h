@@ -58,11 +58,11 @@ struct SubmitResult {
   std::vector<int64_t> sweep_ids;          // in request order (campaign: its sweeps' order)
   std::optional<int64_t> campaign_run_id;  // campaign submissions
   bool replayed = false;                   // an earlier identical submission answered
-  int64_t runs = 0;        // distinct runs the submission needs
-  int64_t runs_new = 0;    // rows created
-  int64_t runs_reused = 0; // done runs whose results are reused
-  int64_t runs_requeued = 0;  // done (force) / failed / cancelled runs queued again
-  int64_t runs_shared = 0;    // already queued or running for another sweep
+  int64_t runs = 0;                        // distinct runs the submission needs
+  int64_t runs_new = 0;                    // rows created
+  int64_t runs_reused = 0;                 // done runs whose results are reused
+  int64_t runs_requeued = 0;               // done (force) / failed / cancelled runs queued again
+  int64_t runs_shared = 0;                 // already queued or running for another sweep
 };
 // {"ids":[...], "id": first id, "campaign_run_id"?, "replayed", "runs", "runs_new",
 //  "runs_reused", "runs_requeued", "runs_shared"}
@@ -75,8 +75,7 @@ Result<SubmitRequest> ParseSubmitRequest(const nlohmann::json& body);
 
 // REQUIRES: `engine_version` is what workers' LIGGGHTS reports (it enters every key); `now` is
 // the submission time (Clock::Now()).
-Result<SubmitResult> Submit(Store& store, const SubmitRequest& request,
-                            const std::string& engine_version, double now);
+Result<SubmitResult> Submit(Store& store, const SubmitRequest& request, const std::string& engine_version, double now);
 
 }  // namespace sandswim
 

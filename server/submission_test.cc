@@ -18,15 +18,14 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr char kEngine[] = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, test)";
-const char* const kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps", "beds",
-                               "runs", "sweep_runs", "leases", "results", "trajectories",
-                               "run_logs", "events", "counters"};
+const char* const kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",  "beds",
+                               "runs",      "sweep_runs",    "leases",      "results", "trajectories",
+                               "run_logs",  "events",        "counters"};
 
 nlohmann::json Sweep(const std::string& name, std::vector<double> omegas = {-80, 80}) {
   return {{"name", name},
           {"scale", "smoke"},
-          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", -80},
-                    {"duration_s", 0.3}}},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", -80}, {"duration_s", 0.3}}},
           {"axes", {{{"param", "Omega"}, {"values", omegas}}}},
           {"combine", "product"}};
 }
@@ -193,8 +192,7 @@ TEST_F(SubmissionTest, ParseSubmitRequestForms) {
   ASSERT_TRUE(c.ok());
   EXPECT_EQ(*c->campaign, "paper-58");
   EXPECT_EQ(ParseSubmitRequest({{"campaign", "paper-58"}, {"x", 1}}).status().field(), "x");
-  EXPECT_EQ(ParseSubmitRequest({{"campaign", "paper-58"}, {"scale", "huge"}}).status().field(),
-            "scale");
+  EXPECT_EQ(ParseSubmitRequest({{"campaign", "paper-58"}, {"scale", "huge"}}).status().field(), "scale");
   EXPECT_FALSE(ParseSubmitRequest(nlohmann::json::array()).ok());
 }
 

@@ -20,9 +20,9 @@
 namespace sandswim {
 namespace {
 
-using ::testing::HasSubstr;
 using nlohmann::json;
 using testing::Daemon;
+using ::testing::HasSubstr;
 
 constexpr double kTimeoutS = 1800;  // the first sweep prepares the bed (~2-3 min on a free core)
 

@@ -36,10 +36,9 @@ EngineRun RunDeck(const std::string& dir, const std::string& deck, const std::st
     fs::create_symlink(fs::absolute(bed_restart), dir + "/" + kBedRestartFile);
   }
   // Real mpirun, as the worker uses it; root needs the two OMPI_ALLOW variables.
-  std::string cmd = "cd '" + dir +
-                    "' && OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --bind-to none -np " +
-                    std::to_string(ranks) + " liggghts -in deck.in -log " + kLogFile +
-                    " -screen /dev/null > engine.out 2>&1";
+  std::string cmd =
+      "cd '" + dir + "' && OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --bind-to none -np " +
+      std::to_string(ranks) + " liggghts -in deck.in -log " + kLogFile + " -screen /dev/null > engine.out 2>&1";
   EngineRun r;
   r.dir = dir;
   int st = std::system(cmd.c_str());

@@ -18,13 +18,12 @@ namespace sandswim::testing {
 
 struct EngineRun {
   int exit_code = -1;
-  std::string dir;       // the run directory
-  std::string log;       // log.liggghts
+  std::string dir;  // the run directory
+  std::string log;  // log.liggghts
 };
 
 // Runs `mpirun -np ranks liggghts -in deck` in `dir` (created; bed restart linked in if given).
-EngineRun RunDeck(const std::string& dir, const std::string& deck, const std::string& bed_restart = "",
-                  int ranks = 1);
+EngineRun RunDeck(const std::string& dir, const std::string& deck, const std::string& bed_restart = "", int ranks = 1);
 
 // Returns the path of a prepared bed restart for `scale`; prepares it on first use.
 std::string PrepareBed(const Scale& scale);

@@ -14,8 +14,8 @@
 namespace sandswim {
 namespace {
 
-using ::testing::HasSubstr;
 using testing::EngineRun;
+using ::testing::HasSubstr;
 
 struct Frame {
   double t, x, y, z, vy, wx, wy, wz;
@@ -36,9 +36,7 @@ std::vector<Frame> ReadTrajectory(const std::string& dir) {
   return out;
 }
 
-std::string RunDir(const std::string& name) {
-  return testing::CacheDir() + "/physics/" + name;
-}
+std::string RunDir(const std::string& name) { return testing::CacheDir() + "/physics/" + name; }
 
 EngineRun Drive(const std::string& name, const Point& p, const Scale& scale) {
   EXPECT_TRUE(Validate(p).ok());

@@ -48,7 +48,7 @@ void ChildProcess::Stop(double grace_s) { process_->Stop(grace_s); }
 std::string ChildProcess::Output() const { return ReadFile(output_path_); }
 
 Daemon::Daemon(const std::string& dir, std::vector<std::string> extra) : dir_(dir), db_(dir + "/sandswim.db") {
-  std::vector<std::string> argv = {SANDSWIMD_PATH, "--db", db_, "--data", dir + "/data", "--listen", "127.0.0.1:0",
+  std::vector<std::string> argv = {SANDSWIMD_PATH,    "--db", db_, "--data", dir + "/data", "--listen", "127.0.0.1:0",
                                    "--local-workers", "0"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   process_ = std::make_unique<ChildProcess>(argv, dir, "sandswimd.out");
@@ -191,8 +191,9 @@ void HandInBeds(const Daemon& daemon, const std::string& restart) {
 
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,
                                           const std::vector<std::string>& extra) {
-  std::vector<std::string> argv = {SANDSWIM_WORKER_PATH, "--server", daemon.url(), "--slots", std::to_string(slots),
-                                   "--ranks", "1", "--workdir", dir, "--heartbeat", "1"};
+  std::vector<std::string> argv = {
+      SANDSWIM_WORKER_PATH, "--server", daemon.url(),  "--slots", std::to_string(slots), "--ranks", "1",
+      "--workdir",          dir,        "--heartbeat", "1"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   return std::make_unique<ChildProcess>(argv, dir, "worker.out");
 }

@@ -26,9 +26,9 @@ class ChildProcess {
   ChildProcess(std::vector<std::string> argv, const std::string& dir, const std::string& output_file);
   ~ChildProcess();
   bool running();
-  void Kill(int signal);        // the process alone; see the top of this file
+  void Kill(int signal);          // the process alone; see the top of this file
   void Stop(double grace_s = 5);  // SIGTERM to its group, then SIGKILL
-  std::string Output() const;   // what it printed so far
+  std::string Output() const;     // what it printed so far
   pid_t pid() const { return pid_; }
 
  private:
@@ -76,8 +76,7 @@ std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::strin
 
 // A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz unless `f` says otherwise) over the
 // given Omega values, each run `duration` s long: the sweep JSON to POST.
-nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration,
-                          double f = 3);
+nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration, double f = 3);
 
 }  // namespace sandswim::testing
 

@@ -25,16 +25,16 @@
 namespace sandswim::testing {
 
 struct SyntheticSo {
-  double drift = 0.05;                        // m/s, the true U_z
-  double f = 3;                               // Hz
+  double drift = 0.05;                            // m/s, the true U_z
+  double f = 3;                                   // Hz
   double amplitudes[3] = {0.002, 0.006, 0.0015};  // m at f, 2f, 3f (2f dominates, as in real runs)
-  double phases[3] = {0.3, 1.9, 4.0};          // rad
-  double z_noise_sd = 0.001;                  // m, stationary sd of e
-  double z_noise_phi = 0.99;                  // lag-1 autocorrelation of e per sample
-  double v_noise_sd = 0;                      // m/s, stationary sd of the velocity noise behind w
-  double v_noise_phi = 0.99;                  // its lag-1 autocorrelation per sample
-  double duration = 1;                        // s
-  double dt_sample = 1e-3;                    // s
+  double phases[3] = {0.3, 1.9, 4.0};             // rad
+  double z_noise_sd = 0.001;                      // m, stationary sd of e
+  double z_noise_phi = 0.99;                      // lag-1 autocorrelation of e per sample
+  double v_noise_sd = 0;                          // m/s, stationary sd of the velocity noise behind w
+  double v_noise_phi = 0.99;                      // its lag-1 autocorrelation per sample
+  double duration = 1;                            // s
+  double dt_sample = 1e-3;                        // s
 };
 
 inline std::vector<SoSample> MakeSyntheticSo(const SyntheticSo& p, uint64_t seed) {

@@ -35,13 +35,15 @@ namespace {
 // Runs `call` until it succeeds, fails for good, `retry_for_s` passes or `stopping` is set.
 template <typename F>
 auto WithRetries(double retry_for_s, const std::atomic<bool>* stopping, F call) -> decltype(call()) {
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(retry_for_s));
+  const auto deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(retry_for_s));
   double backoff = 0.2;
   while (true) {
     auto r = call();
     if (r.ok() || !Retryable(r.status()) || Clock::now() >= deadline) return r;
     // Sleep in small steps so a shutdown is not held up by a long backoff.
-    const auto wake = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(backoff));
+    const auto wake =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(backoff));
     while (Clock::now() < wake) {
       if (stopping != nullptr && stopping->load()) return r;
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -93,7 +95,8 @@ Result<std::optional<api::LeaseGrant>> HttpServerClient::Lease(const api::LeaseR
 Result<api::HeartbeatReply> HttpServerClient::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
   const std::string path = "/api/v1/leases/" + token + "/heartbeat";
   auto cli = MakeClient(options_);
-  Exchange ex = FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(beat)), "application/json"), "POST heartbeat");
+  Exchange ex =
+      FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(beat)), "application/json"), "POST heartbeat");
   if (!ex.status.ok()) return ex.status;
   return ParseJson<api::HeartbeatReply>(ex.body, "heartbeat");
 }
@@ -102,7 +105,8 @@ Result<api::CompletionReply> HttpServerClient::Release(const std::string& token,
   const std::string path = "/api/v1/leases/" + token + "/release";
   auto cli = MakeClient(options_);
   api::ReleaseRequest request{reason};
-  Exchange ex = FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(request)), "application/json"), "POST release");
+  Exchange ex =
+      FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(request)), "application/json"), "POST release");
   if (!ex.status.ok()) return ex.status;
   return ParseJson<api::CompletionReply>(ex.body, "release");
 }
@@ -140,7 +144,7 @@ Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& 
 }
 
 Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
-                                  const std::string& sha256) {
+                                   const std::string& sha256) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status::NotFound("bed restart " + path + " does not exist");
   std::stringstream ss;
@@ -167,6 +171,5 @@ Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token
     return ParseJson<api::CompletionReply>(ex.body, "complete");
   });
 }
-
 
 }  // namespace sandswim::worker

@@ -1,8 +1,8 @@
 // HttpServerClient against a real httplib server on an ephemeral port of 127.0.0.1.
 #include "workers/client.h"
 
-#include <httplib.h>
 #include <arpa/inet.h>
+#include <httplib.h>
 #include <netinet/in.h>
 #include <stdlib.h>
 #include <sys/socket.h>

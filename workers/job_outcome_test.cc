@@ -51,7 +51,8 @@ TEST(JobOutcomeTest, AnEngineErrorIsTheEnginesExit) {
   RunFixture f = Vibration3s();
   ExitFacts facts;
   facts.exit_code = 1;
-  JobOutcome out = JudgeJob(api::JobKind::kRun, 0, facts, ParseEngineLog(Fixture("deck_error.log")), f.drive, f.samples);
+  JobOutcome out =
+      JudgeJob(api::JobKind::kRun, 0, facts, ParseEngineLog(Fixture("deck_error.log")), f.drive, f.samples);
   ASSERT_TRUE(out.failure.has_value());
   EXPECT_EQ(out.failure->kind, "deck_error");
   EXPECT_TRUE(out.engine_exit);  // a stop of the whole worker may explain it
@@ -69,8 +70,8 @@ TEST(JobOutcomeTest, AnUnreadableDumpIsBadOutputNamingTheDump) {
 
 TEST(JobOutcomeTest, ACompletedBedIsItsLogsFigures) {
   const EngineLog log = ParseEngineLog(Fixture("bed.log"));
-  JobOutcome out = JudgeJob(api::JobKind::kBed, 0, ExitFacts{}, log, DriveInfo{1e-5, 0, 0, std::nullopt},
-                            std::vector<SoSample>());
+  JobOutcome out =
+      JudgeJob(api::JobKind::kBed, 0, ExitFacts{}, log, DriveInfo{1e-5, 0, 0, std::nullopt}, std::vector<SoSample>());
   ASSERT_FALSE(out.failure) << out.failure->message;
   ASSERT_TRUE(out.bed.has_value());
   EXPECT_EQ(out.bed->grains, log.bed_grains->grains);

@@ -13,8 +13,8 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <thread>
 
@@ -61,13 +61,16 @@ class ChildProcess : public EngineProcess {
     if (reaped_) return true;
     if (TryReap()) return true;
     if (seconds <= 0) return false;
-    const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+    const auto deadline =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
     if (pidfd_ >= 0) {
       // The pidfd becomes readable when the child exits: no polling delay, no busy loop.
       while (true) {
         double left = Seconds(deadline - Clock::now());
         if (left <= 0) return TryReap();
-        struct pollfd p{pidfd_, POLLIN, 0};
+        struct pollfd p {
+          pidfd_, POLLIN, 0
+        };
         int rc = poll(&p, 1, static_cast<int>(std::ceil(left * 1000)));
         if (rc < 0 && errno == EINTR) continue;
         return TryReap();
@@ -192,7 +195,7 @@ constexpr int kGuardSignals[] = {SIGCHLD, kParentDied, SIGTERM, SIGINT, SIGHUP, 
     int sig = sigwaitinfo(&guard_set, &info);
     if (sig == kParentDied) {
       if (getppid() == a.worker_pid) continue;  // a stray SIGUSR2 (kill, scancel --signal), not a death
-      kill(0, SIGKILL);  // the whole group, this guard included
+      kill(0, SIGKILL);                         // the whole group, this guard included
       _exit(137);
     }
     if (sig != SIGCHLD) continue;  // a group-wide signal: the engine got it too
@@ -246,7 +249,6 @@ pid_t ForkGuard(const std::string& exe, std::vector<char*>& argv, std::vector<ch
   return pid;
 }
 
-
 // A single-process engine, started straight from this (multi-threaded) process without a guard:
 // vfork (no page-table copy; this thread waits until the exec), then in the child only system
 // calls on memory prepared before: default dispositions, its own process group,
@@ -254,8 +256,8 @@ pid_t ForkGuard(const std::string& exe, std::vector<char*>& argv, std::vector<ch
 // the run directory, stdout/stderr to `out`, nothing else inherited, an empty signal mask, exec.
 // A failure before the exec is written to `*stage` / `*error` (memory the vfork child shares)
 // and returns -1 after reaping the child.
-pid_t SpawnSingle(const char* exe, char* const* argv, char* const* envp, const char* cwd, const char* out,
-                  int* stage, int* error) {
+pid_t SpawnSingle(const char* exe, char* const* argv, char* const* envp, const char* cwd, const char* out, int* stage,
+                  int* error) {
   sigset_t all, old, none;
   sigfillset(&all);
   sigemptyset(&none);
@@ -311,9 +313,12 @@ pid_t SpawnSingle(const char* exe, char* const* argv, char* const* envp, const c
 
 const char* LauncherName(LauncherKind kind) {
   switch (kind) {
-    case LauncherKind::kMpirun: return "mpirun";
-    case LauncherKind::kSrun: return "srun";
-    case LauncherKind::kDirect: return "direct";
+    case LauncherKind::kMpirun:
+      return "mpirun";
+    case LauncherKind::kSrun:
+      return "srun";
+    case LauncherKind::kDirect:
+      return "direct";
   }
   return "?";
 }
@@ -341,8 +346,8 @@ LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine
       break;
   }
   spec.argv.push_back(engine);
-  for (const std::string& a : {std::string("-in"), deck_file, std::string("-log"), log_file,
-                               std::string("-screen"), std::string("/dev/null")}) {
+  for (const std::string& a : {std::string("-in"), deck_file, std::string("-log"), log_file, std::string("-screen"),
+                               std::string("/dev/null")}) {
     spec.argv.push_back(a);
   }
   return spec;

@@ -36,19 +36,19 @@ enum class LauncherKind { kMpirun, kSrun, kDirect };
 const char* LauncherName(LauncherKind kind);  // "mpirun" | "srun" | "direct"
 
 struct LaunchSpec {
-  std::vector<std::string> argv;                          // argv[0] is looked up on PATH
-  std::string cwd;                                        // run directory
+  std::vector<std::string> argv;                         // argv[0] is looked up on PATH
+  std::string cwd;                                       // run directory
   std::vector<std::pair<std::string, std::string>> env;  // added to the worker's environment
-  std::string output_file;                                // stdout+stderr, relative to cwd ("" = /dev/null)
+  std::string output_file;                               // stdout+stderr, relative to cwd ("" = /dev/null)
   // The command is one process that starts no others (a direct engine): it needs no guard. It is
   // started straight from the worker (vfork + exec) as the leader of its own group, and asks
   // for SIGKILL itself when the worker's thread dies: one program start per run instead of two.
   bool single_process = false;
 };
 
-// The command line for the engine (single_process for direct). mpirun: `mpirun -np R --bind-to none ENGINE -in DECK -log LOG
-// -screen /dev/null` (with OMPI_ALLOW_RUN_AS_ROOT[_CONFIRM]=1 in env when running as root);
-// srun (inside an allocation): `srun --mpi=pmix -n R --exclusive ENGINE ...`; direct: `ENGINE ...` (R must be 1).
+// The command line for the engine (single_process for direct). mpirun: `mpirun -np R --bind-to none ENGINE -in DECK
+// -log LOG -screen /dev/null` (with OMPI_ALLOW_RUN_AS_ROOT[_CONFIRM]=1 in env when running as root); srun (inside an
+// allocation): `srun --mpi=pmix -n R --exclusive ENGINE ...`; direct: `ENGINE ...` (R must be 1).
 // (`-screen none` segfaults with fix insert/pack, so the screen goes to /dev/null.)
 LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine, const std::string& deck_file,
                          const std::string& log_file, const std::string& cwd, bool as_root);
@@ -57,7 +57,7 @@ struct ExitStatus {
   int exit_code = 0;  // when it exited
   int signal = 0;     // non-zero: died on this signal
   double wall_s = 0;
-  double cpu_s = 0;   // user + system of the child and the children it reaped
+  double cpu_s = 0;  // user + system of the child and the children it reaped
 };
 
 // One started engine process (group).
@@ -92,13 +92,13 @@ class GuardedLauncher : public Launcher {
 // process group, dies with the worker thread that started it and takes the group with it, and
 // exits as the engine did. Only async-signal-safe calls: usable right after fork().
 struct GuardArgs {
-  const char* exe;    // the engine, resolved
+  const char* exe;  // the engine, resolved
   char* const* argv;
   char* const* envp;
-  const char* cwd;    // nullptr: stay
-  const char* out;    // stdout + stderr, relative to cwd (nullptr: already set up)
-  int report_fd;      // {stage, errno} written here on a failure before exec
-  pid_t worker_pid;   // the expected parent
+  const char* cwd;   // nullptr: stay
+  const char* out;   // stdout + stderr, relative to cwd (nullptr: already set up)
+  int report_fd;     // {stage, errno} written here on a failure before exec
+  pid_t worker_pid;  // the expected parent
 };
 [[noreturn]] void GuardMain(const GuardArgs& args);
 

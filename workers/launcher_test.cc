@@ -141,15 +141,15 @@ TEST_P(LauncherModes, CpuTimeIsCounted) {
 
 TEST(LauncherTest, EngineCommands) {
   LaunchSpec m = EngineCommand(LauncherKind::kMpirun, 2, "liggghts", "drive.in", "log.liggghts", "/d", true);
-  EXPECT_EQ(m.argv, (std::vector<std::string>{"mpirun", "-np", "2", "--bind-to", "none", "liggghts", "-in",
-                                              "drive.in", "-log", "log.liggghts", "-screen", "/dev/null"}));
+  EXPECT_EQ(m.argv, (std::vector<std::string>{"mpirun", "-np", "2", "--bind-to", "none", "liggghts", "-in", "drive.in",
+                                              "-log", "log.liggghts", "-screen", "/dev/null"}));
   EXPECT_FALSE(m.single_process);  // mpirun starts ranks: it needs its guard
   EXPECT_EQ(m.env.size(), 2u);
   EXPECT_EQ(m.cwd, "/d");
   EXPECT_TRUE(EngineCommand(LauncherKind::kMpirun, 1, "liggghts", "a", "b", "/d", false).env.empty());
   LaunchSpec s = EngineCommand(LauncherKind::kSrun, 4, "liggghts", "bed.in", "log.liggghts", "/d", false);
-  EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "--exclusive", "liggghts", "-in", "bed.in", "-log",
-                                              "log.liggghts", "-screen", "/dev/null"}));
+  EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "--exclusive", "liggghts", "-in",
+                                              "bed.in", "-log", "log.liggghts", "-screen", "/dev/null"}));
   LaunchSpec d = EngineCommand(LauncherKind::kDirect, 1, "/opt/liggghts", "x.in", "log", "/d", true);
   EXPECT_TRUE(d.single_process);
   EXPECT_EQ(d.argv, (std::vector<std::string>{"/opt/liggghts", "-in", "x.in", "-log", "log", "-screen", "/dev/null"}));
@@ -178,7 +178,8 @@ TEST_P(LauncherModes, EngineInheritsNoDescriptorsAndNoIgnoredOrBlockedSignals) {
   const std::string dir = TempDir();
   int leak[2];
   ASSERT_EQ(pipe(leak), 0);  // not close-on-exec
-  struct sigaction ignore {}, old_term {};
+  struct sigaction ignore {
+  }, old_term{};
   ignore.sa_handler = SIG_IGN;
   ASSERT_EQ(sigaction(SIGTERM, &ignore, &old_term), 0);
   sigset_t block, old_mask;
@@ -255,8 +256,10 @@ TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
     // The worker-like parent: starts the engine, then waits to be killed.
     GuardedLauncher launcher;
     // engine.pid is complete before rank.pid appears (renamed into place).
-    auto proc = launcher.Start(Sh("echo $$ > engine.pid; sleep 300 & echo $! > rank.tmp && "
-                                  "mv rank.tmp rank.pid; wait", dir));
+    auto proc =
+        launcher.Start(Sh("echo $$ > engine.pid; sleep 300 & echo $! > rank.tmp && "
+                          "mv rank.tmp rank.pid; wait",
+                          dir));
     if (!proc.ok()) _exit(1);
     while (true) pause();
   }

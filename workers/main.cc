@@ -3,8 +3,8 @@
 #include <signal.h>
 #include <unistd.h>
 
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -14,10 +14,10 @@
 #include <string>
 #include <thread>
 
+#include "platform/slurm.h"
 #include "platform/token.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
-#include "platform/slurm.h"
 #include "workers/worker.h"
 
 int main(int argc, char** argv) {
@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
   app.add_flag("--keep-run-dirs", options.keep_run_dirs, "keep run directories of jobs that succeeded");
   CLI11_PARSE(app, argc, argv);
 
-  options.launcher = launcher_name == "srun" ? LauncherKind::kSrun
+  options.launcher = launcher_name == "srun"     ? LauncherKind::kSrun
                      : launcher_name == "direct" ? LauncherKind::kDirect
                                                  : LauncherKind::kMpirun;
   if (options.launcher == LauncherKind::kDirect && ranks != 1) {
@@ -114,13 +114,15 @@ int main(int argc, char** argv) {
     int sig = 0;
     sigwait(&signals, &sig);
     if (done) return;  // woken by main at exit
-    spdlog::warn("signal {}{}: stopping; running jobs are stopped and handed back to the daemon, which leases "
-                 "them again", sig, sig == SIGUSR1 ? " (the Slurm allocation is about to end)" : "");
+    spdlog::warn(
+        "signal {}{}: stopping; running jobs are stopped and handed back to the daemon, which leases "
+        "them again",
+        sig, sig == SIGUSR1 ? " (the Slurm allocation is about to end)" : "");
     stopping = true;
     worker.RequestStop();
   });
-  spdlog::info("sandswim-worker {}: server {}, {} slot(s) x {} rank(s), launcher {}, workdir {}", options.name,
-               server, options.once ? 1 : options.slots, options.ranks, launcher_name, options.workdir);
+  spdlog::info("sandswim-worker {}: server {}, {} slot(s) x {} rank(s), launcher {}, workdir {}", options.name, server,
+               options.once ? 1 : options.slots, options.ranks, launcher_name, options.workdir);
   worker.Run();
   done = true;
   if (!stopping) pthread_kill(signal_thread.native_handle(), SIGTERM);

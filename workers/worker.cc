@@ -302,7 +302,8 @@ void Worker::Complete(Job& job, const RunDir* dir) {
     if (reply.status().code() == StatusCode::kConflict) {
       Abandon(job, "the lease was lost before completion (another worker has the run)");
     } else {
-      Abandon(job, "completion failed: " + reply.status().ToString() + "; the lease will expire and the run be retried");
+      Abandon(job,
+              "completion failed: " + reply.status().ToString() + "; the lease will expire and the run be retried");
     }
     return;
   }
@@ -400,8 +401,8 @@ std::optional<RunDir> Worker::Prepare(Job& job) {
 std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, JobProgress& progress) {
   const api::LeaseGrant& grant = job.grant;
   const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
-  LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile,
-                                  dir.path(), options_.as_root);
+  LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile, dir.path(),
+                                  options_.as_root);
   spec.output_file = kEngineOutputFile;
   ExitFacts facts;
   auto started = launcher_.Start(spec);

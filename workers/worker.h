@@ -38,8 +38,8 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
-#include <optional>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include "core/api.h"
@@ -53,34 +53,34 @@ namespace sandswim::worker {
 class JobProgress;  // a running job's progress, read from its growing dump or log (worker.cc)
 
 struct WorkerOptions {
-  std::string name;               // "host:pid" by default (main.cc)
+  std::string name;  // "host:pid" by default (main.cc)
   std::string host;
-  std::string slurm_job;          // SLURM_JOB_ID inside an allocation (sent with every lease request)
+  std::string slurm_job;  // SLURM_JOB_ID inside an allocation (sent with every lease request)
   int ranks = 1;
   int slots = 1;
   LauncherKind launcher = LauncherKind::kMpirun;
   std::string engine = "liggghts";
   std::string workdir = "var/worker";
-  bool once = false;              // one job, then return
-  bool as_root = false;           // add mpirun's run-as-root permission to the engine's environment
-  bool keep_run_dirs = false;     // keep directories of jobs that completed ok (failed ones are kept)
-  double heartbeat_every_s = 5;   // also capped at a third of the lease's ttl
-  double stop_grace_s = 10;       // SIGTERM -> SIGKILL
-  double stop_settle_s = 2;       // after an engine fails, how long to wait for the worker's own stop
-  double idle_poll_s = 2;         // when the queue is empty
-  double exit_when_idle_s = 0;    // > 0: a slot returns after this long without work (array jobs)
-  double max_backoff_s = 30;      // when the daemon cannot be reached
+  bool once = false;             // one job, then return
+  bool as_root = false;          // add mpirun's run-as-root permission to the engine's environment
+  bool keep_run_dirs = false;    // keep directories of jobs that completed ok (failed ones are kept)
+  double heartbeat_every_s = 5;  // also capped at a third of the lease's ttl
+  double stop_grace_s = 10;      // SIGTERM -> SIGKILL
+  double stop_settle_s = 2;      // after an engine fails, how long to wait for the worker's own stop
+  double idle_poll_s = 2;        // when the queue is empty
+  double exit_when_idle_s = 0;   // > 0: a slot returns after this long without work (array jobs)
+  double max_backoff_s = 30;     // when the daemon cannot be reached
   // Seconds until this worker's Slurm allocation ends (nullopt: no limit); empty when the worker
   // is not in an allocation. Called before every lease.
   std::function<Result<std::optional<double>>()> allocation_seconds_left;
-  double end_margin_s = 300;      // a run's expected wall time before this worker has done one
+  double end_margin_s = 300;  // a run's expected wall time before this worker has done one
 };
 
 struct WorkerStats {
   int64_t leased = 0;
-  int64_t completed = 0;     // completions the daemon accepted (any state)
-  int64_t abandoned = 0;     // lease lost or worker stopping: not completed
-  int64_t released = 0;      // handed back to the daemon unfinished (worker stopping)
+  int64_t completed = 0;           // completions the daemon accepted (any state)
+  int64_t abandoned = 0;           // lease lost or worker stopping: not completed
+  int64_t released = 0;            // handed back to the daemon unfinished (worker stopping)
   bool allocation_ending = false;  // stopped leasing: the next run would outlast the allocation
 };
 

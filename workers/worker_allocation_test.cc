@@ -157,9 +157,7 @@ TEST(WorkerAllocationTest, SlurmNotAnsweringDoesNotIdleTheAllocation) {
   QueueClient client;
   EndlessLauncher launcher;
   WorkerOptions o = Options();
-  o.allocation_seconds_left = []() -> Result<std::optional<double>> {
-    return Status::Unavailable("slurmctld down");
-  };
+  o.allocation_seconds_left = []() -> Result<std::optional<double>> { return Status::Unavailable("slurmctld down"); };
   Worker worker(o, client, launcher);
   std::thread run([&] { worker.Run(); });
   while (!client.leased) std::this_thread::sleep_for(std::chrono::milliseconds(1));

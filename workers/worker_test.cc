@@ -5,8 +5,8 @@
 
 #include <atomic>
 #include <deque>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <sstream>
 #include <thread>
@@ -53,8 +53,8 @@ class FakeClient : public ServerClient {
   bool conflict_on_beat = false;
   std::string bed_bytes = kBedBytes;
   std::atomic<int> downloads{0};
-  bool piggyback = false;  // answer a completion's `next` with the next grant, as the daemon does
-  int granted_by_lease = 0;  // grants handed out by Lease() (not with a completion)
+  bool piggyback = false;             // answer a completion's `next` with the next grant, as the daemon does
+  int granted_by_lease = 0;           // grants handed out by Lease() (not with a completion)
   std::vector<std::string> released;  // tokens handed back
   std::function<void()> on_complete;  // runs inside Complete (e.g. a stop request arriving then)
 
@@ -108,15 +108,16 @@ class FakeProcess : public EngineProcess {
  public:
   // `stops` outlives the process (the worker destroys it when the job ends): tests read it.
   FakeProcess(bool runs_until_stopped, std::atomic<int>* stops, double runs_for_s = 0)
-      : running_(runs_until_stopped), stops_(stops),
+      : running_(runs_until_stopped),
+        stops_(stops),
         until_(std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                                       std::chrono::duration<double>(runs_for_s))) {}
   pid_t pid() const override { return 0; }
   bool WaitFor(double seconds) override {
     if (!running_) {
-      std::this_thread::sleep_until(std::min(until_, std::chrono::steady_clock::now() +
-                                                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                             std::chrono::duration<double>(seconds))));
+      std::this_thread::sleep_until(std::min(
+          until_, std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                         std::chrono::duration<double>(seconds))));
       return std::chrono::steady_clock::now() >= until_;
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(std::min(seconds, 0.005)));

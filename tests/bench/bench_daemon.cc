@@ -39,8 +39,8 @@
 #include "server/lease_queue.h"
 #include "server/routes.h"
 #include "server/store.h"
-#include "tests/bench/in_process_daemon.h"
 #include "server/submission.h"
+#include "tests/bench/in_process_daemon.h"
 
 namespace {
 
@@ -129,8 +129,8 @@ void BenchSubmitAndStatus(const fs::path& root, int runs) {
     double t0 = Seconds(), c0 = CpuSeconds();
     auto plan = sandswim::PlanSweeps(req->sweeps, *sandswim::FindScale("smoke"), kEngine, options);
     if (!plan.ok()) Die("plan: " + plan.status().ToString());
-    std::printf("plan_s %.3f cpu_s %.3f (%zu runs, keep_decks=false, threads=2)\n", Seconds() - t0,
-                CpuSeconds() - c0, plan->runs.size());
+    std::printf("plan_s %.3f cpu_s %.3f (%zu runs, keep_decks=false, threads=2)\n", Seconds() - t0, CpuSeconds() - c0,
+                plan->runs.size());
   }
   // In-process: ParseSweep (via ParseSubmitRequest) + Submit.
   {
@@ -316,8 +316,8 @@ void BenchCycles(const fs::path& root, int clients, int cycles, CycleMode mode) 
           }
           double b = Seconds();
           // The last completion asks for nothing more: every job leased is completed.
-          auto done = c.Post(("/api/v1/leases/" + token + "/complete").c_str(),
-                             k + 1 < per_client ? body : completion, "application/json");
+          auto done = c.Post(("/api/v1/leases/" + token + "/complete").c_str(), k + 1 < per_client ? body : completion,
+                             "application/json");
           double e = Seconds();
           token.clear();
           if (!done || done->status != 200) {
@@ -380,8 +380,8 @@ void BenchCycles(const fs::path& root, int clients, int cycles, CycleMode mode) 
               cpu / ok_cycles * 1e6, cpu, 2 * ok_cycles / cpu);
   std::printf("cycles_%s_write_calls_per_cycle %.1f  bytes_written_per_cycle %.0f (incl. HTTP sends)\n", how,
               double(w1.first - w0.first) / ok_cycles, double(w1.second - w0.second) / ok_cycles);
-  std::printf("%s lease_ms median %.2f p95 %.2f   complete_ms median %.2f p95 %.2f\n", how, l.median, l.p95,
-              c.median, c.p95);
+  std::printf("%s lease_ms median %.2f p95 %.2f   complete_ms median %.2f p95 %.2f\n", how, l.median, l.p95, c.median,
+              c.p95);
   std::fflush(stdout);
 }
 
@@ -396,15 +396,23 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) Die("missing value after " + a);
       return argv[++i];
     };
-    if (a == "--runs") runs = std::atoi(next().c_str());
-    else if (a == "--clients") clients = std::atoi(next().c_str());
-    else if (a == "--cycles") cycles = std::atoi(next().c_str());
-    else if (a == "--dir") dir = next();
-    else if (a == "--only") only = next();
-    else Die("unknown argument " + a + " (--runs N --clients C --cycles M --dir DIR --only submit|cycles|piggyback|inproc)");
+    if (a == "--runs")
+      runs = std::atoi(next().c_str());
+    else if (a == "--clients")
+      clients = std::atoi(next().c_str());
+    else if (a == "--cycles")
+      cycles = std::atoi(next().c_str());
+    else if (a == "--dir")
+      dir = next();
+    else if (a == "--only")
+      only = next();
+    else
+      Die("unknown argument " + a +
+          " (--runs N --clients C --cycles M --dir DIR --only submit|cycles|piggyback|inproc)");
   }
   if (runs < 1 || clients < 1 || cycles < clients) Die("need runs >= 1 and cycles >= clients >= 1");
-  fs::path root = dir.empty() ? fs::temp_directory_path() / ("bench_daemon." + std::to_string(::getpid())) : fs::path(dir);
+  fs::path root =
+      dir.empty() ? fs::temp_directory_path() / ("bench_daemon." + std::to_string(::getpid())) : fs::path(dir);
   fs::remove_all(root);
   fs::create_directories(root);
   if (only.empty() || only == "submit") BenchSubmitAndStatus(root, runs);

@@ -32,15 +32,15 @@ void Generate(const std::string& path, double megabytes) {
   char line[512];
   size_t bytes = 0;
   for (long step = 0; bytes < megabytes * 1e6; step += 100) {
-    std::string frame = "ITEM: TIMESTEP\n" + std::to_string(step) +
-                        "\nITEM: NUMBER OF ATOMS\n" + std::to_string(atoms) +
+    std::string frame = "ITEM: TIMESTEP\n" + std::to_string(step) + "\nITEM: NUMBER OF ATOMS\n" +
+                        std::to_string(atoms) +
                         "\nITEM: BOX BOUNDS pp pp ff\n-0.1 0.1\n-0.19 0.19\n-0.25 0.65\n"
                         "ITEM: ATOMS id x y z vx vy vz omegax omegay omegaz \n";
     for (int i = 1; i <= atoms; ++i) {
       // LIGGGHTS writes %g: 6 significant digits.
-      int n = std::snprintf(line, sizeof(line), "%d %g %g %g %g %g %g %g %g %g \n", i, 0.1 * u(rng), 0.19 * u(rng),
-                            0.3 * u(rng), 1e-3 * u(rng), 0.5 * u(rng), 1e-2 * u(rng), 80 * u(rng), 5 * u(rng),
-                            5 * u(rng));
+      int n =
+          std::snprintf(line, sizeof(line), "%d %g %g %g %g %g %g %g %g %g \n", i, 0.1 * u(rng), 0.19 * u(rng),
+                        0.3 * u(rng), 1e-3 * u(rng), 0.5 * u(rng), 1e-2 * u(rng), 80 * u(rng), 5 * u(rng), 5 * u(rng));
       frame.append(line, static_cast<size_t>(n));
     }
     out << frame;
@@ -148,8 +148,8 @@ int main(int argc, char** argv) {
   std::printf("DumpReader: %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s)\n", parse_cpu, mb / parse_cpu, parse_s,
               mb / parse_s);
   std::printf("DumpFrameCollector (DumpFrame copies): %.3f s CPU = %.0f MB/s\n", queue.cpu, mb / queue.cpu);
-  std::printf("wc -l:      %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s, includes sh)\n", wc_cpu, mb / wc_cpu,
-              wc_s, mb / wc_s);
+  std::printf("wc -l:      %.3f s CPU = %.0f MB/s (wall %.3f s = %.0f MB/s, includes sh)\n", wc_cpu, mb / wc_cpu, wc_s,
+              mb / wc_s);
   std::printf("ratio DumpReader / wc -l = %.2f by CPU time, %.2f by wall time (goal >= 0.5)\n", wc_cpu / parse_cpu,
               wc_s / parse_s);
   return 0;

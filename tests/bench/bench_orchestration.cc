@@ -42,11 +42,10 @@ namespace {
 using json = nlohmann::json;
 namespace fs = std::filesystem;
 
-double Seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+double Seconds() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 double CpuSeconds() {
-  struct rusage self {}, kids {};
+  struct rusage self {
+  }, kids{};
   getrusage(RUSAGE_SELF, &self);
   getrusage(RUSAGE_CHILDREN, &kids);
   auto s = [](const struct rusage& u) {
@@ -152,19 +151,24 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) Die("missing value after " + a);
       return argv[++i];
     };
-    if (a == "--runs") runs = std::atoi(next().c_str());
-    else if (a == "--slots") slots = std::atoi(next().c_str());
-    else if (a == "--engine") engine = next();
-    else if (a == "--dir") dir = next();
-    else Die("unknown argument " + a + " (--runs N --slots S --engine PATH --dir DIR)");
+    if (a == "--runs")
+      runs = std::atoi(next().c_str());
+    else if (a == "--slots")
+      slots = std::atoi(next().c_str());
+    else if (a == "--engine")
+      engine = next();
+    else if (a == "--dir")
+      dir = next();
+    else
+      Die("unknown argument " + a + " (--runs N --slots S --engine PATH --dir DIR)");
   }
   if (engine.empty()) {
     engine = (fs::canonical("/proc/self/exe").parent_path() / "sandswim-stand-in-engine").string();
   }
   if (access(engine.c_str(), X_OK) != 0) Die("no stand-in engine at " + engine + " (build sandswim-stand-in-engine)");
   spdlog::set_level(spdlog::level::warn);
-  fs::path root = dir.empty() ? fs::temp_directory_path() / ("bench_orchestration." + std::to_string(::getpid()))
-                              : fs::path(dir);
+  fs::path root =
+      dir.empty() ? fs::temp_directory_path() / ("bench_orchestration." + std::to_string(::getpid())) : fs::path(dir);
   fs::remove_all(root);
   std::printf("engine %s (a STAND-IN that exits at once: for this measurement only)\n", engine.c_str());
   Figures f = Measure(root / "throughput", engine, runs, slots);

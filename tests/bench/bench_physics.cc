@@ -76,7 +76,8 @@ void BenchScale(const Scale& scale, bool trajectories) {
               bed_log.bed_grains ? bed_log.bed_grains->so_z : 0.0,
               bed_log.bed_equilibrium && bed_log.bed_equilibrium->equilibrated ? "equilibrated" : "NOT equilibrated",
               bed_log.bed_equilibrium ? bed_log.bed_equilibrium->ke / bed_log.bed_equilibrium->ke_peak : 0.0);
-  std::printf("bed preparation wall time    %.1f s%s\n", prep, prep < 1 ? " (cached; delete the cache to re-measure)" : "");
+  std::printf("bed preparation wall time    %.1f s%s\n", prep,
+              prep < 1 ? " (cached; delete the cache to re-measure)" : "");
 
   const double probe = 0.05;  // s of drive per throughput probe
   Point p = Oscillatory(-80, probe);
@@ -102,23 +103,25 @@ void BenchScale(const Scale& scale, bool trajectories) {
       std::printf("Omega = %g: %s\n", Omega, samples.status().ToString().c_str());
       continue;
     }
-    auto res = AnalyzeTrajectory(*samples, q.f, BedBounds{std::nullopt, scale.z_floor}, log.drive_start, log.drive_stop);
+    auto res =
+        AnalyzeTrajectory(*samples, q.f, BedBounds{std::nullopt, scale.z_floor}, log.drive_start, log.drive_stop);
     if (!res.ok()) {
       std::printf("Omega = %g: %s\n", Omega, res.status().ToString().c_str());
       continue;
     }
-    std::printf("\nOmega = %+g rad/s, A = 0.03 m, f = 3 Hz, %.3f s at %s:\n  t (s)   z (m)\n", Omega,
-                res->sim_time_s, std::string(scale.name).c_str());
-    for (size_t i = 0; i < samples->size(); i += 50)
-      std::printf("  %.3f  %+.4f\n", (*samples)[i].t, (*samples)[i].z);
-    std::printf("  U_z = %s over [%.3f, %.3f] s (%d blocks, window end: %s)%s%s; dz = %+.4f m; z oscillation %.4f m; "
-                "x drift %+.4f m; stop: %s\n",
-                res->uz ? (std::to_string(*res->uz) + " +- " + (res->uz_stderr ? std::to_string(*res->uz_stderr) : "?") +
-                           " m/s").c_str()
-                        : "none",
-                res->window_t0, res->window_t1, res->uz_blocks, res->window_end.c_str(),
-                res->conclusive ? "" : "; inconclusive: ", res->inconclusive_reason.c_str(), res->dz,
-                res->z_osc_amplitude, res->x_drift, res->stop_reason.c_str());
+    std::printf("\nOmega = %+g rad/s, A = 0.03 m, f = 3 Hz, %.3f s at %s:\n  t (s)   z (m)\n", Omega, res->sim_time_s,
+                std::string(scale.name).c_str());
+    for (size_t i = 0; i < samples->size(); i += 50) std::printf("  %.3f  %+.4f\n", (*samples)[i].t, (*samples)[i].z);
+    std::printf(
+        "  U_z = %s over [%.3f, %.3f] s (%d blocks, window end: %s)%s%s; dz = %+.4f m; z oscillation %.4f m; "
+        "x drift %+.4f m; stop: %s\n",
+        res->uz
+            ? (std::to_string(*res->uz) + " +- " + (res->uz_stderr ? std::to_string(*res->uz_stderr) : "?") + " m/s")
+                  .c_str()
+            : "none",
+        res->window_t0, res->window_t1, res->uz_blocks, res->window_end.c_str(),
+        res->conclusive ? "" : "; inconclusive: ", res->inconclusive_reason.c_str(), res->dz, res->z_osc_amplitude,
+        res->x_drift, res->stop_reason.c_str());
   }
 }
 

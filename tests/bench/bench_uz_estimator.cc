@@ -118,8 +118,7 @@ struct Tally {
       return;
     }
     std::printf("    %-8s bias %+6.1f %%  rms %5.1f %%  stated/actual error %5.2f  95 %% coverage %5.1f %%\n", name,
-                100 * bias / truth, 100 * rms / truth, sum_se / with_interval / sd,
-                100.0 * covered / with_interval);
+                100 * bias / truth, 100 * rms / truth, sum_se / with_interval / sd, 100.0 * covered / with_interval);
   }
 };
 
@@ -143,9 +142,10 @@ int main(int argc, char** argv) {
   models[1].name = "wander (integrated AR(1) velocity noise, sd 8 mm/s, phi 0.99 per ms, + 0.5 mm jitter)";
   models[1].so.z_noise_sd = 0.0005;
   models[1].so.v_noise_sd = 0.008;
-  std::printf("drift 0.05 m/s, f = 3 Hz, harmonics 2 / 6 / 1.5 mm at f / 2f / 3f (fixed phases, as a drive "
-              "fixes them), %d seeds\n",
-              seeds);
+  std::printf(
+      "drift 0.05 m/s, f = 3 Hz, harmonics 2 / 6 / 1.5 mm at f / 2f / 3f (fixed phases, as a drive "
+      "fixes them), %d seeds\n",
+      seeds);
   for (Model& m : models) {
     std::printf("\n%s\n", m.name);
     for (int periods : {1, 2, 4, 10}) {

@@ -60,9 +60,12 @@ int main(int argc, char** argv) {
   const char* deck_file = nullptr;
   const char* log_file = "log.lammps";
   for (int i = 1; i + 1 < argc; ++i) {
-    if (std::strcmp(argv[i], "-in") == 0) deck_file = argv[++i];
-    else if (std::strcmp(argv[i], "-log") == 0) log_file = argv[++i];
-    else if (std::strcmp(argv[i], "-screen") == 0 || std::strcmp(argv[i], "-var") == 0) ++i;
+    if (std::strcmp(argv[i], "-in") == 0)
+      deck_file = argv[++i];
+    else if (std::strcmp(argv[i], "-log") == 0)
+      log_file = argv[++i];
+    else if (std::strcmp(argv[i], "-screen") == 0 || std::strcmp(argv[i], "-var") == 0)
+      ++i;
   }
   std::string deck;
   if (deck_file == nullptr || !ReadAll(deck_file, &deck)) {
@@ -72,9 +75,10 @@ int main(int argc, char** argv) {
   std::string log = "LIGGGHTS (Version sandswim-stand-in-engine 0, NOT LIGGGHTS: a benchmark stand-in)\n";
   if (deck.find("read_restart") == std::string::npos) {  // a bed deck
     WriteAll("bed.restart", "stand-in bed restart: no grains were simulated\n");
-    log += "SANDSWIM bed equilibrated ke 0 ke_peak 1\n"
-           "SANDSWIM bed grains 1 so_z 0 grain_top 0.2 step 1\n"
-           "SANDSWIM bed done\n";
+    log +=
+        "SANDSWIM bed equilibrated ke 0 ke_peak 1\n"
+        "SANDSWIM bed grains 1 so_z 0 grain_top 0.2 step 1\n"
+        "SANDSWIM bed done\n";
     return WriteAll(log_file, log) ? 0 : 1;
   }
   // Steps the worker expects: chunks x steps per chunk, as the drive deck loops.

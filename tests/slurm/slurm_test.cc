@@ -59,8 +59,9 @@ class SlurmTest : public ::testing::Test {
     std::string out;
     if (Shell("command -v sbatch && command -v slurmctld && command -v slurmd && command -v munged", &out) != 0 &&
         Shell("test -x /usr/sbin/slurmctld && test -x /usr/sbin/slurmd && test -x /usr/sbin/munged", &out) != 0) {
-      skip_ = new std::string("Slurm is not installed (slurmctld slurmd slurm-client munge): run "
-                              "deploy/install-deps.sh as root");
+      skip_ = new std::string(
+          "Slurm is not installed (slurmctld slurmd slurm-client munge): run "
+          "deploy/install-deps.sh as root");
       return;
     }
     if (geteuid() != 0) {
@@ -108,8 +109,8 @@ class SlurmTest : public ::testing::Test {
   int64_t SlurmSubmit(const std::string& flags) {
     const std::string cmd = std::string(SANDSWIM_CLI_PATH) + " --server " + daemon_->url() +
                             " slurm submit --time 5:00 --ranks-per-run 1 --worker " + SANDSWIM_WORKER_PATH +
-                            " --workdir " + *dir_ + "/work --end-margin 20 --output " + *dir_ +
-                            "/slurm-%j.out " + flags;
+                            " --workdir " + *dir_ + "/work --end-margin 20 --output " + *dir_ + "/slurm-%j.out " +
+                            flags;
     std::string out;
     int rc = Shell(cmd + " 2>/dev/null", &out);
     EXPECT_EQ(rc, 0) << cmd << "\n" << out;
@@ -140,8 +141,7 @@ class SlurmTest : public ::testing::Test {
 
   // A one-run sweep (0.1 s of simulated time) and a 1-CPU pilot, returned once the pilot's engine
   // has made progress on the run.
-  void PilotInTheMiddleOfARun(const std::string& name, double omega, int64_t* sweep, int64_t* pilot,
-                              int64_t* run_id) {
+  void PilotInTheMiddleOfARun(const std::string& name, double omega, int64_t* sweep, int64_t* pilot, int64_t* run_id) {
     *sweep = Submit(testing::OmegaSweep(name, {omega}, 0.1));
     *pilot = SlurmSubmit("--nodes 1 --tasks-per-node 1");
     ASSERT_GT(*pilot, 0);
@@ -187,7 +187,7 @@ TEST_F(SlurmTest, PilotOfTwoCpusRunsAFourRunSweep) {
   }
   // Two runs shared the allocation at once: some lease was granted before another completed.
   EXPECT_EQ(daemon_->Query("SELECT count(*) > 0 FROM leases a JOIN leases b ON a.token != b.token "
-                         "WHERE b.granted_at < a.completed_at AND b.granted_at >= a.granted_at"),
+                           "WHERE b.granted_at < a.completed_at AND b.granted_at >= a.granted_at"),
             "1");
   EXPECT_THAT(JobLog(job), ::testing::HasSubstr("launcher srun"));
   std::printf("SLURM submit -> first lease %.2f s; 4 runs done %.1f s after submit\n", to_first_lease, to_done);
@@ -205,7 +205,7 @@ TEST_F(SlurmTest, CancelledPilotsRunIsFinishedByTheNextPilotOnce) {
       << JobLog(first);
   std::printf("SLURM scancel -> run queued again in %.2f s\n", Since(cancelled));
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM events WHERE kind = 'run.released' AND subject = 'run/" +
-                         std::to_string(run_id) + "'"),
+                           std::to_string(run_id) + "'"),
             "1")
       << JobLog(first);
   int64_t second = SlurmSubmit("--nodes 1 --tasks-per-node 1");
@@ -225,9 +225,9 @@ TEST_F(SlurmTest, CancelledPilotsRunIsFinishedByTheNextPilotOnce) {
 TEST_F(SlurmTest, KilledPilotsRunIsReclaimedFromSlurmBeforeItsLeaseExpires) {
   int64_t sweep = 0, pilot = 0, run_id = 0;
   ASSERT_NO_FATAL_FAILURE(PilotInTheMiddleOfARun("slurm-kill", -70, &sweep, &pilot, &run_id));
-  EXPECT_EQ(daemon_->Query("SELECT slurm_job FROM leases WHERE job_id = " + std::to_string(run_id) +
-                         " AND kind = 'run'"),
-            std::to_string(pilot));
+  EXPECT_EQ(
+      daemon_->Query("SELECT slurm_job FROM leases WHERE job_id = " + std::to_string(run_id) + " AND kind = 'run'"),
+      std::to_string(pilot));
   // The worker is the batch shell itself (pilot.sbatch execs it), named after its job. ("[-]-name"
   // keeps the pattern from matching the shell that runs pkill.)
   ASSERT_EQ(Shell("pkill -KILL -f -- '[-]-name slurm-" + std::to_string(pilot) + "@'"), 0) << JobLog(pilot);
@@ -255,16 +255,20 @@ TEST_F(SlurmTest, ArrayOfOneShotWorkersRunsATwoRunSweep) {
   int64_t job = SlurmSubmit("--array 2 --throttle 1");
   ASSERT_GT(job, 0);
   json s = daemon_->WaitForSweep(sweep, kSweepTimeoutS);
-  ASSERT_EQ(s["counts"]["done"], 2) << s.dump() << "\nelement logs:\n" << JobLog(job) << testing::ReadFile(*dir_ + "/slurm-" + std::to_string(job + 1) + ".out");
+  ASSERT_EQ(s["counts"]["done"], 2) << s.dump() << "\nelement logs:\n"
+                                    << JobLog(job)
+                                    << testing::ReadFile(*dir_ + "/slurm-" + std::to_string(job + 1) + ".out");
   // Each element took exactly one run, and the throttle (%1) kept them apart.
   EXPECT_EQ(daemon_->Query("SELECT count(DISTINCT worker) FROM leases WHERE job_id IN (SELECT run_id FROM sweep_runs "
-                         "WHERE sweep_id = " + std::to_string(sweep) + ")"),
+                           "WHERE sweep_id = " +
+                           std::to_string(sweep) + ")"),
             "2");
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM leases a JOIN leases b ON a.token < b.token "
-                         "WHERE a.job_id IN (SELECT run_id FROM sweep_runs WHERE sweep_id = " + std::to_string(sweep) +
-                         ") AND b.job_id IN (SELECT run_id FROM sweep_runs WHERE sweep_id = " + std::to_string(sweep) +
-                         ") AND a.granted_at < b.completed_at AND b.granted_at < a.completed_at"),
-            "0");
+  EXPECT_EQ(
+      daemon_->Query("SELECT count(*) FROM leases a JOIN leases b ON a.token < b.token "
+                     "WHERE a.job_id IN (SELECT run_id FROM sweep_runs WHERE sweep_id = " +
+                     std::to_string(sweep) + ") AND b.job_id IN (SELECT run_id FROM sweep_runs WHERE sweep_id = " +
+                     std::to_string(sweep) + ") AND a.granted_at < b.completed_at AND b.granted_at < a.completed_at"),
+      "0");
   // Both elements exited after their one run: nothing of the array is left in the queue.
   std::string left;
   const auto deadline = Clock::now() + std::chrono::seconds(30);
