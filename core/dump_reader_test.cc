@@ -1,4 +1,5 @@
 #include "core/dump_reader.h"
+#include "tests/fixture_file.h"
 
 #include <algorithm>
 #include <charconv>
@@ -17,12 +18,7 @@
 namespace sandswim {
 namespace {
 
-std::string Fixture(const std::string& name) {
-  std::ifstream in(std::string(SANDSWIM_SOURCE_DIR) + "/tests/fixtures/" + name, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using testing::Fixture;  // tests/fixture_file.h
 
 constexpr char kTwoFrames[] =
     "ITEM: TIMESTEP\n"

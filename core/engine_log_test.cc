@@ -6,15 +6,12 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/fixture_file.h"
+
 namespace sandswim {
 namespace {
 
-std::string Fixture(const std::string& name) {
-  std::ifstream in(std::string(SANDSWIM_SOURCE_DIR) + "/tests/fixtures/" + name, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using testing::Fixture;  // tests/fixture_file.h
 
 ExitFacts Exit(int code, int sig = 0, bool timed_out = false, bool cancelled = false) {
   ExitFacts e;

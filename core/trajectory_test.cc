@@ -10,6 +10,7 @@
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
 #include "core/scale.h"
+#include "tests/fixture_file.h"
 #include "tests/synthetic_trajectory.h"
 
 namespace sandswim {
@@ -17,12 +18,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-std::string Fixture(const std::string& name) {
-  std::ifstream in(std::string(SANDSWIM_SOURCE_DIR) + "/tests/fixtures/" + name, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using testing::Fixture;  // tests/fixture_file.h
 
 // z = z0 + u t + amp sin(2 pi f t + phase), x = x0 + vx t, sampled every 1 ms.
 std::vector<SoSample> Synthetic(double duration, double z0, double u, double amp, double f, double phase, double vx) {

@@ -16,6 +16,7 @@
 #include "core/engine_log.h"
 #include "tests/engine_fixture.h"
 #include "workers/client.h"
+#include "workers/job_outcome.h"
 #include "workers/run_dir.h"
 
 namespace sandswim::testing {
@@ -171,14 +172,11 @@ void HandInBeds(const Daemon& daemon, const std::string& restart) {
     }
     api::Completion done;
     done.ok = true;
-    api::BedResult bed;
-    bed.grains = log.bed_grains->grains;
-    bed.so_z = log.bed_grains->so_z;
-    bed.grain_top = log.bed_grains->grain_top;
-    if (log.bed_equilibrium) {
-      bed.equilibrated = log.bed_equilibrium->equilibrated;
-      bed.ke_ratio = log.bed_equilibrium->ke_peak > 0 ? log.bed_equilibrium->ke / log.bed_equilibrium->ke_peak : 0;
-    }
+    // The bed's figures as a worker reports them (workers/job_outcome.h).
+    worker::JobOutcome judged = worker::JudgeJob(api::JobKind::kBed, 0, ExitFacts{}, log,
+                                                 DriveInfo{g.dt_s, 0, 0, std::nullopt}, std::vector<SoSample>());
+    if (!judged.bed) throw std::runtime_error("the bed's log does not make a bed: " + judged.failure->message);
+    api::BedResult bed = *judged.bed;
     bed.sha256 = *sha;
     bed.bytes = static_cast<int64_t>(fs::file_size(restart));
     done.bed_result = bed;

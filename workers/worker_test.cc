@@ -17,16 +17,12 @@
 #include "core/dump_reader.h"
 #include "core/keys.h"
 #include "core/trajectory.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim::worker {
 namespace {
 
-std::string Fixture(const std::string& name) {
-  std::ifstream in(std::string(SANDSWIM_SOURCE_DIR) + "/tests/fixtures/" + name, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using testing::Fixture;  // tests/fixture_file.h
 
 std::string TempDir() {
   char tmpl[] = "/tmp/sandswim-worker-XXXXXX";
