@@ -372,7 +372,9 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
         << Str(r, "window_end", "?") << "\n";
     out << "  motion:    dz = " << NumCell(r, "dz", 4) << " m (dz/T over the whole run " << NumCell(r, "dz_rate", 3)
         << " m/s), x drift = " << NumCell(r, "x_drift", 4) << " m, z oscillation at f "
-        << NumCell(r, "z_osc_amplitude", 3) << " m, stop: " << Str(r, "stop_reason", "?") << "\n";
+        << NumCell(r, "z_osc_amplitude", 3) << " m\n";
+    const std::string stop_note = Str(r, "stop_note");
+    out << "  ended:     " << (stop_note.empty() ? Str(r, "stop_reason", "?") : stop_note) << "\n";
     out << "  executed:  " << Str(r, "engine_version", "?") << " on " << Str(r, "host", "?") << ", "
         << Str(r, "ranks", "?") << " rank(s), " << FormatDuration(Num(r, "wall_s").value_or(-1)) << " wall\n";
   }
@@ -402,6 +404,10 @@ std::string ResultFlags(const json& row) {
   // The steady window was cut short by the SO nearing the surface or the floor.
   std::string end = Str(row, "window_end");
   if (end == "surface" || end == "floor") flags += (flags.empty() ? "window<" : ",window<") + end;
+  // A run with a precision target: met ("target"), or ended without it ("target-missed").
+  auto met = row.find("precision_met");
+  if (met != row.end() && met->is_boolean())
+    flags += (flags.empty() ? "" : ",") + std::string(*met ? "target" : "target-missed");
   return flags;
 }
 

@@ -117,11 +117,11 @@ TEST(FormatTest, ResultsCsvGolden) {
       RenderResultsCsv(TwoResultRows()),
       "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz_text,Uz,Uz_stderr,Uz_ci95,"
       "Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,inconclusive_reason,dz,dz_rate,"
-      "z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,sim_time_s,grains,analysis,"
-      "analysed_from,engine_version\n"
+      "z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,stop_note,precision_met,sim_time_s,grains,"
+      "analysis,analysed_from,engine_version\n"
       "1,k1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,\"0.0123 ± 0.0001, 4 periods\",0.0123456,0.0001,0.000318,4,,,"
-      ",,surface,true,,0.061728,0.012346,,,true,false,surface,,,2,,\n"
-      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,\n");
+      ",,surface,true,,0.061728,0.012346,,,true,false,surface,,,,,2,,\n"
+      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,\n");
 }
 
 TEST(FormatTest, ResultFlags) {

@@ -36,6 +36,7 @@ void to_json(nlohmann::json& j, const RunResult& r) {
                      {"broke_surface", r.broke_surface},
                      {"near_floor", r.near_floor},
                      {"stop_reason", r.stop_reason},
+                     {"stop_note", r.stop_note},
                      {"sim_time_s", r.sim_time_s},
                      {"steps", r.steps},
                      {"grains", r.grains},
@@ -45,6 +46,7 @@ void to_json(nlohmann::json& j, const RunResult& r) {
   PutOptional(j, "uz", r.uz);
   PutOptional(j, "uz_stderr", r.uz_stderr);
   PutOptional(j, "uz_ci95", r.uz_ci95);
+  PutOptional(j, "precision_met", r.precision_met);
 }
 
 void from_json(const nlohmann::json& j, RunResult& r) {
@@ -67,6 +69,8 @@ void from_json(const nlohmann::json& j, RunResult& r) {
   r.broke_surface = j.value("broke_surface", false);
   r.near_floor = j.value("near_floor", false);
   r.stop_reason = j.value("stop_reason", "");
+  r.stop_note = j.value("stop_note", "");
+  GetOptional(j, "precision_met", r.precision_met);
   r.sim_time_s = j.value("sim_time_s", 0.0);
   r.steps = j.value("steps", int64_t{0});
   r.grains = j.value("grains", int64_t{0});
@@ -86,6 +90,7 @@ void to_json(nlohmann::json& j, const LeaseGrant& g) {
                      {"A_m", g.A_m}};
   PutOptional(j, "bed", g.bed);
   PutOptional(j, "z_floor_m", g.z_floor_m);
+  if (g.precision) j["precision"] = PrecisionToJson(*g.precision);
 }
 
 void from_json(const nlohmann::json& j, LeaseGrant& g) {
@@ -104,6 +109,11 @@ void from_json(const nlohmann::json& j, LeaseGrant& g) {
   g.f_hz = j.value("f_hz", 0.0);
   g.A_m = j.value("A_m", 0.0);
   GetOptional(j, "z_floor_m", g.z_floor_m);
+  if (auto it = j.find("precision"); it != j.end() && !it->is_null()) {
+    auto t = PrecisionFromJson(*it);
+    if (!t.ok()) throw nlohmann::json::other_error::create(501, "precision: " + t.status().ToString(), &*it);
+    g.precision = *t;
+  }
 }
 
 void to_json(nlohmann::json& j, const Completion& c) {

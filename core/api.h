@@ -30,6 +30,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/precision.h"
+
 namespace sandswim::api {
 
 enum class JobKind { kBed, kRun };
@@ -71,6 +73,10 @@ struct LeaseGrant {
   double f_hz = 0;  // 0 when the mode does not vibrate
   double A_m = 0;
   std::optional<double> z_floor_m;
+  // The run's precision target (core/precision.h): the worker follows U_z on the growing dump and
+  // ends the run, through the deck's control file, once DecideStop says so. Absent: the run lasts
+  // `steps`.
+  std::optional<PrecisionTarget> precision;
 };
 void to_json(nlohmann::json& j, const LeaseGrant& g);
 void from_json(const nlohmann::json& j, LeaseGrant& g);
@@ -112,9 +118,15 @@ struct RunResult {
   double z_osc_amplitude = 0;       // m, amplitude of z's oscillation at the drive frequency f
   double x_drift = 0;               // m, x(end) - x(0)
   bool broke_surface = false;       // the engine stopped because the SO broke the top surface
-  bool near_floor = false;          // the engine stopped within one SO diameter of the floor
-  std::string stop_reason;          // "duration" | "surface" | "floor"
-  double sim_time_s = 0;            // physical time simulated
+  bool near_floor = false;          // the engine stopped because the SO reached the floor
+  // Why the run ended: "duration" (all its steps: the duration asked, or a precision target's
+  // maximum) | "surface" | "floor" (the SO reached that boundary) | "target" (the precision target
+  // was met) | "window" (the steady window had closed at a boundary's clearance: running on could
+  // not tighten U_z). core/precision.h.
+  std::string stop_reason;
+  std::string stop_note;              // the same, as a sentence with its figures
+  std::optional<bool> precision_met;  // the run's precision target was met (absent: no target)
+  double sim_time_s = 0;              // physical time simulated
   int64_t steps = 0;
   int64_t grains = 0;
   double z0 = 0;                    // m, the SO's z at t = 0

@@ -140,9 +140,22 @@ std::string RenderBedDeck(const Scale& s) {
   return Render(Template("templates/bed.in"), v);
 }
 
-long long DriveSteps(const Point& p, const Scale& scale) {
-  long long steps = StepsFor(RunDuration(p, scale));
-  return (steps + kOmegaUpdateSteps - 1) / kOmegaUpdateSteps * kOmegaUpdateSteps;
+int OmegaUpdateSteps(const Point& p) {
+  if (!p.has_vibration()) return kOmegaUpdateSteps;
+  const double period_steps = 1.0 / (p.f * kMaterials.dt);
+  const auto most = static_cast<long long>(std::floor(period_steps / kMinOmegaUpdatesPerPeriod));
+  return static_cast<int>(std::clamp<long long>(most, 1, kOmegaUpdateSteps));
+}
+
+long long DriveSteps(const Point& p, const std::optional<PrecisionTarget>& target) {
+  const long long chunk = OmegaUpdateSteps(p);
+  long long steps = StepsFor(RunDuration(p, target));
+  return (steps + chunk - 1) / chunk * chunk;
+}
+
+std::string ControlFileText(StopVerdict verdict) {
+  const int code = verdict == StopVerdict::kTargetMet ? 1 : verdict == StopVerdict::kWindowClosed ? 2 : 0;
+  return "variable sandswim_stop equal " + std::to_string(code) + "\n";
 }
 
 DriveInfo DriveFacts(const Point& p, const Scale& s) {
@@ -154,7 +167,7 @@ DriveInfo DriveFacts(const Point& p, const Scale& s) {
   return d;
 }
 
-std::string RenderDriveDeck(const Point& p, const Scale& s) {
+std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<PrecisionTarget>& target) {
   const Materials& m = kMaterials;
   const DriveInfo drive = DriveFacts(p, s);
   Values v = CommonValues(s);
@@ -165,7 +178,14 @@ std::string RenderDriveDeck(const Point& p, const Scale& s) {
     for (int i = 0; i < 3; ++i) w0[i] = p.omega * a[i];
   }
   if (p.mode == Mode::kOscillatory) w1[0] = p.Omega;
-  const long long steps = DriveSteps(p, s);
+  const long long steps = DriveSteps(p, target);
+  const long long chunk = OmegaUpdateSteps(p);
+  std::string precision = "none: the run lasts its whole duration";
+  if (target) {
+    precision = "95 % interval of U_z within max(" + Fmt(target->uz_rel) + " |U_z|, " + Fmt(target->uz_abs) +
+                " m/s) after at least " + Fmt(static_cast<long long>(target->min_periods)) +
+                " whole periods, at most " + Fmt(RunDuration(p, target)) + " s";
+  }
   v.insert({
       {"A", Fmt(drive.A)},
       {"f", Fmt(drive.f)},
@@ -175,14 +195,16 @@ std::string RenderDriveDeck(const Point& p, const Scale& s) {
       {"w1x", Fmt(w1[0])},
       {"w1y", Fmt(w1[1])},
       {"w1z", Fmt(w1[2])},
-      {"omega_every", Fmt(static_cast<long long>(kOmegaUpdateSteps))},
+      {"omega_every", Fmt(chunk)},
       {"dump_every", Fmt(static_cast<long long>(kDumpEverySteps))},
       {"thermo_every", Fmt(static_cast<long long>(kThermoEvery))},
-      {"chunks", Fmt(steps / kOmegaUpdateSteps)},
+      {"chunks", Fmt(steps / chunk)},
       {"total_steps", Fmt(steps)},
       {"r_so", Fmt(m.d_so / 2)},
-      // The SO's centre when its bottom is one SO diameter above the floor.
-      {"z_floor_stop", Length(s.z_floor + m.d_so + m.d_so / 2)},
+      // The SO's centre when its bottom is one grain diameter above the floor: it is at the floor.
+      {"z_floor_stop", Length(s.z_floor + m.d_so / 2 + m.d_grain)},
+      {"control_file", kControlFile},
+      {"precision", precision},
   });
   return Render(Template("templates/drive.in"), v);
 }

@@ -21,33 +21,50 @@
 namespace sandswim {
 
 // Bumped whenever a template changes in a way that changes results; part of every content key.
-inline constexpr int kTemplateVersion = 1;
+inline constexpr int kTemplateVersion = 2;
 
 // Files a deck reads or writes, relative to its run directory.
 inline constexpr char kBedRestartFile[] = "bed.restart";    // bed deck writes, drive deck reads
 inline constexpr char kTrajectoryDumpFile[] = "so.dump";    // drive deck: the SO, every 1 ms
 inline constexpr char kInitialDumpFile[] = "initial.dump";  // drive deck: all atoms at t = 0
 inline constexpr char kLogFile[] = "log.liggghts";
+// The worker's requests to a running drive deck: the deck writes it ("variable sandswim_stop
+// equal 0") before its first chunk and `include`s it after every chunk; the worker replaces it
+// (write, then rename) with ControlFileText() to end the run cleanly.
+inline constexpr char kControlFile[] = "control.in";
 
-// Steps between updates of the SO's prescribed angular velocity (chunk M of the issue): the SO
-// is left out of the integrator, so its omega holds between updates. 100 steps = 1 ms.
+// Steps between updates of the SO's prescribed angular velocity (a chunk): the SO is left out of
+// the integrator, so its omega holds between updates. 100 steps = 1 ms, fewer when f is high:
+// OmegaUpdateSteps() keeps at least kMinOmegaUpdatesPerPeriod updates in every drive period.
 inline constexpr int kOmegaUpdateSteps = 100;
+inline constexpr int kMinOmegaUpdatesPerPeriod = 20;
 // Steps between trajectory frames (1 ms of physical time at dt = 1e-5 s).
 inline constexpr int kDumpEverySteps = 100;
 
 // Lines the decks print for the worker to read (all start with "SANDSWIM ").
 //   SANDSWIM bed grains N so_z Z grain_top Z step S
 //   SANDSWIM bed equilibrated|not_equilibrated ke E ke_peak E
-//   SANDSWIM drive stop duration|surface|floor step S t T z Z
+//   SANDSWIM drive stop duration|surface|floor|target|window step S t T z Z
 inline constexpr char kMarkerPrefix[] = "SANDSWIM ";
 
 std::string RenderBedDeck(const Scale& scale);
 
-// REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok().
-std::string RenderDriveDeck(const Point& p, const Scale& scale);
+// REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok(). `target` is the run's precision
+// target (absent: the run lasts its whole duration); its numbers are stated in the deck, so they
+// are part of the run's content key.
+std::string RenderDriveDeck(const Point& p, const Scale& scale, const std::optional<PrecisionTarget>& target);
 
-// Number of steps a drive run of this point makes when it is not stopped early.
-long long DriveSteps(const Point& p, const Scale& scale);
+// Steps between omega updates for this point: kOmegaUpdateSteps, or fewer so that a drive period
+// holds at least kMinOmegaUpdatesPerPeriod updates (f = 50 Hz and below: 100 steps).
+int OmegaUpdateSteps(const Point& p);
+
+// Number of steps a drive run of this point makes when it is not stopped early: RunDuration
+// (core/precision.h) rounded up to whole chunks.
+long long DriveSteps(const Point& p, const std::optional<PrecisionTarget>& target);
+
+// What the worker writes to kControlFile: 0 = go on, 1 = the precision target is met, 2 = the
+// steady window has closed (core/precision.h StopVerdict).
+std::string ControlFileText(StopVerdict verdict);
 
 // Drive facts a drive deck states (its `timestep`, `variable f/A equal` and floor wall `zplane`
 // lines): what reading the run's dump needs besides the dump.

@@ -44,7 +44,8 @@ TEST(FormatNumberTest, ShortestRoundTrip) {
 TEST(DeckTest, BedDeckMatchesGolden) { ExpectGolden("bed_smoke.in", RenderBedDeck(Smoke())); }
 
 TEST(DeckTest, DriveDeckMatchesGolden) {
-  ExpectGolden("drive_oscillatory_smoke.in", RenderDriveDeck(OscillatoryPoint(0.03, 3, -80, 4), Smoke()));
+  ExpectGolden("drive_oscillatory_smoke.in",
+               RenderDriveDeck(OscillatoryPoint(0.03, 3, -80, 4), Smoke(), Smoke().default_precision));
 }
 
 TEST(DeckTest, VibrationRotationDeckMatchesGolden) {
@@ -55,13 +56,14 @@ TEST(DeckTest, VibrationRotationDeckMatchesGolden) {
   p.omega = 80;
   p.axis = RotationAxis::kXZ;
   p.duration_s = 4;
-  ExpectGolden("drive_vibration_rotation_xz_paper.in", RenderDriveDeck(p, *FindScale("paper")));
+  ExpectGolden("drive_vibration_rotation_xz_paper.in", RenderDriveDeck(p, *FindScale("paper"), std::nullopt));
 }
 
 // Table 1 of the paper, as the decks must state it, whatever the scale.
 TEST(DeckTest, EveryDeckHoldsTableOne) {
   for (const Scale& s : AllScales()) {
-    for (const std::string& deck : {RenderBedDeck(s), RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), s)}) {
+    for (const std::string& deck :
+         {RenderBedDeck(s), RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), s, s.default_precision)}) {
       SCOPED_TRACE(std::string(s.name));
       EXPECT_THAT(deck, HasSubstr("youngsModulus peratomtype 1e+07 1e+07"));
       EXPECT_THAT(deck, HasSubstr("poissonsRatio peratomtype 0.25 0.25"));
@@ -88,7 +90,7 @@ TEST(DeckTest, ModesBecomeNumbers) {
   p.omega = 80;
   p.axis = RotationAxis::kY;
   p.duration_s = 4;
-  std::string d = RenderDriveDeck(p, *FindScale("paper"));
+  std::string d = RenderDriveDeck(p, *FindScale("paper"), std::nullopt);
   EXPECT_THAT(d, HasSubstr("variable A equal 0\n"));
   EXPECT_THAT(d, HasSubstr("variable wy equal 80+0*cos"));
   EXPECT_THAT(d, HasSubstr("variable wx equal 0+0*cos"));
@@ -97,34 +99,74 @@ TEST(DeckTest, ModesBecomeNumbers) {
   p.A = 0.03;
   p.f = 3;
   p.axis = RotationAxis::kXZ;
-  d = RenderDriveDeck(p, *FindScale("paper"));
+  d = RenderDriveDeck(p, *FindScale("paper"), std::nullopt);
   const std::string c = FormatNumber(80 * M_SQRT1_2);
   EXPECT_THAT(d, HasSubstr("variable wx equal " + c + "+0*cos"));
   EXPECT_THAT(d, HasSubstr("variable wz equal " + c + "+0*cos"));
   EXPECT_THAT(d, HasSubstr("variable A equal 0.03\n"));
 
-  d = RenderDriveDeck(OscillatoryPoint(0.05, 4, -160, 4), *FindScale("paper"));
+  d = RenderDriveDeck(OscillatoryPoint(0.05, 4, -160, 4), *FindScale("paper"), std::nullopt);
   EXPECT_THAT(d, HasSubstr("variable wx equal 0+-160*cos(2.0*PI*v_f*v_t)"));
   EXPECT_THAT(d, HasSubstr("variable f equal 4\n"));
 }
 
 TEST(DeckTest, RenderingIsDeterministic) {
+  const PrecisionTarget kTarget{0.2, 0.005, 3, 2.0};
   Point p = OscillatoryPoint(0.07, 20, 640, 4);
-  EXPECT_EQ(RenderDriveDeck(p, Smoke()), RenderDriveDeck(p, Smoke()));
+  EXPECT_EQ(RenderDriveDeck(p, Smoke(), kTarget), RenderDriveDeck(p, Smoke(), kTarget));
   EXPECT_EQ(RenderBedDeck(Smoke()), RenderBedDeck(Smoke()));
-  EXPECT_NE(RenderDriveDeck(p, Smoke()), RenderDriveDeck(OscillatoryPoint(0.07, 20, -640, 4), Smoke()));
+  EXPECT_NE(RenderDriveDeck(p, Smoke(), kTarget),
+            RenderDriveDeck(OscillatoryPoint(0.07, 20, -640, 4), Smoke(), kTarget));
 }
 
-TEST(DeckTest, StepsCoverTheRunAndTwoPeriodsAtSmoke) {
-  // 4 s at paper scale is 400000 steps.
-  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), *FindScale("paper")), 400000);
-  // smoke cuts to 0.25 s but keeps two periods: 2/3 s at 3 Hz, rounded up to whole ω chunks.
-  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), Smoke()), 66700);
-  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 20, 80, 4), Smoke()), 25000);
+TEST(DeckTest, StepsCoverTheRunOrItsTargetsMaximum) {
+  // 4 s without a target is 400000 steps.
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), std::nullopt), 400000);
+  // A target's maximum (2 s here) caps it...
+  const PrecisionTarget t{0.1, 0.002, 3, 2.0};
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), t), 200000);
+  // ...but never below the transient and min_periods whole periods: 4 periods at 1 Hz.
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 10), t), 400000);
   // Never longer than asked.
-  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 0.1), Smoke()), 10000);
-  std::string d = RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke());
-  EXPECT_THAT(d, HasSubstr("variable c loop 667\n"));
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 0.1), t), 10000);
+  std::string d = RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke(), t);
+  EXPECT_THAT(d, HasSubstr("variable c loop 2000\n"));
+  EXPECT_THAT(d, HasSubstr("# Precision target: 95 % interval of U_z within max(0.1 |U_z|, 0.002 m/s)"));
+  // The target is part of the deck, hence of the run's key.
+  EXPECT_NE(d, RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke(), PrecisionTarget{0.2, 0.002, 3, 2.0}));
+  EXPECT_NE(d, RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke(), std::nullopt));
+}
+
+// At least 20 omega updates in every drive period, at every accepted f.
+TEST(DeckTest, OmegaUpdatesKeepUpWithTheFrequency) {
+  for (double f : {0.5, 1.0, 3.0, 30.0, 50.0, 51.0, 200.0, 999.0, kMaxFrequencyHz}) {
+    SCOPED_TRACE(f);
+    const Point p = OscillatoryPoint(0.03, f, 80, 4);
+    const int chunk = OmegaUpdateSteps(p);
+    EXPECT_GE(chunk, 1);
+    EXPECT_LE(chunk, kOmegaUpdateSteps);
+    const double period_steps = 1.0 / (f * kMaterials.dt);
+    EXPECT_GE(period_steps / chunk, kMinOmegaUpdatesPerPeriod - 1e-9);
+    EXPECT_EQ(DriveSteps(p, std::nullopt) % chunk, 0);
+    EXPECT_THAT(RenderDriveDeck(p, Smoke(), std::nullopt),
+                HasSubstr("run " + std::to_string(chunk) + " pre no post no"));
+  }
+  EXPECT_EQ(OmegaUpdateSteps(OscillatoryPoint(0.03, 50, 80, 4)), 100);
+  EXPECT_EQ(OmegaUpdateSteps(OscillatoryPoint(0.03, 51, 80, 4)), 98);
+}
+
+TEST(DeckTest, DriveDeckEndsAtTheBoundaryOrWhenAsked) {
+  const std::string d = RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke(), std::nullopt);
+  // The floor stop: the SO's bottom one grain diameter above the floor (-0.35 + 0.06 + 0.02).
+  ASSERT_EQ(Smoke().z_floor, -0.35);
+  EXPECT_THAT(d, HasSubstr("variable z_floor_stop equal -0.27\n"));
+  EXPECT_THAT(d, HasSubstr("print \"variable sandswim_stop equal 0\" file control.in screen no"));
+  EXPECT_THAT(d, HasSubstr("  include control.in\n"));
+  EXPECT_THAT(d, HasSubstr("SANDSWIM drive stop target"));
+  EXPECT_THAT(d, HasSubstr("SANDSWIM drive stop window"));
+  EXPECT_EQ(ControlFileText(StopVerdict::kContinue), "variable sandswim_stop equal 0\n");
+  EXPECT_EQ(ControlFileText(StopVerdict::kTargetMet), "variable sandswim_stop equal 1\n");
+  EXPECT_EQ(ControlFileText(StopVerdict::kWindowClosed), "variable sandswim_stop equal 2\n");
 }
 
 }  // namespace

@@ -94,7 +94,9 @@ bool ParseMarker(std::string_view line, EngineLog* log) {
   if (t[1] == "drive" && t[2] == "stop" && t.size() >= 4) {
     DriveStopMarker m;
     m.reason = std::string(t[3]);
-    if (m.reason != "duration" && m.reason != "surface" && m.reason != "floor") return false;
+    if (m.reason != "duration" && m.reason != "surface" && m.reason != "floor" && m.reason != "target" &&
+        m.reason != "window")
+      return false;
     if (!Pairs(t, 4, {"step", "t", "z"}, &v)) return false;
     if (!ToInt(v[0], &m.step) || !ToDouble(v[1], &m.t) || !ToDouble(v[2], &m.z)) return false;
     log->drive_stop = m;

@@ -47,7 +47,7 @@ struct DriveStartMarker {
 };
 // "SANDSWIM drive stop duration|surface|floor step S t T z Z"
 struct DriveStopMarker {
-  std::string reason;  // "duration" | "surface" | "floor"
+  std::string reason;  // "duration" | "surface" | "floor" | "target" | "window" (core/api.h RunResult)
   int64_t step = 0;
   double t = 0;
   double z = 0;

@@ -33,6 +33,8 @@ const std::vector<std::string>& ResultColumns() {
                                                     "broke_surface",
                                                     "near_floor",
                                                     "stop_reason",
+                                                    "stop_note",
+                                                    "precision_met",
                                                     "sim_time_s",
                                                     "grains",
                                                     "analysis",

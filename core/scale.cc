@@ -8,15 +8,39 @@ namespace sandswim {
 namespace {
 
 // The paper's box (Sec. 2.3); `mini`, a smaller box around the SO for one machine overnight;
-// `smoke`, the smallest box that still holds A = 0.10 m (the A sweep's largest) and keeps at
-// least 0.12 m of grains above and below the SO (SPEC.md), for tests and the demo.
+// `smoke`, the smallest box for tests and the demo. Each box keeps the same room above and below
+// the SO: the SO's steady window ends when it comes within WindowRule::clearance_m (0.12 m,
+// SPEC.md) of the bed surface or the floor (core/trajectory.h), so the travel a run has before the
+// boundary's influence is, up and down,
+//   up   = surface - r_SO - 0.12 - z_SO        down = z_SO - r_SO - 0.12 - floor
+// with z_SO where the SO settles (about -0.01 m: it sinks a little into the first layer).
+//   - paper and mini: the floor and the top are symmetric about the SO; up = down = 0.32 m (paper)
+//     and 0.22 m (mini).
+//   - smoke: 0.18 m x 0.38 m, floor -0.35, poured to +0.34. L_y = 0.38 m holds A = 0.10 m (the A
+//     sweep's largest: 2A + d_SO + 3 d_grain); L_x = 0.18 m = d_SO + 3 d_grain, the least the rule
+//     allows, since every centimetre of box costs grains. The height gives the SO about 0.15 m of
+//     travel each way: the baseline Omega = -80 rose at 0.12 m/s and +80 sank at 0.09 m/s on the
+//     earlier 0.20 x 0.38 m smoke box (Δz over the whole run, README "What the demo costs"), so
+//     0.15 m holds the one-period transient and three whole periods at f = 3 Hz (1.33 s) for the
+//     baseline pair; faster points end their window at the boundary and say so. Measured here
+//     (tests/bench/bench_physics, 2026-11-25): 6,682 grains, the SO settled at z = -0.011 m, the
+//     surface (highest grain centre) at +0.329 m: 0.160 m of travel up and 0.159 m down; the bed
+//     took 228 s to prepare and a run 147 s of one core per second of physical time.
+//     That bed's room replaced a box whose floor stop ended every sinking run at dz = -0.059 m
+//     while rising runs had 0.17 m.
+// The smoke target: a run ends once its 95 % interval is within 20 % of |U_z| or 5 mm/s (the
+// smallest change the nightly drift report flags), after at least three whole periods, or at 2 s
+// of physical time (f = 1 Hz still gets its transient and three periods: core/precision.h
+// RunDuration). It is a cost choice for a test scale, not a physics one: a sweep may set its own.
 const std::vector<Scale> kScales = {
     {"paper", "the paper's geometry (about 7e4 grains), 4-5 s runs: a cluster or a big node", 0.50, 1.00, -0.50, 0.50,
-     0.0},
+     std::nullopt},
     {"mini", "a smaller periodic box around the SO (about 1.5e4 grains), full durations: one machine overnight", 0.32,
-     0.40, -0.40, 0.40, 0.0},
-    {"smoke", "about 5e3 grains and a fraction of a second (at least two drive periods): tests and demos", 0.20, 0.38,
-     -0.25, 0.22, 0.25},
+     0.40, -0.40, 0.40, std::nullopt},
+    {"smoke",
+     "about 6.7e3 grains, 0.15 m of travel up and down, runs that end at a precision target (at most 2 s): tests and "
+     "demos",
+     0.18, 0.38, -0.35, 0.34, PrecisionTarget{0.2, 0.005, 3, 2.0}},
 };
 
 double NeededYLen(double A) { return 2 * A + kMaterials.d_so + 3 * kMaterials.d_grain; }
@@ -57,15 +81,6 @@ Status FitsScale(const Point& p, const Scale& scale) {
     return Status::FailedPrecondition("A", reason);
   }
   return Status::Ok();
-}
-
-double RunDuration(const Point& p, const Scale& scale) {
-  double d = p.duration_s;
-  if (scale.max_duration_s > 0) {
-    double floor_s = p.has_vibration() ? 2.0 / p.f : 0.0;
-    d = std::min(d, std::max(scale.max_duration_s, floor_s));
-  }
-  return d;
 }
 
 }  // namespace sandswim

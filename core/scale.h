@@ -4,16 +4,19 @@
 // A scale sizes its periodic box so that the SO never meets its own periodic image at its full
 // swing (SPEC.md): L_y >= 2 A + d_SO + 3 d_grain and L_x >= d_SO + 3 d_grain. A point whose A
 // needs a bigger box is refused by FitsScale() with the name of a scale that would take it.
-// A scale that shortens runs still gives each run at least two full drive periods (2/f).
+// A scale may carry a default precision target (core/precision.h): a sweep that sets none runs to
+// it, so runs last as long as their answer needs, within the target's maximum.
 //
 // Thread safety: immutable data.
 #ifndef SANDSWIM_CORE_SCALE_H_
 #define SANDSWIM_CORE_SCALE_H_
 
+#include <optional>
 #include <string_view>
 #include <vector>
 
 #include "core/point.h"
+#include "core/precision.h"
 #include "core/status.h"
 
 namespace sandswim {
@@ -38,11 +41,12 @@ inline constexpr Materials kMaterials{};
 struct Scale {
   std::string_view name;
   std::string_view purpose;
-  double x_len;           // m, periodic
-  double y_len;           // m, periodic; the vibration direction
-  double z_floor;         // m, rigid floor
-  double z_bed_top;       // m, target height of the poured bed
-  double max_duration_s;  // runs are cut to this (0: never cut), but never below two periods
+  double x_len;      // m, periodic
+  double y_len;      // m, periodic; the vibration direction
+  double z_floor;    // m, rigid floor
+  double z_bed_top;  // m, target height of the poured bed
+  // The target of sweeps that set none (absent: runs last the duration they ask for).
+  std::optional<PrecisionTarget> default_precision;
   // Derived: the largest A this box takes, (y_len - d_so - 3 d_grain) / 2.
   double max_amplitude() const;
 };
@@ -53,10 +57,6 @@ const Scale* FindScale(std::string_view name);
 
 // Refuses a point the scale's box cannot hold ("A": "needs L_y >= ...; scale 'mini' takes it").
 Status FitsScale(const Point& p, const Scale& scale);
-
-// Physical time the run lasts at this scale: the user's duration, cut to the scale's cap but
-// never below two drive periods (2/f) nor above the user's duration.
-double RunDuration(const Point& p, const Scale& scale);
 
 }  // namespace sandswim
 

@@ -40,11 +40,29 @@ TEST(ScaleTest, RefusesAnAmplitudeTheBoxCannotHoldAndNamesAScaleThatCan) {
   EXPECT_THAT(st.reason(), testing::Not(HasSubstr("takes it")));
 }
 
-TEST(ScaleTest, SmokeKeepsTwoPeriods) {
+// Every box keeps about the same room above and below the SO placed at z = 0 (each side loses
+// its 0.12 m clearance and the SO's radius), and at least 0.12 m of it.
+TEST(ScaleTest, RoomAboveAndBelowTheSoIsAlike) {
+  for (const Scale& s : AllScales()) {
+    SCOPED_TRACE(std::string(s.name));
+    const double up = s.z_bed_top - kMaterials.d_so / 2 - 0.12;
+    const double down = -s.z_floor - kMaterials.d_so / 2 - 0.12;
+    EXPECT_GE(up, 0.12);
+    EXPECT_GE(down, 0.12);
+    EXPECT_NEAR(up, down, 0.02);
+  }
+}
+
+TEST(ScaleTest, SmokeRunsToAPrecisionTarget) {
   const Scale& smoke = *FindScale("smoke");
-  EXPECT_DOUBLE_EQ(RunDuration(Vib(0.03, 1), smoke), 2.0);
-  EXPECT_DOUBLE_EQ(RunDuration(Vib(0.03, 30), smoke), 0.25);
-  EXPECT_DOUBLE_EQ(RunDuration(Vib(0.03, 3), *FindScale("paper")), 4.0);
+  ASSERT_TRUE(smoke.default_precision.has_value());
+  EXPECT_TRUE(Validate(*smoke.default_precision).ok());
+  EXPECT_GE(smoke.default_precision->min_periods, 3);
+  // The maximum still holds the transient and min_periods whole periods at f = 1 Hz.
+  EXPECT_DOUBLE_EQ(RunDuration(Vib(0.03, 1), smoke.default_precision), 4.0);
+  EXPECT_DOUBLE_EQ(RunDuration(Vib(0.03, 30), smoke.default_precision), smoke.default_precision->max_duration_s);
+  EXPECT_FALSE(FindScale("paper")->default_precision.has_value());
+  EXPECT_DOUBLE_EQ(RunDuration(Vib(0.03, 3), std::nullopt), 4.0);
 }
 
 TEST(PointTest, ValidationNamesTheField) {

@@ -372,7 +372,7 @@ Status CheckPoint(const Point& p, const Scale& scale, const std::vector<SweepAxi
 // scale applies).
 Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::string& campaign_scale) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  std::set<std::string> allowed = {"name", "base", "axes", "combine", "description"};
+  std::set<std::string> allowed = {"name", "base", "axes", "combine", "description", "precision"};
   if (!in_campaign) {
     allowed.insert("scale");
     allowed.insert("force");
@@ -401,6 +401,12 @@ Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::s
     if (j["description"].get_ref<const std::string&>().size() > kMaxDescriptionLength)
       return Status::InvalidArgument("description",
                                      "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
+  }
+
+  if (j.count("precision")) {
+    auto t = PrecisionFromJson(j["precision"]);
+    if (!t.ok()) return t.status().WithFieldPrefix("precision");
+    s.precision = *t;
   }
 
   if (!j.count("base")) return Status::InvalidArgument("base", "is required");
@@ -539,7 +545,8 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
 
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "sweeps"}));
+  SANDSWIM_RETURN_IF_ERROR(
+      CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision", "sweeps"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -567,6 +574,11 @@ Result<Campaign> ParseCampaign(const json& j) {
     if (*tol < 0) return Status::InvalidArgument("drift_tolerance_mps", "must be >= 0 m/s");
     c.drift_tolerance_mps = *tol;
   }
+  if (j.count("precision")) {
+    auto t = PrecisionFromJson(j["precision"]);
+    if (!t.ok()) return t.status().WithFieldPrefix("precision");
+    c.precision = *t;
+  }
   if (!j.count("sweeps")) return Status::InvalidArgument("sweeps", "is required");
   const json& sweeps = j["sweeps"];
   if (!sweeps.is_array()) return WrongType("sweeps", "an array", sweeps);
@@ -576,6 +588,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     std::string path = "sweeps[" + std::to_string(i) + "]";
     auto s = ParseSweepObject(sweeps[i], true, c.scale);
     if (!s.ok()) return s.status().WithFieldPrefix(path);
+    if (!s->precision) s->precision = c.precision;
     for (const auto& other : c.sweeps)
       if (other.name == s->name) return Status::InvalidArgument(path + ".name", "repeats sweep \"" + s->name + "\"");
     total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission);
@@ -636,16 +649,20 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
       return points.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]");
     }
     expanded += points->size();
+    const std::optional<PrecisionTarget> target = s.precision ? s.precision : scale.default_precision;
     for (const Point& p : *points) {
       auto [it, inserted] = by_drive.emplace(DriveIdOf(p), plan.runs.size());
       if (inserted) {
         PlannedRun r;
         r.point = p;
+        r.precision = target;
         r.sweeps.push_back(s.name);
         plan.runs.push_back(std::move(r));
       } else {
         PlannedRun& r = plan.runs[it->second];
         r.point.duration_s = std::max(r.point.duration_s, p.duration_s);
+        r.precision =
+            r.precision && target ? std::optional<PrecisionTarget>(Tightest(*r.precision, *target)) : std::nullopt;
         AddSweepName(r.sweeps, s.name);
       }
     }
@@ -661,9 +678,9 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
     try {
       for (size_t i = begin; i < end; ++i) {
         PlannedRun& r = plan.runs[i];
-        r.run_duration_s = RunDuration(r.point, scale);
-        r.steps = DriveSteps(r.point, scale);
-        std::string deck = RenderDriveDeck(r.point, scale);
+        r.run_duration_s = RunDuration(r.point, r.precision);
+        r.steps = DriveSteps(r.point, r.precision);
+        std::string deck = RenderDriveDeck(r.point, scale, r.precision);
         r.key = RunKey(deck, plan.bed.key, engine_version);
         if (options.keep_decks) r.deck = std::move(deck);
       }
@@ -716,6 +733,7 @@ json PlannedRunToJson(const PlannedRun& r) {
   j["key"] = r.key;
   j["run_duration_s"] = r.run_duration_s;
   j["steps"] = r.steps;
+  if (r.precision) j["precision"] = PrecisionToJson(*r.precision);
   j["sweeps"] = r.sweeps;
   return j;
 }

@@ -11,7 +11,8 @@
 // digits, so 0.01..0.10 step 0.01 gives exactly 0.01, 0.02, ..., 0.1.
 //
 // Planning merges points across sweeps that drive the SO the same way (SameDrive): such a point
-// runs once, at the longest duration any sweep asks for, and belongs to every sweep that named it.
+// runs once, at the longest duration any sweep asks for and to the tightest precision target
+// (none, if one of them asks for none), and belongs to every sweep that named it.
 //
 // Thread safety: pure functions; Builtin campaigns are immutable.
 #ifndef SANDSWIM_CORE_SWEEP_H_
@@ -51,6 +52,9 @@ struct SweepSpec {
   Point base;
   std::vector<SweepAxis> axes;
   Combine combine = Combine::kProduct;
+  // How precise its runs must be (core/precision.h); absent: the campaign's, else the scale's
+  // default (Scale::default_precision), else none (runs last their whole duration).
+  std::optional<PrecisionTarget> precision;
 };
 
 Result<SweepSpec> ParseSweep(const nlohmann::json& j);
@@ -63,10 +67,11 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points = k
 struct Campaign {
   std::string name;
   std::string description;
-  std::string scale;                    // default scale; a submission may override it
-  std::vector<SweepSpec> sweeps;        // scale = the campaign's (its JSON sweeps have no "scale")
-  std::optional<std::string> schedule;  // cron expression, daemon's local time zone
-  double drift_tolerance_mps = 0.0;     // |U_z now - U_z before| above this is flagged
+  std::string scale;                         // default scale; a submission may override it
+  std::vector<SweepSpec> sweeps;             // scale = the campaign's (its JSON sweeps have no "scale")
+  std::optional<std::string> schedule;       // cron expression, daemon's local time zone
+  double drift_tolerance_mps = 0.0;          // |U_z now - U_z before| above this is flagged
+  std::optional<PrecisionTarget> precision;  // for its sweeps that set none
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);
@@ -82,8 +87,11 @@ struct PlannedRun {
   std::vector<std::string> sweeps;  // names of the sweeps it belongs to, in plan order
   double run_duration_s = 0;        // RunDuration() at the plan's scale
   long long steps = 0;              // DriveSteps()
-  std::string deck;                 // RenderDriveDeck()
-  std::string key;                  // RunKey()
+  // The target it runs to: its sweeps' (the tightest, none if one of them has none), else the
+  // scale's default.
+  std::optional<PrecisionTarget> precision;
+  std::string deck;  // RenderDriveDeck()
+  std::string key;   // RunKey()
 };
 
 struct PlannedBed {

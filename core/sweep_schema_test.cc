@@ -229,15 +229,28 @@ TEST_F(SweepSchemaTest, PointCapsAreThePointCaps) {
   EXPECT_EQ(ParseSweep(over).status().field(), "base.Omega");
 }
 
+// The precision target's keys, bounds and required key are the ones core/precision.cc takes.
+TEST_F(SweepSchemaTest, PrecisionTargetIsTheOneCxxTakes) {
+  const json& p = defs_.at("precision");
+  EXPECT_EQ(Keys(p), (std::set<std::string>{"uz_rel", "uz_abs", "min_periods", "max_duration_s"}));
+  EXPECT_EQ(Strings(p.at("required")), (std::set<std::string>{"max_duration_s"}));
+  EXPECT_EQ(p.at("properties").at("min_periods").at("minimum"), kMinPrecisionPeriods);
+  EXPECT_EQ(p.at("properties").at("min_periods").at("maximum"), kMaxPrecisionPeriods);
+  EXPECT_EQ(p.at("properties").at("uz_rel").at("maximum").get<double>(), kMaxPrecisionRel);
+  EXPECT_EQ(p.at("properties").at("uz_abs").at("maximum").get<double>(), kMaxPrecisionAbs);
+  EXPECT_EQ(p.at("properties").at("max_duration_s").at("maximum").get<double>(), kMaxDurationS);
+  EXPECT_EQ(LoadSchema("campaign.schema.json").at("$defs").at("precision"), p);
+}
+
 TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   const json& sweep_schema = defs_.at("sweep");
   EXPECT_EQ(Keys(sweep_schema),
-            (std::set<std::string>{"name", "scale", "description", "base", "axes", "combine", "force"}));
+            (std::set<std::string>{"name", "scale", "description", "base", "axes", "combine", "force", "precision"}));
   EXPECT_EQ(Strings(sweep_schema.at("required")), (std::set<std::string>{"name", "scale", "base"}));
   json full = {{"name", "s"},           {"scale", "smoke"},
                {"description", "d"},    {"base", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 1}}},
                {"axes", json::array()}, {"combine", "zip"},
-               {"force", false}};
+               {"force", false},        {"precision", {{"uz_rel", 0.1}, {"max_duration_s", 2}}}};
   EXPECT_TRUE(ParseSweep(full).ok());
   for (const auto& f : Strings(sweep_schema.at("required"))) {
     json missing = full;
@@ -252,8 +265,8 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   EXPECT_EQ(Keys(cs), in_campaign);
 
   const json& campaign = defs_.at("campaign");
-  EXPECT_EQ(Keys(campaign),
-            (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps", "sweeps"}));
+  EXPECT_EQ(Keys(campaign), (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps",
+                                                   "precision", "sweeps"}));
   EXPECT_EQ(Strings(campaign.at("required")), (std::set<std::string>{"name", "description", "scale", "sweeps"}));
   json c = {{"name", "c"},
             {"description", "d"},

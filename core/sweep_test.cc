@@ -367,7 +367,8 @@ TEST(CampaignTest, Paper58PlansFiftyEightRuns) {
     if (r.point.duration_s == 4) ++four;
     if (r.point.duration_s == 5) ++five;
     EXPECT_EQ(r.run_duration_s, r.point.duration_s);  // the paper scale never cuts
-    EXPECT_EQ(r.steps, DriveSteps(r.point, *FindScale("paper")));
+    EXPECT_EQ(r.steps, DriveSteps(r.point, std::nullopt));
+    EXPECT_FALSE(r.precision.has_value());  // neither the campaign nor the paper scale sets one
     EXPECT_FALSE(r.deck.empty());
     keys.insert(r.key);
   }
@@ -406,7 +407,58 @@ TEST(CampaignTest, Paper58AtSmokeScaleStillHasFiftyEightRuns) {
   auto plan = PlanSweeps(c->sweeps, smoke, "e");
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   EXPECT_EQ(plan->runs.size(), 58u);
-  for (const auto& r : plan->runs) EXPECT_EQ(r.run_duration_s, RunDuration(r.point, smoke));
+  for (const auto& r : plan->runs) {
+    ASSERT_TRUE(r.precision.has_value());  // the smoke scale's default
+    EXPECT_EQ(*r.precision, *smoke.default_precision);
+    EXPECT_EQ(r.run_duration_s, RunDuration(r.point, smoke.default_precision));
+  }
+}
+
+TEST(SweepTest, PrecisionTargetsParseAndMerge) {
+  auto s = ParseSweep(json::parse(R"({"name": "p", "scale": "smoke",
+      "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 4},
+      "precision": {"uz_rel": 0.1, "uz_abs": 0.002, "min_periods": 4, "max_duration_s": 3}})"));
+  ASSERT_TRUE(s.ok()) << s.status().ToString();
+  ASSERT_TRUE(s->precision.has_value());
+  EXPECT_EQ(*s->precision, (PrecisionTarget{0.1, 0.002, 4, 3}));
+
+  // Bad targets name the field under "precision".
+  for (const auto& [bad, field] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"uz_rel": 0.1})", "precision.max_duration_s"},
+           {R"({"uz_rel": -1, "max_duration_s": 2})", "precision.uz_rel"},
+           {R"({"uz_rel": 0, "uz_abs": 0, "max_duration_s": 2})", "precision.uz_rel"},
+           {R"({"uz_rel": 0.1, "min_periods": 2, "max_duration_s": 2})", "precision.min_periods"},
+           {R"({"uz_rel": 0.1, "min_periods": 3.5, "max_duration_s": 2})", "precision.min_periods"},
+           {R"({"uz_rel": "0.1", "max_duration_s": 2})", "precision.uz_rel"},
+           {R"({"uz_rel": 0.1, "max_duration_s": 0})", "precision.max_duration_s"},
+           {R"({"uz_rel": 0.1, "max_duration_s": 2, "tolerance": 1})", "precision.tolerance"},
+           {R"([1])", "precision"}}) {
+    SCOPED_TRACE(bad);
+    json j = json::parse(R"({"name": "p", "scale": "smoke",
+        "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 4}})");
+    j["precision"] = json::parse(bad);
+    auto r = ParseSweep(j);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().field(), field);
+  }
+
+  // A point two sweeps share runs once, to the tighter target; with a sweep that sets none at a
+  // scale without a default, it runs its whole duration.
+  SweepSpec loose = *s, tight = *s, none = *s;
+  loose.name = "loose";
+  tight.name = "tight";
+  none.name = "none";
+  tight.precision = PrecisionTarget{0.05, 0.004, 5, 2};
+  auto plan = PlanSweeps({loose, tight}, *FindScale("smoke"), "e");
+  ASSERT_TRUE(plan.ok());
+  ASSERT_EQ(plan->runs.size(), 1u);
+  EXPECT_EQ(*plan->runs[0].precision, (PrecisionTarget{0.05, 0.002, 5, 3}));
+  none.precision.reset();
+  auto paper = PlanSweeps({loose, none}, *FindScale("paper"), "e");
+  ASSERT_TRUE(paper.ok());
+  ASSERT_EQ(paper->runs.size(), 1u);
+  EXPECT_FALSE(paper->runs[0].precision.has_value());
+  EXPECT_EQ(paper->runs[0].run_duration_s, 4);
 }
 
 TEST(CampaignTest, KeysAreStableAndFollowTheEngine) {
@@ -472,7 +524,7 @@ TEST(CampaignTest, PlanOptionsGiveTheSamePlan) {
     EXPECT_TRUE(two->runs[i].deck.empty());
   }
   // The deck a lease renders later is the one the key was made from.
-  EXPECT_EQ(RenderDriveDeck(two->runs[7].point, smoke), one->runs[7].deck);
+  EXPECT_EQ(RenderDriveDeck(two->runs[7].point, smoke, two->runs[7].precision), one->runs[7].deck);
   options.max_runs = 2000;
   EXPECT_EQ(PlanSweeps({*s}, smoke, "e", options).status().code(), StatusCode::kResourceExhausted);
 }
@@ -486,7 +538,7 @@ TEST(CampaignTest, GoldenRunKey) {
   auto plan = PlanSweeps({*s}, *FindScale("smoke"), "LIGGGHTS-PUBLIC 3.8.0");
   ASSERT_TRUE(plan.ok());
   ASSERT_EQ(plan->runs.size(), 1u);
-  EXPECT_EQ(plan->runs[0].key, "6561bca0e633493571debdcf02cb13285d329775bc7a294e4ee7b8e703391a19");
+  EXPECT_EQ(plan->runs[0].key, "9651590f8fe53a3224fe86a292835b7bdfe62742691b6f037855095a07b00eb8");
 }
 
 TEST(CampaignTest, PlannedRunJsonHasTheModeFieldsOnly) {

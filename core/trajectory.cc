@@ -337,7 +337,7 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   r.stop_reason = "duration";
   if (stop) {
     r.stop_reason = stop->reason;
-    r.broke_surface = stop->reason == "surface";
+    r.broke_surface = stop->reason == "surface";  // the SO's top reached the surface
     r.near_floor = stop->reason == "floor";
     r.steps = stop->step;
     r.sim_time_s = stop->t;
@@ -346,8 +346,9 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   return r;
 }
 
-RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log) {
+RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log, const std::optional<PrecisionTarget>& precision) {
   RunInputs in;
+  in.precision = precision;
   in.f = drive.f;
   if (drive.dt > 0) in.dt = drive.dt;
   in.bounds.floor = drive.z_floor;
@@ -358,7 +359,11 @@ RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log) {
 }
 
 Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const RunInputs& in, const WindowRule& rule) {
-  return AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule);
+  auto r = AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule);
+  if (!r.ok()) return r;
+  if (in.precision) r->precision_met = TargetMet(*r, *in.precision);
+  r->stop_note = DescribeStop(*r, in.precision);
+  return r;
 }
 
 namespace {

@@ -114,6 +114,8 @@ class SoSampleSink final : public DumpFrameSink {
   void OnFrame(const DumpFrameView& frame) override;
   // The samples so far, or the first problem.
   Result<std::vector<SoSample>> Take();
+  // The samples so far, without taking them (empty after Take()).
+  const std::vector<SoSample>& samples() const { return samples_; }
 
  private:
   // The row of the SO in `f`, or -1 with status_ set.
@@ -150,9 +152,12 @@ struct RunInputs {
   BedBounds bounds;
   std::optional<DriveStartMarker> start;
   std::optional<DriveStopMarker> stop;
+  std::optional<PrecisionTarget> precision;  // the run's target, if it had one
 };
-RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log);
-// AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule).
+RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log,
+                        const std::optional<PrecisionTarget>& precision = std::nullopt);
+// AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule), and whether the run met
+// its precision target (core/precision.h TargetMet) with the sentence on why it ended.
 Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const RunInputs& in,
                                   const WindowRule& rule = {});
 

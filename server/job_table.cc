@@ -288,7 +288,7 @@ Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t) {
   Statement st = t.Prepare(
       "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256, "
       "r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, b.scale, b.key, "
-      "b.engine_version "
+      "b.engine_version, r.precision "
       "FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN run_decks d ON d.run_id = r.id "
       "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
   Result<bool> row = st.Step();
@@ -313,6 +313,7 @@ Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t) {
   r.scale = st.Text(15);
   r.bed_key = st.Text(16);
   r.engine_version = st.OptText(17);
+  r.precision = st.OptText(18);
   return std::optional<QueuedRun>(std::move(r));
 }
 
@@ -354,8 +355,9 @@ Status PutResult(Transaction& t, int64_t run_id, const api::RunResult& r, const 
       "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
       "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at, "
       "lease_to_start_s, uz_ci95, uz_stderr_note, uz_blocks, block_s, window_end, conclusive, "
-      "inconclusive_reason, dz_rate, analysis, block_kind) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      "inconclusive_reason, dz_rate, analysis, block_kind, stop_note, precision_met) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+      "?, ?)");
   st.Bind(1, run_id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
   st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
   st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
@@ -364,7 +366,7 @@ Status PutResult(Transaction& t, int64_t run_id, const api::RunResult& r, const 
   st.Bind(22, key.Text(0)).Bind(23, now).Bind(24, e.lease_to_start_s);
   st.Bind(25, r.uz_ci95).Bind(26, r.uz_stderr_note).Bind(27, r.uz_blocks).Bind(28, r.block_s);
   st.Bind(29, r.window_end).Bind(30, r.conclusive).Bind(31, r.inconclusive_reason).Bind(32, r.dz_rate);
-  st.Bind(33, r.analysis).Bind(34, r.block_kind);
+  st.Bind(33, r.analysis).Bind(34, r.block_kind).Bind(35, r.stop_note).Bind(36, r.precision_met);
   return st.Run();
 }
 

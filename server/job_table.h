@@ -140,6 +140,7 @@ struct QueuedRun {
   std::string scale;
   std::string bed_key;
   std::optional<std::string> engine_version;  // of the bed
+  std::optional<std::string> precision;       // JSON, as stored (core/precision.h StoredPrecision)
 };
 Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t);
 

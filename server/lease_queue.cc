@@ -199,13 +199,15 @@ Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) 
   }
   Result<Point> point = StoredPoint(run.mode, run.axis, run.A, run.f, run.Omega, run.omega, run.duration_s);
   const Scale* scale = FindScale(run.scale);
-  if (!point.ok() || scale == nullptr) {
-    return Status::FailedPrecondition("deck", "its stored point or scale no longer parses");
+  Result<std::optional<PrecisionTarget>> precision = StoredPrecision(run.precision);
+  if (!point.ok() || scale == nullptr || !precision.ok()) {
+    return Status::FailedPrecondition("deck", "its stored point, precision target or scale no longer parses");
   }
   const Point& p = *point;
   RunDeck out;
+  out.precision = *precision;
   try {
-    out.deck = RenderDriveDeck(p, *scale);
+    out.deck = RenderDriveDeck(p, *scale, out.precision);
   } catch (const std::exception& e) {
     return Status::FailedPrecondition("deck", std::string("its deck no longer renders: ") + e.what());
   }
@@ -240,6 +242,7 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
       g.f_hz = deck->drive.f;
       g.A_m = deck->drive.A;
       g.z_floor_m = deck->drive.z_floor;
+      g.precision = deck->precision;
       return true;
     }
     const std::string why = deck.status().reason();

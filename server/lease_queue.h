@@ -145,6 +145,7 @@ class LeaseQueue {
   struct RunDeck {
     std::string deck;
     DriveInfo drive;
+    std::optional<PrecisionTarget> precision;
   };
   static Result<RunDeck> MakeRunDeck(const jobs::QueuedRun& run);
   // CompleteIn's outcomes: the state the job ends in.

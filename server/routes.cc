@@ -220,6 +220,8 @@ json ResultRowJson(const ResultRow& row) {
     j["broke_surface"] = r.broke_surface;
     j["near_floor"] = r.near_floor;
     j["stop_reason"] = r.stop_reason;
+    j["stop_note"] = r.stop_note;
+    j["precision_met"] = r.precision_met ? json(*r.precision_met) : json(nullptr);
     j["sim_time_s"] = r.sim_time_s;
     j["grains"] = r.grains;
     j["engine_version"] = row.result->execution.engine_version;

@@ -18,8 +18,8 @@ constexpr const char* kRunColumns =
     "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
     "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, res.uz, r.last_error_kind, "
     "r.last_error, res.uz_stderr, res.uz_blocks, res.block_kind, res.block_s, res.conclusive, res.analysis, "
-    "res.run_id";
-constexpr int kRunColumnCount = 32;
+    "res.run_id, r.precision";
+constexpr int kRunColumnCount = 33;
 
 constexpr const char* kResultColumns =
     "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
@@ -27,8 +27,8 @@ constexpr const char* kResultColumns =
     "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
     "res.cpu_s, res.key, res.created_at, res.lease_to_start_s, res.uz_ci95, res.uz_stderr_note, "
     "res.uz_blocks, res.block_s, res.window_end, res.conclusive, res.inconclusive_reason, res.dz_rate, "
-    "res.analysis, res.block_kind, res.analysed_from";
-constexpr int kResultColumnCount = 34;
+    "res.analysis, res.block_kind, res.analysed_from, res.stop_note, res.precision_met";
+constexpr int kResultColumnCount = 36;
 
 // Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s (core/point.h StoredPoint).
 Result<Point> PointFromRow(const Statement& st, int c) {
@@ -58,6 +58,10 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   r.finished_at = st.OptDouble(21);
   r.uz = st.OptDouble(22);
   if (!st.IsNull(23)) r.last_error = api::Failure{st.Text(23), st.Text(24)};
+  Result<std::optional<PrecisionTarget>> precision = StoredPrecision(st.OptText(32));
+  if (!precision.ok())
+    return Status(precision.status().code(), "run " + std::to_string(r.id) + ": " + precision.status().reason());
+  r.precision = *precision;
   if (!st.IsNull(31)) {  // a result row exists
     api::RunResult res;
     res.uz = r.uz;
@@ -110,6 +114,8 @@ std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
   r.analysis = static_cast<int>(st.Int(c + 31));
   r.block_kind = st.Text(c + 32);
   r.analysed_from = st.Text(c + 33);
+  r.stop_note = st.Text(c + 34);
+  if (!st.IsNull(c + 35)) r.precision_met = st.Int(c + 35) != 0;
   return s;
 }
 
@@ -235,6 +241,7 @@ void to_json(nlohmann::json& j, const RunSummary& r) {
                      {"run_duration_s", r.run_duration_s},
                      {"steps", r.steps},
                      {"bed_id", r.bed_id},
+                     {"precision", r.precision ? PrecisionToJson(*r.precision) : nlohmann::json(nullptr)},
                      {"attempts", r.attempts},
                      {"worker", r.worker},
                      {"progress", r.progress},
@@ -522,7 +529,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
       const Scale* scale = FindScale(st.Text(c + 3 + kResultColumnCount + 2));
       if (scale == nullptr) return Status::Corruption("run " + std::to_string(id) + "'s bed has an unknown scale");
       try {
-        d.deck = RenderDriveDeck(d.summary.point, *scale);
+        d.deck = RenderDriveDeck(d.summary.point, *scale, d.summary.precision);
       } catch (const std::exception& e) {
         return Status::Internal("run " + std::to_string(id) + "'s deck does not render: " + e.what());
       }

@@ -75,8 +75,9 @@ struct RunSummary {
   std::string key;
   std::string state;  // queued | running | done | failed | cancelled
   Point point;
-  double run_duration_s = 0;
+  double run_duration_s = 0;  // at most, with a precision target
   int64_t steps = 0;
+  std::optional<PrecisionTarget> precision;  // the run's target (core/precision.h); absent: none
   int64_t bed_id = 0;
   int attempts = 0;
   std::string worker;  // "" unless leased at least once
@@ -87,7 +88,7 @@ struct RunSummary {
   std::string uz_text;       // DescribeUz of that result ("" without one)
   std::optional<api::Failure> last_error;
 };
-// {"id","key","state","point":{PointToJson},"run_duration_s","steps","bed_id","attempts",
+// {"id","key","state","point":{PointToJson},"run_duration_s","steps","precision"?,"bed_id","attempts",
 //  "worker","progress":{...},"created_at","started_at"?,"finished_at"?,"uz"?,"uz_text"?,
 //  "last_error"?}
 void to_json(nlohmann::json& j, const RunSummary& r);

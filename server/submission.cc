@@ -300,8 +300,8 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, int64_t bed_id, const std::
   // One prepared statement each, reused for every row (100,000 rows in one transaction).
   Statement ins = t.Prepare(
       "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-      "run_duration_s, steps, state, created_at, queued_at) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?) "
+      "run_duration_s, steps, state, created_at, queued_at, precision) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?) "
       "ON CONFLICT (key) DO NOTHING");
   Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
   Statement sr = t.Prepare(
@@ -315,6 +315,11 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, int64_t bed_id, const std::
     ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
     ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
     ins.Bind(12, now).Bind(13, now);
+    if (r.precision) {
+      ins.Bind(14, PrecisionToJson(*r.precision).dump());
+    } else {
+      ins.BindNull(14);
+    }
     SANDSWIM_RETURN_IF_ERROR(ins.Run());
     if (t.Changes() == 1) {
       run_id = t.LastInsertId();

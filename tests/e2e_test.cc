@@ -56,13 +56,24 @@ class EndToEndTest : public ::testing::Test {
 std::string* EndToEndTest::dir_ = nullptr;
 Daemon* EndToEndTest::daemon_ = nullptr;
 
-// The issue's pair: Omega = -80 and +80 at smoke. Smoke caps a run at max(0.25 s, 2/f), so at the
-// paper's 3 Hz its window holds one period (inconclusive); at 20 Hz the 0.25 s run keeps a 0.05 s
-// transient and 4 whole periods: both finish with a conclusive U_z, its error and a trajectory; the
-// bed was prepared once for both.
-TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
+// Precision targets, end to end. Three sweeps at once, on one bed prepared once:
+//   - the pair Omega = -80 / +80 at 20 Hz with a target any interval meets (uz_abs 1 m/s): each run
+//     ends, through the deck's control file, as soon as its window holds 3 whole periods (0.2 s),
+//     before its 0.5 s maximum, saying the target was met;
+//   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.25 s maximum and says so;
+//   - the paper's sinking baseline, Omega = +80 at 3 Hz, at smoke's default target with a 1.34 s
+//     maximum: the floor no longer ends it early -- its window holds the 3 whole periods the
+//     target asks before any boundary (the old smoke box stopped it at dz = -0.059 m, before two).
+TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnOneBed) {
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
-  int64_t id = Submit(testing::OmegaSweep("omega-sign", {-80, 80}, 0.25, 20));
+  json met = testing::OmegaSweep("omega-sign", {-80, 80}, 0.5, 20);
+  met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.5}};
+  json unreachable = testing::OmegaSweep("unreachable", {-80}, 0.25, 20);
+  unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.25}};
+  json sinking = testing::OmegaSweep("sinking-baseline", {80}, 5, 3);
+  sinking["precision"] = {{"uz_rel", 0.2}, {"uz_abs", 0.005}, {"min_periods", 3}, {"max_duration_s", 1.34}};
+  const int64_t id = Submit(met), id_unreachable = Submit(unreachable), id_sinking = Submit(sinking);
+
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
   for (const json& run : Runs(id)) {
@@ -72,39 +83,71 @@ TEST_F(EndToEndTest, OmegaPairRunsOnOneBed) {
     ASSERT_TRUE(res.contains("uz")) << res.dump();
     EXPECT_TRUE(std::isfinite(res["uz"].get<double>()));
     EXPECT_EQ(res["analysis"], api::kAnalysisVersion);
-    // 0.25 s at 20 Hz: one period of transient, then 4 whole periods, enough for an error.
-    EXPECT_EQ(res["uz_blocks"], 4) << res.dump();
+    EXPECT_EQ(res["stop_reason"], "target") << res.dump();
+    EXPECT_EQ(res["precision_met"], true) << res.dump();
+    EXPECT_THAT(res["stop_note"].get<std::string>(), HasSubstr("precision target met"));
+    // Ended after its transient and 3 whole periods (0.2 s), at the worker's next look, well
+    // before the 0.5 s maximum.
+    EXPECT_GE(res["uz_blocks"].get<int>(), 3) << res.dump();
+    EXPECT_GE(res["sim_time_s"].get<double>(), 0.2);
+    EXPECT_LT(res["sim_time_s"].get<double>(), 0.5) << res.dump();
     EXPECT_EQ(res["conclusive"], true) << res.dump();
     ASSERT_TRUE(res.contains("uz_stderr")) << res.dump();
     EXPECT_GT(res["uz_stderr"].get<double>(), 0.0);
-    EXPECT_EQ(res["window_end"], "run_end");
-    EXPECT_EQ(res["stop_reason"], "duration");
-    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.25, 1e-9);
-    EXPECT_GT(res["grains"].get<int64_t>(), 4000);
+    EXPECT_GT(res["grains"].get<int64_t>(), 6000);
     EXPECT_GT(detail["trajectory"]["t"].size(), 100u);
     EXPECT_EQ(detail["trajectory"]["t"].size(), detail["trajectory"]["z"].size());
     EXPECT_EQ(res["launcher"], "mpirun");
     EXPECT_EQ(detail["attempts"], 1);
+    EXPECT_THAT(detail["deck"].get<std::string>(), HasSubstr("# Precision target: "));
     // The sign (Sec. 3.2): Omega < 0 rises, Omega > 0 sinks. The run's net displacement shows it
-    // (at 20 Hz over 0.25 s: +33 mm and -13 mm when last run, against sub-mm jitter); U_z must
-    // agree wherever its 95 % interval excludes zero (4 periods may leave the sign open).
+    // (at 20 Hz over 0.25 s: +33 mm and -13 mm on the old smoke bed, against sub-mm jitter); U_z
+    // must agree wherever its 95 % interval excludes zero (a few periods may leave the sign open).
     const double sign = run["point"]["Omega"].get<double>() < 0 ? 1.0 : -1.0;
     EXPECT_GT(sign * res["dz"].get<double>(), 0.0) << res.dump();
-    const double half = StudentT95(res["uz_blocks"].get<int>() - 1) * res["uz_stderr"].get<double>();
-    if (std::fabs(res["uz"].get<double>()) > half) EXPECT_GT(sign * res["uz"].get<double>(), 0.0) << res.dump();
-    // Figures for the closing note of issue 4.
-    std::printf("E2E Omega=%+g at 20 Hz: U_z=%s dz=%+.4f m wall=%.1f s lease->start=%.3f s\n",
+    if (std::fabs(res["uz"].get<double>()) > res["uz_ci95"].get<double>())
+      EXPECT_GT(sign * res["uz"].get<double>(), 0.0) << res.dump();
+    std::printf("E2E Omega=%+g at 20 Hz, target met: U_z=%s dz=%+.4f m t=%.3f s wall=%.1f s lease->start=%.3f s\n",
                 run["point"]["Omega"].get<double>(), res.value("uz_text", "?").c_str(), res["dz"].get<double>(),
-                res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
+                res["sim_time_s"].get<double>(), res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
   }
+
+  sweep = daemon_->WaitForSweep(id_unreachable, kTimeoutS);
+  ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nworker:\n" << worker->Output();
+  {
+    const json run = Runs(id_unreachable).at(0);
+    const json res = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()))["result"];
+    EXPECT_EQ(res["stop_reason"], "duration") << res.dump();
+    EXPECT_EQ(res["precision_met"], false) << res.dump();
+    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.25, 1e-9);
+    EXPECT_THAT(res["stop_note"].get<std::string>(), HasSubstr("without meeting the precision target"));
+  }
+
+  sweep = daemon_->WaitForSweep(id_sinking, kTimeoutS);
+  ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nworker:\n" << worker->Output();
+  {
+    const json run = Runs(id_sinking).at(0);
+    const json res = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()))["result"];
+    EXPECT_NE(res["stop_reason"], "floor") << res.dump();
+    EXPECT_NE(res["stop_reason"], "window") << res.dump();
+    EXPECT_EQ(res["window_end"], "run_end") << res.dump();
+    EXPECT_GE(res["uz_blocks"].get<int>(), 3) << res.dump();
+    EXPECT_LT(res["dz"].get<double>(), 0.0) << res.dump();  // it sinks
+    std::printf("E2E Omega=+80 at 3 Hz (smoke baseline): U_z=%s dz=%+.4f m t=%.3f s, %s\n",
+                res.value("uz_text", "?").c_str(), res["dz"].get<double>(), res["sim_time_s"].get<double>(),
+                res.value("stop_note", "?").c_str());
+  }
+
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "1");
   EXPECT_EQ(daemon_->Query("SELECT attempts FROM beds"), "1");
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "2");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "4");
   // Submitting the same sweep again reuses both results: nothing is queued.
-  int64_t again = Submit(testing::OmegaSweep("omega-sign-again", {-80, 80}, 0.25, 20));
+  json again_sweep = met;
+  again_sweep["name"] = "omega-sign-again";
+  int64_t again = Submit(again_sweep);
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
   EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "2");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "4");
 }
 
 // Processes (not zombies) whose working directory is under `dir`: the engines a worker started

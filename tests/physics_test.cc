@@ -42,7 +42,7 @@ EngineRun Drive(const std::string& name, const Point& p, const Scale& scale) {
   EXPECT_TRUE(Validate(p).ok());
   EXPECT_TRUE(FitsScale(p, scale).ok());
   std::filesystem::remove_all(RunDir(name));
-  EngineRun r = testing::RunDeck(RunDir(name), RenderDriveDeck(p, scale), testing::PrepareBed(scale));
+  EngineRun r = testing::RunDeck(RunDir(name), RenderDriveDeck(p, scale, std::nullopt), testing::PrepareBed(scale));
   EXPECT_EQ(r.exit_code, 0) << r.log.substr(r.log.size() > 2000 ? r.log.size() - 2000 : 0);
   return r;
 }
@@ -131,8 +131,8 @@ TEST(PhysicsTest, RunsFromOneBedStartIdentically) {
 TEST(PhysicsTest, EarlyStopAtTheSurfaceOfAShallowBed) {
   Scale shallow = Smoke();
   shallow.name = "shallow-test";
-  shallow.z_bed_top = 0.09;  // 0.03 m of grains above the SO's top
-  shallow.max_duration_s = 0;
+  shallow.z_bed_top = 0.09;                             // 0.03 m of grains above the SO's top
+  shallow.z_floor = -0.25;                              // a smaller bed than smoke's: this test needs no room below
   const Point p = OscillatoryPoint(0.03, 3, -80, 2.0);  // rises (Omega < 0), for up to 2 s
   EngineRun r = Drive("shallow", p, shallow);
   EXPECT_THAT(r.log, HasSubstr("SANDSWIM drive stop surface"));

@@ -7,7 +7,8 @@
 namespace sandswim::worker {
 
 JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& facts, const EngineLog& log,
-                    const DriveInfo& drive, const Result<std::vector<SoSample>>& samples) {
+                    const DriveInfo& drive, const Result<std::vector<SoSample>>& samples,
+                    const std::optional<PrecisionTarget>& precision) {
   JobOutcome out;
   if (auto failure = ClassifyExit(kind, facts, log, expected_steps)) {
     out.failure = *failure;
@@ -30,7 +31,7 @@ JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& 
     out.failure = api::Failure{"bad_output", std::string(kTrajectoryDumpFile) + ": " + samples.status().reason()};
     return out;
   }
-  auto result = AnalyzeRun(*samples, RunInputsFrom(drive, log));
+  auto result = AnalyzeRun(*samples, RunInputsFrom(drive, log, precision));
   if (!result.ok()) {
     out.failure = api::Failure{"bad_output", result.status().reason()};
     return out;
@@ -38,6 +39,15 @@ JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& 
   out.result = *result;
   out.trajectory = Downsample(*samples);
   return out;
+}
+
+StopVerdict FollowRun(const std::vector<SoSample>& so_far, const DriveInfo& drive,
+                      const std::optional<DriveStartMarker>& start, const PrecisionTarget& target) {
+  EngineLog log;
+  log.drive_start = start;
+  auto r = AnalyzeRun(so_far, RunInputsFrom(drive, log, target));
+  if (!r.ok()) return StopVerdict::kContinue;  // too few samples yet
+  return DecideStop(*r, target);
 }
 
 }  // namespace sandswim::worker

@@ -31,8 +31,16 @@ struct JobOutcome {
 };
 
 // `samples` are the SO's samples of the run's dump (or why it could not be read); ignored for beds.
+// `precision` is the run's target (its lease's): the result says whether it was met.
 JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& facts, const EngineLog& log,
-                    const DriveInfo& drive, const Result<std::vector<SoSample>>& samples);
+                    const DriveInfo& drive, const Result<std::vector<SoSample>>& samples,
+                    const std::optional<PrecisionTarget>& precision = std::nullopt);
+
+// Whether a run that follows a precision target should end now: core/precision.h DecideStop on
+// the analysis its result will be made with, of the samples so far. `start` is the log's drive
+// start marker (it gives the bed surface); without it the surface's clearance is not checked.
+StopVerdict FollowRun(const std::vector<SoSample>& so_far, const DriveInfo& drive,
+                      const std::optional<DriveStartMarker>& start, const PrecisionTarget& target);
 
 }  // namespace sandswim::worker
 

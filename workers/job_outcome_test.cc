@@ -76,5 +76,51 @@ TEST(JobOutcomeTest, ACompletedBedIsItsLogsFigures) {
   EXPECT_TRUE(out.bed->sha256.empty());  // the runner adds the restart's checksum
 }
 
+// A run followed to a precision target, on a real 3 s vibration-only run: it goes on while the
+// window is short, and once FollowRun says stop, the judged result (with the same samples) says
+// the target was met.
+TEST(JobOutcomeTest, FollowingARealRunStopsOnceItsTargetIsMet) {
+  RunFixture f = Vibration3s();
+  ASSERT_TRUE(f.samples.ok());
+  const PrecisionTarget loose{0, 1.0, 3, 3};  // any interval under 1 m/s: met at 3 whole periods
+  const std::vector<SoSample>& all = *f.samples;
+  std::vector<SoSample> first(all.begin(), all.begin() + 600);  // 0.6 s: 0.8 periods after the transient
+  EXPECT_EQ(FollowRun(first, f.drive, f.log.drive_start, loose), StopVerdict::kContinue);
+  size_t n = 600;
+  while (n < all.size() &&
+         FollowRun({all.begin(), all.begin() + n}, f.drive, f.log.drive_start, loose) == StopVerdict::kContinue)
+    n += 10;
+  ASSERT_LT(n, all.size());
+  const double block = 1.0 / f.drive.f;
+  EXPECT_NEAR(all[n - 1].t, 4 * block, 0.011);  // the transient and 3 whole periods
+  JobOutcome out = JudgeJob(api::JobKind::kRun, 0, ExitFacts{}, f.log, f.drive,
+                            std::vector<SoSample>(all.begin(), all.begin() + n), loose);
+  ASSERT_TRUE(out.result.has_value());
+  EXPECT_EQ(out.result->precision_met, true);
+  // An unreachable target is never met: the run goes to its maximum and its result says so.
+  const PrecisionTarget unreachable{0, 1e-9, 3, 3};
+  // (Until the window closes: this run's came within 0.12 m of the surface at about 2.7 s.)
+  EXPECT_EQ(FollowRun({all.begin(), all.begin() + 2500}, f.drive, f.log.drive_start, unreachable),
+            StopVerdict::kContinue);
+  EXPECT_EQ(FollowRun(all, f.drive, f.log.drive_start, unreachable), StopVerdict::kWindowClosed);
+  out = JudgeJob(api::JobKind::kRun, 0, ExitFacts{}, f.log, f.drive, all, unreachable);
+  ASSERT_TRUE(out.result.has_value());
+  EXPECT_EQ(out.result->precision_met, false);
+  EXPECT_NE(out.result->stop_note.find("without meeting the precision target"), std::string::npos)
+      << out.result->stop_note;
+  // Without a target, nothing is said about one.
+  out = JudgeJob(api::JobKind::kRun, 0, ExitFacts{}, f.log, f.drive, all);
+  EXPECT_FALSE(out.result->precision_met.has_value());
+}
+
+// A sinking run whose window closed at the floor's clearance: nothing later can tighten U_z.
+TEST(JobOutcomeTest, AWindowClosedAtTheFloorEndsAFollowedRun) {
+  const DriveInfo drive = *ReadDriveInfo(Fixture("runs/omega-plus80-floor/drive.in"));
+  const EngineLog log = ParseEngineLog(Fixture("runs/omega-plus80-floor/log.liggghts"));
+  auto samples = SamplesFromDump(Fixture("runs/omega-plus80-floor/so.dump"), drive.dt);
+  ASSERT_TRUE(samples.ok());
+  EXPECT_EQ(FollowRun(*samples, drive, log.drive_start, PrecisionTarget{0, 1e-9, 3, 10}), StopVerdict::kWindowClosed);
+}
+
 }  // namespace
 }  // namespace sandswim::worker

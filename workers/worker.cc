@@ -71,6 +71,19 @@ std::string ReadTail(const std::string& path, size_t bytes) {
 
 }  // namespace
 
+// The first `bytes` of a file (the drive start marker is near the top of the log).
+std::string ReadHead(const std::string& path, size_t bytes) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "";
+  std::string buf(bytes, '\0');
+  in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+  buf.resize(static_cast<size_t>(in.gcount()));
+  // Only whole lines: the last one may still be being written.
+  const size_t nl = buf.rfind('\n');
+  buf.resize(nl == std::string::npos ? 0 : nl + 1);
+  return buf;
+}
+
 // Progress of a running job, for its heartbeats. A run's dump is read once, as it grows: each new
 // frame updates the heartbeat and becomes one of the SO's samples, so the end of the run only
 // reads what was appended last (Finish).
@@ -88,6 +101,14 @@ class JobProgress {
     }
     beat_.sim_time_s = static_cast<double>(beat_.step) * dt_;
     return beat_;
+  }
+
+  // For a run with a precision target: whether it should end now (workers/job_outcome.h
+  // FollowRun), on the samples read so far.
+  StopVerdict Follow(const DriveInfo& drive, const PrecisionTarget& target) {
+    if (!dump_status_.ok()) return StopVerdict::kContinue;
+    if (!start_) start_ = ParseEngineLog(ReadHead(log_path_, 64 * 1024)).drive_start;
+    return FollowRun(samples_.samples(), drive, start_, target);
   }
 
   // The SO's samples of the whole dump (a torn last frame dropped), or why it cannot be read.
@@ -122,6 +143,7 @@ class JobProgress {
   SoSampleSink samples_;
   Status dump_status_;
   api::Heartbeat beat_;
+  std::optional<DriveStartMarker> start_;  // from the log, once it has printed it
 };
 
 namespace {
@@ -343,7 +365,7 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
   }
   const DriveInfo drive{grant.dt_s, grant.f_hz, grant.A_m, grant.z_floor_m};
   JobProgress progress(*dir, grant.kind, drive.dt);
-  std::optional<ExitFacts> facts = Supervise(job, *dir, progress);
+  std::optional<ExitFacts> facts = Supervise(job, *dir, drive, progress);
   if (!facts) return;  // abandoned or handed back
 
   const std::string log_text = ReadFileOr(dir->File(kLogFile), "");
@@ -354,7 +376,7 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
   const bool is_run = grant.kind == api::JobKind::kRun;
   Result<std::vector<SoSample>> samples =
       is_run && facts->started ? progress.Finish() : Result<std::vector<SoSample>>(std::vector<SoSample>());
-  JobOutcome outcome = JudgeJob(grant.kind, grant.steps, *facts, log, drive, samples);
+  JobOutcome outcome = JudgeJob(grant.kind, grant.steps, *facts, log, drive, samples, grant.precision);
   if (outcome.failure) {
     if (outcome.engine_exit && facts->started && !facts->cancelled && !facts->timed_out && StoppedWithTheWorker()) {
       return HandBack(job, "the worker is stopping and its engine was stopped with it");
@@ -398,7 +420,7 @@ std::optional<RunDir> Worker::Prepare(Job& job) {
   return std::move(dir).value();
 }
 
-std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, JobProgress& progress) {
+std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const DriveInfo& drive, JobProgress& progress) {
   const api::LeaseGrant& grant = job.grant;
   const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
   LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile, dir.path(),
@@ -416,6 +438,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, JobProgr
   const auto start = Clock::now();
   const double hb_every = std::max(0.001, std::min(options_.heartbeat_every_s, grant.ttl_s / 3));
   auto next_beat = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+  bool stop_asked = false;  // the control file asks the deck to end the run
   while (true) {
     // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
     double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
@@ -432,7 +455,22 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, JobProgr
       break;
     }
     if (Clock::now() >= next_beat) {
-      auto reply = client_.Heartbeat(grant.token, progress.Read());
+      const api::Heartbeat beat = progress.Read();
+      if (grant.precision && !stop_asked) {
+        const StopVerdict verdict = progress.Follow(drive, *grant.precision);
+        if (verdict != StopVerdict::kContinue) {
+          // The deck reads the control file after its next chunk and ends the run cleanly.
+          if (Status s = dir.Write(kControlFile, ControlFileText(verdict)); s.ok()) {
+            stop_asked = true;
+            spdlog::info("{}: {} at t = {} s; asking the engine to stop", job.name,
+                         verdict == StopVerdict::kTargetMet ? "precision target met" : "steady window closed",
+                         beat.sim_time_s);
+          } else {
+            spdlog::warn("{}: cannot ask the engine to stop ({}); it runs to its maximum", job.name, s.ToString());
+          }
+        }
+      }
+      auto reply = client_.Heartbeat(grant.token, beat);
       if (reply.ok()) {
         if (reply->cancel) {
           spdlog::info("{}: cancelled by the daemon; stopping the engine", job.name);

@@ -4,6 +4,9 @@
 // (deck, bed restart from the per-host cache), starts the engine through the Launcher, and while
 // it runs sends a heartbeat every `heartbeat_every_s` carrying the simulated time and the SO's z
 // (read from the growing so.dump with the streaming DumpReader; for beds, the step from the log).
+// A run with a precision target (the lease's) is followed at every heartbeat: once U_z's interval
+// meets the target, or the steady window has closed, the worker rewrites the run's control file
+// and the deck ends the run cleanly after its next chunk (core/precision.h, core/deck.h).
 // It stops the engine (SIGTERM, grace, SIGKILL) when
 //   - a heartbeat reply says cancel      -> completes with failure "cancelled";
 //   - a heartbeat gets 409 (lease lost)  -> does not complete (the lease is someone else's now);
@@ -43,6 +46,7 @@
 #include <string>
 
 #include "core/api.h"
+#include "core/deck.h"
 #include "core/engine_log.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
@@ -107,7 +111,7 @@ class Worker {
   // engine started and watched, heartbeating (nullopt: the job was abandoned or handed back); a
   // bed's restart uploaded and reported. The outcome between them is workers/job_outcome.h's.
   std::optional<RunDir> Prepare(Job& job);
-  std::optional<ExitFacts> Supervise(Job& job, const RunDir& dir, JobProgress& progress);
+  std::optional<ExitFacts> Supervise(Job& job, const RunDir& dir, const DriveInfo& drive, JobProgress& progress);
   void ReportBed(Job& job, const RunDir& dir, api::BedResult bed);
   // Whether a failed engine was stopped with the worker (waits stop_settle_s for the worker's stop).
   bool StoppedWithTheWorker();

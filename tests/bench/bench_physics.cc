@@ -81,8 +81,8 @@ void BenchScale(const Scale& scale, bool trajectories) {
 
   const double probe = 0.05;  // s of drive per throughput probe
   Point p = Oscillatory(-80, probe);
-  std::string deck = RenderDriveDeck(p, scale);
-  long long steps = DriveSteps(p, scale);
+  std::string deck = RenderDriveDeck(p, scale, std::nullopt);
+  long long steps = DriveSteps(p, std::nullopt);
   double r1 = Throughput(std::string(scale.name) + "-1rank", deck, bed, 1, grains + 1);
   double r2 = Throughput(std::string(scale.name) + "-2ranks", deck, bed, 2, grains + 1);
   double rc = Throughput(std::string(scale.name) + "-constant", ConstantOmegaDeck(deck, steps), bed, 1, grains + 1);
@@ -96,7 +96,7 @@ void BenchScale(const Scale& scale, bool trajectories) {
     Point q = Oscillatory(Omega, 4);
     std::string dir = testing::CacheDir() + "/bench/" + std::string(scale.name) + "-omega" + std::to_string(int(Omega));
     std::filesystem::remove_all(dir);
-    EngineRun r = testing::RunDeck(dir, RenderDriveDeck(q, scale), bed, 1);
+    EngineRun r = testing::RunDeck(dir, RenderDriveDeck(q, scale, std::nullopt), bed, 1);
     auto samples = SamplesFromDump(testing::ReadFile(dir + "/" + kTrajectoryDumpFile), kMaterials.dt);
     EngineLog log = ParseEngineLog(r.log);
     if (!samples.ok()) {

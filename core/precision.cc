@@ -1,0 +1,146 @@
+#include "core/precision.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "core/api.h"
+#include "core/trajectory.h"
+
+namespace sandswim {
+namespace {
+
+using nlohmann::json;
+
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+Status CheckRange(const char* field, double v, double lo, double hi, const char* unit) {
+  if (!std::isfinite(v) || v < lo || v > hi)
+    return Status::InvalidArgument(field, "must be between " + Num(lo) + " and " + Num(hi) + unit + ", got " + Num(v));
+  return Status::Ok();
+}
+
+}  // namespace
+
+bool operator==(const PrecisionTarget& a, const PrecisionTarget& b) {
+  return a.uz_rel == b.uz_rel && a.uz_abs == b.uz_abs && a.min_periods == b.min_periods &&
+         a.max_duration_s == b.max_duration_s;
+}
+
+Status Validate(const PrecisionTarget& t) {
+  SANDSWIM_RETURN_IF_ERROR(CheckRange("uz_rel", t.uz_rel, 0, kMaxPrecisionRel, ""));
+  SANDSWIM_RETURN_IF_ERROR(CheckRange("uz_abs", t.uz_abs, 0, kMaxPrecisionAbs, " m/s"));
+  if (t.uz_rel == 0 && t.uz_abs == 0)
+    return Status::InvalidArgument("uz_rel", "uz_rel and uz_abs cannot both be 0 (no interval is that narrow)");
+  if (t.min_periods < kMinPrecisionPeriods || t.min_periods > kMaxPrecisionPeriods)
+    return Status::InvalidArgument("min_periods", "must be an integer from " + std::to_string(kMinPrecisionPeriods) +
+                                                      " (an interval needs three blocks) to " +
+                                                      std::to_string(kMaxPrecisionPeriods) + ", got " +
+                                                      std::to_string(t.min_periods));
+  if (!std::isfinite(t.max_duration_s) || t.max_duration_s <= 0 || t.max_duration_s > kMaxDurationS)
+    return Status::InvalidArgument("max_duration_s",
+                                   "must be > 0 s and <= " + Num(kMaxDurationS) + " s, got " + Num(t.max_duration_s));
+  return Status::Ok();
+}
+
+json PrecisionToJson(const PrecisionTarget& t) {
+  return {
+      {"uz_rel", t.uz_rel}, {"uz_abs", t.uz_abs}, {"min_periods", t.min_periods}, {"max_duration_s", t.max_duration_s}};
+}
+
+Result<PrecisionTarget> PrecisionFromJson(const json& j) {
+  if (!j.is_object()) return Status::InvalidArgument("", "must be an object");
+  for (const auto& [key, value] : j.items()) {
+    (void)value;
+    if (key != "uz_rel" && key != "uz_abs" && key != "min_periods" && key != "max_duration_s")
+      return Status::InvalidArgument(key.size() > 64 ? key.substr(0, 64) + "..." : key, "unknown field");
+  }
+  PrecisionTarget t;
+  for (const char* key : {"uz_rel", "uz_abs", "max_duration_s"}) {
+    auto it = j.find(key);
+    if (it == j.end()) {
+      if (std::string(key) == "max_duration_s") return Status::InvalidArgument(key, "is required");
+      continue;
+    }
+    if (!it->is_number()) return Status::InvalidArgument(key, "must be a number");
+    const double v = it->get<double>();
+    if (std::string(key) == "uz_rel") t.uz_rel = v;
+    if (std::string(key) == "uz_abs") t.uz_abs = v;
+    if (std::string(key) == "max_duration_s") t.max_duration_s = v;
+  }
+  if (auto it = j.find("min_periods"); it != j.end()) {
+    if (!it->is_number_integer()) return Status::InvalidArgument("min_periods", "must be an integer");
+    const auto v = it->get<int64_t>();
+    t.min_periods = static_cast<int>(std::clamp<int64_t>(v, -1, kMaxPrecisionPeriods + 1));
+  }
+  SANDSWIM_RETURN_IF_ERROR(Validate(t));
+  return t;
+}
+
+Result<std::optional<PrecisionTarget>> StoredPrecision(const std::optional<std::string>& json_text) {
+  if (!json_text) return std::optional<PrecisionTarget>();
+  json j = json::parse(*json_text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return Status::Corruption("runs.precision: the stored precision target is not JSON");
+  auto t = PrecisionFromJson(j);
+  if (!t.ok()) return Status::Corruption("runs.precision: " + t.status().ToString());
+  return std::optional<PrecisionTarget>(*t);
+}
+
+PrecisionTarget Tightest(const PrecisionTarget& a, const PrecisionTarget& b) {
+  PrecisionTarget t;
+  // A threshold of 0 is "not used": the tighter of a used and an unused one is the used one.
+  auto tighter = [](double x, double y) { return x == 0 ? y : y == 0 ? x : std::min(x, y); };
+  t.uz_rel = tighter(a.uz_rel, b.uz_rel);
+  t.uz_abs = tighter(a.uz_abs, b.uz_abs);
+  t.min_periods = std::max(a.min_periods, b.min_periods);
+  t.max_duration_s = std::max(a.max_duration_s, b.max_duration_s);
+  return t;
+}
+
+double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target) {
+  if (!target) return p.duration_s;
+  const WindowRule rule;
+  const double block = p.has_vibration() ? 1.0 / p.f : rule.undriven_block_s;
+  const double needed = (rule.transient_blocks + target->min_periods) * block;
+  return std::min(p.duration_s, std::max(target->max_duration_s, needed));
+}
+
+bool TargetMet(const api::RunResult& r, const PrecisionTarget& t) {
+  if (r.uz_blocks < t.min_periods || !r.uz || !r.uz_ci95) return false;
+  const double allowed = std::max(t.uz_rel * std::fabs(*r.uz), t.uz_abs);
+  return *r.uz_ci95 <= allowed;
+}
+
+StopVerdict DecideStop(const api::RunResult& so_far, const PrecisionTarget& t) {
+  if (TargetMet(so_far, t)) return StopVerdict::kTargetMet;
+  if (so_far.window_end == "surface" || so_far.window_end == "floor") return StopVerdict::kWindowClosed;
+  return StopVerdict::kContinue;
+}
+
+std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t) {
+  const std::string at = "at t = " + Num(r.sim_time_s) + " s";
+  auto interval = [&] {
+    if (!r.uz_ci95 || !r.uz) return std::string("no interval yet");
+    const double allowed = t ? std::max(t->uz_rel * std::fabs(*r.uz), t->uz_abs) : 0;
+    return "95 % interval +-" + Num(*r.uz_ci95) + " m/s " + (*r.uz_ci95 <= allowed ? "<=" : ">") + " the target's " +
+           Num(allowed) + " m/s, " + std::to_string(r.uz_blocks) + " whole " + r.block_kind +
+           (r.uz_blocks == 1 ? "" : "s");
+  };
+  if (r.stop_reason == "target") return "precision target met " + at + ": " + interval();
+  if (r.stop_reason == "window")
+    return "stopped " + at + ": the steady window had closed (the SO came within the clearance of the " +
+           (r.window_end.empty()        ? std::string("boundary")
+            : r.window_end == "surface" ? "bed surface"
+                                        : "floor") +
+           "), so running on could not tighten U_z";
+  if (r.stop_reason == "surface") return "the SO reached the bed surface " + at;
+  if (r.stop_reason == "floor") return "the SO reached the floor " + at;
+  if (t) return "ran to its maximum of " + Num(r.sim_time_s) + " s without meeting the precision target: " + interval();
+  return "ran its whole duration (" + Num(r.sim_time_s) + " s)";
+}
+
+}  // namespace sandswim
