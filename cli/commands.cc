@@ -217,9 +217,9 @@ int WaitAndReport(Context& c, DaemonClient& client, const std::vector<Target>& t
     auto rows = FetchResults(client, t);
     if (!rows.ok()) return Fail(c, rows.status());
     if (c.args.json) {
-      all.push_back({{"target", t.ToString()}, {"results", *rows}});
+      all.push_back({{"target", t.ToString()}, {"results", (*rows)["results"]}, {"aggregates", (*rows)["aggregates"]}});
     } else {
-      c.out() << RenderResultsTable(*rows, c.OutRender());
+      c.out() << RenderResults(*rows, c.OutRender());
     }
   }
   if (c.args.json) PrintJson(c, {{"submission", *reply}, {"results", all}});
@@ -421,11 +421,11 @@ int RunResults(Context& c) {
   if (!rows.ok()) return Fail(c, rows.status());
   std::string format = c.args.json ? "json" : c.args.format;
   if (format == "json") {
-    PrintJson(c, *rows);
+    PrintJson(c, (*rows)["results"]);  // the rows, as always; the aggregates are the REST reply's
   } else if (format == "csv") {
-    c.out() << RenderResultsCsv(*rows);
+    c.out() << RenderResultsCsv((*rows)["results"]);
   } else {
-    c.out() << RenderResultsTable(*rows, c.OutRender());
+    c.out() << RenderResults(*rows, c.OutRender());
   }
   return kExitOk;
 }
@@ -836,7 +836,9 @@ const Command kCommands[] = {
    "  sandswim show 42\n"
    "  sandswim show 42 --json",
    SetupShow, RunShow},
-  {"results", "one row per run: point, U_z, dz, flags, state (campaign runs: cr:ID or --campaign-run ID)",
+  {"results",
+   "one row per run: point, U_z, dz, flags, state; with replicate beds, then one row per point: mean U_z ± its "
+   "standard error over the beds, between-bed sd, K (campaign runs: cr:ID or --campaign-run ID)",
    "  sandswim results 12\n"
    "  sandswim results 12 --format csv > omega.csv\n"
    "  sandswim results cr:7 --format json\n"

@@ -445,6 +445,43 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
   return RenderTable(t);
 }
 
+std::string RenderAggregatesTable(const json& aggregates, const RenderOptions&) {
+  Table t;
+  t.header = {"MODE", "A", "f", "Omega/omega", "AXIS", "U_z (m/s), mean ± se", "K", "EACH BED (m/s)", "NOTE"};
+  t.align = {Align::kLeft,  Align::kRight, Align::kRight, Align::kRight, Align::kLeft,
+             Align::kRight, Align::kRight, Align::kLeft,  Align::kLeft};
+  if (aggregates.is_array()) {
+    for (const auto& a : aggregates) {
+      std::string each;
+      for (const auto& v : a.value("values", json::array())) {
+        std::string cell = v.contains("uz") && Bool(v, "conclusive") ? NumCell(v, "uz", 3)
+                           : v.contains("uz")                        ? "(" + NumCell(v, "uz", 1) + ")"
+                                                                     : Str(v, "state", "-");
+        each += (each.empty() ? "" : " ") + cell;
+      }
+      const std::string axis = Str(a, "axis");
+      const std::string note = Str(a, "note");
+      t.rows.push_back({Str(a, "mode", "-"), NumCell(a, "A"), NumCell(a, "f"), OmegaCell(a), axis.empty() ? "-" : axis,
+                        Str(a, "uz_text", "-"), Str(a, "conclusive", "0") + "/" + Str(a, "replicates", "0"),
+                        each.empty() ? "-" : each, note.empty() ? "-" : note});
+      t.color.push_back({});
+    }
+  }
+  return RenderTable(t);
+}
+
+std::string RenderResults(const json& reply, const RenderOptions& options) {
+  std::string out = RenderResultsTable(reply.value("results", json::array()), options);
+  const json aggregates = reply.value("aggregates", json::array());
+  bool replicated = false;
+  for (const auto& a : aggregates) replicated = replicated || a.value("replicates", 0) > 1;
+  if (replicated) {
+    out += "\nper point, over its replicate beds (K = conclusive/all; an inconclusive bed's value in brackets):\n";
+    out += RenderAggregatesTable(aggregates, options);
+  }
+  return out;
+}
+
 std::string RenderResultsCsv(const json& rows) {
   std::vector<std::string> columns = ResultColumns();
   std::vector<json> list;

@@ -141,6 +141,12 @@ std::string RenderRunDetail(const nlohmann::json& run, const RenderOptions& opti
 // Results rows (the flat rows of GET .../results): one row per run.
 // Table columns: RUN STATE MODE A f Omega/omega AXIS DURATION U_z (m/s) Δz (m) FLAGS [SWEEPS].
 std::string RenderResultsTable(const nlohmann::json& rows, const RenderOptions& options);
+// One row per point over its replicate beds (core/aggregate.h): U_z mean ± standard error, the
+// between-bed sd, K (conclusive of all), each bed's U_z and what the aggregate rests on.
+std::string RenderAggregatesTable(const nlohmann::json& aggregates, const RenderOptions& options);
+// A results reply ({"results", "aggregates"}): the runs' table, then, when some point ran on more
+// than one bed, the aggregates' table under a heading.
+std::string RenderResults(const nlohmann::json& reply, const RenderOptions& options);
 // The daemon's CSV of the same rows, byte for byte (core/result_table.h: ResultColumns(), plus
 // "sweeps" when any row has them).
 std::string RenderResultsCsv(const nlohmann::json& rows);

@@ -115,13 +115,34 @@ TEST(FormatTest, ResultsTableNamesSweepsOfCampaignRows) {
 TEST(FormatTest, ResultsCsvGolden) {
   EXPECT_EQ(
       RenderResultsCsv(TwoResultRows()),
-      "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,Uz_text,Uz,Uz_stderr,Uz_ci95,"
-      "Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,inconclusive_reason,dz,dz_rate,"
+      "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,replicate,bed_id,Uz_text,Uz,Uz_stderr,"
+      "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,inconclusive_reason,dz,dz_rate,"
       "z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,stop_note,precision_met,sim_time_s,grains,"
       "analysis,analysed_from,engine_version\n"
-      "1,k1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,\"0.0123 ± 0.0001, 4 periods\",0.0123456,0.0001,0.000318,4,,,"
-      ",,surface,true,,0.061728,0.012346,,,true,false,surface,,,,,2,,\n"
-      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,\n");
+      "1,k1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,,,\"0.0123 ± 0.0001, 4 periods\",0.0123456,0.0001,0.000318,4,"
+      ",,,,surface,true,,0.061728,0.012346,,,true,false,surface,,,,,2,,\n"
+      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,,,\n");
+}
+
+// A point on three beds: its mean ± standard error, K as conclusive/all, each bed's value (an
+// inconclusive one in brackets); the table is shown only when some point ran on more than one bed.
+TEST(FormatTest, AggregatesFollowTheRunsWhenPointsRanOnSeveralBeds) {
+  json reply = {
+      {"results", TwoResultRows()},
+      {"aggregates", json::parse(R"j([{"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "replicates": 3,
+                   "conclusive": 2, "uz_text": "0.110 ± 0.010, 2 of 3 beds (between-bed sd 0.014)",
+                   "note": "over 2 of 3 replicate(s): the others are not conclusive",
+                   "values": [{"replicate": 0, "state": "done", "conclusive": true, "uz": 0.1},
+                              {"replicate": 1, "state": "done", "conclusive": true, "uz": 0.12},
+                              {"replicate": 2, "state": "done", "conclusive": false, "uz": 0.3}]}])j")}};
+  const std::string out = RenderResults(reply, {});
+  EXPECT_THAT(out, HasSubstr("over its replicate beds"));
+  EXPECT_THAT(out, HasSubstr("0.110 ± 0.010, 2 of 3 beds"));
+  EXPECT_THAT(out, HasSubstr("2/3"));
+  EXPECT_THAT(out, HasSubstr("0.1 0.12 (0.3)"));
+  // One bed per point: the runs' table alone.
+  reply["aggregates"][0]["replicates"] = 1;
+  EXPECT_EQ(RenderResults(reply, {}), RenderResultsTable(TwoResultRows(), {}));
 }
 
 TEST(FormatTest, ResultFlags) {

@@ -146,7 +146,9 @@ Result<json> FetchResults(DaemonClient& client, const Target& target) {
   if (rows == reply->end() || !rows->is_array()) {
     return Status::Corruption("the daemon's results for " + target.ToString() + " have no \"results\" array");
   }
-  return *rows;
+  json out = *reply;
+  if (!out.contains("aggregates") || !out["aggregates"].is_array()) out["aggregates"] = json::array();
+  return out;
 }
 
 }  // namespace sandswim::cli

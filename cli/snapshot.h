@@ -40,7 +40,9 @@ struct SnapshotOptions {
 // Counts, runs in flight and failures (and the done runs' wall times) of a sweep or campaign run.
 Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const SnapshotOptions& options = {});
 
-// The flat result rows of a sweep or campaign run (the "results" array).
+// The results of a sweep or campaign run, as the daemon sends them: {"id", "results": [one row a
+// run], "aggregates": [one a point, over its replicate beds]} ("aggregates" is [] from a daemon
+// older than replicates).
 Result<nlohmann::json> FetchResults(DaemonClient& client, const Target& target);
 
 }  // namespace sandswim::cli

@@ -80,6 +80,30 @@ void from_json(const nlohmann::json& j, RunResult& r) {
   r.analysed_from = j.value("analysed_from", "dump");
 }
 
+void to_json(nlohmann::json& j, const BedResult& b) {
+  j = nlohmann::json{
+      {"grains", b.grains},     {"so_z", b.so_z},     {"grain_top", b.grain_top}, {"equilibrated", b.equilibrated},
+      {"ke_ratio", b.ke_ratio}, {"sha256", b.sha256}, {"bytes", b.bytes}};
+  PutOptional(j, "bed_height", b.bed_height);
+  PutOptional(j, "so_depth", b.so_depth);
+  PutOptional(j, "packing_fraction", b.packing_fraction);
+  PutOptional(j, "shell_grains", b.shell_grains);
+}
+
+void from_json(const nlohmann::json& j, BedResult& b) {
+  b.grains = j.value("grains", int64_t{0});
+  b.so_z = j.value("so_z", 0.0);
+  b.grain_top = j.value("grain_top", 0.0);
+  b.equilibrated = j.value("equilibrated", false);
+  b.ke_ratio = j.value("ke_ratio", 0.0);
+  b.sha256 = j.value("sha256", "");
+  b.bytes = j.value("bytes", int64_t{0});
+  GetOptional(j, "bed_height", b.bed_height);
+  GetOptional(j, "so_depth", b.so_depth);
+  GetOptional(j, "packing_fraction", b.packing_fraction);
+  GetOptional(j, "shell_grains", b.shell_grains);
+}
+
 void to_json(nlohmann::json& j, const LeaseGrant& g) {
   j = nlohmann::json{{"token", g.token}, {"kind", g.kind},
                      {"id", g.id},       {"key", g.key},

@@ -148,9 +148,14 @@ struct BedResult {
   double ke_ratio = 0;  // final kinetic energy / its initial (peak) value
   std::string sha256;   // of the uploaded restart file
   int64_t bytes = 0;
+  // From the bed's dump of all atoms (core/bed_figures.h); absent for beds made before it.
+  std::optional<double> bed_height;        // m, highest grain centre above the floor
+  std::optional<double> so_depth;          // m, highest grain centre above the SO's top
+  std::optional<double> packing_fraction;  // solid fraction in the shell one grain diameter around the SO
+  std::optional<int64_t> shell_grains;     // grains whose centre is in that shell
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedResult, grains, so_z, grain_top, equilibrated, ke_ratio, sha256,
-                                                bytes)
+void to_json(nlohmann::json& j, const BedResult& b);
+void from_json(const nlohmann::json& j, BedResult& b);
 
 // The SO's trajectory, downsampled for storage and plots (t ascending).
 struct Trajectory {
@@ -160,6 +165,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Trajectory, t, x, y, z)
 
 // Why a job failed; `kind` is one of:
 //   "deck_error"     LIGGGHTS printed ERROR: (line in `message`)
+//   "not_equilibrated" a bed missed the kinetic-energy criterion (its figures in `message`)
 //   "lost_atoms"     LIGGGHTS lost atoms
 //   "signal"         the engine died on a signal
 //   "timeout"        the job outlived its wall-time budget

@@ -93,8 +93,39 @@ std::string FormatNumber(double v) {
   return std::string(buf, res.ptr);
 }
 
-std::string RenderBedDeck(const Scale& s) {
+namespace {
+
+bool IsPrime(long long n) {
+  if (n < 2) return false;
+  for (long long d = 2; d * d <= n; ++d)
+    if (n % d == 0) return false;
+  return true;
+}
+
+// The `index`-th prime after `base` (index 0: base itself, which is prime).
+long long PrimeAfter(long long base, int index) {
+  long long p = base;
+  for (int i = 0; i < index; ++i) {
+    do {
+      ++p;
+    } while (!IsPrime(p));
+  }
+  return p;
+}
+
+}  // namespace
+
+BedSeeds BedSeedsFor(int replicate) {
+  if (replicate < 0 || replicate >= kMaxReplicates)
+    throw std::logic_error("replicate index out of range: " + std::to_string(replicate));
+  // Replicate 0 keeps the seeds every bed had before replicates existed; replicate r takes the
+  // r-th primes after them (the engine asks for primes > 10000).
+  return BedSeeds{PrimeAfter(49979693, replicate), PrimeAfter(86028121, replicate)};
+}
+
+std::string RenderBedDeck(const Scale& s, int replicate) {
   const Materials& m = kMaterials;
+  const BedSeeds seeds = BedSeedsFor(replicate);
   const double r = m.d_grain / 2;
   Values v = CommonValues(s);
   const double h1 = 0.0 - s.z_floor;    // first layer: floor to z = 0
@@ -136,6 +167,10 @@ std::string RenderBedDeck(const Scale& s) {
       {"check_steps", Fmt(static_cast<long long>(kCheckSamples) * kSampleSteps)},
       {"ke_ratio", Fmt(kKineticEnergyRatio)},
       {"restart_file", kBedRestartFile},
+      {"bed_dump_file", kBedDumpFile},
+      {"replicate", Fmt(static_cast<long long>(replicate))},
+      {"seed_pour1", Fmt(seeds.pour1)},
+      {"seed_pour2", Fmt(seeds.pour2)},
   });
   return Render(Template("templates/bed.in"), v);
 }

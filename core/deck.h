@@ -25,6 +25,7 @@ inline constexpr int kTemplateVersion = 2;
 
 // Files a deck reads or writes, relative to its run directory.
 inline constexpr char kBedRestartFile[] = "bed.restart";    // bed deck writes, drive deck reads
+inline constexpr char kBedDumpFile[] = "bed.dump";          // bed deck: all atoms at the end (bed_figures.h)
 inline constexpr char kTrajectoryDumpFile[] = "so.dump";    // drive deck: the SO, every 1 ms
 inline constexpr char kInitialDumpFile[] = "initial.dump";  // drive deck: all atoms at t = 0
 inline constexpr char kLogFile[] = "log.liggghts";
@@ -47,7 +48,18 @@ inline constexpr int kDumpEverySteps = 100;
 //   SANDSWIM drive stop duration|surface|floor|target|window step S t T z Z
 inline constexpr char kMarkerPrefix[] = "SANDSWIM ";
 
-std::string RenderBedDeck(const Scale& scale);
+// Replicate beds (core/aggregate.h): replicate r of a scale's bed is poured with insertion seeds
+// of its own, so its grains lie elsewhere; the seeds are in the deck, hence in the bed's key, and
+// each replicate is prepared once. Replicate 0 is the bed a sweep without replicates uses.
+inline constexpr int kMaxReplicates = 20;
+struct BedSeeds {
+  long long pour1 = 0;  // fix insert/pack of the layer below the SO
+  long long pour2 = 0;  // and of the layer above it
+};
+// REQUIRES: 0 <= replicate < kMaxReplicates (else std::logic_error).
+BedSeeds BedSeedsFor(int replicate);
+
+std::string RenderBedDeck(const Scale& scale, int replicate = 0);
 
 // REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok(). `target` is the run's precision
 // target (absent: the run lasts its whole duration); its numbers are stated in the deck, so they

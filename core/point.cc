@@ -126,6 +126,11 @@ bool SameDrive(const Point& a, const Point& b) {
          (!a.has_constant_rotation() || a.axis == b.axis);
 }
 
+DriveId DriveIdOf(const Point& p) {
+  return {
+      static_cast<int>(p.mode), p.A, p.f, p.Omega, p.omega, p.has_constant_rotation() ? static_cast<int>(p.axis) : -1};
+}
+
 Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
                           double duration_s) {
   std::optional<Mode> m = ParseMode(mode);

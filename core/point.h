@@ -19,6 +19,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <tuple>
 
 #include "core/status.h"
 
@@ -68,6 +69,9 @@ Status Validate(const Point& p);
 
 // Two points drive the SO the same way (everything but duration equal).
 bool SameDrive(const Point& a, const Point& b);
+// An ordered identity of the drive: equal exactly when SameDrive (axis only where it matters).
+using DriveId = std::tuple<int, double, double, double, double, int>;
+DriveId DriveIdOf(const Point& p);
 
 }  // namespace sandswim
 

@@ -14,6 +14,8 @@ const std::vector<std::string>& ResultColumns() {
                                                     "axis",
                                                     "duration_s",
                                                     "run_duration_s",
+                                                    "replicate",
+                                                    "bed_id",
                                                     "Uz_text",
                                                     "Uz",
                                                     "Uz_stderr",

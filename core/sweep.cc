@@ -340,6 +340,26 @@ std::optional<size_t> PointCount(const std::vector<SweepAxis>& axes, Combine com
   return n <= cap ? std::optional<size_t>(n) : std::nullopt;
 }
 
+// "precision" (core/precision.h) and "replicates" (an integer from 1 to kMaxReplicates), which a
+// sweep and a campaign (for its sweeps) may set; absent keys leave the values as they are.
+Status ReadRunSettings(const json& obj, std::optional<PrecisionTarget>& precision, std::optional<int>& replicates) {
+  if (obj.count("precision")) {
+    auto t = PrecisionFromJson(obj["precision"]);
+    if (!t.ok()) return t.status().WithFieldPrefix("precision");
+    precision = *t;
+  }
+  if (obj.count("replicates")) {
+    const json& v = obj["replicates"];
+    if (!v.is_number_integer()) return WrongType("replicates", "an integer", v);
+    const auto k = v.get<int64_t>();
+    if (k < 1 || k > kMaxReplicates)
+      return Status::InvalidArgument("replicates", "must be from 1 to " + std::to_string(kMaxReplicates) +
+                                                       " beds, got " + std::to_string(k));
+    replicates = static_cast<int>(k);
+  }
+  return Status::Ok();
+}
+
 Status TooMany(size_t cap) {
   return Status::ResourceExhausted("axes", "the sweep expands to more than " + std::to_string(cap) +
                                                " points (at most " + std::to_string(cap) + " runs per submission)");
@@ -372,7 +392,7 @@ Status CheckPoint(const Point& p, const Scale& scale, const std::vector<SweepAxi
 // scale applies).
 Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::string& campaign_scale) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  std::set<std::string> allowed = {"name", "base", "axes", "combine", "description", "precision"};
+  std::set<std::string> allowed = {"name", "base", "axes", "combine", "description", "precision", "replicates"};
   if (!in_campaign) {
     allowed.insert("scale");
     allowed.insert("force");
@@ -403,11 +423,7 @@ Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::s
                                      "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
   }
 
-  if (j.count("precision")) {
-    auto t = PrecisionFromJson(j["precision"]);
-    if (!t.ok()) return t.status().WithFieldPrefix("precision");
-    s.precision = *t;
-  }
+  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, s.precision, s.replicates));
 
   if (!j.count("base")) return Status::InvalidArgument("base", "is required");
   auto base = ParseBase(j["base"]);
@@ -493,13 +509,6 @@ Status CheckSchedule(const std::string& cron) {
 
 std::string CampaignTemplatePath(const std::string& name) { return "templates/campaigns/" + name + ".json"; }
 
-// Identity of a drive for merging (SameDrive): duration excluded, axis only where it matters.
-using DriveId = std::tuple<int, double, double, double, double, int>;
-DriveId DriveIdOf(const Point& p) {
-  return {
-      static_cast<int>(p.mode), p.A, p.f, p.Omega, p.omega, p.has_constant_rotation() ? static_cast<int>(p.axis) : -1};
-}
-
 void AddSweepName(std::vector<std::string>& names, const std::string& name) {
   if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
 }
@@ -545,8 +554,8 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
 
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  SANDSWIM_RETURN_IF_ERROR(
-      CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision", "sweeps"}));
+  SANDSWIM_RETURN_IF_ERROR(CheckKeys(
+      j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision", "replicates", "sweeps"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -574,11 +583,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     if (*tol < 0) return Status::InvalidArgument("drift_tolerance_mps", "must be >= 0 m/s");
     c.drift_tolerance_mps = *tol;
   }
-  if (j.count("precision")) {
-    auto t = PrecisionFromJson(j["precision"]);
-    if (!t.ok()) return t.status().WithFieldPrefix("precision");
-    c.precision = *t;
-  }
+  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, c.precision, c.replicates));
   if (!j.count("sweeps")) return Status::InvalidArgument("sweeps", "is required");
   const json& sweeps = j["sweeps"];
   if (!sweeps.is_array()) return WrongType("sweeps", "an array", sweeps);
@@ -589,9 +594,10 @@ Result<Campaign> ParseCampaign(const json& j) {
     auto s = ParseSweepObject(sweeps[i], true, c.scale);
     if (!s.ok()) return s.status().WithFieldPrefix(path);
     if (!s->precision) s->precision = c.precision;
+    if (!s->replicates) s->replicates = c.replicates;
     for (const auto& other : c.sweeps)
       if (other.name == s->name) return Status::InvalidArgument(path + ".name", "repeats sweep \"" + s->name + "\"");
-    total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission);
+    total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission) * s->Replicates();
     if (total > kMaxRunsPerSubmission) return TooMany(kMaxRunsPerSubmission).WithFieldPrefix(path);
     c.sweeps.push_back(std::move(*s));
   }
@@ -630,40 +636,57 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
                         const PlanOptions& options) {
   Plan plan;
   plan.scale = std::string(scale.name);
+  int replicates = 1;
+  for (const SweepSpec& s : sweeps) replicates = std::max(replicates, s.Replicates());
   try {
-    plan.bed.deck = RenderBedDeck(scale);
+    for (int r = 0; r < replicates; ++r) {
+      PlannedBed bed;
+      bed.replicate = r;
+      bed.seeds = BedSeedsFor(r);
+      bed.deck = RenderBedDeck(scale, r);
+      bed.key = BedKey(bed.deck, engine_version);
+      plan.beds.push_back(std::move(bed));
+    }
   } catch (const std::exception& e) {
     return Status::Internal(std::string("rendering the bed deck failed: ") + e.what());
   }
-  plan.bed.key = BedKey(plan.bed.deck, engine_version);
 
-  std::map<DriveId, size_t> by_drive;
+  std::map<std::pair<DriveId, int>, size_t> by_drive;
   size_t expanded = 0;
   for (size_t i = 0; i < sweeps.size(); ++i) {
     SweepSpec s = sweeps[i];
     s.scale = std::string(scale.name);
-    auto points = ExpandSweep(s, options.max_runs - expanded);
+    const size_t k = static_cast<size_t>(s.Replicates());
+    auto points = ExpandSweep(s, (options.max_runs - expanded) / k);
     if (!points.ok()) {
+      Status st = points.status();
+      if (k > 1 && st.code() == StatusCode::kResourceExhausted)
+        st = Status::ResourceExhausted("replicates", "its points on " + std::to_string(k) +
+                                                         " beds each come to more than " +
+                                                         std::to_string(options.max_runs - expanded) + " runs");
       // Name the sweep only when there is more than one.
-      if (sweeps.size() == 1) return points.status();
-      return points.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]");
+      if (sweeps.size() == 1) return st;
+      return st.WithFieldPrefix("sweeps[" + std::to_string(i) + "]");
     }
-    expanded += points->size();
+    expanded += points->size() * k;
     const std::optional<PrecisionTarget> target = s.precision ? s.precision : scale.default_precision;
     for (const Point& p : *points) {
-      auto [it, inserted] = by_drive.emplace(DriveIdOf(p), plan.runs.size());
-      if (inserted) {
-        PlannedRun r;
-        r.point = p;
-        r.precision = target;
-        r.sweeps.push_back(s.name);
-        plan.runs.push_back(std::move(r));
-      } else {
-        PlannedRun& r = plan.runs[it->second];
-        r.point.duration_s = std::max(r.point.duration_s, p.duration_s);
-        r.precision =
-            r.precision && target ? std::optional<PrecisionTarget>(Tightest(*r.precision, *target)) : std::nullopt;
-        AddSweepName(r.sweeps, s.name);
+      for (int replicate = 0; replicate < static_cast<int>(k); ++replicate) {
+        auto [it, inserted] = by_drive.emplace(std::make_pair(DriveIdOf(p), replicate), plan.runs.size());
+        if (inserted) {
+          PlannedRun r;
+          r.point = p;
+          r.replicate = replicate;
+          r.precision = target;
+          r.sweeps.push_back(s.name);
+          plan.runs.push_back(std::move(r));
+        } else {
+          PlannedRun& r = plan.runs[it->second];
+          r.point.duration_s = std::max(r.point.duration_s, p.duration_s);
+          r.precision =
+              r.precision && target ? std::optional<PrecisionTarget>(Tightest(*r.precision, *target)) : std::nullopt;
+          AddSweepName(r.sweeps, s.name);
+        }
       }
     }
   }
@@ -681,7 +704,7 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
         r.run_duration_s = RunDuration(r.point, r.precision);
         r.steps = DriveSteps(r.point, r.precision);
         std::string deck = RenderDriveDeck(r.point, scale, r.precision);
-        r.key = RunKey(deck, plan.bed.key, engine_version);
+        r.key = RunKey(deck, plan.beds[r.replicate].key, engine_version);
         if (options.keep_decks) r.deck = std::move(deck);
       }
     } catch (const std::exception& e) {
@@ -733,6 +756,7 @@ json PlannedRunToJson(const PlannedRun& r) {
   j["key"] = r.key;
   j["run_duration_s"] = r.run_duration_s;
   j["steps"] = r.steps;
+  j["replicate"] = r.replicate;
   if (r.precision) j["precision"] = PrecisionToJson(*r.precision);
   j["sweeps"] = r.sweeps;
   return j;

@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/deck.h"
 #include "core/point.h"
 #include "core/scale.h"
 #include "core/status.h"
@@ -55,6 +56,10 @@ struct SweepSpec {
   // How precise its runs must be (core/precision.h); absent: the campaign's, else the scale's
   // default (Scale::default_precision), else none (runs last their whole duration).
   std::optional<PrecisionTarget> precision;
+  // On how many beds each point runs (core/aggregate.h): replicate beds 0..K-1 of the scale
+  // (core/deck.h BedSeedsFor). Absent: the campaign's, else 1.
+  std::optional<int> replicates;
+  int Replicates() const { return replicates.value_or(1); }
 };
 
 Result<SweepSpec> ParseSweep(const nlohmann::json& j);
@@ -72,6 +77,7 @@ struct Campaign {
   std::optional<std::string> schedule;       // cron expression, daemon's local time zone
   double drift_tolerance_mps = 0.0;          // |U_z now - U_z before| above this is flagged
   std::optional<PrecisionTarget> precision;  // for its sweeps that set none
+  std::optional<int> replicates;             // for its sweeps that set none
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);
@@ -81,9 +87,10 @@ Result<Campaign> BuiltinCampaign(const std::string& name);
 // Its definition, the JSON file as shipped. NotFound for a name that is not built in.
 Result<nlohmann::json> BuiltinCampaignDefinition(const std::string& name);
 
-// One distinct run of a plan.
+// One distinct run of a plan: a point on one replicate bed.
 struct PlannedRun {
   Point point;                      // duration_s is the longest any sweep asked for
+  int replicate = 0;                // the bed it runs on: Plan::beds[replicate]
   std::vector<std::string> sweeps;  // names of the sweeps it belongs to, in plan order
   double run_duration_s = 0;        // RunDuration() at the plan's scale
   long long steps = 0;              // DriveSteps()
@@ -95,17 +102,20 @@ struct PlannedRun {
 };
 
 struct PlannedBed {
-  std::string deck;  // RenderBedDeck()
+  int replicate = 0;
+  BedSeeds seeds;
+  std::string deck;  // RenderBedDeck(scale, replicate)
   std::string key;   // BedKey()
 };
 
 struct Plan {
   std::string scale;
-  PlannedBed bed;
+  std::vector<PlannedBed> beds;  // replicates 0..K-1, K the most any sweep asks for
   std::vector<PlannedRun> runs;  // distinct, in first-appearance order
 };
 
-// Expands every sweep at `scale` and merges shared points. `engine_version` enters every key.
+// Expands every sweep at `scale`, each point once on each of its sweep's replicate beds, and
+// merges shared points (per bed). `engine_version` enters every key.
 Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale, const std::string& engine_version,
                         size_t max_runs = kMaxRunsPerSubmission);
 

@@ -242,10 +242,25 @@ TEST_F(SweepSchemaTest, PrecisionTargetIsTheOneCxxTakes) {
   EXPECT_EQ(LoadSchema("campaign.schema.json").at("$defs").at("precision"), p);
 }
 
+// replicates: an integer from 1 to kMaxReplicates, as core/sweep.cc takes it.
+TEST_F(SweepSchemaTest, ReplicatesAreTheOnesCxxTakes) {
+  const json& r = defs_.at("replicates");
+  EXPECT_EQ(r.at("type"), "integer");
+  EXPECT_EQ(r.at("minimum"), 1);
+  EXPECT_EQ(r.at("maximum"), kMaxReplicates);
+  json sweep = {{"name", "r"},
+                {"scale", "smoke"},
+                {"base", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 1}}},
+                {"replicates", kMaxReplicates}};
+  EXPECT_TRUE(ParseSweep(sweep).ok());
+  sweep["replicates"] = kMaxReplicates + 1;
+  EXPECT_EQ(ParseSweep(sweep).status().field(), "replicates");
+}
+
 TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   const json& sweep_schema = defs_.at("sweep");
-  EXPECT_EQ(Keys(sweep_schema),
-            (std::set<std::string>{"name", "scale", "description", "base", "axes", "combine", "force", "precision"}));
+  EXPECT_EQ(Keys(sweep_schema), (std::set<std::string>{"name", "scale", "description", "base", "axes", "combine",
+                                                       "force", "precision", "replicates"}));
   EXPECT_EQ(Strings(sweep_schema.at("required")), (std::set<std::string>{"name", "scale", "base"}));
   json full = {{"name", "s"},           {"scale", "smoke"},
                {"description", "d"},    {"base", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 1}}},
@@ -266,7 +281,7 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
 
   const json& campaign = defs_.at("campaign");
   EXPECT_EQ(Keys(campaign), (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps",
-                                                   "precision", "sweeps"}));
+                                                   "precision", "replicates", "sweeps"}));
   EXPECT_EQ(Strings(campaign.at("required")), (std::set<std::string>{"name", "description", "scale", "sweeps"}));
   json c = {{"name", "c"},
             {"description", "d"},

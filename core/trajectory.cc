@@ -368,14 +368,15 @@ Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const Ru
 
 namespace {
 
-// v with `digits` significant digits, or, given a precision `step` (a power of ten), to that step.
+// v with `digits` significant digits.
 std::string Round(double v, int digits) {
   char buf[48];
   std::snprintf(buf, sizeof buf, "%.*g", std::max(digits, 1), v);
   return buf;
 }
 
-// v and err, err to 2 significant digits and v to the same decimal place.
+}  // namespace
+
 std::string WithError(double v, double err) {
   if (!(err > 0)) return Round(v, 3) + " ± 0";
   const int exponent = static_cast<int>(std::floor(std::log10(err))) - 1;  // place of err's 2nd digit
@@ -390,8 +391,6 @@ std::string WithError(double v, double err) {
   }
   return std::string(vb) + " ± " + eb;
 }
-
-}  // namespace
 
 std::string DescribeUz(const api::RunResult& r, bool with_units) {
   const std::string units = with_units ? " m/s" : "";

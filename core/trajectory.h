@@ -168,6 +168,8 @@ Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const Ru
 // ("inconclusive (≈0.05 m/s, 1 period)"); none at all, "inconclusive (no whole period)". A result
 // of an older analysis says so. `with_units` = false leaves out " m/s" (for table columns).
 std::string DescribeUz(const api::RunResult& r, bool with_units = true);
+// "0.0467 ± 0.0031": err to 2 significant digits and v to the same decimal place.
+std::string WithError(double v, double err);
 
 // At most `max_points` samples, evenly spaced in index, always keeping the first and the last.
 api::Trajectory Downsample(const std::vector<SoSample>& samples, size_t max_points = 2000);

@@ -614,7 +614,7 @@ TEST_F(LeaseQueueTest, LeasedDeckIsTheDeckTheKeyWasComputedFrom) {
     }
     ASSERT_NE(planned, nullptr) << g.key;
     EXPECT_EQ(g.deck, planned->deck);
-    EXPECT_EQ(RunKey(g.deck, plan->bed.key, kEngine), g.key);
+    EXPECT_EQ(RunKey(g.deck, plan->beds.at(0).key, kEngine), g.key);
     auto detail = store_->GetRun(g.id);
     ASSERT_TRUE(detail.ok());
     EXPECT_EQ(detail->deck, planned->deck);

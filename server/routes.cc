@@ -23,6 +23,7 @@
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 
+#include "core/aggregate.h"
 #include "core/result_table.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
@@ -197,6 +198,8 @@ json ResultRowJson(const ResultRow& row) {
   const json point = PointToJson(row.point);
   for (auto it = point.begin(); it != point.end(); ++it) j[it.key()] = it.value();
   j["run_duration_s"] = row.run_duration_s;
+  j["replicate"] = row.replicate;
+  j["bed_id"] = row.bed_id;
   if (row.result) {
     const api::RunResult& r = row.result->result;
     j["Uz_text"] = DescribeUz(r, false);
@@ -229,7 +232,39 @@ json ResultRowJson(const ResultRow& row) {
   return j;
 }
 
-void SendRows(Call& c, int64_t id, const std::vector<json>& rows, bool with_sweeps) {
+// The per-point aggregates over replicate beds (core/aggregate.h) of these runs, each with its
+// point's fields.
+json AggregatesJson(const std::vector<ResultRow>& rows) {
+  std::vector<std::pair<Point, ReplicateValue>> runs;
+  runs.reserve(rows.size());
+  for (const ResultRow& row : rows) {
+    ReplicateValue v;
+    v.run_id = row.run_id;
+    v.replicate = row.replicate;
+    v.bed_id = row.bed_id;
+    v.state = row.state;
+    if (row.result) {
+      const api::RunResult& r = row.result->result;
+      v.conclusive = r.conclusive;
+      v.uz = r.uz;
+      v.uz_stderr = r.uz_stderr;
+      v.uz_ci95 = r.uz_ci95;
+    }
+    runs.emplace_back(row.point, v);
+  }
+  json out = json::array();
+  for (const PointAggregate& a : AggregateByPoint(runs)) {
+    json j = PointToJson(a.point);
+    j.erase("duration_s");
+    j.update(AggregateToJson(a.aggregate));
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+// `?format=csv`: the runs, one a line (core/result_table.h); JSON: {"id", "results", "aggregates"}.
+void SendRows(Call& c, int64_t id, const std::vector<json>& rows, const std::vector<ResultRow>& distinct,
+              bool with_sweeps) {
   if (WantsCsv(c)) {
     std::vector<std::string> columns = ResultColumns();
     if (with_sweeps) columns.push_back("sweeps");
@@ -237,11 +272,13 @@ void SendRows(Call& c, int64_t id, const std::vector<json>& rows, bool with_swee
     c.res.set_content(RowsToCsv(rows, columns), "text/csv");
     return;
   }
-  SendJson(c, 200, {{"id", id}, {"results", rows}});
+  SendJson(c, 200, {{"id", id}, {"results", rows}, {"aggregates", AggregatesJson(distinct)}});
 }
 
-// A campaign run's distinct runs, each naming the sweeps it belongs to.
-Result<std::vector<json>> CampaignRunRows(Store& store, const CampaignRunInfo& info) {
+// A campaign run's distinct runs, each naming the sweeps it belongs to (`distinct`: the same runs,
+// as read).
+Result<std::vector<json>> CampaignRunRows(Store& store, const CampaignRunInfo& info,
+                                          std::vector<ResultRow>* distinct = nullptr) {
   std::vector<json> rows;
   std::map<int64_t, size_t> index_of_run;
   for (int64_t sweep_id : info.sweep_ids) {
@@ -254,6 +291,7 @@ Result<std::vector<json>> CampaignRunRows(Store& store, const CampaignRunInfo& i
       if (inserted) {
         rows.push_back(ResultRowJson(row));
         rows.back()["sweeps"] = json::array();
+        if (distinct) distinct->push_back(row);
       }
       rows[it->second]["sweeps"].push_back(sweep->name);
     }
@@ -311,7 +349,7 @@ void GetSweepResults(Call& c) {
   std::vector<json> rows;
   rows.reserve(results->size());
   for (const ResultRow& row : *results) rows.push_back(ResultRowJson(row));
-  SendRows(c, *id, rows, /*with_sweeps=*/false);
+  SendRows(c, *id, rows, *results, /*with_sweeps=*/false);
 }
 
 void CancelSweep(Call& c) {
@@ -349,6 +387,20 @@ void GetRun(Call& c) {
   auto run = c.deps.store->GetRun(*id);
   if (!run.ok()) return Fail(c, run.status());
   SendJson(c, 200, *run);
+}
+
+void ListBeds(Call& c) {
+  auto beds = c.deps.store->ListBeds();
+  if (!beds.ok()) return Fail(c, beds.status());
+  SendJson(c, 200, {{"beds", *beds}});
+}
+
+void GetBed(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto bed = c.deps.store->GetBed(*id);
+  if (!bed.ok()) return Fail(c, bed.status());
+  SendJson(c, 200, *bed);
 }
 
 json CampaignJson(const Campaign& campaign, bool builtin, bool stored) {
@@ -431,9 +483,10 @@ void GetCampaignRunResults(Call& c) {
   if (!id.ok()) return Fail(c, id.status());
   auto info = c.deps.store->GetCampaignRun(*id);
   if (!info.ok()) return Fail(c, info.status());
-  auto rows = CampaignRunRows(*c.deps.store, *info);
+  std::vector<ResultRow> distinct;
+  auto rows = CampaignRunRows(*c.deps.store, *info, &distinct);
   if (!rows.ok()) return Fail(c, rows.status());
-  SendRows(c, *id, *rows, /*with_sweeps=*/true);
+  SendRows(c, *id, *rows, distinct, /*with_sweeps=*/true);
 }
 
 // ---- Figures, fits and reports (server/figures.h, server/report.h) ----------------------------
@@ -750,6 +803,8 @@ const Route kRoutes[] = {
   {"POST", "/api/v1/sweeps/{id}/cancel",            Access::kWrite,  BodyKind::kJson,    CancelSweep},
   {"GET",  "/api/v1/runs",                          Access::kRead,   BodyKind::kNone,    ListRuns},
   {"GET",  "/api/v1/runs/{id}",                     Access::kRead,   BodyKind::kNone,    GetRun},
+  {"GET",  "/api/v1/beds",                          Access::kRead,   BodyKind::kNone,    ListBeds},
+  {"GET",  "/api/v1/beds/{id}",                     Access::kRead,   BodyKind::kNone,    GetBed},
   {"GET",  "/api/v1/campaigns",                     Access::kRead,   BodyKind::kNone,    ListCampaigns},
   {"GET",  "/api/v1/campaigns/{name}/drift",        Access::kRead,   BodyKind::kNone,    GetCampaignDrift},
   {"GET",  "/api/v1/campaign-runs/{id}",            Access::kRead,   BodyKind::kNone,    GetCampaignRun},

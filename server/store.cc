@@ -560,6 +560,78 @@ Result<RunDetail> Store::GetRun(int64_t id) {
   return d;
 }
 
+namespace {
+
+constexpr const char* kBedColumns =
+    "b.id, b.key, b.scale, b.replicate, b.seed_pour1, b.seed_pour2, b.state, b.attempts, b.result, "
+    "b.last_error_kind, b.last_error, b.created_at, b.finished_at, "
+    "(SELECT count(*) FROM runs r WHERE r.bed_id = b.id)";
+
+Result<BedView> BedFromRow(const Statement& st) {
+  BedView b;
+  b.id = st.Int(0);
+  b.key = st.Text(1);
+  b.scale = st.Text(2);
+  b.replicate = static_cast<int>(st.Int(3));
+  if (!st.IsNull(4)) b.seed_pour1 = st.Int(4);
+  if (!st.IsNull(5)) b.seed_pour2 = st.Int(5);
+  b.state = st.Text(6);
+  b.attempts = static_cast<int>(st.Int(7));
+  if (!st.IsNull(8)) {
+    nlohmann::json j = nlohmann::json::parse(st.Text(8), nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded() || !j.is_object())
+      return Status::Corruption("bed " + std::to_string(b.id) + ": its stored result is not a JSON object");
+    try {
+      b.result = j.get<api::BedResult>();
+    } catch (const nlohmann::json::exception& e) {
+      return Status::Corruption("bed " + std::to_string(b.id) + ": its stored result does not read: " + e.what());
+    }
+  }
+  if (!st.IsNull(9)) b.last_error = api::Failure{st.Text(9), st.Text(10)};
+  b.created_at = st.Double(11);
+  b.finished_at = st.OptDouble(12);
+  b.runs = st.Int(13);
+  return b;
+}
+
+}  // namespace
+
+void to_json(nlohmann::json& j, const BedView& b) {
+  j = nlohmann::json{{"id", b.id},       {"key", b.key},           {"scale", b.scale}, {"replicate", b.replicate},
+                     {"state", b.state}, {"attempts", b.attempts}, {"runs", b.runs},   {"created_at", b.created_at}};
+  if (b.seed_pour1 && b.seed_pour2) j["seeds"] = {{"pour1", *b.seed_pour1}, {"pour2", *b.seed_pour2}};
+  if (b.result) j["result"] = *b.result;
+  if (b.last_error) j["last_error"] = {{"kind", b.last_error->kind}, {"message", b.last_error->message}};
+  if (b.finished_at) j["finished_at"] = *b.finished_at;
+}
+
+Result<BedView> Store::GetBed(int64_t id) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(std::string("SELECT ") + kBedColumns + " FROM beds b WHERE b.id = ?");
+  st.Bind(1, id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::NotFound("no bed " + std::to_string(id));
+  return BedFromRow(st);
+}
+
+Result<std::vector<BedView>> Store::ListBeds() {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(std::string("SELECT ") + kBedColumns + " FROM beds b ORDER BY b.id");
+  std::vector<BedView> out;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    Result<BedView> b = BedFromRow(st);
+    if (!b.ok()) return b.status();
+    out.push_back(std::move(b).value());
+  }
+  return out;
+}
+
 Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
   Result<Transaction> t = BeginRead();
   if (!t.ok()) return t.status();
@@ -573,7 +645,8 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
   Statement st = t->Prepare(std::string("SELECT r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, "
                                         "r.axis, r.duration_s, r.run_duration_s, ") +
                             kResultColumns +
-                            " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+                            ", r.bed_id, b.replicate"
+                            " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id JOIN beds b ON b.id = r.bed_id "
                             "LEFT JOIN results res ON res.run_id = r.id WHERE sr.sweep_id = ? ORDER BY sr.position");
   st.Bind(1, sweep_id);
   std::vector<ResultRow> rows;
@@ -591,6 +664,8 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
     r.point = *point;
     r.run_duration_s = st.Double(10);
     r.result = ResultFromRow(st, 11);
+    r.bed_id = st.Int(11 + kResultColumnCount);
+    r.replicate = static_cast<int>(st.Int(12 + kResultColumnCount));
     rows.push_back(std::move(r));
   }
   return rows;

@@ -127,6 +127,8 @@ struct ResultRow {
   std::string state;
   Point point;
   double run_duration_s = 0;
+  int64_t bed_id = 0;
+  int replicate = 0;  // its bed's replicate index (core/aggregate.h)
   std::optional<StoredResult> result;
 };
 // The API's JSON of a result row is core/result_table.h's (server/routes.cc ResultRowJson).
@@ -152,6 +154,26 @@ struct StoredCampaign {
 };
 void to_json(nlohmann::json& j, const StoredCampaign& c);
 
+// A bed as the API shows it: what it is (scale, replicate, seeds), its state and, once prepared,
+// what it is like (api::BedResult: grains, height, the SO's depth, packing around the SO).
+struct BedView {
+  int64_t id = 0;
+  std::string key;
+  std::string scale;
+  int replicate = 0;
+  std::optional<int64_t> seed_pour1, seed_pour2;  // absent for beds made before replicates
+  std::string state;                              // queued | running | done | failed
+  int attempts = 0;
+  std::optional<api::BedResult> result;
+  std::optional<api::Failure> last_error;
+  int64_t runs = 0;  // runs on this bed
+  double created_at = 0;
+  std::optional<double> finished_at;
+};
+// {"id","key","scale","replicate","seeds":{"pour1","pour2"}?,"state","attempts","result"?,
+//  "last_error"?,"runs","created_at","finished_at"?}
+void to_json(nlohmann::json& j, const BedView& b);
+
 struct Metrics {
   RunCounts runs;  // by state
   RunCounts beds;  // by state (cancelled is always 0)
@@ -173,6 +195,9 @@ class Store : public Database {
   Result<SweepInfo> GetSweep(int64_t id);
   Result<RunPage> ListRuns(const RunFilter& filter);
   Result<RunDetail> GetRun(int64_t id);
+  Result<BedView> GetBed(int64_t id);
+  // Every bed, by id.
+  Result<std::vector<BedView>> ListBeds();
   // Every run of the sweep in its expansion order (sweep_runs.position).
   Result<std::vector<ResultRow>> SweepResults(int64_t sweep_id);
   Result<CampaignRunInfo> GetCampaignRun(int64_t id);

@@ -124,6 +124,8 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     auto t = store->Begin();
     ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
                         "ALTER TABLE runs DROP COLUMN precision;"
+                        "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
+                        "ALTER TABLE beds DROP COLUMN seed_pour2;"
                         "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
                         "uz_stderr REAL NOT NULL, window_t0 REAL NOT NULL, window_t1 REAL NOT NULL, dz REAL NOT NULL, "
                         "z_osc_amplitude REAL NOT NULL, x_drift REAL NOT NULL, broke_surface INTEGER NOT NULL, "
@@ -157,7 +159,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), 8);
+  EXPECT_EQ(store->schema_version(), 9);
   EXPECT_EQ(*store->CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());

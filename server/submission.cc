@@ -241,20 +241,22 @@ Result<std::vector<int64_t>> InsertSweeps(Transaction& t, const std::vector<Swee
   return ids;
 }
 
-// A scale's bed: one per key; a failed one is given another chance.
-Result<int64_t> UpsertBed(Transaction& t, const ScalePlan& g, const std::string& engine_version, double now) {
+// A scale's replicate bed: one per key; a failed one is given another chance.
+Result<int64_t> UpsertBed(Transaction& t, const std::string& scale, const PlannedBed& bed,
+                          const std::string& engine_version, double now) {
   // engine_version: what the run keys on this bed were made with, so a deck rendered again
   // at lease time can be checked against its run's key (the bed key covers it too).
   Statement ins = t.Prepare(
-      "INSERT INTO beds (key, scale, deck, state, created_at, engine_version) "
-      "VALUES (?, ?, ?, 'queued', ?, ?) "
+      "INSERT INTO beds (key, scale, deck, state, created_at, engine_version, replicate, seed_pour1, seed_pour2) "
+      "VALUES (?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
       "ON CONFLICT (key) DO UPDATE SET engine_version = excluded.engine_version "
       "WHERE engine_version IS NULL");
-  ins.Bind(1, g.plan.bed.key).Bind(2, g.scale).Bind(3, g.plan.bed.deck).Bind(4, now);
-  ins.Bind(5, engine_version);
+  ins.Bind(1, bed.key).Bind(2, scale).Bind(3, bed.deck).Bind(4, now);
+  ins.Bind(5, engine_version).Bind(6, static_cast<int64_t>(bed.replicate));
+  ins.Bind(7, static_cast<int64_t>(bed.seeds.pour1)).Bind(8, static_cast<int64_t>(bed.seeds.pour2));
   SANDSWIM_RETURN_IF_ERROR(ins.Run());
   Statement sel = t.Prepare("SELECT id, state FROM beds WHERE key = ?");
-  sel.Bind(1, g.plan.bed.key);
+  sel.Bind(1, bed.key);
   Result<bool> row = sel.Step();
   if (!row.ok()) return row.status();
   if (!*row) return Status::Internal("bed row vanished");
@@ -295,8 +297,9 @@ Status ReuseRun(Transaction& t, int64_t run_id, const std::string& state, bool f
 
 // A scale's runs (inserted, or reused by key) and their sweeps' membership, in plan order.
 // `next_position` is each sweep's next membership position.
-Status WriteRuns(Transaction& t, const ScalePlan& g, int64_t bed_id, const std::map<std::string, int64_t>& id_by_name,
-                 bool force, double now, std::map<int64_t, int64_t>& next_position, SubmitResult& out) {
+Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>& bed_ids,
+                 const std::map<std::string, int64_t>& id_by_name, bool force, double now,
+                 std::map<int64_t, int64_t>& next_position, SubmitResult& out) {
   // One prepared statement each, reused for every row (100,000 rows in one transaction).
   Statement ins = t.Prepare(
       "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
@@ -310,7 +313,7 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, int64_t bed_id, const std::
   for (const PlannedRun& r : g.plan.runs) {
     int64_t run_id = 0;
     ins.Reset();
-    ins.Bind(1, r.key).Bind(2, bed_id).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
+    ins.Bind(1, r.key).Bind(2, bed_ids.at(r.replicate)).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
     ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
     ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
     ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
@@ -421,9 +424,13 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
 
   std::map<int64_t, int64_t> next_position;
   for (const ScalePlan& g : *planned) {
-    Result<int64_t> bed_id = UpsertBed(t, g, engine_version, now);
-    if (!bed_id.ok()) return bed_id.status();
-    SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, *bed_id, id_by_name, req.force, now, next_position, out));
+    std::vector<int64_t> bed_ids;
+    for (const PlannedBed& bed : g.plan.beds) {
+      Result<int64_t> bed_id = UpsertBed(t, g.scale, bed, engine_version, now);
+      if (!bed_id.ok()) return bed_id.status();
+      bed_ids.push_back(*bed_id);
+    }
+    SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, id_by_name, req.force, now, next_position, out));
   }
   SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
   nlohmann::json response = out;

@@ -1,12 +1,15 @@
 #include "server/submission.h"
 
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "core/deck.h"
 #include "core/keys.h"
 #include "platform/clock.h"
 #include "server/lease_queue.h"
@@ -84,6 +87,54 @@ TEST_F(SubmissionTest, InsertsBedRunsSweepAndMembershipInOrder) {
   EXPECT_FALSE((*rows)[0].result.has_value());
   nlohmann::json j = *r;
   EXPECT_EQ(j["id"], r->sweep_ids[0]);
+}
+
+// replicates: K beds (one per replicate, seeds of their own), every point on each.
+TEST_F(SubmissionTest, ReplicatesMakeOneBedEachAndRunEveryPointOnEach) {
+  nlohmann::json body = Sweep("replicated");
+  body["replicates"] = 3;
+  auto r = SubmitBody(body);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->runs, 6);
+  EXPECT_EQ(Rows("beds"), 3);
+  EXPECT_EQ(Rows("runs"), 6);
+  auto beds = store_->ListBeds();
+  ASSERT_TRUE(beds.ok()) << beds.status().ToString();
+  ASSERT_EQ(beds->size(), 3u);
+  std::set<int64_t> seeds;
+  for (int i = 0; i < 3; ++i) {
+    const BedView& b = (*beds)[i];
+    EXPECT_EQ(b.replicate, i);
+    EXPECT_EQ(b.state, "queued");
+    EXPECT_EQ(b.runs, 2);
+    ASSERT_TRUE(b.seed_pour1 && b.seed_pour2);
+    EXPECT_EQ(*b.seed_pour1, BedSeedsFor(i).pour1);
+    seeds.insert(*b.seed_pour1);
+    EXPECT_FALSE(b.result.has_value());
+    auto one = store_->GetBed(b.id);
+    ASSERT_TRUE(one.ok());
+    EXPECT_EQ(one->key, b.key);
+  }
+  EXPECT_EQ(seeds.size(), 3u);
+  EXPECT_EQ(store_->GetBed(999).status().code(), StatusCode::kNotFound);
+  auto rows = store_->SweepResults(r->sweep_ids[0]);
+  ASSERT_TRUE(rows.ok());
+  std::map<int, int> per_replicate;
+  for (const ResultRow& row : *rows) ++per_replicate[row.replicate];
+  EXPECT_EQ(per_replicate, (std::map<int, int>{{0, 2}, {1, 2}, {2, 2}}));
+  // The same sweep without replicates is replicate 0's runs: nothing new.
+  auto single = SubmitBody(Sweep("single"));
+  ASSERT_TRUE(single.ok());
+  EXPECT_EQ(single->runs_new, 0);
+  EXPECT_EQ(Rows("beds"), 3);
+  // Too many replicates are refused naming the field, and change nothing.
+  const auto before = AllRows();
+  body["name"] = "too-many";
+  body["replicates"] = 21;
+  auto refused = SubmitBody(body);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().field(), "replicates");
+  EXPECT_EQ(AllRows(), before);
 }
 
 TEST_F(SubmissionTest, SharedPointsAcrossSweepsOfOneSubmissionRunOnce) {

@@ -56,18 +56,21 @@ class EndToEndTest : public ::testing::Test {
 std::string* EndToEndTest::dir_ = nullptr;
 Daemon* EndToEndTest::daemon_ = nullptr;
 
-// Precision targets, end to end. Three sweeps at once, on one bed prepared once:
-//   - the pair Omega = -80 / +80 at 20 Hz with a target any interval meets (uz_abs 1 m/s): each run
-//     ends, through the deck's control file, as soon as its window holds 3 whole periods (0.2 s),
-//     before its 0.5 s maximum, saying the target was met;
-//   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.25 s maximum and says so;
+// Precision targets and replicate beds, end to end. Three sweeps at once:
+//   - the pair Omega = -80 / +80 at 20 Hz on 2 replicate beds, with a target any interval meets
+//     (uz_abs 1 m/s): each run ends, through the deck's control file, as soon as its window holds 3
+//     whole periods (0.2 s), before its 0.5 s maximum, saying the target was met; the two beds are
+//     prepared once each, lie differently, and each point's results aggregate over both (K = 2);
+//   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.25 s maximum and says so
+//     (on replicate 0's bed, as a sweep without replicates does);
 //   - the paper's sinking baseline, Omega = +80 at 3 Hz, at smoke's default target with a 1.34 s
 //     maximum: the floor no longer ends it early -- its window holds the 3 whole periods the
 //     target asks before any boundary (the old smoke box stopped it at dz = -0.059 m, before two).
-TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnOneBed) {
+TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
   json met = testing::OmegaSweep("omega-sign", {-80, 80}, 0.5, 20);
   met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.5}};
+  met["replicates"] = 2;
   json unreachable = testing::OmegaSweep("unreachable", {-80}, 0.25, 20);
   unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.25}};
   json sinking = testing::OmegaSweep("sinking-baseline", {80}, 5, 3);
@@ -75,7 +78,7 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnOneBed) {
   const int64_t id = Submit(met), id_unreachable = Submit(unreachable), id_sinking = Submit(sinking);
 
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
-  ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
+  ASSERT_EQ(sweep["counts"]["done"], 4) << sweep.dump() << "\nworker:\n" << worker->Output();
   for (const json& run : Runs(id)) {
     json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()));
     const json& res = detail["result"];
@@ -112,6 +115,42 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnOneBed) {
                 res["sim_time_s"].get<double>(), res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
   }
 
+  // Two replicate beds, prepared once each, poured differently: their figures differ.
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "2");
+  EXPECT_EQ(daemon_->Query("SELECT group_concat(attempts) FROM beds"), "1,1");
+  EXPECT_EQ(daemon_->Query("SELECT count(DISTINCT sha256) FROM beds"), "2");
+  std::vector<json> beds;
+  for (int replicate : {0, 1}) {
+    beds.push_back(
+        json::parse(daemon_->Query("SELECT result FROM beds WHERE replicate = " + std::to_string(replicate))));
+    const json& b = beds.back();
+    ASSERT_TRUE(b.contains("packing_fraction")) << b.dump();
+    EXPECT_GT(b["packing_fraction"].get<double>(), 0.3) << b.dump();
+    EXPECT_LT(b["packing_fraction"].get<double>(), 0.75) << b.dump();
+    EXPECT_GT(b["so_depth"].get<double>(), 0.2) << b.dump();
+    std::printf("E2E bed replicate %d: %lld grains, height %.3f m, SO depth %.3f m, packing %.3f in the shell\n",
+                replicate, static_cast<long long>(b["grains"].get<int64_t>()), b["bed_height"].get<double>(),
+                b["so_depth"].get<double>(), b["packing_fraction"].get<double>());
+  }
+  EXPECT_TRUE(beds[0]["so_z"] != beds[1]["so_z"] || beds[0]["grain_top"] != beds[1]["grain_top"] ||
+              beds[0]["packing_fraction"] != beds[1]["packing_fraction"])
+      << beds[0].dump() << "\n"
+      << beds[1].dump();
+  // Each point aggregates over its two beds.
+  const json results = daemon_->Get("/api/v1/sweeps/" + std::to_string(id) + "/results");
+  ASSERT_EQ(results["aggregates"].size(), 2u) << results.dump();
+  for (const json& a : results["aggregates"]) {
+    EXPECT_EQ(a["replicates"], 2) << a.dump();
+    ASSERT_EQ(a["values"].size(), 2u) << a.dump();
+    EXPECT_NE(a["values"][0]["bed_id"], a["values"][1]["bed_id"]);
+    if (a["conclusive"] == 2) {
+      EXPECT_TRUE(a.contains("uz_sd_between")) << a.dump();
+      const double mean = (a["values"][0]["uz"].get<double>() + a["values"][1]["uz"].get<double>()) / 2;
+      EXPECT_NEAR(a["uz_mean"].get<double>(), mean, 1e-12);
+    }
+    std::printf("E2E aggregate Omega=%+g: %s\n", a["Omega"].get<double>(), a["uz_text"].get<std::string>().c_str());
+  }
+
   sweep = daemon_->WaitForSweep(id_unreachable, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nworker:\n" << worker->Output();
   {
@@ -138,16 +177,16 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnOneBed) {
                 res.value("stop_note", "?").c_str());
   }
 
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "1");
-  EXPECT_EQ(daemon_->Query("SELECT attempts FROM beds"), "1");
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "4");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "2");
+  EXPECT_EQ(daemon_->Query("SELECT group_concat(attempts) FROM beds"), "1,1");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "6");
   // Submitting the same sweep again reuses both results: nothing is queued.
   json again_sweep = met;
   again_sweep["name"] = "omega-sign-again";
   int64_t again = Submit(again_sweep);
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
-  EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "4");
+  EXPECT_EQ(s2["counts"]["done"], 4) << s2.dump();
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "6");
 }
 
 // Processes (not zombies) whose working directory is under `dir`: the engines a worker started

@@ -32,9 +32,14 @@ struct JobOutcome {
 
 // `samples` are the SO's samples of the run's dump (or why it could not be read); ignored for beds.
 // `precision` is the run's target (its lease's): the result says whether it was met.
+// `bed_dump` is a bed's dump of all its atoms (core/bed_figures.h), absent when the deck wrote
+// none: its figures join the log's. A bed that missed the kinetic-energy criterion fails as
+// "not_equilibrated" with its figures (the daemon does not retry it: the same deck gives the same
+// bed).
 JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& facts, const EngineLog& log,
                     const DriveInfo& drive, const Result<std::vector<SoSample>>& samples,
-                    const std::optional<PrecisionTarget>& precision = std::nullopt);
+                    const std::optional<PrecisionTarget>& precision = std::nullopt,
+                    const std::optional<std::string>& bed_dump = std::nullopt);
 
 // Whether a run that follows a precision target should end now: core/precision.h DecideStop on
 // the analysis its result will be made with, of the samples so far. `start` is the log's drive

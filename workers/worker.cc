@@ -5,10 +5,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 #include <vector>
 
+#include "core/bed_figures.h"
 #include "core/deck.h"
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
@@ -376,7 +378,9 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
   const bool is_run = grant.kind == api::JobKind::kRun;
   Result<std::vector<SoSample>> samples =
       is_run && facts->started ? progress.Finish() : Result<std::vector<SoSample>>(std::vector<SoSample>());
-  JobOutcome outcome = JudgeJob(grant.kind, grant.steps, *facts, log, drive, samples, grant.precision);
+  std::optional<std::string> bed_dump;
+  if (!is_run && std::filesystem::exists(dir->File(kBedDumpFile))) bed_dump = ReadFileOr(dir->File(kBedDumpFile), "");
+  JobOutcome outcome = JudgeJob(grant.kind, grant.steps, *facts, log, drive, samples, grant.precision, bed_dump);
   if (outcome.failure) {
     if (outcome.engine_exit && facts->started && !facts->cancelled && !facts->timed_out && StoppedWithTheWorker()) {
       return HandBack(job, "the worker is stopping and its engine was stopped with it");

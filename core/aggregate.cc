@@ -1,0 +1,116 @@
+#include "core/aggregate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "core/trajectory.h"
+
+namespace sandswim {
+
+ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
+  std::sort(values.begin(), values.end(),
+            [](const ReplicateValue& a, const ReplicateValue& b) { return a.replicate < b.replicate; });
+  ReplicateAggregate a;
+  a.replicates = static_cast<int>(values.size());
+  std::vector<double> rates;
+  const ReplicateValue* single = nullptr;
+  for (const ReplicateValue& v : values) {
+    if (!v.conclusive || !v.uz || !std::isfinite(*v.uz)) continue;
+    rates.push_back(*v.uz);
+    single = &v;
+  }
+  a.conclusive = static_cast<int>(rates.size());
+  const int n = a.conclusive;
+  const std::string of_k = std::to_string(n) + " of " + std::to_string(a.replicates) + " replicate(s)";
+  if (n == 0) {
+    a.note = a.replicates == 0 ? "no runs" : "no conclusive replicate (" + of_k + ")";
+  } else if (n == 1) {
+    a.uz_mean = rates[0];
+    a.uz_stderr = single->uz_stderr;
+    a.uz_ci95 = single->uz_ci95;
+    a.note = a.replicates == 1 ? "one bed: the scatter between beds is not known"
+                               : "one conclusive replicate (" + of_k + "): the scatter between beds is not known";
+  } else {
+    double mean = 0;
+    for (double r : rates) mean += r;
+    mean /= n;
+    double ss = 0;
+    for (double r : rates) ss += (r - mean) * (r - mean);
+    const double sd = std::sqrt(ss / (n - 1));
+    a.uz_mean = mean;
+    a.uz_sd_between = sd;
+    a.uz_stderr = sd / std::sqrt(static_cast<double>(n));
+    a.uz_ci95 = StudentT95(n - 1) * *a.uz_stderr;
+    if (n < a.replicates) a.note = "over " + of_k + ": the others are not conclusive";
+  }
+  a.values = std::move(values);
+  return a;
+}
+
+std::vector<PointAggregate> AggregateByPoint(const std::vector<std::pair<Point, ReplicateValue>>& runs) {
+  std::map<DriveId, size_t> index;
+  std::vector<Point> points;
+  std::vector<std::vector<ReplicateValue>> groups;
+  for (const auto& [point, value] : runs) {
+    auto [it, inserted] = index.emplace(DriveIdOf(point), points.size());
+    if (inserted) {
+      points.push_back(point);
+      groups.emplace_back();
+    }
+    groups[it->second].push_back(value);
+  }
+  std::vector<PointAggregate> out;
+  out.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i) out.push_back({points[i], AggregateReplicates(std::move(groups[i]))});
+  return out;
+}
+
+std::string DescribeAggregate(const ReplicateAggregate& a, bool with_units) {
+  auto two_digits = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.2g", v);
+    return std::string(buf);
+  };
+  const std::string units = with_units ? " m/s" : "";
+  const std::string beds =
+      std::to_string(a.conclusive) + " of " + std::to_string(a.replicates) + " bed" + (a.replicates == 1 ? "" : "s");
+  if (!a.uz_mean) return "inconclusive (" + beds + " conclusive)";
+  if (a.conclusive == 1) {
+    const std::string value = a.uz_stderr ? WithError(*a.uz_mean, *a.uz_stderr) : "≈" + two_digits(*a.uz_mean);
+    return value + units + ", " + beds + ": between-bed scatter unknown";
+  }
+  return WithError(*a.uz_mean, *a.uz_stderr) + units + ", " + beds + " (between-bed sd " +
+         two_digits(*a.uz_sd_between) + units + ")";
+}
+
+nlohmann::json AggregateToJson(const ReplicateAggregate& a) {
+  nlohmann::json j = {{"replicates", a.replicates},
+                      {"conclusive", a.conclusive},
+                      {"note", a.note},
+                      {"uz_text", DescribeAggregate(a, false)}};
+  auto put = [&](const char* key, const std::optional<double>& v) {
+    if (v) j[key] = *v;
+  };
+  put("uz_mean", a.uz_mean);
+  put("uz_sd_between", a.uz_sd_between);
+  put("uz_stderr", a.uz_stderr);
+  put("uz_ci95", a.uz_ci95);
+  nlohmann::json values = nlohmann::json::array();
+  for (const ReplicateValue& v : a.values) {
+    nlohmann::json e = {{"run_id", v.run_id},
+                        {"replicate", v.replicate},
+                        {"bed_id", v.bed_id},
+                        {"state", v.state},
+                        {"conclusive", v.conclusive}};
+    if (v.uz) e["uz"] = *v.uz;
+    if (v.uz_stderr) e["uz_stderr"] = *v.uz_stderr;
+    if (v.uz_ci95) e["uz_ci95"] = *v.uz_ci95;
+    values.push_back(std::move(e));
+  }
+  j["values"] = std::move(values);
+  return j;
+}
+
+}  // namespace sandswim

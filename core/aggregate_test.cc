@@ -1,0 +1,95 @@
+#include "core/aggregate.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace sandswim {
+namespace {
+
+ReplicateValue Value(int replicate, std::optional<double> uz, bool conclusive = true) {
+  ReplicateValue v;
+  v.run_id = 100 + replicate;
+  v.replicate = replicate;
+  v.bed_id = 10 + replicate;
+  v.state = "done";
+  v.conclusive = conclusive;
+  v.uz = uz;
+  if (uz) {
+    v.uz_stderr = 0.001;
+    v.uz_ci95 = 0.003;
+  }
+  return v;
+}
+
+TEST(AggregateTest, ThreeBedsGiveTheirMeanAndTheScatterBetweenThem) {
+  ReplicateAggregate a = AggregateReplicates({Value(2, 0.14), Value(0, 0.10), Value(1, 0.12)});
+  EXPECT_EQ(a.replicates, 3);
+  EXPECT_EQ(a.conclusive, 3);
+  ASSERT_TRUE(a.uz_mean && a.uz_sd_between && a.uz_stderr && a.uz_ci95);
+  EXPECT_NEAR(*a.uz_mean, 0.12, 1e-12);
+  EXPECT_NEAR(*a.uz_sd_between, 0.02, 1e-12);
+  EXPECT_NEAR(*a.uz_stderr, 0.02 / std::sqrt(3.0), 1e-12);
+  EXPECT_NEAR(*a.uz_ci95, 4.302653 * 0.02 / std::sqrt(3.0), 1e-5);  // t(0.975, 2)
+  EXPECT_TRUE(a.note.empty());
+  ASSERT_EQ(a.values.size(), 3u);  // each replicate's value, in replicate order
+  EXPECT_EQ(a.values[0].replicate, 0);
+  EXPECT_EQ(a.values[2].uz, 0.14);
+}
+
+TEST(AggregateTest, InconclusiveAndUnfinishedReplicatesAreListedNotAveraged) {
+  ReplicateValue queued = Value(2, std::nullopt, false);
+  queued.state = "queued";
+  ReplicateAggregate a = AggregateReplicates({Value(0, 0.10), Value(1, 0.5, false), queued, Value(3, 0.14)});
+  EXPECT_EQ(a.replicates, 4);
+  EXPECT_EQ(a.conclusive, 2);
+  EXPECT_NEAR(*a.uz_mean, 0.12, 1e-12);
+  EXPECT_NE(a.note.find("2 of 4"), std::string::npos) << a.note;
+  EXPECT_EQ(a.values.size(), 4u);
+}
+
+TEST(AggregateTest, OneConclusiveBedKeepsItsOwnErrorAndSaysTheScatterIsUnknown) {
+  ReplicateAggregate one = AggregateReplicates({Value(0, 0.1)});
+  EXPECT_EQ(one.conclusive, 1);
+  EXPECT_EQ(one.uz_mean, 0.1);
+  EXPECT_EQ(one.uz_stderr, 0.001);
+  EXPECT_EQ(one.uz_ci95, 0.003);
+  EXPECT_FALSE(one.uz_sd_between.has_value());
+  EXPECT_NE(one.note.find("not known"), std::string::npos);
+
+  ReplicateAggregate none = AggregateReplicates({Value(0, 0.2, false), Value(1, std::nullopt, false)});
+  EXPECT_EQ(none.conclusive, 0);
+  EXPECT_FALSE(none.uz_mean.has_value());
+  EXPECT_FALSE(none.uz_ci95.has_value());
+  EXPECT_NE(none.note.find("no conclusive replicate"), std::string::npos);
+}
+
+// On data with a known answer: beds whose rates scatter around a true mean (normal, between-bed
+// sd 0.01 m/s). The 95 % interval of K = 3 replicates must hold the truth about 95 % of the time.
+TEST(AggregateTest, TheIntervalCoversTheTrueMeanAtItsNominalRate) {
+  std::mt19937_64 rng(20261125);
+  std::normal_distribution<double> bed(0.05, 0.01);
+  const int trials = 20000;
+  int covered = 0;
+  for (int i = 0; i < trials; ++i) {
+    ReplicateAggregate a = AggregateReplicates({Value(0, bed(rng)), Value(1, bed(rng)), Value(2, bed(rng))});
+    if (std::fabs(*a.uz_mean - 0.05) <= *a.uz_ci95) ++covered;
+  }
+  const double rate = static_cast<double>(covered) / trials;
+  EXPECT_GT(rate, 0.94);
+  EXPECT_LT(rate, 0.96);
+}
+
+TEST(AggregateTest, JsonCarriesEveryReplicate) {
+  nlohmann::json j = AggregateToJson(AggregateReplicates({Value(0, 0.1), Value(1, 0.2)}));
+  EXPECT_EQ(j["replicates"], 2);
+  EXPECT_EQ(j["conclusive"], 2);
+  EXPECT_NEAR(j["uz_mean"].get<double>(), 0.15, 1e-12);
+  ASSERT_EQ(j["values"].size(), 2u);
+  EXPECT_EQ(j["values"][1]["bed_id"], 11);
+  EXPECT_EQ(j["values"][1]["uz"], 0.2);
+}
+
+}  // namespace
+}  // namespace sandswim
