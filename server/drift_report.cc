@@ -1,10 +1,12 @@
 #include "server/drift_report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <utility>
 
+#include "core/aggregate.h"
 #include "core/sweep.h"
 #include "server/campaigns.h"
 
@@ -26,6 +28,39 @@ std::optional<T> OptField(const json& j, const char* name) {
 }
 
 std::string PointIdentity(const json& point) { return point.dump(); }
+// A run's identity across reruns: its drive and its replicate bed (replicate 0 reads as reports
+// made before replicates did).
+std::string RunIdentity(const DriftPoint& p) {
+  return PointIdentity(p.point) + (p.replicate == 0 ? "" : "#" + std::to_string(p.replicate));
+}
+
+// The 95 % two-sided bound on the difference of two independent estimates.
+std::optional<double> DerivedTolerance(const std::optional<double>& se, const std::optional<double>& se_previous) {
+  if (!se || !se_previous) return std::nullopt;
+  return 1.96 * std::sqrt(*se * *se + *se_previous * *se_previous);
+}
+
+// A report's rows grouped by point and aggregated over their replicate beds (comparable rates
+// only: conclusive, with a value).
+std::map<std::string, std::pair<json, ReplicateAggregate>> AggregatesOf(const std::vector<DriftPoint>& rows) {
+  std::map<std::string, std::pair<json, std::vector<ReplicateValue>>> groups;
+  std::vector<std::string> order;
+  for (const DriftPoint& p : rows) {
+    auto& g = groups[PointIdentity(p.point)];
+    g.first = p.point;
+    ReplicateValue v;
+    v.run_id = p.run_id;
+    v.replicate = p.replicate;
+    v.state = p.state;
+    v.conclusive = !p.inconclusive && p.uz.has_value();
+    v.uz = p.uz;
+    v.uz_stderr = p.uz_stderr;
+    g.second.push_back(v);
+  }
+  std::map<std::string, std::pair<json, ReplicateAggregate>> out;
+  for (auto& [id, g] : groups) out[id] = {g.first, AggregateReplicates(std::move(g.second))};
+  return out;
+}
 
 std::string Tolerance(double v) {
   char buf[32];
@@ -105,11 +140,13 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
       if (!seen.emplace(row.run_id, true).second) continue;
       DriftPoint p;
       p.point = PointToJson(row.point);
+      p.replicate = row.replicate;
       p.run_id = row.run_id;
       p.key = row.key;
       p.state = row.state;
       if (row.state == "done" && row.result) {
         p.uz = row.result->result.uz;
+        p.uz_stderr = row.result->result.uz_stderr;
         // Only conclusive rates are compared: an inconclusive one is too short to judge a change by.
         p.inconclusive = !row.result->result.conclusive || !p.uz;
         p.analysis = row.result->result.analysis;
@@ -125,6 +162,7 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
 
 void to_json(json& j, const DriftPoint& p) {
   j = {{"point", p.point},
+       {"replicate", p.replicate},
        {"run_id", p.run_id},
        {"key", p.key},
        {"state", p.state},
@@ -135,7 +173,11 @@ void to_json(json& j, const DriftPoint& p) {
        {"reused", p.reused},
        {"inconclusive", p.inconclusive},
        {"analysis", p.analysis},
-       {"estimator_changed", p.estimator_changed}};
+       {"estimator_changed", p.estimator_changed},
+       {"uz_stderr", OrNull(p.uz_stderr)},
+       {"uz_stderr_previous", OrNull(p.uz_stderr_previous)},
+       {"tolerance", OrNull(p.tolerance)},
+       {"no_error", p.no_error}};
 }
 
 void from_json(const json& j, DriftPoint& p) {
@@ -152,6 +194,41 @@ void from_json(const json& j, DriftPoint& p) {
   // Reports stored before the field existed were all made by the first analysis.
   p.analysis = j.value("analysis", p.uz ? 1 : 0);
   p.estimator_changed = j.value("estimator_changed", false);
+  p.replicate = j.value("replicate", 0);
+  p.uz_stderr = OptField<double>(j, "uz_stderr");
+  p.uz_stderr_previous = OptField<double>(j, "uz_stderr_previous");
+  p.tolerance = OptField<double>(j, "tolerance");
+  p.no_error = j.value("no_error", false);
+}
+
+void to_json(json& j, const DriftAggregate& a) {
+  j = {{"point", a.point},
+       {"replicates", a.replicates},
+       {"conclusive", a.conclusive},
+       {"replicates_previous", a.replicates_previous},
+       {"conclusive_previous", a.conclusive_previous},
+       {"uz_mean", OrNull(a.uz_mean)},
+       {"uz_stderr", OrNull(a.uz_stderr)},
+       {"uz_mean_previous", OrNull(a.uz_mean_previous)},
+       {"uz_stderr_previous", OrNull(a.uz_stderr_previous)},
+       {"difference", OrNull(a.difference)},
+       {"tolerance", OrNull(a.tolerance)},
+       {"drifted", a.drifted}};
+}
+
+void from_json(const json& j, DriftAggregate& a) {
+  a.point = j.at("point");
+  a.replicates = j.value("replicates", 0);
+  a.conclusive = j.value("conclusive", 0);
+  a.replicates_previous = j.value("replicates_previous", 0);
+  a.conclusive_previous = j.value("conclusive_previous", 0);
+  a.uz_mean = OptField<double>(j, "uz_mean");
+  a.uz_stderr = OptField<double>(j, "uz_stderr");
+  a.uz_mean_previous = OptField<double>(j, "uz_mean_previous");
+  a.uz_stderr_previous = OptField<double>(j, "uz_stderr_previous");
+  a.difference = OptField<double>(j, "difference");
+  a.tolerance = OptField<double>(j, "tolerance");
+  a.drifted = j.value("drifted", false);
 }
 
 void to_json(json& j, const DriftReport& r) {
@@ -172,8 +249,12 @@ void to_json(json& j, const DriftReport& r) {
        {"estimator_changed", r.estimator_changed},
        {"compared", r.compared},
        {"drifted", r.drifted},
+       {"no_error", r.no_error},
        {"summary", r.summary},
-       {"rows", r.rows}};
+       {"rows", r.rows},
+       {"aggregates", r.aggregates},
+       {"points_compared", r.points_compared},
+       {"points_drifted", r.points_drifted}};
 }
 
 void from_json(const json& j, DriftReport& r) {
@@ -196,22 +277,35 @@ void from_json(const json& j, DriftReport& r) {
   r.drifted = j.value("drifted", int64_t{0});
   r.summary = j.value("summary", "");
   r.rows = j.value("rows", std::vector<DriftPoint>{});
+  r.no_error = j.value("no_error", int64_t{0});
+  r.aggregates = j.value("aggregates", std::vector<DriftAggregate>{});
+  r.points_compared = j.value("points_compared", int64_t{0});
+  r.points_drifted = j.value("points_drifted", int64_t{0});
 }
 
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone) {
+  const bool fixed = report.tolerance_mps > 0;
+  // The tolerance a difference is held to: the campaign's, else its 95 % bound (none: no error).
+  auto tolerance_for = [&](const std::optional<double>& se, const std::optional<double>& se_previous) {
+    return fixed ? std::optional<double>(report.tolerance_mps) : DerivedTolerance(se, se_previous);
+  };
   std::map<std::string, const DriftPoint*> before;
   if (previous != nullptr) {
     report.previous_campaign_run_id = previous->campaign_run_id;
-    for (const DriftPoint& p : previous->rows) before[PointIdentity(p.point)] = &p;
+    for (const DriftPoint& p : previous->rows) before[RunIdentity(p)] = &p;
   }
   report.points = static_cast<int64_t>(report.rows.size());
   report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
-  report.estimator_changed = 0;
+  report.estimator_changed = report.no_error = 0;
+  int analysis = 0;  // of this report's rates (one daemon, one analysis)
   for (DriftPoint& p : report.rows) {
     p.uz_previous.reset();
+    p.uz_stderr_previous.reset();
     p.difference.reset();
+    p.tolerance.reset();
     p.drifted = false;
     p.estimator_changed = false;
+    p.no_error = false;
     if (!p.uz && !p.inconclusive) {
       ++report.missing;
       continue;
@@ -221,7 +315,8 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
       ++report.inconclusive;
       continue;
     }
-    auto it = before.find(PointIdentity(p.point));
+    analysis = p.analysis;
+    auto it = before.find(RunIdentity(p));
     if (it == before.end() || !it->second->uz || it->second->inconclusive) continue;
     if (it->second->analysis != p.analysis) {
       p.estimator_changed = true;
@@ -229,11 +324,65 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
       continue;
     }
     p.uz_previous = it->second->uz;
+    p.uz_stderr_previous = it->second->uz_stderr;
     p.difference = *p.uz - *p.uz_previous;
-    p.drifted = std::fabs(*p.difference) > report.tolerance_mps;
+    p.tolerance = tolerance_for(p.uz_stderr, p.uz_stderr_previous);
+    if (!p.tolerance) {
+      p.no_error = true;
+      ++report.no_error;
+      continue;
+    }
+    p.drifted = std::fabs(*p.difference) > *p.tolerance;
     ++report.compared;
     if (p.drifted) ++report.drifted;
   }
+
+  // Points over their replicate beds. A previous report's rates count only when made by the same
+  // analysis as this one's.
+  report.aggregates.clear();
+  report.points_compared = report.points_drifted = 0;
+  bool replicated = false;
+  std::map<std::string, std::pair<json, ReplicateAggregate>> earlier;
+  if (previous != nullptr) {
+    std::vector<DriftPoint> same_analysis;
+    for (const DriftPoint& p : previous->rows)
+      if (p.analysis == analysis) same_analysis.push_back(p);
+    earlier = AggregatesOf(same_analysis);
+  }
+  std::vector<std::string> order;
+  for (const DriftPoint& p : report.rows) {
+    const std::string id = PointIdentity(p.point);
+    if (std::find(order.begin(), order.end(), id) == order.end()) order.push_back(id);
+  }
+  auto now = AggregatesOf(report.rows);
+  for (const std::string& id : order) {
+    const auto& [point, agg] = now.at(id);
+    DriftAggregate a;
+    a.point = point;
+    a.replicates = agg.replicates;
+    a.conclusive = agg.conclusive;
+    a.uz_mean = agg.uz_mean;
+    a.uz_stderr = agg.uz_stderr;
+    replicated = replicated || agg.replicates > 1;
+    if (auto it = earlier.find(id); it != earlier.end()) {
+      const ReplicateAggregate& b = it->second.second;
+      a.replicates_previous = b.replicates;
+      a.conclusive_previous = b.conclusive;
+      a.uz_mean_previous = b.uz_mean;
+      a.uz_stderr_previous = b.uz_stderr;
+      if (a.uz_mean && a.uz_mean_previous) {
+        a.difference = *a.uz_mean - *a.uz_mean_previous;
+        a.tolerance = tolerance_for(a.uz_stderr, a.uz_stderr_previous);
+        if (a.tolerance) {
+          a.drifted = std::fabs(*a.difference) > *a.tolerance;
+          ++report.points_compared;
+          if (a.drifted) ++report.points_drifted;
+        }
+      }
+    }
+    report.aggregates.push_back(std::move(a));
+  }
+
   std::string head = report.campaign + "@" + report.scale + " ";
   if (report.trigger == "schedule" && report.due_time) {
     head += "night " + FormatWallMinute(*report.due_time, zone);
@@ -241,14 +390,20 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     head += "rerun cr:" + std::to_string(report.campaign_run_id) + " (" + report.trigger + ", " +
             FormatWallMinute(report.campaign_run_created_at, zone) + ")";
   }
-  std::string line = head + ": " + std::to_string(report.points) + " points, " + std::to_string(report.reused) +
-                     " reused, " + std::to_string(report.ran) + " run, " + std::to_string(report.drifted) +
-                     " drifted beyond " + Tolerance(report.tolerance_mps) + " m/s";
+  std::string line =
+      head + ": " + std::to_string(report.points) + " points, " + std::to_string(report.reused) + " reused, " +
+      std::to_string(report.ran) + " run, " + std::to_string(report.drifted) +
+      (fixed ? " drifted beyond " + Tolerance(report.tolerance_mps) + " m/s" : " drifted beyond its 95 % bound");
   if (report.inconclusive > 0) line += ", " + std::to_string(report.inconclusive) + " inconclusive (not compared)";
   if (report.estimator_changed > 0) {
     line += ", " + std::to_string(report.estimator_changed) + " not compared (U_z analysis changed)";
   }
+  if (report.no_error > 0) line += ", " + std::to_string(report.no_error) + " not compared (no error)";
   if (report.missing > 0) line += ", " + std::to_string(report.missing) + " failed or cancelled";
+  if (replicated) {
+    line += "; " + std::to_string(report.points_drifted) + " of " + std::to_string(report.points_compared) +
+            " points' means over their beds drifted";
+  }
   if (previous == nullptr) line += "; first report, nothing to compare";
   report.summary = line;
 }

@@ -2,10 +2,12 @@
 
 #include <cmath>
 #include <ctime>
+#include <map>
 #include <regex>
 #include <set>
 #include <sstream>
 
+#include "core/aggregate.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
 
@@ -156,8 +158,46 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   a.info = *info;
   auto rows = store.SweepResults(sweep_id);
   if (!rows.ok()) return rows.status();
+  // A point run on several replicate beds is one sample: its aggregate (core/aggregate.h), whose
+  // standard error over the beds weights the fit and whose 95 % interval the figure draws.
+  std::map<DriveId, std::vector<const ResultRow*>> replicates;
+  for (const ResultRow& row : *rows) replicates[DriveIdOf(row.point)].push_back(&row);
+  std::set<DriveId> aggregated;
   for (const ResultRow& row : *rows) {
+    const std::vector<const ResultRow*>& beds = replicates.at(DriveIdOf(row.point));
+    if (beds.size() > 1) {
+      if (!aggregated.insert(DriveIdOf(row.point)).second) continue;
+      std::vector<ReplicateValue> values;
+      for (const ResultRow* b : beds) {
+        ReplicateValue v;
+        v.run_id = b->run_id;
+        v.replicate = b->replicate;
+        v.state = b->state;
+        if (b->state == "done" && b->result) {
+          v.conclusive = b->result->result.conclusive;
+          v.uz = b->result->result.uz;
+          v.uz_stderr = b->result->result.uz_stderr;
+          v.uz_ci95 = b->result->result.uz_ci95;
+        }
+        values.push_back(v);
+      }
+      const ReplicateAggregate agg = AggregateReplicates(values);
+      SweepSample sample;
+      sample.point = row.point;
+      sample.run_id = row.run_id;
+      sample.has_uz = agg.uz_mean.has_value();
+      sample.conclusive = sample.has_uz;
+      sample.uz = agg.uz_mean.value_or(0);
+      sample.uz_stderr = agg.uz_stderr.value_or(0);
+      sample.uz_ci95 = agg.uz_ci95.value_or(0);
+      if (!sample.has_uz) sample.inconclusive_reason = DescribeAggregate(agg);
+      a.samples.push_back(std::move(sample));
+    }
     if (row.state != "done" || !row.result) continue;
+    auto run = store.GetRun(row.run_id);
+    if (!run.ok()) return run.status();
+    if (run->trajectory && !run->trajectory->t.empty()) a.runs.push_back({row.run_id, row.point, *run->trajectory});
+    if (beds.size() > 1) continue;
     const api::RunResult& r = row.result->result;
     SweepSample sample;
     sample.point = row.point;
@@ -169,9 +209,6 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
     sample.uz_ci95 = r.uz_ci95.value_or(0);
     sample.inconclusive_reason = r.inconclusive_reason.empty() && !r.conclusive ? DescribeUz(r) : r.inconclusive_reason;
     a.samples.push_back(std::move(sample));
-    auto run = store.GetRun(row.run_id);
-    if (!run.ok()) return run.status();
-    if (run->trajectory && !run->trajectory->t.empty()) a.runs.push_back({row.run_id, row.point, *run->trajectory});
   }
   // The law is what the sweep varies (all its points), whatever has finished so far.
   std::vector<Point> points;
