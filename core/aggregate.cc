@@ -16,10 +16,17 @@ ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
   a.replicates = static_cast<int>(values.size());
   std::vector<double> rates;
   const ReplicateValue* single = nullptr;
+  double within_ss = 0;  // sum of the runs' own squared standard errors
+  bool all_have_errors = true;
   for (const ReplicateValue& v : values) {
     if (!v.conclusive || !v.uz || !std::isfinite(*v.uz)) continue;
     rates.push_back(*v.uz);
     single = &v;
+    if (v.uz_stderr && std::isfinite(*v.uz_stderr)) {
+      within_ss += *v.uz_stderr * *v.uz_stderr;
+    } else {
+      all_have_errors = false;
+    }
   }
   a.conclusive = static_cast<int>(rates.size());
   const int n = a.conclusive;
@@ -42,8 +49,16 @@ ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
     a.uz_mean = mean;
     a.uz_sd_between = sd;
     a.uz_stderr = sd / std::sqrt(static_cast<double>(n));
-    a.uz_ci95 = StudentT95(n - 1) * *a.uz_stderr;
     if (n < a.replicates) a.note = "over " + of_k + ": the others are not conclusive";
+    // The runs' own noise alone gives the mean an error of sqrt(sum se_i^2) / n; a few beds that
+    // happen to agree more closely than that must not claim a smaller one.
+    const double within = std::sqrt(within_ss) / n;
+    if (all_have_errors && within > *a.uz_stderr) {
+      a.uz_stderr = within;
+      a.note += std::string(a.note.empty() ? "" : "; ") +
+                "the beds scatter less than their runs' own errors: the error is theirs, sqrt(sum se^2)/n";
+    }
+    a.uz_ci95 = StudentT95(n - 1) * *a.uz_stderr;
   }
   a.values = std::move(values);
   return a;

@@ -4,9 +4,11 @@
 // seeds (core/deck.h BedSeedsFor). Its aggregate is taken over the replicates whose own U_z is
 // conclusive (core/trajectory.h); inconclusive and unfinished ones are listed, not averaged:
 //   - n >= 2: mean = the mean of the n rates; between-bed standard deviation s = sd(U_i) (n - 1
-//     in the denominator); standard error s / sqrt(n); 95 % interval +- t(0.975, n - 1) s/sqrt(n).
-//     Each U_i carries its bed and its own run's noise, so this error covers both; the runs' own
-//     errors are not added again.
+//     in the denominator); standard error s / sqrt(n).
+//     Each U_i carries its bed and its own run's noise, so this error covers both; but it is never
+//     smaller than the runs' own errors propagated to the mean, sqrt(sum se_i^2) / n (two or three
+//     beds may agree by chance far more closely than their runs are precise; `note` says when
+//     that floor was taken). The 95 % interval is t(0.975, n - 1) times the standard error.
 //   - n == 1: the one run's U_z and its own error (within-run only): the scatter between beds is
 //     not known, and `note` says so.
 //   - n == 0: no value; inconclusive, `note` says why.
@@ -44,7 +46,7 @@ struct ReplicateAggregate {
   int conclusive = 0;                   // n: those whose U_z is conclusive, which the aggregate is made of
   std::optional<double> uz_mean;        // m/s
   std::optional<double> uz_sd_between;  // m/s, n >= 2
-  std::optional<double> uz_stderr;      // m/s: s / sqrt(n) (n >= 2), the run's own (n == 1)
+  std::optional<double> uz_stderr;      // m/s: s / sqrt(n) or the runs' own (n >= 2), the run's own (n == 1)
   std::optional<double> uz_ci95;        // m/s, half-width
   std::string note;                     // what the aggregate rests on, when it is less than K beds
   std::vector<ReplicateValue> values;   // by replicate index

@@ -81,6 +81,20 @@ TEST(AggregateTest, TheIntervalCoversTheTrueMeanAtItsNominalRate) {
   EXPECT_LT(rate, 0.96);
 }
 
+// Two beds that agree by chance far better than their runs are precise: the error of the mean is
+// the runs' own, propagated, not the beds' tiny scatter.
+TEST(AggregateTest, TheErrorIsNeverSmallerThanTheRunsOwn) {
+  ReplicateValue a = Value(0, 0.100), b = Value(1, 0.101);
+  a.uz_stderr = 0.13;
+  b.uz_stderr = 0.16;
+  ReplicateAggregate agg = AggregateReplicates({a, b});
+  ASSERT_TRUE(agg.uz_stderr && agg.uz_sd_between);
+  EXPECT_NEAR(*agg.uz_sd_between, 0.001 / std::sqrt(2.0), 1e-12);
+  EXPECT_NEAR(*agg.uz_stderr, std::sqrt(0.13 * 0.13 + 0.16 * 0.16) / 2, 1e-12);
+  EXPECT_NEAR(*agg.uz_ci95, 12.706205 * *agg.uz_stderr, 1e-5);  // t(0.975, 1)
+  EXPECT_NE(agg.note.find("less than their runs' own errors"), std::string::npos) << agg.note;
+}
+
 TEST(AggregateTest, JsonCarriesEveryReplicate) {
   nlohmann::json j = AggregateToJson(AggregateReplicates({Value(0, 0.1), Value(1, 0.2)}));
   EXPECT_EQ(j["replicates"], 2);
