@@ -90,14 +90,16 @@ Result<std::optional<PrecisionTarget>> StoredPrecision(const std::optional<std::
   return std::optional<PrecisionTarget>(*t);
 }
 
-PrecisionTarget Tightest(const PrecisionTarget& a, const PrecisionTarget& b) {
+std::optional<PrecisionTarget> Tightest(const PrecisionTarget& a, const PrecisionTarget& b) {
+  // A target is met when ci95 <= max(uz_rel |U_z|, uz_abs); a threshold of 0 adds nothing to the
+  // max, so it is the strictest value. Key by key the smaller meets both targets:
+  // max(min(r1, r2) |U|, min(a1, a2)) <= max(r_i |U|, a_i) for each i.
   PrecisionTarget t;
-  // A threshold of 0 is "not used": the tighter of a used and an unused one is the used one.
-  auto tighter = [](double x, double y) { return x == 0 ? y : y == 0 ? x : std::min(x, y); };
-  t.uz_rel = tighter(a.uz_rel, b.uz_rel);
-  t.uz_abs = tighter(a.uz_abs, b.uz_abs);
+  t.uz_rel = std::min(a.uz_rel, b.uz_rel);
+  t.uz_abs = std::min(a.uz_abs, b.uz_abs);
   t.min_periods = std::max(a.min_periods, b.min_periods);
   t.max_duration_s = std::max(a.max_duration_s, b.max_duration_s);
+  if (t.uz_rel == 0 && t.uz_abs == 0) return std::nullopt;  // no interval is that narrow: run it whole
   return t;
 }
 
@@ -130,7 +132,9 @@ std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionT
            Num(allowed) + " m/s, " + std::to_string(r.uz_blocks) + " whole " + r.block_kind +
            (r.uz_blocks == 1 ? "" : "s");
   };
-  if (r.stop_reason == "target") return "precision target met " + at + ": " + interval();
+  const bool met = t && TargetMet(r, *t);  // on the final analysis, which may hold more than the last look
+  if (r.stop_reason == "target")
+    return (met ? "precision target met " : "stopped for its precision target ") + at + ": " + interval();
   if (r.stop_reason == "window")
     return "stopped " + at + ": the steady window had closed (the SO came within the clearance of the " +
            (r.window_end.empty()        ? std::string("boundary")
@@ -139,6 +143,7 @@ std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionT
            "), so running on could not tighten U_z";
   if (r.stop_reason == "surface") return "the SO reached the bed surface " + at;
   if (r.stop_reason == "floor") return "the SO reached the floor " + at;
+  if (t && met) return "ran to its maximum of " + Num(r.sim_time_s) + " s, the precision target met: " + interval();
   if (t) return "ran to its maximum of " + Num(r.sim_time_s) + " s without meeting the precision target: " + interval();
   return "ran its whole duration (" + Num(r.sim_time_s) + " s)";
 }

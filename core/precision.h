@@ -58,8 +58,11 @@ Result<PrecisionTarget> PrecisionFromJson(const nlohmann::json& j);
 // it no longer parses.
 Result<std::optional<PrecisionTarget>> StoredPrecision(const std::optional<std::string>& json_text);
 
-// The tighter of two targets, key by key (a point two sweeps share runs once, to both).
-PrecisionTarget Tightest(const PrecisionTarget& a, const PrecisionTarget& b);
+// A target that meets both (a point two sweeps share runs once, to both): key by key the smaller
+// threshold (0 being the strictest: it adds nothing to the max), the more periods, the longer
+// maximum. nullopt when both thresholds come out 0 (one sweep asked only for a relative width,
+// the other only for an absolute one): no target can say both, so the run lasts its duration.
+std::optional<PrecisionTarget> Tightest(const PrecisionTarget& a, const PrecisionTarget& b);
 
 // Physical time a run of `p` lasts at most. Without a target: the duration asked. With one: the
 // target's maximum, but never shorter than the start-up transient plus min_periods whole blocks

@@ -62,11 +62,17 @@ TEST(PrecisionTest, RunDurationHoldsTheTransientAndMinPeriods) {
   EXPECT_DOUBLE_EQ(RunDuration(rotation, PrecisionTarget{0.1, 0, 10, 1}), 11 * WindowRule{}.undriven_block_s);
 }
 
-TEST(PrecisionTest, TightestTakesEachKeysStricterValue) {
-  const PrecisionTarget a{0.1, 0, 3, 2}, b{0.2, 0.001, 5, 4};
-  const PrecisionTarget t = Tightest(a, b);
-  EXPECT_EQ(t, (PrecisionTarget{0.1, 0.001, 5, 4}));
+// The merged target must never be met where either one is not: a 0 threshold is the strictest.
+TEST(PrecisionTest, TightestMeetsBothTargets) {
+  const PrecisionTarget a{0.1, 0.002, 3, 2}, b{0.2, 0.001, 5, 4};
+  auto t = Tightest(a, b);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_EQ(*t, (PrecisionTarget{0.1, 0.001, 5, 4}));
   EXPECT_EQ(Tightest(a, b), Tightest(b, a));
+  // {rel 0.1} with {rel 0.2, abs 0.001}: abs 0 stays (a small |U_z| must still meet 0.1 |U_z|).
+  EXPECT_EQ(*Tightest(PrecisionTarget{0.1, 0, 3, 2}, b), (PrecisionTarget{0.1, 0, 5, 4}));
+  // Relative only against absolute only: nothing states both, the point runs its whole duration.
+  EXPECT_FALSE(Tightest(PrecisionTarget{0.2, 0, 3, 2}, PrecisionTarget{0, 0.005, 3, 2}).has_value());
 }
 
 TEST(PrecisionTest, JsonRoundTripsAndStoredTargetsAreChecked) {

@@ -353,8 +353,8 @@ Status ReadRunSettings(const json& obj, std::optional<PrecisionTarget>& precisio
     if (!v.is_number_integer()) return WrongType("replicates", "an integer", v);
     const auto k = v.get<int64_t>();
     if (k < 1 || k > kMaxReplicates)
-      return Status::InvalidArgument("replicates", "must be from 1 to " + std::to_string(kMaxReplicates) +
-                                                       " beds, got " + std::to_string(k));
+      return Status::InvalidArgument(
+          "replicates", "must be from 1 to " + std::to_string(kMaxReplicates) + " beds, got " + std::to_string(k));
     replicates = static_cast<int>(k);
   }
   return Status::Ok();
@@ -683,8 +683,7 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
         } else {
           PlannedRun& r = plan.runs[it->second];
           r.point.duration_s = std::max(r.point.duration_s, p.duration_s);
-          r.precision =
-              r.precision && target ? std::optional<PrecisionTarget>(Tightest(*r.precision, *target)) : std::nullopt;
+          r.precision = r.precision && target ? Tightest(*r.precision, *target) : std::nullopt;
           AddSweepName(r.sweeps, s.name);
         }
       }

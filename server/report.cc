@@ -165,15 +165,16 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   std::set<DriveId> aggregated;
   for (const ResultRow& row : *rows) {
     const std::vector<const ResultRow*>& beds = replicates.at(DriveIdOf(row.point));
-    if (beds.size() > 1) {
-      if (!aggregated.insert(DriveIdOf(row.point)).second) continue;
+    if (beds.size() > 1 && aggregated.insert(DriveIdOf(row.point)).second) {
       std::vector<ReplicateValue> values;
+      const ResultRow* first_done = nullptr;
       for (const ResultRow* b : beds) {
         ReplicateValue v;
         v.run_id = b->run_id;
         v.replicate = b->replicate;
         v.state = b->state;
         if (b->state == "done" && b->result) {
+          if (first_done == nullptr) first_done = b;
           v.conclusive = b->result->result.conclusive;
           v.uz = b->result->result.uz;
           v.uz_stderr = b->result->result.uz_stderr;
@@ -181,23 +182,26 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
         }
         values.push_back(v);
       }
-      const ReplicateAggregate agg = AggregateReplicates(values);
-      SweepSample sample;
-      sample.point = row.point;
-      sample.run_id = row.run_id;
-      sample.has_uz = agg.uz_mean.has_value();
-      sample.conclusive = sample.has_uz;
-      sample.uz = agg.uz_mean.value_or(0);
-      sample.uz_stderr = agg.uz_stderr.value_or(0);
-      sample.uz_ci95 = agg.uz_ci95.value_or(0);
-      if (!sample.has_uz) sample.inconclusive_reason = DescribeAggregate(agg);
-      a.samples.push_back(std::move(sample));
+      if (first_done != nullptr) {  // a point none of whose beds has finished is not a sample yet
+        const ReplicateAggregate agg = AggregateReplicates(values);
+        SweepSample sample;
+        sample.point = row.point;
+        sample.run_id = first_done->run_id;
+        sample.has_uz = agg.uz_mean.has_value();
+        sample.conclusive = sample.has_uz;
+        sample.uz = agg.uz_mean.value_or(0);
+        sample.uz_stderr = agg.uz_stderr.value_or(0);
+        sample.uz_ci95 = agg.uz_ci95.value_or(0);
+        if (!sample.has_uz) sample.inconclusive_reason = DescribeAggregate(agg);
+        a.samples.push_back(std::move(sample));
+      }
     }
     if (row.state != "done" || !row.result) continue;
+    // Every run's trajectory, on every bed.
     auto run = store.GetRun(row.run_id);
     if (!run.ok()) return run.status();
     if (run->trajectory && !run->trajectory->t.empty()) a.runs.push_back({row.run_id, row.point, *run->trajectory});
-    if (beds.size() > 1) continue;
+    if (beds.size() > 1) continue;  // its sample is the aggregate
     const api::RunResult& r = row.result->result;
     SweepSample sample;
     sample.point = row.point;

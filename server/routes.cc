@@ -243,7 +243,7 @@ json AggregatesJson(const std::vector<ResultRow>& rows) {
     v.replicate = row.replicate;
     v.bed_id = row.bed_id;
     v.state = row.state;
-    if (row.result) {
+    if (row.state == "done" && row.result) {  // a requeued run's old result is not averaged
       const api::RunResult& r = row.result->result;
       v.conclusive = r.conclusive;
       v.uz = r.uz;

@@ -14,11 +14,14 @@ namespace {
 nlohmann::json SweepToJson(const SweepSpec& s) {
   nlohmann::json axes = nlohmann::json::array();
   for (const SweepAxis& a : s.axes) axes.push_back({{"param", a.param}, {"values", a.values}});
-  return nlohmann::json{{"name", s.name},
-                        {"scale", s.scale},
-                        {"base", PointToJson(s.base)},
-                        {"axes", axes},
-                        {"combine", s.combine == Combine::kZip ? "zip" : "product"}};
+  nlohmann::json j{{"name", s.name},
+                   {"scale", s.scale},
+                   {"base", PointToJson(s.base)},
+                   {"axes", axes},
+                   {"combine", s.combine == Combine::kZip ? "zip" : "product"}};
+  if (s.precision) j["precision"] = PrecisionToJson(*s.precision);
+  if (s.replicates) j["replicates"] = *s.replicates;
+  return j;
 }
 
 Status CheckIdempotencyKey(const std::string& key) {

@@ -207,6 +207,14 @@ TEST_F(SubmissionTest, IdempotencyKeyReplaysSameBodyAndRefusesAnother) {
   EXPECT_EQ(other.status().code(), StatusCode::kConflict);
   EXPECT_EQ(other.status().field(), "Idempotency-Key");
   EXPECT_EQ(AllRows(), rows);
+  // Replicates and a precision target are part of the request: another K is another request.
+  nlohmann::json replicated = Sweep("s");
+  replicated["replicates"] = 2;
+  EXPECT_EQ(SubmitBody(replicated, false, "key-1").status().code(), StatusCode::kConflict);
+  nlohmann::json targeted = Sweep("s");
+  targeted["precision"] = {{"uz_abs", 0.01}, {"max_duration_s", 1}};
+  EXPECT_EQ(SubmitBody(targeted, false, "key-1").status().code(), StatusCode::kConflict);
+  EXPECT_EQ(AllRows(), rows);
   EXPECT_EQ(SubmitBody(Sweep("s"), false, "bad key").status().field(), "Idempotency-Key");
 }
 
