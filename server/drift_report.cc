@@ -44,7 +44,6 @@ std::optional<double> DerivedTolerance(const std::optional<double>& se, const st
 // only: conclusive, with a value).
 std::map<std::string, std::pair<json, ReplicateAggregate>> AggregatesOf(const std::vector<DriftPoint>& rows) {
   std::map<std::string, std::pair<json, std::vector<ReplicateValue>>> groups;
-  std::vector<std::string> order;
   for (const DriftPoint& p : rows) {
     auto& g = groups[PointIdentity(p.point)];
     g.first = p.point;
