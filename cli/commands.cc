@@ -199,6 +199,10 @@ void PrintSubmission(Context& c, const json& reply) {
   c.err() << "sandswim: " << reply.value("runs", 0) << " run(s): " << reply.value("runs_new", 0) << " new, "
           << reply.value("runs_reused", 0) << " reused, " << reply.value("runs_requeued", 0) << " requeued, "
           << reply.value("runs_shared", 0) << " shared with other sweeps"
+          << (reply.value("runs_failed_bed", 0) > 0
+                  ? "; " + std::to_string(reply.value("runs_failed_bed", 0)) +
+                        " failed at once, their bed having failed for good (sandswim status says why)"
+                  : std::string())
           << (reply.value("replayed", false) ? " (an earlier identical submission answered)" : "") << "\n";
 }
 

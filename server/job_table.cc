@@ -279,7 +279,12 @@ Result<int64_t> FailRunsOfBed(Transaction& t, int64_t bed_id, const std::string&
       "last_error = ? WHERE bed_id = ? AND state = 'queued'");
   st.Bind(1, now).Bind(2, reason).Bind(3, bed_id);
   SANDSWIM_RETURN_IF_ERROR(st.Run());
-  return t.Changes();
+  const int64_t n = t.Changes();
+  if (n > 0) {
+    SANDSWIM_RETURN_IF_ERROR(
+        t.Event(now, "runs.failed", "bed/" + std::to_string(bed_id), {{"runs", n}, {"reason", reason}}));
+  }
+  return n;
 }
 
 // ---- Runs ---------------------------------------------------------------------------------------

@@ -61,17 +61,6 @@ Status RequireCurrent(const JobRow& job, const std::string& token, api::JobKind 
   return Status::Ok();
 }
 
-// Fails the queued runs waiting for a bed that failed for good.
-Status FailBedRuns(Transaction& t, int64_t bed_id, const std::string& reason, double now) {
-  Result<int64_t> n = jobs::FailRunsOfBed(t, bed_id, reason, now);
-  if (!n.ok()) return n.status();
-  if (*n > 0) {
-    SANDSWIM_RETURN_IF_ERROR(
-        t.Event(now, "runs.failed", "bed/" + std::to_string(bed_id), {{"runs", *n}, {"reason", reason}}));
-  }
-  return Status::Ok();
-}
-
 // Moves a running job to queued (retry) or failed, recording why. Returns the new state.
 Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
                                 const std::string& kind_text, const std::string& message, bool retryable, double now) {
@@ -81,8 +70,9 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"), Subject(kind, id),
                                    {{"kind", kind_text}, {"message", message}, {"attempts", job.attempts}}));
   if (!retry && kind == api::JobKind::kBed) {
-    SANDSWIM_RETURN_IF_ERROR(
-        FailBedRuns(t, id, "bed " + std::to_string(id) + " failed: " + kind_text + ": " + message, now));
+    Result<int64_t> n =
+        jobs::FailRunsOfBed(t, id, "bed " + std::to_string(id) + " failed: " + kind_text + ": " + message, now);
+    if (!n.ok()) return n.status();
   }
   return state;
 }
@@ -195,7 +185,7 @@ Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) 
   if (run.stored_deck) {  // runs submitted before migration 3: the stored deck says it
     Result<DriveInfo> drive = ReadDriveInfo(*run.stored_deck);
     if (!drive.ok()) return Status::FailedPrecondition("deck", "its stored deck: " + drive.status().reason());
-    return RunDeck{*run.stored_deck, *drive};
+    return RunDeck{*run.stored_deck, *drive, std::nullopt};  // such runs have no target
   }
   Result<Point> point = StoredPoint(run.mode, run.axis, run.A, run.f, run.Omega, run.omega, run.duration_s);
   const Scale* scale = FindScale(run.scale);

@@ -578,6 +578,49 @@ TEST_F(LeaseQueueTest, BedFailingForGoodFailsItsRuns) {
   EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
 }
 
+// A bed that missed the kinetic-energy criterion comes out the same from the same deck: a later
+// submission does not prepare it again; the runs it brings fail at once, saying why, rather than
+// wait for ever. A bed that failed otherwise (killed) is prepared again.
+TEST_F(LeaseQueueTest, BedNotEquilibratedFailsForGoodAcrossSubmissions) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kBed);
+  ASSERT_EQ(queue_->Complete(g.token, Failed("not_equilibrated", "the bed missed the criterion."))->state, "failed");
+
+  nlohmann::json body = OmegaSignSweep("again");
+  body["axes"][0]["values"] = {-40, 80};
+  auto req = ParseSubmitRequest(body);
+  ASSERT_TRUE(req.ok());
+  auto again = Submit(*store_, *req, kEngine, clock_.Now());
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->runs_new, 1);         // -40
+  EXPECT_EQ(again->runs_requeued, 1);    // +80 had failed with the bed
+  EXPECT_EQ(again->runs_failed_bed, 2);  // both fail at once
+  auto info = store_->GetSweep(again->sweep_ids.at(0));
+  EXPECT_EQ(info->counts.failed, 2);
+  EXPECT_EQ(info->counts.queued, 0);
+  auto runs = store_->ListRuns({again->sweep_ids.at(0), std::nullopt, 0, 10});
+  for (const auto& r : runs->runs) {
+    ASSERT_TRUE(r.last_error.has_value());
+    EXPECT_EQ(r.last_error->kind, "bed_failed");
+    EXPECT_NE(r.last_error->message.find("failed for good"), std::string::npos) << r.last_error->message;
+    EXPECT_NE(r.last_error->message.find("the bed missed the criterion."), std::string::npos);
+  }
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());  // nothing to prepare, nothing to run
+}
+
+TEST_F(LeaseQueueTest, BedFailedOtherwiseIsPreparedAgainByALaterSubmission) {
+  SubmitJson(OmegaSignSweep());
+  for (int i = 0; i < 3; ++i) {
+    api::LeaseGrant g = MustLease();
+    ASSERT_EQ(g.kind, api::JobKind::kBed);
+    queue_->Complete(g.token, Failed("signal", "killed"));
+  }
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  EXPECT_EQ(store_->GetSweep(sweep)->counts.queued, 2);
+  EXPECT_EQ(MustLease().kind, api::JobKind::kBed);
+}
+
 TEST_F(LeaseQueueTest, ReopeningTheFileKeepsLeasesAndRuns) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

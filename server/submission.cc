@@ -7,6 +7,7 @@
 #include "core/keys.h"
 #include "core/scale.h"
 #include "server/campaigns.h"
+#include "server/job_table.h"
 
 namespace sandswim {
 namespace {
@@ -48,6 +49,7 @@ Result<SubmitResult> ResultFromJson(const std::string& text) {
     r.runs_reused = j.value("runs_reused", int64_t{0});
     r.runs_requeued = j.value("runs_requeued", int64_t{0});
     r.runs_shared = j.value("runs_shared", int64_t{0});
+    r.runs_failed_bed = j.value("runs_failed_bed", int64_t{0});
   } catch (const nlohmann::json::exception& e) {
     return Status::Corruption(std::string("stored submission response: ") + e.what());
   }
@@ -57,9 +59,14 @@ Result<SubmitResult> ResultFromJson(const std::string& text) {
 }  // namespace
 
 void to_json(nlohmann::json& j, const SubmitResult& r) {
-  j = nlohmann::json{{"ids", r.sweep_ids},          {"replayed", r.replayed},       {"runs", r.runs},
-                     {"runs_new", r.runs_new},      {"runs_reused", r.runs_reused}, {"runs_requeued", r.runs_requeued},
-                     {"runs_shared", r.runs_shared}};
+  j = nlohmann::json{{"ids", r.sweep_ids},
+                     {"replayed", r.replayed},
+                     {"runs", r.runs},
+                     {"runs_new", r.runs_new},
+                     {"runs_reused", r.runs_reused},
+                     {"runs_requeued", r.runs_requeued},
+                     {"runs_shared", r.runs_shared},
+                     {"runs_failed_bed", r.runs_failed_bed}};
   if (!r.sweep_ids.empty()) j["id"] = r.sweep_ids.front();
   if (r.campaign_run_id) j["campaign_run_id"] = *r.campaign_run_id;
 }
@@ -244,9 +251,17 @@ Result<std::vector<int64_t>> InsertSweeps(Transaction& t, const std::vector<Swee
   return ids;
 }
 
-// A scale's replicate bed: one per key; a failed one is given another chance.
-Result<int64_t> UpsertBed(Transaction& t, const std::string& scale, const PlannedBed& bed,
-                          const std::string& engine_version, double now) {
+// A bed row as a submission finds it: its id, and why it failed for good (its runs fail at once).
+struct SubmittedBed {
+  int64_t id = 0;
+  std::optional<std::string> failed_for_good;
+};
+
+// A scale's replicate bed: one per key. A failed one is given another chance, unless it failed
+// for a reason preparing it again cannot change: a bed that missed the kinetic-energy criterion
+// (not_equilibrated) comes out the same from the same deck and engine (both in its key).
+Result<SubmittedBed> UpsertBed(Transaction& t, const std::string& scale, const PlannedBed& bed,
+                               const std::string& engine_version, double now) {
   // engine_version: what the run keys on this bed were made with, so a deck rendered again
   // at lease time can be checked against its run's key (the bed key covers it too).
   Statement ins = t.Prepare(
@@ -258,12 +273,18 @@ Result<int64_t> UpsertBed(Transaction& t, const std::string& scale, const Planne
   ins.Bind(5, engine_version).Bind(6, static_cast<int64_t>(bed.replicate));
   ins.Bind(7, static_cast<int64_t>(bed.seeds.pour1)).Bind(8, static_cast<int64_t>(bed.seeds.pour2));
   SANDSWIM_RETURN_IF_ERROR(ins.Run());
-  Statement sel = t.Prepare("SELECT id, state FROM beds WHERE key = ?");
+  Statement sel = t.Prepare("SELECT id, state, last_error_kind, last_error FROM beds WHERE key = ?");
   sel.Bind(1, bed.key);
   Result<bool> row = sel.Step();
   if (!row.ok()) return row.status();
   if (!*row) return Status::Internal("bed row vanished");
   const int64_t bed_id = sel.Int(0);
+  if (sel.Text(1) == "failed" && sel.Text(2) == "not_equilibrated") {
+    return SubmittedBed{bed_id, "bed " + std::to_string(bed_id) + " (" + scale + ", replicate " +
+                                    std::to_string(bed.replicate) + ") failed for good: " + sel.Text(3) +
+                                    " Preparing it again would give the same bed, so it is not retried. "
+                                    "Other replicates (\"replicates\") pour beds from other seeds."};
+  }
   if (sel.Text(1) == "failed") {
     Statement up = t.Prepare(
         "UPDATE beds SET state = 'queued', attempts = 0, lease_token = NULL, "
@@ -272,7 +293,7 @@ Result<int64_t> UpsertBed(Transaction& t, const std::string& scale, const Planne
     SANDSWIM_RETURN_IF_ERROR(up.Run());
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
   }
-  return bed_id;
+  return SubmittedBed{bed_id, std::nullopt};
 }
 
 // A run whose key exists already: re-queued when it failed, was cancelled or is forced again;
@@ -428,12 +449,20 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
   std::map<int64_t, int64_t> next_position;
   for (const ScalePlan& g : *planned) {
     std::vector<int64_t> bed_ids;
+    std::vector<SubmittedBed> failed_beds;
     for (const PlannedBed& bed : g.plan.beds) {
-      Result<int64_t> bed_id = UpsertBed(t, g.scale, bed, engine_version, now);
-      if (!bed_id.ok()) return bed_id.status();
-      bed_ids.push_back(*bed_id);
+      Result<SubmittedBed> b = UpsertBed(t, g.scale, bed, engine_version, now);
+      if (!b.ok()) return b.status();
+      bed_ids.push_back(b->id);
+      if (b->failed_for_good) failed_beds.push_back(*b);
     }
     SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, id_by_name, req.force, now, next_position, out));
+    // Runs on a bed that failed for good fail now, saying why, rather than wait for it for ever.
+    for (const SubmittedBed& b : failed_beds) {
+      Result<int64_t> n = jobs::FailRunsOfBed(t, b.id, *b.failed_for_good, now);
+      if (!n.ok()) return n.status();
+      out.runs_failed_bed += *n;
+    }
   }
   SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
   nlohmann::json response = out;

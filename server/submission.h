@@ -63,9 +63,10 @@ struct SubmitResult {
   int64_t runs_reused = 0;                 // done runs whose results are reused
   int64_t runs_requeued = 0;               // done (force) / failed / cancelled runs queued again
   int64_t runs_shared = 0;                 // already queued or running for another sweep
+  int64_t runs_failed_bed = 0;             // of those queued, failed at once: their bed failed for good
 };
 // {"ids":[...], "id": first id, "campaign_run_id"?, "replayed", "runs", "runs_new",
-//  "runs_reused", "runs_requeued", "runs_shared"}
+//  "runs_reused", "runs_requeued", "runs_shared", "runs_failed_bed"}
 void to_json(nlohmann::json& j, const SubmitResult& r);
 
 // Parses a POST /api/v1/sweeps body: a sweep object (ParseSweep), {"sweeps": [sweep, ...]},
