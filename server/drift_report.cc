@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
 #include <utility>
 
 #include "core/aggregate.h"
@@ -58,6 +59,14 @@ std::map<std::string, std::pair<json, ReplicateAggregate>> AggregatesOf(const st
   }
   std::map<std::string, std::pair<json, ReplicateAggregate>> out;
   for (auto& [id, g] : groups) out[id] = {g.first, AggregateReplicates(std::move(g.second))};
+  return out;
+}
+
+// The U_z analysis versions of each point's conclusive rates.
+std::map<std::string, std::set<int>> AnalysesOf(const std::vector<DriftPoint>& rows) {
+  std::map<std::string, std::set<int>> out;
+  for (const DriftPoint& p : rows)
+    if (p.uz && !p.inconclusive) out[PointIdentity(p.point)].insert(p.analysis);
   return out;
 }
 
@@ -212,7 +221,8 @@ void to_json(json& j, const DriftAggregate& a) {
        {"uz_stderr_previous", OrNull(a.uz_stderr_previous)},
        {"difference", OrNull(a.difference)},
        {"tolerance", OrNull(a.tolerance)},
-       {"drifted", a.drifted}};
+       {"drifted", a.drifted},
+       {"estimator_changed", a.estimator_changed}};
 }
 
 void from_json(const json& j, DriftAggregate& a) {
@@ -228,6 +238,7 @@ void from_json(const json& j, DriftAggregate& a) {
   a.difference = OptField<double>(j, "difference");
   a.tolerance = OptField<double>(j, "tolerance");
   a.drifted = j.value("drifted", false);
+  a.estimator_changed = j.value("estimator_changed", false);
 }
 
 void to_json(json& j, const DriftReport& r) {
@@ -296,7 +307,6 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
   report.points = static_cast<int64_t>(report.rows.size());
   report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
   report.estimator_changed = report.no_error = 0;
-  int analysis = 0;  // of this report's rates (one daemon, one analysis)
   for (DriftPoint& p : report.rows) {
     p.uz_previous.reset();
     p.uz_stderr_previous.reset();
@@ -314,7 +324,6 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
       ++report.inconclusive;
       continue;
     }
-    analysis = p.analysis;
     auto it = before.find(RunIdentity(p));
     if (it == before.end() || !it->second->uz || it->second->inconclusive) continue;
     if (it->second->analysis != p.analysis) {
@@ -336,17 +345,16 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     if (p.drifted) ++report.drifted;
   }
 
-  // Points over their replicate beds. A previous report's rates count only when made by the same
-  // analysis as this one's.
+  // Points over their replicate beds. Two means are compared only when every conclusive rate in
+  // both was made by one and the same U_z analysis.
   report.aggregates.clear();
   report.points_compared = report.points_drifted = 0;
   bool replicated = false;
   std::map<std::string, std::pair<json, ReplicateAggregate>> earlier;
+  std::map<std::string, std::set<int>> analyses_now = AnalysesOf(report.rows), analyses_before;
   if (previous != nullptr) {
-    std::vector<DriftPoint> same_analysis;
-    for (const DriftPoint& p : previous->rows)
-      if (p.analysis == analysis) same_analysis.push_back(p);
-    earlier = AggregatesOf(same_analysis);
+    earlier = AggregatesOf(previous->rows);
+    analyses_before = AnalysesOf(previous->rows);
   }
   std::vector<std::string> order;
   for (const DriftPoint& p : report.rows) {
@@ -369,7 +377,10 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
       a.conclusive_previous = b.conclusive;
       a.uz_mean_previous = b.uz_mean;
       a.uz_stderr_previous = b.uz_stderr;
-      if (a.uz_mean && a.uz_mean_previous) {
+      const std::set<int>& made_now = analyses_now[id];
+      const std::set<int>& made_before = analyses_before[id];
+      a.estimator_changed = a.uz_mean && a.uz_mean_previous && (made_now.size() != 1 || made_now != made_before);
+      if (a.uz_mean && a.uz_mean_previous && !a.estimator_changed) {
         a.difference = *a.uz_mean - *a.uz_mean_previous;
         a.tolerance = tolerance_for(a.uz_stderr, a.uz_stderr_previous);
         if (a.tolerance) {

@@ -76,6 +76,8 @@ struct DriftAggregate {
   std::optional<double> uz_mean_previous, uz_stderr_previous;
   std::optional<double> difference, tolerance;
   bool drifted = false;
+  // Not compared: the point's rates now and before were not all made by one U_z analysis.
+  bool estimator_changed = false;
 };
 void to_json(nlohmann::json& j, const DriftAggregate& a);
 void from_json(const nlohmann::json& j, DriftAggregate& a);

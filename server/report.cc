@@ -144,6 +144,34 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
             "</td><td>" + Escape(p.state) + "</td><td>" + now + "</td><td>" + cell(p.uz_previous) + "</td><td>" +
             cell(p.difference) + "</td><td>" + note + "</td></tr>\n";
   }
+  html += "</table>\n";
+  // Points run on several beds: their means over the beds, compared with their errors.
+  bool replicated = false;
+  for (const DriftAggregate& a : drift->aggregates) replicated = replicated || a.replicates > 1;
+  if (!replicated) return html;
+  html +=
+      "<p>Each point over its replicate beds (mean ± standard error; compared within the tolerance shown):</p>\n"
+      "<table><tr><th>point</th><th>beds</th><th>mean U<sub>z</sub> (m/s)</th><th>before (m/s)</th>"
+      "<th>difference (m/s)</th><th>tolerance (m/s)</th><th></th></tr>\n";
+  auto mean = [&](const std::optional<double>& m, const std::optional<double>& se, int conclusive, int beds) {
+    if (!m) return std::string("inconclusive");
+    return cell(m) + (se ? " ± " + Num(*se) : std::string()) + " (" + std::to_string(conclusive) + "/" +
+           std::to_string(beds) + ")";
+  };
+  for (const DriftAggregate& a : drift->aggregates) {
+    const std::string note = a.drifted             ? "drifted"
+                             : a.estimator_changed ? "not compared: U_z analysis changed"
+                             : !a.uz_mean_previous ? "no earlier mean"
+                             : !a.tolerance        ? "not compared: no error"
+                                                   : "";
+    html += "<tr" + std::string(a.drifted ? " class=\"drifted\"" : "") + "><td>" + Escape(a.point.dump()) +
+            "</td><td>" + std::to_string(a.replicates) + "</td><td>" +
+            mean(a.uz_mean, a.uz_stderr, a.conclusive, a.replicates) + "</td><td>" +
+            (a.uz_mean_previous
+                 ? mean(a.uz_mean_previous, a.uz_stderr_previous, a.conclusive_previous, a.replicates_previous)
+                 : std::string("–")) +
+            "</td><td>" + cell(a.difference) + "</td><td>" + cell(a.tolerance) + "</td><td>" + note + "</td></tr>\n";
+  }
   return html + "</table>\n";
 }
 

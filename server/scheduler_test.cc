@@ -416,6 +416,54 @@ TEST(DriftReportTest, RatesOfDifferentAnalysesAreNotCompared) {
   EXPECT_EQ(back.rows[0].analysis, api::kAnalysisVersion);
 }
 
+// A point's mean over its beds is compared only when every rate in it, now and before, was made by
+// one analysis: one bed's rate re-made by a newer analysis (or one left from an older one) keeps
+// the point out of the comparison, while its runs of one analysis are still compared one by one.
+TEST(DriftReportTest, PointMeansMixingAnalysesAreNotCompared) {
+  const nlohmann::json point = {{"mode", "oscillatory"}, {"Omega", 80}};
+  auto run = [&](int replicate, double uz, int analysis) {
+    DriftPoint p;
+    p.point = point;
+    p.replicate = replicate;
+    p.run_id = 10 + replicate;
+    p.state = "done";
+    p.uz = uz;
+    p.uz_stderr = 0.001;
+    p.analysis = analysis;
+    return p;
+  };
+  const int v = api::kAnalysisVersion;
+  DriftReport previous;
+  previous.campaign_run_id = 1;
+  previous.rows = {run(0, 0.010, v), run(1, 0.012, v - 1)};
+  DriftReport now;
+  now.campaign = "tiny";
+  now.scale = "smoke";
+  now.trigger = "manual";
+  now.campaign_run_id = 2;
+  now.rows = {run(0, 0.050, v), run(1, 0.052, v)};
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_EQ(now.compared, 1);  // bed 0, the same analysis on both sides
+  EXPECT_EQ(now.estimator_changed, 1);
+  ASSERT_EQ(now.aggregates.size(), 1u);
+  EXPECT_TRUE(now.aggregates[0].estimator_changed);
+  EXPECT_FALSE(now.aggregates[0].difference.has_value());
+  EXPECT_FALSE(now.aggregates[0].drifted);
+  EXPECT_EQ(now.points_compared, 0);
+  // One analysis throughout: compared, and a 0.04 m/s jump against errors of 0.001 drifted.
+  previous.rows[1].analysis = v;
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_FALSE(now.aggregates[0].estimator_changed);
+  EXPECT_TRUE(now.aggregates[0].drifted);
+  EXPECT_EQ(now.points_compared, 1);
+  // Mixed within this report: not compared either.
+  now.rows[1].analysis = v - 1;
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_TRUE(now.aggregates[0].estimator_changed);
+  EXPECT_EQ(now.points_compared, 0);
+  EXPECT_TRUE(nlohmann::json(now).get<DriftReport>().aggregates[0].estimator_changed);
+}
+
 TEST_F(SchedulerTest, DriftReportFlagsOnlyChangesBeyondTheTolerance) {
   Register();
   clock_.Set(Utc(2026, 11, 23, 2, 0, 10));
