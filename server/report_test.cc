@@ -95,7 +95,8 @@ class ReportTest : public ::testing::Test {
       if (g.kind == api::JobKind::kBed) {
         const std::string restart = "a bed";
         ASSERT_TRUE(leases_->PutBedRestart(g.token, restart, Sha256Hex(restart), dir_ + "/data").ok());
-        c.bed_result = api::BedResult{3700, 0.0, 0.22, true, 1e-4, Sha256Hex(restart), 5};
+        c.bed_result = api::BedResult{3700, 0.0,          0.22,         true,         1e-4,        Sha256Hex(restart),
+                                      5,    std::nullopt, std::nullopt, std::nullopt, std::nullopt};
       } else {
         auto run = store_->GetRun(g.id);
         ASSERT_TRUE(run.ok());

@@ -347,7 +347,9 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
 
   api::Completion bed_done;
   bed_done.ok = true;
-  bed_done.bed_result = api::BedResult{3700, 0.0, 0.22, true, 1e-4, sha, static_cast<int64_t>(restart.size())};
+  bed_done.bed_result = api::BedResult{
+      3700,         0.0,          0.22,         true,        1e-4, sha, static_cast<int64_t>(restart.size()),
+      std::nullopt, std::nullopt, std::nullopt, std::nullopt};
   auto completed_bed = Post("/api/v1/leases/" + bed.token + "/complete", json(bed_done).dump());
   ASSERT_EQ(completed_bed->status, 200) << completed_bed->body;
   EXPECT_EQ(Body(completed_bed)["state"], "done");

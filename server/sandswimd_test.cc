@@ -161,7 +161,8 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
   ASSERT_EQ(put->status, 200) << put->body;
   api::Completion bed_done;
   bed_done.ok = true;
-  bed_done.bed_result = api::BedResult{3700, 0, 0.22, true, 1e-4, Sha256Hex(restart), 13};
+  bed_done.bed_result = api::BedResult{
+      3700, 0, 0.22, true, 1e-4, Sha256Hex(restart), 13, std::nullopt, std::nullopt, std::nullopt, std::nullopt};
   ASSERT_EQ(
       a.Post(("/api/v1/leases/" + bed.token + "/complete").c_str(), json(bed_done).dump(), "application/json")->status,
       200);

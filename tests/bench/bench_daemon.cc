@@ -258,7 +258,9 @@ void BenchCycles(const fs::path& root, int clients, int cycles, CycleMode mode) 
   if (!res || res->status != 200) Die("upload restart");
   sandswim::api::Completion bed_done;
   bed_done.ok = true;
-  bed_done.bed_result = sandswim::api::BedResult{3700, 0.1, 0.2, true, 1e-4, sha, static_cast<int64_t>(restart.size())};
+  bed_done.bed_result = sandswim::api::BedResult{
+      3700,         0.1,          0.2,          true,        1e-4, sha, static_cast<int64_t>(restart.size()),
+      std::nullopt, std::nullopt, std::nullopt, std::nullopt};
   res = client.Post(("/api/v1/leases/" + bed.token + "/complete").c_str(), json(bed_done).dump(), "application/json");
   if (!res || res->status != 200) Die("complete bed");
 
