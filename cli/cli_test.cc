@@ -31,6 +31,7 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 using ::testing::HasSubstr;
+using ::testing::IsEmpty;
 using ::testing::MatchesRegex;
 using ::testing::Not;
 using ::testing::StartsWith;
@@ -86,25 +87,30 @@ class CliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new fs::path(MakeTempDir());
-    fs::path log = *dir_ / "daemon.log";
-    daemon_ = Spawn({SANDSWIMD_BIN, "--listen", "127.0.0.1:0", "--db", (*dir_ / "db.sqlite").string(), "--data",
-                     (*dir_ / "data").string(), "--local-workers", "0", "--engine-version", "test-engine"},
-                    "/dev/null", log, *dir_ / "daemon.err");
+    std::string url = StartDaemon(*dir_ / "db.sqlite", "daemon", &daemon_);
+    if (!url.empty()) server_ = new std::string(url);
+  }
+
+  // Starts sandswimd on the SQLite file `db` (data and logs under <dir>/<tag>...); returns its URL,
+  // or "" (and a test failure) when it does not start.
+  static std::string StartDaemon(const fs::path& db, const std::string& tag, pid_t* pid) {
+    fs::path log = *dir_ / (tag + ".log");
+    *pid = Spawn({SANDSWIMD_BIN, "--listen", "127.0.0.1:0", "--db", db.string(), "--data",
+                  (*dir_ / (tag + "-data")).string(), "--local-workers", "0", "--engine-version", "test-engine"},
+                 "/dev/null", log, *dir_ / (tag + ".err"));
     // Wait for the line that names the port (the daemon prints it once it listens).
     static const std::regex kListening(R"(listening on http://127\.0\.0\.1:([0-9]+))");
     auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     while (std::chrono::steady_clock::now() < deadline) {
       std::smatch m;
       std::string text = ReadAll(log);
-      if (std::regex_search(text, m, kListening)) {
-        server_ = new std::string("http://127.0.0.1:" + m[1].str());
-        return;
-      }
+      if (std::regex_search(text, m, kListening)) return "http://127.0.0.1:" + m[1].str();
       int status = 0;
-      if (waitpid(daemon_, &status, WNOHANG) == daemon_) break;
+      if (waitpid(*pid, &status, WNOHANG) == *pid) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
-    FAIL() << "sandswimd did not start: " << ReadAll(log) << ReadAll(*dir_ / "daemon.err");
+    ADD_FAILURE() << "sandswimd did not start: " << ReadAll(log) << ReadAll(*dir_ / (tag + ".err"));
+    return "";
   }
 
   static void TearDownTestSuite() {
@@ -201,6 +207,37 @@ TEST_F(CliTest, SubmitPrintsTheSweepIdAndStatusShowsIt) {
   bool found = false;
   for (const auto& s : json::parse(o.out)) found = found || s["id"] == id;
   EXPECT_TRUE(found);
+}
+
+// `sandswim backup FILE` while the daemon serves: the copy is a whole database that a second daemon
+// opens and serves the same sweep from; no partial file is left; an unwritable FILE is one clear
+// error.
+TEST_F(CliTest, BackupIsAConsistentCopyThatADaemonServes) {
+  const int64_t id = SubmitSweep("backup-sweep", 7);
+  const fs::path copy = *dir_ / "copy.db";
+  Outcome o = Sandswim({"backup", copy.string()});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(o.out, fs::absolute(copy).string() + "\n");
+  EXPECT_THAT(o.err, HasSubstr("wrote a consistent copy of the daemon's database"));
+  EXPECT_THAT(o.err, HasSubstr("To restore it: stop sandswimd"));
+  EXPECT_FALSE(fs::exists(copy.string() + ".part"));
+  EXPECT_TRUE(fs::is_empty(*dir_ / "daemon-data" / "backups"));  // the daemon keeps no copy
+
+  pid_t restored = -1;
+  const std::string url = StartDaemon(copy, "restored", &restored);
+  ASSERT_FALSE(url.empty());
+  o = Sandswim({"--server", url, "status", std::to_string(id), "--json"}, "", /*with_server=*/false);
+  kill(restored, SIGTERM);
+  int status = 0;
+  waitpid(restored, &status, 0);
+  ASSERT_EQ(o.code, 0) << o.err;
+  json j = json::parse(o.out);
+  EXPECT_EQ(j["counts"]["queued"], 2) << o.out;
+
+  o = Sandswim({"backup", (*dir_ / "no-such-dir" / "copy.db").string()});
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, HasSubstr("cannot write"));
+  EXPECT_THAT(o.out, IsEmpty());
 }
 
 TEST_F(CliTest, SubmitFromStdinAndWithJson) {

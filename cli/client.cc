@@ -119,6 +119,42 @@ class HttpDaemonClient : public DaemonClient {
     return Status::Corruption("the daemon answered GET " + path + " with HTTP " + std::to_string(res->status));
   }
 
+  Result<int64_t> DownloadBackup(const std::string& file) override {
+    const std::string path = "/api/v1/backup";
+    std::ofstream out(file, std::ios::binary | std::ios::trunc);
+    if (!out) return Status::IOError("cannot write " + file);
+    // The daemon copies the whole database before it answers: allow it time.
+    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+    int64_t bytes = 0;
+    std::string error_body;
+    int status = 0;
+    httplib::Result res = http_.Get(
+        path.c_str(),
+        [&](const httplib::Response& r) {
+          status = r.status;
+          return true;
+        },
+        [&](const char* data, size_t n) {
+          if (status != 200) {
+            error_body.append(data, n);  // a problem document
+            return true;
+          }
+          out.write(data, static_cast<std::streamsize>(n));
+          bytes += static_cast<int64_t>(n);
+          return static_cast<bool>(out);
+        });
+    if (status == 200 && !out) return Status::IOError("cannot write " + file + " (disk full?)");
+    if (res && res->status == 200) {
+      out.close();
+      if (!out) return Status::IOError("cannot write " + file + " (disk full?)");
+      return bytes;
+    }
+    if (res) res->body = error_body;
+    auto error = Answer(res, "GET", path);
+    if (!error.ok()) return error.status();
+    return Status::Corruption("the daemon answered GET " + path + " with HTTP " + std::to_string(res->status));
+  }
+
  private:
   Result<json> Get(const std::string& path) { return Answer(http_.Get(path.c_str()), "GET", path); }
 

@@ -66,6 +66,12 @@ class DaemonClient {
     (void)name, (void)scale, (void)campaign_run_id;
     return Status::Unavailable("this client cannot fetch reports");
   }
+  // GET /api/v1/backup, streamed into the file at `path` (created or truncated): a consistent copy
+  // of the daemon's database. Returns the bytes written.
+  virtual Result<int64_t> DownloadBackup(const std::string& path) {
+    (void)path;
+    return Status::Unavailable("this client cannot fetch backups");
+  }
 };
 
 // Resolves the daemon's URL and token from the flags and the environment (`getenv` is injected

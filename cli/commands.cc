@@ -48,7 +48,7 @@ struct Args {
   int64_t campaign_run = 0;
   double interval_s = 1.0;
   std::string engine_version;
-  std::string out_file;      // `report --out`
+  std::string out_file;      // `report --out`, `backup FILE`
   SlurmSubmitOptions slurm;  // `slurm submit`
   // `analyze`: NaN / -1 mean "not given".
   std::vector<std::string> dumps;
@@ -653,6 +653,34 @@ int RunReport(Context& c) {
   return kExitOk;
 }
 
+void SetupBackup(CLI::App& sub, Args& a) {
+  sub.add_option("FILE", a.out_file, "where to write the copy (replaced when there; written aside and renamed)")
+      ->required();
+}
+
+// Writes a consistent copy of the daemon's database (made while it serves) and says how to restore it.
+int RunBackup(Context& c) {
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  const std::string& path = c.args.out_file;
+  // Written aside and renamed: an interrupted download never leaves half a database under the name.
+  const std::string temp = path + ".part";
+  auto bytes = (*client)->DownloadBackup(temp);
+  std::error_code ec;
+  if (!bytes.ok()) {
+    std::filesystem::remove(temp, ec);
+    return Fail(c, bytes.status());
+  }
+  std::filesystem::rename(temp, path, ec);
+  if (ec) return Fail(c, Status::IOError("cannot write " + path + ": " + ec.message()));
+  std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+  c.out() << (ec ? path : absolute.string()) << "\n";
+  c.err() << "sandswim: wrote a consistent copy of the daemon's database (" << *bytes
+          << " bytes, checked by the daemon with PRAGMA quick_check). To restore it: stop sandswimd, put the file "
+             "at its --db path (removing any -wal and -shm files beside it), start sandswimd\n";
+  return kExitOk;
+}
+
 // A number option that must be finite: "nan" or "inf" is a usage error, not a silent default.
 const CLI::Validator kFinite(
     [](std::string& s) {
@@ -870,6 +898,9 @@ const Command kCommands[] = {
    "  sandswim report paper-58 --scale smoke --out paper-58.html\n"
    "  sandswim report cr:7",
    SetupReport, RunReport},
+  {"backup", "write a consistent copy of the daemon's database, made while it runs, to FILE",
+   "  sandswim backup sandswim-$(date +%F).db",
+   SetupBackup, RunBackup},
   {"analyze", "offline: U_z of LIGGGHTS dumps of the SO, analysed exactly as the worker does (no daemon needed)",
    "  sandswim analyze var/data/runs/42/so.dump       # drive.in and log.liggghts beside it are read\n"
    "  sandswim analyze old/*.dump --f 3 --floor -0.5 --json\n"

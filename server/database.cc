@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <thread>
 #include <utility>
 
 #include "core/api.h"
@@ -459,6 +460,63 @@ Result<int64_t> Database::CountRows(const std::string& table) {
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
   return st.Int(0);
+}
+
+Result<int64_t> Database::BackupTo(const std::string& path) {
+  const std::string partial = path + ".partial";
+  std::error_code ec;
+  std::filesystem::remove(partial, ec);
+  sqlite3* dest = nullptr;
+  auto fail = [&](const std::string& what) -> Status {
+    std::string msg = dest ? sqlite3_errmsg(dest) : "out of memory";
+    if (dest) sqlite3_close(dest);
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    return Status::IOError("backup to " + path + ": " + what + ": " + msg +
+                           " (check that the directory exists, is writable and has room)");
+  };
+  if (sqlite3_open_v2(partial.c_str(), &dest, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr) != SQLITE_OK) {
+    return fail("cannot create " + partial);
+  }
+  sqlite3_backup* backup = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    backup = sqlite3_backup_init(dest, "main", db_, "main");
+  }
+  if (backup == nullptr) return fail("cannot start the backup");
+  int rc = SQLITE_OK;
+  while (rc == SQLITE_OK || rc == SQLITE_BUSY || rc == SQLITE_LOCKED) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      rc = sqlite3_backup_step(backup, 256);
+    }
+    if (rc == SQLITE_BUSY || rc == SQLITE_LOCKED) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    sqlite3_backup_finish(backup);
+  }
+  if (rc != SQLITE_DONE) return fail("copying pages");
+  // The copy is a plain rollback-journal file, checked before it is named as a backup.
+  if (!ExecRaw(dest, "PRAGMA journal_mode = DELETE").ok()) return fail("setting its journal mode");
+  sqlite3_stmt* check = nullptr;
+  std::string verdict;
+  if (sqlite3_prepare_v2(dest, "PRAGMA quick_check", -1, &check, nullptr) == SQLITE_OK &&
+      sqlite3_step(check) == SQLITE_ROW) {
+    verdict = reinterpret_cast<const char*>(sqlite3_column_text(check, 0));
+  }
+  sqlite3_finalize(check);
+  if (verdict != "ok") return fail("the copy failed its quick_check (" + verdict + ")");
+  if (sqlite3_close(dest) != SQLITE_OK) return fail("closing the copy");
+  dest = nullptr;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) {
+    std::filesystem::remove(partial, ec);
+    return Status::IOError("backup to " + path + ": cannot rename the finished copy into place: " + ec.message());
+  }
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (ec) return Status::IOError("backup to " + path + ": " + ec.message());
+  return static_cast<int64_t>(bytes);
 }
 
 }  // namespace sandswim

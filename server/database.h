@@ -179,6 +179,13 @@ class Database {
   // Rows in a table (tests and diagnostics). REQUIRES: `table` is one of the schema's tables.
   Result<int64_t> CountRows(const std::string& table);
 
+  // A consistent copy of the whole database at `path` (replaced if there), made while the daemon
+  // serves: SQLite's online backup, a few hundred pages at a time with the lock released between
+  // steps, so writers wait for one step, never for the whole copy (writes made meanwhile through
+  // this connection reach the copy too). The copy passes PRAGMA quick_check before it is renamed
+  // into place; a failed backup leaves no file at `path`. Returns its size in bytes.
+  Result<int64_t> BackupTo(const std::string& path);
+
  protected:
   Database() = default;
   // Opens (creating if needed) the SQLite file at `path` and migrates it (see the top of this file).

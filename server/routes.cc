@@ -726,6 +726,35 @@ void DownloadBedRestart(Call& c) {
                              });
 }
 
+// A consistent copy of the database, made while the daemon serves (Database::BackupTo) under
+// DATA/backups/ and streamed; the file is removed once sent.
+void GetBackup(Call& c) {
+  const std::string dir = c.deps.data_dir + "/backups";
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Fail(c, Status::IOError("cannot create " + dir + ": " + ec.message()));
+  static std::atomic<int64_t> serial{0};
+  const std::string path = dir + "/backup-" + std::to_string(static_cast<int64_t>(c.deps.clock->Now())) + "-" +
+                           std::to_string(++serial) + ".db";
+  Result<int64_t> bytes = c.deps.store->BackupTo(path);
+  if (!bytes.ok()) return Fail(c, bytes.status());
+  auto file = std::make_shared<std::ifstream>(path, std::ios::binary);
+  if (!*file) return Fail(c, Status::IOError("the backup " + path + " vanished before it was sent"));
+  std::filesystem::remove(path, ec);  // the open stream keeps the data until it is sent
+  c.res.status = 200;
+  c.res.set_header("X-Schema-Version", std::to_string(c.deps.store->schema_version()));
+  c.res.set_header("Content-Disposition", "attachment; filename=\"sandswim-backup.db\"");
+  c.res.set_content_provider(static_cast<size_t>(*bytes), "application/vnd.sqlite3",
+                             [file](size_t offset, size_t length, httplib::DataSink& sink) {
+                               std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
+                               file->seekg(static_cast<std::streamoff>(offset));
+                               file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+                               std::streamsize got = file->gcount();
+                               if (got <= 0) return false;
+                               return sink.write(buffer.data(), static_cast<size_t>(got));
+                             });
+}
+
 void OpenApi(Call& c) {
   auto doc = SchemaFile("schema/openapi.json");
   if (!doc) return Fail(c, Status::Internal("schema/openapi.json was not compiled in; rebuild sandswimd"));
@@ -819,6 +848,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/sweeps/{id}/fits",              Access::kRead,   BodyKind::kNone,    GetSweepFits},
   {"GET",  "/api/v1/campaign-runs/{id}/report",     Access::kRead,   BodyKind::kNone,    GetCampaignRunReport},
   {"GET",  "/api/v1/campaigns/{name}/report",       Access::kRead,   BodyKind::kNone,    GetCampaignReport},
+  {"GET",  "/api/v1/backup",                        Access::kWrite,  BodyKind::kNone,    GetBackup},
   // The worker protocol (core/api.h), in the order a worker uses it.
   {"POST", "/api/v1/leases",                        Access::kWorker, BodyKind::kJson,    LeaseJob},
   {"GET",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kNone,    DownloadBedRestart},
