@@ -59,7 +59,7 @@ void OneRunningRun(FakeClient& c) {
 
 TEST(CommandsTest, TableReadsTopToBottom) {
   EXPECT_THAT(CommandNames(), ElementsAre("submit", "status", "runs", "show", "results", "watch", "cancel", "rerun",
-                                          "expand", "report", "analyze", "version", "slurm"));
+                                          "expand", "report", "backup", "analyze", "version", "slurm"));
 }
 
 TEST(CommandsTest, ColourOnlyOnATerminalWithoutNoColor) {
