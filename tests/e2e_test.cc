@@ -1,6 +1,8 @@
 // End to end (issue 4): the real sandswimd, real sandswim-workers launching LIGGGHTS under
-// mpirun at smoke scale, a real SQLite file. One daemon serves every test of this file, so the
-// smoke bed is prepared once, by the first bed job, and reused by every run after it.
+// mpirun at smoke scale, a real SQLite file. One daemon serves every test of this file. Its smoke
+// bed replicate 0 is the tests' shared bed (ctest's smoke_bed fixture prepares it, beside this
+// test), handed in through the worker protocol; replicate 1 is prepared by the daemon's own bed
+// job on a worker, as a user's bed is, at the same time.
 #include <signal.h>
 
 #include <chrono>
@@ -13,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "core/api.h"
+#include "core/deck.h"
 #include "core/trajectory.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
@@ -24,7 +27,7 @@ using nlohmann::json;
 using testing::Daemon;
 using ::testing::HasSubstr;
 
-constexpr double kTimeoutS = 1800;  // the first sweep prepares the bed (~2-3 min on a free core)
+constexpr double kTimeoutS = 1800;  // the replicate sweep prepares a bed (~4 min on a free core)
 
 class EndToEndTest : public ::testing::Test {
  protected:
@@ -67,7 +70,6 @@ Daemon* EndToEndTest::daemon_ = nullptr;
 //     maximum: the floor no longer ends it early -- its window holds the 3 whole periods the
 //     target asks before any boundary (the old smoke box stopped it at dz = -0.059 m, before two).
 TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
-  auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
   json met = testing::OmegaSweep("omega-sign", {-80, 80}, 0.5, 20);
   met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.5}};
   met["replicates"] = 2;
@@ -75,7 +77,15 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
   unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.25}};
   json sinking = testing::OmegaSweep("sinking-baseline", {80}, 5, 3);
   sinking["precision"] = {{"uz_rel", 0.2}, {"uz_abs", 0.005}, {"min_periods", 3}, {"max_duration_s", 1.34}};
-  const int64_t id = Submit(met), id_unreachable = Submit(unreachable), id_sinking = Submit(sinking);
+  // The longest run first (runs are leased in the order they were submitted): it ends no later.
+  const int64_t id_sinking = Submit(sinking), id = Submit(met), id_unreachable = Submit(unreachable);
+  // Replicate 0 (the first bed leased) is the tests' shared bed: hold its lease while the fixture
+  // prepares it, so that the worker prepares replicate 1 meanwhile.
+  const Scale& smoke = *FindScale("smoke");
+  testing::BedHandIn replicate0(*daemon_);
+  ASSERT_EQ(replicate0.grant().deck, RenderBedDeck(smoke, 0));
+  auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
+  replicate0.Complete(testing::PrepareBed(smoke));
 
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 4) << sweep.dump() << "\nworker:\n" << worker->Output();
@@ -108,14 +118,16 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
     // must agree wherever its 95 % interval excludes zero (a few periods may leave the sign open).
     const double sign = run["point"]["Omega"].get<double>() < 0 ? 1.0 : -1.0;
     EXPECT_GT(sign * res["dz"].get<double>(), 0.0) << res.dump();
-    if (std::fabs(res["uz"].get<double>()) > res["uz_ci95"].get<double>())
+    if (std::fabs(res["uz"].get<double>()) > res["uz_ci95"].get<double>()) {
       EXPECT_GT(sign * res["uz"].get<double>(), 0.0) << res.dump();
+    }
     std::printf("E2E Omega=%+g at 20 Hz, target met: U_z=%s dz=%+.4f m t=%.3f s wall=%.1f s lease->start=%.3f s\n",
                 run["point"]["Omega"].get<double>(), res.value("uz_text", "?").c_str(), res["dz"].get<double>(),
                 res["sim_time_s"].get<double>(), res["wall_s"].get<double>(), res.value("lease_to_start_s", -1.0));
   }
 
-  // Two replicate beds, prepared once each, poured differently: their figures differ.
+  // Two replicate beds, prepared once each (replicate 0 by the fixture, 1 by the worker), poured
+  // differently: their figures differ.
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "2");
   EXPECT_EQ(daemon_->Query("SELECT group_concat(attempts) FROM beds"), "1,1");
   EXPECT_EQ(daemon_->Query("SELECT count(DISTINCT sha256) FROM beds"), "2");

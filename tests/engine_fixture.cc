@@ -10,7 +10,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <gtest/gtest.h>
+
 #include "core/deck.h"
+#include "core/dump_reader.h"
 #include "core/keys.h"
 
 namespace sandswim::testing {
@@ -58,8 +61,8 @@ std::string EngineVersion() {
   return version;
 }
 
-std::string PrepareBed(const Scale& scale) {
-  const std::string deck = RenderBedDeck(scale);
+std::string PrepareBed(const Scale& scale, int replicate, int ranks) {
+  const std::string deck = RenderBedDeck(scale, replicate);
   const std::string dir = CacheDir() + "/beds/" + BedKey(deck, EngineVersion()).substr(0, 16);
   const std::string restart = dir + "/" + kBedRestartFile;
   const std::string done = dir + "/done";
@@ -68,7 +71,7 @@ std::string PrepareBed(const Scale& scale) {
   if (fd < 0) throw std::runtime_error("cannot open bed lock in " + dir);
   ::flock(fd, LOCK_EX);
   if (!fs::exists(done)) {
-    EngineRun r = RunDeck(dir, deck);
+    EngineRun r = RunDeck(dir, deck, "", ranks);
     if (r.exit_code != 0 || r.log.find("SANDSWIM bed done") == std::string::npos) {
       ::flock(fd, LOCK_UN);
       ::close(fd);
@@ -79,6 +82,31 @@ std::string PrepareBed(const Scale& scale) {
   ::flock(fd, LOCK_UN);
   ::close(fd);
   return restart;
+}
+
+std::vector<SoFrame> ReadTrajectory(const std::string& run_dir) {
+  DumpReader reader;
+  DumpFrameCollector frames;
+  EXPECT_TRUE(reader.Feed(ReadFile(run_dir + "/" + kTrajectoryDumpFile), frames).ok());
+  EXPECT_TRUE(reader.Finish().ok());
+  EXPECT_FALSE(reader.torn());
+  std::vector<SoFrame> out;
+  for (const DumpFrame& f : frames.Take()) {
+    EXPECT_EQ(f.atoms, 1);
+    auto c = [&](const char* name) { return f.At(0, f.Column(name)); };
+    out.push_back({f.step * kMaterials.dt, c("x"), c("y"), c("z"), c("vy"), c("omegax"), c("omegay"), c("omegaz")});
+  }
+  return out;
+}
+
+EngineRun Drive(const std::string& name, const Point& p, const Scale& scale) {
+  EXPECT_TRUE(Validate(p).ok());
+  EXPECT_TRUE(FitsScale(p, scale).ok());
+  const std::string dir = CacheDir() + "/physics/" + name;
+  fs::remove_all(dir);
+  EngineRun r = RunDeck(dir, RenderDriveDeck(p, scale, std::nullopt), PrepareBed(scale));
+  EXPECT_EQ(r.exit_code, 0) << r.log.substr(r.log.size() > 2000 ? r.log.size() - 2000 : 0);
+  return r;
 }
 
 }  // namespace sandswim::testing

@@ -5,6 +5,8 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <optional>
 #include <regex>
 #include <stdexcept>
 #include <thread>
@@ -146,45 +148,93 @@ void Daemon::StoreDeckForRun(int64_t run_id, const std::string& deck) {
   Check(rc, c.db, sql);
 }
 
-void HandInBeds(const Daemon& daemon, const std::string& restart) {
-  const std::string dir = fs::path(restart).parent_path().string();
-  const EngineLog log = ParseEngineLog(ReadFile(dir + "/" + kLogFile));
-  if (!log.bed_grains) throw std::runtime_error("no bed figures in " + dir + "/" + kLogFile);
-  auto sha = worker::Sha256OfFile(restart);
-  if (!sha.ok()) throw std::runtime_error(sha.status().ToString());
+namespace {
+
+std::unique_ptr<worker::HttpServerClient> BedClient(const Daemon& daemon) {
   ClientOptions options;
   options.server = daemon.url();
   options.retry_for_s = 30;
-  worker::HttpServerClient client(options);
-  const api::LeaseRequest request("test-bed-hand-in", "localhost", 1);
-  // Only while a bed waits: a lease would otherwise hand out a run.
-  while (daemon.Query("SELECT count(*) FROM beds WHERE state = 'queued'") != "0") {
-    auto grant = client.Lease(request);
-    if (!grant.ok()) throw std::runtime_error("lease: " + grant.status().ToString());
-    if (!grant->has_value()) throw std::runtime_error("a bed is queued, yet there was nothing to lease");
-    const api::LeaseGrant& g = **grant;
-    if (g.kind != api::JobKind::kBed) {
-      (void)client.Release(g.token, "only beds are handed in");
-      throw std::runtime_error("a bed is queued, yet the lease handed out a run");
-    }
-    if (Status s = client.UploadBed(g.id, g.token, restart, *sha); !s.ok()) {
-      throw std::runtime_error("bed upload: " + s.ToString());
-    }
-    api::Completion done;
-    done.ok = true;
-    // The bed's figures as a worker reports them (workers/job_outcome.h).
-    worker::JobOutcome judged = worker::JudgeJob(api::JobKind::kBed, 0, ExitFacts{}, log,
-                                                 DriveInfo{g.dt_s, 0, 0, std::nullopt}, std::vector<SoSample>());
-    if (!judged.bed) throw std::runtime_error("the bed's log does not make a bed: " + judged.failure->message);
-    api::BedResult bed = *judged.bed;
-    bed.sha256 = *sha;
-    bed.bytes = static_cast<int64_t>(fs::file_size(restart));
-    done.bed_result = bed;
-    auto reply = client.Complete(g.token, done);
-    if (!reply.ok() || reply->state != "done") {
-      throw std::runtime_error("bed completion: " + (reply.ok() ? reply->state : reply.status().ToString()));
-    }
+  return std::make_unique<worker::HttpServerClient>(options);
+}
+
+// Uploads the restart at `restart` for the bed leased under `g` and completes it with the figures
+// a worker reports for it (workers/job_outcome.h).
+void UploadAndComplete(worker::HttpServerClient& client, const api::LeaseGrant& g, const std::string& restart) {
+  const std::string dir = fs::path(restart).parent_path().string();
+  const EngineLog log = ParseEngineLog(ReadFile(dir + "/" + kLogFile));
+  if (!log.bed_grains) throw std::runtime_error("no bed figures in " + dir + "/" + kLogFile);
+  if (g.deck != ReadFile(dir + "/deck.in")) {  // another scale or replicate: this restart is not that bed
+    (void)client.Release(g.token, "not the prepared bed");
+    throw std::runtime_error("the leased bed " + std::to_string(g.id) + " is not the one prepared in " + dir +
+                             " (another scale or replicate)");
   }
+  std::optional<std::string> bed_dump;
+  if (fs::exists(dir + "/" + kBedDumpFile)) bed_dump = ReadFile(dir + "/" + kBedDumpFile);
+  auto sha = worker::Sha256OfFile(restart);
+  if (!sha.ok()) throw std::runtime_error(sha.status().ToString());
+  if (Status s = client.UploadBed(g.id, g.token, restart, *sha); !s.ok()) {
+    throw std::runtime_error("bed upload: " + s.ToString());
+  }
+  worker::JobOutcome judged =
+      worker::JudgeJob(api::JobKind::kBed, 0, ExitFacts{}, log, DriveInfo{g.dt_s, 0, 0, std::nullopt},
+                       std::vector<SoSample>(), std::nullopt, bed_dump);
+  if (!judged.bed) throw std::runtime_error("the bed's log does not make a bed: " + judged.failure->message);
+  api::Completion done;
+  done.ok = true;
+  api::BedResult bed = *judged.bed;
+  bed.sha256 = *sha;
+  bed.bytes = static_cast<int64_t>(fs::file_size(restart));
+  done.bed_result = bed;
+  auto reply = client.Complete(g.token, done);
+  if (!reply.ok() || reply->state != "done") {
+    throw std::runtime_error("bed completion: " + (reply.ok() ? reply->state : reply.status().ToString()));
+  }
+}
+
+// Leases the next job, which must be a queued bed (a lease would otherwise hand out a run).
+api::LeaseGrant LeaseBed(worker::HttpServerClient& client, const std::string& who) {
+  auto grant = client.Lease(api::LeaseRequest(who, "localhost", 1));
+  if (!grant.ok()) throw std::runtime_error("lease: " + grant.status().ToString());
+  if (!grant->has_value()) throw std::runtime_error("a bed is queued, yet there was nothing to lease");
+  const api::LeaseGrant& g = **grant;
+  if (g.kind != api::JobKind::kBed) {
+    (void)client.Release(g.token, "only beds are handed in");
+    throw std::runtime_error("a bed is queued, yet the lease handed out a run");
+  }
+  return g;
+}
+
+}  // namespace
+
+void HandInBeds(const Daemon& daemon, const std::string& restart) {
+  std::unique_ptr<worker::HttpServerClient> client = BedClient(daemon);
+  while (daemon.Query("SELECT count(*) FROM beds WHERE state = 'queued'") != "0") {
+    UploadAndComplete(*client, LeaseBed(*client, "test-bed-hand-in"), restart);
+  }
+}
+
+BedHandIn::BedHandIn(const Daemon& daemon) : client_(BedClient(daemon)), grant_(LeaseBed(*client_, "test-bed-hold")) {
+  heartbeat_ = std::thread([this] {
+    std::unique_lock<std::mutex> lock(mu_);
+    while (!done_) {
+      (void)client_->Heartbeat(grant_.token, api::Heartbeat{});
+      cv_.wait_for(lock, std::chrono::duration<double>(grant_.ttl_s / 4));
+    }
+  });
+}
+
+BedHandIn::~BedHandIn() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    done_ = true;
+  }
+  cv_.notify_all();
+  heartbeat_.join();
+}
+
+void BedHandIn::Complete(const std::string& restart) {
+  std::lock_guard<std::mutex> lock(mu_);  // no heartbeat crosses the completion
+  UploadAndComplete(*client_, grant_, restart);
 }
 
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,

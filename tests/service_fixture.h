@@ -11,12 +11,17 @@
 #ifndef SANDSWIM_TESTS_SERVICE_FIXTURE_H_
 #define SANDSWIM_TESTS_SERVICE_FIXTURE_H_
 
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "core/api.h"
+#include "workers/client.h"
 #include "workers/launcher.h"
 
 namespace sandswim::testing {
@@ -65,9 +70,35 @@ class Daemon {
 };
 
 // Hands the prepared bed restart at `restart` (a bed directory made by testing::PrepareBed, with
-// its engine log beside it) to the daemon for every bed job it has queued, through the worker
-// protocol a worker uses (lease, upload, complete), so tests need not prepare the bed again.
+// its deck, engine log and bed dump beside it) to the daemon for the bed jobs it has queued,
+// through the worker protocol a worker uses (lease, upload, complete, with the figures a worker
+// reports), so tests need not prepare the bed again. Every queued bed must be that bed (same
+// deck): a queued bed of another scale or replicate is released and an exception thrown.
 void HandInBeds(const Daemon& daemon, const std::string& restart);
+
+// Leases the first queued bed on construction (it must be the next job) and holds it, heartbeating,
+// so that a worker started meanwhile prepares the beds after it; Complete() hands in a restart
+// prepared meanwhile (testing::PrepareBed), as HandInBeds does. Released by the lease's expiry if
+// never completed. Lets a test prepare one replicate through its worker while ctest's fixture
+// prepares another.
+class BedHandIn {
+ public:
+  explicit BedHandIn(const Daemon& daemon);
+  ~BedHandIn();
+  BedHandIn(const BedHandIn&) = delete;
+  BedHandIn& operator=(const BedHandIn&) = delete;
+  const api::LeaseGrant& grant() const { return grant_; }
+  // Throws when the restart is not this bed's (another deck) or the daemon refuses it.
+  void Complete(const std::string& restart);
+
+ private:
+  std::unique_ptr<worker::HttpServerClient> client_;
+  api::LeaseGrant grant_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread heartbeat_;
+};
 
 // A sandswim-worker of `slots` 1-rank slots (mpirun unless `extra` says otherwise, e.g.
 // {"--launcher", "direct"}) with its workdir and output (worker.out) in `dir`.
