@@ -222,7 +222,7 @@ int ProcessesUnder(const std::string& dir) {
 // expires, a second worker runs the run again, and exactly one result exists. The first worker
 // starts LIGGGHTS directly (no mpirun, no guard process), the second through mpirun.
 TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
-  int64_t id = Submit(testing::OmegaSweep("killed-worker", {-40}, 0.3));
+  int64_t id = Submit(testing::OmegaSweep("killed-worker", {-40}, 0.1));
   const std::string first_dir = *dir_ + "/worker-killed";
   auto first = testing::StartWorker(*daemon_, first_dir, 1, {"--launcher", "direct"});
   int64_t run_id = 0;
