@@ -264,6 +264,35 @@ TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {
   EXPECT_EQ(CampaignReport(*store_, figures, 999, 0).status().code(), StatusCode::kNotFound);
 }
 
+// A campaign run on replicate beds: the drift section lists each point's mean over its beds, with
+// how many beds it rests on, beside the per-run rows.
+TEST_F(ReportTest, AReplicatedCampaignsDriftSectionListsEachPointsMeanOverItsBeds) {
+  StoredCampaign campaign;
+  campaign.name = "tiny-replicated";
+  campaign.definition = json::parse(R"({"name": "tiny-replicated", "description": "a pair on two beds",
+    "scale": "smoke", "replicates": 2,
+    "sweeps": [{"name": "pair", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+                "axes": [{"param": "Omega", "values": [-80, 80]}]}]})");
+  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  SubmitRequest request;
+  request.campaign = "tiny-replicated";
+  auto submitted = Submit(*store_, request, kEngine, clock_.Now());
+  ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+  RunAll();
+  auto drift = ReportFinishedCampaignRuns(*store_, clock_.Now());
+  ASSERT_TRUE(drift.ok()) << drift.status().ToString();
+  FigureCache figures(dir_ + "/data/figures");
+  auto html = CampaignReport(*store_, figures, *submitted->campaign_run_id, clock_.Now());
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  EXPECT_THAT(*html, HasSubstr("Each point over its replicate beds"));
+  EXPECT_THAT(*html, HasSubstr(" (2/2)"));           // the mean rests on both beds
+  EXPECT_THAT(*html, HasSubstr("no earlier mean"));  // the campaign's first run
+  // The fixture's campaign, on one bed, has no such table.
+  auto single = CampaignReport(*store_, figures, campaign_run_, clock_.Now());
+  ASSERT_TRUE(single.ok());
+  EXPECT_THAT(*single, ::testing::Not(HasSubstr("Each point over its replicate beds")));
+}
+
 TEST_F(ReportTest, RoutesServeFiguresFitsAndReportsWithTheirTypes) {
   RunAll();
   StartServer();
