@@ -25,7 +25,9 @@ namespace {
 //     baseline pair; faster points end their window at the boundary and say so. Measured here
 //     (tests/bench/bench_physics, 2026-11-25): 6,682 grains, the SO settled at z = -0.011 m, the
 //     surface (highest grain centre) at +0.329 m: 0.160 m of travel up and 0.159 m down; the bed
-//     took 228 s to prepare and a run 147 s of one core per second of physical time.
+//     took 228 s to prepare and a run 147 s of one core per second of physical time. With the
+//     other core busy the same bed (208,001 steps) took 577-686 s in the test suite's runs and a
+//     run up to four times longer (2026-11-25, tests/prepare_beds and the e2e).
 //     That bed's room replaced a box whose floor stop ended every sinking run at dz = -0.059 m
 //     while rising runs had 0.17 m.
 // The smoke target: a run ends once its 95 % interval is within 20 % of |U_z| or 5 mm/s (the
