@@ -672,7 +672,11 @@ int RunBackup(Context& c) {
     return Fail(c, bytes.status());
   }
   std::filesystem::rename(temp, path, ec);
-  if (ec) return Fail(c, Status::IOError("cannot write " + path + ": " + ec.message()));
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(temp, ignored);
+    return Fail(c, Status::IOError("cannot write " + path + ": " + ec.message()));
+  }
   std::filesystem::path absolute = std::filesystem::absolute(path, ec);
   c.out() << (ec ? path : absolute.string()) << "\n";
   c.err() << "sandswim: wrote a consistent copy of the daemon's database (" << *bytes

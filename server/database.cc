@@ -484,19 +484,32 @@ Result<int64_t> Database::BackupTo(const std::string& path) {
     backup = sqlite3_backup_init(dest, "main", db_, "main");
   }
   if (backup == nullptr) return fail("cannot start the backup");
+  // Another process holding the file's lock (BUSY) is waited for, but not for ever.
+  const auto busy_limit = std::chrono::seconds(60);
+  auto busy_since = std::chrono::steady_clock::time_point::max();
   int rc = SQLITE_OK;
   while (rc == SQLITE_OK || rc == SQLITE_BUSY || rc == SQLITE_LOCKED) {
     {
       std::lock_guard<std::mutex> lock(mu_);
       rc = sqlite3_backup_step(backup, 256);
     }
-    if (rc == SQLITE_BUSY || rc == SQLITE_LOCKED) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    if (rc == SQLITE_BUSY || rc == SQLITE_LOCKED) {
+      const auto now = std::chrono::steady_clock::now();
+      if (busy_since == std::chrono::steady_clock::time_point::max()) busy_since = now;
+      if (now - busy_since > busy_limit) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    } else {
+      busy_since = std::chrono::steady_clock::time_point::max();
+    }
   }
   {
     std::lock_guard<std::mutex> lock(mu_);
     sqlite3_backup_finish(backup);
   }
-  if (rc != SQLITE_DONE) return fail("copying pages");
+  if (rc != SQLITE_DONE) {
+    return fail(rc == SQLITE_BUSY || rc == SQLITE_LOCKED ? "the database stayed locked by another process for 60 s"
+                                                         : "copying pages");
+  }
   // The copy is a plain rollback-journal file, checked before it is named as a backup.
   if (!ExecRaw(dest, "PRAGMA journal_mode = DELETE").ok()) return fail("setting its journal mode");
   sqlite3_stmt* check = nullptr;

@@ -183,7 +183,7 @@ class Database {
   // serves: SQLite's online backup, a few hundred pages at a time with the lock released between
   // steps, so writers wait for one step, never for the whole copy (writes made meanwhile through
   // this connection reach the copy too). The copy passes PRAGMA quick_check before it is renamed
-  // into place; a failed backup leaves no file at `path`. Returns its size in bytes.
+  // into place; a failed backup leaves `path` as it was. Returns its size in bytes.
   Result<int64_t> BackupTo(const std::string& path);
 
  protected:

@@ -211,8 +211,9 @@ TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
 }
 
 // A backup taken while another thread keeps committing: the copy opens, passes integrity_check,
-// and holds a prefix of the writes (every committed event up to some point, none half-written);
-// writes went on meanwhile. A backup to a directory that does not exist fails and leaves nothing.
+// and holds a prefix of the writes (every committed event up to some point, none half-written).
+// Whether the writer gets in between the copy's steps is up to the scheduler: not asserted. A backup to a directory
+// that does not exist fails and leaves nothing.
 TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
   auto store = MustOpen();
   {  // about 4 MB: the copy takes several steps of 256 pages

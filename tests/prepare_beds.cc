@@ -1,8 +1,9 @@
 // ctest's `smoke_bed` fixture: prepares the shared smoke bed (replicate 0) into the test cache
-// before any engine test starts, on every core, so that no test holds a slot while it waits on the
-// bed's lock. The physics, end-to-end and Slurm tests require the fixture and hand this bed to
-// their engines and daemons (tests/engine_fixture.h PrepareBed, tests/service_fixture.h
-// HandInBeds). Usage: prepare_beds [RANKS]
+// (on RANKS ranks, default 1), so that no test holds a slot while it waits on the bed's lock. The
+// physics and Slurm tests require the fixture; the end-to-end test starts beside it (its worker
+// prepares replicate 1 meanwhile) and waits on the lock only when it hands this bed in
+// (tests/engine_fixture.h PrepareBed, tests/service_fixture.h BedHandIn). The surface-stop test
+// pours its own bed beside them. Usage: prepare_beds [RANKS]
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
