@@ -701,6 +701,18 @@ void UploadBedRestart(Call& c) {
   SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", mapped.view().size()}});
 }
 
+// Streams `size` bytes of an open file as the reply's body, a megabyte at a time.
+void SendFile(Call& c, std::shared_ptr<std::ifstream> file, size_t size, const char* content_type) {
+  c.res.set_content_provider(size, content_type, [file](size_t offset, size_t length, httplib::DataSink& sink) {
+    std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
+    file->seekg(static_cast<std::streamoff>(offset));
+    file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    std::streamsize got = file->gcount();
+    if (got <= 0) return false;
+    return sink.write(buffer.data(), static_cast<size_t>(got));
+  });
+}
+
 void DownloadBedRestart(Call& c) {
   auto id = PathId(c);
   if (!id.ok()) return Fail(c, id.status());
@@ -715,15 +727,7 @@ void DownloadBedRestart(Call& c) {
   }
   c.res.status = 200;
   c.res.set_header("X-Sha256", bed->sha256);
-  c.res.set_content_provider(static_cast<size_t>(size), "application/octet-stream",
-                             [file](size_t offset, size_t length, httplib::DataSink& sink) {
-                               std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
-                               file->seekg(static_cast<std::streamoff>(offset));
-                               file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-                               std::streamsize got = file->gcount();
-                               if (got <= 0) return false;
-                               return sink.write(buffer.data(), static_cast<size_t>(got));
-                             });
+  SendFile(c, file, static_cast<size_t>(size), "application/octet-stream");
 }
 
 // A consistent copy of the database, made while the daemon serves (Database::BackupTo) under
@@ -744,15 +748,7 @@ void GetBackup(Call& c) {
   c.res.status = 200;
   c.res.set_header("X-Schema-Version", std::to_string(c.deps.store->schema_version()));
   c.res.set_header("Content-Disposition", "attachment; filename=\"sandswim-backup.db\"");
-  c.res.set_content_provider(static_cast<size_t>(*bytes), "application/vnd.sqlite3",
-                             [file](size_t offset, size_t length, httplib::DataSink& sink) {
-                               std::vector<char> buffer(std::min<size_t>(length, size_t{1} << 20));
-                               file->seekg(static_cast<std::streamoff>(offset));
-                               file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-                               std::streamsize got = file->gcount();
-                               if (got <= 0) return false;
-                               return sink.write(buffer.data(), static_cast<size_t>(got));
-                             });
+  SendFile(c, file, static_cast<size_t>(*bytes), "application/vnd.sqlite3");
 }
 
 void OpenApi(Call& c) {
