@@ -62,12 +62,23 @@ std::map<std::string, std::pair<json, ReplicateAggregate>> AggregatesOf(const st
   return out;
 }
 
-// The U_z analysis versions of each point's conclusive rates.
-std::map<std::string, std::set<int>> AnalysesOf(const std::vector<DriftPoint>& rows) {
-  std::map<std::string, std::set<int>> out;
+// The U_z analysis version of each point's conclusive rates, by replicate bed.
+using BedAnalyses = std::map<int, int>;
+std::map<std::string, BedAnalyses> AnalysesOf(const std::vector<DriftPoint>& rows) {
+  std::map<std::string, BedAnalyses> out;
   for (const DriftPoint& p : rows)
-    if (p.uz && !p.inconclusive) out[PointIdentity(p.point)].insert(p.analysis);
+    if (p.uz && !p.inconclusive) out[PointIdentity(p.point)][p.replicate] = p.analysis;
   return out;
+}
+
+// Two means over a point's beds measure the same thing when one U_z analysis made every rate in
+// both, or when both hold the same beds, each made by the same analysis in both (a bed re-analysed
+// in one and not the other changes its mean by the estimator, not by the runs).
+bool SameEstimator(const BedAnalyses& now, const BedAnalyses& before) {
+  std::set<int> all;
+  for (const auto& [bed, analysis] : now) all.insert(analysis);
+  for (const auto& [bed, analysis] : before) all.insert(analysis);
+  return all.size() == 1 || now == before;
 }
 
 std::string Tolerance(double v) {
@@ -345,13 +356,13 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     if (p.drifted) ++report.drifted;
   }
 
-  // Points over their replicate beds. Two means are compared only when every conclusive rate in
-  // both was made by one and the same U_z analysis.
+  // Points over their replicate beds. Two means are compared only when they share their
+  // estimator (SameEstimator).
   report.aggregates.clear();
   report.points_compared = report.points_drifted = 0;
   bool replicated = false;
   std::map<std::string, std::pair<json, ReplicateAggregate>> earlier;
-  std::map<std::string, std::set<int>> analyses_now = AnalysesOf(report.rows), analyses_before;
+  std::map<std::string, BedAnalyses> analyses_now = AnalysesOf(report.rows), analyses_before;
   if (previous != nullptr) {
     earlier = AggregatesOf(previous->rows);
     analyses_before = AnalysesOf(previous->rows);
@@ -377,9 +388,7 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
       a.conclusive_previous = b.conclusive;
       a.uz_mean_previous = b.uz_mean;
       a.uz_stderr_previous = b.uz_stderr;
-      const std::set<int>& made_now = analyses_now[id];
-      const std::set<int>& made_before = analyses_before[id];
-      a.estimator_changed = a.uz_mean && a.uz_mean_previous && (made_now.size() != 1 || made_now != made_before);
+      a.estimator_changed = a.uz_mean && a.uz_mean_previous && !SameEstimator(analyses_now[id], analyses_before[id]);
       if (a.uz_mean && a.uz_mean_previous && !a.estimator_changed) {
         a.difference = *a.uz_mean - *a.uz_mean_previous;
         a.tolerance = tolerance_for(a.uz_stderr, a.uz_stderr_previous);

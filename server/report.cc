@@ -154,9 +154,29 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
       "<table><tr><th>point</th><th>beds</th><th>mean U<sub>z</sub> (m/s)</th><th>before (m/s)</th>"
       "<th>difference (m/s)</th><th>tolerance (m/s)</th><th></th></tr>\n";
   auto mean = [&](const std::optional<double>& m, const std::optional<double>& se, int conclusive, int beds) {
-    if (!m) return std::string("inconclusive");
     return cell(m) + (se ? " ± " + Num(*se) : std::string()) + " (" + std::to_string(conclusive) + "/" +
            std::to_string(beds) + ")";
+  };
+  // A point without a mean now: why, from its runs (failed, unfinished, or done but inconclusive).
+  auto no_mean = [&](const nlohmann::json& point) {
+    int failed = 0, unfinished = 0, inconclusive = 0;
+    for (const DriftPoint& p : drift->rows) {
+      if (p.point != point) continue;
+      if (p.state == "failed" || p.state == "cancelled") {
+        ++failed;
+      } else if (p.state != "done") {
+        ++unfinished;
+      } else {
+        ++inconclusive;
+      }
+    }
+    std::vector<std::string> parts;
+    if (failed > 0) parts.push_back(std::to_string(failed) + " failed");
+    if (unfinished > 0) parts.push_back(std::to_string(unfinished) + " not finished");
+    if (inconclusive > 0) parts.push_back(std::to_string(inconclusive) + " inconclusive");
+    std::string text = "no mean";
+    for (size_t i = 0; i < parts.size(); ++i) text += (i == 0 ? ": " : ", ") + parts[i];
+    return text;
   };
   for (const DriftAggregate& a : drift->aggregates) {
     const std::string note = a.drifted             ? "drifted"
@@ -166,7 +186,7 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
                                                    : "";
     html += "<tr" + std::string(a.drifted ? " class=\"drifted\"" : "") + "><td>" + Escape(a.point.dump()) +
             "</td><td>" + std::to_string(a.replicates) + "</td><td>" +
-            mean(a.uz_mean, a.uz_stderr, a.conclusive, a.replicates) + "</td><td>" +
+            (a.uz_mean ? mean(a.uz_mean, a.uz_stderr, a.conclusive, a.replicates) : no_mean(a.point)) + "</td><td>" +
             (a.uz_mean_previous
                  ? mean(a.uz_mean_previous, a.uz_stderr_previous, a.conclusive_previous, a.replicates_previous)
                  : std::string("–")) +

@@ -81,6 +81,7 @@ class ReportTest : public ::testing::Test {
 
   bool inconclusive_ = false;  // RunAll's results: inconclusive (one period) instead
   bool no_period_ = false;     // ... and with no whole period: no U_z at all
+  int fail_omega_ = 0;         // RunAll fails the runs of this Omega (0: none) as deck errors
 
   // Prepares the bed and completes up to `runs` runs with synthetic results.
   void RunAll(int runs = 1000) {
@@ -132,6 +133,11 @@ class ReportTest : public ::testing::Test {
           t.z.push_back(*r.uz * time + 0.002 * std::sin(2 * M_PI * 3 * time));
         }
         c.trajectory = t;
+        if (fail_omega_ != 0 && omega == fail_omega_) {
+          c = api::Completion();
+          c.execution.engine_version = kEngine;
+          c.failure = api::Failure{"deck_error", "ERROR: a test failure"};
+        }
         ++done;
       }
       auto reply = leases_->Complete(g.token, c);
@@ -287,6 +293,17 @@ TEST_F(ReportTest, AReplicatedCampaignsDriftSectionListsEachPointsMeanOverItsBed
   EXPECT_THAT(*html, HasSubstr("Each point over its replicate beds"));
   EXPECT_THAT(*html, HasSubstr(" (2/2)"));           // the mean rests on both beds
   EXPECT_THAT(*html, HasSubstr("no earlier mean"));  // the campaign's first run
+  // A point whose runs all failed has no mean, and says why (not "inconclusive").
+  fail_omega_ = 80;
+  request.force = true;  // run everything again
+  auto rerun = Submit(*store_, request, kEngine, clock_.Now() + 60);
+  ASSERT_TRUE(rerun.ok()) << rerun.status().ToString();
+  RunAll();
+  ASSERT_TRUE(ReportFinishedCampaignRuns(*store_, clock_.Now() + 120).ok());
+  auto failed = CampaignReport(*store_, figures, *rerun->campaign_run_id, clock_.Now() + 120);
+  ASSERT_TRUE(failed.ok()) << failed.status().ToString();
+  EXPECT_THAT(*failed, HasSubstr("no mean: 2 failed"));
+  EXPECT_THAT(*failed, HasSubstr(" (2/2)"));  // the other point, on both beds
   // The fixture's campaign, on one bed, has no such table.
   auto single = CampaignReport(*store_, figures, campaign_run_, clock_.Now());
   ASSERT_TRUE(single.ok());

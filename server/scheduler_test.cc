@@ -416,9 +416,10 @@ TEST(DriftReportTest, RatesOfDifferentAnalysesAreNotCompared) {
   EXPECT_EQ(back.rows[0].analysis, api::kAnalysisVersion);
 }
 
-// A point's mean over its beds is compared only when every rate in it, now and before, was made by
-// one analysis: one bed's rate re-made by a newer analysis (or one left from an older one) keeps
-// the point out of the comparison, while its runs of one analysis are still compared one by one.
+// A point's mean over its beds is compared only when it shares its estimator with the earlier one:
+// one analysis made every rate, or each bed's rate was made by the same analysis on both sides. One
+// bed's rate re-made by a newer analysis keeps the point out of the comparison, while its runs of
+// one analysis are still compared one by one.
 TEST(DriftReportTest, PointMeansMixingAnalysesAreNotCompared) {
   const nlohmann::json point = {{"mode", "oscillatory"}, {"Omega", 80}};
   auto run = [&](int replicate, double uz, int analysis) {
@@ -456,12 +457,24 @@ TEST(DriftReportTest, PointMeansMixingAnalysesAreNotCompared) {
   EXPECT_FALSE(now.aggregates[0].estimator_changed);
   EXPECT_TRUE(now.aggregates[0].drifted);
   EXPECT_EQ(now.points_compared, 1);
-  // Mixed within this report: not compared either.
+  // Mixed within this report, bed 1 by another analysis than before: not compared.
   now.rows[1].analysis = v - 1;
   CompareWithPrevious(now, &previous, CronZone::kUtc);
   EXPECT_TRUE(now.aggregates[0].estimator_changed);
   EXPECT_EQ(now.points_compared, 0);
   EXPECT_TRUE(nlohmann::json(now).get<DriftReport>().aggregates[0].estimator_changed);
+  // Mixed the same way on both sides (bed 1 by the older analysis both times): compared.
+  previous.rows[1].analysis = v - 1;
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_FALSE(now.aggregates[0].estimator_changed);
+  EXPECT_TRUE(now.aggregates[0].drifted);
+  EXPECT_EQ(now.points_compared, 1);
+  // Different beds on each side, of different analyses: not compared.
+  now.rows[1].inconclusive = true;       // now: bed 0 by v; before: beds 0 (v) and 1 (v - 1)
+  previous.rows[0].inconclusive = true;  // before: bed 1 by v - 1 alone
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_TRUE(now.aggregates[0].estimator_changed);
+  EXPECT_EQ(now.points_compared, 0);
 }
 
 TEST_F(SchedulerTest, DriftReportFlagsOnlyChangesBeyondTheTolerance) {
