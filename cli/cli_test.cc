@@ -210,8 +210,8 @@ TEST_F(CliTest, SubmitPrintsTheSweepIdAndStatusShowsIt) {
 }
 
 // `sandswim backup FILE` while the daemon serves: the copy is a whole database that a second daemon
-// opens and serves the same sweep from; no partial file is left; an unwritable FILE is one clear
-// error.
+// opens and serves the same sweep from; no partial file is left (and a daemon's start removes what
+// one killed mid-backup left); an unwritable FILE is one clear error.
 TEST_F(CliTest, BackupIsAConsistentCopyThatADaemonServes) {
   const int64_t id = SubmitSweep("backup-sweep", 7);
   const fs::path copy = *dir_ / "copy.db";
@@ -223,9 +223,15 @@ TEST_F(CliTest, BackupIsAConsistentCopyThatADaemonServes) {
   EXPECT_FALSE(fs::exists(copy.string() + ".part"));
   EXPECT_TRUE(fs::is_empty(*dir_ / "daemon-data" / "backups"));  // the daemon keeps no copy
 
+  // The restored daemon's data directory holds what a daemon killed mid-backup leaves: its start
+  // removes it.
+  const fs::path stale = *dir_ / "restored-data" / "backups";
+  fs::create_directories(stale);
+  std::ofstream(stale / "backup-1-1.db.partial") << "half a copy";
   pid_t restored = -1;
   const std::string url = StartDaemon(copy, "restored", &restored);
   ASSERT_FALSE(url.empty());
+  EXPECT_TRUE(fs::is_empty(stale));
   o = Sandswim({"--server", url, "status", std::to_string(id), "--json"}, "", /*with_server=*/false);
   kill(restored, SIGTERM);
   int status = 0;

@@ -733,7 +733,7 @@ void DownloadBedRestart(Call& c) {
 // A consistent copy of the database, made while the daemon serves (Database::BackupTo) under
 // DATA/backups/ and streamed; the file is removed once sent.
 void GetBackup(Call& c) {
-  const std::string dir = c.deps.data_dir + "/backups";
+  const std::string dir = BackupDir(c.deps.data_dir);
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Fail(c, Status::IOError("cannot create " + dir + ": " + ec.message()));
@@ -750,6 +750,28 @@ void GetBackup(Call& c) {
   c.res.set_header("Content-Disposition", "attachment; filename=\"sandswim-backup.db\"");
   SendFile(c, file, static_cast<size_t>(*bytes), "application/vnd.sqlite3");
 }
+
+}  // namespace
+
+std::string BackupDir(const std::string& data_dir) { return data_dir + "/backups"; }
+
+Result<int> ClearBackupDir(const std::string& data_dir) {
+  const std::string dir = BackupDir(data_dir);
+  std::error_code ec;
+  if (!std::filesystem::exists(dir, ec)) return 0;
+  int removed = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    std::filesystem::remove_all(entry.path(), ec);
+    if (ec) {
+      return Status::IOError("cannot remove the stale backup " + entry.path().string() + ": " + ec.message());
+    }
+    ++removed;
+  }
+  if (ec) return Status::IOError("cannot list " + dir + ": " + ec.message());
+  return removed;
+}
+
+namespace {
 
 void OpenApi(Call& c) {
   auto doc = SchemaFile("schema/openapi.json");

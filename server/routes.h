@@ -78,6 +78,12 @@ std::vector<RouteInfo> RouteTable();
 // Installs the routes, the problem+json error and exception handlers, auth and body limits.
 void RegisterRoutes(httplib::Server& server, Deps& deps);
 
+// GET /api/v1/backup writes its copy under DATA/backups/ and removes it once sent. A daemon that
+// died mid-backup leaves a copy (or a .partial) there: the next start removes them all, returning
+// how many it removed.
+std::string BackupDir(const std::string& data_dir);
+Result<int> ClearBackupDir(const std::string& data_dir);
+
 // The HTTP status a Status code answers with (the one table).
 int HttpStatusFor(StatusCode code);
 // The RFC 9457 body for a Status: {"type","title","status","detail","field"}.
