@@ -226,14 +226,22 @@ TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
   const std::string first_dir = *dir_ + "/worker-killed";
   auto first = testing::StartWorker(*daemon_, first_dir, 1, {"--launcher", "direct"});
   int64_t run_id = 0;
+  bool caught_running = false;
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(kTimeoutS));
-  while (std::chrono::steady_clock::now() < deadline) {
+  while (!caught_running && std::chrono::steady_clock::now() < deadline) {
     std::vector<json> runs = Runs(id);
     ASSERT_EQ(runs.size(), 1u);
     run_id = runs[0]["id"];
-    if (runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0.02) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    // A run that ended before it was caught running leaves nothing to kill: say so now rather
+    // than wait for the deadline.
+    ASSERT_TRUE(runs[0]["state"] == "queued" || runs[0]["state"] == "running")
+        << "the run ended before the worker could be killed: " << runs[0].dump() << "\nworker:\n"
+        << first->Output();
+    caught_running = runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0.02;
+    if (!caught_running) std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
+  ASSERT_TRUE(caught_running) << "the run was not seen running within " << kTimeoutS << " s\nworker:\n"
+                              << first->Output();
   ASSERT_GE(ProcessesUnder(first_dir + "/"), 1) << "no engine runs in " << first_dir;
   first->Kill(SIGKILL);
   for (int i = 0; i < 100 && ProcessesUnder(first_dir + "/") > 0; ++i) {

@@ -214,10 +214,13 @@ void HandInBeds(const Daemon& daemon, const std::string& restart) {
 }
 
 BedHandIn::BedHandIn(const Daemon& daemon) : client_(BedClient(daemon)), grant_(LeaseBed(*client_, "test-bed-hold")) {
+  // The heartbeat holds the lock for its request: the one client is never used by two threads,
+  // and no heartbeat crosses the completion.
   heartbeat_ = std::thread([this] {
     std::unique_lock<std::mutex> lock(mu_);
     while (!done_) {
-      (void)client_->Heartbeat(grant_.token, api::Heartbeat{});
+      auto beat = client_->Heartbeat(grant_.token, api::Heartbeat{});
+      if (!beat.ok()) heartbeat_error_ = beat.status().ToString();
       cv_.wait_for(lock, std::chrono::duration<double>(grant_.ttl_s / 4));
     }
   });
@@ -233,8 +236,17 @@ BedHandIn::~BedHandIn() {
 }
 
 void BedHandIn::Complete(const std::string& restart) {
-  std::lock_guard<std::mutex> lock(mu_);  // no heartbeat crosses the completion
-  UploadAndComplete(*client_, grant_, restart);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    done_ = true;  // a completed lease takes no more heartbeats
+    try {
+      UploadAndComplete(*client_, grant_, restart);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string(e.what()) +
+                               (heartbeat_error_.empty() ? "" : " (last heartbeat failed: " + heartbeat_error_ + ")"));
+    }
+  }
+  cv_.notify_all();
 }
 
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,

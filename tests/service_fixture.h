@@ -97,6 +97,7 @@ class BedHandIn {
   std::mutex mu_;
   std::condition_variable cv_;
   bool done_ = false;
+  std::string heartbeat_error_;  // the last refused heartbeat, named if the completion fails
   std::thread heartbeat_;
 };
 
