@@ -6,6 +6,7 @@
 
 #include "core/deck.h"
 #include "core/engine_log.h"
+#include "core/text.h"
 
 namespace sandswim::cli {
 namespace {
@@ -27,12 +28,6 @@ std::string Beside(const std::string& given, const std::string& dump, const char
   fs::path p = fs::path(dump).parent_path() / name;
   std::error_code ec;
   return fs::is_regular_file(p, ec) ? p.string() : "";
-}
-
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
 }
 
 }  // namespace
@@ -118,21 +113,21 @@ std::string RenderDumpAnalysis(const DumpAnalysis& a) {
   std::ostringstream out;
   out << a.dump << "\n";
   out << "  U_z:      " << DescribeUz(r) << "\n";
-  if (r.uz_ci95) out << "            95 % interval ± " << Num(*r.uz_ci95) << " m/s\n";
+  if (r.uz_ci95) out << "            95 % interval ± " << Num(*r.uz_ci95, 4) << " m/s\n";
   if (!r.uz_stderr_note.empty()) out << "            no error: " << r.uz_stderr_note << "\n";
   if (!r.inconclusive_reason.empty()) out << "            inconclusive: " << r.inconclusive_reason << "\n";
-  out << "  window:   " << Num(r.window_t0) << " .. " << Num(r.window_t1) << " s, " << r.uz_blocks << " whole "
-      << (r.block_kind.empty() ? "period" : r.block_kind) << (r.uz_blocks == 1 ? "" : "s") << " of " << Num(r.block_s)
-      << " s, ended by " << r.window_end << "\n";
-  out << "  motion:   dz = " << Num(r.dz) << " m over " << Num(r.sim_time_s) << " s (dz/T " << Num(r.dz_rate)
-      << " m/s), x drift " << Num(r.x_drift) << " m, z oscillation at f " << Num(r.z_osc_amplitude) << " m\n";
-  out << "  inputs:   " << a.samples << " samples; f = " << Num(a.inputs.f) << " Hz (" << a.f_from
-      << "), dt = " << Num(a.inputs.dt) << " s (" << a.dt_from << ")\n";
+  out << "  window:   " << Num(r.window_t0, 4) << " .. " << Num(r.window_t1, 4) << " s, " << r.uz_blocks << " whole "
+      << (r.block_kind.empty() ? "period" : r.block_kind) << (r.uz_blocks == 1 ? "" : "s") << " of "
+      << Num(r.block_s, 4) << " s, ended by " << r.window_end << "\n";
+  out << "  motion:   dz = " << Num(r.dz, 4) << " m over " << Num(r.sim_time_s, 4) << " s (dz/T " << Num(r.dz_rate, 4)
+      << " m/s), x drift " << Num(r.x_drift, 4) << " m, z oscillation at f " << Num(r.z_osc_amplitude, 4) << " m\n";
+  out << "  inputs:   " << a.samples << " samples; f = " << Num(a.inputs.f, 4) << " Hz (" << a.f_from
+      << "), dt = " << Num(a.inputs.dt, 4) << " s (" << a.dt_from << ")\n";
   out << "            floor "
-      << (a.inputs.bounds.floor ? Num(*a.inputs.bounds.floor) + " m (" + a.floor_from + ")"
+      << (a.inputs.bounds.floor ? Num(*a.inputs.bounds.floor, 4) + " m (" + a.floor_from + ")"
                                 : std::string("unknown: not checked (--floor Z)"))
       << ", surface "
-      << (a.inputs.bounds.surface ? Num(*a.inputs.bounds.surface) + " m (" + a.surface_from + ")"
+      << (a.inputs.bounds.surface ? Num(*a.inputs.bounds.surface, 4) + " m (" + a.surface_from + ")"
                                   : std::string("unknown: not checked (--surface Z)"))
       << "\n";
   return out.str();

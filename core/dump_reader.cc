@@ -1,4 +1,5 @@
 #include "core/dump_reader.h"
+#include "core/text.h"
 
 #include <algorithm>
 #include <charconv>
@@ -283,16 +284,6 @@ inline bool ParseInt(std::string_view tok, int64_t* out) {
   if (tok.empty()) return false;
   auto [ptr, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), *out);
   return ec == std::errc() && ptr == tok.data() + tok.size();
-}
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && IsSpace(s.front())) s.remove_prefix(1);
-  while (!s.empty() && IsSpace(s.back())) s.remove_suffix(1);
-  return s;
-}
-
-bool StartsWith(std::string_view s, std::string_view prefix) {
-  return s.size() >= prefix.size() && s.compare(0, prefix.size(), prefix) == 0;
 }
 
 std::string Shorten(std::string_view s) {

@@ -1,4 +1,5 @@
 #include "core/engine_log.h"
+#include "core/text.h"
 
 #include <cerrno>
 #include <charconv>
@@ -11,16 +12,6 @@ namespace sandswim {
 namespace {
 
 constexpr std::string_view kMarker = "SANDSWIM ";
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
-
-bool StartsWith(std::string_view s, std::string_view p) {
-  return s.size() >= p.size() && s.compare(0, p.size(), p) == 0;
-}
 
 std::vector<std::string_view> Split(std::string_view s) {
   std::vector<std::string_view> out;

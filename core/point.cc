@@ -1,4 +1,5 @@
 #include "core/point.h"
+#include "core/text.h"
 
 #include <cmath>
 
@@ -22,12 +23,6 @@ struct AxisEntry {
 };
 constexpr AxisEntry kAxes[] = {
     {RotationAxis::kX, "x"}, {RotationAxis::kY, "y"}, {RotationAxis::kZ, "z"}, {RotationAxis::kXZ, "xz"}};
-
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 Status CheckPositive(const char* field, double v, double cap, const char* unit) {
   if (!std::isfinite(v)) return Status::InvalidArgument(field, "must be a finite number");

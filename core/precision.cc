@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "core/api.h"
+#include "core/text.h"
 #include "core/trajectory.h"
 
 namespace sandswim {
@@ -12,15 +13,10 @@ namespace {
 
 using nlohmann::json;
 
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
-}
-
 Status CheckRange(const char* field, double v, double lo, double hi, const char* unit) {
   if (!std::isfinite(v) || v < lo || v > hi)
-    return Status::InvalidArgument(field, "must be between " + Num(lo) + " and " + Num(hi) + unit + ", got " + Num(v));
+    return Status::InvalidArgument(
+        field, "must be between " + Num(lo, 3) + " and " + Num(hi, 3) + unit + ", got " + Num(v, 3));
   return Status::Ok();
 }
 
@@ -42,8 +38,8 @@ Status Validate(const PrecisionTarget& t) {
                                                       std::to_string(kMaxPrecisionPeriods) + ", got " +
                                                       std::to_string(t.min_periods));
   if (!std::isfinite(t.max_duration_s) || t.max_duration_s <= 0 || t.max_duration_s > kMaxDurationS)
-    return Status::InvalidArgument("max_duration_s",
-                                   "must be > 0 s and <= " + Num(kMaxDurationS) + " s, got " + Num(t.max_duration_s));
+    return Status::InvalidArgument(
+        "max_duration_s", "must be > 0 s and <= " + Num(kMaxDurationS, 3) + " s, got " + Num(t.max_duration_s, 3));
   return Status::Ok();
 }
 
@@ -124,12 +120,12 @@ StopVerdict DecideStop(const api::RunResult& so_far, const PrecisionTarget& t) {
 }
 
 std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t) {
-  const std::string at = "at t = " + Num(r.sim_time_s) + " s";
+  const std::string at = "at t = " + Num(r.sim_time_s, 3) + " s";
   auto interval = [&] {
     if (!r.uz_ci95 || !r.uz) return std::string("no interval yet");
     const double allowed = t ? std::max(t->uz_rel * std::fabs(*r.uz), t->uz_abs) : 0;
-    return "95 % interval +-" + Num(*r.uz_ci95) + " m/s " + (*r.uz_ci95 <= allowed ? "<=" : ">") + " the target's " +
-           Num(allowed) + " m/s, " + std::to_string(r.uz_blocks) + " whole " + r.block_kind +
+    return "95 % interval +-" + Num(*r.uz_ci95, 3) + " m/s " + (*r.uz_ci95 <= allowed ? "<=" : ">") + " the target's " +
+           Num(allowed, 3) + " m/s, " + std::to_string(r.uz_blocks) + " whole " + r.block_kind +
            (r.uz_blocks == 1 ? "" : "s");
   };
   const bool met = t && TargetMet(r, *t);  // on the final analysis, which may hold more than the last look
@@ -143,9 +139,10 @@ std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionT
            "), so running on could not tighten U_z";
   if (r.stop_reason == "surface") return "the SO reached the bed surface " + at;
   if (r.stop_reason == "floor") return "the SO reached the floor " + at;
-  if (t && met) return "ran to its maximum of " + Num(r.sim_time_s) + " s, the precision target met: " + interval();
-  if (t) return "ran to its maximum of " + Num(r.sim_time_s) + " s without meeting the precision target: " + interval();
-  return "ran its whole duration (" + Num(r.sim_time_s) + " s)";
+  if (t && met) return "ran to its maximum of " + Num(r.sim_time_s, 3) + " s, the precision target met: " + interval();
+  if (t)
+    return "ran to its maximum of " + Num(r.sim_time_s, 3) + " s without meeting the precision target: " + interval();
+  return "ran its whole duration (" + Num(r.sim_time_s, 3) + " s)";
 }
 
 }  // namespace sandswim

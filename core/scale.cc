@@ -1,4 +1,5 @@
 #include "core/scale.h"
+#include "core/text.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -47,12 +48,6 @@ const std::vector<Scale> kScales = {
 
 double NeededYLen(double A) { return 2 * A + kMaterials.d_so + 3 * kMaterials.d_grain; }
 double NeededXLen() { return kMaterials.d_so + 3 * kMaterials.d_grain; }
-
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 }  // namespace
 

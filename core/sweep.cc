@@ -15,6 +15,7 @@
 #include "core/deck.h"
 #include "core/embedded.h"
 #include "core/keys.h"
+#include "core/text.h"
 
 namespace sandswim {
 namespace {
@@ -23,12 +24,6 @@ using nlohmann::json;
 
 // ---------------------------------------------------------------------------------------------
 // JSON helpers. Every error names the field relative to the object being read; callers prefix.
-
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 // A key the user wrote, made safe to put in a field path: control characters escaped, length
 // capped, so an error message never carries a raw newline or a megabyte of text.

@@ -1,4 +1,5 @@
 #include "core/trajectory.h"
+#include "core/text.h"
 
 #include <algorithm>
 #include <charconv>
@@ -12,12 +13,6 @@ namespace sandswim {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
 
 bool ToDouble(std::string_view tok, double* out) {
   tok = Trim(tok);
@@ -100,12 +95,6 @@ double ZAt(const std::vector<SoSample>& s, double t) {
   const SoSample& b = *it;
   const SoSample& a = *(it - 1);
   return a.z + (b.z - a.z) * (t - a.t) / (b.t - a.t);
-}
-
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
 }
 
 }  // namespace
@@ -263,9 +252,9 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   // would ask for billions of blocks): the frequency or the dump is wrong.
   const double sample_interval = (last.t - first.t) / static_cast<double>(samples.size() - 1);
   if (f > 0 && 1.0 / f < sample_interval) {
-    return Status::InvalidArgument("f", "a period of " + Num(1.0 / f) + " s (f = " + Num(f) +
+    return Status::InvalidArgument("f", "a period of " + Num(1.0 / f, 3) + " s (f = " + Num(f, 3) +
                                             " Hz) is shorter than the dump's sample interval of " +
-                                            Num(sample_interval) + " s: check f, or dump the SO more often");
+                                            Num(sample_interval, 3) + " s: check f, or dump the SO more often");
   }
 
   api::RunResult r;
@@ -303,20 +292,20 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
     r.window_t1 = r.window_t0;
   }
   const std::string& what = r.block_kind;
-  const std::string whole =
-      std::to_string(r.uz_blocks) + " whole " + what + (r.uz_blocks == 1 ? "" : "s") + " of " + Num(r.block_s) + " s";
+  const std::string whole = std::to_string(r.uz_blocks) + " whole " + what + (r.uz_blocks == 1 ? "" : "s") + " of " +
+                            Num(r.block_s, 3) + " s";
   const std::string ended = r.window_end == "run_end"
                                 ? "the run ended"
-                                : "the SO came within " + Num(rule.clearance_m) + " m of the " +
+                                : "the SO came within " + Num(rule.clearance_m, 3) + " m of the " +
                                       (r.window_end == "surface" ? std::string("bed surface") : std::string("floor")) +
-                                      " at t = " + Num(t_end) + " s";
+                                      " at t = " + Num(t_end, 3) + " s";
   if (!r.uz_stderr) {
     r.uz_stderr_note = "the window holds " + whole + "; an error needs at least " +
                        std::to_string(rule.min_blocks_for_error) + " (" + ended + ")";
   }
   r.conclusive = r.uz_blocks >= rule.min_periods;
   if (!r.conclusive) {
-    r.inconclusive_reason = "the steady window after the " + Num(rule.transient_blocks * r.block_s) +
+    r.inconclusive_reason = "the steady window after the " + Num(rule.transient_blocks * r.block_s, 3) +
                             " s transient holds " + whole + ", fewer than " + std::to_string(rule.min_periods) + " (" +
                             ended + ")";
   }

@@ -1,4 +1,5 @@
 #include "platform/slurm.h"
+#include "core/text.h"
 
 #include <algorithm>
 #include <cctype>
@@ -23,12 +24,6 @@ std::vector<std::string_view> Split(std::string_view s, char sep) {
     if (end == std::string_view::npos) return parts;
     start = end + 1;
   }
-}
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
-  return s;
 }
 
 }  // namespace

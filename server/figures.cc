@@ -17,6 +17,7 @@
 #include <plplot.h>
 
 #include "core/keys.h"
+#include "core/text.h"
 #include "core/trajectory.h"
 
 namespace sandswim {
@@ -80,13 +81,6 @@ std::string Hex(const Rgb& c) {
   char buf[8];
   std::snprintf(buf, sizeof(buf), "#%02X%02X%02X", c.r, c.g, c.b);
   return buf;
-}
-
-std::string Num(double v, int digits = 4) {
-  std::ostringstream out;
-  out.precision(digits);
-  out << v;
-  return out.str();
 }
 
 Status CheckPlot(const Plot& plot) {
@@ -233,7 +227,7 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
   plend();
 }
 
-std::string Signed(double v) { return Num(v); }
+std::string Signed(double v) { return Num(v, 4); }
 
 }  // namespace
 
@@ -272,12 +266,12 @@ Result<std::string> RenderPlot(const Plot& plot, ImageFormat format) {
 std::string PointLabel(const Point& p, const std::string& param) {
   const std::string omega = "Ω = " + Signed(p.Omega) + " rad/s";
   if (param == "Omega") return omega;
-  if (param == "A") return "A = " + Num(p.A) + " m, " + omega;
-  if (param == "f") return "f = " + Num(p.f) + " Hz, " + omega;
+  if (param == "A") return "A = " + Num(p.A, 4) + " m, " + omega;
+  if (param == "f") return "f = " + Num(p.f, 4) + " Hz, " + omega;
   std::string label = std::string(ModeName(p.mode));
-  if (p.has_vibration()) label += ", A = " + Num(p.A) + " m, f = " + Num(p.f) + " Hz";
+  if (p.has_vibration()) label += ", A = " + Num(p.A, 4) + " m, f = " + Num(p.f, 4) + " Hz";
   if (p.mode == Mode::kOscillatory) label += ", " + omega;
-  if (p.has_constant_rotation()) label += ", ω = " + Num(p.omega) + " rad/s (" + std::string(AxisName(p.axis)) + ")";
+  if (p.has_constant_rotation()) label += ", ω = " + Num(p.omega, 4) + " rad/s (" + std::string(AxisName(p.axis)) + ")";
   return label;
 }
 

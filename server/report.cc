@@ -9,6 +9,7 @@
 
 #include "core/aggregate.h"
 #include "core/sweep.h"
+#include "core/text.h"
 #include "core/trajectory.h"
 
 namespace sandswim {
@@ -37,14 +38,7 @@ std::string Escape(const std::string& text) {
   return out;
 }
 
-std::string Num(double v, int digits = 4) {
-  std::ostringstream out;
-  out.precision(digits);
-  out << v;
-  return out.str();
-}
-
-std::string PlusMinus(double v, double err) { return Num(v) + " ± " + Num(err, 2); }
+std::string PlusMinus(double v, double err) { return Num(v, 4) + " ± " + Num(err, 2); }
 
 std::string UtcTime(double unix_s) {
   std::time_t t = static_cast<std::time_t>(unix_s);
@@ -105,13 +99,14 @@ std::string FitRows(const ReportSweep& s) {
       law = "eq. 9: U<sub>z</sub> = C3 A";
       params = "C3 = " + PlusMinus(b.linear->c3, b.linear->c3_stderr) + " 1/s";
       r2 = Num(b.linear->r2, 3);
-      range = "A = " + Num(b.linear->a_from) + " … " + Num(b.linear->a_to) + " m (" + std::to_string(b.linear->n) +
-              " of " + std::to_string(b.linear->n_total) + " points" +
+      range = "A = " + Num(b.linear->a_from, 4) + " … " + Num(b.linear->a_to, 4) + " m (" +
+              std::to_string(b.linear->n) + " of " + std::to_string(b.linear->n_total) + " points" +
               (b.linear->weighted ? ", weighted" : ", unweighted") + ")";
     } else if (b.fastest_rise) {
       law = "fastest rise";
-      params = "f<sub>c</sub> = " + Num(b.fastest_rise->f_c) + " Hz, interval [" + Num(b.fastest_rise->interval_lo) +
-               ", " + Num(b.fastest_rise->interval_hi) + "] Hz" + (b.fastest_rise->at_edge ? " (at the edge)" : "");
+      params = "f<sub>c</sub> = " + Num(b.fastest_rise->f_c, 4) + " Hz, interval [" +
+               Num(b.fastest_rise->interval_lo, 4) + ", " + Num(b.fastest_rise->interval_hi, 4) + "] Hz" +
+               (b.fastest_rise->at_edge ? " (at the edge)" : "");
       r2 = "–";
       range = std::to_string(b.fastest_rise->n) + " points";
     } else {
@@ -131,7 +126,7 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
   std::string html = "<p>" + Escape(drift->summary) +
                      "</p>\n<table><tr><th>run</th><th>point</th><th>state</th>"
                      "<th>U<sub>z</sub> (m/s)</th><th>before (m/s)</th><th>difference (m/s)</th><th></th></tr>\n";
-  auto cell = [](const std::optional<double>& v) { return v ? Num(*v) : std::string("–"); };
+  auto cell = [](const std::optional<double>& v) { return v ? Num(*v, 4) : std::string("–"); };
   for (const DriftPoint& p : drift->rows) {
     // An inconclusive rate is never compared: no number that looks like one is shown for it.
     const std::string now = p.inconclusive ? "inconclusive" : cell(p.uz);
@@ -154,7 +149,7 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
       "<table><tr><th>point</th><th>beds</th><th>mean U<sub>z</sub> (m/s)</th><th>before (m/s)</th>"
       "<th>difference (m/s)</th><th>tolerance (m/s)</th><th></th></tr>\n";
   auto mean = [&](const std::optional<double>& m, const std::optional<double>& se, int conclusive, int beds) {
-    return cell(m) + (se ? " ± " + Num(*se) : std::string()) + " (" + std::to_string(conclusive) + "/" +
+    return cell(m) + (se ? " ± " + Num(*se, 4) : std::string()) + " (" + std::to_string(conclusive) + "/" +
            std::to_string(beds) + ")";
   };
   // A point without a mean now: why, from its runs (failed, unfinished, or done but inconclusive).
