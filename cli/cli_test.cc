@@ -23,8 +23,6 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-extern char** environ;
-
 namespace sandswim::cli {
 namespace {
 

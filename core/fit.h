@@ -103,9 +103,9 @@ struct SweepSample {
   double uz_stderr = 0;  // m/s (0: unknown)
   double uz_ci95 = 0;    // m/s, half-width of its 95 % interval (0: unknown); figures draw it
   int64_t run_id = 0;
-  bool conclusive = true;  // false: left out of the fit (listed in SweepFits::left_out)
-  bool has_uz = true;      // false: no U_z at all (no whole period); `uz` means nothing
-  std::string inconclusive_reason;
+  bool conclusive = true;             // false: left out of the fit (listed in SweepFits::left_out)
+  bool has_uz = true;                 // false: no U_z at all (no whole period); `uz` means nothing
+  std::string inconclusive_reason{};  // (an initializer: brace-initialised samples may leave it out)
 };
 
 enum class FitKind { kNone, kSaturation, kLinear, kFastestRise };

@@ -12,7 +12,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-api::RunResult Result(double uz, double ci95, int blocks, const std::string& window_end = "run_end") {
+api::RunResult Rates(double uz, double ci95, int blocks, const std::string& window_end = "run_end") {
   api::RunResult r;
   r.uz = uz;
   r.uz_ci95 = ci95;
@@ -25,28 +25,28 @@ api::RunResult Result(double uz, double ci95, int blocks, const std::string& win
 
 TEST(PrecisionTest, TargetIsMetByTheRelativeOrTheAbsoluteHalfWidth) {
   const PrecisionTarget t{0.1, 0.002, 3, 4};
-  EXPECT_TRUE(TargetMet(Result(0.10, 0.0099, 3), t));   // within 10 % of |U_z|
-  EXPECT_FALSE(TargetMet(Result(0.10, 0.0101, 3), t));  // neither
-  EXPECT_TRUE(TargetMet(Result(0.001, 0.0019, 3), t));  // near 0: the absolute half-width decides
-  EXPECT_TRUE(TargetMet(Result(-0.10, 0.0099, 3), t));  // sinking: |U_z|
+  EXPECT_TRUE(TargetMet(Rates(0.10, 0.0099, 3), t));   // within 10 % of |U_z|
+  EXPECT_FALSE(TargetMet(Rates(0.10, 0.0101, 3), t));  // neither
+  EXPECT_TRUE(TargetMet(Rates(0.001, 0.0019, 3), t));  // near 0: the absolute half-width decides
+  EXPECT_TRUE(TargetMet(Rates(-0.10, 0.0099, 3), t));  // sinking: |U_z|
   // Never before min_periods, nor without an interval.
-  EXPECT_FALSE(TargetMet(Result(0.10, 0.001, 2), t));
-  api::RunResult no_interval = Result(0.10, 0.001, 5);
+  EXPECT_FALSE(TargetMet(Rates(0.10, 0.001, 2), t));
+  api::RunResult no_interval = Rates(0.10, 0.001, 5);
   no_interval.uz_ci95.reset();
   EXPECT_FALSE(TargetMet(no_interval, t));
-  api::RunResult no_rate = Result(0.10, 0.001, 5);
+  api::RunResult no_rate = Rates(0.10, 0.001, 5);
   no_rate.uz.reset();
   EXPECT_FALSE(TargetMet(no_rate, t));
 }
 
 TEST(PrecisionTest, StopRuleEndsAtTheTargetOrWhenTheWindowHasClosed) {
   const PrecisionTarget t{0.1, 0.002, 3, 4};
-  EXPECT_EQ(DecideStop(Result(0.10, 0.05, 3), t), StopVerdict::kContinue);
-  EXPECT_EQ(DecideStop(Result(0.10, 0.005, 3), t), StopVerdict::kTargetMet);
-  EXPECT_EQ(DecideStop(Result(0.10, 0.05, 3, "surface"), t), StopVerdict::kWindowClosed);
-  EXPECT_EQ(DecideStop(Result(-0.10, 0.05, 1, "floor"), t), StopVerdict::kWindowClosed);
+  EXPECT_EQ(DecideStop(Rates(0.10, 0.05, 3), t), StopVerdict::kContinue);
+  EXPECT_EQ(DecideStop(Rates(0.10, 0.005, 3), t), StopVerdict::kTargetMet);
+  EXPECT_EQ(DecideStop(Rates(0.10, 0.05, 3, "surface"), t), StopVerdict::kWindowClosed);
+  EXPECT_EQ(DecideStop(Rates(-0.10, 0.05, 1, "floor"), t), StopVerdict::kWindowClosed);
   // A met target wins over a closed window: the run ended for the better reason.
-  EXPECT_EQ(DecideStop(Result(0.10, 0.005, 4, "surface"), t), StopVerdict::kTargetMet);
+  EXPECT_EQ(DecideStop(Rates(0.10, 0.005, 4, "surface"), t), StopVerdict::kTargetMet);
 }
 
 TEST(PrecisionTest, RunDurationHoldsTheTransientAndMinPeriods) {
@@ -92,7 +92,7 @@ TEST(PrecisionTest, JsonRoundTripsAndStoredTargetsAreChecked) {
 
 TEST(PrecisionTest, StopNotesSayWhyWithTheirFigures) {
   const PrecisionTarget t{0.1, 0.002, 3, 2};
-  api::RunResult r = Result(0.1, 0.008, 4);
+  api::RunResult r = Rates(0.1, 0.008, 4);
   r.sim_time_s = 1.7;
   r.stop_reason = "target";
   EXPECT_THAT(DescribeStop(r, t), HasSubstr("precision target met at t = 1.7 s"));

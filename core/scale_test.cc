@@ -37,7 +37,7 @@ TEST(ScaleTest, RefusesAnAmplitudeTheBoxCannotHoldAndNamesAScaleThatCan) {
   EXPECT_THAT(st.reason(), HasSubstr("L_y >= 0.58"));
   st = FitsScale(Vib(0.5), *FindScale("paper"));
   ASSERT_FALSE(st.ok());
-  EXPECT_THAT(st.reason(), testing::Not(HasSubstr("takes it")));
+  EXPECT_THAT(st.reason(), ::testing::Not(HasSubstr("takes it")));
 }
 
 // Every box keeps about the same room above and below the SO placed at z = 0 (each side loses

@@ -76,11 +76,17 @@ TEST(TrajectoryTest, FewPeriodsGiveNoErrorAndFewerAreInconclusive) {
     EXPECT_EQ(r->uz_blocks, periods);
     EXPECT_EQ(r->conclusive, periods >= 2) << periods;
     EXPECT_EQ(r->uz.has_value(), periods >= 1);
-    if (r->uz) EXPECT_NEAR(*r->uz, -0.05, 1e-6);
+    if (r->uz) {
+      EXPECT_NEAR(*r->uz, -0.05, 1e-6);
+    }
     EXPECT_EQ(r->uz_stderr.has_value(), periods >= 3);
     EXPECT_EQ(r->uz_ci95.has_value(), periods >= 3);
-    if (periods < 3) EXPECT_NE(r->uz_stderr_note.find("at least 3"), std::string::npos) << r->uz_stderr_note;
-    if (periods < 2) EXPECT_NE(r->inconclusive_reason.find("fewer than 2"), std::string::npos);
+    if (periods < 3) {
+      EXPECT_NE(r->uz_stderr_note.find("at least 3"), std::string::npos) << r->uz_stderr_note;
+    }
+    if (periods < 2) {
+      EXPECT_NE(r->inconclusive_reason.find("fewer than 2"), std::string::npos);
+    }
   }
 }
 

@@ -16,13 +16,12 @@
 #include "platform/clock.h"
 #include "server/store.h"
 #include "server/submission.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr char kEngine[] = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, test)";
 
 nlohmann::json OmegaSignSweep(const std::string& name = "omega-sign") {
   nlohmann::json j = nlohmann::json::parse(R"({"scale": "smoke",
@@ -40,7 +39,7 @@ api::Completion OkRun(double uz = -0.01) {
   c.result->stop_reason = "duration";
   c.trajectory = api::Trajectory{{0, 0.1}, {0, 0}, {0, 0}, {0, -0.001}};
   c.execution.host = "test-host";
-  c.execution.engine_version = kEngine;
+  c.execution.engine_version = kTestEngine;
   c.log_tail = "Total wall time: 0:00:01";
   return c;
 }
@@ -77,7 +76,7 @@ class LeaseQueueTest : public ::testing::Test {
     auto req = ParseSubmitRequest(body);
     EXPECT_TRUE(req.ok()) << req.status().ToString();
     req->force = force;
-    auto r = Submit(*store_, *req, kEngine, clock_.Now());
+    auto r = Submit(*store_, *req, kTestEngine, clock_.Now());
     EXPECT_TRUE(r.ok()) << r.status().ToString();
     return r.ok() ? r->sweep_ids.at(0) : 0;
   }
@@ -591,7 +590,7 @@ TEST_F(LeaseQueueTest, BedNotEquilibratedFailsForGoodAcrossSubmissions) {
   body["axes"][0]["values"] = {-40, 80};
   auto req = ParseSubmitRequest(body);
   ASSERT_TRUE(req.ok());
-  auto again = Submit(*store_, *req, kEngine, clock_.Now());
+  auto again = Submit(*store_, *req, kTestEngine, clock_.Now());
   ASSERT_TRUE(again.ok()) << again.status().ToString();
   EXPECT_EQ(again->runs_new, 1);         // -40
   EXPECT_EQ(again->runs_requeued, 1);    // +80 had failed with the bed
@@ -643,7 +642,7 @@ TEST_F(LeaseQueueTest, LeasedDeckIsTheDeckTheKeyWasComputedFrom) {
   const nlohmann::json body = OmegaSignSweep();
   auto req = ParseSubmitRequest(body);
   ASSERT_TRUE(req.ok());
-  auto plan = PlanSweeps(req->sweeps, *FindScale(req->sweeps[0].scale), kEngine);  // keeps decks
+  auto plan = PlanSweeps(req->sweeps, *FindScale(req->sweeps[0].scale), kTestEngine);  // keeps decks
   ASSERT_TRUE(plan.ok());
   SubmitJson(body);
   EXPECT_EQ(Rows("run_decks"), 0);
@@ -657,7 +656,7 @@ TEST_F(LeaseQueueTest, LeasedDeckIsTheDeckTheKeyWasComputedFrom) {
     }
     ASSERT_NE(planned, nullptr) << g.key;
     EXPECT_EQ(g.deck, planned->deck);
-    EXPECT_EQ(RunKey(g.deck, plan->beds.at(0).key, kEngine), g.key);
+    EXPECT_EQ(RunKey(g.deck, plan->beds.at(0).key, kTestEngine), g.key);
     auto detail = store_->GetRun(g.id);
     ASSERT_TRUE(detail.ok());
     EXPECT_EQ(detail->deck, planned->deck);

@@ -29,7 +29,7 @@ namespace {
 using json = nlohmann::json;
 using ::testing::HasSubstr;
 
-constexpr const char* kEngine = "LIGGGHTS (Version test)";
+constexpr char kReportEngine[] = "LIGGGHTS (Version test)";
 
 const char* kCampaign = R"({"name": "tiny", "description": "two sweeps for the report test", "scale": "smoke",
   "drift_tolerance_mps": 0.001,
@@ -64,7 +64,7 @@ class ReportTest : public ::testing::Test {
     ASSERT_TRUE(store_->PutCampaign(campaign).ok());
     SubmitRequest request;
     request.campaign = "tiny";
-    auto submitted = Submit(*store_, request, kEngine, clock_.Now());
+    auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
     ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
     ASSERT_TRUE(submitted->campaign_run_id.has_value());
     campaign_run_ = *submitted->campaign_run_id;
@@ -92,7 +92,7 @@ class ReportTest : public ::testing::Test {
       const api::LeaseGrant& g = **grant;
       api::Completion c;
       c.ok = true;
-      c.execution.engine_version = kEngine;
+      c.execution.engine_version = kReportEngine;
       if (g.kind == api::JobKind::kBed) {
         const std::string restart = "a bed";
         ASSERT_TRUE(leases_->PutBedRestart(g.token, restart, Sha256Hex(restart), dir_ + "/data").ok());
@@ -135,7 +135,7 @@ class ReportTest : public ::testing::Test {
         c.trajectory = t;
         if (fail_omega_ != 0 && omega == fail_omega_) {
           c = api::Completion();
-          c.execution.engine_version = kEngine;
+          c.execution.engine_version = kReportEngine;
           c.failure = api::Failure{"deck_error", "ERROR: a test failure"};
         }
         ++done;
@@ -150,7 +150,7 @@ class ReportTest : public ::testing::Test {
     deps_.leases = leases_.get();
     deps_.clock = &clock_;
     deps_.data_dir = dir_ + "/data";
-    deps_.engine_version = kEngine;
+    deps_.engine_version = kReportEngine;
     server_ = std::make_unique<LoopbackServer>(deps_);
     client_ = &server_->client();
   }
@@ -282,7 +282,7 @@ TEST_F(ReportTest, AReplicatedCampaignsDriftSectionListsEachPointsMeanOverItsBed
   ASSERT_TRUE(store_->PutCampaign(campaign).ok());
   SubmitRequest request;
   request.campaign = "tiny-replicated";
-  auto submitted = Submit(*store_, request, kEngine, clock_.Now());
+  auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
   ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
   RunAll();
   auto drift = ReportFinishedCampaignRuns(*store_, clock_.Now());
@@ -296,7 +296,7 @@ TEST_F(ReportTest, AReplicatedCampaignsDriftSectionListsEachPointsMeanOverItsBed
   // A point whose runs all failed has no mean, and says why (not "inconclusive").
   fail_omega_ = 80;
   request.force = true;  // run everything again
-  auto rerun = Submit(*store_, request, kEngine, clock_.Now() + 60);
+  auto rerun = Submit(*store_, request, kReportEngine, clock_.Now() + 60);
   ASSERT_TRUE(rerun.ok()) << rerun.status().ToString();
   RunAll();
   ASSERT_TRUE(ReportFinishedCampaignRuns(*store_, clock_.Now() + 120).ok());

@@ -22,8 +22,6 @@
 #include "core/api.h"
 #include "core/keys.h"
 
-extern char** environ;
-
 namespace sandswim {
 namespace {
 

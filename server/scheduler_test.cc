@@ -16,13 +16,13 @@
 #include "server/lease_queue.h"
 #include "server/store.h"
 #include "server/submission.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kEngine[] = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, test)";
 constexpr char kNewEngine[] = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.1, test)";
 
 double Utc(int y, int mo, int d, int h, int mi, int s = 0) {
@@ -69,7 +69,7 @@ class SchedulerTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
   // A daemon (re)start: a reopened Store on the same file, a new Scheduler, registration.
-  void Restart(const std::string& engine = kEngine) {
+  void Restart(const std::string& engine = kTestEngine) {
     scheduler_.reset();
     queue_.reset();
     store_.reset();
@@ -102,7 +102,7 @@ class SchedulerTest : public ::testing::Test {
       api::Completion c;
       c.ok = true;
       c.execution.host = "host";
-      c.execution.engine_version = kEngine;
+      c.execution.engine_version = kTestEngine;
       if (grant.kind == api::JobKind::kBed) {
         const std::string bytes = "restart " + grant.key;
         ASSERT_TRUE(queue_->PutBedRestart(grant.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
@@ -195,7 +195,7 @@ TEST_F(SchedulerTest, RestartAtTheDueMinuteDoesNotSubmitAgain) {
   again.campaign = "tiny";
   again.trigger = "schedule";
   again.due_time = Utc(2026, 11, 23, 2, 0);
-  auto r = Submit(*store_, again, kEngine, clock_.Now());
+  auto r = Submit(*store_, again, kTestEngine, clock_.Now());
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_TRUE(r->replayed);
   EXPECT_EQ(CampaignRuns(), 1);
@@ -546,7 +546,7 @@ TEST_F(SchedulerTest, DriftReportFlagsOnlyChangesBeyondTheTolerance) {
 TEST_F(SchedulerTest, DriftReportCountsFailedRunsAsMissing) {
   SubmitRequest manual;
   manual.campaign = "tiny";
-  auto submitted = Submit(*store_, manual, kEngine, clock_.Now());
+  auto submitted = Submit(*store_, manual, kTestEngine, clock_.Now());
   ASSERT_TRUE(submitted.ok());
   auto cancelled = queue_->Cancel(submitted->sweep_ids.at(0));
   ASSERT_TRUE(cancelled.ok());

@@ -14,13 +14,13 @@
 #include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/store.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kEngine[] = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, test)";
 const char* const kTables[] = {"campaigns", "campaign_runs", "submissions", "sweeps",  "beds",
                                "runs",      "sweep_runs",    "leases",      "results", "trajectories",
                                "run_logs",  "events",        "counters"};
@@ -52,7 +52,7 @@ class SubmissionTest : public ::testing::Test {
     if (!req.ok()) return req.status();
     req->force = req->force || force;
     req->idempotency_key = key;
-    return Submit(*store_, *req, kEngine, clock_.Now());
+    return Submit(*store_, *req, kTestEngine, clock_.Now());
   }
   std::map<std::string, int64_t> AllRows() {
     std::map<std::string, int64_t> out;
@@ -261,7 +261,7 @@ TEST_F(SubmissionTest, CampaignSubmissionAndScheduledSlotIsUnique) {
   req.scale = "paper";
   req.trigger = "schedule";
   req.due_time = 1.7e9 + 7200;
-  auto r = Submit(*store_, req, kEngine, clock_.Now());
+  auto r = Submit(*store_, req, kTestEngine, clock_.Now());
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   ASSERT_TRUE(r->campaign_run_id.has_value());
   EXPECT_EQ(r->runs, 58);
@@ -272,7 +272,7 @@ TEST_F(SubmissionTest, CampaignSubmissionAndScheduledSlotIsUnique) {
   EXPECT_EQ(cr->counts.queued, 58);
   EXPECT_EQ(cr->sweep_ids, r->sweep_ids);
   auto rows = AllRows();
-  auto again = Submit(*store_, req, kEngine, clock_.Now() + 5);
+  auto again = Submit(*store_, req, kTestEngine, clock_.Now() + 5);
   ASSERT_TRUE(again.ok());
   EXPECT_TRUE(again->replayed);
   EXPECT_EQ(again->campaign_run_id, r->campaign_run_id);
@@ -282,7 +282,7 @@ TEST_F(SubmissionTest, CampaignSubmissionAndScheduledSlotIsUnique) {
   EXPECT_EQ(*(*stored)->schedule, "0 2 * * *");
   SubmitRequest unknown;
   unknown.campaign = "nope";
-  EXPECT_EQ(Submit(*store_, unknown, kEngine, 0).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(Submit(*store_, unknown, kTestEngine, 0).status().code(), StatusCode::kNotFound);
 }
 
 }  // namespace

@@ -39,7 +39,7 @@ class FakeDaemon {
   std::thread thread_;
 };
 
-ClientOptions Options(const std::string& url) {
+ClientOptions ClientOptionsFor(const std::string& url) {
   ClientOptions o;
   o.server = url;
   o.token = "secret";
@@ -66,7 +66,7 @@ TEST(ClientTest, LeaseSendsTheTokenAndReadsTheGrant) {
     g.deck = "deck for " + r.worker;
     res.set_content(nlohmann::json{{"lease", g}}.dump(), "application/json");
   });
-  HttpServerClient client(Options(d.url()));
+  HttpServerClient client(ClientOptionsFor(d.url()));
   auto lease = client.Lease(api::LeaseRequest{"w:1", "h", 1});
   ASSERT_TRUE(lease.ok()) << lease.status().ToString();
   ASSERT_TRUE(lease->has_value());
@@ -88,7 +88,7 @@ TEST(ClientTest, HeartbeatConflictIsLeaseLost) {
     }
     res.set_content(R"({"ttl_s":30,"cancel":true})", "application/json");
   });
-  HttpServerClient client(Options(d.url()));
+  HttpServerClient client(ClientOptionsFor(d.url()));
   auto ok = client.Heartbeat("t1", api::Heartbeat{0.1, -0.01, 100});
   ASSERT_TRUE(ok.ok());
   EXPECT_TRUE(ok->cancel);
@@ -107,7 +107,7 @@ TEST(ClientTest, CompleteRetriesWhileTheDaemonAnswers503) {
     auto c = nlohmann::json::parse(req.body).get<api::Completion>();
     res.set_content(nlohmann::json{{"state", c.ok ? "done" : "failed"}}.dump(), "application/json");
   });
-  HttpServerClient client(Options(d.url()));
+  HttpServerClient client(ClientOptionsFor(d.url()));
   api::Completion c;
   c.ok = true;
   auto reply = client.Complete("t1", c);
@@ -127,7 +127,7 @@ TEST(ClientTest, CompletionWithInvalidUtf8FromTheEngineIsSentReplaced) {
     message = c.failure ? c.failure->message : "";
     res.set_content(R"({"state": "failed"})", "application/json");
   });
-  HttpServerClient client(Options(d.url()));
+  HttpServerClient client(ClientOptionsFor(d.url()));
   api::Completion c;
   c.ok = false;
   c.failure = api::Failure{"deck_error", "ERROR: Invalid pair style \xF4oU` (./src/force.cpp:247)"};
@@ -154,7 +154,7 @@ TEST(ClientTest, DaemonDownIsUnavailableAndRetriesStopWhenStopping) {
     close(fd);  // bound, never listened, now closed: connections are refused
   }
   std::atomic<bool> stopping{true};
-  HttpServerClient client(Options("http://127.0.0.1:" + std::to_string(port)), &stopping);
+  HttpServerClient client(ClientOptionsFor("http://127.0.0.1:" + std::to_string(port)), &stopping);
   auto lease = client.Lease(api::LeaseRequest{});
   EXPECT_EQ(lease.status().code(), StatusCode::kUnavailable);
   auto reply = client.Complete("t", api::Completion{});
@@ -177,7 +177,7 @@ TEST(ClientTest, BedDownloadAndUpload) {
     token_param = req.get_param_value("token");
     res.set_content("{}", "application/json");
   });
-  HttpServerClient client(Options(d.url()));
+  HttpServerClient client(ClientOptionsFor(d.url()));
   char tmpl[] = "/tmp/sandswim-client-XXXXXX";
   std::string dir = mkdtemp(tmpl);
   ASSERT_TRUE(client.DownloadBed(api::BedRef{3, "", ""}, dir + "/bed").ok());

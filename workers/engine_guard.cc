@@ -3,11 +3,11 @@
 // ARGS... and this environment, dies with the worker (PR_SET_PDEATHSIG) taking the group with it,
 // and exits as the engine did. A static program of its own, so that starting it is a cheap
 // posix_spawn and its fork of the engine copies almost nothing.
+#include <unistd.h>
+
 #include <cstdlib>
 
 #include "workers/launcher.h"
-
-extern char** environ;
 
 int main(int argc, char** argv) {
   if (argc < 5) return 127;

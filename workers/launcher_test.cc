@@ -1,4 +1,5 @@
 #include "workers/launcher.h"
+#include "tests/fixture_file.h"
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -18,12 +19,6 @@ namespace sandswim::worker {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-std::string TempDir() {
-  char tmpl[] = "/tmp/sandswim-launcher-XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
 
 LaunchSpec Sh(const std::string& script, const std::string& cwd = "") {
   LaunchSpec spec;
@@ -45,7 +40,7 @@ INSTANTIATE_TEST_SUITE_P(GuardedAndSingle, LauncherModes, ::testing::Bool(),
                          [](const auto& info) { return info.param ? "SingleProcess" : "Guarded"; });
 
 TEST_P(LauncherModes, ExitStatusAndOutputFile) {
-  const std::string dir = TempDir();
+  const std::string dir = testing::TempDir("launcher");
   LaunchSpec spec = Sh("echo hello from $SANDSWIM_TEST_VAR; pwd; exit 3", dir);
   spec.env = {{"SANDSWIM_TEST_VAR", "the child"}};
   spec.output_file = "out.txt";
@@ -71,7 +66,7 @@ TEST_P(LauncherModes, WaitForZeroDoesNotBlock) {
 }
 
 TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
-  const std::string dir = TempDir();
+  const std::string dir = testing::TempDir("launcher");
   GuardedLauncher launcher;
   // The shell's child `sleep` writes its pid; Stop() must end it too (it is in the group).
   auto proc = launcher.Start(Sh("sleep 30 & echo $! > sleep.pid; wait", dir));
@@ -100,7 +95,7 @@ TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
 }
 
 TEST_P(LauncherModes, ProcessIgnoringSigtermGetsSigkill) {
-  const std::string dir = TempDir();
+  const std::string dir = testing::TempDir("launcher");
   GuardedLauncher launcher;
   auto proc = launcher.Start(Mode(Sh("trap '' TERM; touch ready; while :; do sleep 0.05; done", dir)));
   ASSERT_TRUE(proc.ok());
@@ -175,7 +170,7 @@ pid_t ReadPid(const std::string& path) {
 // signal the worker ignores or blocks: a worker that ignores SIGTERM still stops its engine with
 // SIGTERM, not only after the grace with SIGKILL.
 TEST_P(LauncherModes, EngineInheritsNoDescriptorsAndNoIgnoredOrBlockedSignals) {
-  const std::string dir = TempDir();
+  const std::string dir = testing::TempDir("launcher");
   int leak[2];
   ASSERT_EQ(pipe(leak), 0);  // not close-on-exec
   struct sigaction ignore {
@@ -215,7 +210,7 @@ TEST_P(LauncherModes, EngineInheritsNoDescriptorsAndNoIgnoredOrBlockedSignals) {
 
 // A single-process engine has no guard: it dies with a worker killed by SIGKILL all by itself.
 TEST(LauncherTest, SingleProcessEngineDiesWithAWorkerKilledBySigkill) {
-  const std::string dir = TempDir();
+  const std::string dir = testing::TempDir("launcher");
   pid_t worker = fork();
   ASSERT_GE(worker, 0);
   if (worker == 0) {
@@ -249,7 +244,7 @@ TEST(LauncherTest, SingleProcessEngineDiesWithAWorkerKilledBySigkill) {
 // A worker killed with SIGKILL takes its engine with it: the engine (here a shell) and the
 // "rank" it started in the background, as mpirun's ranks, are gone soon after.
 TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
-  const std::string dir = TempDir();
+  const std::string dir = testing::TempDir("launcher");
   pid_t worker = fork();
   ASSERT_GE(worker, 0);
   if (worker == 0) {

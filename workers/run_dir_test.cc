@@ -9,15 +9,10 @@
 #include <gtest/gtest.h>
 
 #include "core/keys.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim::worker {
 namespace {
-
-std::string TempDir() {
-  char tmpl[] = "/tmp/sandswim-rundir-XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
 
 std::string ReadAll(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -27,7 +22,7 @@ std::string ReadAll(const std::string& path) {
 }
 
 TEST(RunDirTest, FreshDirectoryPerAttempt) {
-  const std::string work = TempDir();
+  const std::string work = testing::TempDir("rundir");
   auto a = RunDir::Create(work, api::JobKind::kRun, 42, 1);
   ASSERT_TRUE(a.ok());
   EXPECT_EQ(a->path(), work + "/run-42-a1");
@@ -45,7 +40,7 @@ TEST(RunDirTest, FreshDirectoryPerAttempt) {
 }
 
 TEST(RunDirTest, Sha256OfFileMatchesCore) {
-  const std::string work = TempDir();
+  const std::string work = testing::TempDir("rundir");
   std::ofstream(work + "/f", std::ios::binary) << std::string(3 << 20, 'x');
   auto sha = Sha256OfFile(work + "/f");
   ASSERT_TRUE(sha.ok());
@@ -53,7 +48,7 @@ TEST(RunDirTest, Sha256OfFileMatchesCore) {
 }
 
 TEST(BedCacheTest, DownloadsOnceVerifiesEveryUseAndRefusesMismatch) {
-  const std::string work = TempDir();
+  const std::string work = testing::TempDir("rundir");
   std::string served = "bed bytes";
   int downloads = 0;
   BedCache cache(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
@@ -88,7 +83,7 @@ TEST(BedCacheTest, DownloadsOnceVerifiesEveryUseAndRefusesMismatch) {
 }
 
 TEST(BedCacheTest, DownloadFailureIsPassedOn) {
-  const std::string work = TempDir();
+  const std::string work = testing::TempDir("rundir");
   BedCache cache(work + "/beds",
                  [](const api::BedRef&, const std::string&) { return Status::NotFound("GET bed: HTTP 404"); });
   auto r = RunDir::Create(work, api::JobKind::kRun, 1, 1);

@@ -28,7 +28,10 @@ double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 constexpr int kLogTailLines = 40;
 constexpr char kEngineOutputFile[] = "engine.out";
 
-// Follows a file that another process appends to, handing new bytes to a callback.
+}  // namespace
+
+// Follows a file that another process appends to, handing new bytes to a callback. (Not in the
+// anonymous namespace: JobProgress, declared in worker.h, holds one.)
 class FileTail {
  public:
   explicit FileTail(std::string path) : path_(std::move(path)) {}
@@ -51,6 +54,8 @@ class FileTail {
   std::string path_;
   std::streamoff offset_ = 0;
 };
+
+namespace {
 
 // The last `bytes` of a file (the growing log, for a bed's progress).
 std::string ReadTail(const std::string& path, size_t bytes) {

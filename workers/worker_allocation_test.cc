@@ -14,25 +14,15 @@
 
 #include "core/keys.h"
 #include "core/trajectory.h"
+#include "tests/fixture_file.h"
 #include "workers/worker.h"
 
 namespace sandswim::worker {
 namespace {
 
+using testing::Fixture;  // tests/fixture_file.h
+
 constexpr char kBed[] = "bed bytes";
-
-std::string TempDir() {
-  char tmpl[] = "/tmp/sandswim-alloc-XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
-
-std::string Fixture(const std::string& name) {
-  std::ifstream in(std::string(SANDSWIM_SOURCE_DIR) + "/tests/fixtures/" + name, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // A daemon with an endless queue of runs.
 class QueueClient : public ServerClient {
@@ -114,7 +104,7 @@ WorkerOptions Options() {
   WorkerOptions o;
   o.name = "slurm-1";
   o.host = "node1";
-  o.workdir = TempDir();
+  o.workdir = testing::TempDir("alloc");
   o.heartbeat_every_s = 0.01;
   o.stop_grace_s = 0.01;
   o.idle_poll_s = 0.01;

@@ -24,12 +24,6 @@ namespace {
 
 using testing::Fixture;  // tests/fixture_file.h
 
-std::string TempDir() {
-  char tmpl[] = "/tmp/sandswim-worker-XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
-
 void WriteFile(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
   out << text;
@@ -177,7 +171,7 @@ api::LeaseGrant RunGrant() {
   return WithDriveFacts(g);
 }
 
-WorkerOptions Options(const std::string& workdir) {
+WorkerOptions WorkerOptionsFor(const std::string& workdir) {
   WorkerOptions o;
   o.name = "test:1";
   o.host = "testhost";
@@ -192,12 +186,12 @@ WorkerOptions Options(const std::string& workdir) {
 }
 
 TEST(WorkerTest, CompletedRunCarriesItsResultAndTrajectory) {
-  const std::string work = TempDir();
+  const std::string work = testing::TempDir("worker");
   FakeClient client;
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
                     {"so.dump", Fixture("so_omega_minus80.dump")}};
-  Worker worker(Options(work), client, launcher);
+  Worker worker(WorkerOptionsFor(work), client, launcher);
   worker.RunJob(RunGrant());
 
   ASSERT_EQ(client.completions.size(), 1u);
@@ -235,12 +229,12 @@ TEST(WorkerTest, CompletedRunCarriesItsResultAndTrajectory) {
 // a real 3 s vibration run (tests/fixtures/runs/vibration-3s), analysed by the worker, then by the
 // real CLI binary from the files alone.
 TEST(WorkerTest, OfflineAnalysisOfTheRunDirectoryGivesTheWorkersNumbers) {
-  const std::string work = TempDir();
+  const std::string work = testing::TempDir("worker");
   FakeClient client;
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("runs/vibration-3s/log.liggghts")},
                     {"so.dump", Fixture("runs/vibration-3s/so.dump")}};
-  Worker worker(Options(work), client, launcher);
+  Worker worker(WorkerOptionsFor(work), client, launcher);
   api::LeaseGrant grant = RunGrant();
   grant.deck = Fixture("runs/vibration-3s/drive.in");
   grant.steps = 300000;
@@ -279,7 +273,7 @@ TEST(WorkerTest, DeckErrorIsReportedWithItsLine) {
   FakeClient client;
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("deck_error.log")}};
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   ASSERT_EQ(client.completions.size(), 1u);
   ASSERT_TRUE(client.completions[0].failure.has_value());
@@ -292,7 +286,7 @@ TEST(WorkerTest, CancelStopsTheEngineAndCompletesAsCancelled) {
   client.cancel_on_beat = true;
   FakeLauncher launcher;
   launcher.runs_until_stopped = true;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   ASSERT_EQ(launcher.started.size(), 1u);
   EXPECT_GT(launcher.stops.load(), 0);
@@ -305,7 +299,7 @@ TEST(WorkerTest, LeaseLossStopsTheEngineWithoutCompleting) {
   client.conflict_on_beat = true;
   FakeLauncher launcher;
   launcher.runs_until_stopped = true;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   EXPECT_GT(launcher.stops.load(), 0);
   EXPECT_TRUE(client.completions.empty());
@@ -321,7 +315,7 @@ TEST(WorkerTest, HeartbeatsCarryTheSoZFromTheGrowingDump) {
   size_t cut = 0;
   for (int i = 0; i < 51; ++i) cut = dump.find("ITEM: TIMESTEP", cut + 1);
   launcher.files = {{"so.dump", dump.substr(0, cut + 40)}};
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   std::thread stopper([&] {
     for (int i = 0; i < 1000; ++i) {
       {
@@ -349,7 +343,7 @@ TEST(WorkerTest, WallBudgetStopsTheEngineAsTimeout) {
   launcher.runs_until_stopped = true;
   api::LeaseGrant g = RunGrant();
   g.wall_budget_s = 0.05;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(g);
   EXPECT_GT(launcher.stops.load(), 0);
   ASSERT_EQ(client.completions.size(), 1u);
@@ -360,7 +354,7 @@ TEST(WorkerTest, BedChecksumMismatchNeverStartsTheEngine) {
   FakeClient client;
   client.bed_bytes = "tampered bytes";
   FakeLauncher launcher;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   EXPECT_TRUE(launcher.started.empty());
   ASSERT_EQ(client.completions.size(), 1u);
@@ -371,7 +365,7 @@ TEST(WorkerTest, MissingEngineIsReported) {
   FakeClient client;
   FakeLauncher launcher;
   launcher.missing = true;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   ASSERT_EQ(client.completions.size(), 1u);
   EXPECT_EQ(client.completions[0].failure->kind, "engine_missing");
@@ -383,7 +377,7 @@ TEST(WorkerTest, EngineExitingZeroWithoutFinishingIsIncomplete) {
   std::string log = Fixture("drive_omega_minus80.log");
   log = log.substr(0, log.find("SANDSWIM drive stop"));  // as after SIGTERM: exit 0, no stop marker
   launcher.files = {{"log.liggghts", log}, {"so.dump", Fixture("so_omega_minus80.dump")}};
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   ASSERT_EQ(client.completions.size(), 1u);
   EXPECT_EQ(client.completions[0].failure->kind, "incomplete");
@@ -395,7 +389,7 @@ TEST(WorkerTest, CorruptDumpIsBadOutput) {
   std::string dump = Fixture("so_omega_minus80.dump");
   dump.replace(dump.find("0.0266815"), 9, "0.02x6815");
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")}, {"so.dump", dump}};
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(RunGrant());
   ASSERT_EQ(client.completions.size(), 1u);
   EXPECT_EQ(client.completions[0].failure->kind, "bad_output");
@@ -410,7 +404,7 @@ TEST(WorkerTest, ALeaseWithoutItsTimestepFailsWithoutStartingTheEngine) {
   FakeLauncher launcher;
   api::LeaseGrant g = RunGrant();
   g.dt_s = 0;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(g);
   ASSERT_EQ(client.completions.size(), 1u);
   ASSERT_FALSE(client.completions[0].ok);
@@ -429,7 +423,7 @@ TEST(WorkerTest, BedJobUploadsTheRestartAndReportsTheBed) {
   g.id = 7;
   g.deck = "timestep 1e-05\n";
   g.dt_s = 1e-5;
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   worker.RunJob(g);
   ASSERT_EQ(client.completions.size(), 1u);
   const api::Completion& c = client.completions[0];
@@ -450,7 +444,7 @@ TEST(WorkerTest, StopRequestStopsRunningJobsWithoutCompleting) {
   client.grants.push_back(RunGrant());
   FakeLauncher launcher;
   launcher.runs_until_stopped = true;
-  WorkerOptions o = Options(TempDir());
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
   o.slots = 2;
   Worker worker(o, client, launcher);
   std::thread run([&] { worker.Run(); });
@@ -477,7 +471,7 @@ TEST(WorkerTest, OnceTakesOneJobAndReturns) {
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
                     {"so.dump", Fixture("so_omega_minus80.dump")}};
-  WorkerOptions o = Options(TempDir());
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
   o.once = true;
   o.slots = 4;
   Worker worker(o, client, launcher);
@@ -498,7 +492,7 @@ TEST(WorkerTest, JobsLeasedWithTheCompletionRunWithoutAnotherLease) {
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
                     {"so.dump", Fixture("so_omega_minus80.dump")}};
-  WorkerOptions o = Options(TempDir());
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
   o.idle_poll_s = 0.01;
   o.exit_when_idle_s = 0.05;
   o.slurm_job = "77";  // inside an allocation, every request says which job it is
@@ -529,7 +523,7 @@ TEST(WorkerTest, NextJobIsAskedForOnlyWhenItFitsTheAllocation) {
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
                     {"so.dump", Fixture("so_omega_minus80.dump")}};
   launcher.runs_for_s = 0.3;
-  WorkerOptions o = Options(TempDir());
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
   o.end_margin_s = 0.01;
   o.allocation_seconds_left = []() -> Result<std::optional<double>> { return std::optional<double>(0.2); };
   Worker worker(o, client, launcher);
@@ -549,7 +543,7 @@ TEST(WorkerTest, NextJobArrivingAsTheWorkerStopsIsHandedBack) {
   FakeLauncher launcher;
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
                     {"so.dump", Fixture("so_omega_minus80.dump")}};
-  Worker worker(Options(TempDir()), client, launcher);
+  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
   client.on_complete = [&] { worker.RequestStop(); };
   worker.Run();
   EXPECT_EQ(launcher.started.size(), 1u);
@@ -560,7 +554,7 @@ TEST(WorkerTest, NextJobArrivingAsTheWorkerStopsIsHandedBack) {
 TEST(WorkerTest, ExitWhenIdleReturnsWithNoWork) {
   FakeClient client;  // no grants: every lease answers "nothing queued"
   FakeLauncher launcher;
-  WorkerOptions o = Options(TempDir());
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
   o.once = true;
   o.idle_poll_s = 0.01;
   o.exit_when_idle_s = 0.05;
