@@ -1,15 +1,10 @@
-// End to end (issue 4): the real sandswimd, real sandswim-workers launching LIGGGHTS under
-// mpirun at smoke scale, a real SQLite file. One daemon serves every test of this file. Its smoke
-// bed replicate 0 is the tests' shared bed (ctest's smoke_bed fixture prepares it, beside this
-// test), handed in through the worker protocol; replicate 1 is prepared by the daemon's own bed
-// job on a worker, as a user's bed is, at the same time.
-#include <signal.h>
-
-#include <chrono>
+// End to end (issue 4): the real sandswimd, a real sandswim-worker launching LIGGGHTS under mpirun
+// at smoke scale, a real SQLite file. The daemon's smoke bed replicate 0 is the tests' shared bed
+// (ctest's smoke_bed fixture prepares it, beside this test), handed in through the worker
+// protocol; replicate 1 is prepared by the daemon's own bed job on the worker, as a user's bed is,
+// at the same time. A killed worker and a rejected deck: e2e_faults_test.cc, beside this one.
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <thread>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -60,17 +55,17 @@ std::string* EndToEndTest::dir_ = nullptr;
 Daemon* EndToEndTest::daemon_ = nullptr;
 
 // Precision targets and replicate beds, end to end. Three sweeps at once:
-//   - the pair Omega = -80 / +80 at 20 Hz on 2 replicate beds, with a target any interval meets
-//     (uz_abs 1 m/s): each run ends, through the deck's control file, as soon as its window holds 3
-//     whole periods (0.2 s), before its 0.5 s maximum, saying the target was met; the two beds are
-//     prepared once each, lie differently, and each point's results aggregate over both (K = 2);
+//   - Omega = -80 at 20 Hz on 2 replicate beds, with a target any interval meets (uz_abs 1 m/s):
+//     each run ends, through the deck's control file, as soon as its window holds 3 whole periods
+//     (0.2 s), before its 0.5 s maximum, saying the target was met; the two beds are prepared once
+//     each, lie differently, and the point's results aggregate over both (K = 2);
 //   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.25 s maximum and says so
 //     (on replicate 0's bed, as a sweep without replicates does);
 //   - the paper's sinking baseline, Omega = +80 at 3 Hz, at smoke's default target with a 1.34 s
 //     maximum: the floor no longer ends it early -- its window holds the 3 whole periods the
 //     target asks before any boundary (the old smoke box stopped it at dz = -0.059 m, before two).
 TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
-  json met = testing::OmegaSweep("omega-sign", {-80, 80}, 0.5, 20);
+  json met = testing::OmegaSweep("replicated", {-80}, 0.5, 20);
   met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.5}};
   met["replicates"] = 2;
   json unreachable = testing::OmegaSweep("unreachable", {-80}, 0.25, 20);
@@ -88,7 +83,7 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
   replicate0.Complete(testing::PrepareBed(smoke));
 
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
-  ASSERT_EQ(sweep["counts"]["done"], 4) << sweep.dump() << "\nworker:\n" << worker->Output();
+  ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();
   for (const json& run : Runs(id)) {
     json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()));
     const json& res = detail["result"];
@@ -113,13 +108,13 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
     EXPECT_EQ(res["launcher"], "mpirun");
     EXPECT_EQ(detail["attempts"], 1);
     EXPECT_THAT(detail["deck"].get<std::string>(), HasSubstr("# Precision target: "));
-    // The sign (Sec. 3.2): Omega < 0 rises, Omega > 0 sinks. The run's net displacement shows it
-    // (at 20 Hz over 0.25 s: +33 mm and -13 mm on the old smoke bed, against sub-mm jitter); U_z
-    // must agree wherever its 95 % interval excludes zero (a few periods may leave the sign open).
-    const double sign = run["point"]["Omega"].get<double>() < 0 ? 1.0 : -1.0;
-    EXPECT_GT(sign * res["dz"].get<double>(), 0.0) << res.dump();
+    // The sign (Sec. 3.2): Omega < 0 rises. The run's net displacement shows it (+28 and +29 mm
+    // on the two beds in 0.2 s, against sub-mm jitter); U_z must agree wherever its 95 % interval
+    // excludes zero (a few periods may leave the sign open). The sinking baseline below checks
+    // Omega > 0.
+    EXPECT_GT(res["dz"].get<double>(), 0.0) << res.dump();
     if (std::fabs(res["uz"].get<double>()) > res["uz_ci95"].get<double>()) {
-      EXPECT_GT(sign * res["uz"].get<double>(), 0.0) << res.dump();
+      EXPECT_GT(res["uz"].get<double>(), 0.0) << res.dump();
     }
     std::printf("E2E Omega=%+g at 20 Hz, target met: U_z=%s dz=%+.4f m t=%.3f s wall=%.1f s lease->start=%.3f s\n",
                 run["point"]["Omega"].get<double>(), res.value("uz_text", "?").c_str(), res["dz"].get<double>(),
@@ -148,9 +143,9 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
               beds[0]["packing_fraction"] != beds[1]["packing_fraction"])
       << beds[0].dump() << "\n"
       << beds[1].dump();
-  // Each point aggregates over its two beds.
+  // The point aggregates over its two beds.
   const json results = daemon_->Get("/api/v1/sweeps/" + std::to_string(id) + "/results");
-  ASSERT_EQ(results["aggregates"].size(), 2u) << results.dump();
+  ASSERT_EQ(results["aggregates"].size(), 1u) << results.dump();
   for (const json& a : results["aggregates"]) {
     EXPECT_EQ(a["replicates"], 2) << a.dump();
     ASSERT_EQ(a["values"].size(), 2u) << a.dump();
@@ -191,94 +186,14 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
 
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "2");
   EXPECT_EQ(daemon_->Query("SELECT group_concat(attempts) FROM beds"), "1,1");
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "6");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results"), "4");
   // Submitting the same sweep again reuses both results: nothing is queued.
   json again_sweep = met;
-  again_sweep["name"] = "omega-sign-again";
+  again_sweep["name"] = "replicated-again";
   int64_t again = Submit(again_sweep);
   json s2 = daemon_->Get("/api/v1/sweeps/" + std::to_string(again));
-  EXPECT_EQ(s2["counts"]["done"], 4) << s2.dump();
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "6");
-}
-
-// Processes (not zombies) whose working directory is under `dir`: the engines a worker started
-// there.
-int ProcessesUnder(const std::string& dir) {
-  int n = 0;
-  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
-    std::error_code ec;
-    const std::string cwd = std::filesystem::read_symlink(entry.path() / "cwd", ec).string();
-    if (ec || cwd.compare(0, dir.size(), dir) != 0) continue;
-    std::ifstream stat(entry.path() / "stat");
-    std::string line;
-    std::getline(stat, line);
-    const size_t paren = line.rfind(')');
-    if (paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] != 'Z') ++n;
-  }
-  return n;
-}
-
-// A worker killed with SIGKILL in the middle of a run: its engine dies with it, its lease
-// expires, a second worker runs the run again, and exactly one result exists. The first worker
-// starts LIGGGHTS directly (no mpirun, no guard process), the second through mpirun.
-TEST_F(EndToEndTest, KilledWorkerLosesNoRun) {
-  int64_t id = Submit(testing::OmegaSweep("killed-worker", {-40}, 0.1));
-  const std::string first_dir = *dir_ + "/worker-killed";
-  auto first = testing::StartWorker(*daemon_, first_dir, 1, {"--launcher", "direct"});
-  int64_t run_id = 0;
-  bool caught_running = false;
-  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(kTimeoutS));
-  while (!caught_running && std::chrono::steady_clock::now() < deadline) {
-    std::vector<json> runs = Runs(id);
-    ASSERT_EQ(runs.size(), 1u);
-    run_id = runs[0]["id"];
-    // A run that ended before it was caught running leaves nothing to kill: say so now rather
-    // than wait for the deadline.
-    ASSERT_TRUE(runs[0]["state"] == "queued" || runs[0]["state"] == "running")
-        << "the run ended before the worker could be killed: " << runs[0].dump() << "\nworker:\n"
-        << first->Output();
-    caught_running = runs[0]["state"] == "running" && runs[0]["progress"]["sim_time_s"].get<double>() > 0.02;
-    if (!caught_running) std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  ASSERT_TRUE(caught_running) << "the run was not seen running within " << kTimeoutS << " s\nworker:\n"
-                              << first->Output();
-  ASSERT_GE(ProcessesUnder(first_dir + "/"), 1) << "no engine runs in " << first_dir;
-  first->Kill(SIGKILL);
-  for (int i = 0; i < 100 && ProcessesUnder(first_dir + "/") > 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  EXPECT_EQ(ProcessesUnder(first_dir + "/"), 0) << "the engine outlived its SIGKILLed worker";
-  auto second = testing::StartWorker(*daemon_, *dir_ + "/worker-second", 1);
-  json sweep = daemon_->WaitForSweep(id, kTimeoutS);
-  ASSERT_EQ(sweep["counts"]["done"], 1) << sweep.dump() << "\nsecond worker:\n" << second->Output();
-  json detail = daemon_->Get("/api/v1/runs/" + std::to_string(run_id));
-  EXPECT_EQ(detail["attempts"], 2);
-  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM results WHERE run_id = " + std::to_string(run_id)), "1");
-}
-
-// A deck LIGGGHTS rejects fails its run with the ERROR: line, without retries; the sweep's other
-// run finishes. The deck is broken in the database, where a stored deck is read from.
-TEST_F(EndToEndTest, RejectedDeckFailsItsRunOnly) {
-  int64_t id = Submit(testing::OmegaSweep("bad-deck", {-20, 20}, 0.05));
-  std::vector<json> runs = Runs(id);
-  ASSERT_EQ(runs.size(), 2u);
-  const std::string bad = std::to_string(runs[0]["id"].get<int64_t>());
-  // Decks are rendered at lease time unless one is stored for the run: store a broken one.
-  std::string deck = daemon_->Get("/api/v1/runs/" + bad)["deck"];
-  const std::string good_line = "pair_style      gran";
-  ASSERT_NE(deck.find(good_line), std::string::npos);
-  deck.replace(deck.find(good_line), good_line.size(), "pair_style      no_such_style");
-  daemon_->StoreDeckForRun(runs[0]["id"].get<int64_t>(), deck);
-  ASSERT_EQ(daemon_->Query("SELECT count(*) FROM run_decks WHERE run_id = " + bad), "1");
-  auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-bad-deck", 2);
-  json sweep = daemon_->WaitForSweep(id, kTimeoutS);
-  EXPECT_EQ(sweep["counts"]["done"], 1) << sweep.dump();
-  EXPECT_EQ(sweep["counts"]["failed"], 1) << sweep.dump();
-  json detail = daemon_->Get("/api/v1/runs/" + bad);
-  EXPECT_EQ(detail["state"], "failed");
-  EXPECT_EQ(detail["attempts"], 1);
-  EXPECT_EQ(detail["last_error"]["kind"], "deck_error") << detail.dump();
-  EXPECT_THAT(detail["last_error"]["message"].get<std::string>(), HasSubstr("ERROR"));
+  EXPECT_EQ(s2["counts"]["done"], 2) << s2.dump();
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs"), "4");
 }
 
 }  // namespace
