@@ -59,7 +59,8 @@ Daemon* EndToEndTest::daemon_ = nullptr;
 //     each run ends, through the deck's control file, as soon as its window holds 3 whole periods
 //     (0.2 s), before its 0.5 s maximum, saying the target was met; the two beds are prepared once
 //     each, lie differently, and the point's results aggregate over both (K = 2);
-//   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.25 s maximum and says so
+//   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.2 s maximum (the least
+//     a target of 3 periods allows) and says so
 //     (on replicate 0's bed, as a sweep without replicates does);
 //   - the paper's sinking baseline, Omega = +80 at 3 Hz, at smoke's default target with a 1.34 s
 //     maximum: the floor no longer ends it early -- its window holds the 3 whole periods the
@@ -68,8 +69,8 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
   json met = testing::OmegaSweep("replicated", {-80}, 0.5, 20);
   met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.5}};
   met["replicates"] = 2;
-  json unreachable = testing::OmegaSweep("unreachable", {-80}, 0.25, 20);
-  unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.25}};
+  json unreachable = testing::OmegaSweep("unreachable", {-80}, 0.2, 20);
+  unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.2}};
   json sinking = testing::OmegaSweep("sinking-baseline", {80}, 5, 3);
   sinking["precision"] = {{"uz_rel", 0.2}, {"uz_abs", 0.005}, {"min_periods", 3}, {"max_duration_s", 1.34}};
   // The longest run first (runs are leased in the order they were submitted): it ends no later.
@@ -165,7 +166,7 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
     const json res = daemon_->Get("/api/v1/runs/" + std::to_string(run["id"].get<int64_t>()))["result"];
     EXPECT_EQ(res["stop_reason"], "duration") << res.dump();
     EXPECT_EQ(res["precision_met"], false) << res.dump();
-    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.25, 1e-9);
+    EXPECT_NEAR(res["sim_time_s"].get<double>(), 0.2, 1e-9);
     EXPECT_THAT(res["stop_note"].get<std::string>(), HasSubstr("without meeting the precision target"));
   }
 
