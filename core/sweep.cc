@@ -549,8 +549,8 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
 
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  SANDSWIM_RETURN_IF_ERROR(CheckKeys(
-      j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision", "replicates", "sweeps"}));
+  SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision",
+                                         "replicates", "sweeps", "claims"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -595,6 +595,13 @@ Result<Campaign> ParseCampaign(const json& j) {
     total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission) * s->Replicates();
     if (total > kMaxRunsPerSubmission) return TooMany(kMaxRunsPerSubmission).WithFieldPrefix(path);
     c.sweeps.push_back(std::move(*s));
+  }
+  if (j.count("claims")) {
+    std::vector<std::string> names;
+    for (const SweepSpec& s : c.sweeps) names.push_back(s.name);
+    auto claims = ParseClaims(j["claims"], names);
+    if (!claims.ok()) return claims.status().WithFieldPrefix("claims");
+    c.claims = std::move(claims).value();
   }
   return c;
 }

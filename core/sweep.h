@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/claims.h"
 #include "core/deck.h"
 #include "core/point.h"
 #include "core/scale.h"
@@ -78,6 +79,8 @@ struct Campaign {
   double drift_tolerance_mps = 0.0;          // |U_z now - U_z before| above this is flagged
   std::optional<PrecisionTarget> precision;  // for its sweeps that set none
   std::optional<int> replicates;             // for its sweeps that set none
+  // The paper's findings it tests (core/claims.h); each rule names sweeps of this campaign.
+  std::vector<Claim> claims;
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);

@@ -281,7 +281,7 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
 
   const json& campaign = defs_.at("campaign");
   EXPECT_EQ(Keys(campaign), (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps",
-                                                   "precision", "replicates", "sweeps"}));
+                                                   "precision", "replicates", "sweeps", "claims"}));
   EXPECT_EQ(Strings(campaign.at("required")), (std::set<std::string>{"name", "description", "scale", "sweeps"}));
   json c = {{"name", "c"},
             {"description", "d"},
@@ -309,6 +309,29 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   EXPECT_EQ(Keys(many), (std::set<std::string>{"sweeps", "force"}));
   EXPECT_EQ(many.at("properties").at("sweeps").at("items").at("$ref"), "#/$defs/sweep");
   EXPECT_EQ(many.at("x-max-points"), kMaxRunsPerSubmission);
+}
+
+// Claims (core/claims.h): the fields, the rule kinds and each kind's parameters are the ones the
+// parser takes.
+TEST_F(SweepSchemaTest, ClaimRulesAreTheOnesCxxTakes) {
+  const json& claim = defs_.at("claim");
+  EXPECT_EQ(Keys(claim), (std::set<std::string>{"id", "title", "source", "paper", "rule"}));
+  EXPECT_EQ(Strings(claim.at("required")), Keys(claim));
+  std::set<std::string> kinds;
+  for (const json& rule : defs_.at("claim_rule").at("oneOf")) {
+    const std::string kind = rule.at("properties").at("kind").at("const").get<std::string>();
+    kinds.insert(kind);
+    std::set<std::string> params = Keys(rule);
+    params.erase("kind");
+    const std::vector<std::string> cxx = ClaimRuleParams(kind);
+    EXPECT_EQ(params, std::set<std::string>(cxx.begin(), cxx.end())) << kind;
+    std::set<std::string> required = Strings(rule.at("required"));
+    required.erase("kind");
+    const std::vector<std::string> cxx_required = ClaimRuleParams(kind, /*required_only=*/true);
+    EXPECT_EQ(required, std::set<std::string>(cxx_required.begin(), cxx_required.end())) << kind;
+  }
+  const std::vector<std::string> cxx_kinds = ClaimKinds();
+  EXPECT_EQ(kinds, std::set<std::string>(cxx_kinds.begin(), cxx_kinds.end()));
 }
 
 TEST_F(SweepSchemaTest, CampaignSchemaSharesTheDefinitions) {
