@@ -1131,6 +1131,25 @@ std::string DescribeFigure(const ClaimFigure& f) {
   return text;
 }
 
+std::string DescribePaperNumbers(const nlohmann::json& paper) {
+  std::string out;
+  if (!paper.is_object()) return out;
+  auto text = [](const nlohmann::json& x) {
+    return x.is_number() ? Num(x.get<double>(), 6) : x.is_string() ? x.get<std::string>() : x.dump();
+  };
+  for (const auto& [key, value] : paper.items()) {
+    if (key == "text") continue;
+    std::string v;
+    if (value.is_array()) {
+      for (const auto& x : value) v += (v.empty() ? "" : ", ") + text(x);
+    } else {
+      v = text(value);
+    }
+    out += (out.empty() ? "" : "; ") + key + " = " + v;
+  }
+  return out;
+}
+
 nlohmann::json ClaimVerdictToJson(const ClaimVerdict& v) {
   using nlohmann::json;
   json j = ClaimToJson(v.claim);

@@ -11,6 +11,7 @@
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "server/claim_check.h"
 
 namespace sandswim {
 namespace {
@@ -190,6 +191,65 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
   return html + "</table>\n";
 }
 
+// What the paper reports: its text, then its numbers ("A_m = 0.03").
+std::string PaperHtml(const nlohmann::json& paper) {
+  const std::string numbers = DescribePaperNumbers(paper);
+  return Escape(paper.value("text", "")) + (numbers.empty() ? "" : "<br><small>" + Escape(numbers) + "</small>");
+}
+
+std::string VerdictHtml(Verdict v) {
+  return std::string("<span class=\"") + VerdictName(v) + "\">" + VerdictName(v) + "</span>";
+}
+
+// The first section: every claim, its verdict, the numbers behind it, the paper's, side by side.
+std::string ClaimsHtml(const ReportInput& in) {
+  std::string html = "<h2 id=\"claims\">Claims</h2>\n";
+  if (in.claims.empty()) {
+    return html + "<p class=\"none\">The campaign states no claims" +
+           (in.claims_note.empty() ? std::string() : " (" + Escape(in.claims_note) + ")") + ".</p>\n";
+  }
+  int counts[3] = {0, 0, 0};
+  for (const ClaimVerdict& v : in.claims) ++counts[static_cast<int>(v.verdict)];
+  html += "<p>" + std::to_string(counts[0]) + " hold, " + std::to_string(counts[1]) + " differ, " +
+          std::to_string(counts[2]) +
+          " inconclusive. Each claim is decided by the rule the campaign file states, from the results' own errors "
+          "(95 % intervals; over replicate beds where there are several); a claim never holds while a point it "
+          "needs has no conclusive U<sub>z</sub>." +
+          (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
+          "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
+  for (const ClaimVerdict& v : in.claims) {
+    std::string measured = Escape(v.reason);
+    for (const ClaimPart& p : v.parts) {
+      measured += "<br>" + VerdictHtml(p.verdict) + " " + Escape(p.name) + ": " + Escape(p.reason);
+      if (p.figures.empty()) continue;
+      measured += "<details><summary>" + std::to_string(p.figures.size()) + " figure(s)</summary><ul>";
+      for (const ClaimFigure& f : p.figures) {
+        measured += "<li>" + Escape(f.name) + ": " + Escape(DescribeFigure(f)) +
+                    (f.verdict ? " " + VerdictHtml(*f.verdict) : std::string()) +
+                    (f.note.empty() || !(f.value || f.lo) ? std::string() : " <small>" + Escape(f.note) + "</small>") +
+                    "</li>";
+      }
+      measured += "</ul></details>";
+    }
+    if (!v.missing.empty()) {
+      measured += "<details><summary>" + std::to_string(v.missing.size()) +
+                  " point(s) without a conclusive U<sub>z</sub></summary><ul>";
+      for (const ClaimMissing& m : v.missing) {
+        std::string runs;
+        for (int64_t id : m.run_ids) runs += (runs.empty() ? "run " : ", ") + std::to_string(id);
+        measured += "<li>" + Escape(m.sweep) + " " + Escape(PointToJson(m.point).dump()) + " (" + runs +
+                    "): " + Escape(m.why) + "</li>";
+      }
+      measured += "</ul></details>";
+    }
+    html += "<tr id=\"claim-" + Escape(v.claim.id) + "\"><td><b>" + Escape(v.claim.id) + "</b> " +
+            Escape(v.claim.title) + "<br><small>" + Escape(v.claim.source) + "; rule: " + Escape(v.claim.kind()) +
+            "</small></td><td>" + VerdictHtml(v.verdict) + "</td><td>" + measured + "</td><td>" +
+            PaperHtml(v.claim.paper) + "</td></tr>\n";
+  }
+  return html + "</table>\n";
+}
+
 }  // namespace
 
 // ---- Analysis ----------------------------------------------------------------------------------
@@ -311,14 +371,16 @@ std::string RenderReportHtml(const ReportInput& in) {
       "body{font-family:sans-serif;margin:2em;max-width:1100px}table{border-collapse:collapse;margin:1em 0}"
       "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}"
       "figure{margin:1em 0}figure svg{width:100%;height:auto}figcaption{color:#555}"
-      ".none{color:#777}.drifted{background:#fdd}details{margin:0.5em 0}\n"
+      ".none{color:#777}.drifted{background:#fdd}details{margin:0.5em 0}"
+      ".holds{background:#dfd}.differs{background:#fdd}.inconclusive{background:#eee}\n"
       "</style>\n</head>\n<body>\n<h1 id=\"top\">" +
       Escape(title) + "</h1>\n<p>Generated " + UtcTime(in.generated_at) + ". Created " + UtcTime(cr.created_at) + " (" +
       Escape(cr.trigger) + "). Runs: " + std::to_string(cr.counts.done) + " done, " + std::to_string(cr.counts.queued) +
       " queued, " + std::to_string(cr.counts.running) + " running, " + std::to_string(cr.counts.failed) + " failed, " +
       std::to_string(cr.counts.cancelled) + " cancelled.</p>\n";
 
-  html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#fits\">Fits</a></li>\n";
+  html += ClaimsHtml(in);
+  html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n<li><a href=\"#fits\">Fits</a></li>\n";
   for (const ReportSweep& s : in.sweeps) {
     html += "<li><a href=\"#sweep-" + std::to_string(s.info.id) + "\">sweep " + std::to_string(s.info.id) + ": " +
             Escape(s.info.name) + "</a></li>\n";
@@ -377,12 +439,22 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
   auto drift = DriftReportFor(store, campaign_run_id);
   if (!drift.ok()) return drift.status();
   in.drift = *drift;
-  // A run shared by several sweeps is drawn once and shown (anchored) under its first sweep only,
-  // so every "#run-ID" names exactly one element.
-  std::set<int64_t> shown;
+  std::vector<SweepAnalysis> analyses;
   for (int64_t sweep_id : cr->sweep_ids) {
     auto a = AnalyzeSweep(store, sweep_id);
     if (!a.ok()) return a.status();
+    analyses.push_back(std::move(a).value());
+  }
+  auto claims = CheckClaims(store, *cr, analyses);
+  if (!claims.ok()) return claims.status();
+  in.claims = std::move(claims->verdicts);
+  in.claims_note = claims->note;
+  // A run shared by several sweeps is drawn once and shown (anchored) under its first sweep only,
+  // so every "#run-ID" names exactly one element.
+  std::set<int64_t> shown;
+  for (const SweepAnalysis& analysis : analyses) {
+    const int64_t sweep_id = analysis.info.id;
+    const SweepAnalysis* a = &analysis;
     ReportSweep s;
     s.info = a->info;
     s.fits = a->fits;

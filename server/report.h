@@ -7,6 +7,9 @@
 // are built from it with server/figures.h and kept by a FigureCache (so the report and the REST
 // routes draw each figure once per set of results).
 //
+// The report opens with the campaign's claims (core/claims.h): each with its verdict, the numbers
+// behind it and what the paper reports, side by side; a campaign without claims says so.
+//
 // The HTML is one file: no external stylesheet, script, font or image; every internal link is an
 // anchor ("#sweep-12", "#run-40") of an element in the same page, and the figures are inline
 // <svg> elements (their XML prolog stripped). RenderReportHtml() is pure; CampaignReport() does
@@ -21,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "core/claims.h"
 #include "core/fit.h"
 #include "core/status.h"
 #include "server/drift_report.h"
@@ -76,13 +80,17 @@ struct ReportSweep {
 };
 struct ReportInput {
   CampaignRunInfo campaign_run;
+  // The campaign's claims and their verdicts (server/claim_check.h): the report's first section.
+  std::vector<ClaimVerdict> claims;
+  std::string claims_note;  // e.g. where the claims come from, or why there are none
   std::vector<ReportSweep> sweeps;
   std::optional<DriftReport> drift;
   double generated_at = 0;  // unix seconds
 };
 std::string RenderReportHtml(const ReportInput& input);
 
-// Reads and draws everything of a campaign run and renders the report. NotFound for an unknown id.
+// Reads and draws everything of a campaign run (its claims' verdicts first) and renders the
+// report. NotFound for an unknown id.
 Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now);
 
 }  // namespace sandswim

@@ -18,6 +18,7 @@
 
 #include "core/keys.h"
 #include "platform/clock.h"
+#include "server/claim_check.h"
 #include "server/lease_queue.h"
 #include "server/loopback_server_test_util.h"
 #include "server/routes.h"
@@ -254,8 +255,11 @@ TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {
     EXPECT_TRUE(ids.count(target.substr(1))) << "no element for " << target;
     ++links;
   }
-  // Contents 4, fit rows 3 (2 branches + the baseline's "none"), "top" 3, run rows 8 + 2, drift rows 8.
-  EXPECT_EQ(links, 28);
+  // Contents 5, fit rows 3 (2 branches + the baseline's "none"), "top" 3, run rows 8 + 2, drift rows 8.
+  EXPECT_EQ(links, 29);
+  // The first section: the claims (this campaign states none, and says so).
+  EXPECT_LT(html->find("id=\"claims\""), html->find("id=\"fits\""));
+  EXPECT_THAT(*html, HasSubstr("The campaign states no claims"));
   EXPECT_THAT(*html, HasSubstr((*drift)[0].summary.substr(0, 20)));
   EXPECT_THAT(*html, ::testing::Not(HasSubstr(" src=")));  // nothing loaded from elsewhere
   EXPECT_THAT(*html, ::testing::Not(HasSubstr("<?xml")));  // SVGs inlined without their prolog
@@ -377,6 +381,94 @@ TEST_F(ReportTest, NothingFinishedIsUnprocessableNotAnError) {
   auto report = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/report").c_str());
   EXPECT_EQ(report->status, 200);
   EXPECT_THAT(report->body, HasSubstr("nothing finished yet"));
+}
+
+// A campaign that states claims: the report's first section lists every claim with its verdict,
+// the numbers behind it and the paper's, and GET /campaign-runs/{id}/claims answers the same
+// verdicts (the fixture's runs follow eq. 8 with clear signs; its bed holds 3,700 grains).
+TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) {
+  StoredCampaign campaign;
+  campaign.name = "tiny-claims";
+  json definition = json::parse(kCampaign);
+  definition["name"] = "tiny-claims";
+  definition["claims"] = json::parse(R"([
+    {"id": "F1", "title": "Omega < 0 rises, Omega > 0 sinks", "source": "Sec. 3.2, Fig. 4",
+     "paper": {"text": "rose with negative Omega, sank with positive", "Omega_rad_s": [-80, 80]},
+     "rule": {"kind": "sign", "sweeps": ["baseline", "omega"], "expect": "against_Omega"}},
+    {"id": "F2", "title": "saturates", "source": "Fig. 6, eq. 8", "paper": {"text": "eq. 8 fits well"},
+     "rule": {"kind": "saturation", "sweep": "omega", "reached_fraction": 0.5, "min_points": 4}},
+    {"id": "F6", "title": "8e5 grains", "source": "Sec. 2.3", "paper": {"text": "a bed of 8*10^5 particles"},
+     "rule": {"kind": "grain_count", "paper_grains": 800000, "paper_bed_m3": 0.5}}])");
+  campaign.definition = definition;
+  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  SubmitRequest request;
+  request.campaign = "tiny-claims";
+  auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
+  ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+  const int64_t id = *submitted->campaign_run_id;
+
+  // Nothing finished: every claim is inconclusive, none decided from nothing.
+  auto before = CheckClaims(*store_, id);
+  ASSERT_TRUE(before.ok()) << before.status().ToString();
+  ASSERT_EQ(before->verdicts.size(), 3u);
+  for (const ClaimVerdict& v : before->verdicts) EXPECT_EQ(v.verdict, Verdict::kInconclusive) << v.claim.id;
+
+  RunAll();
+  FigureCache figures(dir_ + "/data/figures");
+  auto html = CampaignReport(*store_, figures, id, clock_.Now());
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  const size_t claims_at = html->find("id=\"claims\"");
+  ASSERT_NE(claims_at, std::string::npos);
+  EXPECT_LT(claims_at, html->find("<nav>"));
+  for (const char* claim : {"F1", "F2", "F6"}) {
+    const size_t row = html->find(std::string("id=\"claim-") + claim + "\"");
+    ASSERT_NE(row, std::string::npos) << claim;
+    EXPECT_LT(row, html->find("id=\"fits\"")) << claim;
+  }
+  EXPECT_THAT(*html, HasSubstr("rose with negative Omega, sank with positive"));  // the paper's, beside
+  EXPECT_THAT(*html, HasSubstr("C1 = "));
+
+  StartServer();
+  auto r = client_->Get(("/api/v1/campaign-runs/" + std::to_string(id) + "/claims").c_str());
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  json reply = json::parse(r->body);
+  EXPECT_EQ(reply["claims_source"], "stored");
+  ASSERT_EQ(reply["claims"].size(), 3u);
+  EXPECT_EQ(reply["claims"][0]["id"], "F1");
+  EXPECT_EQ(reply["claims"][0]["verdict"], "holds") << reply["claims"][0]["reason"];
+  EXPECT_EQ(reply["claims"][1]["verdict"], "holds") << reply["claims"][1]["reason"];
+  EXPECT_EQ(reply["claims"][2]["verdict"], "differs") << reply["claims"][2]["reason"];
+  EXPECT_EQ(reply["counts"]["holds"], 2);
+
+  // The fixture's campaign states none: an empty list.
+  auto none = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());
+  ASSERT_EQ(none->status, 200);
+  EXPECT_TRUE(json::parse(none->body)["claims"].empty());
+  EXPECT_EQ(json::parse(none->body)["claims_source"], "none");
+  EXPECT_EQ(client_->Get("/api/v1/campaign-runs/999/claims")->status, 404);
+}
+
+// paper-58 recorded in the store before its file stated claims: the built-in file's claims, said so.
+TEST_F(ReportTest, AStoredBuiltinCampaignWithoutClaimsTakesTheBuiltinOnes) {
+  auto builtin = BuiltinCampaignDefinition("paper-58");
+  ASSERT_TRUE(builtin.ok());
+  StoredCampaign campaign;
+  campaign.name = "paper-58";
+  campaign.definition = *builtin;
+  campaign.definition.erase("claims");
+  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  SubmitRequest request;
+  request.campaign = "paper-58";
+  request.scale = "smoke";
+  auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
+  ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+  auto claims = CheckClaims(*store_, *submitted->campaign_run_id);
+  ASSERT_TRUE(claims.ok()) << claims.status().ToString();
+  EXPECT_EQ(claims->claims_source, "builtin");
+  EXPECT_THAT(claims->note, HasSubstr("predates claims"));
+  ASSERT_EQ(claims->verdicts.size(), 6u);
+  for (const ClaimVerdict& v : claims->verdicts) EXPECT_EQ(v.verdict, Verdict::kInconclusive) << v.claim.id;
 }
 
 // New results are never answered with an older figure.

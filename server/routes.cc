@@ -28,6 +28,7 @@
 #include "core/sweep.h"
 #include "core/trajectory.h"
 #include "server/campaigns.h"
+#include "server/claim_check.h"
 #include "server/drift_report.h"
 #include "server/figures.h"
 #include "server/report.h"
@@ -489,6 +490,15 @@ void GetCampaignRunResults(Call& c) {
   SendRows(c, *id, *rows, distinct, /*with_sweeps=*/true);
 }
 
+// The verdict of each of the campaign's claims for this run (server/claim_check.h).
+void GetCampaignRunClaims(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  auto claims = CheckClaims(*c.deps.store, *id);
+  if (!claims.ok()) return Fail(c, claims.status());
+  SendJson(c, 200, CampaignRunClaimsToJson(*claims));
+}
+
 // ---- Figures, fits and reports (server/figures.h, server/report.h) ----------------------------
 
 // Figures live next to the results, keyed by their data (FigureCache): never stale.
@@ -856,6 +866,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/campaigns/{name}/drift",        Access::kRead,   BodyKind::kNone,    GetCampaignDrift},
   {"GET",  "/api/v1/campaign-runs/{id}",            Access::kRead,   BodyKind::kNone,    GetCampaignRun},
   {"GET",  "/api/v1/campaign-runs/{id}/results",    Access::kRead,   BodyKind::kNone,    GetCampaignRunResults},
+  {"GET",  "/api/v1/campaign-runs/{id}/claims",     Access::kRead,   BodyKind::kNone,    GetCampaignRunClaims},
   // Figures (SVG or PNG by extension), fits and reports (server/report.h).
   {"GET",  "/api/v1/runs/{id}/trajectory.svg",      Access::kRead,   BodyKind::kNone,    GetRunFigure<ImageFormat::kSvg>},
   {"GET",  "/api/v1/runs/{id}/trajectory.png",      Access::kRead,   BodyKind::kNone,    GetRunFigure<ImageFormat::kPng>},

@@ -1,0 +1,48 @@
+// ClaimCheck: the verdicts of a campaign's claims (core/claims.h) for one campaign run, read from the
+// Store: the claims of the campaign as the catalogue has it (server/campaigns.h), each sweep's
+// analysis (AnalyzeSweep: its samples over replicate beds and its fits), every run of each sweep
+// with its state, result and last error, and the beds those runs use. Served by
+// GET /api/v1/campaign-runs/{id}/claims, `sandswim check cr:ID` and the first section of the
+// report.
+//
+// Where the claims come from: the campaign's stored definition; a built-in campaign recorded
+// before its file stated claims (the stored copy has no "claims") takes the built-in file's claims,
+// and says so in `claims_source`. A campaign that is gone states none.
+//
+// Thread safety: free functions over a thread-safe Store.
+#ifndef SANDSWIM_SERVER_CLAIM_CHECK_H_
+#define SANDSWIM_SERVER_CLAIM_CHECK_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/claims.h"
+#include "core/status.h"
+#include "server/report.h"
+#include "server/store.h"
+
+namespace sandswim {
+
+struct CampaignRunClaims {
+  CampaignRunInfo campaign_run;
+  std::string claims_source;  // "stored" | "builtin" | "none"
+  std::string note;           // e.g. why the claims come from the built-in file
+  std::vector<ClaimVerdict> verdicts;
+};
+// {"campaign_run_id","campaign","scale","claims_source","note","counts":{"holds","differs",
+//  "inconclusive"},"claims":[ClaimVerdictToJson...]}
+nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c);
+
+// NotFound for an unknown campaign run.
+Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id);
+// The same with the run's sweeps already analysed (`analyses`, one per sweep of the campaign run,
+// as AnalyzeSweep made them): the report has them at hand.
+Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
+                                      const std::vector<SweepAnalysis>& analyses);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_CLAIM_CHECK_H_
