@@ -98,6 +98,12 @@ class HttpDaemonClient : public DaemonClient {
     return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
   }
 
+  Result<json> CampaignRunClaims(int64_t id) override {
+    // The daemon analyses every sweep of the run before it answers: allow it as long as a report.
+    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+    return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/claims");
+  }
+
   Result<json> CampaignDrift(const std::string& name, const std::string& scale) override {
     std::string path = "/api/v1/campaigns/" + httplib::detail::encode_query_param(name) + "/drift";
     if (!scale.empty()) path += "?scale=" + httplib::detail::encode_query_param(scale);

@@ -54,6 +54,11 @@ class DaemonClient {
   virtual Result<nlohmann::json> GetRun(int64_t id) = 0;
   virtual Result<nlohmann::json> GetCampaignRun(int64_t id) = 0;
   virtual Result<nlohmann::json> CampaignRunResults(int64_t id) = 0;  // {"id","results":[...]}
+  // GET /api/v1/campaign-runs/{id}/claims: the verdict of each claim the campaign states.
+  virtual Result<nlohmann::json> CampaignRunClaims(int64_t id) {
+    (void)id;
+    return Status::Unavailable("this client cannot fetch claims");
+  }
   // GET /api/v1/campaigns/{name}/drift[?scale=]: the latest drift report (kNotFound: none yet).
   virtual Result<nlohmann::json> CampaignDrift(const std::string& name, const std::string& scale) {
     (void)scale;

@@ -653,6 +653,39 @@ int RunReport(Context& c) {
   return kExitOk;
 }
 
+void SetupCheck(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "CAMPAIGN-RUN", "a campaign run (cr:7)");
+  AddJson(sub, a);
+}
+
+// The verdict of each claim the campaign states, for one campaign run. Exit 0 only when every
+// claim holds; 3 when one differs or is inconclusive (the table says which and why), so that a
+// script can tell "the findings hold" from everything else.
+int RunCheck(Context& c) {
+  auto target = ParseTarget(c.args.target, "CAMPAIGN-RUN");
+  if (!target.ok()) return Fail(c, target.status(), kExitUsage);
+  if (target->kind != Target::Kind::kCampaignRun) {
+    return Fail(c,
+                Status::InvalidArgument("CAMPAIGN-RUN",
+                                        "claims belong to a campaign run: name one as cr:ID (cr:7); "
+                                        "`sandswim status` lists them"),
+                kExitUsage);
+  }
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto reply = (*client)->CampaignRunClaims(target->id);
+  if (!reply.ok()) return Fail(c, reply.status());
+  if (c.args.json) {
+    PrintJson(c, *reply);
+  } else {
+    c.out() << RenderClaims(*reply, c.OutRender());
+  }
+  const json claims = reply->value("claims", json::array());
+  bool all_hold = !claims.empty();
+  for (const auto& claim : claims) all_hold = all_hold && claim.value("verdict", "") == "holds";
+  return all_hold ? kExitOk : kExitRunsFailed;
+}
+
 void SetupBackup(CLI::App& sub, Args& a) {
   sub.add_option("FILE", a.out_file, "where to write the copy (replaced when there; written aside and renamed)")
       ->required();
@@ -902,6 +935,11 @@ const Command kCommands[] = {
    "  sandswim report paper-58 --scale smoke --out paper-58.html\n"
    "  sandswim report cr:7",
    SetupReport, RunReport},
+  {"check", "which of the campaign's claims (the paper's findings) hold, differ or are inconclusive for one campaign "
+   "run, with the numbers behind each and the paper's (exit 0: every claim holds; 3: one differs or is inconclusive)",
+   "  sandswim check cr:7\n"
+   "  sandswim check cr:7 --json | jq '.claims[] | {id, verdict}'",
+   SetupCheck, RunCheck},
   {"backup", "write a consistent copy of the daemon's database, made while it runs, to FILE",
    "  sandswim backup sandswim-$(date +%F).db",
    SetupBackup, RunBackup},
@@ -936,7 +974,8 @@ int RunCli(int argc, const char* const* argv, Environment& env) {
   CLI::App app{"sandswim: submit, follow and read DEM parameter studies run by sandswimd"};
   app.footer("Where the daemon is: --server, else $SANDSWIM_SERVER, else " + std::string(kDefaultServer) +
              ".\nSweeps are named by id (12), campaign runs by cr:ID (cr:7).\n"
-             "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed.\n");
+             "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed (check: a claim does not "
+             "hold).\n");
   app.require_subcommand(1);
   app.fallthrough();
   app.add_option("--server", args.server, "daemon URL, http://HOST:PORT (else $SANDSWIM_SERVER)");

@@ -59,7 +59,7 @@ void OneRunningRun(FakeClient& c) {
 
 TEST(CommandsTest, TableReadsTopToBottom) {
   EXPECT_THAT(CommandNames(), ElementsAre("submit", "status", "runs", "show", "results", "watch", "cancel", "rerun",
-                                          "expand", "report", "backup", "analyze", "version", "slurm"));
+                                          "expand", "report", "check", "backup", "analyze", "version", "slurm"));
 }
 
 TEST(CommandsTest, ColourOnlyOnATerminalWithoutNoColor) {
@@ -95,6 +95,65 @@ TEST(CommandsTest, WatchExitsThreeWhenRunsFailed) {
   };
   EXPECT_EQ(h.Run({"watch", "4"}, false), kExitRunsFailed);
   EXPECT_THAT(h.out.str(), HasSubstr("1 failed"));
+}
+
+// A campaign run's claims: each with its verdict, what was measured and what the paper reports.
+json Claims(const std::vector<std::string>& verdicts) {
+  json claims = json::array();
+  int n = 0;
+  std::map<std::string, int> counts = {{"holds", 0}, {"differs", 0}, {"inconclusive", 0}};
+  for (const std::string& v : verdicts) {
+    ++counts[v];
+    claims.push_back(
+        {{"id", "F" + std::to_string(++n)},
+         {"title", "claim " + std::to_string(n)},
+         {"source", "Fig. " + std::to_string(n)},
+         {"paper", {{"text", "the paper's finding " + std::to_string(n)}, {"Omega_rad_s", {-80, 80}}}},
+         {"verdict", v},
+         {"reason", "measured " + std::to_string(n)},
+         {"parts", json::array({{{"name", "part " + std::to_string(n)}, {"verdict", v}, {"reason", "r"}}})},
+         {"missing", v == "inconclusive" ? json::array({{{"sweep", "omega"},
+                                                         {"point", "Omega = 160"},
+                                                         {"run_ids", {12}},
+                                                         {"why", "failed: engine crashed"}}})
+                                         : json::array()}});
+  }
+  return {{"campaign_run_id", 7}, {"campaign", "paper-58"}, {"scale", "smoke"}, {"claims_source", "stored"},
+          {"note", ""},           {"counts", counts},       {"claims", claims}};
+}
+
+TEST(CommandsTest, CheckExitsZeroOnlyWhenEveryClaimHolds) {
+  Harness all;
+  all.fill = [](FakeClient& c) { c.claims[7] = Claims({"holds", "holds"}); };
+  EXPECT_EQ(all.Run({"check", "cr:7"}, false), kExitOk) << all.err.str();
+  EXPECT_THAT(all.out.str(), HasSubstr("2 hold, 0 differ, 0 inconclusive"));
+  EXPECT_THAT(all.out.str(), HasSubstr("the paper's finding 2 [Omega_rad_s = -80, 80]"));
+
+  Harness differs;
+  differs.fill = [](FakeClient& c) { c.claims[7] = Claims({"holds", "differs"}); };
+  EXPECT_EQ(differs.Run({"check", "cr:7"}, true), kExitRunsFailed);
+  EXPECT_THAT(differs.out.str(), HasSubstr("\x1b[31mdiffers\x1b[0m"));
+
+  Harness inconclusive;
+  inconclusive.fill = [](FakeClient& c) { c.claims[7] = Claims({"holds", "inconclusive"}); };
+  EXPECT_EQ(inconclusive.Run({"check", "cr:7"}, false), kExitRunsFailed);
+  EXPECT_THAT(inconclusive.out.str(), HasSubstr("omega Omega = 160 (run 12): failed: engine crashed"));
+
+  Harness json_out;
+  json_out.fill = [](FakeClient& c) { c.claims[7] = Claims({"holds"}); };
+  EXPECT_EQ(json_out.Run({"check", "cr:7", "--json"}, false), kExitOk);
+  EXPECT_EQ(json::parse(json_out.out.str())["claims"][0]["verdict"], "holds");
+
+  // No claims decides nothing; a sweep id is not a campaign run; an unknown run is an error.
+  Harness none;
+  none.fill = [](FakeClient& c) { c.claims[7] = Claims({}); };
+  EXPECT_EQ(none.Run({"check", "cr:7"}, false), kExitRunsFailed);
+  EXPECT_THAT(none.out.str(), HasSubstr("no claims"));
+  Harness sweep;
+  EXPECT_EQ(sweep.Run({"check", "12"}, false), kExitUsage);
+  EXPECT_THAT(sweep.err.str(), HasSubstr("cr:ID"));
+  Harness unknown;
+  EXPECT_EQ(unknown.Run({"check", "cr:9"}, false), kExitError);
 }
 
 TEST(CommandsTest, ServerFromTheEnvironmentIsValidated) {

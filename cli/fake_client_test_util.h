@@ -14,6 +14,7 @@ class FakeClient : public DaemonClient {
  public:
   std::map<int64_t, nlohmann::json> sweeps;
   std::map<int64_t, nlohmann::json> campaign_runs;
+  std::map<int64_t, nlohmann::json> claims;       // GET /campaign-runs/{id}/claims, by campaign run id
   nlohmann::json runs = nlohmann::json::array();  // every run; ListRuns filters by state
   std::string url = "http://fake";
 
@@ -57,6 +58,11 @@ class FakeClient : public DaemonClient {
   }
   Result<nlohmann::json> CampaignRunResults(int64_t id) override {
     return nlohmann::json{{"id", id}, {"results", nlohmann::json::array()}};
+  }
+  Result<nlohmann::json> CampaignRunClaims(int64_t id) override {
+    auto it = claims.find(id);
+    if (it == claims.end()) return Status::NotFound("no campaign run " + std::to_string(id));
+    return it->second;
   }
 };
 

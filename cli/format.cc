@@ -1,5 +1,7 @@
 #include "cli/format.h"
 
+#include "core/claims.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -494,6 +496,53 @@ std::string RenderResultsCsv(const json& rows) {
   }
   if (with_sweeps) columns.push_back("sweeps");
   return RowsToCsv(list, columns);
+}
+
+namespace {
+
+std::string VerdictCell(const std::string& verdict, const RenderOptions& options) {
+  const std::string code = verdict == "holds" ? "32" : verdict == "differs" ? "31" : "33";
+  return Colorize(verdict, code, options.color);
+}
+
+}  // namespace
+
+std::string RenderClaims(const json& reply, const RenderOptions& options) {
+  const json counts = reply.value("counts", json::object());
+  std::string out = Str(reply, "campaign", "?") + " at " + Str(reply, "scale", "?") +
+                    ", campaign run cr:" + Str(reply, "campaign_run_id", "?") + ": ";
+  const json claims = reply.value("claims", json::array());
+  if (claims.empty()) {
+    out += "no claims";
+    const std::string note = Str(reply, "note");
+    return out + (note.empty() ? "" : " (" + note + ")") + "\n";
+  }
+  out += Str(counts, "holds", "0") + " hold, " + Str(counts, "differs", "0") + " differ, " +
+         Str(counts, "inconclusive", "0") + " inconclusive\n";
+  if (!Str(reply, "note").empty()) out += "(" + Str(reply, "note") + ")\n";
+  for (const auto& c : claims) {
+    out += "\n" + Str(c, "id", "?") + "  " + VerdictCell(Str(c, "verdict", "inconclusive"), options) + "  " +
+           Str(c, "title") + " (" + Str(c, "source") + ")\n";
+    out += "    here:  " + Str(c, "reason") + "\n";
+    for (const auto& p : c.value("parts", json::array())) {
+      out += "      " + VerdictCell(Str(p, "verdict", "inconclusive"), options) + "  " + Str(p, "name") + ": " +
+             Str(p, "reason") + "\n";
+    }
+    const json paper = c.value("paper", json::object());
+    const std::string numbers = DescribePaperNumbers(paper);
+    out += "    paper: " + Str(paper, "text", "-") + (numbers.empty() ? "" : " [" + numbers + "]") + "\n";
+    const json missing = c.value("missing", json::array());
+    if (!missing.empty()) {
+      out += "    without a conclusive U_z (" + std::to_string(missing.size()) + "):\n";
+      for (const auto& m : missing) {
+        std::string runs;
+        for (const auto& id : m.value("run_ids", json::array())) runs += (runs.empty() ? "run " : ", ") + id.dump();
+        out += "      " + Str(m, "sweep") + " " + Str(m, "point") + (runs.empty() ? "" : " (" + runs + ")") + ": " +
+               Str(m, "why") + "\n";
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace sandswim::cli

@@ -150,6 +150,12 @@ std::string RenderResults(const nlohmann::json& reply, const RenderOptions& opti
 // The daemon's CSV of the same rows, byte for byte (core/result_table.h: ResultColumns(), plus
 // "sweeps" when any row has them).
 std::string RenderResultsCsv(const nlohmann::json& rows);
+
+// GET /campaign-runs/{id}/claims (server/claim_check.h) as text: a summary line, then each claim
+// as a block: its id, verdict (coloured: holds green, differs red, inconclusive yellow), title and
+// source; what was measured here, part by part; what the paper reports; the points it needed
+// that have no conclusive U_z, and why.
+std::string RenderClaims(const nlohmann::json& reply, const RenderOptions& options);
 // "surface", "floor", "surface,floor" or "" from a row's broke_surface / near_floor.
 std::string ResultFlags(const nlohmann::json& row);
 
