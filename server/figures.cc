@@ -19,6 +19,7 @@
 #include "core/keys.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "server/plot_renderer.h"
 
 namespace sandswim {
 namespace {
@@ -81,22 +82,6 @@ std::string Hex(const Rgb& c) {
   char buf[8];
   std::snprintf(buf, sizeof(buf), "#%02X%02X%02X", c.r, c.g, c.b);
   return buf;
-}
-
-Status CheckPlot(const Plot& plot) {
-  if (plot.series.empty()) return Status::InvalidArgument("plot", "nothing to draw: no series");
-  for (const Series& s : plot.series) {
-    if (s.x.size() != s.y.size() || (!s.y_err.empty() && s.y_err.size() != s.y.size())) {
-      return Status::InvalidArgument("plot", "series \"" + s.label + "\": x, y and errors differ in length");
-    }
-    for (const auto* v : {&s.x, &s.y, &s.y_err}) {
-      for (double d : *v) {
-        if (!std::isfinite(d))
-          return Status::InvalidArgument("plot", "series \"" + s.label + "\" has a non-finite value");
-      }
-    }
-  }
-  return Status::Ok();
 }
 
 struct Range {
@@ -241,6 +226,53 @@ void to_json(json& j, const Plot& p) {
         {{"label", s.label}, {"x", s.x}, {"y", s.y}, {"y_err", s.y_err}, {"markers", s.markers}, {"dashed", s.dashed}});
   }
   j = {{"title", p.title}, {"x_label", p.x_label}, {"y_label", p.y_label}, {"series", series}};
+}
+
+Status CheckPlot(const Plot& plot) {
+  if (plot.series.empty()) return Status::InvalidArgument("plot", "nothing to draw: no series");
+  for (const Series& s : plot.series) {
+    if (s.x.size() != s.y.size() || (!s.y_err.empty() && s.y_err.size() != s.y.size())) {
+      return Status::InvalidArgument("plot", "series \"" + s.label + "\": x, y and errors differ in length");
+    }
+    for (const auto* v : {&s.x, &s.y, &s.y_err}) {
+      for (double d : *v) {
+        if (!std::isfinite(d))
+          return Status::InvalidArgument("plot", "series \"" + s.label + "\" has a non-finite value");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+Result<Plot> PlotFromJson(const json& j) {
+  auto bad = [](const std::string& what) { return Status::InvalidArgument("plot", what); };
+  if (!j.is_object()) return bad("a plot is a JSON object");
+  Plot p;
+  for (const char* key : {"title", "x_label", "y_label"}) {
+    if (!j.contains(key) || !j[key].is_string()) return bad(std::string("\"") + key + "\" must be a string");
+  }
+  p.title = j["title"].get<std::string>();
+  p.x_label = j["x_label"].get<std::string>();
+  p.y_label = j["y_label"].get<std::string>();
+  if (!j.contains("series") || !j["series"].is_array()) return bad("\"series\" must be an array");
+  for (const json& sj : j["series"]) {
+    Series s;
+    if (!sj.is_object() || !sj.contains("label") || !sj["label"].is_string())
+      return bad("every series needs a string \"label\"");
+    s.label = sj["label"].get<std::string>();
+    for (auto [key, out] : {std::pair{"x", &s.x}, std::pair{"y", &s.y}, std::pair{"y_err", &s.y_err}}) {
+      if (!sj.contains(key) || !sj[key].is_array())
+        return bad("series \"" + s.label + "\": \"" + key + "\" must be an array");
+      for (const json& v : sj[key]) {
+        if (!v.is_number()) return bad("series \"" + s.label + "\": \"" + key + "\" holds a non-number");
+        out->push_back(v.get<double>());
+      }
+    }
+    s.markers = sj.value("markers", false);
+    s.dashed = sj.value("dashed", false);
+    p.series.push_back(std::move(s));
+  }
+  return p;
 }
 
 std::string SeriesColor(size_t i) { return Hex(SeriesRgb(i)); }
@@ -451,7 +483,7 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
 
 // ---- FigureCache -------------------------------------------------------------------------------
 
-FigureCache::FigureCache(std::string dir) : dir_(std::move(dir)) {}
+FigureCache::FigureCache(std::string dir, PlotRenderer* renderer) : dir_(std::move(dir)), renderer_(renderer) {}
 
 std::string FigureCache::PathFor(const std::string& name, const Plot& plot, ImageFormat format) const {
   std::string hash = Sha256Hex(json(plot).dump() + "\n" + ImageExtension(format) + "\n" + kStyleVersion);
@@ -467,7 +499,7 @@ Result<std::string> FigureCache::Get(const std::string& name, const Plot& plot, 
       if (!bytes.empty()) return bytes;
     }
   }
-  auto bytes = RenderPlot(plot, format);
+  auto bytes = renderer_ != nullptr ? renderer_->Render(plot, format) : RenderPlot(plot, format);
   if (!bytes.ok()) return bytes.status();
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);

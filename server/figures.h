@@ -18,7 +18,8 @@
 // Thread safety: PLplot keeps global state and is not thread-safe; RenderPlot() serialises every
 // drawing behind one process-wide mutex. FigureCache is thread-safe (two threads may render the
 // same figure at once; both write the same bytes). PLplot ends the process on an internal error
-// (plexit), so RenderPlot() checks what it can first: finite data, a writable temporary file.
+// (plexit), so RenderPlot() checks what it can first (finite data, a writable temporary file), and
+// sandswimd draws through sandswim-render, a process of its own (server/plot_renderer.h).
 #ifndef SANDSWIM_SERVER_FIGURES_H_
 #define SANDSWIM_SERVER_FIGURES_H_
 
@@ -53,13 +54,20 @@ struct Plot {
   std::vector<Series> series;
 };
 void to_json(nlohmann::json& j, const Plot& p);
+// The inverse of to_json: InvalidArgument ("plot") naming what is missing or of the wrong type.
+Result<Plot> PlotFromJson(const nlohmann::json& j);
 
 // "#RRGGBB" of the i-th series; distinct from each other for i < 64 and never black, white or
 // the axes' colour.
 std::string SeriesColor(size_t i);
 
-// Draws the plot. InvalidArgument ("plot") for a plot with no series, a series whose x and y
-// differ in length, or a non-finite value; IOError when the temporary file cannot be made.
+// InvalidArgument ("plot") for a plot with no series, a series whose x and y differ in length, or
+// a non-finite value: what RenderPlot refuses before PLplot sees it.
+Status CheckPlot(const Plot& plot);
+
+// Draws the plot in this process (CheckPlot first); IOError when the temporary file cannot be
+// made. PLplot may end the process on an error of its own: the daemon draws through a
+// PlotRenderer (server/plot_renderer.h) in a process of its own instead.
 Result<std::string> RenderPlot(const Plot& plot, ImageFormat format);
 
 // Text shown as it is in a PLplot label: '#' (PLplot's escape, as in "U#dz#u") doubled. For
@@ -93,10 +101,13 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
 
 // ---- Figures kept next to the results ----------------------------------------------------------
 
+class PlotRenderer;
+
 class FigureCache {
  public:
-  // `dir`: where figures live (created on first write), e.g. DATA_DIR/figures.
-  explicit FigureCache(std::string dir);
+  // `dir`: where figures live (created on first write), e.g. DATA_DIR/figures. `renderer` draws
+  // what is not there yet (must outlive this); nullptr: RenderPlot in this process (tests).
+  explicit FigureCache(std::string dir, PlotRenderer* renderer = nullptr);
 
   // The figure `name` (e.g. "run-12-trajectory") of `plot`: read from the file when one for this
   // exact plot exists, else rendered and written.
@@ -107,6 +118,7 @@ class FigureCache {
 
  private:
   std::string dir_;
+  PlotRenderer* renderer_;
 };
 
 }  // namespace sandswim

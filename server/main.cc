@@ -19,6 +19,7 @@
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
 #include "server/periodic.h"
+#include "server/plot_renderer.h"
 #include "server/pilot_watch.h"
 #include "server/routes.h"
 #include "server/scheduler.h"
@@ -227,7 +228,11 @@ int main(int argc, char** argv) {
   if (Status s = RegisterSchedules(scheduler, flags.schedules, clock); !s.ok()) {
     return Die(s, "use --schedule NAME[:SCALE] (e.g. paper-58:smoke) with a campaign that exists, or drop it");
   }
+  // Figures are drawn by sandswim-render in processes of their own (server/plot_renderer.h).
+  sandswim::PosixSubprocesses renderer_processes;
+  sandswim::SubprocessRenderer renderer(&renderer_processes, sandswim::ExecutableDir() + "/sandswim-render");
   sandswim::Deps deps;
+  deps.renderer = &renderer;
   deps.store = store->get();
   deps.leases = &leases;
   deps.clock = &clock;

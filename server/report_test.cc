@@ -21,6 +21,7 @@
 #include "server/claim_check.h"
 #include "server/lease_queue.h"
 #include "server/loopback_server_test_util.h"
+#include "server/plot_renderer.h"
 #include "server/routes.h"
 #include "server/submission.h"
 
@@ -312,6 +313,40 @@ TEST_F(ReportTest, AReplicatedCampaignsDriftSectionListsEachPointsMeanOverItsBed
   auto single = CampaignReport(*store_, figures, campaign_run_, clock_.Now());
   ASSERT_TRUE(single.ok());
   EXPECT_THAT(*single, ::testing::Not(HasSubstr("Each point over its replicate beds")));
+}
+
+// A plotting library's error in the renderer process costs the figure, not the daemon: the route
+// answers a problem+json saying what happened, and the daemon goes on serving (figures included,
+// once the renderer works again).
+TEST_F(ReportTest, ARendererThatDiesIsAClearErrorAndTheDaemonKeepsServing) {
+  RunAll();
+  const std::string script = dir_ + "/dying-renderer";
+  std::ofstream(script) << "#!/bin/sh\necho '*** PLPLOT ERROR, IMMEDIATE EXIT ***' >&2\nkill -ABRT $$\n";
+  std::filesystem::permissions(script, std::filesystem::perms::owner_all);
+  PosixSubprocesses processes;
+  SubprocessRenderer dying(&processes, script);
+  deps_.renderer = &dying;
+  StartServer();
+  auto runs = store_->SweepResults(sweeps_[0]);
+  ASSERT_TRUE(runs.ok());
+  const std::string figure = "/api/v1/runs/" + std::to_string(runs->front().run_id) + "/trajectory.svg";
+  auto r = client_->Get(figure.c_str());
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 500);
+  EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_THAT(json::parse(r->body)["detail"].get<std::string>(), HasSubstr("died on signal 6"));
+  EXPECT_THAT(r->body, HasSubstr("PLPLOT ERROR"));
+  EXPECT_EQ(client_->Get("/healthz")->status, 200);
+  EXPECT_EQ(client_->Get(("/api/v1/sweeps/" + std::to_string(sweeps_[0])).c_str())->status, 200);
+  StopServer();
+
+  SubprocessRenderer real(&processes, SANDSWIM_RENDER_PATH);
+  deps_.renderer = &real;
+  StartServer();
+  r = client_->Get(figure.c_str());
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200) << r->body;
+  EXPECT_THAT(r->body, HasSubstr("<svg"));
 }
 
 TEST_F(ReportTest, RoutesServeFiguresFitsAndReportsWithTheirTypes) {

@@ -503,7 +503,7 @@ void GetCampaignRunClaims(Call& c) {
 
 // Figures live next to the results, keyed by their data (FigureCache): never stale.
 FigureCache FiguresOf(const Deps& deps) {
-  return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string());
+  return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string(), deps.renderer);
 }
 
 void SendFigure(Call& c, const std::string& name, const Plot& plot, ImageFormat format) {

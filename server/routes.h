@@ -43,6 +43,8 @@ inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;     // 1 MiB
 inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;  // 2 GiB
 inline constexpr int kDefaultPort = 8640;
 
+class PlotRenderer;
+
 struct Deps {
   Store* store = nullptr;
   LeaseQueue* leases = nullptr;
@@ -52,6 +54,9 @@ struct Deps {
   std::string token;           // bearer token; empty: no auth
   size_t max_json_body = kMaxJsonBodyBytes;
   size_t max_restart_body = kMaxRestartBodyBytes;
+  // Draws figures not drawn before (server/plot_renderer.h): sandswimd's runs sandswim-render, a
+  // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
+  PlotRenderer* renderer = nullptr;
 };
 
 // Who may call a route when a token is configured.

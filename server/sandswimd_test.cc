@@ -31,7 +31,7 @@ using json = nlohmann::json;
 #error "SANDSWIMD_PATH must name the sandswimd binary (server/CMakeLists.txt)"
 #endif
 
-const char* kExampleSweep = R"({"name": "omega-sign", "scale": "smoke",
+const char* kDaemonExampleSweep = R"({"name": "omega-sign", "scale": "smoke",
   "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
   "axes": [{"param": "Omega", "values": [-80, 80]}], "combine": "product"})";
 
@@ -144,7 +144,7 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
   ASSERT_FALSE(first.Start(Flags(), Log()).has_value());
   httplib::Client a("127.0.0.1", first.port());
   httplib::Headers key = {{"Idempotency-Key", "nightly-1"}};
-  auto submitted = a.Post("/api/v1/sweeps", key, kExampleSweep, "application/json");
+  auto submitted = a.Post("/api/v1/sweeps", key, kDaemonExampleSweep, "application/json");
   ASSERT_EQ(submitted->status, 201) << submitted->body;
   int64_t sweep = Parse(submitted)["id"].get<int64_t>();
 
@@ -186,7 +186,7 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
   EXPECT_EQ(download->body, restart);
 
   // The same submission replays; it does not create a second sweep.
-  auto replay = b.Post("/api/v1/sweeps", key, kExampleSweep, "application/json");
+  auto replay = b.Post("/api/v1/sweeps", key, kDaemonExampleSweep, "application/json");
   ASSERT_EQ(replay->status, 201) << replay->body;
   EXPECT_EQ(Parse(replay)["id"], sweep);
   EXPECT_EQ(Parse(b.Get("/api/v1/sweeps"))["sweeps"].size(), 1u);
@@ -220,6 +220,11 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
   counts = Parse(b.Get(("/api/v1/sweeps/" + std::to_string(sweep)).c_str()))["counts"];
   EXPECT_EQ(counts["done"], 2);
   EXPECT_EQ(counts["running"], 0);
+
+  // The daemon's figures are drawn by sandswim-render, installed next to it.
+  auto figure = b.Get(("/api/v1/runs/" + std::to_string(run.id) + "/trajectory.svg").c_str());
+  ASSERT_EQ(figure->status, 200) << figure->body;
+  EXPECT_NE(figure->body.find("<svg"), std::string::npos);
 
   // SIGTERM is a clean exit.
   int status = second.Kill(SIGTERM);

@@ -1,0 +1,134 @@
+#include "server/plot_renderer.h"
+
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <sstream>
+#include <utility>
+
+#include "core/text.h"
+
+namespace sandswim {
+namespace {
+
+// A temporary file of our own, removed when this goes out of scope.
+class TempFile {
+ public:
+  static Result<TempFile> Make(const std::string& stem) {
+    std::string pattern = (std::filesystem::temp_directory_path() / (stem + "-XXXXXX")).string();
+    int fd = mkstemp(pattern.data());
+    if (fd < 0) return Status::IOError("cannot make a temporary file " + pattern + " for a figure (disk full?)");
+    close(fd);
+    return TempFile(std::move(pattern));
+  }
+  TempFile(TempFile&& other) noexcept : path_(std::move(other.path_)) { other.path_.clear(); }
+  TempFile(const TempFile&) = delete;
+  TempFile& operator=(const TempFile&) = delete;
+  ~TempFile() {
+    if (path_.empty()) return;
+    std::error_code ec;
+    std::filesystem::remove(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  explicit TempFile(std::string path) : path_(std::move(path)) {}
+  std::string path_;
+};
+
+// The last `n` non-empty lines of `text`, joined by " / ".
+std::string LastLines(const std::string& text, size_t n) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    std::string trimmed(Trim(line));
+    if (!trimmed.empty()) lines.push_back(std::move(trimmed));
+  }
+  std::string out;
+  for (size_t i = lines.size() > n ? lines.size() - n : 0; i < lines.size(); ++i)
+    out += (out.empty() ? "" : " / ") + lines[i];
+  return out;
+}
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+SubprocessRenderer::SubprocessRenderer(Subprocesses* processes, std::string program, double timeout_s)
+    : processes_(processes), program_(std::move(program)), timeout_s_(timeout_s) {}
+
+Result<std::string> SubprocessRenderer::Render(const Plot& plot, ImageFormat format) {
+  SANDSWIM_RETURN_IF_ERROR(CheckPlot(plot));
+  Result<TempFile> input = TempFile::Make("sandswim-plot");
+  if (!input.ok()) return input.status();
+  Result<TempFile> output = TempFile::Make("sandswim-figure");
+  if (!output.ok()) return output.status();
+  {
+    std::ofstream out(input->path(), std::ios::binary | std::ios::trunc);
+    out << nlohmann::json(plot).dump();
+    if (!out) return Status::IOError("cannot write " + input->path() + " for the figure renderer (disk full?)");
+  }
+  Result<CommandOutput> run =
+      processes_->Run({program_, input->path(), ImageExtension(format), output->path()}, {}, timeout_s_);
+  if (!run.ok()) {
+    return Status::Unavailable("cannot start the figure renderer " + program_ + " (" + run.status().reason() +
+                               "): install sandswim-render next to sandswimd (cmake --build build)");
+  }
+  const std::string said = LastLines(run->err, 3);
+  if (run->timed_out) {
+    return Status::Unavailable("the figure renderer took longer than " + Num(timeout_s_, 4) +
+                               " s and was stopped; the daemon goes on" + (said.empty() ? "" : ": " + said));
+  }
+  if (run->exit_code != 0) {
+    const std::string how = run->exit_code > 128 ? "died on signal " + std::to_string(run->exit_code - 128)
+                                                 : "failed (exit " + std::to_string(run->exit_code) + ")";
+    return Status::Internal("the figure renderer " + how + " drawing \"" + plot.title +
+                            "\"; the daemon goes on without this figure" + (said.empty() ? "" : ". It said: " + said));
+  }
+  std::string bytes = ReadAll(output->path());
+  if (bytes.empty()) return Status::IOError("the figure renderer wrote nothing to " + output->path() + " (disk full?)");
+  return bytes;
+}
+
+int RenderMain(int argc, const char* const* argv) {
+  const char* usage = "usage: sandswim-render PLOT.json svg|png OUT (draws a sandswimd plot with PLplot)";
+  if (argc != 4) {
+    std::cerr << usage << "\n";
+    return 2;
+  }
+  const std::string format_name = argv[2];
+  if (format_name != "svg" && format_name != "png") {
+    std::cerr << "sandswim-render: format must be svg or png, got \"" << format_name << "\"\n" << usage << "\n";
+    return 2;
+  }
+  const ImageFormat format = format_name == "svg" ? ImageFormat::kSvg : ImageFormat::kPng;
+  const std::string text = ReadAll(argv[1]);
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  Result<Plot> plot = PlotFromJson(j);
+  if (!plot.ok()) {
+    std::cerr << "sandswim-render: " << argv[1] << ": " << plot.status().ToString() << "\n";
+    return 2;
+  }
+  Result<std::string> bytes = RenderPlot(*plot, format);
+  if (!bytes.ok()) {
+    std::cerr << "sandswim-render: " << bytes.status().ToString() << "\n";
+    return bytes.status().code() == StatusCode::kInvalidArgument ? 2 : 1;
+  }
+  std::ofstream out(argv[3], std::ios::binary | std::ios::trunc);
+  out.write(bytes->data(), static_cast<std::streamsize>(bytes->size()));
+  if (!out) {
+    std::cerr << "sandswim-render: cannot write " << argv[3] << " (disk full?)\n";
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace sandswim

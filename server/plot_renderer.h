@@ -1,0 +1,60 @@
+// PlotRenderer: who draws a Plot (server/figures.h) into SVG or PNG bytes.
+//
+// PLplot ends its process on an internal error (plexit() prints "*** PLPLOT ERROR, IMMEDIATE
+// EXIT ***" and calls exit(1)) and keeps global state; a daemon that draws in its own process can
+// be ended by one bad figure. So sandswimd draws nothing itself: SubprocessRenderer hands each
+// plot to `sandswim-render` (server/render_main.cc, installed next to sandswimd) through a
+// temporary JSON file, waits for it (at most `timeout_s`), and reads the image it wrote. A
+// renderer that fails, dies on a signal or hangs costs that one figure, with an error saying what
+// happened and what PLplot printed; the daemon goes on serving.
+//
+// InProcessRenderer draws in this process (RenderPlot): the renderer itself, and tests.
+//
+// Errors: InvalidArgument ("plot") for a plot RenderPlot would refuse, checked before any process
+// is started; Internal for a renderer that failed or died (its exit, its last stderr lines);
+// Unavailable when it cannot be started or ran out of time; IOError for the temporary files.
+//
+// Thread safety: both are safe from any thread; SubprocessRenderer draws several figures at once
+// in separate processes.
+#ifndef SANDSWIM_SERVER_PLOT_RENDERER_H_
+#define SANDSWIM_SERVER_PLOT_RENDERER_H_
+
+#include <string>
+
+#include "core/status.h"
+#include "platform/subprocess.h"
+#include "server/figures.h"
+
+namespace sandswim {
+
+class PlotRenderer {
+ public:
+  virtual ~PlotRenderer() = default;
+  virtual Result<std::string> Render(const Plot& plot, ImageFormat format) = 0;
+};
+
+class InProcessRenderer : public PlotRenderer {
+ public:
+  Result<std::string> Render(const Plot& plot, ImageFormat format) override { return RenderPlot(plot, format); }
+};
+
+class SubprocessRenderer : public PlotRenderer {
+ public:
+  // `program`: the path of sandswim-render. `processes` must outlive this.
+  SubprocessRenderer(Subprocesses* processes, std::string program, double timeout_s = 120);
+  Result<std::string> Render(const Plot& plot, ImageFormat format) override;
+
+ private:
+  Subprocesses* processes_;
+  std::string program_;
+  double timeout_s_;
+};
+
+// The renderer's command line: `sandswim-render PLOT.json svg|png OUT`. Exit codes of
+// sandswim-render: 0 drawn, 2 a bad command line or plot (stderr says which), 1 anything else,
+// PLplot's own exit among them.
+int RenderMain(int argc, const char* const* argv);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_PLOT_RENDERER_H_
