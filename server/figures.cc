@@ -365,18 +365,24 @@ std::string PlplotLiteral(const std::string& text) {
   return out;
 }
 
-Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param) {
+Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param,
+                           Coordinate coordinate) {
   Plot plot;
   plot.title = title;
   plot.x_label = "t (s)";
-  plot.y_label = "Δz = z(t) − z(0) (m)";
+  plot.y_label = coordinate == Coordinate::kZ ? "Δz = z(t) − z(0) (m)" : "Δx = x(t) − x(0) (m)";
   for (const RunTrajectory& r : runs) {
     Series s{PointLabel(r.point, param), r.trajectory.t, {}, {}, false, false};
-    double z0 = r.trajectory.z.empty() ? 0 : r.trajectory.z.front();
-    for (double z : r.trajectory.z) s.y.push_back(z - z0);
+    const std::vector<double>& v = coordinate == Coordinate::kZ ? r.trajectory.z : r.trajectory.x;
+    const double v0 = v.empty() ? 0 : v.front();
+    for (double c : v) s.y.push_back(c - v0);
     plot.series.push_back(std::move(s));
   }
   return plot;
+}
+
+double SweptValue(const Point& p, const std::string& param) {
+  return param == "A" ? p.A : param == "f" ? p.f : p.Omega;
 }
 
 Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& samples, const SweepFits& fits) {
@@ -385,7 +391,7 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
   plot.title = title;
   plot.y_label = "U#dz#u (m/s), bars: 95 % interval";
   plot.x_label = param == "A" ? "A (m)" : param == "f" ? "f (Hz)" : "Ω (rad/s)";
-  auto x_of = [&](const Point& p) { return param == "A" ? p.A : param == "f" ? p.f : p.Omega; };
+  auto x_of = [&](const Point& p) { return SweptValue(p, param); };
   for (const char* branch : {"rising", "sinking"}) {
     Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")",
              {},

@@ -91,8 +91,13 @@ struct RunTrajectory {
   Point point;
   api::Trajectory trajectory;
 };
-// Every run's Δz(t), one series each, labelled by PointLabel(point, param).
-Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param);
+enum class Coordinate { kX, kZ };
+// Every run's Δz(t) (or Δx(t)), one series each, labelled by PointLabel(point, param).
+Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param,
+                           Coordinate coordinate = Coordinate::kZ);
+
+// The value a U_z figure plots a point at: A for param "A", f for "f", else the signed Ω.
+double SweptValue(const Point& point, const std::string& param);
 
 // U_z against the swept parameter (signed Ω for an Ω sweep, else A or f), one series of points
 // with error bars per branch, plus the fitted law of each branch that has one (the curve of eq.

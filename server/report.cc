@@ -321,6 +321,9 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   std::vector<Point> points;
   for (const ResultRow& row : *rows) points.push_back(row.point);
   a.fits = FitSweep(a.samples, ChooseFit(points));
+  std::set<double> swept;
+  for (const Point& p : points) swept.insert(SweptValue(p, a.fits.choice.param));
+  a.swept_values = swept.size();
   return a;
 }
 
@@ -337,12 +340,34 @@ Plot SweepUzFigure(const SweepAnalysis& a) {
 }
 
 std::string NoUzToPlot(const SweepAnalysis& a) {
+  if (a.swept_values < 2) {
+    const std::string param = a.fits.choice.param.empty() ? "Omega" : a.fits.choice.param;
+    return "its points share one value of " + param +
+           ": a U_z figure against it would mean nothing (its U_z is in the table)";
+  }
   if (a.samples.empty()) return "nothing finished yet";
   for (const SweepSample& s : a.samples) {
     if (s.has_uz) return "";
   }
   return "no U_z to plot: none of its " + std::to_string(a.samples.size()) +
          " finished run(s) has a whole period (or block) in its steady window";
+}
+
+std::optional<Plot> ModesFigure(const CampaignRunInfo& cr, const std::vector<SweepAnalysis>& analyses,
+                                Coordinate coordinate) {
+  std::vector<RunTrajectory> runs;
+  std::set<int64_t> seen;
+  for (const SweepAnalysis& a : analyses) {
+    for (const RunTrajectory& r : a.runs) {
+      if (r.point.mode == Mode::kOscillatory || !seen.insert(r.run_id).second) continue;
+      runs.push_back(r);
+    }
+  }
+  if (runs.empty()) return std::nullopt;
+  const std::string what = coordinate == Coordinate::kX ? "Δx(t)" : "Δz(t)";
+  return SweepTrajectoriesPlot("campaign run " + std::to_string(cr.id) + " " + PlplotLiteral(cr.campaign) + " (" +
+                                   cr.scale + "): " + what + " of each drive mode",
+                               runs, "", coordinate);
 }
 
 Result<Plot> RunFigure(Store& store, int64_t run_id) {
@@ -380,12 +405,23 @@ std::string RenderReportHtml(const ReportInput& in) {
       std::to_string(cr.counts.cancelled) + " cancelled.</p>\n";
 
   html += ClaimsHtml(in);
-  html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n<li><a href=\"#fits\">Fits</a></li>\n";
+  html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n";
+  if (!in.modes_z_svg.empty()) html += "<li><a href=\"#modes\">Drive modes side by side</a></li>\n";
+  html += "<li><a href=\"#fits\">Fits</a></li>\n";
   for (const ReportSweep& s : in.sweeps) {
     html += "<li><a href=\"#sweep-" + std::to_string(s.info.id) + "\">sweep " + std::to_string(s.info.id) + ": " +
             Escape(s.info.name) + "</a></li>\n";
   }
   html += "<li><a href=\"#drift\">Drift report</a></li>\n</ul></nav>\n";
+
+  if (!in.modes_z_svg.empty()) {
+    html +=
+        "<h2 id=\"modes\">Drive modes side by side</h2>\n<p>Each drive other than the oscillatory one, as in the "
+        "paper's Fig. 2: the SO's horizontal (x) and vertical (z) displacement from its start. "
+        "<a href=\"#top\">top</a></p>\n";
+    html += FigureHtml(in.modes_x_svg, "fig-modes-x", "Δx(t) of each drive mode");
+    html += FigureHtml(in.modes_z_svg, "fig-modes-z", "Δz(t) of each drive mode");
+  }
 
   html +=
       "<h2 id=\"fits\">Fits</h2>\n<p>Least squares; ± is one standard error. \"paper's sign\": rising for "
@@ -449,6 +485,14 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
   if (!claims.ok()) return claims.status();
   in.claims = std::move(claims->verdicts);
   in.claims_note = claims->note;
+  for (Coordinate c : {Coordinate::kX, Coordinate::kZ}) {
+    std::optional<Plot> modes = ModesFigure(*cr, analyses, c);
+    if (!modes) break;
+    auto svg = figures.Get("campaign-run-" + std::to_string(cr->id) + (c == Coordinate::kX ? "-modes-x" : "-modes-z"),
+                           *modes, ImageFormat::kSvg);
+    if (!svg.ok()) return svg.status();
+    (c == Coordinate::kX ? in.modes_x_svg : in.modes_z_svg) = *svg;
+  }
   // A run shared by several sweeps is drawn once and shown (anchored) under its first sweep only,
   // so every "#run-ID" names exactly one element.
   std::set<int64_t> shown;

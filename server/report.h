@@ -38,6 +38,9 @@ struct SweepAnalysis {
   std::vector<SweepSample> samples;  // finished runs with a U_z, in expansion order
   std::vector<RunTrajectory> runs;   // finished runs with a trajectory, in expansion order
   SweepFits fits;                    // of `samples`
+  // Distinct values of the plotted parameter (SweptValue of fits.choice.param) over every point
+  // the sweep plans: a U_z figure needs two.
+  size_t swept_values = 0;
 };
 // NotFound when the sweep does not exist.
 Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
@@ -45,14 +48,21 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
 // The two figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished.
 Plot SweepTrajectoriesFigure(const SweepAnalysis& analysis);
 Plot SweepUzFigure(const SweepAnalysis& analysis);
-// Why the sweep has no U_z figure ("" when it has one): no finished run has a U_z (each one's
-// window held no whole period).
+// Why the sweep has no U_z figure ("" when it has one): its points share one value of the plotted
+// parameter (a plot against it would mean nothing: a drive-mode sweep of one point), nothing has
+// finished, or no finished run has a U_z (each one's window held no whole period).
 std::string NoUzToPlot(const SweepAnalysis& analysis);
 // FailedPrecondition when the run has no trajectory yet.
 Result<Plot> RunFigure(Store& store, int64_t run_id);
 
+// The drive modes side by side (the paper's Fig. 2): every finished run of the campaign run whose
+// drive is not the oscillatory one (vibration, rotation, both), once each, Δx(t) or Δz(t) on one
+// plot. nullopt when the campaign run has none.
+std::optional<Plot> ModesFigure(const CampaignRunInfo& campaign_run, const std::vector<SweepAnalysis>& analyses,
+                                Coordinate coordinate);
+
 // Cache names of the figures (FigureCache::Get): "run-ID-trajectory", "sweep-ID-trajectories",
-// "sweep-ID-uz".
+// "sweep-ID-uz", "campaign-run-ID-modes-x" / "-modes-z".
 std::string RunFigureName(int64_t run_id);
 std::string SweepTrajectoriesName(int64_t sweep_id);
 std::string SweepUzName(int64_t sweep_id);
@@ -83,6 +93,8 @@ struct ReportInput {
   // The campaign's claims and their verdicts (server/claim_check.h): the report's first section.
   std::vector<ClaimVerdict> claims;
   std::string claims_note;  // e.g. where the claims come from, or why there are none
+  // The drive modes side by side (ModesFigure): "" when the campaign run has none.
+  std::string modes_x_svg, modes_z_svg;
   std::vector<ReportSweep> sweeps;
   std::optional<DriftReport> drift;
   double generated_at = 0;  // unix seconds

@@ -506,6 +506,61 @@ TEST_F(ReportTest, AStoredBuiltinCampaignWithoutClaimsTakesTheBuiltinOnes) {
   for (const ClaimVerdict& v : claims->verdicts) EXPECT_EQ(v.verdict, Verdict::kInconclusive) << v.claim.id;
 }
 
+// Drive modes: a one-point sweep has no U_z figure (its points share one value of what it would be
+// plotted against), and the report draws every mode's Δx(t) and Δz(t) side by side (Fig. 2).
+TEST_F(ReportTest, ModesAreDrawnSideBySideAndAOnePointSweepHasNoUzFigure) {
+  StoredCampaign campaign;
+  campaign.name = "modes";
+  campaign.definition =
+      json::parse(R"({"name": "modes", "description": "modes and a pair", "scale": "smoke", "sweeps": [
+    {"name": "modes.vibration", "base": {"mode": "vibration", "A": 0.03, "f": 3, "duration_s": 0.3}},
+    {"name": "modes.rotation-x", "base": {"mode": "rotation", "omega": 80, "axis": "x", "duration_s": 0.3}},
+    {"name": "baseline", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+     "axes": [{"param": "Omega", "values": [-80, 80]}]}]})");
+  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  SubmitRequest request;
+  request.campaign = "modes";
+  auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
+  ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+  RunAll();
+
+  std::vector<SweepAnalysis> analyses;
+  for (int64_t id : submitted->sweep_ids) {
+    auto a = AnalyzeSweep(*store_, id);
+    ASSERT_TRUE(a.ok());
+    analyses.push_back(*a);
+  }
+  EXPECT_THAT(NoUzToPlot(analyses[0]), HasSubstr("share one value"));
+  EXPECT_THAT(NoUzToPlot(analyses[1]), HasSubstr("share one value"));
+  EXPECT_EQ(NoUzToPlot(analyses[2]), "");  // the baseline pair: two values of Omega
+  auto cr = store_->GetCampaignRun(*submitted->campaign_run_id);
+  ASSERT_TRUE(cr.ok());
+  auto modes = ModesFigure(*cr, analyses, Coordinate::kZ);
+  ASSERT_TRUE(modes.has_value());
+  ASSERT_EQ(modes->series.size(), 2u);  // the two modes, not the oscillatory pair
+  EXPECT_THAT(modes->series[0].label, HasSubstr("vibration"));
+  EXPECT_THAT(modes->series[1].label, HasSubstr("rotation"));
+  EXPECT_FALSE(ModesFigure(*store_->GetCampaignRun(campaign_run_), {}, Coordinate::kX).has_value());
+
+  FigureCache figures(dir_ + "/data/figures");
+  auto html = CampaignReport(*store_, figures, *submitted->campaign_run_id, clock_.Now());
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  for (const char* id : {"id=\"modes\"", "fig-modes-x", "fig-modes-z", "href=\"#modes\""})
+    EXPECT_THAT(*html, HasSubstr(id));
+  // The modes' figure draws two series: the first two colours, not a third.
+  const size_t at = html->find("fig-modes-z");
+  const std::string svg = html->substr(at, html->find("</svg>", at) - at);
+  EXPECT_THAT(svg, HasSubstr(SeriesColor(0)));
+  EXPECT_THAT(svg, HasSubstr(SeriesColor(1)));
+  EXPECT_THAT(svg, ::testing::Not(HasSubstr(SeriesColor(2))));
+  EXPECT_THAT(*html, HasSubstr("share one value of Omega"));
+  // The one-point sweep's U_z route says why there is no figure.
+  StartServer();
+  auto uz = client_->Get(("/api/v1/sweeps/" + std::to_string(submitted->sweep_ids[0]) + "/uz.svg").c_str());
+  EXPECT_EQ(uz->status, 422);
+  EXPECT_THAT(uz->body, HasSubstr("share one value"));
+}
+
 // New results are never answered with an older figure.
 TEST_F(ReportTest, AFigureFollowsNewResults) {
   RunAll(3);
