@@ -18,6 +18,7 @@
 #include <gsl/gsl_vector.h>
 
 #include "core/sweep.h"
+#include "core/trajectory.h"
 
 namespace sandswim {
 namespace {
@@ -112,6 +113,19 @@ double ParamOf(const Point& p, const std::string& param) {
 
 double SaturationModel(const SaturationFit& fit, double x) { return fit.sign * fit.c1 * (1.0 - std::exp(-fit.c2 * x)); }
 
+double SaturationBandHalfWidth(const SaturationFit& fit, double x) {
+  // Gradient of the law in (c1, c2).
+  const double e = std::exp(-fit.c2 * x);
+  const double g1 = fit.sign * (1.0 - e), g2 = fit.sign * fit.c1 * x * e;
+  const double var =
+      g1 * g1 * fit.c1_stderr * fit.c1_stderr + 2 * g1 * g2 * fit.c1_c2_cov + g2 * g2 * fit.c2_stderr * fit.c2_stderr;
+  return StudentT95(std::max(fit.n - 2, 1)) * std::sqrt(std::max(var, 0.0));
+}
+
+double LinearBandHalfWidth(const LinearFit& fit, double a) {
+  return StudentT95(std::max(fit.n - 1, 1)) * std::fabs(a) * fit.c3_stderr;
+}
+
 Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign,
                                     const std::vector<double>& y_stderr) {
   QuietGsl();
@@ -184,6 +198,7 @@ Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vec
   fit.weighted = weighted;
   fit.c1_stderr = std::sqrt(scale * gsl_matrix_get(covar, 0, 0));
   fit.c2_stderr = std::sqrt(scale * gsl_matrix_get(covar, 1, 1));
+  fit.c1_c2_cov = scale * gsl_matrix_get(covar, 0, 1);
   gsl_vector_free(weights);
   gsl_vector_free(p0);
   gsl_matrix_free(covar);
@@ -498,6 +513,7 @@ void to_json(nlohmann::json& j, const SaturationFit& f) {
        {"C1_stderr", f.c1_stderr},
        {"C2", f.c2},
        {"C2_stderr", f.c2_stderr},
+       {"C1_C2_cov", f.c1_c2_cov},
        {"r2", f.r2},
        {"n", f.n},
        {"iterations", f.iterations},

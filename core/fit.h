@@ -47,6 +47,7 @@ struct SaturationFit {
   int sign = 1;                  // +1 rising, -1 sinking
   double c1 = 0, c1_stderr = 0;  // m/s
   double c2 = 0, c2_stderr = 0;  // s/rad (1 / (rad/s))
+  double c1_c2_cov = 0;          // their covariance, scaled as the errors are
   double r2 = 0;
   int n = 0;  // points fitted
   int iterations = 0;
@@ -59,6 +60,9 @@ struct SaturationFit {
 Result<SaturationFit> FitSaturation(const std::vector<double>& x, const std::vector<double>& y, int sign,
                                     const std::vector<double>& y_stderr = {});
 double SaturationModel(const SaturationFit& fit, double x);  // sign * c1 * (1 - exp(-c2 x))
+// Half the width of the fitted law's 95 % confidence band at x: Student t (n - 2 degrees of
+// freedom) times the law's standard error there, from the parameters' covariance (delta method).
+double SaturationBandHalfWidth(const SaturationFit& fit, double x);
 
 // eq. 9 on one branch: U_z = c3 * A through the origin, over [a_from, a_to].
 // The range: points sorted by A; the first three (the smallest A) are always in; the next point
@@ -74,6 +78,8 @@ struct LinearFit {
   double a_from = 0, a_to = 0;  // m: the range of A the law holds over
   bool weighted = false;        // by the points' U_z errors (see above)
 };
+// Half the width of the line's 95 % confidence band at A: Student t (n - 1) * A * stderr(c3).
+double LinearBandHalfWidth(const LinearFit& fit, double a);
 // InvalidArgument ("points") with fewer than 2 points, non-finite values, or all A = 0.
 // `y_stderr` may be empty (no point errors).
 Result<LinearFit> FitThroughOrigin(const std::vector<double>& a, const std::vector<double>& y,

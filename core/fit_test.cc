@@ -62,6 +62,50 @@ TEST(FitSaturationTest, StandardErrorsCoverTheTruthAboutTwoTimesInThree) {
   EXPECT_LT(coverage, 0.80);
 }
 
+// The fitted law's 95 % band means what it says: over many noisy data sets the true law lies within
+// it about 95 times in 100, at every |Omega| (the band narrows to 0 at Omega = 0).
+TEST(FitSaturationTest, TheBandCoversTheTrueLawNineteenTimesInTwenty) {
+  std::mt19937 rng(11);
+  const std::vector<double> x = OmegaGrid();
+  for (int sign : {1, -1}) {
+    for (double at : {15.0, 60.0, 300.0, 1280.0}) {
+      int within = 0, fitted = 0;
+      for (int trial = 0; trial < 400; ++trial) {
+        auto fit = FitSaturation(x, Saturating(x, sign, 0.02, 0.02, 5e-4, rng), sign);
+        if (!fit.ok()) continue;
+        ++fitted;
+        const double truth = sign * 0.02 * (1 - std::exp(-0.02 * at));
+        if (std::fabs(SaturationModel(*fit, at) - truth) <= SaturationBandHalfWidth(*fit, at)) ++within;
+        EXPECT_EQ(SaturationBandHalfWidth(*fit, 0), 0);
+      }
+      ASSERT_GT(fitted, 390);
+      const double coverage = static_cast<double>(within) / fitted;
+      EXPECT_GT(coverage, 0.90) << "sign " << sign << " at |Omega| = " << at;
+      EXPECT_LT(coverage, 0.99) << "sign " << sign << " at |Omega| = " << at;
+    }
+  }
+}
+
+TEST(FitThroughOriginTest, TheBandCoversTheTrueLineNineteenTimesInTwenty) {
+  std::mt19937 rng(12);
+  std::normal_distribution<double> gauss(0.0, 5e-4);
+  std::vector<double> a;
+  for (int i = 1; i <= 6; ++i) a.push_back(0.01 * i);
+  int within = 0, fitted = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    std::vector<double> y;
+    for (double ai : a) y.push_back(0.3 * ai + gauss(rng));
+    auto fit = FitThroughOrigin(a, y);
+    if (!fit.ok() || fit->n != 6) continue;
+    ++fitted;
+    if (std::fabs(fit->c3 * 0.05 - 0.3 * 0.05) <= LinearBandHalfWidth(*fit, 0.05)) ++within;
+  }
+  ASSERT_GT(fitted, 300);
+  const double coverage = static_cast<double>(within) / fitted;
+  EXPECT_GT(coverage, 0.90);
+  EXPECT_LT(coverage, 0.99);
+}
+
 TEST(FitSaturationTest, RefusesTooFewPointsAndReportsAWrongSign) {
   auto few = FitSaturation({10, 20}, {0.01, 0.02}, 1);
   ASSERT_FALSE(few.ok());

@@ -27,7 +27,7 @@ namespace {
 using json = nlohmann::json;
 
 // Bumped whenever the drawing changes, so files drawn the old way are not served.
-constexpr const char* kStyleVersion = "figures-v4";
+constexpr const char* kStyleVersion = "figures-v5";
 constexpr int kWidthPx = 1200, kHeightPx = 600;
 constexpr PLINT kBackground = 0, kInk = 1, kFirstSeries = 2;  // cmap0 indices
 
@@ -381,6 +381,27 @@ Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajec
   return plot;
 }
 
+namespace {
+
+// The outline of a fitted law's 95 % band over [from, to] (drawn at side * x): along its upper
+// edge and back along its lower one, one dashed series. `law(x)` is {value, half width}.
+template <typename Law>
+Series BandOutline(const std::string& branch, double from, double to, double side, Law law) {
+  Series band{branch + " fit: 95 % band", {}, {}, {}, false, true};
+  constexpr int kSteps = 60;
+  for (int k = 0; k <= 2 * kSteps + 1; ++k) {
+    const bool upper = k <= kSteps;
+    const int i = upper ? k : 2 * kSteps + 1 - k;
+    const double x = from + (to - from) * i / kSteps;
+    const auto [value, half] = law(x);
+    band.x.push_back(side * x);
+    band.y.push_back(upper ? value + half : value - half);
+  }
+  return band;
+}
+
+}  // namespace
+
 double SweptValue(const Point& p, const std::string& param) {
   return param == "A" ? p.A : param == "f" ? p.f : p.Omega;
 }
@@ -456,6 +477,9 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
         curve.y.push_back(SaturationModel(fit, w));
       }
       plot.series.push_back(std::move(curve));
+      plot.series.push_back(BandOutline(b.branch, 0, max_abs, side, [&](double w) {
+        return std::pair{SaturationModel(fit, w), SaturationBandHalfWidth(fit, w)};
+      }));
     }
     if (b.linear) {
       const LinearFit& fit = *b.linear;
@@ -466,6 +490,9 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
                   false,
                   false};
       plot.series.push_back(std::move(line));
+      plot.series.push_back(BandOutline(b.branch, 0, fit.a_to, 1.0, [&](double a) {
+        return std::pair{fit.c3 * a, LinearBandHalfWidth(fit, a)};
+      }));
     }
     if (b.fastest_rise) {
       const FastestRise& fr = *b.fastest_rise;

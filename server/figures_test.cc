@@ -124,14 +124,32 @@ TEST(FiguresTest, AUzPlotHasTheBranchesAndTheirFittedCurves) {
   ASSERT_EQ(fits.branches.size(), 2u);
   ASSERT_TRUE(fits.branches[0].saturation && fits.branches[1].saturation);
   Plot plot = SweepUzPlot("omega sweep: U_z", samples, fits);
-  ASSERT_EQ(plot.series.size(), 4u);  // rising, sinking, and a curve for each
+  ASSERT_EQ(plot.series.size(), 6u);  // rising, sinking, and a curve and its 95 % band for each
   EXPECT_EQ(plot.x_label, "Ω (rad/s)");
   EXPECT_THAT(plot.y_label, HasSubstr("(m/s)"));
   EXPECT_LT(plot.series[2].x.back(), 0);  // the rising curve lies at Ω < 0
-  EXPECT_GT(plot.series[3].x.back(), 0);
+  EXPECT_GT(plot.series[4].x.back(), 0);
+  // Each band runs out along its upper edge and back along its lower one, around its curve.
+  for (size_t curve : {2u, 4u}) {
+    const Series& c = plot.series[curve];
+    const Series& band = plot.series[curve + 1];
+    EXPECT_THAT(band.label, HasSubstr("95 % band"));
+    EXPECT_TRUE(band.dashed);
+    const size_t half = band.x.size() / 2;
+    ASSERT_EQ(band.x.size(), 2 * half);
+    for (size_t i = 1; i < half; ++i) {
+      const size_t back = band.x.size() - 1 - i;  // the lower edge at the same x
+      ASSERT_DOUBLE_EQ(band.x[i], band.x[back]);
+      EXPECT_GT(band.y[i], band.y[back]);
+    }
+    // The curve at the band's far end lies between its edges.
+    EXPECT_DOUBLE_EQ(band.x[half - 1], c.x.back());
+    EXPECT_LT(band.y[half], c.y.back());
+    EXPECT_GT(band.y[half - 1], c.y.back());
+  }
   auto svg = RenderPlot(plot, ImageFormat::kSvg);
   ASSERT_TRUE(svg.ok()) << svg.status().ToString();
-  EXPECT_EQ(SeriesColorsIn(*svg), FirstColors(4));
+  EXPECT_EQ(SeriesColorsIn(*svg), FirstColors(6));
 
   // A sweep with no fit: just the points. Points with no error (too few periods for one) are a
   // series of their own, never drawn as if they were precise.

@@ -188,7 +188,7 @@ TEST_F(ReportTest, AnalyzeSweepFitsTheFinishedRuns) {
   EXPECT_NEAR(a->fits.branches[0].saturation->c1, 0.02, 3 * a->fits.branches[0].saturation->c1_stderr + 1e-3);
   EXPECT_EQ(a->fits.branches[1].sign_matches_paper, true);
   EXPECT_EQ(SweepTrajectoriesFigure(*a).series.size(), 8u);
-  EXPECT_EQ(SweepUzFigure(*a).series.size(), 4u);
+  EXPECT_EQ(SweepUzFigure(*a).series.size(), 6u);  // two branches, each with its curve and band
   EXPECT_EQ(AnalyzeSweep(*store_, 999).status().code(), StatusCode::kNotFound);
 }
 
