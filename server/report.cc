@@ -327,10 +327,30 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   return a;
 }
 
-Plot SweepTrajectoriesFigure(const SweepAnalysis& a) {
-  return SweepTrajectoriesPlot("sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" +
-                                   a.info.scale + "): Δz(t) of every run",
-                               a.runs, a.fits.choice.param);
+std::vector<std::string> TrajectoryBranches(const SweepAnalysis& a) {
+  bool rising = false, sinking = false;
+  for (const RunTrajectory& r : a.runs) {
+    if (r.point.mode != Mode::kOscillatory) continue;
+    rising = rising || r.point.Omega < 0;
+    sinking = sinking || r.point.Omega > 0;
+  }
+  if (rising && sinking) return {"rising", "sinking"};
+  return {""};
+}
+
+Plot SweepTrajectoriesFigure(const SweepAnalysis& a, const std::string& branch) {
+  std::vector<RunTrajectory> runs;
+  for (const RunTrajectory& r : a.runs) {
+    if (branch.empty() ||
+        (r.point.mode == Mode::kOscillatory && (branch == "rising" ? r.point.Omega < 0 : r.point.Omega > 0)))
+      runs.push_back(r);
+  }
+  const std::string what = branch.empty()       ? "Δz(t) of every run"
+                           : branch == "rising" ? "Δz(t), rising branch (Ω < 0)"
+                                                : "Δz(t), sinking branch (Ω > 0)";
+  return SweepTrajectoriesPlot(
+      "sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale + "): " + what,
+      runs, a.fits.choice.param);
 }
 
 Plot SweepUzFigure(const SweepAnalysis& a) {
@@ -381,7 +401,9 @@ Result<Plot> RunFigure(Store& store, int64_t run_id) {
 }
 
 std::string RunFigureName(int64_t run_id) { return "run-" + std::to_string(run_id) + "-trajectory"; }
-std::string SweepTrajectoriesName(int64_t sweep_id) { return "sweep-" + std::to_string(sweep_id) + "-trajectories"; }
+std::string SweepTrajectoriesName(int64_t sweep_id, const std::string& branch) {
+  return "sweep-" + std::to_string(sweep_id) + "-trajectories" + (branch.empty() ? "" : "-" + branch);
+}
 std::string SweepUzName(int64_t sweep_id) { return "sweep-" + std::to_string(sweep_id) + "-uz"; }
 
 // ---- HTML --------------------------------------------------------------------------------------
@@ -434,8 +456,12 @@ std::string RenderReportHtml(const ReportInput& in) {
     const std::string id = std::to_string(s.info.id);
     html += "<section id=\"sweep-" + id + "\">\n<h2>sweep " + id + ": " + Escape(s.info.name) + "</h2>\n<p>" +
             Escape(s.fits.choice.reason) + ". <a href=\"#top\">top</a></p>\n";
-    html += FigureHtml(s.trajectories_svg, "fig-sweep-" + id + "-trajectories",
-                       "Δz(t) of every finished run of sweep " + id);
+    for (const auto& [branch, svg] : s.trajectories_svg) {
+      html += FigureHtml(svg, "fig-sweep-" + id + "-trajectories" + (branch.empty() ? "" : "-" + branch),
+                         branch.empty() ? "Δz(t) of every finished run of sweep " + id
+                                        : "Δz(t) of the " + branch + " branch of sweep " + id + " (Ω " +
+                                              (branch == "rising" ? "<" : ">") + " 0)");
+    }
     html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz",
                        "U_z of sweep " + id + " against " +
                            (s.fits.choice.param.empty() ? std::string("its point") : s.fits.choice.param) +
@@ -502,10 +528,15 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
     ReportSweep s;
     s.info = a->info;
     s.fits = a->fits;
-    if (!a->runs.empty()) {
-      auto svg = figures.Get(SweepTrajectoriesName(sweep_id), SweepTrajectoriesFigure(*a), ImageFormat::kSvg);
-      if (!svg.ok()) return svg.status();
-      s.trajectories_svg = *svg;
+    for (const std::string& branch : TrajectoryBranches(*a)) {
+      Plot plot = SweepTrajectoriesFigure(*a, branch);
+      std::string svg_text;
+      if (!plot.series.empty()) {
+        auto svg = figures.Get(SweepTrajectoriesName(sweep_id, branch), plot, ImageFormat::kSvg);
+        if (!svg.ok()) return svg.status();
+        svg_text = *svg;
+      }
+      s.trajectories_svg.emplace_back(branch, std::move(svg_text));
     }
     s.no_uz = NoUzToPlot(*a);
     if (s.no_uz.empty()) {

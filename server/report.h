@@ -45,8 +45,15 @@ struct SweepAnalysis {
 // NotFound when the sweep does not exist.
 Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
 
-// The two figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished.
-Plot SweepTrajectoriesFigure(const SweepAnalysis& analysis);
+// The branches a sweep's Δz(t) figures are drawn by, as the paper's panels a and b: {"rising",
+// "sinking"} when its oscillatory runs have both signs of Omega (Omega < 0 rises in the paper,
+// Omega > 0 sinks), else {""}: one figure of every run.
+std::vector<std::string> TrajectoryBranches(const SweepAnalysis& analysis);
+
+// The figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished (or,
+// for a branch, none of its runs).
+// `branch`: "" every run; "rising" the runs at Omega < 0; "sinking" those at Omega > 0.
+Plot SweepTrajectoriesFigure(const SweepAnalysis& analysis, const std::string& branch = "");
 Plot SweepUzFigure(const SweepAnalysis& analysis);
 // Why the sweep has no U_z figure ("" when it has one): its points share one value of the plotted
 // parameter (a plot against it would mean nothing: a drive-mode sweep of one point), nothing has
@@ -64,7 +71,7 @@ std::optional<Plot> ModesFigure(const CampaignRunInfo& campaign_run, const std::
 // Cache names of the figures (FigureCache::Get): "run-ID-trajectory", "sweep-ID-trajectories",
 // "sweep-ID-uz", "campaign-run-ID-modes-x" / "-modes-z".
 std::string RunFigureName(int64_t run_id);
-std::string SweepTrajectoriesName(int64_t sweep_id);
+std::string SweepTrajectoriesName(int64_t sweep_id, const std::string& branch = "");  // + "-rising"
 std::string SweepUzName(int64_t sweep_id);
 
 // What the report shows, already drawn (SVG text as RenderPlot makes it).
@@ -84,8 +91,10 @@ struct ReportRun {
 struct ReportSweep {
   SweepInfo info;
   SweepFits fits;
-  std::string trajectories_svg, uz_svg;  // "" when nothing is finished (or, uz, nothing to plot)
-  std::string no_uz;                     // NoUzToPlot
+  // Δz(t) per branch (TrajectoryBranches), each "" when none of its runs has finished.
+  std::vector<std::pair<std::string, std::string>> trajectories_svg;  // {branch, svg}
+  std::string uz_svg;                                                 // "" when nothing to plot
+  std::string no_uz;                                                  // NoUzToPlot
   std::vector<ReportRun> runs;
 };
 struct ReportInput {

@@ -264,12 +264,15 @@ TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {
   EXPECT_THAT(*html, HasSubstr((*drift)[0].summary.substr(0, 20)));
   EXPECT_THAT(*html, ::testing::Not(HasSubstr(" src=")));  // nothing loaded from elsewhere
   EXPECT_THAT(*html, ::testing::Not(HasSubstr("<?xml")));  // SVGs inlined without their prolog
-  // Both sweeps, each run's figure once (2 shared runs), the sweeps' 2 figures each.
+  // Both sweeps, each run's figure once (2 shared runs), the sweeps' 3 figures each: Δz(t) of the
+  // rising and of the sinking branch (the paper's panels a and b), and U_z.
   EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[0])));
   EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[1])));
   size_t svgs = 0;
   for (size_t at = html->find("<svg"); at != std::string::npos; at = html->find("<svg", at + 1)) ++svgs;
-  EXPECT_EQ(svgs, 8u + 2 * 2);
+  EXPECT_EQ(svgs, 8u + 2 * 3);
+  for (const char* branch : {"-rising-", "-sinking-"})  // each figure's ids carry its own prefix
+    EXPECT_THAT(*html, HasSubstr("fig-sweep-" + std::to_string(sweeps_[0]) + "-trajectories" + branch)) << branch;
   EXPECT_THAT(*html, HasSubstr("C1 = "));
   EXPECT_THAT(*html, HasSubstr("id=\"drift\""));
   EXPECT_EQ(CampaignReport(*store_, figures, 999, 0).status().code(), StatusCode::kNotFound);
@@ -374,6 +377,23 @@ TEST_F(ReportTest, RoutesServeFiguresFitsAndReportsWithTheirTypes) {
     EXPECT_EQ(r->status, 200) << path << ": " << r->body;
     EXPECT_EQ(r->get_header_value("Content-Type"), type) << path;
     EXPECT_FALSE(r->body.empty()) << path;
+  }
+  // One branch's runs (the paper's panels a and b): the omega sweep's four at Omega < 0.
+  {
+    auto a = AnalyzeSweep(*store_, sweeps_[0]);
+    ASSERT_TRUE(a.ok());
+    EXPECT_EQ(TrajectoryBranches(*a), (std::vector<std::string>{"rising", "sinking"}));
+    Plot rising = SweepTrajectoriesFigure(*a, "rising");
+    ASSERT_EQ(rising.series.size(), 4u);
+    for (const Series& s : rising.series) EXPECT_THAT(s.label, HasSubstr("Ω = -")) << s.label;
+    EXPECT_EQ(SweepTrajectoriesFigure(*a, "sinking").series.size(), 4u);
+    EXPECT_EQ(SweepTrajectoriesFigure(*a).series.size(), 8u);
+    auto r = client_->Get((sweep + "/trajectories.svg?branch=rising").c_str());
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200) << r->body;
+    r = client_->Get((sweep + "/trajectories.svg?branch=up").c_str());
+    EXPECT_EQ(r->status, 400);
+    EXPECT_EQ(json::parse(r->body)["field"], "branch");
   }
   json fits = json::parse(client_->Get((sweep + "/fits").c_str())->body);
   EXPECT_EQ(fits["kind"], "saturation");

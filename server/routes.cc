@@ -540,7 +540,16 @@ void GetSweepTrajectoriesFigure(Call& c) {
   if (!a.ok()) return Fail(c, a.status());
   if (a->runs.empty())
     return Fail(c, Status::FailedPrecondition("id", "no finished run of this sweep has a trajectory"));
-  SendFigure(c, SweepTrajectoriesName(a->info.id), SweepTrajectoriesFigure(*a), kFormat);
+  // ?branch=rising|sinking: the runs of one branch (the paper's panels a and b).
+  const std::string branch = c.req.has_param("branch") ? c.req.get_param_value("branch") : "";
+  if (c.req.has_param("branch") && branch != "rising" && branch != "sinking")
+    return Fail(c, Status::InvalidArgument("branch", "must be rising (Omega < 0) or sinking (Omega > 0)"));
+  Plot plot = SweepTrajectoriesFigure(*a, branch);
+  if (plot.series.empty()) {
+    return Fail(c, Status::FailedPrecondition("branch", "no finished run of the " + branch + " branch of sweep " +
+                                                            std::to_string(a->info.id) + " has a trajectory"));
+  }
+  SendFigure(c, SweepTrajectoriesName(a->info.id, branch), plot, kFormat);
 }
 
 template <ImageFormat kFormat>
