@@ -659,8 +659,8 @@ void SetupCheck(CLI::App& sub, Args& a) {
 }
 
 // The verdict of each claim the campaign states, for one campaign run. Exit 0 only when every
-// claim holds; 3 when one differs or is inconclusive (the table says which and why), so that a
-// script can tell "the findings hold" from everything else.
+// claim holds; 3 when one differs or is inconclusive, or the campaign states none (the output says
+// which and why), so that a script can tell "the findings hold" from everything else.
 int RunCheck(Context& c) {
   auto target = ParseTarget(c.args.target, "CAMPAIGN-RUN");
   if (!target.ok()) return Fail(c, target.status(), kExitUsage);
@@ -936,7 +936,8 @@ const Command kCommands[] = {
    "  sandswim report cr:7",
    SetupReport, RunReport},
   {"check", "which of the campaign's claims (the paper's findings) hold, differ or are inconclusive for one campaign "
-   "run, with the numbers behind each and the paper's (exit 0: every claim holds; 3: one differs or is inconclusive)",
+   "run, with the numbers behind each and the paper's (exit 0: every claim holds; 3: one differs or is inconclusive, "
+   "or there are none)",
    "  sandswim check cr:7\n"
    "  sandswim check cr:7 --json | jq '.claims[] | {id, verdict}'",
    SetupCheck, RunCheck},
@@ -974,8 +975,8 @@ int RunCli(int argc, const char* const* argv, Environment& env) {
   CLI::App app{"sandswim: submit, follow and read DEM parameter studies run by sandswimd"};
   app.footer("Where the daemon is: --server, else $SANDSWIM_SERVER, else " + std::string(kDefaultServer) +
              ".\nSweeps are named by id (12), campaign runs by cr:ID (cr:7).\n"
-             "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed (check: a claim does not "
-             "hold).\n");
+             "Exit codes: 0 ok, 1 error, 2 bad arguments, 3 finished but some runs failed (check: not every claim "
+             "holds).\n");
   app.require_subcommand(1);
   app.fallthrough();
   app.add_option("--server", args.server, "daemon URL, http://HOST:PORT (else $SANDSWIM_SERVER)");

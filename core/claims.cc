@@ -1131,6 +1131,8 @@ std::string DescribeFigure(const ClaimFigure& f) {
   return text;
 }
 
+std::string DescribeClaimPoint(const Point& point) { return claim_rules::Label(point); }
+
 std::string DescribePaperNumbers(const nlohmann::json& paper) {
   std::string out;
   if (!paper.is_object()) return out;
@@ -1178,7 +1180,7 @@ nlohmann::json ClaimVerdictToJson(const ClaimVerdict& v) {
   json missing = json::array();
   for (const ClaimMissing& m : v.missing) {
     missing.push_back(
-        {{"sweep", m.sweep}, {"point", claim_rules::Label(m.point)}, {"run_ids", m.run_ids}, {"why", m.why}});
+        {{"sweep", m.sweep}, {"point", DescribeClaimPoint(m.point)}, {"run_ids", m.run_ids}, {"why", m.why}});
   }
   j["missing"] = std::move(missing);
   return j;

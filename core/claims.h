@@ -180,8 +180,10 @@ std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const
 nlohmann::json ClaimVerdictToJson(const ClaimVerdict& v);
 // "0.0123 ± 0.0011 m/s [0.0101, 0.0145]", or "–" without a value.
 std::string DescribeFigure(const ClaimFigure& f);
-// The numbers of a claim's "paper" object beside its text, in the order written:
-// "Omega_rad_s = -80, 80; A_m = 0.03" ("" when it has none).
+// A point as the claims name it ("Omega = 160", "vibration+rotation about x"): in the missing list.
+std::string DescribeClaimPoint(const Point& point);
+// The numbers of a claim's "paper" object beside its text, in key order (a JSON object keeps no
+// other): "A_m = 0.03; Omega_rad_s = -80, 80" ("" when it has none).
 std::string DescribePaperNumbers(const nlohmann::json& paper);
 
 }  // namespace sandswim

@@ -14,7 +14,7 @@ port=${SANDSWIM_PORT:-8640}
 workers=${SANDSWIM_LOCAL_WORKERS:-$(nproc)}
 export SANDSWIM_SERVER=http://127.0.0.1:$port
 
-for b in sandswimd sandswim sandswim-worker; do
+for b in sandswimd sandswim-render sandswim sandswim-worker; do
   [ -x "$bin/$b" ] || { echo "demo: $bin/$b is missing: build first (cmake -S . -B build -G Ninja && cmake --build build)" >&2; exit 1; }
 done
 mkdir -p "$var"

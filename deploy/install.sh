@@ -7,7 +7,8 @@
 #   sudo systemctl enable --now sandswimd sandswim-worker@1
 #
 # What it does:
-#   - installs sandswimd, sandswim, sandswim-worker and sandswim-engine-guard (which the worker
+#   - installs sandswimd, sandswim-render (which the daemon draws each figure in, so a plotting
+#     error cannot end it), sandswim, sandswim-worker and sandswim-engine-guard (which the worker
 #     starts each engine under, so no engine outlives its worker) from BUILD_DIR/bin to /usr/local/bin;
 #   - installs sandswimd.service and sandswim-worker@.service to /etc/systemd/system, and the
 #     Slurm batch scripts (deploy/slurm) to /usr/local/share/sandswim/slurm;
@@ -30,7 +31,7 @@ if [ -z "$dest" ] && [ "$(id -u)" -ne 0 ]; then
   echo "install.sh: run as root (sudo $0 ${1:-}), or set DESTDIR to stage the files" >&2
   exit 2
 fi
-for b in sandswimd sandswim sandswim-worker sandswim-engine-guard; do
+for b in sandswimd sandswim-render sandswim sandswim-worker sandswim-engine-guard; do
   if [ ! -x "$build/bin/$b" ]; then
     echo "install.sh: $build/bin/$b is missing; build first: cmake -S . -B build -G Ninja && ninja -C build" >&2
     exit 1
@@ -38,7 +39,7 @@ for b in sandswimd sandswim sandswim-worker sandswim-engine-guard; do
 done
 
 install -d -m 0755 "$bin_dir" "$unit_dir" "$etc_dir"
-for b in sandswimd sandswim sandswim-worker sandswim-engine-guard; do
+for b in sandswimd sandswim-render sandswim sandswim-worker sandswim-engine-guard; do
   install -m 0755 "$build/bin/$b" "$bin_dir/$b"
 done
 install -m 0644 "$here/sandswimd.service" "$unit_dir/sandswimd.service"

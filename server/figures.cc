@@ -268,8 +268,11 @@ Result<Plot> PlotFromJson(const json& j) {
         out->push_back(v.get<double>());
       }
     }
-    s.markers = sj.value("markers", false);
-    s.dashed = sj.value("dashed", false);
+    for (auto [key, out] : {std::pair{"markers", &s.markers}, std::pair{"dashed", &s.dashed}}) {
+      if (!sj.contains(key)) continue;
+      if (!sj[key].is_boolean()) return bad("series \"" + s.label + "\": \"" + key + "\" must be true or false");
+      *out = sj[key].get<bool>();
+    }
     p.series.push_back(std::move(s));
   }
   return p;
@@ -277,19 +280,30 @@ Result<Plot> PlotFromJson(const json& j) {
 
 std::string SeriesColor(size_t i) { return Hex(SeriesRgb(i)); }
 
+Status DrawPlotToFile(const Plot& plot, ImageFormat format, const std::string& path) {
+  SANDSWIM_RETURN_IF_ERROR(CheckPlot(plot));
+  Draw(plot, format, path);
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec || size == 0) return Status::IOError("PLplot wrote nothing to " + path + " (disk full?)");
+  return Status::Ok();
+}
+
 Result<std::string> RenderPlot(const Plot& plot, ImageFormat format) {
-  Status ok = CheckPlot(plot);
-  if (!ok.ok()) return ok;
+  SANDSWIM_RETURN_IF_ERROR(CheckPlot(plot));
   std::string pattern = (std::filesystem::temp_directory_path() / "sandswim-figure-XXXXXX").string();
   int fd = mkstemp(pattern.data());
   if (fd < 0) return Status::IOError("cannot make a temporary file for a figure in " + pattern);
   close(fd);
-  Draw(plot, format, pattern);
-  std::ifstream in(pattern, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  Status drawn = DrawPlotToFile(plot, format, pattern);
+  std::string bytes;
+  if (drawn.ok()) {
+    std::ifstream in(pattern, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
   std::error_code ec;
   std::filesystem::remove(pattern, ec);
-  if (bytes.empty()) return Status::IOError("PLplot wrote nothing to " + pattern + " (disk full?)");
+  if (!drawn.ok()) return drawn;
   return bytes;
 }
 
@@ -552,6 +566,7 @@ Result<std::string> FigureCache::Get(const std::string& name, const Plot& plot, 
   {
     std::ofstream out(temp, std::ios::binary | std::ios::trunc);
     out.write(bytes->data(), static_cast<std::streamsize>(bytes->size()));
+    out.close();  // a failure of the last flush counts too
     if (!out) {
       std::filesystem::remove(temp, ec);
       return Status::IOError("cannot write " + temp + " (disk full?)");

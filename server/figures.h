@@ -69,6 +69,9 @@ Status CheckPlot(const Plot& plot);
 // made. PLplot may end the process on an error of its own: the daemon draws through a
 // PlotRenderer (server/plot_renderer.h) in a process of its own instead.
 Result<std::string> RenderPlot(const Plot& plot, ImageFormat format);
+// The same, drawn into the file at `path` (created or replaced): what sandswim-render does, so
+// that a renderer PLplot ends leaves no file of its own behind.
+Status DrawPlotToFile(const Plot& plot, ImageFormat format, const std::string& path);
 
 // Text shown as it is in a PLplot label: '#' (PLplot's escape, as in "U#dz#u") doubled. For
 // user-given names (a sweep's) inside titles.

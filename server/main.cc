@@ -2,6 +2,7 @@
 // (server/periodic.h: lease expiry, the Slurm pilot watch, the scheduler's nightly reruns and drift
 // reports) and the local-worker supervisor; SIGTERM/SIGINT stop them in reverse order.
 #include <signal.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -19,8 +20,8 @@
 #include "server/lease_queue.h"
 #include "server/local_workers.h"
 #include "server/periodic.h"
-#include "server/plot_renderer.h"
 #include "server/pilot_watch.h"
+#include "server/plot_renderer.h"
 #include "server/routes.h"
 #include "server/scheduler.h"
 #include "server/store.h"
@@ -230,7 +231,14 @@ int main(int argc, char** argv) {
   }
   // Figures are drawn by sandswim-render in processes of their own (server/plot_renderer.h).
   sandswim::PosixSubprocesses renderer_processes;
-  sandswim::SubprocessRenderer renderer(&renderer_processes, sandswim::ExecutableDir() + "/sandswim-render");
+  const std::string renderer_path = sandswim::ExecutableDir() + "/sandswim-render";
+  if (access(renderer_path.c_str(), X_OK) != 0) {
+    spdlog::warn(
+        "{} is missing or not executable: figures and reports will answer 503 until it is installed next "
+        "to sandswimd (cmake --build build; deploy/install.sh)",
+        renderer_path);
+  }
+  sandswim::SubprocessRenderer renderer(&renderer_processes, renderer_path);
   sandswim::Deps deps;
   deps.renderer = &renderer;
   deps.store = store->get();

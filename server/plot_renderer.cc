@@ -74,6 +74,7 @@ Result<std::string> SubprocessRenderer::Render(const Plot& plot, ImageFormat for
   {
     std::ofstream out(input->path(), std::ios::binary | std::ios::trunc);
     out << nlohmann::json(plot).dump();
+    out.close();  // a failure of the last flush counts too
     if (!out) return Status::IOError("cannot write " + input->path() + " for the figure renderer (disk full?)");
   }
   Result<CommandOutput> run =
@@ -117,16 +118,10 @@ int RenderMain(int argc, const char* const* argv) {
     std::cerr << "sandswim-render: " << argv[1] << ": " << plot.status().ToString() << "\n";
     return 2;
   }
-  Result<std::string> bytes = RenderPlot(*plot, format);
-  if (!bytes.ok()) {
-    std::cerr << "sandswim-render: " << bytes.status().ToString() << "\n";
-    return bytes.status().code() == StatusCode::kInvalidArgument ? 2 : 1;
-  }
-  std::ofstream out(argv[3], std::ios::binary | std::ios::trunc);
-  out.write(bytes->data(), static_cast<std::streamsize>(bytes->size()));
-  if (!out) {
-    std::cerr << "sandswim-render: cannot write " << argv[3] << " (disk full?)\n";
-    return 1;
+  Status drawn = DrawPlotToFile(*plot, format, argv[3]);
+  if (!drawn.ok()) {
+    std::cerr << "sandswim-render: " << drawn.ToString() << "\n";
+    return drawn.code() == StatusCode::kInvalidArgument ? 2 : 1;
   }
   return 0;
 }

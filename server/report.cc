@@ -60,6 +60,13 @@ std::string InlineSvg(const std::string& svg, const std::string& prefix) {
   return std::regex_replace(svg.substr(at), kIds, "$1" + prefix + "-");
 }
 
+// In place of a figure that could not be drawn: the reason, as a small SVG of text.
+std::string NotDrawnSvg(const std::string& why) {
+  return "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"900\" height=\"40\"><text x=\"8\" y=\"25\" "
+         "fill=\"#a00\">figure not drawn: " +
+         Escape(why) + "</text></svg>";
+}
+
 std::string FigureHtml(const std::string& svg, const std::string& id, const std::string& caption,
                        const std::string& why_none = "nothing finished yet") {
   if (svg.empty()) return "<p class=\"none\">" + Escape(caption) + ": " + Escape(why_none) + ".</p>\n";
@@ -237,7 +244,7 @@ std::string ClaimsHtml(const ReportInput& in) {
       for (const ClaimMissing& m : v.missing) {
         std::string runs;
         for (int64_t id : m.run_ids) runs += (runs.empty() ? "run " : ", ") + std::to_string(id);
-        measured += "<li>" + Escape(m.sweep) + " " + Escape(PointToJson(m.point).dump()) + " (" + runs +
+        measured += "<li>" + Escape(m.sweep) + " " + Escape(DescribeClaimPoint(m.point)) + " (" + runs +
                     "): " + Escape(m.why) + "</li>";
       }
       measured += "</ul></details>";
@@ -419,13 +426,21 @@ std::string RenderReportHtml(const ReportInput& in) {
       "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}"
       "figure{margin:1em 0}figure svg{width:100%;height:auto}figcaption{color:#555}"
       ".none{color:#777}.drifted{background:#fdd}details{margin:0.5em 0}"
-      ".holds{background:#dfd}.differs{background:#fdd}.inconclusive{background:#eee}\n"
+      ".problems{background:#fdd;padding:0.2em "
+      "1em}.holds{background:#dfd}.differs{background:#fdd}.inconclusive{background:#eee}\n"
       "</style>\n</head>\n<body>\n<h1 id=\"top\">" +
       Escape(title) + "</h1>\n<p>Generated " + UtcTime(in.generated_at) + ". Created " + UtcTime(cr.created_at) + " (" +
       Escape(cr.trigger) + "). Runs: " + std::to_string(cr.counts.done) + " done, " + std::to_string(cr.counts.queued) +
       " queued, " + std::to_string(cr.counts.running) + " running, " + std::to_string(cr.counts.failed) + " failed, " +
       std::to_string(cr.counts.cancelled) + " cancelled.</p>\n";
 
+  if (!in.problems.empty()) {
+    html += "<div class=\"problems\"><p>" + std::to_string(in.problems.size()) +
+            " part(s) of this report could not be made; each says so where it would be. Ask for the report "
+            "again once the cause is fixed (see the daemon's log):</p><ul>";
+    for (const std::string& p : in.problems) html += "<li>" + Escape(p) + "</li>";
+    html += "</ul></div>\n";
+  }
   html += ClaimsHtml(in);
   html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n";
   if (!in.modes_z_svg.empty()) html += "<li><a href=\"#modes\">Drive modes side by side</a></li>\n";
@@ -507,17 +522,27 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
     if (!a.ok()) return a.status();
     analyses.push_back(std::move(a).value());
   }
+  // A claim check or a figure that fails costs its part of the report, never the report: it is
+  // said where the part would be, and listed at the top.
   auto claims = CheckClaims(store, *cr, analyses);
-  if (!claims.ok()) return claims.status();
-  in.claims = std::move(claims->verdicts);
-  in.claims_note = claims->note;
+  if (claims.ok()) {
+    in.claims = std::move(claims->verdicts);
+    in.claims_note = claims->note;
+  } else {
+    in.claims_note = "the claims could not be checked: " + claims.status().ToString();
+    in.problems.push_back(in.claims_note);
+  }
+  auto draw = [&](const std::string& name, const Plot& plot) -> std::string {
+    auto svg = figures.Get(name, plot, ImageFormat::kSvg);
+    if (svg.ok()) return *svg;
+    in.problems.push_back("figure " + name + " could not be drawn: " + svg.status().ToString());
+    return NotDrawnSvg(svg.status().ToString());
+  };
   for (Coordinate c : {Coordinate::kX, Coordinate::kZ}) {
     std::optional<Plot> modes = ModesFigure(*cr, analyses, c);
     if (!modes) break;
-    auto svg = figures.Get("campaign-run-" + std::to_string(cr->id) + (c == Coordinate::kX ? "-modes-x" : "-modes-z"),
-                           *modes, ImageFormat::kSvg);
-    if (!svg.ok()) return svg.status();
-    (c == Coordinate::kX ? in.modes_x_svg : in.modes_z_svg) = *svg;
+    (c == Coordinate::kX ? in.modes_x_svg : in.modes_z_svg) =
+        draw("campaign-run-" + std::to_string(cr->id) + (c == Coordinate::kX ? "-modes-x" : "-modes-z"), *modes);
   }
   // A run shared by several sweeps is drawn once and shown (anchored) under its first sweep only,
   // so every "#run-ID" names exactly one element.
@@ -531,19 +556,11 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
     for (const std::string& branch : TrajectoryBranches(*a)) {
       Plot plot = SweepTrajectoriesFigure(*a, branch);
       std::string svg_text;
-      if (!plot.series.empty()) {
-        auto svg = figures.Get(SweepTrajectoriesName(sweep_id, branch), plot, ImageFormat::kSvg);
-        if (!svg.ok()) return svg.status();
-        svg_text = *svg;
-      }
+      if (!plot.series.empty()) svg_text = draw(SweepTrajectoriesName(sweep_id, branch), plot);
       s.trajectories_svg.emplace_back(branch, std::move(svg_text));
     }
     s.no_uz = NoUzToPlot(*a);
-    if (s.no_uz.empty()) {
-      auto svg = figures.Get(SweepUzName(sweep_id), SweepUzFigure(*a), ImageFormat::kSvg);
-      if (!svg.ok()) return svg.status();
-      s.uz_svg = *svg;
-    }
+    if (s.no_uz.empty()) s.uz_svg = draw(SweepUzName(sweep_id), SweepUzFigure(*a));
     auto rows = store.SweepResults(sweep_id);
     if (!rows.ok()) return rows.status();
     for (const ResultRow& row : *rows) {
@@ -560,12 +577,8 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
       }
       for (const RunTrajectory& t : a->runs) {
         if (t.run_id != row.run_id || !r.anchored) continue;
-        auto svg =
-            figures.Get(RunFigureName(t.run_id),
-                        RunTrajectoryPlot(t.run_id, t.point, t.trajectory, row.result ? &row.result->result : nullptr),
-                        ImageFormat::kSvg);
-        if (!svg.ok()) return svg.status();
-        r.trajectory_svg = *svg;
+        r.trajectory_svg = draw(RunFigureName(t.run_id), RunTrajectoryPlot(t.run_id, t.point, t.trajectory,
+                                                                           row.result ? &row.result->result : nullptr));
       }
       s.runs.push_back(std::move(r));
     }

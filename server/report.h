@@ -106,6 +106,9 @@ struct ReportInput {
   std::string modes_x_svg, modes_z_svg;
   std::vector<ReportSweep> sweeps;
   std::optional<DriftReport> drift;
+  // What could not be made (a figure the renderer failed on, the claims check): listed at the top,
+  // each also said where its part would be.
+  std::vector<std::string> problems;
   double generated_at = 0;  // unix seconds
 };
 std::string RenderReportHtml(const ReportInput& input);

@@ -262,8 +262,9 @@ TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {
   EXPECT_LT(html->find("id=\"claims\""), html->find("id=\"fits\""));
   EXPECT_THAT(*html, HasSubstr("The campaign states no claims"));
   EXPECT_THAT(*html, HasSubstr((*drift)[0].summary.substr(0, 20)));
-  EXPECT_THAT(*html, ::testing::Not(HasSubstr(" src=")));  // nothing loaded from elsewhere
-  EXPECT_THAT(*html, ::testing::Not(HasSubstr("<?xml")));  // SVGs inlined without their prolog
+  EXPECT_THAT(*html, ::testing::Not(HasSubstr(" src=")));              // nothing loaded from elsewhere
+  EXPECT_THAT(*html, ::testing::Not(HasSubstr("could not be made")));  // every part was made
+  EXPECT_THAT(*html, ::testing::Not(HasSubstr("<?xml")));              // SVGs inlined without their prolog
   // Both sweeps, each run's figure once (2 shared runs), the sweeps' 3 figures each: Δz(t) of the
   // rising and of the sinking branch (the paper's panels a and b), and U_z.
   EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[0])));
@@ -341,6 +342,14 @@ TEST_F(ReportTest, ARendererThatDiesIsAClearErrorAndTheDaemonKeepsServing) {
   EXPECT_THAT(r->body, HasSubstr("PLPLOT ERROR"));
   EXPECT_EQ(client_->Get("/healthz")->status, 200);
   EXPECT_EQ(client_->Get(("/api/v1/sweeps/" + std::to_string(sweeps_[0])).c_str())->status, 200);
+  // The report is still made: every figure says in its place that it was not drawn, and why.
+  auto report = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/report").c_str());
+  ASSERT_TRUE(report);
+  EXPECT_EQ(report->status, 200) << report->body;
+  EXPECT_THAT(report->body, HasSubstr("part(s) of this report could not be made"));
+  EXPECT_THAT(report->body, HasSubstr("figure not drawn: "));
+  EXPECT_THAT(report->body, HasSubstr("died on signal 6"));
+  EXPECT_THAT(report->body, HasSubstr("id=\"claims\""));
   StopServer();
 
   SubprocessRenderer real(&processes, SANDSWIM_RENDER_PATH);
