@@ -12,6 +12,7 @@
 #include <iterator>
 #include <limits>
 #include <mutex>
+#include <set>
 #include <sstream>
 
 #include <plplot.h>
@@ -385,8 +386,16 @@ Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajec
   plot.title = title;
   plot.x_label = "t (s)";
   plot.y_label = coordinate == Coordinate::kZ ? "Δz = z(t) − z(0) (m)" : "Δx = x(t) − x(0) (m)";
+  std::set<int> replicates;
+  for (const RunTrajectory& r : runs) replicates.insert(r.replicate);
   for (const RunTrajectory& r : runs) {
-    Series s{PointLabel(r.point, param), r.trajectory.t, {}, {}, false, false};
+    Series s{
+        PointLabel(r.point, param) + (replicates.size() > 1 ? ", replicate bed " + std::to_string(r.replicate) : ""),
+        r.trajectory.t,
+        {},
+        {},
+        false,
+        false};
     const std::vector<double>& v = coordinate == Coordinate::kZ ? r.trajectory.z : r.trajectory.x;
     const double v0 = v.empty() ? 0 : v.front();
     for (double c : v) s.y.push_back(c - v0);

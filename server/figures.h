@@ -93,9 +93,11 @@ struct RunTrajectory {
   int64_t run_id = 0;
   Point point;
   api::Trajectory trajectory;
+  int replicate = 0;  // the replicate bed it ran on
 };
 enum class Coordinate { kX, kZ };
-// Every run's Δz(t) (or Δx(t)), one series each, labelled by PointLabel(point, param).
+// Every run's Δz(t) (or Δx(t)), one series each, labelled by PointLabel(point, param), and by its
+// replicate bed when the runs are on more than one.
 Plot SweepTrajectoriesPlot(const std::string& title, const std::vector<RunTrajectory>& runs, const std::string& param,
                            Coordinate coordinate = Coordinate::kZ);
 

@@ -172,6 +172,24 @@ TEST(FiguresTest, BadPlotsAreRefused) {
   EXPECT_FALSE(RenderPlot(ragged, ImageFormat::kSvg).ok());
 }
 
+// Runs of one point on several replicate beds are told apart in the legend; runs on one bed are not
+// labelled by it.
+TEST(FiguresTest, TrajectoriesOnSeveralBedsNameTheirBed) {
+  const Point p = OscillatoryPoint(0.03, 3, 80, 0.6);
+  std::vector<RunTrajectory> runs = {{1, p, Wiggle(-0.05, 0), 0}, {2, p, Wiggle(-0.06, 1), 1}};
+  Plot plot = SweepTrajectoriesPlot("replicates", runs, "Omega");
+  ASSERT_EQ(plot.series.size(), 2u);
+  EXPECT_NE(plot.series[0].label, plot.series[1].label);
+  EXPECT_THAT(plot.series[1].label, HasSubstr("replicate bed 1"));
+  Plot one = SweepTrajectoriesPlot("one bed", {runs[0]}, "Omega");
+  EXPECT_THAT(one.series[0].label, ::testing::Not(HasSubstr("replicate")));
+  // Δx(t) on request, from x(0).
+  Plot x = SweepTrajectoriesPlot("x", {runs[0]}, "Omega", Coordinate::kX);
+  EXPECT_THAT(x.y_label, HasSubstr("Δx"));
+  EXPECT_EQ(x.series[0].y.front(), 0);
+  EXPECT_NEAR(x.series[0].y.back(), runs[0].trajectory.x.back() - runs[0].trajectory.x.front(), 1e-15);
+}
+
 class FigureCacheTest : public ::testing::Test {
  protected:
   void SetUp() override {

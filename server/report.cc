@@ -310,7 +310,8 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
     // Every run's trajectory, on every bed.
     auto run = store.GetRun(row.run_id);
     if (!run.ok()) return run.status();
-    if (run->trajectory && !run->trajectory->t.empty()) a.runs.push_back({row.run_id, row.point, *run->trajectory});
+    if (run->trajectory && !run->trajectory->t.empty())
+      a.runs.push_back({row.run_id, row.point, *run->trajectory, row.replicate});
     if (beds.size() > 1) continue;  // its sample is the aggregate
     const api::RunResult& r = row.result->result;
     SweepSample sample;
