@@ -6,6 +6,7 @@
 #include <regex>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "core/aggregate.h"
 #include "core/sweep.h"
@@ -336,13 +337,14 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
 }
 
 std::vector<std::string> TrajectoryBranches(const SweepAnalysis& a) {
-  bool rising = false, sinking = false;
+  // The distinct drives of each branch (A, f, |Omega|): a pair of one each (the paper's Fig. 4)
+  // stays on one plot.
+  std::set<std::tuple<double, double, double>> rising, sinking;
   for (const RunTrajectory& r : a.runs) {
-    if (r.point.mode != Mode::kOscillatory) continue;
-    rising = rising || r.point.Omega < 0;
-    sinking = sinking || r.point.Omega > 0;
+    if (r.point.mode != Mode::kOscillatory || r.point.Omega == 0) continue;
+    (r.point.Omega < 0 ? rising : sinking).insert({r.point.A, r.point.f, std::fabs(r.point.Omega)});
   }
-  if (rising && sinking) return {"rising", "sinking"};
+  if (!rising.empty() && !sinking.empty() && std::max(rising.size(), sinking.size()) > 1) return {"rising", "sinking"};
   return {""};
 }
 

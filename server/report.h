@@ -47,7 +47,8 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
 
 // The branches a sweep's Δz(t) figures are drawn by, as the paper's panels a and b: {"rising",
 // "sinking"} when its oscillatory runs have both signs of Omega (Omega < 0 rises in the paper,
-// Omega > 0 sinks), else {""}: one figure of every run.
+// Omega > 0 sinks) and a branch has more than one drive; else {""}: one figure of every run (a
+// baseline pair stays together, as in the paper's Fig. 4).
 std::vector<std::string> TrajectoryBranches(const SweepAnalysis& analysis);
 
 // The figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished (or,

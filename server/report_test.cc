@@ -265,13 +265,14 @@ TEST_F(ReportTest, TheReportIsSelfContainedAndEveryLinkResolves) {
   EXPECT_THAT(*html, ::testing::Not(HasSubstr(" src=")));              // nothing loaded from elsewhere
   EXPECT_THAT(*html, ::testing::Not(HasSubstr("could not be made")));  // every part was made
   EXPECT_THAT(*html, ::testing::Not(HasSubstr("<?xml")));              // SVGs inlined without their prolog
-  // Both sweeps, each run's figure once (2 shared runs), the sweeps' 3 figures each: Δz(t) of the
-  // rising and of the sinking branch (the paper's panels a and b), and U_z.
+  // Both sweeps, each run's figure once (2 shared runs), and the sweeps' figures: the omega sweep's
+  // Δz(t) of the rising and of the sinking branch (the paper's panels a and b) and U_z; the
+  // baseline pair's Δz(t) on one plot (Fig. 4) and U_z.
   EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[0])));
   EXPECT_TRUE(ids.count("sweep-" + std::to_string(sweeps_[1])));
   size_t svgs = 0;
   for (size_t at = html->find("<svg"); at != std::string::npos; at = html->find("<svg", at + 1)) ++svgs;
-  EXPECT_EQ(svgs, 8u + 2 * 3);
+  EXPECT_EQ(svgs, 8u + 3 + 2);
   for (const char* branch : {"-rising-", "-sinking-"})  // each figure's ids carry its own prefix
     EXPECT_THAT(*html, HasSubstr("fig-sweep-" + std::to_string(sweeps_[0]) + "-trajectories" + branch)) << branch;
   EXPECT_THAT(*html, HasSubstr("C1 = "));
@@ -392,6 +393,9 @@ TEST_F(ReportTest, RoutesServeFiguresFitsAndReportsWithTheirTypes) {
     auto a = AnalyzeSweep(*store_, sweeps_[0]);
     ASSERT_TRUE(a.ok());
     EXPECT_EQ(TrajectoryBranches(*a), (std::vector<std::string>{"rising", "sinking"}));
+    auto pair = AnalyzeSweep(*store_, sweeps_[1]);
+    ASSERT_TRUE(pair.ok());
+    EXPECT_EQ(TrajectoryBranches(*pair), (std::vector<std::string>{""}));  // the baseline pair stays together
     Plot rising = SweepTrajectoriesFigure(*a, "rising");
     ASSERT_EQ(rising.series.size(), 4u);
     for (const Series& s : rising.series) EXPECT_THAT(s.label, HasSubstr("Ω = -")) << s.label;
