@@ -100,7 +100,7 @@ class HttpDaemonClient : public DaemonClient {
 
   Result<json> CampaignRunClaims(int64_t id) override {
     // The daemon analyses every sweep of the run before it answers: allow it as long as a report.
-    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+    AllowLongAnswer();
     return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/claims");
   }
 
@@ -117,7 +117,7 @@ class HttpDaemonClient : public DaemonClient {
                            : "/api/v1/campaigns/" + httplib::detail::encode_query_param(name) + "/report";
     if (campaign_run_id <= 0 && !scale.empty()) path += "?scale=" + httplib::detail::encode_query_param(scale);
     // Reports draw every figure they have not drawn before: allow them longer than a JSON answer.
-    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+    AllowLongAnswer();
     httplib::Result res = http_.Get(path.c_str());
     if (res && res->status == 200) return res->body;
     auto error = Answer(res, "GET", path);
@@ -130,7 +130,7 @@ class HttpDaemonClient : public DaemonClient {
     std::ofstream out(file, std::ios::binary | std::ios::trunc);
     if (!out) return Status::IOError("cannot write " + file);
     // The daemon copies the whole database before it answers: allow it time.
-    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+    AllowLongAnswer();
     int64_t bytes = 0;
     std::string error_body;
     int status = 0;
@@ -162,6 +162,11 @@ class HttpDaemonClient : public DaemonClient {
   }
 
  private:
+  // For answers the daemon computes at length (reports, claims, backups): at least 10 minutes.
+  void AllowLongAnswer() {
+    http_.set_read_timeout(std::max<time_t>(static_cast<time_t>(options_.read_timeout_s), 600), 0);
+  }
+
   Result<json> Get(const std::string& path) { return Answer(http_.Get(path.c_str()), "GET", path); }
 
   Result<json> Post(const std::string& path, const json& body, const httplib::Headers& headers) {

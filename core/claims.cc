@@ -1131,6 +1131,24 @@ std::string DescribeFigure(const ClaimFigure& f) {
   return text;
 }
 
+VerdictCounts CountVerdicts(const std::vector<ClaimVerdict>& verdicts) {
+  VerdictCounts c;
+  for (const ClaimVerdict& v : verdicts) {
+    switch (v.verdict) {
+      case Verdict::kHolds:
+        ++c.holds;
+        break;
+      case Verdict::kDiffers:
+        ++c.differs;
+        break;
+      case Verdict::kInconclusive:
+        ++c.inconclusive;
+        break;
+    }
+  }
+  return c;
+}
+
 std::string DescribeClaimPoint(const Point& point) { return claim_rules::Label(point); }
 
 std::string DescribePaperNumbers(const nlohmann::json& paper) {

@@ -178,6 +178,11 @@ std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const
 //  "figures":[{"name","value"?,"stderr"?,"lo"?,"hi"?,"unit","verdict"?,"note"}]}],
 //  "missing":[{"sweep","point","run_ids","why"}]}
 nlohmann::json ClaimVerdictToJson(const ClaimVerdict& v);
+// How many verdicts hold, differ and are inconclusive.
+struct VerdictCounts {
+  int holds = 0, differs = 0, inconclusive = 0;
+};
+VerdictCounts CountVerdicts(const std::vector<ClaimVerdict>& verdicts);
 // "0.0123 ± 0.0011 m/s [0.0101, 0.0145]", or "–" without a value.
 std::string DescribeFigure(const ClaimFigure& f);
 // A point as the claims name it ("Omega = 160", "vibration+rotation about x"): in the missing list.

@@ -60,13 +60,9 @@ Result<std::map<int64_t, std::string>> FailuresOf(Store& store, int64_t sweep_id
 Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id) {
   Result<CampaignRunInfo> info = store.GetCampaignRun(campaign_run_id);
   if (!info.ok()) return info.status();
-  std::vector<SweepAnalysis> analyses;
-  for (int64_t sweep_id : info->sweep_ids) {
-    Result<SweepAnalysis> a = AnalyzeSweep(store, sweep_id);
-    if (!a.ok()) return a.status();
-    analyses.push_back(std::move(a).value());
-  }
-  return CheckClaims(store, *info, analyses);
+  Result<std::vector<SweepAnalysis>> analyses = AnalyzeCampaignRun(store, *info);
+  if (!analyses.ok()) return analyses.status();
+  return CheckClaims(store, *info, *analyses);
 }
 
 Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
@@ -122,11 +118,9 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
 
 nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
   nlohmann::json claims = nlohmann::json::array();
-  std::map<std::string, int> counts = {{"holds", 0}, {"differs", 0}, {"inconclusive", 0}};
-  for (const ClaimVerdict& v : c.verdicts) {
-    claims.push_back(ClaimVerdictToJson(v));
-    ++counts[VerdictName(v.verdict)];
-  }
+  for (const ClaimVerdict& v : c.verdicts) claims.push_back(ClaimVerdictToJson(v));
+  const VerdictCounts n = CountVerdicts(c.verdicts);
+  const nlohmann::json counts = {{"holds", n.holds}, {"differs", n.differs}, {"inconclusive", n.inconclusive}};
   return {{"campaign_run_id", c.campaign_run.id},
           {"campaign", c.campaign_run.campaign},
           {"scale", c.campaign_run.scale},

@@ -216,10 +216,9 @@ std::string ClaimsHtml(const ReportInput& in) {
     return html + "<p class=\"none\">The campaign states no claims" +
            (in.claims_note.empty() ? std::string() : " (" + Escape(in.claims_note) + ")") + ".</p>\n";
   }
-  int counts[3] = {0, 0, 0};
-  for (const ClaimVerdict& v : in.claims) ++counts[static_cast<int>(v.verdict)];
-  html += "<p>" + std::to_string(counts[0]) + " hold, " + std::to_string(counts[1]) + " differ, " +
-          std::to_string(counts[2]) +
+  const VerdictCounts counts = CountVerdicts(in.claims);
+  html += "<p>" + std::to_string(counts.holds) + " hold, " + std::to_string(counts.differs) + " differ, " +
+          std::to_string(counts.inconclusive) +
           " inconclusive. Each claim is decided by the rule the campaign file states, from the results' own errors "
           "(95 % intervals; over replicate beds where there are several); a claim never holds while a point it "
           "needs has no conclusive U<sub>z</sub>." +
@@ -334,6 +333,16 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   for (const Point& p : points) swept.insert(SweptValue(p, a.fits.choice.param));
   a.swept_values = swept.size();
   return a;
+}
+
+Result<std::vector<SweepAnalysis>> AnalyzeCampaignRun(Store& store, const CampaignRunInfo& campaign_run) {
+  std::vector<SweepAnalysis> analyses;
+  for (int64_t sweep_id : campaign_run.sweep_ids) {
+    auto a = AnalyzeSweep(store, sweep_id);
+    if (!a.ok()) return a.status();
+    analyses.push_back(std::move(a).value());
+  }
+  return analyses;
 }
 
 std::vector<std::string> TrajectoryBranches(const SweepAnalysis& a) {
@@ -519,12 +528,9 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
   auto drift = DriftReportFor(store, campaign_run_id);
   if (!drift.ok()) return drift.status();
   in.drift = *drift;
-  std::vector<SweepAnalysis> analyses;
-  for (int64_t sweep_id : cr->sweep_ids) {
-    auto a = AnalyzeSweep(store, sweep_id);
-    if (!a.ok()) return a.status();
-    analyses.push_back(std::move(a).value());
-  }
+  auto analyzed = AnalyzeCampaignRun(store, *cr);
+  if (!analyzed.ok()) return analyzed.status();
+  const std::vector<SweepAnalysis>& analyses = *analyzed;
   // A claim check or a figure that fails costs its part of the report, never the report: it is
   // said where the part would be, and listed at the top.
   auto claims = CheckClaims(store, *cr, analyses);

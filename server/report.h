@@ -44,6 +44,8 @@ struct SweepAnalysis {
 };
 // NotFound when the sweep does not exist.
 Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
+// Every sweep of a campaign run, in its order.
+Result<std::vector<SweepAnalysis>> AnalyzeCampaignRun(Store& store, const CampaignRunInfo& campaign_run);
 
 // The branches a sweep's Δz(t) figures are drawn by, as the paper's panels a and b: {"rising",
 // "sinking"} when its oscillatory runs have both signs of Omega (Omega < 0 rises in the paper,
