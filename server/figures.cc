@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -104,6 +106,127 @@ struct Range {
   }
 };
 
+// The usual plot box, in normalised page coordinates; the legend goes right of it.
+constexpr PLFLT kBoxLeft = 0.085, kBoxRight = 0.56, kBoxBottom = 0.11, kBoxTop = 0.91;
+constexpr PLFLT kCharScale = 0.85;  // of PLplot's default character height
+
+// Colour map 1 for discs: perceptually ordered, dark violet (low) through blue and green to yellow
+// (high), readable in grey and by most colour-blind readers.
+void SetDiscColourMap() {
+  static const PLFLT kAt[] = {0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
+  static const Rgb kStops[] = {{68, 1, 84},    {71, 45, 123}, {59, 82, 139},  {44, 114, 142}, {33, 145, 140},
+                               {40, 174, 128}, {94, 201, 98}, {173, 220, 48}, {253, 231, 37}};
+  constexpr PLINT kCount = sizeof(kAt) / sizeof(kAt[0]);
+  PLFLT r[kCount], g[kCount], b[kCount];
+  for (PLINT i = 0; i < kCount; ++i) {
+    r[i] = kStops[i].r / 255.0;
+    g[i] = kStops[i].g / 255.0;
+    b[i] = kStops[i].b / 255.0;
+  }
+  plscmap1n(256);
+  plscmap1l(1, kCount, kAt, r, g, b, nullptr);
+}
+
+// The range the colour map spans: the values' own; a flat one gets a width of its own.
+Range DiscValueRange(const Discs& discs) {
+  Range range;
+  for (double v : discs.value) range.Add(v);
+  if (!std::isfinite(range.lo)) return Range{0, 1};
+  if (range.hi > range.lo) return range;
+  const double v = range.lo;
+  if (v == 0) return Range{0, 1};
+  return Range{v - 0.1 * std::fabs(v), v + 0.1 * std::fabs(v)};
+}
+
+// Each disc a filled polygon in its value's colour. `px_per_unit`: pixels per axis unit (the larger
+// of x's and y's), so a small disc is drawn with fewer vertices.
+void DrawDiscs(const Discs& discs, const Range& values, double px_per_unit) {
+  std::vector<PLFLT> x, y;
+  for (size_t i = 0; i < discs.x.size(); ++i) {
+    const double r_px = discs.r[i] * px_per_unit;
+    // About 4 px of outline per edge: round to the eye, and the SVG stays small.
+    const int n = std::clamp(static_cast<int>(std::ceil(2 * M_PI * r_px / 4)), 8, 32);
+    x.resize(static_cast<size_t>(n));
+    y.resize(static_cast<size_t>(n));
+    for (int k = 0; k < n; ++k) {
+      const double a = 2 * M_PI * k / n;
+      x[static_cast<size_t>(k)] = discs.x[i] + discs.r[i] * std::cos(a);
+      y[static_cast<size_t>(k)] = discs.y[i] + discs.r[i] * std::sin(a);
+    }
+    plcol1(std::clamp((discs.value[i] - values.lo) / (values.hi - values.lo), 0.0, 1.0));
+    plfill(n, x.data(), y.data());
+  }
+}
+
+// ---- Axes of an equal-aspect plot ----
+// A box narrowed to its data's proportions (a bed slice is four times as tall as it is wide) has
+// little room across: PLplot's own choice of ticks writes the x labels over each other there. So
+// such a plot picks its own steps, wide enough apart for their labels, and writes each label as
+// its shortest decimal ("0", "0.05").
+
+struct TickSteps {
+  double x = 0, y = 0;
+};
+
+std::string TickLabel(double value, double step) {
+  const int decimals = std::max(0, static_cast<int>(std::ceil(-std::log10(step) - 1e-9)));
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, std::round(value / step) * step);
+  std::string label = buf;
+  if (label.find('.') != std::string::npos) {
+    while (label.back() == '0') label.pop_back();
+    if (label.back() == '.') label.pop_back();
+  }
+  return label == "-0" ? "0" : label;
+}
+
+// A label's width in character heights (a digit is about 0.85 of one, '-' and '.' less than half;
+// measured on both devices' fonts, rounded up).
+double TickLabelWidth(const std::string& label) {
+  double width = 0;
+  for (char c : label) width += std::isdigit(static_cast<unsigned char>(c)) ? 0.85 : 0.45;
+  return width;
+}
+
+// How many multiples of `step` lie in [lo, hi].
+int TickCount(double lo, double hi, double step) {
+  return static_cast<int>(std::floor(hi / step + 1e-9) - std::ceil(lo / step - 1e-9)) + 1;
+}
+
+// The smallest step of 1, 2 or 5 times a power of ten, at least a sixth of [lo, hi], whose labels
+// keep apart: side by side along x (neighbours 0.6 of a character height apart), or stacked along
+// y (two character heights from one to the next).
+double TickStep(double lo, double hi, double px_per_unit, double char_px, bool along_x) {
+  const double least = (hi - lo) / 6;
+  double decade = std::pow(10.0, std::floor(std::log10(least)));
+  for (;; decade *= 10) {
+    for (double m : {1.0, 2.0, 5.0}) {
+      const double step = m * decade;
+      if (step < least * (1 - 1e-9)) continue;
+      const double step_px = step * px_per_unit;
+      if (!along_x) {
+        if (step_px >= 2 * char_px) return step;
+        continue;
+      }
+      // Counted, not summed: at most seven ticks, however far from 0 the range lies.
+      const double first = std::ceil(lo / step - 1e-9);
+      bool apart = true;
+      for (int k = 0; k + 1 < TickCount(lo, hi, step) && apart; ++k) {
+        const double t = (first + k) * step;
+        const double half_widths = (TickLabelWidth(TickLabel(t, step)) + TickLabelWidth(TickLabel(t + step, step))) / 2;
+        apart = step_px >= (half_widths + 0.6) * char_px;
+      }
+      if (apart) return step;
+    }
+  }
+}
+
+void ShortestTickLabel(PLINT axis, PLFLT value, char* label, PLINT length, PLPointer data) {
+  const TickSteps& steps = *static_cast<const TickSteps*>(data);
+  std::snprintf(label, static_cast<size_t>(length), "%s",
+                TickLabel(value, axis == PL_X_AXIS ? steps.x : steps.y).c_str());
+}
+
 // Draws under the PLplot mutex into `path`. REQUIRES: CheckPlot(plot) passed.
 void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
   std::lock_guard<std::mutex> lock(PlplotMutex());
@@ -120,29 +243,88 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
   }
   plinit();
   pladv(0);
-  plschr(0, 0.85);
-  plvpor(0.085, 0.56, 0.11, 0.91);
+  plschr(0, kCharScale);
+
+  Range xr, yr;
+  if (plot.limits) {
+    const std::array<double, 4>& l = *plot.limits;
+    xr = Range{l[0], l[1]};
+    yr = Range{l[2], l[3]};
+  } else {
+    for (const Series& s : plot.series) {
+      for (size_t i = 0; i < s.x.size(); ++i) {
+        xr.Add(s.x[i]);
+        double e = s.y_err.empty() ? 0 : std::fabs(s.y_err[i]);
+        yr.Add(s.y[i] - e);
+        yr.Add(s.y[i] + e);
+      }
+    }
+    if (plot.discs) {
+      const Discs& d = *plot.discs;
+      for (size_t i = 0; i < d.x.size(); ++i) {
+        xr.Add(d.x[i] - d.r[i]);
+        xr.Add(d.x[i] + d.r[i]);
+        yr.Add(d.y[i] - d.r[i]);
+        yr.Add(d.y[i] + d.r[i]);
+      }
+    }
+    xr.Pad();
+    yr.Pad();
+  }
+  if (plot.equal_aspect) {
+    plvpas(kBoxLeft, kBoxRight, kBoxBottom, kBoxTop, (yr.hi - yr.lo) / (xr.hi - xr.lo));
+  } else {
+    plvpor(kBoxLeft, kBoxRight, kBoxBottom, kBoxTop);
+  }
   // Plain decimals on the axes (no "(x10^-2)" factor floating above the axis).
   plsxax(8, 0);
   plsyax(8, 0);
+  PLFLT box_x0 = 0, box_x1 = 0, box_y0 = 0, box_y1 = 0;
+  plgvpd(&box_x0, &box_x1, &box_y0, &box_y1);
+  const PLFLT box_w_px = (box_x1 - box_x0) * kWidthPx, box_h_px = (box_y1 - box_y0) * kHeightPx;
+  // Offsets right of the box are in units of the box's width: a box narrowed to its aspect keeps
+  // the usual gaps in pixels.
+  const PLFLT per_usual_width = plot.equal_aspect ? (kBoxRight - kBoxLeft) * kWidthPx / box_w_px : 1.0;
 
-  Range xr, yr;
-  for (const Series& s : plot.series) {
-    for (size_t i = 0; i < s.x.size(); ++i) {
-      xr.Add(s.x[i]);
-      double e = s.y_err.empty() ? 0 : std::fabs(s.y_err[i]);
-      yr.Add(s.y[i] - e);
-      yr.Add(s.y[i] + e);
-    }
-  }
-  xr.Pad();
-  yr.Pad();
   plwind(xr.lo, xr.hi, yr.lo, yr.hi);
+  Range values;
+  if (plot.discs) {
+    // Under the frame and the series, so both stay visible over the grains.
+    SetDiscColourMap();
+    values = DiscValueRange(*plot.discs);
+    DrawDiscs(*plot.discs, values, std::max(box_w_px / (xr.hi - xr.lo), box_h_px / (yr.hi - yr.lo)));
+  }
   plcol0(kInk);
   plwidth(1);
-  plbox("bcnst", 0, 0, "bcnstv", 0, 0);
-  // A zero line where U_z or Δz changes sign.
-  if (yr.lo < 0 && yr.hi > 0) {
+  if (plot.equal_aspect) {
+    PLFLT char_mm = 0, sub_x0 = 0, sub_x1 = 0, sub_y0 = 0, sub_y1 = 0, unused = 0;
+    plgchr(&unused, &char_mm);
+    plgspa(&sub_x0, &sub_x1, &sub_y0, &sub_y1);
+    const double char_px = char_mm * kWidthPx / (sub_x1 - sub_x0);
+    const double x_px_per_unit = box_w_px / (xr.hi - xr.lo);
+    TickSteps steps{TickStep(xr.lo, xr.hi, x_px_per_unit, char_px, true),
+                    TickStep(yr.lo, yr.hi, box_h_px / (yr.hi - yr.lo), char_px, false)};
+    // A box too narrow for three x labels at the usual size gets them a quarter smaller: "-0.05 0
+    // 0.05" under a slice 0.18 m wide says more than a lone "0".
+    PLFLT x_label_scale = 1;
+    if (TickCount(xr.lo, xr.hi, steps.x) < 3) {
+      const double smaller = TickStep(xr.lo, xr.hi, x_px_per_unit, 0.75 * char_px, true);
+      if (TickCount(xr.lo, xr.hi, smaller) > TickCount(xr.lo, xr.hi, steps.x)) {
+        steps.x = smaller;
+        x_label_scale = 0.75;
+      }
+    }
+    plslabelfunc(ShortestTickLabel, &steps);
+    plschr(0, kCharScale * x_label_scale);
+    plbox("bcnsto", steps.x, 0, "", 0, 0);
+    plschr(0, kCharScale);
+    plbox("", 0, 0, "bcnstvo", steps.y, 0);
+    plslabelfunc(nullptr, nullptr);  // the colour bar labels its own axis
+  } else {
+    plbox("bcnst", 0, 0, "bcnstv", 0, 0);
+  }
+  // A zero line where U_z or Δz changes sign (not across a slice of the bed).
+  if (!plot.discs && yr.lo < 0 && yr.hi > 0) {
     pllsty(3);
     PLFLT zx[2] = {xr.lo, xr.hi}, zy[2] = {0, 0};
     plline(2, zx, zy);
@@ -172,7 +354,16 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
       plpoin(n, x.data(), y.data(), 17);
     } else {
       pllsty(s.dashed ? 2 : 1);
-      plwidth(1.5);
+      if (plot.discs) {
+        // A halo of background under the line keeps it visible on grains of any colour.
+        plcol0(kBackground);
+        plwidth(5);
+        plline(n, x.data(), y.data());
+        plcol0(color);
+        plwidth(2.5);
+      } else {
+        plwidth(1.5);
+      }
       plline(n, x.data(), y.data());
       plwidth(1);
       pllsty(1);
@@ -180,15 +371,40 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
     opts.push_back(s.markers ? PL_LEGEND_SYMBOL : PL_LEGEND_LINE);
     colors.push_back(color);
     styles.push_back(s.dashed ? 2 : 1);
-    widths.push_back(1.5);
+    widths.push_back(plot.discs ? 2.5 : 1.5);
     symbol_numbers.push_back(1);
     symbol_scales.push_back(0.8);
     symbols.push_back("●");
     text_colors.push_back(kInk);
     texts.push_back(s.label.c_str());
   }
-  // Labels longer than the space right of the plot holds (about 46 characters at the usual size)
-  // are drawn smaller rather than cut at the page's edge.
+  // The colour bar sits right of the box, the legend right of the colour bar: both are placed in
+  // units of the box's width and centred on it vertically, so they never overlap.
+  PLFLT legend_x = 0.02 * per_usual_width;
+  if (plot.discs) {
+    constexpr PLFLT kGapPx = 14, kBarWidthPx = 22;
+    const PLFLT bar_x = kGapPx / box_w_px;
+    const char* axis_opts[] = {"bcvtm"};
+    const char* labels[] = {plot.discs->value_label.c_str()};
+    PLINT label_opts[] = {PL_COLORBAR_LABEL_TOP};
+    PLFLT ticks[] = {0}, range[] = {values.lo, values.hi};
+    PLINT sub_ticks[] = {0}, n_values[] = {2};
+    const PLFLT* values_of_axis[] = {range};
+    PLFLT bar_width = 0, bar_height = 0;
+    plcol0(kInk);
+    plcolorbar(&bar_width, &bar_height, PL_COLORBAR_GRADIENT | PL_COLORBAR_ORIENT_TOP,
+               PL_POSITION_RIGHT | PL_POSITION_OUTSIDE | PL_POSITION_VIEWPORT, bar_x, 0.0, kBarWidthPx / box_w_px, 0.8,
+               kBackground, kInk, 1, 0, 0, kInk, 1, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks, n_values,
+               values_of_axis);
+    legend_x = bar_x + bar_width + kGapPx / box_w_px;
+  }
+  // Labels longer than the space right of the plot holds (about 46 characters at the usual size;
+  // what is left beside a colour bar) are drawn smaller rather than cut at the page's edge.
+  PLFLT fits = 46;
+  if (plot.discs) {
+    const PLFLT usual_room_px = (1 - kBoxRight - 0.02 * (kBoxRight - kBoxLeft)) * kWidthPx;
+    fits = 46 * (kWidthPx - box_x1 * kWidthPx - legend_x * box_w_px) / usual_room_px;
+  }
   size_t longest = 0;
   for (const Series& s : plot.series) {
     size_t chars = 0;
@@ -202,14 +418,16 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
     longest = std::max(longest, chars);
   }
   const PLFLT base_scale = n_series > 12 ? 0.65 : 0.75;
-  const PLFLT text_scale = longest > 46 ? base_scale * 46.0 / static_cast<PLFLT>(longest) : base_scale;
-  PLFLT legend_width = 0, legend_height = 0;
-  plcol0(kInk);
-  pllegend(&legend_width, &legend_height, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
-           PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.02, 0.0, 0.06, kBackground, kInk, 1, 0, 0, n_series, opts.data(),
-           0.5, text_scale, 2.0, 0.0, text_colors.data(), texts.data(), nullptr, nullptr, nullptr, nullptr,
-           colors.data(), styles.data(), widths.data(), colors.data(), symbol_scales.data(), symbol_numbers.data(),
-           symbols.data());
+  const PLFLT text_scale = longest > fits ? base_scale * fits / static_cast<PLFLT>(longest) : base_scale;
+  if (n_series > 0) {
+    PLFLT legend_width = 0, legend_height = 0;
+    plcol0(kInk);
+    pllegend(&legend_width, &legend_height, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
+             PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, legend_x, 0.0, 0.06 * per_usual_width, kBackground, kInk, 1, 0, 0,
+             n_series, opts.data(), 0.5, text_scale, 2.0, 0.0, text_colors.data(), texts.data(), nullptr, nullptr,
+             nullptr, nullptr, colors.data(), styles.data(), widths.data(), colors.data(), symbol_scales.data(),
+             symbol_numbers.data(), symbols.data());
+  }
   plend();
 }
 
@@ -227,10 +445,18 @@ void to_json(json& j, const Plot& p) {
         {{"label", s.label}, {"x", s.x}, {"y", s.y}, {"y_err", s.y_err}, {"markers", s.markers}, {"dashed", s.dashed}});
   }
   j = {{"title", p.title}, {"x_label", p.x_label}, {"y_label", p.y_label}, {"series", series}};
+  // Only when set: the JSON (and so the cache name) of a plot without them stays what it was.
+  if (p.discs) {
+    const Discs& d = *p.discs;
+    j["discs"] = {{"x", d.x}, {"y", d.y}, {"r", d.r}, {"value", d.value}, {"value_label", d.value_label}};
+  }
+  if (p.equal_aspect) j["equal_aspect"] = true;
+  if (p.limits) j["limits"] = *p.limits;
 }
 
 Status CheckPlot(const Plot& plot) {
-  if (plot.series.empty()) return Status::InvalidArgument("plot", "nothing to draw: no series");
+  if (plot.series.empty() && !plot.discs)
+    return Status::InvalidArgument("plot", "nothing to draw: no series and no discs");
   for (const Series& s : plot.series) {
     if (s.x.size() != s.y.size() || (!s.y_err.empty() && s.y_err.size() != s.y.size())) {
       return Status::InvalidArgument("plot", "series \"" + s.label + "\": x, y and errors differ in length");
@@ -241,6 +467,28 @@ Status CheckPlot(const Plot& plot) {
           return Status::InvalidArgument("plot", "series \"" + s.label + "\" has a non-finite value");
       }
     }
+  }
+  if (plot.discs) {
+    const Discs& d = *plot.discs;
+    const size_t n = d.x.size();
+    if (d.y.size() != n || d.r.size() != n || d.value.size() != n)
+      return Status::InvalidArgument("plot", "discs: x, y, r and value differ in length");
+    for (const auto* v : {&d.x, &d.y, &d.r, &d.value}) {
+      for (double x : *v) {
+        if (!std::isfinite(x)) return Status::InvalidArgument("plot", "discs: a non-finite value");
+      }
+    }
+    for (double r : d.r) {
+      if (r <= 0) return Status::InvalidArgument("plot", "discs: a radius of " + Num(r, 4) + ", not > 0");
+    }
+  }
+  if (plot.limits) {
+    const std::array<double, 4>& l = *plot.limits;
+    for (double v : l) {
+      if (!std::isfinite(v)) return Status::InvalidArgument("plot", "limits: a non-finite value");
+    }
+    if (!(l[0] < l[1]) || !(l[2] < l[3]))
+      return Status::InvalidArgument("plot", "limits: each axis needs lo < hi (x_lo, x_hi, y_lo, y_hi)");
   }
   return Status::Ok();
 }
@@ -275,6 +523,38 @@ Result<Plot> PlotFromJson(const json& j) {
       *out = sj[key].get<bool>();
     }
     p.series.push_back(std::move(s));
+  }
+  if (j.contains("discs")) {
+    const json& dj = j["discs"];
+    if (!dj.is_object()) return bad("\"discs\" must be an object");
+    Discs d;
+    if (!dj.contains("value_label") || !dj["value_label"].is_string())
+      return bad("discs: \"value_label\" must be a string");
+    d.value_label = dj["value_label"].get<std::string>();
+    for (auto [key, out] :
+         {std::pair{"x", &d.x}, std::pair{"y", &d.y}, std::pair{"r", &d.r}, std::pair{"value", &d.value}}) {
+      if (!dj.contains(key) || !dj[key].is_array()) return bad(std::string("discs: \"") + key + "\" must be an array");
+      for (const json& v : dj[key]) {
+        if (!v.is_number()) return bad(std::string("discs: \"") + key + "\" holds a non-number");
+        out->push_back(v.get<double>());
+      }
+    }
+    p.discs = std::move(d);
+  }
+  if (j.contains("equal_aspect")) {
+    if (!j["equal_aspect"].is_boolean()) return bad("\"equal_aspect\" must be true or false");
+    p.equal_aspect = j["equal_aspect"].get<bool>();
+  }
+  if (j.contains("limits")) {
+    const json& lj = j["limits"];
+    if (!lj.is_array() || lj.size() != 4)
+      return bad("\"limits\" must be an array of 4 numbers (x_lo, x_hi, y_lo, y_hi)");
+    std::array<double, 4> limits{};
+    for (size_t i = 0; i < 4; ++i) {
+      if (!lj[i].is_number()) return bad("\"limits\" holds a non-number");
+      limits[i] = lj[i].get<double>();
+    }
+    p.limits = limits;
   }
   return p;
 }

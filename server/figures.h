@@ -9,6 +9,10 @@
 // stored results, RenderPlot() draws it. Every series has its own colour (SeriesColor(i) for the
 // i-th), also in the legend: a reader of the SVG can count the series by their colours.
 //
+// A plot may also hold discs coloured by a value, with a colour bar: a slice through the bed
+// (paper Fig. 5), grains coloured by their speed, the SO's outline a series drawn over them. Such a
+// plot usually wants equal_aspect (a metre as long across as up) and limits (the whole box).
+//
 // FigureCache keeps rendered figures next to the results, under DATA_DIR/figures, named
 // NAME-HASH.EXT where HASH is the SHA-256 of the plot's data, its format and the style version:
 // new results make a new plot, hence a new name, so a stale figure is never served. Writing a new
@@ -23,7 +27,9 @@
 #ifndef SANDSWIM_SERVER_FIGURES_H_
 #define SANDSWIM_SERVER_FIGURES_H_
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -48,11 +54,27 @@ struct Series {
   bool dashed = false;
 };
 
+// Filled circles coloured by a value on a continuous colour map, with a colour bar labelled
+// value_label (a bed slice: grains coloured by speed). Drawn under the series, whose lines get a
+// white halo to stand out on them; the colour bar stands right of the plot, the legend right of it.
+struct Discs {
+  std::vector<double> x, y, r, value;  // centre, radius (in axis units), the coloured value
+  std::string value_label;             // e.g. "|v| (m/s)"
+};
+
 struct Plot {
   std::string title;
   std::string x_label, y_label;  // with units: "t (s)", "U_z (m/s)"
   std::vector<Series> series;
+  std::optional<Discs> discs;
+  // One unit on x as long on the page as one unit on y (a slice must not be stretched): the plot
+  // box shrinks inside its usual area to the data's (or the limits') proportions.
+  bool equal_aspect = false;
+  // x_lo, x_hi, y_lo, y_hi of the axes, used as they are; unset: the data's range with 5 % of room.
+  std::optional<std::array<double, 4>> limits;
 };
+// "discs", "equal_aspect" and "limits" are written only when set (true), so a plot without them
+// has the JSON, hence the cache name, it had before they existed.
 void to_json(nlohmann::json& j, const Plot& p);
 // The inverse of to_json: InvalidArgument ("plot") naming what is missing or of the wrong type.
 Result<Plot> PlotFromJson(const nlohmann::json& j);
@@ -61,8 +83,9 @@ Result<Plot> PlotFromJson(const nlohmann::json& j);
 // the axes' colour.
 std::string SeriesColor(size_t i);
 
-// InvalidArgument ("plot") for a plot with no series, a series whose x and y differ in length, or
-// a non-finite value: what RenderPlot refuses before PLplot sees it.
+// InvalidArgument ("plot") for a plot with neither series nor discs, a series whose x and y differ
+// in length, discs whose x, y, r and value differ in length or whose radius is not positive, limits
+// with lo >= hi, or a non-finite value: what RenderPlot refuses before PLplot sees it.
 Status CheckPlot(const Plot& plot);
 
 // Draws the plot in this process (CheckPlot first); IOError when the temporary file cannot be

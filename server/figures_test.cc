@@ -1,14 +1,18 @@
 // Figures: each kind is drawn with the right number of series (read back from the SVG by the
-// series' colours), PNGs are PNGs, and the cache never serves a figure of older data.
+// series' colours), a bed slice with every grain and its colour bar, PNGs are PNGs, and the cache
+// never serves a figure of older data.
 #include "server/figures.h"
 
 #include <stdlib.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
+#include <sstream>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -188,6 +192,220 @@ TEST(FiguresTest, TrajectoriesOnSeveralBedsNameTheirBed) {
   EXPECT_THAT(x.y_label, HasSubstr("Δx"));
   EXPECT_EQ(x.series[0].y.front(), 0);
   EXPECT_NEAR(x.series[0].y.back(), runs[0].trajectory.x.back() - runs[0].trajectory.x.front(), 1e-15);
+}
+
+// ---- Bed slices: discs coloured by a value ----------------------------------------------------
+
+// A slice through a bed 0.18 m wide and 0.7 m tall: `grains` discs of radius 0.01 m on a lattice,
+// their speeds running evenly from 0 to 0.5 m/s, and the SO's outline (radius 0.06 m at 0, 0).
+Plot BedSlicePlot(int grains, bool equal_aspect) {
+  Plot plot;
+  plot.title = "y–z slice through the SO, t = 0.67 s";
+  plot.x_label = "y (m)";
+  plot.y_label = "z (m)";
+  Discs discs;
+  discs.value_label = "|v| (m/s)";
+  for (int i = 0; i < grains; ++i) {
+    discs.x.push_back(-0.08 + 0.04 * (i % 5));
+    discs.y.push_back(-0.37 + 0.06 * (i / 5));
+    discs.r.push_back(0.01);
+    discs.value.push_back(grains > 1 ? 0.5 * i / (grains - 1) : 0.2);
+  }
+  plot.discs = discs;
+  Series so{"SO", {}, {}, {}, false, false};
+  for (int k = 0; k <= 48; ++k) {
+    so.x.push_back(0.06 * std::cos(2 * M_PI * k / 48));
+    so.y.push_back(0.06 * std::sin(2 * M_PI * k / 48));
+  }
+  plot.series.push_back(so);
+  plot.equal_aspect = equal_aspect;
+  plot.limits = std::array<double, 4>{-0.09, 0.09, -0.4, 0.3};
+  return plot;
+}
+
+// The SVG's text with its character references ("&#x7c;") decoded: PLplot's svg device writes
+// every character of a label as one.
+std::string SvgText(const std::string& svg) {
+  static const std::regex kRef("&#x([0-9A-Fa-f]+);");
+  std::string out;
+  auto last = svg.cbegin();
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), kRef); it != std::sregex_iterator(); ++it) {
+    out.append(last, svg.cbegin() + it->position());
+    const unsigned long c = std::stoul((*it)[1].str(), nullptr, 16);
+    if (c < 0x80) {
+      out += static_cast<char>(c);
+    } else if (c < 0x800) {
+      out += static_cast<char>(0xC0 | (c >> 6));
+      out += static_cast<char>(0x80 | (c & 0x3F));
+    } else {
+      out += static_cast<char>(0xE0 | (c >> 12));
+      out += static_cast<char>(0x80 | ((c >> 6) & 0x3F));
+      out += static_cast<char>(0x80 | (c & 0x3F));
+    }
+    last = svg.cbegin() + it->position() + it->length();
+  }
+  out.append(last, svg.cend());
+  return out;
+}
+
+// PLplot's svg device writes a filled polygon (plfill) as a <polyline> with a fill-rule; a line
+// has none.
+int FilledShapesIn(const std::string& svg) {
+  int n = 0;
+  for (size_t at = svg.find("fill-rule="); at != std::string::npos; at = svg.find("fill-rule=", at + 1)) ++n;
+  return n;
+}
+
+// Width over height, on the page, of the first filled shape (the first disc: discs are drawn first).
+double FirstFilledShapeAspect(const std::string& svg) {
+  static const std::regex kPoints(R"re(fill-rule="[a-z]+"\s*points="([^"]*)")re");
+  std::smatch m;
+  if (!std::regex_search(svg, m, kPoints)) return NAN;
+  std::string points = m[1].str();
+  std::replace(points.begin(), points.end(), ',', ' ');
+  std::istringstream in(points);
+  double x = 0, y = 0, x_lo = INFINITY, x_hi = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
+  while (in >> x >> y) {
+    x_lo = std::min(x_lo, x), x_hi = std::max(x_hi, x);
+    y_lo = std::min(y_lo, y), y_hi = std::max(y_hi, y);
+  }
+  return (x_hi - x_lo) / (y_hi - y_lo);
+}
+
+TEST(FiguresTest, ASliceRoundTripsThroughJson) {
+  const Plot plot = BedSlicePlot(50, true);
+  const nlohmann::json j = plot;
+  auto back = PlotFromJson(j);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_TRUE(back->discs.has_value());
+  EXPECT_EQ(back->discs->x, plot.discs->x);
+  EXPECT_EQ(back->discs->y, plot.discs->y);
+  EXPECT_EQ(back->discs->r, plot.discs->r);
+  EXPECT_EQ(back->discs->value, plot.discs->value);
+  EXPECT_EQ(back->discs->value_label, "|v| (m/s)");
+  EXPECT_TRUE(back->equal_aspect);
+  EXPECT_EQ(back->limits, plot.limits);
+  ASSERT_EQ(back->series.size(), 1u);
+  EXPECT_EQ(back->series[0].label, "SO");
+  EXPECT_EQ(nlohmann::json(*back).dump(), j.dump());
+}
+
+// A plot without discs, equal aspect or limits writes none of them: its JSON, and so its figure's
+// cache name, is what it was before they existed.
+TEST(FiguresTest, APlotWithoutDiscsKeepsItsJson) {
+  Plot plot;
+  plot.title = "t";
+  plot.x_label = "x";
+  plot.y_label = "y";
+  plot.series.push_back({"a", {0, 1}, {2, 3}, {}, false, true});
+  EXPECT_EQ(nlohmann::json(plot).dump(),
+            R"({"series":[{"dashed":true,"label":"a","markers":false,"x":[0.0,1.0],"y":[2.0,3.0],"y_err":[]}],)"
+            R"("title":"t","x_label":"x","y_label":"y"})");
+  auto back = PlotFromJson(nlohmann::json(plot));
+  ASSERT_TRUE(back.ok());
+  EXPECT_FALSE(back->discs.has_value());
+  EXPECT_FALSE(back->equal_aspect);
+  EXPECT_FALSE(back->limits.has_value());
+}
+
+TEST(FiguresTest, PlotFromJsonRefusesAMistypedSlice) {
+  const nlohmann::json good = BedSlicePlot(3, true);
+  ASSERT_TRUE(PlotFromJson(good).ok());
+  auto refused = [&](auto edit) {
+    nlohmann::json j = good;
+    edit(j);
+    auto plot = PlotFromJson(j);
+    return !plot.ok() && plot.status().code() == StatusCode::kInvalidArgument && plot.status().field() == "plot";
+  };
+  using json = nlohmann::json;
+  EXPECT_TRUE(refused([](json& j) { j["discs"] = json::array(); }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"].erase("x"); }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"]["r"] = 0.01; }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"]["value"][1] = "fast"; }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"].erase("value_label"); }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"]["value_label"] = 3; }));
+  EXPECT_TRUE(refused([](json& j) { j["equal_aspect"] = "yes"; }));
+  EXPECT_TRUE(refused([](json& j) { j["limits"] = "the box"; }));
+  EXPECT_TRUE(refused([](json& j) { j["limits"] = {0, 1, 2}; }));
+  EXPECT_TRUE(refused([](json& j) { j["limits"][2] = nullptr; }));
+}
+
+TEST(FiguresTest, BadSlicesAreRefused) {
+  Plot grains_only = BedSlicePlot(3, true);
+  grains_only.series.clear();
+  EXPECT_TRUE(CheckPlot(grains_only).ok());  // discs alone are something to draw
+  Plot nothing = grains_only;
+  nothing.discs.reset();
+  EXPECT_EQ(CheckPlot(nothing).field(), "plot");
+  auto refused = [](auto edit) {
+    Plot plot = BedSlicePlot(3, true);
+    edit(plot);
+    Status s = CheckPlot(plot);
+    return s.code() == StatusCode::kInvalidArgument && s.field() == "plot";
+  };
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->r.pop_back(); }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->value.push_back(1); }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->value[1] = NAN; }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->x[0] = INFINITY; }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->r[2] = 0; }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->r[2] = -0.01; }));
+  EXPECT_TRUE(refused([](Plot& p) { (*p.limits)[0] = (*p.limits)[1]; }));
+  EXPECT_TRUE(refused([](Plot& p) { (*p.limits)[2] = 1; }));  // above y_hi
+  EXPECT_TRUE(refused([](Plot& p) { (*p.limits)[3] = NAN; }));
+  Plot ragged = BedSlicePlot(3, true);
+  ragged.discs->y.pop_back();
+  EXPECT_EQ(RenderPlot(ragged, ImageFormat::kSvg).status().field(), "plot");
+}
+
+// Every grain is a filled shape in its speed's colour, the slowest at the colour map's dark end and
+// the fastest at its yellow one; the colour bar says what the colour is; the SO is drawn over them.
+TEST(FiguresTest, ASliceDrawsEveryDiscAndAColourBar) {
+  constexpr int kGrains = 50;
+  auto svg = RenderPlot(BedSlicePlot(kGrains, true), ImageFormat::kSvg);
+  ASSERT_TRUE(svg.ok()) << svg.status().ToString();
+  EXPECT_GE(FilledShapesIn(*svg), kGrains);
+  EXPECT_THAT(*svg, HasSubstr("fill=\"#440154\""));  // 0 m/s
+  EXPECT_THAT(*svg, HasSubstr("fill=\"#FDE725\""));  // 0.5 m/s
+  EXPECT_THAT(*svg, HasSubstr("stroke=\"" + SeriesColor(0) + "\""));
+  const std::string text = SvgText(*svg);
+  EXPECT_THAT(text, HasSubstr(">|v| (m/s)<"));
+  EXPECT_THAT(text, HasSubstr(">0.5<"));  // the colour bar's top tick
+  EXPECT_THAT(text, HasSubstr(">SO<"));   // the legend
+  // Under a box 0.18 m wide, three short labels that keep apart (PLplot's own "-0.05 0.00 0.05"
+  // run into each other there).
+  EXPECT_THAT(text, HasSubstr(">-0.05<"));
+  EXPECT_THAT(text, HasSubstr(">0<"));
+  EXPECT_THAT(text, HasSubstr(">0.05<"));
+  EXPECT_THAT(text, ::testing::Not(HasSubstr(">0.00<")));
+
+  // No series: the discs and the colour bar alone, and no legend.
+  Plot grains_only = BedSlicePlot(kGrains, true);
+  grains_only.series.clear();
+  auto bare = RenderPlot(grains_only, ImageFormat::kSvg);
+  ASSERT_TRUE(bare.ok()) << bare.status().ToString();
+  EXPECT_GE(FilledShapesIn(*bare), kGrains);
+  EXPECT_THAT(SvgText(*bare), ::testing::Not(HasSubstr(">SO<")));
+}
+
+// With equal_aspect a disc is round on the page; without it, a tall box is stretched across.
+TEST(FiguresTest, DiscsAreRoundWithEqualAspect) {
+  auto round = RenderPlot(BedSlicePlot(10, true), ImageFormat::kSvg);
+  ASSERT_TRUE(round.ok()) << round.status().ToString();
+  EXPECT_NEAR(FirstFilledShapeAspect(*round), 1.0, 0.1);
+  auto stretched = RenderPlot(BedSlicePlot(10, false), ImageFormat::kSvg);
+  ASSERT_TRUE(stretched.ok());
+  EXPECT_GT(FirstFilledShapeAspect(*stretched), 2.0);
+}
+
+TEST(FiguresTest, AnEqualAspectSliceRendersToPng) {
+  auto png = RenderPlot(BedSlicePlot(50, true), ImageFormat::kPng);
+  ASSERT_TRUE(png.ok()) << png.status().ToString();
+  ASSERT_GT(png->size(), 24u);
+  EXPECT_EQ(png->substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  // One speed for every grain: the colour map still has a range to span.
+  Plot flat = BedSlicePlot(50, true);
+  std::fill(flat.discs->value.begin(), flat.discs->value.end(), 0.0);
+  EXPECT_TRUE(RenderPlot(flat, ImageFormat::kPng).ok());
 }
 
 class FigureCacheTest : public ::testing::Test {
