@@ -115,6 +115,7 @@ void to_json(nlohmann::json& j, const LeaseGrant& g) {
   PutOptional(j, "bed", g.bed);
   PutOptional(j, "z_floor_m", g.z_floor_m);
   if (g.precision) j["precision"] = PrecisionToJson(*g.precision);
+  if (!g.snapshots.empty()) j["snapshots"] = g.snapshots;
 }
 
 void from_json(const nlohmann::json& j, LeaseGrant& g) {
@@ -138,6 +139,7 @@ void from_json(const nlohmann::json& j, LeaseGrant& g) {
     if (!t.ok()) throw nlohmann::json::other_error::create(501, "precision: " + t.status().ToString(), &*it);
     g.precision = *t;
   }
+  g.snapshots = j.value("snapshots", std::vector<double>{});
 }
 
 void to_json(nlohmann::json& j, const Completion& c) {
@@ -145,6 +147,7 @@ void to_json(nlohmann::json& j, const Completion& c) {
   PutOptional(j, "result", c.result);
   PutOptional(j, "bed_result", c.bed_result);
   PutOptional(j, "trajectory", c.trajectory);
+  if (!c.snapshots.empty()) j["snapshots"] = c.snapshots;
   PutOptional(j, "failure", c.failure);
   PutOptional(j, "next", c.next);
 }
@@ -156,6 +159,7 @@ void from_json(const nlohmann::json& j, Completion& c) {
   GetOptional(j, "result", c.result);
   GetOptional(j, "bed_result", c.bed_result);
   GetOptional(j, "trajectory", c.trajectory);
+  c.snapshots = j.value("snapshots", std::vector<Snapshot>{});
   GetOptional(j, "failure", c.failure);
   GetOptional(j, "next", c.next);
 }

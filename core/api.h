@@ -7,6 +7,9 @@
 //   GET  /api/v1/beds/{id}/restart           bed restart bytes (a run lease names its bed)
 //   POST /api/v1/leases/{token}/heartbeat    Heartbeat -> 200 HeartbeatReply | 409 (lease lost)
 //   PUT  /api/v1/beds/{id}/restart?token=T   bed restart bytes, header X-Sha256 (bed leases)
+//   PUT  /api/v1/leases/{token}/snapshots/{n} a full-bed snapshot's dump (runs that ask for
+//                                            snapshots, core/deck.h), header X-Sha256; before
+//                                            the completion that lists it (Completion::snapshots)
 //   POST /api/v1/leases/{token}/complete     Completion -> 200 CompletionReply | 409 (lease lost);
 //                                            a Completion with `next` also leases the worker's
 //                                            next job in the same transaction (one round trip
@@ -77,6 +80,9 @@ struct LeaseGrant {
   // ends the run, through the deck's control file, once DecideStop says so. Absent: the run lasts
   // `steps`.
   std::optional<PrecisionTarget> precision;
+  // Full-bed snapshots the run's deck takes (core/deck.h SnapshotFractions): the worker hands in
+  // the frames nearest these fractions of the run's actual length. Empty: none.
+  std::vector<double> snapshots;
 };
 void to_json(nlohmann::json& j, const LeaseGrant& g);
 void from_json(const nlohmann::json& j, LeaseGrant& g);
@@ -163,6 +169,18 @@ struct Trajectory {
 };
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Trajectory, t, x, y, z)
 
+// A full-bed snapshot a run handed in (its dump uploaded first, under the lease's token).
+struct Snapshot {
+  int idx = 0;          // 0 .. n-1, in the order of the fractions asked
+  double fraction = 0;  // asked: 0 the run's start, 1 its end
+  double t_s = 0;       // the frame's physical time
+  int64_t step = 0;
+  int64_t grains = 0;  // type-1 atoms in it (the SO besides)
+  int64_t bytes = 0;   // of the dump
+  std::string sha256;  // of the dump
+};
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Snapshot, idx, fraction, t_s, step, grains, bytes, sha256)
+
 // Why a job failed; `kind` is one of:
 //   "deck_error"     LIGGGHTS printed ERROR: (line in `message`)
 //   "not_equilibrated" a bed missed the kinetic-energy criterion (its figures in `message`)
@@ -199,6 +217,7 @@ struct Completion {
   std::optional<RunResult> result;       // ok run
   std::optional<BedResult> bed_result;   // ok bed
   std::optional<Trajectory> trajectory;  // ok run
+  std::vector<Snapshot> snapshots;       // ok run that asked for them: each uploaded before
   std::optional<Failure> failure;        // !ok
   Execution execution;
   std::string log_tail;  // last lines of the engine's log

@@ -6,6 +6,8 @@
 #include <map>
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
+
 #include "core/embedded.h"
 
 namespace sandswim {
@@ -202,7 +204,50 @@ DriveInfo DriveFacts(const Point& p, const Scale& s) {
   return d;
 }
 
-std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<PrecisionTarget>& target) {
+Result<SnapshotFractions> CheckSnapshotFractions(std::vector<double> fractions) {
+  if (fractions.size() > kMaxSnapshots)
+    return Status::InvalidArgument("snapshots", "at most " + std::to_string(kMaxSnapshots) + " snapshots a run, got " +
+                                                    std::to_string(fractions.size()));
+  for (size_t i = 0; i < fractions.size(); ++i) {
+    const double v = fractions[i];
+    if (!std::isfinite(v) || v < 0 || v > 1)
+      return Status::InvalidArgument("snapshots[" + std::to_string(i) + "]",
+                                     "a snapshot is a fraction of the run's length, from 0 (its start) to 1 (its end)");
+  }
+  std::sort(fractions.begin(), fractions.end());
+  if (std::adjacent_find(fractions.begin(), fractions.end()) != fractions.end())
+    return Status::InvalidArgument("snapshots", "names one fraction twice");
+  return fractions;
+}
+
+std::optional<std::string> SnapshotFractionsText(const SnapshotFractions& fractions) {
+  if (fractions.empty()) return std::nullopt;
+  return nlohmann::json(fractions).dump();
+}
+
+Result<SnapshotFractions> StoredSnapshotFractions(const std::optional<std::string>& text) {
+  if (!text) return SnapshotFractions{};
+  const nlohmann::json j = nlohmann::json::parse(*text, nullptr, /*allow_exceptions=*/false);
+  SnapshotFractions out;
+  if (j.is_array()) {
+    for (const auto& v : j) {
+      if (!v.is_number()) break;
+      out.push_back(v.get<double>());
+    }
+  }
+  if (!j.is_array() || out.size() != j.size() || !std::is_sorted(out.begin(), out.end()))
+    return Status::Corruption("runs.snapshots: not an ascending JSON array of fractions: " + *text);
+  return out;
+}
+
+long long SnapshotEverySteps(const Point& p, const std::optional<PrecisionTarget>& target) {
+  const long long chunk = OmegaUpdateSteps(p);
+  const long long chunks = DriveSteps(p, target) / chunk;
+  return std::max(1LL, chunks / kSnapshotFramesPerRun) * chunk;
+}
+
+std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<PrecisionTarget>& target,
+                            const SnapshotFractions& snapshots) {
   const Materials& m = kMaterials;
   const DriveInfo drive = DriveFacts(p, s);
   Values v = CommonValues(s);
@@ -241,7 +286,24 @@ std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<
       {"control_file", kControlFile},
       {"precision", precision},
   });
-  return Render(Template("templates/drive.in"), v);
+  std::string deck = Render(Template("templates/drive.in"), v);
+  if (snapshots.empty()) return deck;
+  // The frames' dump goes right after the trajectory's, before the first run; the last frame is
+  // written where every way of ending meets.
+  std::string fractions;
+  for (double fraction : snapshots) fractions += (fractions.empty() ? "" : ", ") + Fmt(fraction);
+  const std::string every = Fmt(SnapshotEverySteps(p, target));
+  const std::string frames = Render(Template("templates/drive_snapshots.in"),
+                                    {{"snapshot_fractions", fractions},
+                                     {"snapshot_every", every},
+                                     {"snapshot_frames", kSnapshotFramePattern}});
+  const std::string anchor = "dump_modify traj sort id\n";
+  const size_t at = deck.find(anchor);
+  if (at == std::string::npos || deck.compare(deck.size() - 13, 13, "label finish\n") != 0)
+    throw std::logic_error("templates/drive.in lost the lines snapshots are placed after");
+  deck.insert(at + anchor.size(), frames);
+  deck += Render(Template("templates/drive_snapshot_last.in"), {{"snapshot_last", kSnapshotLastFile}});
+  return deck;
 }
 
 }  // namespace sandswim

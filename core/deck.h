@@ -12,11 +12,14 @@
 #ifndef SANDSWIM_CORE_DECK_H_
 #define SANDSWIM_CORE_DECK_H_
 
+#include <cstddef>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/point.h"
 #include "core/scale.h"
+#include "core/status.h"
 
 namespace sandswim {
 
@@ -33,6 +36,27 @@ inline constexpr char kLogFile[] = "log.liggghts";
 // equal 0") before its first chunk and `include`s it after every chunk; the worker replaces it
 // (write, then rename) with ControlFileText() to end the run cleanly.
 inline constexpr char kControlFile[] = "control.in";
+
+// Full-bed snapshots (the paper's Fig. 5), for a run that asks for them: fractions of the run's
+// actual length (0 its start, 0.5 its middle, 1 its end; a run may stop early, so the length is
+// known only at its end). The deck dumps every atom (kSnapshotColumns, core/snapshot.h) every
+// SnapshotEverySteps() steps into kSnapshotFramePattern ('*' = the step) and once more when it
+// ends into kSnapshotLastFile; the worker keeps the frames nearest the fractions asked
+// (core/snapshot.h PickSnapshotFrames) and hands those in. A run that asks for none renders the
+// deck it always did, so its content key is unchanged; asking for snapshots changes the deck,
+// hence the key: such a run is a run of its own.
+inline constexpr size_t kMaxSnapshots = 10;
+inline constexpr int kSnapshotFramesPerRun = 20;  // frames over the run's longest duration
+inline constexpr char kSnapshotFramePattern[] = "frame.*.dump";
+inline constexpr char kSnapshotLastFile[] = "frame.last.dump";
+using SnapshotFractions = std::vector<double>;  // ascending, distinct, each in [0, 1]
+// InvalidArgument ("snapshots") unless the fractions are at most kMaxSnapshots distinct numbers in
+// [0, 1]; the ascending set on success.
+Result<SnapshotFractions> CheckSnapshotFractions(std::vector<double> fractions);
+// The database's form (runs.snapshots): a JSON array, NULL (nullopt) for none; and back, with
+// Corruption naming the column when the text is not such an array.
+std::optional<std::string> SnapshotFractionsText(const SnapshotFractions& fractions);
+Result<SnapshotFractions> StoredSnapshotFractions(const std::optional<std::string>& text);
 
 // Steps between updates of the SO's prescribed angular velocity (a chunk): the SO is left out of
 // the integrator, so its omega holds between updates. 100 steps = 1 ms, fewer when f is high:
@@ -61,10 +85,16 @@ BedSeeds BedSeedsFor(int replicate);
 
 std::string RenderBedDeck(const Scale& scale, int replicate = 0);
 
-// REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok(). `target` is the run's precision
-// target (absent: the run lasts its whole duration); its numbers are stated in the deck, so they
-// are part of the run's content key.
-std::string RenderDriveDeck(const Point& p, const Scale& scale, const std::optional<PrecisionTarget>& target);
+// REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok(); `snapshots` passed
+// CheckSnapshotFractions. `target` is the run's precision target (absent: the run lasts its whole
+// duration); its numbers are stated in the deck, so they are part of the run's content key, as
+// are the snapshots asked for (none: the deck has no snapshot lines at all).
+std::string RenderDriveDeck(const Point& p, const Scale& scale, const std::optional<PrecisionTarget>& target,
+                            const SnapshotFractions& snapshots = {});
+
+// Steps between two full-bed frames of a run with snapshots: its longest duration over
+// kSnapshotFramesPerRun, in whole chunks (OmegaUpdateSteps), at least one chunk.
+long long SnapshotEverySteps(const Point& p, const std::optional<PrecisionTarget>& target);
 
 // Steps between omega updates for this point: kOmegaUpdateSteps, or fewer so that a drive period
 // holds at least kMinOmegaUpdatesPerPeriod updates (f = 50 Hz and below: 100 steps).

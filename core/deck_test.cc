@@ -1,5 +1,6 @@
 #include "core/deck.h"
 
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -170,4 +171,55 @@ TEST(DeckTest, DriveDeckEndsAtTheBoundaryOrWhenAsked) {
 }
 
 }  // namespace
+
+// Snapshots (Fig. 5): a deck without them is the one it always was (the golden files above); with
+// them it dumps every atom periodically, right after the trajectory's dump is set up and before the
+// first run, and once more where every way of ending meets; the fractions are in the deck, hence
+// in the key.
+TEST(DeckTest, SnapshotsAddTheirDumpsAndChangeTheKeyOnly) {
+  const Point p = OscillatoryPoint(0.03, 3, 80, 4);
+  const PrecisionTarget t{0.2, 0.005, 3, 2.0};
+  const std::string plain = RenderDriveDeck(p, Smoke(), t);
+  EXPECT_EQ(RenderDriveDeck(p, Smoke(), t, {}), plain);
+  const std::string with = RenderDriveDeck(p, Smoke(), t, {0, 0.5, 1});
+  EXPECT_NE(with, plain);
+  EXPECT_NE(with, RenderDriveDeck(p, Smoke(), t, {0, 1}));
+  // 2 s at most = 2000 chunks of 100 steps: a frame every 100 chunks.
+  EXPECT_EQ(SnapshotEverySteps(p, t), 10000);
+  const std::string periodic = "dump snap all custom 10000 frame.*.dump id type x y z vx vy vz radius\n";
+  const size_t at = with.find(periodic);
+  ASSERT_NE(at, std::string::npos) << with;
+  EXPECT_GT(at, with.find("dump_modify traj sort id"));
+  EXPECT_LT(at, with.find("label chunk"));
+  EXPECT_THAT(with, HasSubstr("# Full-bed snapshots (paper Fig. 5) at 0, 0.5, 1 of the run's actual length"));
+  const std::string last = "write_dump all custom frame.last.dump id type x y z vx vy vz radius modify sort id\n";
+  ASSERT_GE(with.size(), last.size());
+  EXPECT_EQ(with.substr(with.size() - last.size()), last);
+  EXPECT_GT(with.find(last), with.find("label finish"));
+  // Nothing else changed: taking the snapshot lines out gives the plain deck back.
+  std::string stripped = with.substr(0, with.find("label finish\n") + 13);
+  const size_t block = stripped.find("# Full-bed snapshots");
+  stripped.erase(block, stripped.find("dump_modify snap sort id\n") + 25 - block);
+  EXPECT_EQ(stripped, plain);
+}
+
+TEST(DeckTest, SnapshotFractionsAreCheckedAndSorted) {
+  auto ok = CheckSnapshotFractions({1, 0, 0.5});
+  ASSERT_TRUE(ok.ok());
+  EXPECT_EQ(*ok, (SnapshotFractions{0, 0.5, 1}));
+  EXPECT_EQ(CheckSnapshotFractions({0, 1.5}).status().field(), "snapshots[1]");
+  EXPECT_EQ(CheckSnapshotFractions({-0.1}).status().field(), "snapshots[0]");
+  EXPECT_EQ(CheckSnapshotFractions({std::nan("")}).status().field(), "snapshots[0]");
+  EXPECT_EQ(CheckSnapshotFractions({0.5, 0.5}).status().field(), "snapshots");
+  EXPECT_EQ(CheckSnapshotFractions(std::vector<double>(kMaxSnapshots + 1, 0.1)).status().field(), "snapshots");
+  // The database's form, and back.
+  EXPECT_FALSE(SnapshotFractionsText({}).has_value());
+  auto back = StoredSnapshotFractions(SnapshotFractionsText({0, 0.5, 1}));
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(*back, (SnapshotFractions{0, 0.5, 1}));
+  EXPECT_TRUE(StoredSnapshotFractions(std::nullopt)->empty());
+  EXPECT_EQ(StoredSnapshotFractions(std::string("[1, 0]")).status().code(), StatusCode::kCorruption);
+  EXPECT_EQ(StoredSnapshotFractions(std::string("{")).status().code(), StatusCode::kCorruption);
+}
+
 }  // namespace sandswim

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -335,9 +336,23 @@ std::optional<size_t> PointCount(const std::vector<SweepAxis>& axes, Combine com
   return n <= cap ? std::optional<size_t>(n) : std::nullopt;
 }
 
-// "precision" (core/precision.h) and "replicates" (an integer from 1 to kMaxReplicates), which a
-// sweep and a campaign (for its sweeps) may set; absent keys leave the values as they are.
-Status ReadRunSettings(const json& obj, std::optional<PrecisionTarget>& precision, std::optional<int>& replicates) {
+// "precision" (core/precision.h), "replicates" (an integer from 1 to kMaxReplicates) and
+// "snapshots" (core/deck.h), which a sweep and a campaign (for its sweeps) may set; absent keys
+// leave the values as they are.
+Status ReadRunSettings(const json& obj, std::optional<PrecisionTarget>& precision, std::optional<int>& replicates,
+                       std::optional<SnapshotFractions>& snapshots) {
+  if (obj.count("snapshots")) {
+    const json& v = obj["snapshots"];
+    if (!v.is_array()) return WrongType("snapshots", "an array of fractions of the run's length", v);
+    std::vector<double> fractions;
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!v[i].is_number()) return WrongType("snapshots[" + std::to_string(i) + "]", "a number", v[i]);
+      fractions.push_back(v[i].get<double>());
+    }
+    auto checked = CheckSnapshotFractions(std::move(fractions));
+    if (!checked.ok()) return checked.status();
+    snapshots = *checked;
+  }
   if (obj.count("precision")) {
     auto t = PrecisionFromJson(obj["precision"]);
     if (!t.ok()) return t.status().WithFieldPrefix("precision");
@@ -387,7 +402,8 @@ Status CheckPoint(const Point& p, const Scale& scale, const std::vector<SweepAxi
 // scale applies).
 Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::string& campaign_scale) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  std::set<std::string> allowed = {"name", "base", "axes", "combine", "description", "precision", "replicates"};
+  std::set<std::string> allowed = {"name",      "base",       "axes",     "combine", "description",
+                                   "precision", "replicates", "snapshots"};
   if (!in_campaign) {
     allowed.insert("scale");
     allowed.insert("force");
@@ -418,7 +434,7 @@ Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::s
                                      "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
   }
 
-  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, s.precision, s.replicates));
+  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, s.precision, s.replicates, s.snapshots));
 
   if (!j.count("base")) return Status::InvalidArgument("base", "is required");
   auto base = ParseBase(j["base"]);
@@ -504,6 +520,13 @@ Status CheckSchedule(const std::string& cron) {
 
 std::string CampaignTemplatePath(const std::string& name) { return "templates/campaigns/" + name + ".json"; }
 
+// Both sets of snapshot fractions, ascending, each once (a run shared by sweeps takes them all).
+SnapshotFractions UnionOfFractions(const SnapshotFractions& a, const SnapshotFractions& b) {
+  SnapshotFractions out;
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+
 void AddSweepName(std::vector<std::string>& names, const std::string& name) {
   if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
 }
@@ -550,7 +573,7 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
   SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision",
-                                         "replicates", "sweeps", "claims"}));
+                                         "replicates", "snapshots", "sweeps", "claims"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -578,7 +601,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     if (*tol < 0) return Status::InvalidArgument("drift_tolerance_mps", "must be >= 0 m/s");
     c.drift_tolerance_mps = *tol;
   }
-  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, c.precision, c.replicates));
+  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, c.precision, c.replicates, c.snapshots));
   if (!j.count("sweeps")) return Status::InvalidArgument("sweeps", "is required");
   const json& sweeps = j["sweeps"];
   if (!sweeps.is_array()) return WrongType("sweeps", "an array", sweeps);
@@ -590,6 +613,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     if (!s.ok()) return s.status().WithFieldPrefix(path);
     if (!s->precision) s->precision = c.precision;
     if (!s->replicates) s->replicates = c.replicates;
+    if (!s->snapshots) s->snapshots = c.snapshots;
     for (const auto& other : c.sweeps)
       if (other.name == s->name) return Status::InvalidArgument(path + ".name", "repeats sweep \"" + s->name + "\"");
     total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission) * s->Replicates();
@@ -680,12 +704,14 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
           r.point = p;
           r.replicate = replicate;
           r.precision = target;
+          r.snapshots = s.snapshots.value_or(SnapshotFractions{});
           r.sweeps.push_back(s.name);
           plan.runs.push_back(std::move(r));
         } else {
           PlannedRun& r = plan.runs[it->second];
           r.point.duration_s = std::max(r.point.duration_s, p.duration_s);
           r.precision = r.precision && target ? Tightest(*r.precision, *target) : std::nullopt;
+          if (s.snapshots) r.snapshots = UnionOfFractions(r.snapshots, *s.snapshots);
           AddSweepName(r.sweeps, s.name);
         }
       }
@@ -704,7 +730,7 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
         PlannedRun& r = plan.runs[i];
         r.run_duration_s = RunDuration(r.point, r.precision);
         r.steps = DriveSteps(r.point, r.precision);
-        std::string deck = RenderDriveDeck(r.point, scale, r.precision);
+        std::string deck = RenderDriveDeck(r.point, scale, r.precision, r.snapshots);
         r.key = RunKey(deck, plan.beds[r.replicate].key, engine_version);
         if (options.keep_decks) r.deck = std::move(deck);
       }
@@ -759,6 +785,7 @@ json PlannedRunToJson(const PlannedRun& r) {
   j["steps"] = r.steps;
   j["replicate"] = r.replicate;
   if (r.precision) j["precision"] = PrecisionToJson(*r.precision);
+  if (!r.snapshots.empty()) j["snapshots"] = r.snapshots;
   j["sweeps"] = r.sweeps;
   return j;
 }

@@ -61,6 +61,9 @@ struct SweepSpec {
   // (core/deck.h BedSeedsFor). Absent: the campaign's, else 1.
   std::optional<int> replicates;
   int Replicates() const { return replicates.value_or(1); }
+  // Full-bed snapshots its runs take (core/deck.h SnapshotFractions): fractions of each run's
+  // actual length. Absent: the campaign's, else none.
+  std::optional<SnapshotFractions> snapshots;
 };
 
 Result<SweepSpec> ParseSweep(const nlohmann::json& j);
@@ -79,6 +82,7 @@ struct Campaign {
   double drift_tolerance_mps = 0.0;          // |U_z now - U_z before| above this is flagged
   std::optional<PrecisionTarget> precision;  // for its sweeps that set none
   std::optional<int> replicates;             // for its sweeps that set none
+  std::optional<SnapshotFractions> snapshots;  // for its sweeps that set none
   // The paper's findings it tests (core/claims.h); each rule names sweeps of this campaign.
   std::vector<Claim> claims;
 };
@@ -100,6 +104,8 @@ struct PlannedRun {
   // The target it runs to: its sweeps' (the tightest, none if one of them has none), else the
   // scale's default.
   std::optional<PrecisionTarget> precision;
+  // The full-bed snapshots it takes: every fraction any of its sweeps asks for (core/deck.h).
+  SnapshotFractions snapshots;
   std::string deck;  // RenderDriveDeck()
   std::string key;   // RunKey()
 };

@@ -676,4 +676,40 @@ TEST(CampaignTest, BadCampaignsNameTheField) {
 }
 
 }  // namespace
+
+// A sweep may ask for snapshots; a point two sweeps share takes every fraction either asks for, and
+// is a run of its own (another key) against the same point without snapshots.
+TEST(SweepTest, SnapshotsParseMergeAndEnterTheKey) {
+  json a = {{"name", "a"},
+            {"scale", "smoke"},
+            {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", -80}, {"duration_s", 1}}},
+            {"snapshots", {1, 0}}};
+  auto sa = ParseSweep(a);
+  ASSERT_TRUE(sa.ok()) << sa.status().ToString();
+  EXPECT_EQ(*sa->snapshots, (SnapshotFractions{0, 1}));
+  json b = a;
+  b["name"] = "b";
+  b["snapshots"] = {0.5, 1};
+  json plain = a;
+  plain["name"] = "plain";
+  plain.erase("snapshots");
+  auto sb = ParseSweep(b);
+  auto sp = ParseSweep(plain);
+  const Scale& smoke = *FindScale("smoke");
+  auto both = PlanSweeps({*sa, *sb}, smoke, "engine");
+  ASSERT_TRUE(both.ok());
+  ASSERT_EQ(both->runs.size(), 1u);
+  EXPECT_EQ(both->runs[0].snapshots, (SnapshotFractions{0, 0.5, 1}));
+  EXPECT_THAT(both->runs[0].deck, HasSubstr("at 0, 0.5, 1 of the run's actual length"));
+  auto alone = PlanSweeps({*sp}, smoke, "engine");
+  ASSERT_TRUE(alone.ok());
+  EXPECT_TRUE(alone->runs[0].snapshots.empty());
+  EXPECT_NE(alone->runs[0].key, both->runs[0].key);
+  for (json bad : {json(0.5), json({"start"}), json({0, 2}), json({0.5, 0.5})}) {
+    json s = a;
+    s["snapshots"] = bad;
+    EXPECT_THAT(ParseSweep(s).status().field(), ::testing::StartsWith("snapshots")) << bad.dump();
+  }
+}
+
 }  // namespace sandswim

@@ -142,6 +142,7 @@ struct QueuedRun {
   std::string bed_key;
   std::optional<std::string> engine_version;  // of the bed
   std::optional<std::string> precision;       // JSON, as stored (core/precision.h StoredPrecision)
+  std::optional<std::string> snapshots;       // JSON, as stored (core/deck.h StoredSnapshotFractions)
 };
 Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t);
 

@@ -5,15 +5,21 @@
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <set>
 #include <utility>
 
 #include <unistd.h>
 
 #include "core/deck.h"
 #include "core/keys.h"
+#include "core/snapshot.h"
 #include "core/point.h"
 #include "core/scale.h"
 #include "core/trajectory.h"
+#include "platform/files.h"
 
 namespace sandswim {
 namespace {
@@ -190,14 +196,17 @@ Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) 
   Result<Point> point = StoredPoint(run.mode, run.axis, run.A, run.f, run.Omega, run.omega, run.duration_s);
   const Scale* scale = FindScale(run.scale);
   Result<std::optional<PrecisionTarget>> precision = StoredPrecision(run.precision);
-  if (!point.ok() || scale == nullptr || !precision.ok()) {
-    return Status::FailedPrecondition("deck", "its stored point, precision target or scale no longer parses");
+  Result<SnapshotFractions> snapshots = StoredSnapshotFractions(run.snapshots);
+  if (!point.ok() || scale == nullptr || !precision.ok() || !snapshots.ok()) {
+    return Status::FailedPrecondition("deck",
+                                      "its stored point, precision target, snapshots or scale no longer parses");
   }
   const Point& p = *point;
   RunDeck out;
   out.precision = *precision;
+  out.snapshots = *snapshots;
   try {
-    out.deck = RenderDriveDeck(p, *scale, out.precision);
+    out.deck = RenderDriveDeck(p, *scale, out.precision, out.snapshots);
   } catch (const std::exception& e) {
     return Status::FailedPrecondition("deck", std::string("its deck no longer renders: ") + e.what());
   }
@@ -233,6 +242,7 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
       g.A_m = deck->drive.A;
       g.z_floor_m = deck->drive.z_floor;
       g.precision = deck->precision;
+      g.snapshots = deck->snapshots;
       return true;
     }
     const std::string why = deck.status().reason();
@@ -331,7 +341,25 @@ Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const ap
   const api::RunResult& r = *c.result;
   SANDSWIM_RETURN_IF_ERROR(jobs::PutResult(t, id, r, c.execution, now));
   if (c.trajectory) SANDSWIM_RETURN_IF_ERROR(jobs::PutTrajectory(t, id, *c.trajectory));
+  std::vector<int> kept;
+  for (size_t i = 0; i < c.snapshots.size(); ++i) {
+    const api::Snapshot& snap = c.snapshots[i];
+    const std::string field = "snapshots[" + std::to_string(i) + "]";
+    if (options_.data_dir.empty()) return Status::FailedPrecondition(field, "this daemon keeps no snapshots");
+    Result<std::string> sha = Sha256OfFile(SnapshotPath(options_.data_dir, id, snap.idx));
+    if (!sha.ok()) return Status::FailedPrecondition(field, "upload snapshot " + std::to_string(snap.idx) + " first");
+    if (*sha != Lower(snap.sha256))
+      return Status::FailedPrecondition(field + ".sha256", "differs from the uploaded snapshot's checksum " + *sha);
+    Statement ins = t.Prepare(
+        "INSERT OR REPLACE INTO snapshots (run_id, idx, fraction, t_s, step, grains, bytes, sha256) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
+    ins.Bind(1, id).Bind(2, static_cast<int64_t>(snap.idx)).Bind(3, snap.fraction).Bind(4, snap.t_s);
+    ins.Bind(5, snap.step).Bind(6, snap.grains).Bind(7, snap.bytes).Bind(8, *sha);
+    SANDSWIM_RETURN_IF_ERROR(ins.Run());
+    kept.push_back(snap.idx);
+  }
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRunDone(t, id, r.sim_time_s, r.steps, now));
+  if (!options_.data_dir.empty()) RemoveSnapshotFiles(options_.data_dir, id, kept);
   return std::string("done");
 }
 
@@ -477,41 +505,121 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
     if (!found.ok()) return found.status();
     key = found->second;
   }
-  namespace fs = std::filesystem;
-  const fs::path dir = fs::path(data_dir) / "beds";
-  const fs::path path = dir / (key + ".restart");
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) return Status::IOError("cannot create " + dir.string() + ": " + ec.message());
-  Result<std::string> suffix = NewToken();
-  if (!suffix.ok()) return suffix.status();
-  const fs::path tmp = dir / (key + ".restart.tmp." + suffix->substr(0, 8));
-  {
-    FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (f == nullptr) return Status::IOError("cannot write " + tmp.string());
-    bool good = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-    good = std::fflush(f) == 0 && good;
-    good = ::fsync(fileno(f)) == 0 && good;
-    good = std::fclose(f) == 0 && good;
-    if (!good) {
-      fs::remove(tmp, ec);
-      return Status::IOError("cannot write " + tmp.string());
-    }
-  }
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    return Status::IOError("cannot rename into " + path.string() + ": " + ec.message());
-  }
+  const std::string path = (std::filesystem::path(data_dir) / "beds" / (key + ".restart")).string();
+  SANDSWIM_RETURN_IF_ERROR(WriteFileAtomically(path, bytes));
   const double now = clock_->Now();
   Result<Transaction> t = store_->Begin();
   if (!t.ok()) return t.status();
   auto found = check(*t);
   if (!found.ok()) return found.status();
-  SANDSWIM_RETURN_IF_ERROR(jobs::RecordBedUpload(*t, found->first, path.string(), actual));
+  SANDSWIM_RETURN_IF_ERROR(jobs::RecordBedUpload(*t, found->first, path, actual));
   SANDSWIM_RETURN_IF_ERROR(t->Event(now, "bed.uploaded", "bed/" + std::to_string(found->first),
                                     {{"sha256", actual}, {"bytes", bytes.size()}}));
   return t->Commit();
+}
+
+Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string_view bytes,
+                                  const std::string& sha256) {
+  if (options_.data_dir.empty()) return Status::FailedPrecondition("n", "this daemon keeps no snapshots");
+  const std::string actual = Sha256Hex(bytes);
+  if (Lower(sha256) != actual) {
+    return Status::InvalidArgument(
+        "X-Sha256", "the body's SHA-256 is " + actual + ", not " + (sha256.empty() ? "(none given)" : sha256));
+  }
+  Result<BedSnapshot> snapshot = ParseBedSnapshot(bytes);
+  if (!snapshot.ok()) return Status::InvalidArgument("body", "not a full-bed snapshot: " + snapshot.status().reason());
+  int64_t run_id = 0;
+  {
+    Result<Transaction> t = store_->BeginRead();
+    if (!t.ok()) return t.status();
+    Result<LeaseRow> lease = jobs::FindLease(*t, token);
+    if (!lease.ok()) return lease.status();
+    if (lease->kind != api::JobKind::kRun) return Status::Conflict("this lease is not a run's");
+    if (lease->completed) return Status::Conflict("this run lease already completed");
+    Result<JobRow> job = jobs::LoadJob(*t, api::JobKind::kRun, lease->job_id, options_.max_attempts);
+    if (!job.ok()) return job.status();
+    SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, api::JobKind::kRun));
+    Statement st = t->Prepare("SELECT snapshots FROM runs WHERE id = ?");
+    st.Bind(1, lease->job_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    Result<SnapshotFractions> asked = StoredSnapshotFractions(*row ? st.OptText(0) : std::nullopt);
+    if (!asked.ok()) return asked.status();
+    if (idx < 0 || static_cast<size_t>(idx) >= asked->size())
+      return Status::InvalidArgument("n", "run " + std::to_string(lease->job_id) + " asked for " +
+                                              std::to_string(asked->size()) + " snapshots, numbered from 0");
+    run_id = lease->job_id;
+  }
+  // A lease lost while the bytes are written leaves a file its completion never lists: the next
+  // attempt overwrites it, and an unlisted one goes when the run completes or the daemon starts.
+  return WriteFileAtomically(SnapshotPath(options_.data_dir, run_id, idx), bytes);
+}
+
+Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
+  namespace fs = std::filesystem;
+  if (options_.data_dir.empty()) return int64_t{0};
+  const fs::path root = fs::path(options_.data_dir) / "snapshots";
+  std::error_code ec;
+  if (!fs::is_directory(root, ec)) return int64_t{0};
+  std::map<int64_t, std::vector<int>> recorded;
+  {
+    Result<Transaction> t = store_->BeginRead();
+    if (!t.ok()) return t.status();
+    Statement st = t->Prepare("SELECT run_id, idx FROM snapshots");
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      recorded[st.Int(0)].push_back(static_cast<int>(st.Int(1)));
+    }
+  }
+  int64_t removed = 0;
+  for (const auto& entry : fs::directory_iterator(root, ec)) {
+    const std::string name = entry.path().filename().string();
+    const std::string digits = name.rfind("run-", 0) == 0 ? name.substr(4) : "";
+    if (digits.empty() || digits.size() > 18 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const int64_t run_id = std::stoll(digits);
+    auto it = recorded.find(run_id);
+    removed += RemoveSnapshotFiles(options_.data_dir, run_id, it == recorded.end() ? std::vector<int>{} : it->second);
+  }
+  return removed;
+}
+
+std::string SnapshotDir(const std::string& data_dir, int64_t run_id) {
+  return (std::filesystem::path(data_dir) / "snapshots" / ("run-" + std::to_string(run_id))).string();
+}
+
+std::string SnapshotPath(const std::string& data_dir, int64_t run_id, int idx) {
+  return SnapshotDir(data_dir, run_id) + "/" + std::to_string(idx) + ".dump";
+}
+
+Result<BedSnapshot> ReadStoredSnapshot(const std::string& data_dir, int64_t run_id, int idx) {
+  const std::string path = SnapshotPath(data_dir, run_id, idx);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return Status::IOError("run " + std::to_string(run_id) + "'s snapshot file " + path +
+                           " is missing; restore DATA_DIR/snapshots from a copy of the data directory");
+  }
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto snapshot = ParseBedSnapshot(text);
+  if (!snapshot.ok()) return Status::Corruption(path + ": " + snapshot.status().reason());
+  return snapshot;
+}
+
+int RemoveSnapshotFiles(const std::string& data_dir, int64_t run_id, const std::vector<int>& keep) {
+  namespace fs = std::filesystem;
+  const fs::path dir = SnapshotDir(data_dir, run_id);
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return 0;
+  std::set<std::string> kept;
+  for (int idx : keep) kept.insert(std::to_string(idx) + ".dump");
+  int removed = 0;
+  std::vector<fs::path> doomed;
+  for (const auto& entry : fs::directory_iterator(dir, ec))
+    if (!kept.count(entry.path().filename().string())) doomed.push_back(entry.path());
+  for (const fs::path& path : doomed) removed += fs::remove(path, ec) ? 1 : 0;
+  if (keep.empty()) fs::remove(dir, ec);
+  return removed;
 }
 
 Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {

@@ -56,6 +56,7 @@
 
 #include "core/api.h"
 #include "core/deck.h"
+#include "core/snapshot.h"
 #include "core/status.h"
 #include "platform/clock.h"
 #include "server/job_table.h"
@@ -67,7 +68,21 @@ struct LeaseQueueOptions {
   double ttl_s = 60;         // lease lifetime; each heartbeat extends it by this much
   int max_attempts = 3;      // leases a job gets before a failure or expiry is final
   double wall_budget_s = 0;  // passed to workers in every grant (0: no budget)
+  // Where runs' snapshots are kept (SnapshotPath); empty: snapshot uploads are refused.
+  std::string data_dir;
 };
+
+// Where a run's snapshot `idx` is kept: <data_dir>/snapshots/run-<run_id>/<idx>.dump. Its
+// directory is SnapshotDir.
+std::string SnapshotDir(const std::string& data_dir, int64_t run_id);
+std::string SnapshotPath(const std::string& data_dir, int64_t run_id, int idx);
+// A stored snapshot, read and parsed: IOError saying what to do when its file is missing,
+// Corruption when it no longer parses.
+Result<BedSnapshot> ReadStoredSnapshot(const std::string& data_dir, int64_t run_id, int idx);
+// Removes the snapshot files of `run_id` whose idx is not in `keep` (the directory too when
+// nothing is kept). What a completion did not list, a failed attempt left, or a run that never
+// completed holds. Returns how many files it removed.
+int RemoveSnapshotFiles(const std::string& data_dir, int64_t run_id, const std::vector<int>& keep);
 
 struct CancelSummary {
   int64_t cancelled = 0;  // queued runs now cancelled
@@ -130,6 +145,18 @@ class LeaseQueue {
   Status PutBedRestart(const std::string& token, std::string_view bytes, const std::string& sha256,
                        const std::string& data_dir);
 
+  // Stores snapshot `idx` of a run, uploaded under the run's current lease before its completion
+  // lists it: checks `bytes` against `sha256` (kInvalidArgument "X-Sha256"), that it is a whole
+  // full-bed snapshot (core/snapshot.h ParseBedSnapshot: kInvalidArgument "body") and that idx is
+  // one the run asked for (kInvalidArgument "n"), then writes SnapshotPath atomically. Nothing is
+  // recorded until Complete() lists it (api::Completion::snapshots); a completion that lists a
+  // snapshot not uploaded, or uploaded with other bytes, is refused (kFailedPrecondition). kConflict
+  // when the token is not a current run lease; kFailedPrecondition when the queue has no data_dir.
+  Status PutRunSnapshot(const std::string& token, int idx, std::string_view bytes, const std::string& sha256);
+  // Removes snapshot files no done run recorded (a daemon that stopped between an upload and its
+  // completion, or a run that failed). Called at start-up. Returns how many files it removed.
+  Result<int64_t> RemoveUnrecordedSnapshots();
+
   // The restart file of a done bed (kNotFound for an unknown bed, kFailedPrecondition when the
   // bed is not done yet).
   Result<BedFile> GetBedRestart(int64_t bed_id);
@@ -146,6 +173,7 @@ class LeaseQueue {
     std::string deck;
     DriveInfo drive;
     std::optional<PrecisionTarget> precision;
+    SnapshotFractions snapshots;
   };
   static Result<RunDeck> MakeRunDeck(const jobs::QueuedRun& run);
   // CompleteIn's outcomes: the state the job ends in.

@@ -703,4 +703,75 @@ TEST_F(LeaseQueueTest, SweepCountsFollowStateChanges) {
 }
 
 }  // namespace
+
+// A snapshot dump as the engine writes it: two grains and the SO.
+std::string SnapshotDump(int64_t step) {
+  return "ITEM: TIMESTEP\n" + std::to_string(step) +
+         "\nITEM: NUMBER OF ATOMS\n3\nITEM: BOX BOUNDS pp pp ff\n-0.09 0.09\n-0.09 0.09\n-0.35 0.4\n"
+         "ITEM: ATOMS id type x y z vx vy vz radius\n"
+         "1 1 0.001 0.02 0.1 0 0 0.1 0.01\n2 1 0.05 -0.03 -0.2 0.2 0 0 0.01\n3 2 0 0 0 0 0.1 0 0.06\n";
+}
+
+// Snapshots: uploaded under the run's lease, checked, stored, recorded by the completion that
+// lists them; a completion listing one not uploaded (or with other bytes) is refused; what no
+// completion recorded is removed.
+TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
+  options_.data_dir = (dir_ / "data").string();
+  OpenStore();
+  nlohmann::json sweep = OmegaSignSweep();
+  sweep["axes"][0]["values"] = {-80};
+  sweep["snapshots"] = {0, 1};
+  SubmitJson(sweep);
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kRun);
+  EXPECT_EQ(g.snapshots, (std::vector<double>{0, 1}));
+  EXPECT_THAT(g.deck, ::testing::HasSubstr("frame.last.dump"));
+  const std::string first = SnapshotDump(0), last = SnapshotDump(30000);
+  // Refused: other bytes than the checksum says, not a snapshot, an index the run did not ask for,
+  // a token that is not the run's lease.
+  EXPECT_EQ(queue_->PutRunSnapshot(g.token, 0, first, Sha256Hex(last)).field(), "X-Sha256");
+  EXPECT_EQ(queue_->PutRunSnapshot(g.token, 0, "not a dump", Sha256Hex("not a dump")).field(), "body");
+  EXPECT_EQ(queue_->PutRunSnapshot(g.token, 2, first, Sha256Hex(first)).field(), "n");
+  EXPECT_FALSE(queue_->PutRunSnapshot("nope", 0, first, Sha256Hex(first)).ok());
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 0, first, Sha256Hex(first)).ok());
+  api::Completion c = OkRun();
+  c.snapshots = {api::Snapshot{0, 0, 0, 0, 2, static_cast<int64_t>(first.size()), Sha256Hex(first)},
+                 api::Snapshot{1, 1, 0.3, 30000, 2, static_cast<int64_t>(last.size()), Sha256Hex(last)}};
+  // Snapshot 1 was never uploaded: refused, nothing recorded.
+  auto refused = queue_->Complete(g.token, c);
+  ASSERT_FALSE(refused.ok()) << refused->state;
+  EXPECT_EQ(refused.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(refused.status().field(), "snapshots[1]");
+  EXPECT_TRUE(store_->GetRun(g.id)->snapshots.empty());
+  // Uploaded with other bytes than the completion says: refused.
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 1, first, Sha256Hex(first)).ok());
+  auto mismatched = queue_->Complete(g.token, c);
+  ASSERT_FALSE(mismatched.ok()) << mismatched->state;
+  EXPECT_EQ(mismatched.status().field(), "snapshots[1].sha256");
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 1, last, Sha256Hex(last)).ok());
+  auto done = queue_->Complete(g.token, c);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->state, "done");
+  auto run = store_->GetRun(g.id);
+  ASSERT_TRUE(run.ok());
+  ASSERT_EQ(run->snapshots.size(), 2u);
+  EXPECT_EQ(run->snapshots[1].t_s, 0.3);
+  EXPECT_EQ(run->snapshots[1].sha256, Sha256Hex(last));
+  auto read = ReadStoredSnapshot(options_.data_dir, g.id, 1);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  EXPECT_EQ(read->step, 30000);
+  // A stray upload (a run whose attempt never completed) goes at the daemon's next start; the
+  // recorded ones stay.
+  const std::string stray = SnapshotPath(options_.data_dir, g.id + 100, 0);
+  fs::create_directories(fs::path(stray).parent_path());
+  std::ofstream(stray) << first;
+  auto removed = queue_->RemoveUnrecordedSnapshots();
+  ASSERT_TRUE(removed.ok());
+  EXPECT_EQ(*removed, 1);
+  EXPECT_FALSE(fs::exists(stray));
+  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 0)));
+  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 1)));
+}
+
 }  // namespace sandswim

@@ -222,7 +222,14 @@ int main(int argc, char** argv) {
   sandswim::LeaseQueueOptions lease_options;
   lease_options.ttl_s = flags.lease_ttl_s;
   lease_options.max_attempts = flags.max_attempts;
+  lease_options.data_dir = flags.data;
   sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
+  if (auto unrecorded = leases.RemoveUnrecordedSnapshots(); !unrecorded.ok()) {
+    return Die(unrecorded.status(), "check that --data " + flags.data + " is readable and writable");
+  } else if (*unrecorded > 0) {
+    spdlog::info("removed {} snapshot file(s) no completed run recorded (uploads of runs that did not finish)",
+                 *unrecorded);
+  }
 
   // Nightly reruns: registered now (a --schedule left out is disabled), checked every tick.
   sandswim::Scheduler scheduler(store->get(), &clock, flags.engine_version);

@@ -1,5 +1,7 @@
 #include "server/report.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <ctime>
 #include <map>
@@ -13,6 +15,7 @@
 #include "core/text.h"
 #include "core/trajectory.h"
 #include "server/claim_check.h"
+#include "server/lease_queue.h"
 
 namespace sandswim {
 namespace {
@@ -392,6 +395,46 @@ std::string NoUzToPlot(const SweepAnalysis& a) {
          " finished run(s) has a whole period (or block) in its steady window";
 }
 
+Plot SnapshotSlicePlot(int64_t run_id, const Point& point, const api::Snapshot& meta, const BedSlice& slice) {
+  Plot plot;
+  const std::string when = meta.fraction == 0   ? "start"
+                           : meta.fraction == 1 ? "end"
+                                                : Num(meta.fraction, 3) + " of the run";
+  plot.title = "run " + std::to_string(run_id) + ", " + PointLabel(point, "") + ": t = " + Num(meta.t_s, 3) + " s (" +
+               when + ")";
+  plot.x_label = "y (m)";
+  plot.y_label = "z (m)";
+  Discs discs;
+  discs.value_label = "|v| (m/s)";
+  double top = slice.so.z + slice.so.r;
+  for (const SliceDisc& d : slice.grains) {
+    discs.x.push_back(d.y);
+    discs.y.push_back(d.z);
+    discs.r.push_back(d.r);
+    discs.value.push_back(d.speed);
+    top = std::max(top, d.z + d.r);
+  }
+  // The SO's own speed colours it too, so it reads on the same scale as the grains.
+  discs.x.push_back(slice.so.y);
+  discs.y.push_back(slice.so.z);
+  discs.r.push_back(slice.so.r);
+  discs.value.push_back(slice.so.speed);
+  plot.discs = std::move(discs);
+  Series so;
+  so.label = "SO, |v| = " + Num(slice.so.speed, 2) + " m/s";
+  constexpr int kOutline = 72;
+  for (int k = 0; k <= kOutline; ++k) {
+    const double a = 2 * M_PI * k / kOutline;
+    so.x.push_back(slice.so.y + slice.so.r * std::cos(a));
+    so.y.push_back(slice.so.z + slice.so.r * std::sin(a));
+  }
+  plot.series.push_back(std::move(so));
+  plot.equal_aspect = true;
+  const double margin = 0.02 * (top - slice.z_lo);
+  plot.limits = std::array<double, 4>{slice.y_lo, slice.y_hi, slice.z_lo, top + margin};
+  return plot;
+}
+
 std::optional<Plot> ModesFigure(const CampaignRunInfo& cr, const std::vector<SweepAnalysis>& analyses,
                                 Coordinate coordinate) {
   std::vector<RunTrajectory> runs;
@@ -456,6 +499,7 @@ std::string RenderReportHtml(const ReportInput& in) {
   html += ClaimsHtml(in);
   html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n";
   if (!in.modes_z_svg.empty()) html += "<li><a href=\"#modes\">Drive modes side by side</a></li>\n";
+  if (!in.snapshots.empty()) html += "<li><a href=\"#bed\">The bed: slices through the SO</a></li>\n";
   html += "<li><a href=\"#fits\">Fits</a></li>\n";
   for (const ReportSweep& s : in.sweeps) {
     html += "<li><a href=\"#sweep-" + std::to_string(s.info.id) + "\">sweep " + std::to_string(s.info.id) + ": " +
@@ -470,6 +514,22 @@ std::string RenderReportHtml(const ReportInput& in) {
         "<a href=\"#top\">top</a></p>\n";
     html += FigureHtml(in.modes_x_svg, "fig-modes-x", "Δx(t) of each drive mode");
     html += FigureHtml(in.modes_z_svg, "fig-modes-z", "Δz(t) of each drive mode");
+  }
+
+  if (!in.snapshots.empty()) {
+    html +=
+        "<h2 id=\"bed\">The bed: slices through the SO</h2>\n<p>As in the paper's Fig. 5: the whole bed at the "
+        "times its runs asked for, cut by the plane x = x<sub>SO</sub>. Each grain the plane cuts is a disc of its "
+        "cut radius, coloured by its speed; the SO is outlined. Each snapshot is also served whole, as a VTK file "
+        "ParaView opens (<code>GET /api/v1/runs/ID/snapshots/N.vtk</code>). <a href=\"#top\">top</a></p>\n";
+    for (const ReportSnapshot& snap : in.snapshots) {
+      const std::string id = "run-" + std::to_string(snap.run_id) + "-snapshot-" + std::to_string(snap.meta.idx);
+      html += FigureHtml(snap.slice_svg, "fig-" + id,
+                         "run " + std::to_string(snap.run_id) + " (" + snap.label + "), t = " + Num(snap.meta.t_s, 3) +
+                             " s (" + Num(snap.meta.fraction, 3) + " of the run), " +
+                             std::to_string(snap.meta.grains) + " grains: snapshots/" +
+                             std::to_string(snap.meta.idx) + ".vtk");
+    }
   }
 
   html +=
@@ -519,7 +579,8 @@ std::string RenderReportHtml(const ReportInput& in) {
   return html + "</body>\n</html>\n";
 }
 
-Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now) {
+Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now,
+                                   const std::string& data_dir) {
   auto cr = store.GetCampaignRun(campaign_run_id);
   if (!cr.ok()) return cr.status();
   ReportInput in;
@@ -552,6 +613,28 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
     if (!modes) break;
     (c == Coordinate::kX ? in.modes_x_svg : in.modes_z_svg) =
         draw("campaign-run-" + std::to_string(cr->id) + (c == Coordinate::kX ? "-modes-x" : "-modes-z"), *modes);
+  }
+  if (!data_dir.empty()) {
+    std::set<int64_t> seen;
+    for (const SweepAnalysis& a : analyses) {
+      for (const RunTrajectory& t : a.runs) {
+        if (!seen.insert(t.run_id).second) continue;
+        auto run = store.GetRun(t.run_id);
+        if (!run.ok()) return run.status();
+        for (const api::Snapshot& meta : run->snapshots) {
+          ReportSnapshot snap{t.run_id, PointLabel(t.point, ""), meta, ""};
+          const std::string name = "run-" + std::to_string(t.run_id) + "-snapshot-" + std::to_string(meta.idx) + "-slice";
+          auto bed = ReadStoredSnapshot(data_dir, t.run_id, meta.idx);
+          if (bed.ok()) {
+            snap.slice_svg = draw(name, SnapshotSlicePlot(t.run_id, t.point, meta, SliceThroughSo(*bed)));
+          } else {
+            in.problems.push_back("figure " + name + " could not be drawn: " + bed.status().ToString());
+            snap.slice_svg = NotDrawnSvg(bed.status().ToString());
+          }
+          in.snapshots.push_back(std::move(snap));
+        }
+      }
+    }
   }
   // A run shared by several sweeps is drawn once and shown (anchored) under its first sweep only,
   // so every "#run-ID" names exactly one element.

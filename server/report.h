@@ -26,6 +26,7 @@
 
 #include "core/claims.h"
 #include "core/fit.h"
+#include "core/snapshot.h"
 #include "core/status.h"
 #include "server/drift_report.h"
 #include "server/figures.h"
@@ -71,6 +72,11 @@ Result<Plot> RunFigure(Store& store, int64_t run_id);
 std::optional<Plot> ModesFigure(const CampaignRunInfo& campaign_run, const std::vector<SweepAnalysis>& analyses,
                                 Coordinate coordinate);
 
+// The paper's Fig. 5 for one snapshot of a run: the y-z slice through the SO, every grain the
+// plane cuts a disc of its cut radius coloured by its speed, the SO outlined (a line series), the
+// axes at one scale from the box's y range and from its floor to just above the highest disc.
+Plot SnapshotSlicePlot(int64_t run_id, const Point& point, const api::Snapshot& meta, const BedSlice& slice);
+
 // Cache names of the figures (FigureCache::Get): "run-ID-trajectory", "sweep-ID-trajectories",
 // "sweep-ID-uz", "campaign-run-ID-modes-x" / "-modes-z".
 std::string RunFigureName(int64_t run_id);
@@ -100,6 +106,13 @@ struct ReportSweep {
   std::string no_uz;                                                  // NoUzToPlot
   std::vector<ReportRun> runs;
 };
+// A full-bed snapshot of a run, as its y-z slice (the paper's Fig. 5).
+struct ReportSnapshot {
+  int64_t run_id = 0;
+  std::string label;  // PointLabel of the run's drive
+  api::Snapshot meta;
+  std::string slice_svg;
+};
 struct ReportInput {
   CampaignRunInfo campaign_run;
   // The campaign's claims and their verdicts (server/claim_check.h): the report's first section.
@@ -107,6 +120,8 @@ struct ReportInput {
   std::string claims_note;  // e.g. where the claims come from, or why there are none
   // The drive modes side by side (ModesFigure): "" when the campaign run has none.
   std::string modes_x_svg, modes_z_svg;
+  // Every snapshot the campaign run's runs took, by run and idx (empty: none asked for them).
+  std::vector<ReportSnapshot> snapshots;
   std::vector<ReportSweep> sweeps;
   std::optional<DriftReport> drift;
   // What could not be made (a figure the renderer failed on, the claims check): listed at the top,
@@ -118,7 +133,10 @@ std::string RenderReportHtml(const ReportInput& input);
 
 // Reads and draws everything of a campaign run (its claims' verdicts first) and renders the
 // report. NotFound for an unknown id.
-Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now);
+// `data_dir`: where the runs' snapshots are (server/lease_queue.h SnapshotPath); "" leaves their
+// slices out.
+Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t campaign_run_id, double now,
+                                   const std::string& data_dir = "");
 
 }  // namespace sandswim
 

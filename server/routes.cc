@@ -25,7 +25,9 @@
 
 #include "core/aggregate.h"
 #include "core/result_table.h"
+#include "core/snapshot.h"
 #include "core/sweep.h"
+#include "core/text.h"
 #include "core/trajectory.h"
 #include "server/campaigns.h"
 #include "server/claim_check.h"
@@ -575,7 +577,7 @@ void GetSweepFits(Call& c) {
 
 void SendReport(Call& c, int64_t campaign_run_id) {
   FigureCache figures = FiguresOf(c.deps);
-  auto html = CampaignReport(*c.deps.store, figures, campaign_run_id, c.deps.clock->Now());
+  auto html = CampaignReport(*c.deps.store, figures, campaign_run_id, c.deps.clock->Now(), c.deps.data_dir);
   if (!html.ok()) return Fail(c, html.status());
   c.res.status = 200;
   c.res.set_content(*html, "text/html; charset=utf-8");
@@ -668,28 +670,36 @@ class MappedFile {
   size_t size_ = 0;
 };
 
-void UploadBedRestart(Call& c) {
-  auto id = PathId(c);
-  if (!id.ok()) return Fail(c, id.status());
-  std::string token = c.req.get_param_value("token");
-  std::string sha256 = c.req.get_header_value("X-Sha256");
-  // Read the body first either way, so a refusal reaches the client instead of a reset.
+// A request body received into a temporary file under DATA/uploads, mapped read-only, and
+// removed when this goes: an upload of any size reaches its store without a copy in memory.
+struct Upload {
+  std::filesystem::path temp;
+  MappedFile mapped;
+  ~Upload() {
+    std::error_code ignored;
+    if (!temp.empty()) std::filesystem::remove(temp, ignored);
+  }
+};
+
+// Receives the body into `upload` (at most max_restart_body bytes: 413 past it). False when it
+// answered the request with a problem instead. The body is read first either way, so a refusal
+// reaches the client instead of a reset.
+bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Upload& upload) {
   static std::atomic<uint64_t> upload_counter{0};
   std::filesystem::path dir = std::filesystem::path(c.deps.data_dir) / "uploads";
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (ec) return Fail(c, Status::IOError("cannot create " + dir.string() + ": " + ec.message()));
-  std::filesystem::path temp = dir / ("bed-" + std::to_string(*id) + "-" + std::to_string(getpid()) + "-" +
-                                      std::to_string(upload_counter.fetch_add(1)) + ".part");
-  struct RemoveOnExit {
-    std::filesystem::path path;
-    ~RemoveOnExit() {
-      std::error_code ignored;
-      std::filesystem::remove(path, ignored);
-    }
-  } cleanup{temp};
-  std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-  if (!out) return Fail(c, Status::IOError("cannot write " + temp.string()));
+  if (ec) {
+    Fail(c, Status::IOError("cannot create " + dir.string() + ": " + ec.message()));
+    return false;
+  }
+  upload.temp = dir / (name + "-" + std::to_string(getpid()) + "-" + std::to_string(upload_counter.fetch_add(1)) +
+                       ".part");
+  std::ofstream out(upload.temp, std::ios::binary | std::ios::trunc);
+  if (!out) {
+    Fail(c, Status::IOError("cannot write " + upload.temp.string()));
+    return false;
+  }
   size_t received = 0;
   bool too_big = false;
   (*c.reader)([&](const char* data, size_t n) {
@@ -704,20 +714,48 @@ void UploadBedRestart(Call& c) {
   out.close();
   if (too_big) {
     c.res.set_header("Connection", "close");
-    return Fail(c,
-                Status::ResourceExhausted(
-                    "body", "a bed restart may be at most " + std::to_string(c.deps.max_restart_body) + " bytes"),
-                413);
+    Fail(c,
+         Status::ResourceExhausted("body", what + " may be at most " + std::to_string(c.deps.max_restart_body) + " bytes"),
+         413);
+    return false;
   }
-  if (!out) return Fail(c, Status::IOError("cannot write " + temp.string() + " (disk full?)"));
+  if (!out) {
+    Fail(c, Status::IOError("cannot write " + upload.temp.string() + " (disk full?)"));
+    return false;
+  }
+  Status s = upload.mapped.Open(upload.temp.string());
+  if (!s.ok()) {
+    Fail(c, s);
+    return false;
+  }
+  return true;
+}
+
+void UploadBedRestart(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  Upload upload;
+  if (!ReceiveUpload(c, "bed-" + std::to_string(*id), "a bed restart", upload)) return;
+  std::string token = c.req.get_param_value("token");
+  std::string sha256 = c.req.get_header_value("X-Sha256");
   if (token.empty()) return Fail(c, Status::InvalidArgument("token", "the query parameter token= is required"));
   if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
-  MappedFile mapped;
-  Status s = mapped.Open(temp.string());
+  Status s = c.deps.leases->PutBedRestart(token, upload.mapped.view(), sha256, c.deps.data_dir);
   if (!s.ok()) return Fail(c, s);
-  s = c.deps.leases->PutBedRestart(token, mapped.view(), sha256, c.deps.data_dir);
+  SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
+}
+
+// A full-bed snapshot of a running run, handed in before the completion that lists it.
+void UploadRunSnapshot(Call& c) {
+  Upload upload;
+  if (!ReceiveUpload(c, "snapshot", "a snapshot", upload)) return;
+  auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
+  if (!n.ok()) return Fail(c, n.status());
+  std::string sha256 = c.req.get_header_value("X-Sha256");
+  if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  Status s = c.deps.leases->PutRunSnapshot(PathToken(c), static_cast<int>(*n), upload.mapped.view(), sha256);
   if (!s.ok()) return Fail(c, s);
-  SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", mapped.view().size()}});
+  SendJson(c, 200, {{"n", *n}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
 }
 
 // Streams `size` bytes of an open file as the reply's body, a megabyte at a time.
@@ -747,6 +785,72 @@ void DownloadBedRestart(Call& c) {
   c.res.status = 200;
   c.res.set_header("X-Sha256", bed->sha256);
   SendFile(c, file, static_cast<size_t>(size), "application/octet-stream");
+}
+
+// ---- Snapshots of the bed (core/snapshot.h; the paper's Fig. 5) --------------------------------
+
+struct FoundSnapshot {
+  int64_t run_id = 0;
+  Point point;
+  api::Snapshot meta;
+  std::string path;
+};
+
+// The run's snapshot named by the path ({id}, {n}); NotFound saying which it has.
+Result<FoundSnapshot> FindSnapshot(const Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return id.status();
+  auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
+  if (!n.ok()) return n.status();
+  auto run = c.deps.store->GetRun(*id);
+  if (!run.ok()) return run.status();
+  const std::vector<api::Snapshot>& snapshots = run->snapshots;
+  for (const api::Snapshot& s : snapshots) {
+    if (s.idx == *n) return FoundSnapshot{*id, run->summary.point, s, SnapshotPath(c.deps.data_dir, *id, s.idx)};
+  }
+  return Status::NotFound("run " + std::to_string(*id) + " has no snapshot " + std::to_string(*n) + " (it has " +
+                          std::to_string(snapshots.size()) +
+                          "; a run takes snapshots when its sweep asks for them: \"snapshots\": [0, 0.5, 1])");
+}
+
+// The snapshot as the engine wrote it (dump custom: id type x y z vx vy vz radius).
+void GetSnapshotDump(Call& c) {
+  auto found = FindSnapshot(c);
+  if (!found.ok()) return Fail(c, found.status());
+  auto file = std::make_shared<std::ifstream>(found->path, std::ios::binary);
+  std::error_code ec;
+  auto size = std::filesystem::file_size(found->path, ec);
+  if (!*file || ec) return Fail(c, Status::IOError("snapshot file " + found->path + " is missing"));
+  c.res.status = 200;
+  c.res.set_header("Content-Disposition", "attachment; filename=\"run-" + std::to_string(found->run_id) +
+                                              "-snapshot-" + std::to_string(found->meta.idx) + ".dump\"");
+  SendFile(c, file, static_cast<size_t>(size), "text/plain; charset=utf-8");
+}
+
+// The snapshot as a legacy VTK file, which ParaView opens directly.
+void GetSnapshotVtk(Call& c) {
+  auto found = FindSnapshot(c);
+  if (!found.ok()) return Fail(c, found.status());
+  auto snapshot = ReadStoredSnapshot(c.deps.data_dir, found->run_id, found->meta.idx);
+  if (!snapshot.ok()) return Fail(c, snapshot.status());
+  const std::string title = "sandswim run " + std::to_string(found->run_id) + " snapshot " +
+                            std::to_string(found->meta.idx) + " t = " + Num(found->meta.t_s, 4) + " s";
+  c.res.status = 200;
+  c.res.set_header("Content-Disposition", "attachment; filename=\"run-" + std::to_string(found->run_id) +
+                                              "-snapshot-" + std::to_string(found->meta.idx) + ".vtk\"");
+  c.res.set_content(BedSnapshotVtk(*snapshot, title), "application/octet-stream");
+}
+
+// The y-z slice through the SO (server/figures.h SnapshotSlicePlot).
+template <ImageFormat kFormat>
+void GetSnapshotSlice(Call& c) {
+  auto found = FindSnapshot(c);
+  if (!found.ok()) return Fail(c, found.status());
+  auto snapshot = ReadStoredSnapshot(c.deps.data_dir, found->run_id, found->meta.idx);
+  if (!snapshot.ok()) return Fail(c, snapshot.status());
+  const Plot plot = SnapshotSlicePlot(found->run_id, found->point, found->meta, SliceThroughSo(*snapshot));
+  SendFigure(c, "run-" + std::to_string(found->run_id) + "-snapshot-" + std::to_string(found->meta.idx) + "-slice",
+             plot, kFormat);
 }
 
 // A consistent copy of the database, made while the daemon serves (Database::BackupTo) under
@@ -877,6 +981,10 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/campaign-runs/{id}/results",    Access::kRead,   BodyKind::kNone,    GetCampaignRunResults},
   {"GET",  "/api/v1/campaign-runs/{id}/claims",     Access::kRead,   BodyKind::kNone,    GetCampaignRunClaims},
   // Figures (SVG or PNG by extension), fits and reports (server/report.h).
+  {"GET",  "/api/v1/runs/{id}/snapshots/{n}.dump",  Access::kRead,   BodyKind::kNone,    GetSnapshotDump},
+  {"GET",  "/api/v1/runs/{id}/snapshots/{n}.vtk",   Access::kRead,   BodyKind::kNone,    GetSnapshotVtk},
+  {"GET",  "/api/v1/runs/{id}/snapshots/{n}/slice.svg", Access::kRead, BodyKind::kNone,  GetSnapshotSlice<ImageFormat::kSvg>},
+  {"GET",  "/api/v1/runs/{id}/snapshots/{n}/slice.png", Access::kRead, BodyKind::kNone,  GetSnapshotSlice<ImageFormat::kPng>},
   {"GET",  "/api/v1/runs/{id}/trajectory.svg",      Access::kRead,   BodyKind::kNone,    GetRunFigure<ImageFormat::kSvg>},
   {"GET",  "/api/v1/runs/{id}/trajectory.png",      Access::kRead,   BodyKind::kNone,    GetRunFigure<ImageFormat::kPng>},
   {"GET",  "/api/v1/sweeps/{id}/trajectories.svg",  Access::kRead,   BodyKind::kNone,    GetSweepTrajectoriesFigure<ImageFormat::kSvg>},
@@ -892,6 +1000,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kNone,    DownloadBedRestart},
   {"POST", "/api/v1/leases/{token}/heartbeat",      Access::kWorker, BodyKind::kJson,    HeartbeatLease},
   {"PUT",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kRestart, UploadBedRestart},
+  {"PUT",  "/api/v1/leases/{token}/snapshots/{n}",  Access::kWorker, BodyKind::kRestart, UploadRunSnapshot},
   {"POST", "/api/v1/leases/{token}/complete",       Access::kWorker, BodyKind::kJson,    CompleteLease},
   {"POST", "/api/v1/leases/{token}/release",        Access::kWorker, BodyKind::kJson,    ReleaseLease},
   // Operations.
@@ -904,8 +1013,9 @@ const Route kRoutes[] = {
 
 // "/api/v1/sweeps/{id}" -> "/api/v1/sweeps/(\d+)"; tokens are what LeaseQueue mints (hex).
 std::string PathRegex(const std::string& path) {
-  static const std::regex kId(R"(\{id\})"), kToken(R"(\{token\})"), kName(R"(\{name\})");
+  static const std::regex kId(R"(\{id\})"), kToken(R"(\{token\})"), kName(R"(\{name\})"), kN(R"(\{n\})");
   std::string r = std::regex_replace(path, kId, R"(([0-9]+))");
+  r = std::regex_replace(r, kN, R"(([0-9]+))");
   r = std::regex_replace(r, kToken, R"(([A-Za-z0-9_-]+))");
   r = std::regex_replace(r, kName, R"(([A-Za-z0-9._-]+))");
   return std::regex_replace(r, std::regex(R"(\.)"), R"(\.)");

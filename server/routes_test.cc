@@ -495,7 +495,7 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
   for (const RouteInfo& route : RouteTable()) {
     std::string path = route.path;
     for (const auto& [param, value] :
-         {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}, {"{name}", "paper-58"}}) {
+         {std::pair<std::string, std::string>{"{id}", "1"}, {"{token}", "nope"}, {"{name}", "paper-58"}, {"{n}", "0"}}) {
       auto at = path.find(param);
       if (at != std::string::npos) path.replace(at, param.size(), value);
     }

@@ -18,8 +18,8 @@ constexpr const char* kRunColumns =
     "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
     "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, res.uz, r.last_error_kind, "
     "r.last_error, res.uz_stderr, res.uz_blocks, res.block_kind, res.block_s, res.conclusive, res.analysis, "
-    "res.run_id, r.precision";
-constexpr int kRunColumnCount = 33;
+    "res.run_id, r.precision, r.snapshots";
+constexpr int kRunColumnCount = 34;
 
 constexpr const char* kResultColumns =
     "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
@@ -29,6 +29,22 @@ constexpr const char* kResultColumns =
     "res.uz_blocks, res.block_s, res.window_end, res.conclusive, res.inconclusive_reason, res.dz_rate, "
     "res.analysis, res.block_kind, res.analysed_from, res.stop_note, res.precision_met";
 constexpr int kResultColumnCount = 36;
+
+// The snapshots table's rows of one run, by idx (schema/010_snapshots.sql).
+Result<std::vector<api::Snapshot>> SnapshotsIn(Transaction& t, int64_t run_id) {
+  Statement st =
+      t.Prepare("SELECT idx, fraction, t_s, step, grains, bytes, sha256 FROM snapshots WHERE run_id = ? ORDER BY idx");
+  st.Bind(1, run_id);
+  std::vector<api::Snapshot> out;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    out.push_back(api::Snapshot{static_cast<int>(st.Int(0)), st.Double(1), st.Double(2), st.Int(3), st.Int(4),
+                                st.Int(5), st.Text(6)});
+  }
+  return out;
+}
 
 // Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s (core/point.h StoredPoint).
 Result<Point> PointFromRow(const Statement& st, int c) {
@@ -62,6 +78,10 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   if (!precision.ok())
     return Status(precision.status().code(), "run " + std::to_string(r.id) + ": " + precision.status().reason());
   r.precision = *precision;
+  Result<SnapshotFractions> snapshots = StoredSnapshotFractions(st.OptText(33));
+  if (!snapshots.ok())
+    return Status(snapshots.status().code(), "run " + std::to_string(r.id) + ": " + snapshots.status().reason());
+  r.snapshots = *snapshots;
   if (!st.IsNull(31)) {  // a result row exists
     api::RunResult res;
     res.uz = r.uz;
@@ -242,6 +262,7 @@ void to_json(nlohmann::json& j, const RunSummary& r) {
                      {"steps", r.steps},
                      {"bed_id", r.bed_id},
                      {"precision", r.precision ? PrecisionToJson(*r.precision) : nlohmann::json(nullptr)},
+                     {"snapshots", r.snapshots},
                      {"attempts", r.attempts},
                      {"worker", r.worker},
                      {"progress", r.progress},
@@ -267,7 +288,18 @@ void to_json(nlohmann::json& j, const RunDetail& r) {
   PutOpt(j, "result", r.result);
   PutOpt(j, "trajectory", r.trajectory);
   j["log_tail"] = r.log_tail;
+  j["snapshots_taken"] = nlohmann::json::array();
+  for (const api::Snapshot& snap : r.snapshots) {
+    nlohmann::json sj = snap;
+    const std::string base = "/api/v1/runs/" + std::to_string(r.summary.id) + "/snapshots/" + std::to_string(snap.idx);
+    sj["links"] = {{"vtk", base + ".vtk"},
+                   {"dump", base + ".dump"},
+                   {"slice_svg", base + "/slice.svg"},
+                   {"slice_png", base + "/slice.png"}};
+    j["snapshots_taken"].push_back(std::move(sj));
+  }
 }
+
 
 void to_json(nlohmann::json& j, const CampaignRunInfo& c) {
   j = nlohmann::json{{"id", c.id},           {"campaign", c.campaign},     {"scale", c.scale},
@@ -529,7 +561,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
       const Scale* scale = FindScale(st.Text(c + 3 + kResultColumnCount + 2));
       if (scale == nullptr) return Status::Corruption("run " + std::to_string(id) + "'s bed has an unknown scale");
       try {
-        d.deck = RenderDriveDeck(d.summary.point, *scale, d.summary.precision);
+        d.deck = RenderDriveDeck(d.summary.point, *scale, d.summary.precision, d.summary.snapshots);
       } catch (const std::exception& e) {
         return Status::Internal("run " + std::to_string(id) + "'s deck does not render: " + e.what());
       }
@@ -557,6 +589,9 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     if (!*row) break;
     d.sweep_ids.push_back(st.Int(0));
   }
+  Result<std::vector<api::Snapshot>> snapshots = SnapshotsIn(*t, id);
+  if (!snapshots.ok()) return snapshots.status();
+  d.snapshots = std::move(snapshots).value();
   return d;
 }
 

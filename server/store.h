@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/api.h"
+#include "core/deck.h"
 #include "core/point.h"
 #include "core/status.h"
 #include "server/database.h"
@@ -78,6 +79,7 @@ struct RunSummary {
   double run_duration_s = 0;  // at most, with a precision target
   int64_t steps = 0;
   std::optional<PrecisionTarget> precision;  // the run's target (core/precision.h); absent: none
+  SnapshotFractions snapshots;               // full-bed snapshots it takes (core/deck.h); empty: none
   int64_t bed_id = 0;
   int attempts = 0;
   std::string worker;  // "" unless leased at least once
@@ -88,7 +90,7 @@ struct RunSummary {
   std::string uz_text;       // DescribeUz of that result ("" without one)
   std::optional<api::Failure> last_error;
 };
-// {"id","key","state","point":{PointToJson},"run_duration_s","steps","precision"?,"bed_id","attempts",
+// {"id","key","state","point":{PointToJson},"run_duration_s","steps","precision"?,"snapshots"?,"bed_id","attempts",
 //  "worker","progress":{...},"created_at","started_at"?,"finished_at"?,"uz"?,"uz_text"?,
 //  "last_error"?}
 void to_json(nlohmann::json& j, const RunSummary& r);
@@ -115,9 +117,10 @@ struct RunDetail {
   std::optional<StoredResult> result;
   std::optional<api::Trajectory> trajectory;
   std::string log_tail;
+  std::vector<api::Snapshot> snapshots;  // handed in (schema/010_snapshots.sql), by idx
 };
 // The summary's fields plus "deck","bed_key","bed_state","sweeps":[ids],"result"?,
-// "trajectory"?,"log_tail".
+// "trajectory"?,"log_tail","snapshots_taken":[api::Snapshot, each with "links" to its files].
 void to_json(nlohmann::json& j, const RunDetail& r);
 
 // One row of a sweep's results: its point and, when done, U_z and the other figures.

@@ -123,7 +123,8 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     // Back to schema 6: its results table, two results of analysis 1, one with a trajectory.
     auto t = store->Begin();
     ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
-                        "ALTER TABLE runs DROP COLUMN precision;"
+                        "ALTER TABLE runs DROP COLUMN precision; ALTER TABLE runs DROP COLUMN snapshots;"
+                        "DROP TABLE snapshots;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2;"
                         "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
@@ -159,7 +160,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), 9);
+  EXPECT_EQ(store->schema_version(), 10);
   EXPECT_EQ(*store->CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());

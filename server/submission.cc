@@ -22,6 +22,7 @@ nlohmann::json SweepToJson(const SweepSpec& s) {
                    {"combine", s.combine == Combine::kZip ? "zip" : "product"}};
   if (s.precision) j["precision"] = PrecisionToJson(*s.precision);
   if (s.replicates) j["replicates"] = *s.replicates;
+  if (s.snapshots) j["snapshots"] = *s.snapshots;
   return j;
 }
 
@@ -327,8 +328,8 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
   // One prepared statement each, reused for every row (100,000 rows in one transaction).
   Statement ins = t.Prepare(
       "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-      "run_duration_s, steps, state, created_at, queued_at, precision) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?) "
+      "run_duration_s, steps, state, created_at, queued_at, precision, snapshots) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?) "
       "ON CONFLICT (key) DO NOTHING");
   Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
   Statement sr = t.Prepare(
@@ -346,6 +347,11 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
       ins.Bind(14, PrecisionToJson(*r.precision).dump());
     } else {
       ins.BindNull(14);
+    }
+    if (auto text = SnapshotFractionsText(r.snapshots)) {
+      ins.Bind(15, *text);
+    } else {
+      ins.BindNull(15);
     }
     SANDSWIM_RETURN_IF_ERROR(ins.Run());
     if (t.Changes() == 1) {

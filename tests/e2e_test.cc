@@ -3,8 +3,10 @@
 // (ctest's smoke_bed fixture prepares it, beside this test), handed in through the worker
 // protocol; replicate 1 is prepared by the daemon's own bed job on the worker, as a user's bed is,
 // at the same time. A killed worker and a rejected deck: e2e_faults_test.cc, beside this one.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -48,6 +50,60 @@ class EndToEndTest : public ::testing::Test {
     return page["runs"].get<std::vector<json>>();
   }
 
+  // The run's three snapshots (start, middle, end) of the whole bed: recorded with their times,
+  // served as the engine's dump, as VTK (parsed back here by a reader of this test's own: every
+  // grain and the SO a point) and as the y-z slice through the SO.
+  void CheckSnapshots(int64_t run_id, const json& res) {
+    const std::string base = "/api/v1/runs/" + std::to_string(run_id);
+    const json detail = daemon_->Get(base);
+    EXPECT_EQ(detail["snapshots"], json({0, 0.5, 1})) << detail.dump();
+    const json& taken = detail["snapshots_taken"];
+    ASSERT_EQ(taken.size(), 3u) << detail.dump();
+    const double t_end = res["sim_time_s"].get<double>();
+    EXPECT_EQ(taken[0]["t_s"].get<double>(), 0.0);
+    EXPECT_NEAR(taken[1]["t_s"].get<double>(), t_end / 2, t_end / kSnapshotFramesPerRun) << taken.dump();
+    EXPECT_NEAR(taken[2]["t_s"].get<double>(), t_end, 1e-9) << taken.dump();
+    const int64_t grains = res["grains"].get<int64_t>();
+    for (const json& snap : taken) {
+      EXPECT_EQ(snap["grains"].get<int64_t>(), grains) << snap.dump();
+      int status = 0;
+      const std::string vtk = daemon_->GetText(snap["links"]["vtk"].get<std::string>(), &status);
+      ASSERT_EQ(status, 200) << vtk.substr(0, 500);
+      std::istringstream in(vtk);
+      std::string line, word, type;
+      std::getline(in, line);
+      EXPECT_EQ(line, "# vtk DataFile Version 3.0");
+      std::getline(in, line);  // title
+      std::getline(in, line);
+      EXPECT_EQ(line, "ASCII");
+      in >> word >> type;
+      EXPECT_EQ(word + " " + type, "DATASET POLYDATA");
+      int64_t points = 0;
+      in >> word >> points >> type;
+      EXPECT_EQ(word, "POINTS");
+      EXPECT_EQ(points, grains + 1) << "every grain and the SO";
+      double lowest = 1e9;
+      for (int64_t i = 0; i < points; ++i) {
+        double x = 0, y = 0, z = 0;
+        ASSERT_TRUE(in >> x >> y >> z) << "point " << i;
+        lowest = std::min(lowest, z);
+      }
+      EXPECT_GT(lowest, -1.0);  // inside the smoke box
+      const std::string svg = daemon_->GetText(snap["links"]["slice_svg"].get<std::string>(), &status);
+      ASSERT_EQ(status, 200) << svg.substr(0, 500);
+      EXPECT_THAT(svg, HasSubstr("|v| (m/s)"));
+      const std::string dump = daemon_->GetText(snap["links"]["dump"].get<std::string>(), &status);
+      ASSERT_EQ(status, 200);
+      EXPECT_THAT(dump, HasSubstr("ITEM: ATOMS id type x y z vx vy vz radius"));
+    }
+    std::printf("E2E snapshots of run %lld: t = %.3f, %.3f, %.3f s of %.3f s, %lld grains each\n",
+                static_cast<long long>(run_id), taken[0]["t_s"].get<double>(), taken[1]["t_s"].get<double>(),
+                taken[2]["t_s"].get<double>(), t_end, static_cast<long long>(grains));
+    int status = 0;
+    daemon_->GetText(base + "/snapshots/3.vtk", &status);
+    EXPECT_EQ(status, 404);
+  }
+
   static std::string* dir_;
   static Daemon* daemon_;
 };
@@ -73,6 +129,7 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
   unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.2}};
   json sinking = testing::OmegaSweep("sinking-baseline", {80}, 5, 3);
   sinking["precision"] = {{"uz_rel", 0.2}, {"uz_abs", 0.005}, {"min_periods", 3}, {"max_duration_s", 1.34}};
+  sinking["snapshots"] = {0, 0.5, 1};  // the paper's Fig. 5: the whole bed at its start, middle and end
   // The longest run first (runs are leased in the order they were submitted): it ends no later.
   const int64_t id_sinking = Submit(sinking), id = Submit(met), id_unreachable = Submit(unreachable);
   // Replicate 0 (the first bed leased) is the tests' shared bed: hold its lease while the fixture
@@ -183,6 +240,7 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
     std::printf("E2E Omega=+80 at 3 Hz (smoke baseline): U_z=%s dz=%+.4f m t=%.3f s, %s\n",
                 res.value("uz_text", "?").c_str(), res["dz"].get<double>(), res["sim_time_s"].get<double>(),
                 res.value("stop_note", "?").c_str());
+    CheckSnapshots(run["id"].get<int64_t>(), res);
   }
 
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM beds"), "2");

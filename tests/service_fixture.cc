@@ -85,6 +85,15 @@ nlohmann::json Daemon::Get(const std::string& path, int* status) {
   return Parse(c.Get(path), "GET " + path, status);
 }
 
+std::string Daemon::GetText(const std::string& path, int* status) {
+  httplib::Client c(url_);
+  c.set_read_timeout(120, 0);
+  auto r = c.Get(path);
+  if (!r) throw std::runtime_error("GET " + path + ": " + httplib::to_string(r.error()));
+  if (status != nullptr) *status = r->status;
+  return r->body;
+}
+
 nlohmann::json Daemon::Post(const std::string& path, const nlohmann::json& body, int* status) {
   httplib::Client c(url_);
   return Parse(c.Post(path, body.dump(), "application/json"), "POST " + path, status);
@@ -170,7 +179,7 @@ void UploadAndComplete(worker::HttpServerClient& client, const api::LeaseGrant& 
   }
   std::optional<std::string> bed_dump;
   if (fs::exists(dir + "/" + kBedDumpFile)) bed_dump = ReadFile(dir + "/" + kBedDumpFile);
-  auto sha = worker::Sha256OfFile(restart);
+  auto sha = Sha256OfFile(restart);
   if (!sha.ok()) throw std::runtime_error(sha.status().ToString());
   if (Status s = client.UploadBed(g.id, g.token, restart, *sha); !s.ok()) {
     throw std::runtime_error("bed upload: " + s.ToString());

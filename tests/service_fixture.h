@@ -53,6 +53,8 @@ class Daemon {
   // REST calls; they fail the test on transport errors. `status` receives the HTTP status.
   nlohmann::json Get(const std::string& path, int* status = nullptr);
   nlohmann::json Post(const std::string& path, const nlohmann::json& body, int* status = nullptr);
+  // The body as it is (figures, files); throws on a transport error, as Get does.
+  std::string GetText(const std::string& path, int* status = nullptr);
 
   // Polls GET /api/v1/sweeps/{id} until no run is queued or running; returns the last answer.
   nlohmann::json WaitForSweep(int64_t sweep_id, double timeout_s);

@@ -161,6 +161,23 @@ Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, con
   return r.status();
 }
 
+Status ServerClient::UploadSnapshot(const std::string&, int, const std::string&, const std::string&) {
+  return Status::FailedPrecondition("snapshots", "this client cannot hand in snapshots");
+}
+
+Status HttpServerClient::UploadSnapshot(const std::string& token, int idx, const std::string& bytes,
+                                        const std::string& sha256) {
+  const std::string url = "/api/v1/leases/" + token + "/snapshots/" + std::to_string(idx);
+  auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {
+    auto cli = MakeClient(options_);
+    Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, "text/plain"),
+                             "PUT snapshot");
+    if (!ex.status.ok()) return ex.status;
+    return true;
+  });
+  return r.status();
+}
+
 Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token, const api::Completion& completion) {
   const std::string path = "/api/v1/leases/" + token + "/complete";
   const std::string body = api::ToJsonText(nlohmann::json(completion));

@@ -8,7 +8,7 @@
 //   Lease, Heartbeat,
 //   Release                  one attempt (the loop calls again on its own schedule);
 //   DownloadBed, UploadBed,
-//   Complete                 until `retry_for_s` has passed (a completion is recorded once per
+//   UploadSnapshot, Complete                 until `retry_for_s` has passed (a completion is recorded once per
 //                            token; a retried one with `next` gets a fresh next job).
 // Status codes: platform/http_client.h's one table (Conflict for 409: the lease was lost).
 // Retried calls retry while the daemon cannot be reached or answers 5xx (DaemonTrouble()).
@@ -36,6 +36,10 @@ class ServerClient {
   virtual Status DownloadBed(const api::BedRef& bed, const std::string& dest_path) = 0;
   virtual Status UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
                            const std::string& sha256) = 0;
+  // A run's full-bed snapshot `idx`, before the completion that lists it. The base refuses
+  // (kFailedPrecondition): test doubles that never see snapshots need not implement it.
+  virtual Status UploadSnapshot(const std::string& token, int idx, const std::string& bytes,
+                                const std::string& sha256);
   virtual Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& completion) = 0;
   // Hands an unfinished job back (the worker is stopping); the daemon queues it again without
   // counting the attempt. One attempt, no retries: when it fails the lease simply expires.
@@ -57,6 +61,8 @@ class HttpServerClient : public ServerClient {
   Status DownloadBed(const api::BedRef& bed, const std::string& dest_path) override;
   Status UploadBed(int64_t bed_id, const std::string& token, const std::string& path,
                    const std::string& sha256) override;
+  Status UploadSnapshot(const std::string& token, int idx, const std::string& bytes,
+                        const std::string& sha256) override;
   Result<api::CompletionReply> Complete(const std::string& token, const api::Completion& completion) override;
   Result<api::CompletionReply> Release(const std::string& token, const std::string& reason) override;
 

@@ -1,8 +1,9 @@
 #include "workers/run_dir.h"
 
-#include <openssl/evp.h>
 #include <sys/stat.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "core/deck.h"
+#include "core/snapshot.h"
 
 namespace sandswim::worker {
 namespace fs = std::filesystem;
@@ -48,34 +50,52 @@ Result<std::string> RunDir::Read(const std::string& name) const {
   return ss.str();
 }
 
+std::vector<SnapshotFrame> ListSnapshotFrames(const RunDir& dir, double dt) {
+  const std::string pattern = kSnapshotFramePattern;
+  const size_t star = pattern.find('*');
+  const std::string prefix = pattern.substr(0, star), suffix = pattern.substr(star + 1);
+  std::vector<std::pair<long long, std::string>> by_step;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir.path(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() <= prefix.size() + suffix.size() || name.rfind(prefix, 0) != 0 ||
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+      continue;
+    const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
+    if (digits.size() > 18 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    by_step.emplace_back(std::stoll(digits), entry.path().string());
+  }
+  // The last frame: its step is the line after "ITEM: TIMESTEP".
+  std::ifstream last(dir.File(kSnapshotLastFile));
+  std::string item, step_line;
+  if (last && std::getline(last, item) && std::getline(last, step_line) && item.rfind("ITEM: TIMESTEP", 0) == 0) {
+    const long long step = std::strtoll(step_line.c_str(), nullptr, 10);
+    by_step.erase(std::remove_if(by_step.begin(), by_step.end(), [&](const auto& f) { return f.first == step; }),
+                  by_step.end());
+    by_step.emplace_back(step, dir.File(kSnapshotLastFile));
+  }
+  std::sort(by_step.begin(), by_step.end());
+  std::vector<SnapshotFrame> frames;
+  for (const auto& [step, path] : by_step) frames.push_back({static_cast<double>(step) * dt, path});
+  return frames;
+}
+
+void DropUnneededSnapshotFrames(const RunDir& dir, double dt, const std::vector<double>& fractions, double t_now) {
+  const std::vector<SnapshotFrame> frames = ListSnapshotFrames(dir, dt);
+  if (frames.size() < 2) return;
+  std::vector<double> frame_t;
+  for (const SnapshotFrame& f : frames) frame_t.push_back(f.t);
+  const std::vector<bool> keep = SnapshotFramesStillNeeded(frame_t, fractions, t_now);
+  std::error_code ec;
+  for (size_t i = 0; i + 1 < frames.size(); ++i)
+    if (!keep[i]) fs::remove(frames[i].path, ec);
+}
+
 Status RunDir::Remove() const {
   std::error_code ec;
   fs::remove_all(path_, ec);
   if (ec) return Status::IOError("cannot remove " + path_ + ": " + ec.message());
   return Status::Ok();
-}
-
-Result<std::string> Sha256OfFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::NotFound(path + " does not exist");
-  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
-  EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr);
-  std::vector<char> buf(1 << 20);
-  while (in) {
-    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    if (in.gcount() > 0) EVP_DigestUpdate(ctx, buf.data(), static_cast<size_t>(in.gcount()));
-  }
-  unsigned char md[EVP_MAX_MD_SIZE];
-  unsigned int len = 0;
-  EVP_DigestFinal_ex(ctx, md, &len);
-  EVP_MD_CTX_free(ctx);
-  static const char* kHex = "0123456789abcdef";
-  std::string hex;
-  for (unsigned int i = 0; i < len; ++i) {
-    hex.push_back(kHex[md[i] >> 4]);
-    hex.push_back(kHex[md[i] & 15]);
-  }
-  return hex;
 }
 
 bool BedCache::Stamp(const std::string& path, FileStamp* stamp) {

@@ -20,9 +20,11 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "core/api.h"
 #include "core/status.h"
+#include "platform/files.h"
 
 namespace sandswim::worker {
 
@@ -45,8 +47,20 @@ class RunDir {
   std::string path_;
 };
 
-// SHA-256 (lower-case hex) of a file's bytes.
-Result<std::string> Sha256OfFile(const std::string& path);
+// A full-bed frame a drive deck wrote for a run's snapshots (core/deck.h): the periodic ones
+// (kSnapshotFramePattern, '*' the step) and the last (kSnapshotLastFile).
+struct SnapshotFrame {
+  double t = 0;  // s: step * dt
+  std::string path;
+};
+// The frames in `dir`, ascending t (the last frame's step read from its header; a periodic frame
+// at the same step is the same bed and is left out). Frames still being written are listed too:
+// read them once the engine has ended.
+std::vector<SnapshotFrame> ListSnapshotFrames(const RunDir& dir, double dt);
+// Deletes the periodic frames no snapshot can pick any more at time `t_now` of the run
+// (core/snapshot.h SnapshotFramesStillNeeded), so a long run at a large scale does not keep
+// every frame on disk. The newest frame is always kept (the engine may be writing it).
+void DropUnneededSnapshotFrames(const RunDir& dir, double dt, const std::vector<double>& fractions, double t_now);
 
 class BedCache {
  public:

@@ -14,6 +14,8 @@
 #include "core/deck.h"
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
+#include "core/keys.h"
+#include "core/snapshot.h"
 #include "core/trajectory.h"
 #include "platform/slurm.h"
 #include "workers/job_outcome.h"
@@ -396,7 +398,52 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
   job.completion.ok = true;
   job.completion.result = std::move(outcome.result);
   job.completion.trajectory = std::move(outcome.trajectory);
+  if (!grant.snapshots.empty() && !HandInSnapshots(job, *dir, job.completion.result->sim_time_s)) return;
   Complete(job, &*dir);
+}
+
+bool Worker::HandInSnapshots(Job& job, const RunDir& dir, double t_end) {
+  const std::vector<SnapshotFrame> frames = ListSnapshotFrames(dir, job.grant.dt_s);
+  if (frames.empty()) {
+    spdlog::warn("{}: the run asked for snapshots but its engine wrote no frames; it completes without them", job.name);
+    return true;
+  }
+  std::vector<double> frame_t;
+  for (const SnapshotFrame& f : frames) frame_t.push_back(f.t);
+  const std::vector<size_t> picked = PickSnapshotFrames(frame_t, job.grant.snapshots, t_end);
+  for (size_t i = 0; i < picked.size(); ++i) {
+    const SnapshotFrame& frame = frames[picked[i]];
+    const std::string text = ReadFileOr(frame.path, "");
+    Result<BedSnapshot> snapshot = ParseBedSnapshot(text);
+    if (!snapshot.ok()) {
+      spdlog::warn("{}: snapshot {} ({}) is unreadable and is left out: {}", job.name, i, frame.path,
+                   snapshot.status().ToString());
+      continue;
+    }
+    api::Snapshot meta;
+    meta.idx = static_cast<int>(i);
+    meta.fraction = job.grant.snapshots[i];
+    meta.step = snapshot->step;
+    meta.t_s = static_cast<double>(snapshot->step) * job.grant.dt_s;
+    meta.grains = snapshot->grains();
+    meta.bytes = static_cast<int64_t>(text.size());
+    meta.sha256 = Sha256Hex(text);
+    if (Status s = client_.UploadSnapshot(job.grant.token, meta.idx, text, meta.sha256); !s.ok()) {
+      if (s.code() == StatusCode::kConflict) {
+        Abandon(job, "the lease was lost during the snapshot upload");
+        return false;
+      }
+      if (stopping_) {
+        HandBack(job, "the worker stopped during the snapshot upload");
+        return false;
+      }
+      spdlog::warn("{}: snapshot {} was not handed in ({}); the run completes without it", job.name, i, s.ToString());
+      continue;
+    }
+    job.completion.snapshots.push_back(meta);
+  }
+  spdlog::info("{}: handed in {} of {} snapshot(s)", job.name, job.completion.snapshots.size(), picked.size());
+  return true;
 }
 
 std::optional<RunDir> Worker::Prepare(Job& job) {
@@ -465,6 +512,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
     }
     if (Clock::now() >= next_beat) {
       const api::Heartbeat beat = progress.Read();
+      if (!grant.snapshots.empty()) DropUnneededSnapshotFrames(dir, grant.dt_s, grant.snapshots, beat.sim_time_s);
       if (grant.precision && !stop_asked) {
         const StopVerdict verdict = progress.Follow(drive, *grant.precision);
         if (verdict != StopVerdict::kContinue) {

@@ -113,6 +113,11 @@ class Worker {
   std::optional<RunDir> Prepare(Job& job);
   std::optional<ExitFacts> Supervise(Job& job, const RunDir& dir, const DriveInfo& drive, JobProgress& progress);
   void ReportBed(Job& job, const RunDir& dir, api::BedResult bed);
+  // Uploads the frames nearest the run's asked snapshot fractions (core/deck.h) and lists them
+  // in the completion. False when the lease was lost or the worker is stopping (the job was
+  // abandoned or handed back); a frame that cannot be read or uploaded otherwise is left out
+  // with a warning: the run's result does not depend on it.
+  bool HandInSnapshots(Job& job, const RunDir& dir, double t_end);
   // Whether a failed engine was stopped with the worker (waits stop_settle_s for the worker's stop).
   bool StoppedWithTheWorker();
   // How a job ends: not completed (lease lost), handed back (worker stopping), completed.

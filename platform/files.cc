@@ -1,0 +1,68 @@
+#include "platform/files.h"
+
+#include <openssl/evp.h>
+#include <openssl/rand.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+namespace sandswim {
+
+Result<std::string> Sha256OfFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::NotFound(path + " does not exist");
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr);
+  std::vector<char> buf(1 << 20);
+  while (in) {
+    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    if (in.gcount() > 0) EVP_DigestUpdate(ctx, buf.data(), static_cast<size_t>(in.gcount()));
+  }
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_DigestFinal_ex(ctx, md, &len);
+  EVP_MD_CTX_free(ctx);
+  static const char* kHex = "0123456789abcdef";
+  std::string hex;
+  for (unsigned int i = 0; i < len; ++i) {
+    hex.push_back(kHex[md[i] >> 4]);
+    hex.push_back(kHex[md[i] & 15]);
+  }
+  return hex;
+}
+
+Status WriteFileAtomically(const std::string& path, std::string_view bytes) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path target(path);
+  if (target.has_parent_path()) {
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) return Status::IOError("cannot create " + target.parent_path().string() + ": " + ec.message());
+  }
+  unsigned char salt[4];
+  if (RAND_bytes(salt, sizeof salt) != 1) return Status::Internal("no randomness for a temporary name");
+  char suffix[16];
+  std::snprintf(suffix, sizeof suffix, ".tmp.%02x%02x%02x%02x", salt[0], salt[1], salt[2], salt[3]);
+  const std::string tmp = path + suffix;
+  FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (f == nullptr) return Status::IOError("cannot write " + tmp);
+  bool good = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  good = std::fflush(f) == 0 && good;
+  good = ::fsync(fileno(f)) == 0 && good;
+  good = std::fclose(f) == 0 && good;
+  if (!good) {
+    fs::remove(tmp, ec);
+    return Status::IOError("cannot write " + tmp + " (disk full?)");
+  }
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    return Status::IOError("cannot rename into " + path + ": " + ec.message());
+  }
+  return Status::Ok();
+}
+
+}  // namespace sandswim
