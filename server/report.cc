@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "core/aggregate.h"
+#include "core/scale.h"
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
@@ -397,11 +398,15 @@ std::string NoUzToPlot(const SweepAnalysis& a) {
 
 Plot SnapshotSlicePlot(int64_t run_id, const Point& point, const api::Snapshot& meta, const BedSlice& slice) {
   Plot plot;
-  const std::string when = meta.fraction == 0   ? "start"
-                           : meta.fraction == 1 ? "end"
-                                                : Num(meta.fraction, 3) + " of the run";
-  plot.title = "run " + std::to_string(run_id) + ", " + PointLabel(point, "") + ": t = " + Num(meta.t_s, 3) + " s (" +
-               when + ")";
+  const std::string when = meta.fraction == 0     ? "start"
+                           : meta.fraction == 1   ? "end"
+                           : meta.fraction == 0.5 ? "middle"
+                                                  : Num(meta.fraction, 3) + " of the run";
+  // The title sits over a narrow plot: the drive without the mode's name where Ω says it.
+  std::string drive = PointLabel(point, "");
+  const std::string oscillatory = std::string(ModeName(Mode::kOscillatory)) + ", ";
+  if (drive.rfind(oscillatory, 0) == 0) drive = drive.substr(oscillatory.size());
+  plot.title = "run " + std::to_string(run_id) + " (" + drive + "), t = " + Num(meta.t_s, 3) + " s: " + when;
   plot.x_label = "y (m)";
   plot.y_label = "z (m)";
   Discs discs;
@@ -430,8 +435,7 @@ Plot SnapshotSlicePlot(int64_t run_id, const Point& point, const api::Snapshot& 
   }
   plot.series.push_back(std::move(so));
   plot.equal_aspect = true;
-  const double margin = 0.02 * (top - slice.z_lo);
-  plot.limits = std::array<double, 4>{slice.y_lo, slice.y_hi, slice.z_lo, top + margin};
+  plot.limits = std::array<double, 4>{slice.y_lo, slice.y_hi, slice.z_lo, top + kMaterials.d_grain};
   return plot;
 }
 
@@ -466,6 +470,10 @@ std::string RunFigureName(int64_t run_id) { return "run-" + std::to_string(run_i
 std::string SweepTrajectoriesName(int64_t sweep_id, const std::string& branch) {
   return "sweep-" + std::to_string(sweep_id) + "-trajectories" + (branch.empty() ? "" : "-" + branch);
 }
+std::string ModesFigureName(int64_t campaign_run_id, Coordinate coordinate) {
+  return "campaign-run-" + std::to_string(campaign_run_id) + (coordinate == Coordinate::kX ? "-modes-x" : "-modes-z");
+}
+
 std::string SweepUzName(int64_t sweep_id) { return "sweep-" + std::to_string(sweep_id) + "-uz"; }
 
 // ---- HTML --------------------------------------------------------------------------------------
@@ -611,8 +619,7 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
   for (Coordinate c : {Coordinate::kX, Coordinate::kZ}) {
     std::optional<Plot> modes = ModesFigure(*cr, analyses, c);
     if (!modes) break;
-    (c == Coordinate::kX ? in.modes_x_svg : in.modes_z_svg) =
-        draw("campaign-run-" + std::to_string(cr->id) + (c == Coordinate::kX ? "-modes-x" : "-modes-z"), *modes);
+    (c == Coordinate::kX ? in.modes_x_svg : in.modes_z_svg) = draw(ModesFigureName(cr->id, c), *modes);
   }
   if (!data_dir.empty()) {
     std::set<int64_t> seen;

@@ -82,6 +82,7 @@ Plot SnapshotSlicePlot(int64_t run_id, const Point& point, const api::Snapshot& 
 std::string RunFigureName(int64_t run_id);
 std::string SweepTrajectoriesName(int64_t sweep_id, const std::string& branch = "");  // + "-rising"
 std::string SweepUzName(int64_t sweep_id);
+std::string ModesFigureName(int64_t campaign_run_id, Coordinate coordinate);  // "...-modes-x" / "-modes-z"
 
 // What the report shows, already drawn (SVG text as RenderPlot makes it).
 struct ReportRun {

@@ -554,6 +554,27 @@ void GetSweepTrajectoriesFigure(Call& c) {
   SendFigure(c, SweepTrajectoriesName(a->info.id, branch), plot, kFormat);
 }
 
+// The drive modes side by side (the paper's Fig. 2): ?coordinate=z (default) or x.
+template <ImageFormat kFormat>
+void GetCampaignRunModesFigure(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  const std::string coordinate = c.req.has_param("coordinate") ? c.req.get_param_value("coordinate") : "z";
+  if (coordinate != "x" && coordinate != "z")
+    return Fail(c, Status::InvalidArgument("coordinate", "must be x or z (the SO's displacement drawn against t)"));
+  auto cr = c.deps.store->GetCampaignRun(*id);
+  if (!cr.ok()) return Fail(c, cr.status());
+  auto analyses = AnalyzeCampaignRun(*c.deps.store, *cr);
+  if (!analyses.ok()) return Fail(c, analyses.status());
+  std::optional<Plot> modes = ModesFigure(*cr, *analyses, coordinate == "x" ? Coordinate::kX : Coordinate::kZ);
+  if (!modes) {
+    return Fail(c, Status::FailedPrecondition("id", "campaign run " + std::to_string(*id) +
+                                                        " has no finished run of a drive other than the oscillatory "
+                                                        "one (vibration, rotation or both) yet"));
+  }
+  SendFigure(c, ModesFigureName(*id, coordinate == "x" ? Coordinate::kX : Coordinate::kZ), *modes, kFormat);
+}
+
 template <ImageFormat kFormat>
 void GetSweepUzFigure(Call& c) {
   auto a = FinishedSweep(c);
@@ -992,6 +1013,8 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/sweeps/{id}/uz.svg",            Access::kRead,   BodyKind::kNone,    GetSweepUzFigure<ImageFormat::kSvg>},
   {"GET",  "/api/v1/sweeps/{id}/uz.png",            Access::kRead,   BodyKind::kNone,    GetSweepUzFigure<ImageFormat::kPng>},
   {"GET",  "/api/v1/sweeps/{id}/fits",              Access::kRead,   BodyKind::kNone,    GetSweepFits},
+  {"GET",  "/api/v1/campaign-runs/{id}/modes.svg",  Access::kRead,   BodyKind::kNone,    GetCampaignRunModesFigure<ImageFormat::kSvg>},
+  {"GET",  "/api/v1/campaign-runs/{id}/modes.png",  Access::kRead,   BodyKind::kNone,    GetCampaignRunModesFigure<ImageFormat::kPng>},
   {"GET",  "/api/v1/campaign-runs/{id}/report",     Access::kRead,   BodyKind::kNone,    GetCampaignRunReport},
   {"GET",  "/api/v1/campaigns/{name}/report",       Access::kRead,   BodyKind::kNone,    GetCampaignReport},
   {"GET",  "/api/v1/backup",                        Access::kWrite,  BodyKind::kNone,    GetBackup},

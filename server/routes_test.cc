@@ -264,6 +264,14 @@ TEST_F(RoutesTest, CampaignSubmissionCreatesACampaignRun) {
   auto results = client_->Get(("/api/v1/campaign-runs/" + std::to_string(id) + "/results").c_str());
   ASSERT_EQ(results->status, 200);
   EXPECT_EQ(Body(results)["results"].size(), 58u);
+  // The drive modes' figure (Fig. 2) needs a finished mode run; the coordinate is x or z.
+  const std::string modes = "/api/v1/campaign-runs/" + std::to_string(id) + "/modes.svg";
+  auto none_yet = client_->Get(modes.c_str());
+  EXPECT_EQ(none_yet->status, 422) << none_yet->body;
+  EXPECT_THAT(Body(none_yet)["detail"].get<std::string>(), HasSubstr("no finished run"));
+  auto bad = client_->Get((modes + "?coordinate=y").c_str());
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_EQ(Body(bad)["field"], "coordinate");
 
   auto campaigns = client_->Get("/api/v1/campaigns");
   ASSERT_EQ(campaigns->status, 200);

@@ -50,8 +50,9 @@ void ChildProcess::Stop(double grace_s) { process_->Stop(grace_s); }
 
 std::string ChildProcess::Output() const { return ReadFile(output_path_); }
 
-Daemon::Daemon(const std::string& dir, std::vector<std::string> extra) : dir_(dir), db_(dir + "/sandswim.db") {
-  std::vector<std::string> argv = {SANDSWIMD_PATH,    "--db", db_, "--data", dir + "/data", "--listen", "127.0.0.1:0",
+Daemon::Daemon(const std::string& dir, std::vector<std::string> extra, const std::string& listen)
+    : dir_(dir), db_(dir + "/sandswim.db") {
+  std::vector<std::string> argv = {SANDSWIMD_PATH,    "--db", db_, "--data", dir + "/data", "--listen", listen,
                                    "--local-workers", "0"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   process_ = std::make_unique<ChildProcess>(argv, dir, "sandswimd.out");

@@ -44,8 +44,12 @@ class ChildProcess {
 
 class Daemon {
  public:
-  // Extra flags are appended (e.g. {"--lease-ttl", "5"}).
-  Daemon(const std::string& dir, std::vector<std::string> extra = {});
+  // Extra flags are appended (e.g. {"--lease-ttl", "5"}). `listen`: its address; a daemon started
+  // again on the same files and port (Daemon(dir, extra, old.listen())) is found by the same
+  // workers.
+  Daemon(const std::string& dir, std::vector<std::string> extra = {}, const std::string& listen = "127.0.0.1:0");
+  // "127.0.0.1:PORT", the port it got.
+  std::string listen() const { return url_.substr(url_.find("//") + 2); }
   const std::string& url() const { return url_; }
   const std::string& db() const { return db_; }
   ChildProcess& process() { return *process_; }
