@@ -458,6 +458,22 @@ Result<int64_t> LeaseQueue::ExpireLeases() {
   return n;
 }
 
+Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart() {
+  const double until = clock_->Now() + options_.ttl_s;
+  Result<Transaction> begun = store_->Begin();
+  if (!begun.ok()) return begun.status();
+  int64_t extended = 0;
+  for (const char* table : {"runs", "beds"}) {
+    Statement st = begun->Prepare(std::string("UPDATE ") + table +
+                                  " SET lease_expires_at = ? WHERE state = 'running' AND lease_expires_at < ?");
+    st.Bind(1, until).Bind(2, until);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    extended += begun->Changes();
+  }
+  SANDSWIM_RETURN_IF_ERROR(begun->Commit());
+  return extended;
+}
+
 Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
   const double now = clock_->Now();
   Result<Transaction> begun = store_->Begin();

@@ -125,6 +125,13 @@ class LeaseQueue {
 
   // Reclaims every lease that expired before the clock's now. Returns how many.
   Result<int64_t> ExpireLeases();
+  // At start-up, before serving: while the daemon was down no worker could heartbeat, so the
+  // outage must not count against their leases. Every running job's lease is extended to at
+  // least now + TTL: a worker still running its job keeps it (its next heartbeat lands), one that
+  // died meanwhile is reclaimed one TTL after the start. Without it, a daemon down for longer
+  // than a TTL would re-queue runs whose engines are still running: a second execution (the
+  // crash trials, tests/crash_trials_test.cc, catch that). Returns how many leases it extended.
+  Result<int64_t> ExtendLeasesAfterRestart();
 
   // The Slurm jobs (LeaseRequest::slurm_job) that hold a lease on a running job now, sorted.
   Result<std::vector<std::string>> RunningSlurmJobs();

@@ -774,4 +774,26 @@ TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
   EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 1)));
 }
 
+
+// A daemon that was down longer than a lease TTL: at start-up the running jobs' leases run one TTL
+// from now, so their workers' next heartbeats land instead of the runs being leased again.
+TEST_F(LeaseQueueTest, LeasesRunOneTtlAfterARestart) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kRun);
+  clock_.Advance(options_.ttl_s * 5);  // the outage
+  OpenStore();                          // the daemon starts again on the same file
+  auto extended = queue_->ExtendLeasesAfterRestart();
+  ASSERT_TRUE(extended.ok());
+  EXPECT_EQ(*extended, 1);
+  EXPECT_EQ(*queue_->ExpireLeases(), 0);
+  EXPECT_EQ(RunState(g.id), "running");
+  EXPECT_TRUE(queue_->Heartbeat(g.token, api::Heartbeat{}).ok());
+  // A worker that died meanwhile is reclaimed one TTL after the start.
+  clock_.Advance(options_.ttl_s + 1);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(RunState(g.id), "queued");
+}
+
 }  // namespace sandswim

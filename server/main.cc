@@ -224,6 +224,13 @@ int main(int argc, char** argv) {
   lease_options.max_attempts = flags.max_attempts;
   lease_options.data_dir = flags.data;
   sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
+  if (auto extended = leases.ExtendLeasesAfterRestart(); !extended.ok()) {
+    return Die(extended.status(), "check that --db " + flags.db + " is writable");
+  } else if (*extended > 0) {
+    spdlog::info("{} job(s) were running when the daemon stopped: their leases run {} s from now, so their "
+                 "workers can carry on (a worker that died meanwhile is reclaimed then)",
+                 *extended, flags.lease_ttl_s);
+  }
   if (auto unrecorded = leases.RemoveUnrecordedSnapshots(); !unrecorded.ok()) {
     return Die(unrecorded.status(), "check that --data " + flags.data + " is readable and writable");
   } else if (*unrecorded > 0) {

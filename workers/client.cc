@@ -32,9 +32,11 @@ HttpServerClient::HttpServerClient(ClientOptions options, const std::atomic<bool
 
 namespace {
 
-// Runs `call` until it succeeds, fails for good, `retry_for_s` passes or `stopping` is set.
+// Runs `call` until it succeeds, fails for good, `retry_for_s` passes or `stopping` is set. The
+// wait between tries doubles from 0.2 s up to `max_backoff_s`.
 template <typename F>
-auto WithRetries(double retry_for_s, const std::atomic<bool>* stopping, F call) -> decltype(call()) {
+auto WithRetries(double retry_for_s, double max_backoff_s, const std::atomic<bool>* stopping, F call)
+    -> decltype(call()) {
   const auto deadline =
       Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(retry_for_s));
   double backoff = 0.2;
@@ -48,7 +50,7 @@ auto WithRetries(double retry_for_s, const std::atomic<bool>* stopping, F call) 
       if (stopping != nullptr && stopping->load()) return r;
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
-    backoff = std::min(backoff * 2, 10.0);
+    backoff = std::min(backoff * 2, max_backoff_s);
   }
 }
 
@@ -86,10 +88,16 @@ Result<std::optional<api::LeaseGrant>> HttpServerClient::Lease(const api::LeaseR
   try {
     nlohmann::json j = nlohmann::json::parse(ex.body);
     if (!j.contains("lease") || j["lease"].is_null()) return std::optional<api::LeaseGrant>();
-    return std::optional<api::LeaseGrant>(j["lease"].get<api::LeaseGrant>());
+    api::LeaseGrant grant = j["lease"].get<api::LeaseGrant>();
+    NoteLeaseTtl(grant.ttl_s);
+    return std::optional<api::LeaseGrant>(std::move(grant));
   } catch (const std::exception& e) {
     return Status::Corruption("POST /api/v1/leases: unreadable lease: " + std::string(e.what()));
   }
+}
+
+void HttpServerClient::NoteLeaseTtl(double ttl_s) {
+  if (ttl_s > 0) max_backoff_s_.store(std::clamp(ttl_s / 3, 0.2, kMaxRetryBackoffS));
 }
 
 Result<api::HeartbeatReply> HttpServerClient::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
@@ -113,7 +121,7 @@ Result<api::CompletionReply> HttpServerClient::Release(const std::string& token,
 
 Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& dest_path) {
   const std::string path = bed.url.empty() ? "/api/v1/beds/" + std::to_string(bed.id) + "/restart" : bed.url;
-  auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {
+  auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     std::ofstream out(dest_path, std::ios::binary | std::ios::trunc);
     if (!out) return Status::IOError("cannot write " + dest_path);
     auto cli = MakeClient(options_);
@@ -151,7 +159,7 @@ Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, con
   ss << in.rdbuf();
   const std::string bytes = ss.str();
   const std::string url = "/api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token;
-  auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {
+  auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     auto cli = MakeClient(options_);
     Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, "application/octet-stream"),
                              "PUT bed restart");
@@ -168,7 +176,7 @@ Status ServerClient::UploadSnapshot(const std::string&, int, const std::string&,
 Status HttpServerClient::UploadSnapshot(const std::string& token, int idx, const std::string& bytes,
                                         const std::string& sha256) {
   const std::string url = "/api/v1/leases/" + token + "/snapshots/" + std::to_string(idx);
-  auto r = WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<bool> {
+  auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     auto cli = MakeClient(options_);
     Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, "text/plain"),
                              "PUT snapshot");
@@ -181,11 +189,13 @@ Status HttpServerClient::UploadSnapshot(const std::string& token, int idx, const
 Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token, const api::Completion& completion) {
   const std::string path = "/api/v1/leases/" + token + "/complete";
   const std::string body = api::ToJsonText(nlohmann::json(completion));
-  return WithRetries(options_.retry_for_s, stopping_, [&]() -> Result<api::CompletionReply> {
+  return WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<api::CompletionReply> {
     auto cli = MakeClient(options_);
     Exchange ex = FromResult(cli->Post(path, body, "application/json"), "POST complete");
     if (!ex.status.ok()) return ex.status;
-    return ParseJson<api::CompletionReply>(ex.body, "complete");
+    auto reply = ParseJson<api::CompletionReply>(ex.body, "complete");
+    if (reply.ok() && reply->next) NoteLeaseTtl(reply->next->ttl_s);
+    return reply;
   });
 }
 

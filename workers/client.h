@@ -51,6 +51,9 @@ class ServerClient {
   }
 };
 
+// The longest wait between two retries of a call (less when the daemon's leases are shorter).
+inline constexpr double kMaxRetryBackoffS = 10.0;
+
 class HttpServerClient : public ServerClient {
  public:
   // `stopping`, when set and true, ends retries early (the worker is shutting down).
@@ -67,8 +70,14 @@ class HttpServerClient : public ServerClient {
   Result<api::CompletionReply> Release(const std::string& token, const std::string& reason) override;
 
  private:
+  // A grant's TTL bounds the wait between retries: after a daemon restart a job's lease runs one
+  // TTL (LeaseQueue::ExtendLeasesAfterRestart), so a completion retried at most TTL/3 apart lands
+  // before it expires, and the run is not leased to another worker and run twice.
+  void NoteLeaseTtl(double ttl_s);
+
   ClientOptions options_;
   const std::atomic<bool>* stopping_;
+  std::atomic<double> max_backoff_s_{kMaxRetryBackoffS};
 };
 
 }  // namespace sandswim::worker

@@ -1,9 +1,15 @@
-// sandswim-stand-in-engine: a STAND-IN for LIGGGHTS, for the orchestration benchmark of issue 4
-// ONLY (runs per second through daemon + worker). It simulates nothing. It takes LIGGGHTS's
-// command line (-in DECK -log LOG [-screen X]), writes a minimal valid log with the markers the
-// worker reads, a short SO dump (drive decks) or a small bed.restart (bed decks), and exits 0 at
-// once. Its version line says what it is, so no result it produces can pass for a real one.
-// No real test uses it.
+// sandswim-stand-in-engine: a STAND-IN for LIGGGHTS, for measuring and breaking the orchestration
+// ONLY: the runs-per-second benchmark of issue 4 and the daemon crash trials of issue 15
+// (tests/crash_trials_test.cc). It simulates nothing. It takes LIGGGHTS's command line (-in DECK
+// -log LOG [-screen X]), writes a minimal valid log with the markers the worker reads, a short SO
+// dump (drive decks) or a small bed.restart (bed decks), and exits 0. Its version line says what
+// it is, so no result it produces can pass for a real one. No physics test uses it.
+//
+// Two environment variables, for the crash trials:
+//   SANDSWIM_STAND_IN_SECONDS  how long it lasts before writing its outputs (default 0: at once);
+//   SANDSWIM_STAND_IN_STARTS   a file it appends its working directory to when it starts, so a
+//                              test can count the engine starts of every run (one line each,
+//                              written with one O_APPEND write: lines never interleave).
 //
 // It is written with plain POSIX calls and snprintf, not iostreams, so that it costs as little
 // as a static program can: what the benchmark measures is sandswim's orchestration, not this.
@@ -66,6 +72,21 @@ int main(int argc, char** argv) {
       log_file = argv[++i];
     else if (std::strcmp(argv[i], "-screen") == 0 || std::strcmp(argv[i], "-var") == 0)
       ++i;
+  }
+  if (const char* starts = std::getenv("SANDSWIM_STAND_IN_STARTS")) {
+    char cwd[4096];
+    if (getcwd(cwd, sizeof cwd) != nullptr) {
+      std::string line = std::string(cwd) + "\n";
+      int fd = open(starts, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+      if (fd >= 0) {
+        (void)!write(fd, line.data(), line.size());
+        close(fd);
+      }
+    }
+  }
+  if (const char* seconds = std::getenv("SANDSWIM_STAND_IN_SECONDS")) {
+    const double s = std::strtod(seconds, nullptr);
+    if (s > 0) usleep(static_cast<useconds_t>(s * 1e6));
   }
   std::string deck;
   if (deck_file == nullptr || !ReadAll(deck_file, &deck)) {
