@@ -9,6 +9,7 @@
 // Outages are drawn up to 1.5 lease TTLs long, so some outlast a lease. Every trial asserts: every run done, once (one engine start per run, counted by the stand-in),
 // one result per run, none left running, `PRAGMA integrity_check` ok, and the bed's file still
 // has the checksum its row records.
+#include <signal.h>
 #include <sys/stat.h>
 
 #include <chrono>
@@ -139,4 +140,52 @@ TEST(CrashTrialsTest, ASweepSurvivesTheDaemonKilledAtRandomMoments) {
 }
 
 }  // namespace
+
+// A worker that stops heartbeating but keeps running (SIGSTOP: a paused process, a frozen VM) is
+// presumed dead once its lease expires: its run goes to another worker, and the paused worker's
+// completion, when it wakes, is refused (409) -- one result, from the worker that held the lease.
+TEST(CrashTrialsTest, APausedWorkersLateCompletionIsRefused) {
+  const std::string dir = testing::CacheDir() + "/crash-trials/paused";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string starts_log = dir + "/engine-starts.log";
+  setenv("SANDSWIM_STAND_IN_STARTS", starts_log.c_str(), 1);
+  setenv("SANDSWIM_STAND_IN_SECONDS", "1.5", 1);
+  testing::Daemon daemon(dir + "/daemon", {"--lease-ttl", "3", "--max-attempts", "3"});
+  int status = 0;
+  json submitted = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("paused", {-80}, 0.05, 20), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const int64_t sweep = submitted["id"].get<int64_t>();
+  const std::vector<std::string> stand_in = {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH};
+  auto paused = testing::StartWorker(daemon, dir + "/worker-paused", 1, stand_in);
+  // Wait until it runs the run (after the bed), then pause it.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (daemon.Query("SELECT count(*) FROM runs WHERE state = 'running'") != "1") {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << paused->Output();
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  paused->SignalProgram(SIGSTOP);
+  // Its lease expires (3 s) and is reclaimed; another worker takes the run and completes it.
+  auto other = testing::StartWorker(daemon, dir + "/worker-other", 1, stand_in);
+  const json s = daemon.WaitForSweep(sweep, 60);
+  EXPECT_EQ(s["counts"]["done"], 1) << s.dump() << "\n" << other->Output();
+  // The paused worker wakes: its engine has long finished; its completion must change nothing.
+  paused->SignalProgram(SIGCONT);
+  const auto settle = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (paused->Output().find("lease was lost") == std::string::npos && std::chrono::steady_clock::now() < settle)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_THAT(paused->Output(), ::testing::HasSubstr("lease was lost")) << paused->Output();
+  EXPECT_EQ(daemon.Query("SELECT count(*) FROM results"), "1");
+  EXPECT_EQ(daemon.Query("SELECT attempts FROM runs"), "2");
+  EXPECT_EQ(daemon.Query("SELECT state FROM runs"), "done");
+  // Two engine starts -- the paused worker's and the second worker's -- but one result: the
+  // price of presuming a silent worker dead, and the reason a lease TTL is generous.
+  const std::map<int64_t, int> starts = StartsPerRun(starts_log);
+  ASSERT_EQ(starts.size(), 1u);
+  EXPECT_EQ(starts.begin()->second, 2);
+  EXPECT_EQ(daemon.Query("PRAGMA integrity_check"), "ok");
+  paused->Stop();
+  other->Stop();
+}
+
 }  // namespace sandswim

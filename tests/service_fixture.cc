@@ -46,6 +46,14 @@ void ChildProcess::Kill(int signal) {
   if (running()) ::kill(pid_, signal);
 }
 
+void ChildProcess::SignalProgram(int signal) {
+  // The guard's one child is the program (/proc's list of a task's children).
+  std::ifstream in("/proc/" + std::to_string(pid_) + "/task/" + std::to_string(pid_) + "/children");
+  pid_t program = 0;
+  if (!(in >> program) || program <= 0) throw std::runtime_error("the guard " + std::to_string(pid_) + " has no child");
+  ::kill(program, signal);
+}
+
 void ChildProcess::Stop(double grace_s) { process_->Stop(grace_s); }
 
 std::string ChildProcess::Output() const { return ReadFile(output_path_); }

@@ -32,6 +32,8 @@ class ChildProcess {
   ~ChildProcess();
   bool running();
   void Kill(int signal);          // the process alone; see the top of this file
+  // The signal to the program itself, not its guard: SIGSTOP and SIGCONT pause and resume it.
+  void SignalProgram(int signal);
   void Stop(double grace_s = 5);  // SIGTERM to its group, then SIGKILL
   std::string Output() const;     // what it printed so far
   pid_t pid() const { return pid_; }
