@@ -188,4 +188,47 @@ TEST(CrashTrialsTest, APausedWorkersLateCompletionIsRefused) {
   other->Stop();
 }
 
+
+// A submission is all or nothing: the daemon SIGKILLed while it plans and writes a large sweep
+// (50,000 runs, one transaction) leaves either the whole sweep or none of it.
+TEST(CrashTrialsTest, ASubmissionKilledMidwayLeavesAllOrNothing) {
+  std::mt19937_64 rng(std::random_device{}());
+  std::vector<double> omegas;
+  for (int i = 0; i < 500; ++i) omegas.push_back(-10.0 - i);
+  json sweep = testing::OmegaSweep("big", omegas, 0.05, 20);
+  sweep["axes"].push_back({{"param", "A"}, {"range", {{"from", 0.001}, {"to", 0.1}, {"step", 0.001}}}});
+  constexpr int64_t kRuns = 500 * 100;
+  int whole = 0, none = 0;
+  for (int trial = 0; trial < 4; ++trial) {
+    const std::string dir = testing::CacheDir() + "/crash-trials/submission-" + std::to_string(trial);
+    fs::remove_all(dir);
+    auto daemon = std::make_unique<testing::Daemon>(dir + "/daemon");
+    const std::string listen = daemon->listen();
+    std::thread post([&] {
+      try {
+        int status = 0;
+        daemon->Post("/api/v1/sweeps", sweep, &status);
+      } catch (const std::exception&) {  // the daemon died under it: expected
+      }
+    });
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::uniform_real_distribution<double>(0.2, 3.0)(rng)));
+    daemon->process().Kill(SIGKILL);
+    post.join();
+    daemon.reset();
+    testing::Daemon again(dir + "/daemon", {}, listen);
+    const std::string runs = again.Query("SELECT count(*) FROM runs");
+    const std::string members = again.Query("SELECT count(*) FROM sweep_runs");
+    const int64_t sweeps = std::stoll(again.Query("SELECT count(*) FROM sweeps"));
+    // The sweep stored has all its runs, or there is neither sweep nor run.
+    EXPECT_LE(sweeps, 1);
+    EXPECT_EQ(std::stoll(runs), sweeps * kRuns) << "trial " << trial;
+    EXPECT_EQ(std::stoll(members), sweeps * kRuns) << "trial " << trial;
+    EXPECT_EQ(again.Query("PRAGMA integrity_check"), "ok");
+    (sweeps > 0 ? whole : none)++;
+    std::printf("CRASH submission trial %d: %lld sweep(s), %s runs after the kill\n", trial,
+                static_cast<long long>(sweeps), runs.c_str());
+  }
+  std::printf("CRASH submissions: %d kills left nothing new, %d left whole sweeps, none a part\n", none, whole);
+}
+
 }  // namespace sandswim
