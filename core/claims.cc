@@ -150,7 +150,8 @@ Status CheckRule(const json& rule, const std::vector<std::string>& sweeps) {
   if (spec == nullptr) return Status::InvalidArgument("rule.kind", "must be one of " + JoinNames(kinds));
   for (const auto& [key, value] : rule.items()) {
     if (key == "kind") continue;
-    auto p = std::find_if(spec->params.begin(), spec->params.end(), [&](const ParamSpec& s) { return key == s.name; });
+    const std::string& name = key;  // a structured binding is not captured before C++20
+    auto p = std::find_if(spec->params.begin(), spec->params.end(), [&](const ParamSpec& s) { return name == s.name; });
     if (p == spec->params.end()) {
       std::string allowed;
       for (const ParamSpec& s : spec->params) allowed += (allowed.empty() ? "" : ", ") + std::string(s.name);

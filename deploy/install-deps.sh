@@ -11,6 +11,7 @@ packages=(
   libgsl-dev                            # the paper's fits, eqs. 8 and 9 and f_c (core/fit.h)
   libplplot-dev plplot-driver-cairo     # figures as SVG and PNG (server/figures.h; cairo draws the PNGs)
   libgtest-dev libgmock-dev curl procps
+  clang-14 libclang-rt-14-dev           # the fuzz targets (tests/fuzz): libFuzzer and the sanitizers' runtimes
   # Slurm, for `sandswim slurm submit` and the tests/slurm test, which starts a real single-node
   # cluster from these itself (deploy/slurm/local-cluster.sh, no systemd needed).
   slurmctld slurmd slurm-client munge

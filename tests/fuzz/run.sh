@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# Builds sandswim's fuzz targets with clang (libFuzzer, AddressSanitizer, UndefinedBehaviorSanitizer)
+# and runs each for SECONDS on a corpus seeded from the repository's own files.
+#
+#   tests/fuzz/run.sh BUILD_DIR [SECONDS]
+#
+# BUILD_DIR is the main build (the targets take its generated, embedded templates); the fuzz build
+# goes to BUILD_DIR/fuzz. ctest runs it for 10 s a target (test `fuzz`); a long run on demand:
+#   tests/fuzz/run.sh build 3600
+# Targets: fuzz_sweep (sweep, campaign and submission JSON, planned when it parses), fuzz_dump (a
+# trajectory dump as the worker follows it, a full-bed snapshot as the daemon checks an upload),
+# fuzz_engine_log (the engine's log as the worker judges a job). Each first replays every input in
+# tests/fuzz/regressions/TARGET/ (inputs that once crashed it: keep each one there, beside the fix);
+# a new crash is written to BUILD_DIR/fuzz/crashes/ and fails the run -- copy it into regressions.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build=$(cd "${1:?usage: run.sh BUILD_DIR [SECONDS]}" && pwd)
+seconds=${2:-10}
+cxx=${SANDSWIM_FUZZ_CXX:-$(command -v clang++-14 || command -v clang++ || true)}
+if [ -z "$cxx" ]; then
+  echo "fuzz: no clang++ (deploy/install-deps.sh installs clang-14 and libclang-rt-14-dev)" >&2
+  exit 1
+fi
+out=$build/fuzz
+mkdir -p "$out/obj" "$out/crashes"
+sanitize="-fsanitize=address,undefined -fno-sanitize-recover=undefined"
+flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer $sanitize -I"$root")
+
+# The core library once, as objects (rebuilt when its source is newer).
+sources=()
+for f in "$root"/core/*.cc "$build/templates/sandswim_templates_embedded.cc"; do
+  case "$f" in *_test.cc) continue ;; esac
+  sources+=("$f")
+done
+objs=()
+jobs=()
+for src in "${sources[@]}"; do
+  obj="$out/obj/$(basename "${src%.cc}").o"
+  objs+=("$obj")
+  jobs+=("$src" "$obj")
+done
+start=$(date +%s)
+printf '%s\0%s\0' "${jobs[@]}" | FLAGS="${flags[*]}" xargs -0 -n 2 -P "$(nproc)" bash -c \
+  'src=$0 obj=$1; if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ]; then '"$cxx"' $FLAGS -fsanitize=fuzzer-no-link -c "$src" -o "$obj"; fi'
+echo "fuzz: core built with $cxx in $(( $(date +%s) - start )) s"
+
+seed() {  # seed TARGET FILES...: the corpus starts from these
+  local dir=$out/corpus/$1
+  shift
+  mkdir -p "$dir"
+  for f in "$@"; do [ -f "$f" ] && cp -n "$f" "$dir/" || true; done
+}
+seed fuzz_sweep "$root"/templates/campaigns/*.json
+printf '%s' '{"name": "omega-sign", "scale": "smoke", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3}, "axes": [{"param": "Omega", "values": [-80, 80]}], "snapshots": [0, 0.5, 1], "precision": {"uz_rel": 0.1, "max_duration_s": 2}, "replicates": 2}' \
+  > "$out/corpus/fuzz_sweep/example-sweep.json"
+seed fuzz_dump "$root"/tests/fixtures/*.dump
+seed fuzz_engine_log "$root"/tests/fixtures/*.log "$root"/tests/fixtures/runs/*/log.liggghts
+
+status=0
+for target in fuzz_sweep fuzz_dump fuzz_engine_log; do
+  "$cxx" "${flags[@]}" -fsanitize=fuzzer "$root/tests/fuzz/$target.cc" "${objs[@]}" -lcrypto -lgsl -lgslcblas -lm \
+    -o "$out/$target"
+  regressions=("$root"/tests/fuzz/regressions/$target/*)
+  if [ -e "${regressions[0]}" ]; then
+    "$out/$target" "${regressions[@]}" > "$out/$target.regressions.log" 2>&1 || {
+      echo "fuzz: $target fails a regression input again (see $out/$target.regressions.log)" >&2
+      status=1
+    }
+  fi
+  if "$out/$target" "$out/corpus/$target" -max_total_time="$seconds" -rss_limit_mb=2048 -max_len=65536 \
+    -artifact_prefix="$out/crashes/$target-" -print_final_stats=1 > "$out/$target.log" 2>&1; then
+    runs=$(grep -o 'Done [0-9]* runs' "$out/$target.log" | tail -1 | grep -o '[0-9]*' || echo "?")
+    echo "fuzz: $target: $runs executions in $seconds s, no crash (corpus $(ls "$out/corpus/$target" | wc -l) inputs)"
+  else
+    echo "fuzz: $target CRASHED; the input is in $out/crashes/, the report in $out/$target.log:" >&2
+    grep -m 5 -E "ERROR|runtime error|SUMMARY" "$out/$target.log" >&2 || true
+    status=1
+  fi
+done
+exit $status
