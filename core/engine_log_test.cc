@@ -146,4 +146,19 @@ TEST(EngineLogTest, ClassificationTable) {
 }
 
 }  // namespace
+
+// A count written as a number past int64's range is not a count (found by fuzz_engine_log: the
+// conversion was undefined behaviour); one written as a whole double still reads.
+TEST(EngineLogTest, ACountBeyondInt64IsABadMarker) {
+  const std::string first = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled 2019-03-19)\n";
+  EngineLog huge = ParseEngineLog(first + "SANDSWIM drive start grains 5.024e48 so_z -0.01 surface 0.2\n");
+  EXPECT_FALSE(huge.drive_start.has_value());
+  EXPECT_FALSE(huge.bad_marker.empty());
+  EXPECT_FALSE(
+      ParseEngineLog(first + "SANDSWIM drive start grains 9223372036854775808.0 so_z 0 surface 0\n").drive_start);
+  EngineLog whole = ParseEngineLog(first + "SANDSWIM drive start grains 5024.0 so_z -0.01 surface 0.2\n");
+  ASSERT_TRUE(whole.drive_start.has_value());
+  EXPECT_EQ(whole.drive_start->grains, 5024);
+}
+
 }  // namespace sandswim
