@@ -578,6 +578,7 @@ Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
   std::error_code ec;
   if (!fs::is_directory(root, ec)) return int64_t{0};
   std::map<int64_t, std::vector<int>> recorded;
+  std::set<int64_t> running;  // their workers may still complete them, listing what they uploaded
   {
     Result<Transaction> t = store_->BeginRead();
     if (!t.ok()) return t.status();
@@ -588,6 +589,13 @@ Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
       if (!*row) break;
       recorded[st.Int(0)].push_back(static_cast<int>(st.Int(1)));
     }
+    Statement live = t->Prepare("SELECT id FROM runs WHERE state = 'running'");
+    while (true) {
+      Result<bool> row = live.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      running.insert(live.Int(0));
+    }
   }
   int64_t removed = 0;
   for (const auto& entry : fs::directory_iterator(root, ec)) {
@@ -595,6 +603,7 @@ Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
     const std::string digits = name.rfind("run-", 0) == 0 ? name.substr(4) : "";
     if (digits.empty() || digits.size() > 18 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
     const int64_t run_id = std::stoll(digits);
+    if (running.count(run_id)) continue;
     auto it = recorded.find(run_id);
     removed += RemoveSnapshotFiles(options_.data_dir, run_id, it == recorded.end() ? std::vector<int>{} : it->second);
   }

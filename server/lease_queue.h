@@ -160,8 +160,10 @@ class LeaseQueue {
   // snapshot not uploaded, or uploaded with other bytes, is refused (kFailedPrecondition). kConflict
   // when the token is not a current run lease; kFailedPrecondition when the queue has no data_dir.
   Status PutRunSnapshot(const std::string& token, int idx, std::string_view bytes, const std::string& sha256);
-  // Removes snapshot files no done run recorded (a daemon that stopped between an upload and its
-  // completion, or a run that failed). Called at start-up. Returns how many files it removed.
+  // Removes snapshot files no done run recorded (a run that failed or was leased again after an
+  // upload). A running run's files stay: its worker may still complete it, listing them (the
+  // daemon stopped between the upload and the completion). Called at start-up. Returns how many
+  // files it removed.
   Result<int64_t> RemoveUnrecordedSnapshots();
 
   // The restart file of a done bed (kNotFound for an unknown bed, kFailedPrecondition when the

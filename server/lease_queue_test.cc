@@ -735,6 +735,9 @@ TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
   EXPECT_EQ(queue_->PutRunSnapshot(g.token, 2, first, Sha256Hex(first)).field(), "n");
   EXPECT_FALSE(queue_->PutRunSnapshot("nope", 0, first, Sha256Hex(first)).ok());
   ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 0, first, Sha256Hex(first)).ok());
+  // The daemon starting again meanwhile leaves a running run's uploads for its completion.
+  EXPECT_EQ(*queue_->RemoveUnrecordedSnapshots(), 0);
+  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 0)));
   api::Completion c = OkRun();
   c.snapshots = {api::Snapshot{0, 0, 0, 0, 2, static_cast<int64_t>(first.size()), Sha256Hex(first)},
                  api::Snapshot{1, 1, 0.3, 30000, 2, static_cast<int64_t>(last.size()), Sha256Hex(last)}};
@@ -762,7 +765,7 @@ TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
   ASSERT_TRUE(read.ok()) << read.status().ToString();
   EXPECT_EQ(read->step, 30000);
   // A stray upload (a run whose attempt never completed) goes at the daemon's next start; the
-  // recorded ones stay.
+  // recorded ones stay, and so do a running run's (its worker may still complete it).
   const std::string stray = SnapshotPath(options_.data_dir, g.id + 100, 0);
   fs::create_directories(fs::path(stray).parent_path());
   std::ofstream(stray) << first;
