@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/deck.h"
 #include "core/keys.h"
 #include "tests/fixture_file.h"
 
@@ -91,4 +92,34 @@ TEST(BedCacheTest, DownloadFailureIsPassedOn) {
 }
 
 }  // namespace
+
+// The frames a drive deck wrote for a run's snapshots, in time order, the last one at its own step
+// (and a periodic frame at that step left out); frames no fraction can pick any more are dropped
+// as the run goes, the newest never.
+TEST(RunDirTest, SnapshotFramesAreListedAndTheUnneededDropped) {
+  const std::string work = testing::TempDir("rundir-frames");
+  auto dir = RunDir::Create(work, api::JobKind::kRun, 7, 1);
+  ASSERT_TRUE(dir.ok());
+  for (int step : {0, 1000, 2000, 3000, 4000}) {
+    ASSERT_TRUE(dir->Write("frame." + std::to_string(step) + ".dump", "ITEM: TIMESTEP\n" + std::to_string(step) + "\n").ok());
+  }
+  ASSERT_TRUE(dir->Write("frame.x.dump", "not a frame of ours").ok());
+  const double dt = 1e-5;
+  std::vector<SnapshotFrame> frames = ListSnapshotFrames(*dir, dt);
+  ASSERT_EQ(frames.size(), 5u);
+  EXPECT_DOUBLE_EQ(frames[2].t, 0.02);
+  // At t = 0.04 s, the middle (0.5) can only be the frame at 0.02 s or later; the start stays.
+  DropUnneededSnapshotFrames(*dir, dt, {0, 0.5}, 0.04);
+  frames = ListSnapshotFrames(*dir, dt);
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_DOUBLE_EQ(frames[0].t, 0.0);
+  EXPECT_DOUBLE_EQ(frames[1].t, 0.02);
+  // The last frame, written where the run ended (at a step a periodic frame also has).
+  ASSERT_TRUE(dir->Write(kSnapshotLastFile, "ITEM: TIMESTEP\n4000\n").ok());
+  frames = ListSnapshotFrames(*dir, dt);
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_EQ(frames.back().path, dir->File(kSnapshotLastFile));
+  EXPECT_DOUBLE_EQ(frames.back().t, 0.04);
+}
+
 }  // namespace sandswim::worker
