@@ -126,7 +126,7 @@ void Trial(int trial, uint64_t seed, int runs, int kills, double engine_s) {
 }
 
 TEST(CrashTrialsTest, ASweepSurvivesTheDaemonKilledAtRandomMoments) {
-  const int trials = EnvInt("SANDSWIM_CRASH_TRIALS", 3);
+  const int trials = EnvInt("SANDSWIM_CRASH_TRIALS", 2);
   const int runs = EnvInt("SANDSWIM_CRASH_RUNS", 40);
   const int kills = EnvInt("SANDSWIM_CRASH_KILLS", 4);
   const double engine_s = EnvDouble("SANDSWIM_CRASH_ENGINE_S", 0.5);

@@ -24,7 +24,7 @@ fi
 out=$build/fuzz
 mkdir -p "$out/obj" "$out/crashes"
 sanitize="-fsanitize=address,undefined -fno-sanitize-recover=undefined"
-flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer $sanitize -I"$root")
+flags=(-std=c++17 ${SANDSWIM_FUZZ_OPT:--O1} -g -fno-omit-frame-pointer $sanitize -I"$root")
 
 # The core library once, as objects (rebuilt when its source is newer).
 sources=()
