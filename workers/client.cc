@@ -158,11 +158,15 @@ Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, con
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string bytes = ss.str();
-  const std::string url = "/api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token;
+  return PutWithChecksum("/api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token, bytes, sha256,
+                         "application/octet-stream", "PUT bed restart");
+}
+
+Status HttpServerClient::PutWithChecksum(const std::string& url, const std::string& bytes, const std::string& sha256,
+                                         const char* content_type, const std::string& what) {
   auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     auto cli = MakeClient(options_);
-    Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, "application/octet-stream"),
-                             "PUT bed restart");
+    Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, content_type), what);
     if (!ex.status.ok()) return ex.status;
     return true;
   });
@@ -175,15 +179,8 @@ Status ServerClient::UploadSnapshot(const std::string&, int, const std::string&,
 
 Status HttpServerClient::UploadSnapshot(const std::string& token, int idx, const std::string& bytes,
                                         const std::string& sha256) {
-  const std::string url = "/api/v1/leases/" + token + "/snapshots/" + std::to_string(idx);
-  auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
-    auto cli = MakeClient(options_);
-    Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, "text/plain"),
-                             "PUT snapshot");
-    if (!ex.status.ok()) return ex.status;
-    return true;
-  });
-  return r.status();
+  return PutWithChecksum("/api/v1/leases/" + token + "/snapshots/" + std::to_string(idx), bytes, sha256, "text/plain",
+                         "PUT snapshot");
 }
 
 Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token, const api::Completion& completion) {

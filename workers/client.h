@@ -74,6 +74,9 @@ class HttpServerClient : public ServerClient {
   // TTL (LeaseQueue::ExtendLeasesAfterRestart), so a completion retried at most TTL/3 apart lands
   // before it expires, and the run is not leased to another worker and run twice.
   void NoteLeaseTtl(double ttl_s);
+  // PUT `bytes` with header X-Sha256, retried as every upload is.
+  Status PutWithChecksum(const std::string& url, const std::string& bytes, const std::string& sha256,
+                         const char* content_type, const std::string& what);
 
   ClientOptions options_;
   const std::atomic<bool>* stopping_;
