@@ -367,7 +367,9 @@ std::string Round(double v, int digits) {
 }  // namespace
 
 std::string WithError(double v, double err) {
-  if (!(err > 0)) return Round(v, 3) + " ± 0";
+  // An error below 1e-12 of the value is rounding noise (a trajectory with no scatter at all, as
+  // a stand-in engine writes): shown as 0 rather than as twenty digits.
+  if (!(err > 1e-12 * std::fabs(v))) return Round(v, 3) + " ± 0";
   const int exponent = static_cast<int>(std::floor(std::log10(err))) - 1;  // place of err's 2nd digit
   char vb[48], eb[48];
   if (exponent < 0) {

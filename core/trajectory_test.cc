@@ -389,3 +389,19 @@ TEST(TrajectoryTest, SamplesFromDumpAreTheFramesCoordinates) {
 
 }  // namespace
 }  // namespace sandswim
+
+namespace sandswim {
+namespace {
+
+// A value and its error to the error's second significant digit; an error that is rounding noise
+// (below 1e-12 of the value) is 0, not twenty digits.
+TEST(WithErrorTest, RoundsToTheErrorsSecondDigitAndNoiseIsZero) {
+  EXPECT_EQ(WithError(0.10163, 0.00381), "0.1016 ± 0.0038");
+  EXPECT_EQ(WithError(-0.044651, 0.00067), "-0.04465 ± 0.00067");
+  EXPECT_EQ(WithError(1234.0, 56.0), "1234 ± 56");
+  EXPECT_EQ(WithError(0.0066666666666666654, 1.5e-18), "0.00667 ± 0");
+  EXPECT_EQ(WithError(0.5, 0), "0.5 ± 0");
+}
+
+}  // namespace
+}  // namespace sandswim
