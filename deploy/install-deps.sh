@@ -12,10 +12,14 @@ packages=(
   libplplot-dev plplot-driver-cairo     # figures as SVG and PNG (server/figures.h; cairo draws the PNGs)
   libgtest-dev libgmock-dev curl procps
   clang-14 libclang-rt-14-dev           # the fuzz targets (tests/fuzz): libFuzzer and the sanitizers' runtimes
+  chromium chromium-driver              # the dashboard's browser tests (tests/browser), headless
   # Slurm, for `sandswim slurm submit` and the tests/slurm test, which starts a real single-node
   # cluster from these itself (deploy/slurm/local-cluster.sh, no systemd needed).
   slurmctld slurmd slurm-client munge
 )
+# The dashboard's one npm package (server/dashboard/package-lock.json) is installed by the build
+# with npm: Debian's npm unless the machine already has one.
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

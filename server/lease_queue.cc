@@ -253,7 +253,9 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
 }
 
 Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
-  return store_->WriteResult<api::HeartbeatReply>([&](Transaction& t) -> Result<api::HeartbeatReply> {
+  std::optional<int64_t> run_id;  // set once the beat is recorded
+  Result<api::HeartbeatReply> reply = store_->WriteResult<api::HeartbeatReply>([&](Transaction& t) -> Result<api::HeartbeatReply> {
+    run_id.reset();
     const double now = clock_->Now();
     Result<LeaseRow> lease = jobs::FindLease(t, token);
     if (!lease.ok()) return lease.status();
@@ -265,6 +267,7 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
     reply.ttl_s = options_.ttl_s;
     if (lease->kind == api::JobKind::kRun) {
       SANDSWIM_RETURN_IF_ERROR(jobs::RecordProgress(t, lease->job_id, now + options_.ttl_s, beat, now));
+      run_id = lease->job_id;
       // Stop only when no live sweep wants the run any more (it may be shared).
       Result<bool> wanted = jobs::RunWanted(t, lease->job_id);
       if (!wanted.ok()) return wanted.status();
@@ -274,6 +277,8 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
     }
     return reply;
   });
+  if (reply.ok() && run_id && progress_observer_) progress_observer_(*run_id, beat);
+  return reply;
 }
 
 Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, const api::Completion& c) {

@@ -49,6 +49,7 @@
 #define SANDSWIM_SERVER_LEASE_QUEUE_H_
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -109,6 +110,10 @@ class LeaseQueue {
 
   // kConflict when `token` is not the current lease of a running job.
   Result<api::HeartbeatReply> Heartbeat(const std::string& token, const api::Heartbeat& beat);
+  // Called with every run heartbeat once it is recorded (the dashboard's trails,
+  // server/live_feed.h). Set it before serving; it must be cheap and thread-safe.
+  using ProgressObserver = std::function<void(int64_t run_id, const api::Heartbeat& beat)>;
+  void SetProgressObserver(ProgressObserver observer) { progress_observer_ = std::move(observer); }
 
   // kConflict as above (nothing changes); "duplicate" when this token already completed.
   // kInvalidArgument when the completion lacks what its kind needs (ok run without result, ok
@@ -194,6 +199,7 @@ class LeaseQueue {
   Store* store_;
   Clock* clock_;
   LeaseQueueOptions options_;
+  ProgressObserver progress_observer_;
 };
 
 }  // namespace sandswim

@@ -18,6 +18,7 @@
 #include "platform/token.h"
 #include "server/drift_report.h"
 #include "server/lease_queue.h"
+#include "server/live_feed.h"
 #include "server/local_workers.h"
 #include "server/periodic.h"
 #include "server/pilot_watch.h"
@@ -261,6 +262,11 @@ int main(int argc, char** argv) {
   deps.data_dir = flags.data;
   deps.engine_version = flags.engine_version;
   deps.token = *token;
+  // The dashboard's live view: one snapshot a second however many pages are open (server/live_feed.h).
+  sandswim::LiveFeed live(store->get(), &clock);
+  leases.SetProgressObserver(
+      [&live](int64_t run_id, const sandswim::api::Heartbeat& beat) { live.RecordBeat(run_id, beat.sim_time_s, beat.so_z); });
+  deps.live = &live;
   sandswim::ApiServer server(deps);
   auto port = server.Bind(*address);
   if (!port.ok()) return Die(port.status(), "stop whatever holds the port, or pass another --listen");
@@ -314,6 +320,7 @@ int main(int argc, char** argv) {
   if (supervisor.joinable()) supervisor.join();
   workers.Stop();
   periodic.Stop();
+  live.Stop();  // open dashboard streams end, so the server's threads can
   server.Stop();
   serve.join();
   spdlog::info("sandswimd stopped");

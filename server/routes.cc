@@ -32,7 +32,9 @@
 #include "server/campaigns.h"
 #include "server/claim_check.h"
 #include "server/drift_report.h"
+#include "server/dashboard_files.h"
 #include "server/figures.h"
+#include "server/live_feed.h"
 #include "server/report.h"
 #include "server/schema_files.h"
 #include "server/submission.h"
@@ -917,6 +919,81 @@ Result<int> ClearBackupDir(const std::string& data_dir) {
 
 namespace {
 
+// ---- Handlers: the dashboard's live feed (server/live_feed.h) -------------------------------
+
+// A stream says it is alive at least this often (proxies close silent connections).
+constexpr double kLiveKeepAliveS = 15;
+
+LiveFeed* NeedLiveFeed(Call& c) {
+  if (c.deps.live == nullptr) Fail(c, Status::Unavailable("this daemon serves no live feed"));
+  return c.deps.live;
+}
+
+void GetLive(Call& c) {
+  LiveFeed* feed = NeedLiveFeed(c);
+  if (feed == nullptr) return;
+  auto snap = feed->Current();
+  const std::string etag = "\"live-" + std::to_string(snap->version) + "\"";
+  c.res.set_header("ETag", etag);
+  c.res.set_header("Cache-Control", "no-cache");
+  if (c.req.get_header_value("If-None-Match") == etag) {
+    c.res.status = 304;
+    return;
+  }
+  c.res.status = 200;
+  c.res.set_content(snap->json, "application/json");
+}
+
+// Server-sent events: "event: board" with the snapshot as data, at each new version; a comment
+// line every kLiveKeepAliveS otherwise. At most LiveFeed's max_streams at once (503 past them).
+void GetLiveEvents(Call& c) {
+  LiveFeed* feed = NeedLiveFeed(c);
+  if (feed == nullptr) return;
+  if (!feed->OpenStream()) {
+    c.res.set_header("Retry-After", "10");
+    return Fail(c, Status::Unavailable("every live stream this daemon allows is open: poll GET /api/v1/live"));
+  }
+  auto last = std::make_shared<uint64_t>(0);
+  c.res.set_header("Cache-Control", "no-store");
+  c.res.set_chunked_content_provider(
+      "text/event-stream",
+      [feed, last](size_t, httplib::DataSink& sink) {
+        auto snap = feed->WaitNewer(*last, kLiveKeepAliveS);
+        if (feed->stopped()) {
+          sink.done();
+          return true;
+        }
+        std::string message;
+        if (snap->version > *last) {
+          *last = snap->version;
+          message = "id: " + std::to_string(snap->version) + "\nevent: board\ndata: " + snap->json + "\n\n";
+        } else {
+          message = ": alive\n\n";
+        }
+        return sink.write(message.data(), message.size());  // false: the page went away
+      },
+      [feed](bool) { feed->CloseStream(); });
+}
+
+// The run's z(t) so far, from its heartbeats while it runs; the stored trajectory once it is done.
+void GetRunTrail(Call& c) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  LiveFeed* feed = NeedLiveFeed(c);
+  if (feed == nullptr) return;
+  LiveFeed::Trail trail = feed->TrailOf(*id);
+  SendJson(c, 200, {{"run_id", *id}, {"t", trail.t}, {"z", trail.z}});
+}
+
+void ListCampaignRunsRoute(Call& c) {
+  const std::string campaign = c.req.has_param("campaign") ? c.req.get_param_value("campaign") : "";
+  auto limit = QueryInt(c, "limit", 1, 1000);
+  if (!limit.ok()) return Fail(c, limit.status());
+  auto runs = c.deps.store->ListCampaignRuns(campaign, static_cast<int>(limit->value_or(50)));
+  if (!runs.ok()) return Fail(c, runs.status());
+  SendJson(c, 200, {{"campaign_runs", *runs}});
+}
+
 void OpenApi(Call& c) {
   auto doc = SchemaFile("schema/openapi.json");
   if (!doc) return Fail(c, Status::Internal("schema/openapi.json was not compiled in; rebuild sandswimd"));
@@ -998,6 +1075,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/beds/{id}",                     Access::kRead,   BodyKind::kNone,    GetBed},
   {"GET",  "/api/v1/campaigns",                     Access::kRead,   BodyKind::kNone,    ListCampaigns},
   {"GET",  "/api/v1/campaigns/{name}/drift",        Access::kRead,   BodyKind::kNone,    GetCampaignDrift},
+  {"GET",  "/api/v1/campaign-runs",                 Access::kRead,   BodyKind::kNone,    ListCampaignRunsRoute},
   {"GET",  "/api/v1/campaign-runs/{id}",            Access::kRead,   BodyKind::kNone,    GetCampaignRun},
   {"GET",  "/api/v1/campaign-runs/{id}/results",    Access::kRead,   BodyKind::kNone,    GetCampaignRunResults},
   {"GET",  "/api/v1/campaign-runs/{id}/claims",     Access::kRead,   BodyKind::kNone,    GetCampaignRunClaims},
@@ -1018,6 +1096,9 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/campaign-runs/{id}/report",     Access::kRead,   BodyKind::kNone,    GetCampaignRunReport},
   {"GET",  "/api/v1/campaigns/{name}/report",       Access::kRead,   BodyKind::kNone,    GetCampaignReport},
   {"GET",  "/api/v1/backup",                        Access::kWrite,  BodyKind::kNone,    GetBackup},
+  {"GET",  "/api/v1/live",                          Access::kRead,   BodyKind::kNone,    GetLive},
+  {"GET",  "/api/v1/live/events",                   Access::kRead,   BodyKind::kNone,    GetLiveEvents},
+  {"GET",  "/api/v1/runs/{id}/trail",               Access::kRead,   BodyKind::kNone,    GetRunTrail},
   // The worker protocol (core/api.h), in the order a worker uses it.
   {"POST", "/api/v1/leases",                        Access::kWorker, BodyKind::kJson,    LeaseJob},
   {"GET",  "/api/v1/beds/{id}/restart",             Access::kWorker, BodyKind::kNone,    DownloadBedRestart},
@@ -1207,6 +1288,38 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
       server.Put(pattern, with_body);
   }
 
+  // The dashboard (server/dashboard/): the same page at every dashboard path (the page reads the
+  // API from the browser, so a link to any of them can be pasted into a notebook), its scripts
+  // and styles under /ui/. Public: they hold no data; the API's rules hold for what they read.
+  auto dashboard_file = [counters](const std::string& name, httplib::Response& res) {
+    std::optional<std::string_view> bytes = DashboardFile(name);
+    if (!bytes) {
+      SendProblem(res, Status::NotFound("no dashboard file \"" + name + "\""));
+      counters->Count(404);
+      return;
+    }
+    const size_t dot = name.rfind('.');
+    const std::string ext = dot == std::string::npos ? "" : name.substr(dot);
+    const char* type = ext == ".js"    ? "text/javascript; charset=utf-8"
+                       : ext == ".css" ? "text/css; charset=utf-8"
+                                       : "text/html; charset=utf-8";
+    res.set_header("Cache-Control", "no-cache");
+    res.set_header("X-Content-Type-Options", "nosniff");
+    res.status = 200;
+    res.set_content(bytes->data(), bytes->size(), type);
+    counters->Count(200);
+  };
+  httplib::Server::Handler page = [dashboard_file](const httplib::Request&, httplib::Response& res) {
+    dashboard_file("index.html", res);
+  };
+  server.Get("/", page);
+  server.Get("/submit", page);
+  server.Get(R"(/(campaign-runs|sweeps|runs|beds)(/[0-9]+)?)", page);
+  server.Get(R"(/ui/([A-Za-z0-9_-][A-Za-z0-9._-]*))",
+             [dashboard_file](const httplib::Request& req, httplib::Response& res) {
+               dashboard_file(req.matches[1].str(), res);
+             });
+
   // Refuse what cannot be drained before any byte of the body is read.
   server.set_pre_routing_handler([d, counters](const httplib::Request& req, httplib::Response& res) {
     const Route* route = FindRoute(req.method, req.path);
@@ -1314,8 +1427,9 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
 // ---- ApiServer ---------------------------------------------------------------------------------
 
 ApiServer::ApiServer(Deps deps) : deps_(std::move(deps)), server_(std::make_unique<httplib::Server>()) {
-  // Keep-alive connections hold a thread each; give concurrent workers and clients room.
-  server_->new_task_queue = [] { return new httplib::ThreadPool(64); };
+  // Keep-alive connections hold a thread each; give concurrent workers and clients room: 64, and
+  // as many again as the dashboard's live streams may hold (LiveFeed's max_streams, 128).
+  server_->new_task_queue = [] { return new httplib::ThreadPool(64 + 128); };
   server_->set_keep_alive_max_count(100000);
   // Without TCP_NODELAY a small response written as headers + body meets the client's delayed
   // ACK: ~40 ms per request on loopback (bench_daemon: 173 -> thousands of cycles/s).

@@ -43,6 +43,7 @@ inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;     // 1 MiB
 inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;  // 2 GiB
 inline constexpr int kDefaultPort = 8640;
 
+class LiveFeed;
 class PlotRenderer;
 
 struct Deps {
@@ -57,6 +58,8 @@ struct Deps {
   // Draws figures not drawn before (server/plot_renderer.h): sandswimd's runs sandswim-render, a
   // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
   PlotRenderer* renderer = nullptr;
+  // The dashboard's live snapshots and trails (server/live_feed.h); nullptr: /api/v1/live* answer 503.
+  LiveFeed* live = nullptr;
 };
 
 // Who may call a route when a token is configured.

@@ -4,6 +4,7 @@
 
 #include <stdlib.h>
 
+#include <atomic>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -18,6 +19,7 @@
 #include "core/point.h"
 #include "core/sweep.h"
 #include "server/loopback_server_test_util.h"
+#include "server/live_feed.h"
 
 namespace sandswim {
 namespace {
@@ -48,6 +50,9 @@ class RoutesTest : public ::testing::Test {
     deps_.data_dir = dir_ + "/data";
     deps_.engine_version = "LIGGGHTS (Version test)";
     deps_.token = token;
+    live_ = std::make_unique<LiveFeed>(store_.get(), &clock_, /*tick_s=*/0.05, /*max_streams=*/2);
+    leases_->SetProgressObserver([this](int64_t run, const api::Heartbeat& b) { live_->RecordBeat(run, b.sim_time_s, b.so_z); });
+    deps_.live = live_.get();
     server_ = std::make_unique<LoopbackServer>(deps_);
     client_ = &server_->client();
   }
@@ -56,7 +61,9 @@ class RoutesTest : public ::testing::Test {
 
   void Shutdown() {
     if (!server_) return;
+    live_->Stop();
     server_.reset();
+    live_.reset();
     client_ = nullptr;
     leases_.reset();
     store_.reset();
@@ -91,6 +98,7 @@ class RoutesTest : public ::testing::Test {
   FakeClock clock_;
   std::unique_ptr<Store> store_;
   std::unique_ptr<LeaseQueue> leases_;
+  std::unique_ptr<LiveFeed> live_;
   Deps deps_;
   std::unique_ptr<LoopbackServer> server_;
   httplib::Client* client_ = nullptr;
@@ -380,6 +388,17 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   EXPECT_EQ(Body(beat)["cancel"], false);
   auto lost = Post("/api/v1/leases/deadbeef/heartbeat", "{}");
   EXPECT_EQ(lost->status, 409);
+  // The dashboard hears of the beat: the run's trail, and the live snapshot's running run.
+  const std::string trail_path = "/api/v1/runs/" + std::to_string(run.id) + "/trail";
+  json trail = Body(client_->Get(trail_path.c_str()));
+  EXPECT_EQ(trail["t"], json({0.1})) << trail.dump();
+  EXPECT_EQ(trail["z"], json({0.001})) << trail.dump();
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));  // a tick (0.05 s) later
+  json board = Body(client_->Get("/api/v1/live"));
+  ASSERT_EQ(board["running"].size(), 1u) << board.dump();
+  EXPECT_EQ(board["running"][0]["id"], run.id);
+  EXPECT_EQ(board["running"][0]["progress"]["sim_time_s"], 0.1);
+  EXPECT_EQ(board["running"][0]["trail_points"], 1);
 
   api::Completion done;
   done.ok = true;
@@ -391,6 +410,9 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   done.log_tail = "Loop time of 1.0\n";
   auto completed = Post("/api/v1/leases/" + run.token + "/complete", json(done).dump());
   ASSERT_EQ(completed->status, 200) << completed->body;
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  EXPECT_TRUE(Body(client_->Get("/api/v1/live"))["running"].empty());
+  EXPECT_TRUE(Body(client_->Get(trail_path.c_str()))["t"].empty()) << "trails end with their run";
   EXPECT_EQ(Body(completed)["state"], "done");
   auto again = Post("/api/v1/leases/" + run.token + "/complete", json(done).dump());
   ASSERT_EQ(again->status, 200);
@@ -507,6 +529,15 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
       auto at = path.find(param);
       if (at != std::string::npos) path.replace(at, param.size(), value);
     }
+    if (path == "/api/v1/live/events") {  // a stream: read its first event, then hang up
+      std::string first;
+      httplib::Result r = client_->Get(path.c_str(), [&](const char* data, size_t n) {
+        first.append(data, n);
+        return first.find("\n\n") == std::string::npos;
+      });
+      EXPECT_THAT(first, HasSubstr("event: board")) << path;
+      continue;
+    }
     httplib::Result r = route.method == "GET"    ? client_->Get(path.c_str())
                         : route.method == "POST" ? client_->Post(path.c_str(), "{}", "application/json")
                                                  : client_->Put(path.c_str(), "x", "application/octet-stream");
@@ -516,6 +547,78 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
       EXPECT_THAT(r->body, ::testing::Not(HasSubstr("no route"))) << route.method << " " << path;
     }
   }
+}
+
+// The dashboard: one page at every dashboard path, its files under /ui/, nothing else.
+TEST_F(RoutesTest, DashboardPagesAndFiles) {
+  for (const char* path : {"/", "/campaign-runs/3", "/sweeps/1", "/runs/12", "/beds", "/beds/2", "/submit"}) {
+    auto r = client_->Get(path);
+    ASSERT_EQ(r->status, 200) << path;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "text/html; charset=utf-8") << path;
+    EXPECT_THAT(r->body, HasSubstr("<script src=\"/ui/app.js\"></script>")) << path;
+  }
+  auto js = client_->Get("/ui/app.js");
+  ASSERT_EQ(js->status, 200);
+  EXPECT_EQ(js->get_header_value("Content-Type"), "text/javascript; charset=utf-8");
+  EXPECT_THAT(js->body, HasSubstr("/api/v1/live/events"));
+  auto uplot = client_->Get("/ui/uPlot.iife.min.js");
+  ASSERT_EQ(uplot->status, 200);
+  EXPECT_GT(uplot->body.size(), 10000u);
+  EXPECT_EQ(client_->Get("/ui/uPlot.min.css")->get_header_value("Content-Type"), "text/css; charset=utf-8");
+  for (const char* path : {"/ui/nope.js", "/runs/abc", "/sweeps/1/x", "/ui/..%2Fapp.js"}) {
+    auto r = client_->Get(path);
+    EXPECT_EQ(r->status, 404) << path;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json") << path;
+  }
+}
+
+// The live snapshot: shared, versioned by content (an ETag answers 304 while nothing changes), a
+// new version once something does; at most max_streams event streams (2 here), then 503.
+TEST_F(RoutesTest, LiveSnapshotVersionsAndStreamLimit) {
+  auto first = client_->Get("/api/v1/live");
+  ASSERT_EQ(first->status, 200) << first->body;
+  const std::string etag = first->get_header_value("ETag");
+  ASSERT_FALSE(etag.empty());
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  auto same = client_->Get("/api/v1/live", {{"If-None-Match", etag}});
+  EXPECT_EQ(same->status, 304) << "nothing changed: " << same->body;
+  SubmitExample();
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  auto changed = client_->Get("/api/v1/live", {{"If-None-Match", etag}});
+  ASSERT_EQ(changed->status, 200);
+  json board = Body(changed);
+  EXPECT_GT(board["version"].get<uint64_t>(), Body(first)["version"].get<uint64_t>());
+  EXPECT_EQ(board["runs"]["queued"], 2) << board.dump();
+  ASSERT_EQ(board["sweeps"].size(), 1u);
+  EXPECT_EQ(board["sweeps"][0]["counts"]["queued"], 2);
+  EXPECT_FALSE(board["sweeps"][0].contains("spec")) << "the feed carries progress, not specs";
+
+  // Two streams hold the two slots; a third is refused and told to poll.
+  std::vector<std::thread> readers;
+  std::atomic<int> events{0};
+  for (int i = 0; i < 2; ++i) {
+    readers.emplace_back([&, port = server_->port()] {
+      httplib::Client c("127.0.0.1", port);
+      c.set_read_timeout(30, 0);
+      c.Get("/api/v1/live/events", [&](const char* data, size_t n) {
+        if (std::string(data, n).find("event: board") != std::string::npos) events.fetch_add(1);
+        return true;
+      });
+    });
+  }
+  for (int i = 0; i < 100 && live_->open_streams() < 2; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_EQ(live_->open_streams(), 2);
+  auto refused = client_->Get("/api/v1/live/events");
+  EXPECT_EQ(refused->status, 503);
+  EXPECT_EQ(refused->get_header_value("Retry-After"), "10");
+  EXPECT_THAT(Body(refused)["detail"].get<std::string>(), HasSubstr("poll GET /api/v1/live"));
+  // A change reaches both streams as a new event.
+  SubmitExample();
+  for (int i = 0; i < 100 && events.load() < 4; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_GE(events.load(), 4) << "each stream: the snapshot at connection, then the change";
+  live_->Stop();  // streams end; the readers return
+  for (std::thread& t : readers) t.join();
+  EXPECT_EQ(live_->open_streams(), 0);
 }
 
 TEST(RoutesUnitTest, StatusTableAndProblemShape) {

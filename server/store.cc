@@ -863,4 +863,76 @@ Result<Metrics> Store::GetMetrics() {
   return m;
 }
 
+Result<LiveBoard> Store::ReadLiveBoard(int sweeps, int campaign_runs, int running) {
+  Result<Transaction> t = BeginRead();
+  if (!t.ok()) return t.status();
+  LiveBoard board;
+  auto earliest_start = [&](const char* sql, int64_t id) -> Result<std::optional<double>> {
+    Statement st = t->Prepare(sql);
+    st.Bind(1, id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    return *row ? st.OptDouble(0) : std::nullopt;
+  };
+  {
+    Statement st = t->Prepare(std::string("SELECT ") + kSweepColumns + " FROM sweeps ORDER BY id DESC LIMIT ?");
+    st.Bind(1, sweeps);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      board.sweeps.push_back(SweepFromRow(st));
+      board.sweeps.back().spec = nullptr;  // the feed shows progress; the spec is GET /sweeps/{id}'s
+    }
+  }
+  for (SweepInfo& s : board.sweeps) {
+    Result<RunCounts> c = SweepCounts(*t, s.id);
+    if (!c.ok()) return c.status();
+    s.counts = *c;
+    if (s.counts.queued + s.counts.running == 0) continue;
+    auto started = earliest_start(
+        "SELECT MIN(r.started_at) FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE sr.sweep_id = ?", s.id);
+    if (!started.ok()) return started.status();
+    if (*started) board.sweep_started_at[s.id] = **started;
+  }
+  {
+    Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns + " FROM campaign_runs ORDER BY id DESC LIMIT ?");
+    st.Bind(1, campaign_runs);
+    Result<std::vector<CampaignRunInfo>> rows = ReadCampaignRuns(*t, st);
+    if (!rows.ok()) return rows.status();
+    board.campaign_runs = std::move(rows).value();
+  }
+  for (const CampaignRunInfo& c : board.campaign_runs) {
+    if (c.counts.queued + c.counts.running == 0) continue;
+    auto started = earliest_start(
+        "SELECT MIN(r.started_at) FROM runs r WHERE r.id IN (SELECT sr.run_id FROM sweep_runs sr "
+        "JOIN sweeps s ON s.id = sr.sweep_id WHERE s.campaign_run_id = ?)",
+        c.id);
+    if (!started.ok()) return started.status();
+    if (*started) board.campaign_run_started_at[c.id] = **started;
+  }
+  {
+    Statement st = t->Prepare(std::string("SELECT ") + kRunColumns +
+                              " FROM runs r LEFT JOIN results res ON res.run_id = r.id WHERE r.state = 'running' "
+                              "ORDER BY r.id LIMIT ?");
+    st.Bind(1, running);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      Result<RunSummary> run = RunSummaryFromRow(st);
+      if (!run.ok()) return run.status();
+      board.running.push_back(std::move(run).value());
+    }
+  }
+  Statement st = t->Prepare("SELECT state, COUNT(*) FROM runs GROUP BY state");
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    AddState(board.runs, st.Text(0), st.Int(1));
+  }
+  return board;
+}
+
 }  // namespace sandswim

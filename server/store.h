@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -189,6 +190,18 @@ struct Metrics {
 };
 void to_json(nlohmann::json& j, const Metrics& m);
 
+// What the dashboard's live feed shows (server/live_feed.h), read in one transaction: the newest
+// sweeps and campaign runs with their counts (specs left out), every running run with its
+// progress, and, for each sweep or campaign run with runs still to do, when its first run started.
+struct LiveBoard {
+  std::vector<SweepInfo> sweeps;               // newest first
+  std::vector<CampaignRunInfo> campaign_runs;  // newest first
+  std::vector<RunSummary> running;             // by id
+  std::map<int64_t, double> sweep_started_at;         // unfinished sweeps whose runs have started
+  std::map<int64_t, double> campaign_run_started_at;  // the same, for campaign runs
+  RunCounts runs;                                     // every run, by state
+};
+
 class Store : public Database {
  public:
   // Opens (creating if needed) the SQLite file at `path` and migrates it.
@@ -211,6 +224,8 @@ class Store : public Database {
   Status PutCampaign(const StoredCampaign& c);
   Result<std::vector<StoredCampaign>> ListCampaigns();
   Result<Metrics> GetMetrics();
+  // REQUIRES: limits >= 1.
+  Result<LiveBoard> ReadLiveBoard(int sweeps, int campaign_runs, int running);
 
   // Re-analyses every result made by an older analysis than api::kAnalysisVersion from its stored
   // trajectory (the run's drive frequency, its bed's surface and its scale's floor, the stop the

@@ -1,12 +1,13 @@
 // sandswim-stand-in-engine: a STAND-IN for LIGGGHTS, for measuring and breaking the orchestration
-// ONLY: the runs-per-second benchmark of issue 4 and the daemon crash trials of issue 15
-// (tests/crash_trials_test.cc). It simulates nothing. It takes LIGGGHTS's command line (-in DECK
+// ONLY: the runs-per-second benchmark of issue 4, the daemon crash trials of issue 15
+// (tests/crash_trials_test.cc) and the dashboard's browser tests (tests/browser/). It simulates nothing. It takes LIGGGHTS's command line (-in DECK
 // -log LOG [-screen X]), writes a minimal valid log with the markers the worker reads, a short SO
 // dump (drive decks) or a small bed.restart (bed decks), and exits 0. Its version line says what
 // it is, so no result it produces can pass for a real one. No physics test uses it.
 //
 // Two environment variables, for the crash trials:
-//   SANDSWIM_STAND_IN_SECONDS  how long it lasts before writing its outputs (default 0: at once);
+//   SANDSWIM_STAND_IN_SECONDS  how long it lasts (default 0: at once): a bed deck waits, then writes;
+//                              a drive deck writes its dump's 11 frames over that time;
 //   SANDSWIM_STAND_IN_STARTS   a file it appends its working directory to when it starts, so a
 //                              test can count the engine starts of every run (one line each,
 //                              written with one O_APPEND write: lines never interleave).
@@ -16,6 +17,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -84,10 +86,8 @@ int main(int argc, char** argv) {
       }
     }
   }
-  if (const char* seconds = std::getenv("SANDSWIM_STAND_IN_SECONDS")) {
-    const double s = std::strtod(seconds, nullptr);
-    if (s > 0) usleep(static_cast<useconds_t>(s * 1e6));
-  }
+  double seconds = 0;
+  if (const char* text = std::getenv("SANDSWIM_STAND_IN_SECONDS")) seconds = std::max(0.0, std::strtod(text, nullptr));
   std::string deck;
   if (deck_file == nullptr || !ReadAll(deck_file, &deck)) {
     std::fprintf(stderr, "ERROR: Cannot open input script %s\n", deck_file ? deck_file : "(none)");
@@ -95,6 +95,7 @@ int main(int argc, char** argv) {
   }
   std::string log = "LIGGGHTS (Version sandswim-stand-in-engine 0, NOT LIGGGHTS: a benchmark stand-in)\n";
   if (deck.find("read_restart") == std::string::npos) {  // a bed deck
+    usleep(static_cast<useconds_t>(seconds * 1e6));
     WriteAll("bed.restart", "stand-in bed restart: no grains were simulated\n");
     log +=
         "SANDSWIM bed equilibrated ke 0 ke_peak 1\n"
@@ -113,20 +114,26 @@ int main(int argc, char** argv) {
   }
   const long long steps = chunks * per_chunk;
   const double dt = After(deck, "timestep", 1e-5);
-  std::string dump;
+  // The SO's dump, a frame each tenth of the run; with SANDSWIM_STAND_IN_SECONDS the frames come
+  // one by one over that time (each with one write), as a real engine's dump grows.
+  const int dump_fd = open("so.dump", O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+  if (dump_fd < 0) return 1;
   char line[256];
+  bool wrote = true;
   for (int k = 0; k <= 10; ++k) {
+    if (k > 0) usleep(static_cast<useconds_t>(seconds * 1e5));
     int n = std::snprintf(line, sizeof line,
                           "ITEM: TIMESTEP\n%lld\nITEM: NUMBER OF ATOMS\n1\nITEM: BOX BOUNDS pp pp ff\n"
                           "-0.1 0.1\n-0.1 0.1\n-0.25 0.5\nITEM: ATOMS id x y z vx vy vz omegax omegay omegaz\n"
                           "1 0 0 %g 0 0 0 0 0 0\n",
                           steps * k / 10, 0.001 * k);
-    dump.append(line, static_cast<size_t>(n));
+    wrote = wrote && write(dump_fd, line, static_cast<size_t>(n)) == n;
   }
+  close(dump_fd);
   int n = std::snprintf(line, sizeof line,
                         "SANDSWIM drive start grains 1 so_z 0 surface 0.2\n"
                         "SANDSWIM drive stop duration step %lld t %g z 0.01\n",
                         steps, steps * dt);
   log.append(line, static_cast<size_t>(n));
-  return WriteAll("so.dump", dump) && WriteAll(log_file, log) ? 0 : 1;
+  return wrote && WriteAll(log_file, log) ? 0 : 1;
 }

@@ -1,0 +1,745 @@
+// sandswim's dashboard: one page that reads the daemon's REST API (/api/v1) and its live feed.
+// Paths are the links a user pastes into a notebook: /, /campaign-runs/ID, /sweeps/ID, /runs/ID,
+// /beds, /beds/ID, /submit. Plots are uPlot (the one npm package, pinned, served by the daemon).
+//
+// Live: GET /api/v1/live/events (server-sent events, read with fetch so that a token can be sent)
+// pushes one shared snapshot per change; past the daemon's stream limit, or when the stream fails,
+// the page polls GET /api/v1/live every 2 s with its ETag. A page asks for more only when a run
+// it shows finishes (that run's own row), so its cost does not grow with ticks.
+'use strict';
+
+const $ = (sel, root = document) => root.querySelector(sel);
+const main = () => $('#main');
+
+// ---- Formatting ---------------------------------------------------------------------------------
+
+function esc(v) {
+  return String(v ?? '').replace(/[&<>"']/g, c => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;' })[c]);
+}
+function num(v, digits = 3) {
+  if (v === null || v === undefined || Number.isNaN(v)) return '';
+  if (v === 0) return '0';
+  const a = Math.abs(v);
+  return a >= 1e4 || a < 1e-3 ? v.toExponential(digits - 1) : Number(v.toPrecision(digits)).toString();
+}
+function when(t) {
+  if (!t) return '';
+  const d = new Date(t * 1000), p = n => String(n).padStart(2, '0');
+  return `${d.getFullYear()}-${p(d.getMonth() + 1)}-${p(d.getDate())} ${p(d.getHours())}:${p(d.getMinutes())}:${p(d.getSeconds())}`;
+}
+function duration(s) {
+  if (s === null || s === undefined || !isFinite(s)) return 'unknown';
+  if (s < 90) return `${Math.round(s)} s`;
+  if (s < 5400) return `${Math.round(s / 60)} min`;
+  if (s < 172800) return `${(s / 3600).toFixed(1)} h`;
+  return `${(s / 86400).toFixed(1)} d`;
+}
+function stateBadge(state) { return `<span class="state state-${esc(state)}">${esc(state)}</span>`; }
+function pointText(p) {
+  if (!p) return '';
+  const parts = [esc(p.mode)];
+  for (const k of ['A', 'f', 'Omega', 'omega']) if (p[k] !== undefined && p[k] !== null && p[k] !== 0) parts.push(`${k}=${num(p[k])}`);
+  if (p.axis && p.omega) parts.push(`axis ${esc(p.axis)}`);
+  return parts.join(' ');
+}
+
+// Counts -> a bar and a line of text with the ETA (remaining runs at the rate runs have finished
+// since the first one started; unknown until one has).
+function progressHtml(counts, startedAt, now) {
+  const c = Object.assign({ done: 0, running: 0, queued: 0, failed: 0, cancelled: 0 }, counts || {});
+  const total = c.done + c.running + c.queued + c.failed + c.cancelled;
+  const pct = k => total ? (100 * c[k] / total).toFixed(2) : 0;
+  const finished = c.done + c.failed + c.cancelled;
+  const remaining = c.queued + c.running;
+  let eta = '';
+  if (remaining > 0) {
+    eta = startedAt && finished > 0 && now > startedAt
+      ? ` · ETA ${duration(remaining * (now - startedAt) / finished)}`
+      : ' · ETA unknown until a run finishes';
+  }
+  return `<div class="progress" title="${c.done} done, ${c.running} running, ${c.queued} queued, ${c.failed} failed">` +
+    ['done', 'running', 'failed', 'cancelled'].map(k => `<span class="p-${k}" style="width:${pct(k)}%"></span>`).join('') +
+    `</div><div class="progress-text" data-role="progress-text">${c.done} done · ${c.running} running · ${c.queued} queued · ` +
+    `${c.failed} failed${c.cancelled ? ` · ${c.cancelled} cancelled` : ''}${eta}</div>`;
+}
+
+// ---- The API ------------------------------------------------------------------------------------
+
+function token() { return sessionStorage.getItem('sandswim-token') || ''; }
+function headers(extra = {}) {
+  const h = Object.assign({}, extra);
+  if (token()) h.Authorization = `Bearer ${token()}`;
+  return h;
+}
+class ApiError extends Error {
+  constructor(status, problem) {
+    super(problem && problem.detail ? problem.detail : `HTTP ${status}`);
+    this.status = status;
+    this.problem = problem || {};
+  }
+}
+async function api(path, options = {}) {
+  const res = await fetch(path, Object.assign({}, options, { headers: headers(options.headers || {}) }));
+  const text = await res.text();
+  let body = null;
+  try { body = text ? JSON.parse(text) : null; } catch (e) { body = { detail: text }; }
+  if (!res.ok) throw new ApiError(res.status, body);
+  return { body, res };
+}
+const get = async path => (await api(path)).body;
+async function post(path, body) {
+  return api(path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: typeof body === 'string' ? body : JSON.stringify(body) });
+}
+
+function say(text, ok = false) {
+  const box = $('#action-message');
+  box.textContent = text;
+  box.className = 'action-message' + (ok ? ' ok' : '');
+  box.hidden = false;
+}
+function refusal(err) {
+  if (err.status === 401) return `Refused (401): ${err.message}. Paste the daemon's token in the token box above and try again.`;
+  return `Refused (${err.status || 'network'}): ${err.message}`;
+}
+
+// ---- Live feed ----------------------------------------------------------------------------------
+
+const live = { snapshot: null, listeners: new Set(), etag: null, mode: 'connecting' };
+
+function setLiveStatus(mode, why = '') {
+  live.mode = mode;
+  const el = $('#live-status');
+  el.textContent = { live: 'live', polling: 'live (polling)', offline: 'offline: retrying', connecting: 'connecting…' }[mode];
+  el.className = `live-status ${mode}`;
+  el.title = why || el.title;
+}
+function publish(snapshot) {
+  if (live.snapshot && snapshot.version === live.snapshot.version) return;
+  live.snapshot = snapshot;
+  live.receivedAt = Date.now() / 1000;
+  for (const fn of live.listeners) {
+    try { fn(snapshot); } catch (e) { console.warn('live update', e); }
+  }
+}
+function onLive(fn) {
+  live.listeners.add(fn);
+  if (live.snapshot) fn(live.snapshot);
+}
+// The daemon's "now", from the last snapshot's clock.
+function daemonNow() {
+  return live.snapshot ? live.snapshot.time + (Date.now() / 1000 - live.receivedAt) : Date.now() / 1000;
+}
+
+async function streamLive() {
+  const res = await fetch('/api/v1/live/events', { headers: headers({ Accept: 'text/event-stream' }) });
+  if (!res.ok || !res.body) throw new ApiError(res.status, null);
+  setLiveStatus('live', 'server-sent events');
+  const reader = res.body.getReader();
+  const decoder = new TextDecoder();
+  let buffer = '';
+  for (;;) {
+    const { value, done } = await reader.read();
+    if (done) throw new Error('the stream ended');
+    buffer += decoder.decode(value, { stream: true });
+    let end;
+    while ((end = buffer.indexOf('\n\n')) >= 0) {
+      const block = buffer.slice(0, end);
+      buffer = buffer.slice(end + 2);
+      const data = block.split('\n').filter(l => l.startsWith('data: ')).map(l => l.slice(6)).join('\n');
+      if (data) publish(JSON.parse(data));
+    }
+  }
+}
+async function pollLive() {
+  const res = await fetch('/api/v1/live', { headers: headers(live.etag ? { 'If-None-Match': live.etag } : {}) });
+  if (res.status === 304) return;
+  if (!res.ok) throw new ApiError(res.status, null);
+  live.etag = res.headers.get('ETag');
+  publish(await res.json());
+}
+async function runLive() {
+  for (;;) {
+    try {
+      await streamLive();
+    } catch (e) {
+      // 503: every stream the daemon allows is open; poll. Otherwise the daemon may be restarting.
+      const until = Date.now() + (e.status === 503 ? 60000 : 10000);
+      while (Date.now() < until) {
+        try {
+          await pollLive();
+          setLiveStatus('polling', e.status === 503 ? 'the daemon\'s stream limit is reached' : String(e.message));
+        } catch (err) {
+          setLiveStatus('offline', `the daemon does not answer (${err.message}); retrying`);
+        }
+        await new Promise(r => setTimeout(r, 2000));
+      }
+    }
+  }
+}
+
+// ---- Tables that sort and filter ---------------------------------------------------------------
+
+// columns: [{key, label, num?, html?(row)->string, value?(row)->sortable}]. Shows at most `limit`
+// matching rows at first (a "show all" button for the rest), so a 10,000-run page renders fast.
+function dataTable(container, columns, rows, { filterPlaceholder = 'filter…', limit = 500, rowId = null } = {}) {
+  const state = { rows, sortKey: null, dir: 1, filter: '', limit };
+  container.innerHTML = `<div class="table-tools"><input type="search" class="table-filter" placeholder="${esc(filterPlaceholder)}">` +
+    `<span class="muted table-count"></span><button class="show-all" hidden>show all</button></div>` +
+    `<div class="table-wrap"><table><thead><tr>${columns.map(c => `<th class="sortable" data-key="${esc(c.key)}">${esc(c.label)}</th>`).join('')}</tr></thead><tbody></tbody></table></div>`;
+  const tbody = $('tbody', container);
+  const valueOf = (c, r) => (c.value ? c.value(r) : r[c.key]);
+  const textOf = r => columns.map(c => { const v = valueOf(c, r); return v === null || v === undefined ? '' : String(v); }).join(' ').toLowerCase();
+  function render() {
+    let shown = state.rows;
+    if (state.filter) {
+      const words = state.filter.toLowerCase().split(/\s+/).filter(Boolean);
+      shown = shown.filter(r => { const t = textOf(r); return words.every(w => t.includes(w)); });
+    }
+    if (state.sortKey) {
+      const c = columns.find(x => x.key === state.sortKey);
+      shown = shown.slice().sort((a, b) => {
+        const va = valueOf(c, a), vb = valueOf(c, b);
+        if (va === vb) return 0;
+        if (va === null || va === undefined || va === '') return 1;
+        if (vb === null || vb === undefined || vb === '') return -1;
+        return (va < vb ? -1 : 1) * state.dir;
+      });
+    }
+    const visible = shown.slice(0, state.limit);
+    tbody.innerHTML = visible.map(r => `<tr${rowId ? ` data-id="${esc(rowId(r))}"` : ''}>` + columns.map(c =>
+      `<td${c.num ? ' class="num"' : ''} data-key="${esc(c.key)}">${c.html ? c.html(r) : esc(r[c.key])}</td>`).join('') + '</tr>').join('');
+    $('.table-count', container).textContent = visible.length < shown.length
+      ? `showing ${visible.length} of ${shown.length} (${state.rows.length} in all)` : `${shown.length} of ${state.rows.length}`;
+    $('.show-all', container).hidden = visible.length >= shown.length;
+    for (const th of container.querySelectorAll('th')) {
+      th.classList.toggle('sorted-asc', th.dataset.key === state.sortKey && state.dir > 0);
+      th.classList.toggle('sorted-desc', th.dataset.key === state.sortKey && state.dir < 0);
+    }
+  }
+  $('.table-filter', container).addEventListener('input', e => { state.filter = e.target.value; render(); });
+  $('.show-all', container).addEventListener('click', () => { state.limit = Infinity; render(); });
+  for (const th of container.querySelectorAll('th')) {
+    th.addEventListener('click', () => {
+      state.dir = state.sortKey === th.dataset.key ? -state.dir : 1;
+      state.sortKey = th.dataset.key;
+      render();
+    });
+  }
+  render();
+  return { setRows(r) { state.rows = r; render(); }, rows: () => state.rows, render };
+}
+
+// ---- Plots (uPlot) -------------------------------------------------------------------------------
+
+const palette = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#17becf', '#8c564b', '#e377c2', '#7f7f7f', '#bcbd22'];
+
+// Points with vertical error bars (half-widths `err`), and optional law curves: hover shows values.
+function uzPlot(el, { xLabel, yLabel, x, y, err, curves = [], title }) {
+  const xs = [...new Set([...x, ...curves.flatMap(c => c.x)])].sort((a, b) => a - b);
+  const at = new Map(xs.map((v, i) => [v, i]));
+  const column = (px, py) => { const a = new Array(xs.length).fill(null); px.forEach((v, i) => { a[at.get(v)] = py[i]; }); return a; };
+  const yCol = column(x, y), errCol = column(x, err.map(e => e ?? null));
+  const data = [xs, yCol, ...curves.map(c => column(c.x, c.y))];
+  const series = [{ label: xLabel }, { label: `${yLabel} (±95 %)`, stroke: palette[0], paths: () => null, points: { show: true, size: 8, fill: palette[0] },
+    value: (u, v, si, i) => (v === null ? '—' : `${num(v)} ± ${num(errCol[i])}`) }]
+    .concat(curves.map((c, i) => ({ label: c.label, stroke: palette[(i + 1) % palette.length], width: 1.5, spanGaps: true, points: { show: false } })));
+  const errorBars = u => {
+    const ctx = u.ctx;
+    ctx.save();
+    ctx.strokeStyle = palette[0];
+    ctx.lineWidth = 1.5 * devicePixelRatio;
+    for (let i = 0; i < xs.length; i++) {
+      if (yCol[i] === null || errCol[i] === null) continue;
+      const px = Math.round(u.valToPos(xs[i], 'x', true));
+      const lo = u.valToPos(yCol[i] - errCol[i], 'y', true), hi = u.valToPos(yCol[i] + errCol[i], 'y', true);
+      ctx.beginPath();
+      ctx.moveTo(px, lo); ctx.lineTo(px, hi);
+      ctx.moveTo(px - 4, lo); ctx.lineTo(px + 4, lo);
+      ctx.moveTo(px - 4, hi); ctx.lineTo(px + 4, hi);
+      ctx.stroke();
+    }
+    ctx.restore();
+  };
+  const ys = yCol.map((v, i) => (v === null ? null : [v - (errCol[i] || 0), v + (errCol[i] || 0)])).filter(Boolean).flat();
+  const yMin = Math.min(0, ...ys, ...curves.flatMap(c => c.y)), yMax = Math.max(0, ...ys, ...curves.flatMap(c => c.y));
+  const pad = (yMax - yMin) * 0.08 || 0.01;
+  return new uPlot({
+    title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
+    scales: { x: { time: false }, y: { range: [yMin - pad, yMax + pad] } },
+    axes: [{ label: xLabel }, { label: yLabel, size: 70 }],
+    hooks: { draw: [errorBars] },
+  }, data, el);
+}
+
+// z(t) of several runs (each its own times), on one plot: hover shows each run's z.
+function trajectoriesPlot(el, runs, { title = 'z(t) of the SO' } = {}) {
+  const xs = [...new Set(runs.flatMap(r => r.t))].sort((a, b) => a - b);
+  const at = new Map(xs.map((v, i) => [v, i]));
+  const data = [xs, ...runs.map(r => { const a = new Array(xs.length).fill(null); r.t.forEach((t, i) => { a[at.get(t)] = r.z[i]; }); return a; })];
+  const series = [{ label: 't (s)', value: (u, v) => (v === null ? '—' : num(v, 4)) }]
+    .concat(runs.map((r, i) => ({ label: r.label, stroke: palette[i % palette.length], width: 1.4, spanGaps: true, points: { show: false },
+      value: (u, v) => (v === null ? '—' : `${num(v, 4)} m`) })));
+  return new uPlot({ title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
+    scales: { x: { time: false } }, axes: [{ label: 't (s)' }, { label: 'z (m)', size: 70 }] }, data, el);
+}
+
+function decimate(t, z, max = 800) {
+  if (t.length <= max) return { t, z };
+  const step = Math.ceil(t.length / max), T = [], Z = [];
+  for (let i = 0; i < t.length; i += step) { T.push(t[i]); Z.push(z[i]); }
+  T.push(t[t.length - 1]); Z.push(z[z.length - 1]);
+  return { t: T, z: Z };
+}
+
+// ---- Result rows (sweep and campaign-run pages) -------------------------------------------------
+
+const flagText = r => [r.precision_met ? 'target met' : '', r.broke_surface ? 'broke surface' : '', r.near_floor ? 'near floor' : '',
+  r.conclusive === false ? 'inconclusive' : ''].filter(Boolean).join(', ');
+function resultColumns(withSweeps) {
+  const cols = [
+    { key: 'run_id', label: 'run', num: true, html: r => `<a href="/runs/${r.run_id}">${r.run_id}</a>` },
+    { key: 'mode', label: 'mode' },
+    { key: 'A', label: 'A (m)', num: true, html: r => num(r.A) },
+    { key: 'f', label: 'f (Hz)', num: true, html: r => num(r.f) },
+    { key: 'Omega', label: 'Ω (rad/s)', num: true, html: r => num(r.Omega) },
+    { key: 'omega', label: 'ω (rad/s)', num: true, html: r => num(r.omega) },
+    { key: 'replicate', label: 'bed', num: true },
+    { key: 'state', label: 'state', html: r => stateBadge(r.state) + (r.progress ? ` <span class="muted">${esc(r.progress)}</span>` : '') },
+    { key: 'Uz', label: 'U_z (m/s)', num: true, html: r => esc(r.Uz_text || ''), value: r => r.Uz },
+    { key: 'dz', label: 'Δz (m)', num: true, html: r => num(r.dz) },
+    { key: 'flags', label: 'flags', value: r => flagText(r), html: r => esc(flagText(r)) + (r.inconclusive_reason ? ` <span class="muted" title="${esc(r.inconclusive_reason)}">(why?)</span>` : '') },
+  ];
+  if (withSweeps) cols.push({ key: 'sweeps', label: 'sweeps', value: r => (r.sweeps || []).join(' '), html: r => esc((r.sweeps || []).join(', ')) });
+  return cols;
+}
+
+// Keeps a results table in step with the live feed: running runs show their simulated time; a run
+// that stops running is read once (its own row) and its row replaced.
+function followRows(table) {
+  let running = new Set();
+  onLive(async snap => {
+    const now = new Map((snap.running || []).map(r => [r.id, r]));
+    const rows = table.rows();
+    const byId = new Map(rows.map(r => [r.run_id, r]));
+    let changed = false;
+    for (const [id, r] of now) {
+      const row = byId.get(id);
+      if (!row) continue;
+      row.state = 'running';
+      row.progress = `${num(r.progress.sim_time_s)} of ${num(r.run_duration_s)} s`;
+      changed = true;
+    }
+    const finished = [...running].filter(id => !now.has(id) && byId.has(id));
+    running = new Set([...now.keys()].filter(id => byId.has(id)));
+    for (const id of finished) {
+      try {
+        const run = await get(`/api/v1/runs/${id}`);
+        const row = byId.get(id);
+        row.state = run.state;
+        row.progress = '';
+        const res = run.result || {};
+        Object.assign(row, { Uz: res.uz ?? null, Uz_text: res.uz_text || '', dz: res.dz ?? null, conclusive: res.conclusive,
+          inconclusive_reason: res.inconclusive_reason || '', precision_met: res.precision_met, broke_surface: res.broke_surface, near_floor: res.near_floor });
+        changed = true;
+      } catch (e) { console.warn('run', id, e); }
+    }
+    if (changed) table.render();
+  });
+}
+
+// A fit branch's side of Omega = 0: the rising branch is Omega < 0 (Sec. 3.2), the sinking one > 0.
+const branchSign = name => (/ris|neg/.test(name) ? -1 : 1);
+
+// U_z against the swept parameter, per sweep: the point aggregates (over replicate beds) with their
+// 95 % intervals, and the fitted law when the daemon fitted one.
+async function sweepUzPlot(el, sweep) {
+  const axes = (sweep.spec && sweep.spec.axes) || [];
+  const param = axes.length === 1 ? axes[0].param : null;
+  if (!param) { el.innerHTML = '<p class="muted">No single swept parameter: no U_z curve.</p>'; return; }
+  const [results, fits] = await Promise.all([get(`/api/v1/sweeps/${sweep.id}/results`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
+  const pts = (results.aggregates || []).filter(a => a.uz_mean !== undefined && a.conclusive > 0);
+  if (!pts.length) { el.innerHTML = `<p class="muted">${esc(sweep.name)}: no conclusive U_z yet.</p>`; return; }
+  const x = pts.map(a => a[param]), y = pts.map(a => a.uz_mean), err = pts.map(a => a.uz_ci95 ?? null);
+  const curves = [];
+  for (const b of (fits && fits.branches) || []) {
+    const lo = Math.min(...x), hi = Math.max(...x), grid = Array.from({ length: 60 }, (_, i) => lo + (hi - lo) * i / 59);
+    if (b.saturation && param === 'Omega') {
+      const s = b.saturation, xs = grid.filter(v => (branchSign(b.branch) < 0 ? v < 0 : v > 0));
+      curves.push({ label: `fit (${b.branch}): C1=${num(s.C1)}±${num(s.C1_stderr)} m/s`, x: xs, y: xs.map(v => s.sign * s.C1 * (1 - Math.exp(-s.C2 * Math.abs(v)))) });
+    }
+    if (b.linear && param === 'A') {
+      const l = b.linear, xs = grid.filter(v => v >= l.A_from && v <= l.A_to);
+      curves.push({ label: `fit: C3=${num(l.C3)}±${num(l.C3_stderr)} 1/s`, x: xs, y: xs.map(v => l.C3 * v) });
+    }
+  }
+  uzPlot(el, { title: `${sweep.name}: U_z against ${param}`, xLabel: param, yLabel: 'U_z (m/s)', x, y, err, curves });
+}
+
+// ---- Pages --------------------------------------------------------------------------------------
+
+async function overviewPage() {
+  document.title = 'sandswim';
+  main().innerHTML = `<h1>Campaigns and sweeps</h1>
+    <section class="card"><h2>Campaign runs</h2><div id="campaign-runs"></div></section>
+    <section class="card"><h2>Sweeps</h2><div id="sweeps"></div></section>
+    <section class="card"><h2>Run a campaign again</h2><div id="campaigns" class="muted">Loading…</div></section>`;
+  get('/api/v1/campaigns').then(r => {
+    const list = r.campaigns || [];
+    $('#campaigns').innerHTML = list.length ? list.map(c => `<p><b>${esc(c.name)}</b> (${esc(c.scale || '')}) ` +
+      `<button class="rerun" data-campaign="${esc(c.name)}">Run ${esc(c.name)} now</button> <span class="muted">${esc(c.description || '')}</span></p>`).join('')
+      : 'No campaigns.';
+    for (const b of document.querySelectorAll('button.rerun')) b.addEventListener('click', () => rerunCampaign(b.dataset.campaign));
+  }).catch(e => { $('#campaigns').textContent = e.message; });
+  const crTable = dataTable($('#campaign-runs'), [
+    { key: 'id', label: 'id', num: true, html: r => `<a href="/campaign-runs/${r.id}">${r.id}</a>` },
+    { key: 'campaign', label: 'campaign' }, { key: 'scale', label: 'scale' }, { key: 'trigger', label: 'trigger' },
+    { key: 'created_at', label: 'started', html: r => esc(when(r.created_at)) },
+    { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.started_at, daemonNow()) },
+  ], [], { rowId: r => r.id });
+  const swTable = dataTable($('#sweeps'), [
+    { key: 'id', label: 'id', num: true, html: r => `<a href="/sweeps/${r.id}">${r.id}</a>` },
+    { key: 'name', label: 'name' }, { key: 'scale', label: 'scale' },
+    { key: 'campaign_run_id', label: 'campaign run', html: r => (r.campaign_run_id ? `<a href="/campaign-runs/${r.campaign_run_id}">${r.campaign_run_id}</a>` : '') },
+    { key: 'created_at', label: 'submitted', html: r => esc(when(r.created_at)) },
+    { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.started_at, daemonNow()) + (r.cancelled ? ' <span class="state state-cancelled">cancelled</span>' : '') },
+  ], [], { rowId: r => r.id });
+  onLive(snap => { crTable.setRows(snap.campaign_runs || []); swTable.setRows(snap.sweeps || []); });
+}
+
+async function rerunCampaign(name) {
+  try {
+    const { body } = await post('/api/v1/sweeps', { campaign: name });
+    say(`Campaign ${name} submitted: campaign run ${body.id} (${body.runs} runs, ${body.runs_new} new).`, true);
+    history.pushState(null, '', `/campaign-runs/${body.id}`);
+    route();
+  } catch (e) { say(refusal(e)); }
+}
+
+async function campaignRunPage(id) {
+  document.title = `campaign run ${id} · sandswim`;
+  const [info, results] = await Promise.all([get(`/api/v1/campaign-runs/${id}`), get(`/api/v1/campaign-runs/${id}/results`)]);
+  main().innerHTML = `<h1>Campaign run ${id}: ${esc(info.campaign)} at ${esc(info.scale)}</h1>
+    <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
+      <dt>progress</dt><dd id="progress">${progressHtml(info.counts, null, daemonNow())}</dd>
+      <dt>sweeps</dt><dd>${info.sweeps.map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
+      <dt>report</dt><dd><a href="/api/v1/campaign-runs/${id}/report">the HTML report</a> · <a href="/api/v1/campaign-runs/${id}/results?format=csv">results as CSV</a></dd></dl></section>
+    <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
+    <section class="card"><h2>Runs</h2><div id="runs"></div></section>
+    <section class="card"><h2>U_z against the swept parameter</h2><div id="uz-plots" class="grid2"></div>
+      <h2>Figures</h2><div id="figures" class="grid2"></div></section>`;
+  const table = dataTable($('#runs'), resultColumns(true), results.results || [], { filterPlaceholder: 'filter runs (e.g. "Omega done", "inconclusive")', rowId: r => r.run_id });
+  followRows(table);
+  onLive(snap => {
+    const mine = (snap.campaign_runs || []).find(c => c.id === id);
+    if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.started_at, daemonNow());
+  });
+  get(`/api/v1/campaign-runs/${id}/claims`).then(c => {
+    $('#claims').classList.remove('muted');
+    const n = c.counts || {};
+    $('#claims').innerHTML = `<p>${n.holds || 0} hold · ${n.differs || 0} differ · ${n.inconclusive || 0} inconclusive. ${esc(c.note || '')}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>why</th></tr></thead><tbody>` +
+      (c.claims || []).map(v => `<tr><td title="${esc(v.paper && v.paper.text)}"><b>${esc(v.id)}</b> ${esc(v.title)}</td>` +
+        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict)}</span></td><td style="white-space:normal">${esc(v.reason)}</td></tr>`).join('') + '</tbody></table>';
+  }).catch(e => { $('#claims').textContent = `No verdicts: ${e.message}`; });
+  const plots = $('#uz-plots'), figures = $('#figures');
+  for (const sid of info.sweeps) {
+    const sweep = await get(`/api/v1/sweeps/${sid}`);
+    const div = document.createElement('div');
+    div.className = 'plot';
+    plots.appendChild(div);
+    sweepUzPlot(div, sweep).catch(e => { div.textContent = `${sweep.name}: ${e.message}`; });
+    figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="U_z of sweep ${esc(sweep.name)}" src="/api/v1/sweeps/${sid}/uz.svg"><figcaption>${esc(sweep.name)} (the daemon's figure)</figcaption></figure>`);
+  }
+  figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="modes" src="/api/v1/campaign-runs/${id}/modes.svg"><figcaption>the drive modes (paper Fig. 2)</figcaption></figure>`);
+}
+
+async function sweepPage(id) {
+  document.title = `sweep ${id} · sandswim`;
+  const [sweep, results] = await Promise.all([get(`/api/v1/sweeps/${id}`), get(`/api/v1/sweeps/${id}/results`)]);
+  main().innerHTML = `<h1>Sweep ${id}: ${esc(sweep.name)} <span class="muted">(${esc(sweep.scale)})</span></h1>
+    <section class="card"><dl class="facts"><dt>submitted</dt><dd>${esc(when(sweep.created_at))}${sweep.campaign_run_id ? ` in <a href="/campaign-runs/${sweep.campaign_run_id}">campaign run ${sweep.campaign_run_id}</a>` : ''}</dd>
+      <dt>progress</dt><dd id="progress">${progressHtml(sweep.counts, null, daemonNow())}</dd>
+      <dt></dt><dd><button id="cancel" class="danger" ${sweep.cancelled ? 'disabled' : ''}>${sweep.cancelled ? 'cancelled' : 'Cancel this sweep'}</button>
+      <a href="/api/v1/sweeps/${id}/results?format=csv">results as CSV</a></dd></dl></section>
+    <section class="card"><h2>Runs</h2><div id="runs"></div></section>
+    <section class="card grid2"><div><h2>U_z</h2><div id="uz-plot" class="plot"></div></div><div><h2>z(t)</h2><div id="zt-plot" class="plot"></div></div></section>
+    <section class="card"><h2>The daemon's figures</h2><div class="grid2"><img class="figure" alt="U_z" src="/api/v1/sweeps/${id}/uz.svg">
+      <img class="figure" alt="trajectories" loading="lazy" src="/api/v1/sweeps/${id}/trajectories.svg"></div></section>`;
+  const table = dataTable($('#runs'), resultColumns(false), results.results || [], { rowId: r => r.run_id });
+  followRows(table);
+  $('#cancel').addEventListener('click', async () => {
+    try {
+      const { body } = await post(`/api/v1/sweeps/${id}/cancel`, {});
+      say(`Sweep ${id} cancelled: ${body.cancel ? JSON.stringify(body.cancel) : ''}`, true);
+      $('#cancel').disabled = true;
+    } catch (e) { say(refusal(e)); }
+  });
+  onLive(snap => {
+    const mine = (snap.sweeps || []).find(s => s.id === id);
+    if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.started_at, daemonNow());
+  });
+  sweepUzPlot($('#uz-plot'), sweep).catch(e => { $('#uz-plot').textContent = e.message; });
+  const done = (results.results || []).filter(r => r.state === 'done').slice(0, 12);
+  const runs = await Promise.all(done.map(r => get(`/api/v1/runs/${r.run_id}`)));
+  const series = runs.filter(r => r.trajectory && r.trajectory.t.length).map(r => Object.assign(decimate(r.trajectory.t, r.trajectory.z), { label: `run ${r.id}: ${pointText(r.point)}` }));
+  if (series.length) trajectoriesPlot($('#zt-plot'), series);
+  else $('#zt-plot').innerHTML = '<p class="muted">No finished run yet.</p>';
+}
+
+async function runPage(id) {
+  document.title = `run ${id} · sandswim`;
+  let run = await get(`/api/v1/runs/${id}`);
+  const render = () => {
+    const res = run.result;
+    const err = run.last_error;
+    main().innerHTML = `<h1>Run ${id} <span id="run-state">${stateBadge(run.state)}</span></h1>
+      <section class="card"><dl class="facts"><dt>point</dt><dd>${esc(pointText(run.point))}</dd>
+        <dt>bed</dt><dd><a href="/beds/${run.bed_id}">bed ${run.bed_id}</a></dd>
+        <dt>sweeps</dt><dd>${(run.sweeps || []).map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
+        <dt>attempts</dt><dd>${run.attempts}${run.worker ? ` · worker ${esc(run.worker)}` : ''}</dd>
+        <dt>progress</dt><dd><span class="bar"><span id="sim-bar" style="width:0%"></span></span> <span id="sim-time"></span></dd>
+        ${err ? `<dt>failure</dt><dd id="failure" class="error">${esc(err.kind)}: ${esc(err.message || err.reason || JSON.stringify(err))}</dd>` : ''}
+      </dl></section>
+      <section class="card"><h2>z(t) of the SO</h2><div id="zt-plot" class="plot"></div><p class="muted" id="zt-note"></p></section>
+      ${res ? `<section class="card"><h2>Result</h2><dl class="facts" id="result">
+        <dt>U_z</dt><dd><b>${esc(res.uz_text || '')}</b></dd>
+        <dt>window</dt><dd>${num(res.window_t0)} – ${num(res.window_t1)} s, ${res.uz_blocks} ${esc(res.block_kind || 'block')}s, ends at ${esc(res.window_end)}</dd>
+        <dt>Δz</dt><dd>${num(res.dz, 4)} m over ${num(res.sim_time_s)} s</dd>
+        <dt>stopped</dt><dd>${esc(res.stop_reason)}: ${esc(res.stop_note || '')}</dd>
+        ${res.conclusive ? '' : `<dt>inconclusive</dt><dd>${esc(res.inconclusive_reason)}</dd>`}
+        <dt>engine</dt><dd>${esc(res.engine_version)} · ${res.ranks} rank(s) · ${esc(res.launcher)} · ${num(res.wall_s)} s wall</dd></dl></section>` : ''}
+      ${(run.snapshots_taken || []).length ? `<section class="card"><h2>The bed</h2><div class="grid2">${run.snapshots_taken.map(s =>
+        `<figure><img class="figure" loading="lazy" src="${esc(s.links.slice_svg)}" alt="slice"><figcaption>t = ${num(s.t_s)} s · <a href="${esc(s.links.vtk)}">VTK</a> · <a href="${esc(s.links.dump)}">dump</a></figcaption></figure>`).join('')}</div></section>` : ''}
+      <section class="card"><h2>Log tail</h2><pre id="log-tail">${esc(run.log_tail || '(none yet)')}</pre></section>
+      <section class="card"><details><summary>The deck</summary><pre id="deck">${esc(run.deck)}</pre></details></section>`;
+  };
+  render();
+  let t = [], z = [];
+  let plot = null;
+  const draw = note => {
+    const d = decimate(t, z, 2000);
+    if (!plot) { if (d.t.length) plot = trajectoriesPlot($('#zt-plot'), [Object.assign(d, { label: `run ${id}` })], { title: '' }); }
+    else plot.setData([d.t, d.z]);
+    $('#zt-note').textContent = note;
+  };
+  const showProgress = (simTime, total) => {
+    $('#sim-time').textContent = `${num(simTime)} of ${num(total)} s simulated`;
+    $('#sim-bar').style.width = `${Math.min(100, 100 * simTime / (total || 1))}%`;
+  };
+  if (run.trajectory && run.trajectory.t.length) {
+    ({ t, z } = run.trajectory);
+    draw('The stored trajectory (every dump frame).');
+    showProgress(run.result ? run.result.sim_time_s : run.progress.sim_time_s, run.run_duration_s);
+  } else {
+    showProgress(run.progress.sim_time_s, run.run_duration_s);
+    if (run.state === 'running') {
+      const trail = await get(`/api/v1/runs/${id}/trail`);
+      t = trail.t.slice(); z = trail.z.slice();
+      draw('Live: one point per heartbeat; the whole trajectory replaces it when the run ends.');
+    } else {
+      $('#zt-note').textContent = run.state === 'queued' ? 'Queued: z(t) appears when it runs.' : 'No trajectory.';
+    }
+  }
+  let wasRunning = run.state === 'running';
+  onLive(async snap => {
+    const me = (snap.running || []).find(r => r.id === id);
+    if (me) {
+      wasRunning = true;
+      $('#run-state').innerHTML = stateBadge('running');
+      showProgress(me.progress.sim_time_s, me.run_duration_s);
+      if (me.progress.sim_time_s > (t.length ? t[t.length - 1] : -1)) {
+        t.push(me.progress.sim_time_s); z.push(me.progress.so_z);
+        draw('Live: one point per heartbeat; the whole trajectory replaces it when the run ends.');
+      }
+    } else if (wasRunning) {
+      wasRunning = false;
+      run = await get(`/api/v1/runs/${id}`);
+      plot = null;
+      render();
+      if (run.trajectory && run.trajectory.t.length) { ({ t, z } = run.trajectory); draw('The stored trajectory (every dump frame).'); }
+      showProgress(run.result ? run.result.sim_time_s : run.progress.sim_time_s, run.run_duration_s);
+    }
+  });
+}
+
+async function bedsPage() {
+  document.title = 'beds · sandswim';
+  const { beds } = await get('/api/v1/beds');
+  main().innerHTML = '<h1>Beds</h1><section class="card"><div id="beds"></div></section>';
+  dataTable($('#beds'), bedColumns(), beds, { rowId: b => b.id });
+}
+function bedColumns() {
+  return [
+    { key: 'id', label: 'id', num: true, html: b => `<a href="/beds/${b.id}">${b.id}</a>` },
+    { key: 'scale', label: 'scale' }, { key: 'replicate', label: 'replicate', num: true },
+    { key: 'state', label: 'state', html: b => stateBadge(b.state) },
+    { key: 'grains', label: 'grains', num: true, value: b => b.result && b.result.grains },
+    { key: 'packing', label: 'packing fraction', num: true, value: b => b.result && b.result.packing_fraction, html: b => num(b.result && b.result.packing_fraction) },
+    { key: 'bed_height', label: 'height (m)', num: true, value: b => b.result && b.result.bed_height, html: b => num(b.result && b.result.bed_height) },
+    { key: 'so_depth', label: 'SO depth (m)', num: true, value: b => b.result && b.result.so_depth, html: b => num(b.result && b.result.so_depth) },
+    { key: 'seeds', label: 'seeds', value: b => (b.seeds ? `${b.seeds.pour1} ${b.seeds.pour2}` : ''), html: b => esc(b.seeds ? `${b.seeds.pour1}, ${b.seeds.pour2}` : '') },
+    { key: 'runs', label: 'runs', num: true },
+  ];
+}
+async function bedPage(id) {
+  document.title = `bed ${id} · sandswim`;
+  const b = await get(`/api/v1/beds/${id}`);
+  const r = b.result || {};
+  main().innerHTML = `<h1>Bed ${id} ${stateBadge(b.state)}</h1><section class="card"><dl class="facts" id="bed">
+    <dt>scale</dt><dd>${esc(b.scale)}, replicate ${b.replicate}</dd>
+    <dt>seeds</dt><dd>${esc(b.seeds ? `pour ${b.seeds.pour1}, ${b.seeds.pour2}` : 'from before replicates')}</dd>
+    <dt>grains</dt><dd>${esc(r.grains ?? '')}</dd>
+    <dt>height</dt><dd>${num(r.bed_height)} m</dd>
+    <dt>SO depth</dt><dd>${num(r.so_depth)} m</dd>
+    <dt>packing fraction</dt><dd>${num(r.packing_fraction)} (in the shell around the SO)</dd>
+    <dt>runs on it</dt><dd><a href="/api/v1/runs?bed=${id}">${b.runs}</a></dd>
+    ${b.last_error ? `<dt>failure</dt><dd class="error">${esc(JSON.stringify(b.last_error))}</dd>` : ''}
+    <dt>key</dt><dd><code>${esc(b.key)}</code></dd></dl></section>`;
+}
+
+// ---- Submit: a JSON editor that shows the daemon's field errors next to the field --------------
+
+const exampleSweep = {
+  name: 'omega-sign', scale: 'smoke',
+  base: { mode: 'oscillatory', A: 0.03, f: 3, Omega: -80, duration_s: 1.5 },
+  axes: [{ param: 'Omega', values: [-80, 80] }],
+};
+
+// Where each JSON path's value starts in `text` ("axes[0].values[1]" -> offset), by a tolerant scan.
+function jsonPathOffsets(text) {
+  const out = new Map();
+  let i = 0;
+  const ws = () => { while (i < text.length && /\s/.test(text[i])) i++; };
+  const str = () => { const s = i; i++; while (i < text.length && text[i] !== '"') { if (text[i] === '\\') i++; i++; } i++; try { return JSON.parse(text.slice(s, i)); } catch (e) { return text.slice(s + 1, i - 1); } };
+  function value(path) {
+    ws();
+    out.set(path, i);
+    if (text[i] === '{') {
+      i++; ws();
+      while (i < text.length && text[i] !== '}') {
+        ws();
+        if (text[i] !== '"') return;
+        const keyAt = i, key = str();
+        const child = path ? `${path}.${key}` : key;
+        out.set(child, keyAt);
+        ws(); if (text[i] === ':') i++;
+        value(child); out.set(child, keyAt);
+        ws(); if (text[i] === ',') i++; ws();
+      }
+      i++;
+    } else if (text[i] === '[') {
+      i++; ws();
+      for (let k = 0; i < text.length && text[i] !== ']'; k++) {
+        value(`${path}[${k}]`);
+        ws(); if (text[i] === ',') i++; ws();
+      }
+      i++;
+    } else if (text[i] === '"') {
+      str();
+    } else {
+      while (i < text.length && !/[,\]}\s]/.test(text[i])) i++;
+    }
+  }
+  try { value(''); } catch (e) { /* a partial map is still useful */ }
+  return out;
+}
+// The line of the deepest known prefix of `field` (the daemon may name "sweeps[0].axes[1]").
+function fieldLine(text, field) {
+  const offsets = jsonPathOffsets(text);
+  let path = field.replace(/^sweeps\[0\]\.?/, '');
+  while (path) {
+    if (offsets.has(path)) return text.slice(0, offsets.get(path)).split('\n').length;
+    const cut = Math.max(path.lastIndexOf('.'), path.lastIndexOf('['));
+    path = cut > 0 ? path.slice(0, cut) : '';
+  }
+  return 1;
+}
+
+async function submitPage() {
+  document.title = 'submit · sandswim';
+  main().innerHTML = `<h1>Submit a sweep</h1>
+    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api/v1/openapi.json">the API document</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.</p>
+    <div class="editor"><div class="gutter" id="gutter"></div><textarea id="sweep-json" spellcheck="false"></textarea></div>
+    <p><button id="submit">Submit</button> <span id="submit-result"></span></p>
+    <div id="submit-errors"></div>`;
+  const area = $('#sweep-json'), gutter = $('#gutter');
+  area.value = sessionStorage.getItem('sandswim-draft') || JSON.stringify(exampleSweep, null, 2);
+  let badLine = 0;
+  const paintGutter = () => {
+    const n = area.value.split('\n').length;
+    gutter.innerHTML = Array.from({ length: n }, (_, k) => (k + 1 === badLine ? `<span class="bad">${k + 1}</span>` : String(k + 1))).join('\n');
+    gutter.scrollTop = area.scrollTop;
+    const marker = $('.field-error', $('.editor'));
+    if (marker) marker.style.top = `${6 + (badLine - 1) * 18 - area.scrollTop}px`;
+  };
+  area.addEventListener('input', () => { sessionStorage.setItem('sandswim-draft', area.value); paintGutter(); });
+  area.addEventListener('scroll', paintGutter);
+  paintGutter();
+  $('#submit').addEventListener('click', async () => {
+    for (const m of document.querySelectorAll('.field-error')) m.remove();
+    $('#submit-errors').innerHTML = '';
+    $('#submit-result').textContent = 'submitting…';
+    badLine = 0;
+    try {
+      const { body, res } = await post('/api/v1/sweeps', area.value);
+      $('#submit-result').textContent = '';
+      say(`Submitted: ${body.runs} runs (${body.runs_new} new, ${body.runs_reused} reused).`, true);
+      const location = (res.headers.get('Location') || '').replace('/api/v1', '');
+      history.pushState(null, '', location || '/');
+      route();
+    } catch (e) {
+      $('#submit-result').textContent = '';
+      const p = e.problem || {};
+      const field = p.field || '';
+      badLine = field ? fieldLine(area.value, field) : 0;
+      const reason = p.detail || e.message;
+      $('#submit-errors').innerHTML = `<p class="error">Refused (${e.status}): ${esc(reason)}</p>`;
+      if (e.status === 401) $('#submit-errors').insertAdjacentHTML('beforeend', '<p>Paste the daemon\'s token in the token box above.</p>');
+      if (field) {
+        $('.editor').insertAdjacentHTML('beforeend', `<div class="field-error" data-field="${esc(field)}" data-line="${badLine}">line ${badLine} · ${esc(field)}: ${esc(reason.replace(`${field}: `, ''))}</div>`);
+      }
+      paintGutter();
+    }
+  });
+}
+
+// ---- Routing ------------------------------------------------------------------------------------
+
+async function route() {
+  const path = location.pathname.replace(/\/+$/, '') || '/';
+  let m;
+  try {
+    if (path === '/') await overviewPage();
+    else if ((m = path.match(/^\/campaign-runs\/(\d+)$/))) await campaignRunPage(Number(m[1]));
+    else if ((m = path.match(/^\/sweeps\/(\d+)$/))) await sweepPage(Number(m[1]));
+    else if ((m = path.match(/^\/runs\/(\d+)$/))) await runPage(Number(m[1]));
+    else if ((m = path.match(/^\/beds\/(\d+)$/))) await bedPage(Number(m[1]));
+    else if (path === '/beds') await bedsPage();
+    else if (path === '/submit') await submitPage();
+    else main().innerHTML = `<h1>Not found</h1><p>No page at ${esc(path)}. <a href="/">The overview</a>.</p>`;
+  } catch (e) {
+    main().innerHTML = `<h1>Cannot show this page</h1><p class="error">${esc(e.message)}</p>` +
+      (e.status === 401 ? '<p>This daemon needs its token to be read from here: paste it in the token box above.</p>' : '') +
+      (e.status === 404 ? '<p>It does not exist on this daemon. <a href="/">The overview</a>.</p>' : '');
+  }
+}
+
+function start() {
+  const tokenBox = $('#token');
+  tokenBox.value = token();
+  tokenBox.addEventListener('change', () => { sessionStorage.setItem('sandswim-token', tokenBox.value.trim()); });
+  document.addEventListener('click', e => {
+    const a = e.target.closest('a');
+    if (!a || a.target || e.ctrlKey || e.metaKey || e.shiftKey || a.origin !== location.origin || a.pathname.startsWith('/api/')) return;
+    e.preventDefault();
+    history.pushState(null, '', a.pathname);
+    live.listeners.clear();
+    $('#action-message').hidden = true;
+    route();
+  });
+  window.addEventListener('popstate', () => { live.listeners.clear(); route(); });
+  const pushState = history.pushState.bind(history);
+  history.pushState = (...args) => { live.listeners.clear(); pushState(...args); };
+  runLive();
+  route();
+}
+start();

@@ -1,0 +1,147 @@
+#include "server/live_feed.h"
+
+#include <algorithm>
+#include <set>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/api.h"
+
+namespace sandswim {
+
+using json = nlohmann::json;
+
+LiveFeed::LiveFeed(Store* store, Clock* clock, double tick_s, int max_streams, int sweeps, int campaign_runs)
+    : store_(store),
+      clock_(clock),
+      tick_(tick_s),
+      max_streams_(max_streams),
+      sweeps_(sweeps),
+      campaign_runs_(campaign_runs) {}
+
+std::string LiveFeed::BuildContent() {
+  Result<LiveBoard> board = store_->ReadLiveBoard(sweeps_, campaign_runs_, 1000);
+  if (!board.ok()) {
+    spdlog::warn("live feed: cannot read the board ({}); pages keep the last snapshot", board.status().ToString());
+    return "";
+  }
+  json sweeps = json::array();
+  for (const SweepInfo& s : board->sweeps) {
+    json j = s;
+    j.erase("spec");
+    if (auto it = board->sweep_started_at.find(s.id); it != board->sweep_started_at.end()) j["started_at"] = it->second;
+    sweeps.push_back(std::move(j));
+  }
+  json campaign_runs = json::array();
+  for (const CampaignRunInfo& c : board->campaign_runs) {
+    json j = c;
+    if (auto it = board->campaign_run_started_at.find(c.id); it != board->campaign_run_started_at.end()) {
+      j["started_at"] = it->second;
+    }
+    campaign_runs.push_back(std::move(j));
+  }
+  json running = json::array();
+  std::set<int64_t> running_ids;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const RunSummary& r : board->running) {
+      running_ids.insert(r.id);
+      json j = r;
+      auto it = trails_.find(r.id);
+      j["trail_points"] = it == trails_.end() ? 0 : it->second.t.size();
+      running.push_back(std::move(j));
+    }
+    for (auto it = trails_.begin(); it != trails_.end();) {
+      it = running_ids.count(it->first) ? std::next(it) : trails_.erase(it);
+    }
+  }
+  json content = {
+      {"runs", board->runs}, {"sweeps", sweeps}, {"campaign_runs", campaign_runs}, {"running", running}};
+  return content.dump();
+}
+
+std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::Current() {
+  std::lock_guard<std::mutex> build(build_mu_);
+  const auto now = std::chrono::steady_clock::now();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (current_ && now - built_at_ < tick_) return current_;
+  }
+  std::string content = BuildContent();
+  builds_.fetch_add(1);
+  std::lock_guard<std::mutex> lock(mu_);
+  built_at_ = now;
+  if (content.empty()) {  // the read failed: keep what pages have
+    if (current_) return current_;
+    content = json{{"error", "the daemon cannot read its database; see its log"}}.dump();
+  }
+  if (!current_ || content != last_content_) {
+    ++version_;
+    last_content_ = content;
+    auto snap = std::make_shared<Snapshot>();
+    snap->version = version_;
+    // {"version":N,"time":T, ...content}: the content's leading brace is replaced.
+    char head[96];
+    std::snprintf(head, sizeof head, "{\"version\":%llu,\"time\":%.3f%s", static_cast<unsigned long long>(version_),
+                  clock_->Now(), content.size() > 2 ? "," : "");
+    snap->json = head + content.substr(1);
+    current_ = std::move(snap);
+    changed_.notify_all();
+  }
+  return current_;
+}
+
+std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::WaitNewer(uint64_t version, double wait_s) {
+  using Steady = std::chrono::steady_clock;
+  const Steady::time_point deadline =
+      Steady::now() + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(wait_s));
+  while (true) {
+    std::shared_ptr<const Snapshot> snap = Current();
+    if (snap->version > version || stopped() || Steady::now() >= deadline) return snap;
+    std::unique_lock<std::mutex> lock(mu_);
+    const Steady::time_point until = std::min(deadline, Steady::now() + std::chrono::duration_cast<Steady::duration>(tick_));
+    changed_.wait_until(lock, until, [&] { return stopped() || (current_ && current_->version > version); });
+  }
+}
+
+void LiveFeed::Stop() {
+  stopped_.store(true);
+  std::lock_guard<std::mutex> lock(mu_);
+  changed_.notify_all();
+}
+
+bool LiveFeed::OpenStream() {
+  int n = streams_.fetch_add(1) + 1;
+  if (n <= max_streams_ && !stopped()) return true;
+  streams_.fetch_sub(1);
+  return false;
+}
+
+void LiveFeed::CloseStream() { streams_.fetch_sub(1); }
+
+void LiveFeed::RecordBeat(int64_t run_id, double sim_time_s, double so_z) {
+  std::lock_guard<std::mutex> lock(mu_);
+  Trail& trail = trails_[run_id];
+  if (!trail.t.empty() && sim_time_s <= trail.t.back()) return;  // a repeated or older beat
+  trail.t.push_back(sim_time_s);
+  trail.z.push_back(so_z);
+  if (trail.t.size() >= kMaxTrailPoints) {  // keep the whole run at half the resolution
+    size_t w = 0;
+    for (size_t i = 0; i < trail.t.size(); i += 2, ++w) {
+      trail.t[w] = trail.t[i];
+      trail.z[w] = trail.z[i];
+    }
+    trail.t.resize(w);
+    trail.z.resize(w);
+  }
+}
+
+LiveFeed::Trail LiveFeed::TrailOf(int64_t run_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = trails_.find(run_id);
+  return it == trails_.end() ? Trail{} : it->second;
+}
+
+}  // namespace sandswim
