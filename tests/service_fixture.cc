@@ -2,6 +2,7 @@
 
 #include <signal.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -89,15 +90,24 @@ nlohmann::json Parse(const httplib::Result& r, const std::string& what, int* sta
 }
 }  // namespace
 
+namespace {
+// The bearer token of SANDSWIM_TOKEN, when the test set one (the daemon and workers read it too).
+httplib::Headers TokenHeaders() {
+  const char* token = std::getenv("SANDSWIM_TOKEN");
+  if (token == nullptr || *token == '\0') return {};
+  return {{"Authorization", std::string("Bearer ") + token}};
+}
+}  // namespace
+
 nlohmann::json Daemon::Get(const std::string& path, int* status) {
   httplib::Client c(url_);
-  return Parse(c.Get(path), "GET " + path, status);
+  return Parse(c.Get(path, TokenHeaders()), "GET " + path, status);
 }
 
 std::string Daemon::GetText(const std::string& path, int* status) {
   httplib::Client c(url_);
   c.set_read_timeout(120, 0);
-  auto r = c.Get(path);
+  auto r = c.Get(path, TokenHeaders());
   if (!r) throw std::runtime_error("GET " + path + ": " + httplib::to_string(r.error()));
   if (status != nullptr) *status = r->status;
   return r->body;
@@ -105,7 +115,7 @@ std::string Daemon::GetText(const std::string& path, int* status) {
 
 nlohmann::json Daemon::Post(const std::string& path, const nlohmann::json& body, int* status) {
   httplib::Client c(url_);
-  return Parse(c.Post(path, body.dump(), "application/json"), "POST " + path, status);
+  return Parse(c.Post(path, TokenHeaders(), body.dump(), "application/json"), "POST " + path, status);
 }
 
 nlohmann::json Daemon::WaitForSweep(int64_t sweep_id, double timeout_s) {
@@ -272,6 +282,7 @@ std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::strin
   std::vector<std::string> argv = {
       SANDSWIM_WORKER_PATH, "--server", daemon.url(),  "--slots", std::to_string(slots), "--ranks", "1",
       "--workdir",          dir,        "--heartbeat", "1"};
+  if (std::find(extra.begin(), extra.end(), "--heartbeat") != extra.end()) argv.resize(argv.size() - 2);  // theirs
   argv.insert(argv.end(), extra.begin(), extra.end());
   return std::make_unique<ChildProcess>(argv, dir, "worker.out");
 }

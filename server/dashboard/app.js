@@ -130,8 +130,13 @@ function daemonNow() {
   return live.snapshot ? live.snapshot.time + (Date.now() / 1000 - live.receivedAt) : Date.now() / 1000;
 }
 
+// The stream is closed when the page goes (a browser keeps only a few connections per host open;
+// a stream left behind would hold one).
+const liveStop = new AbortController();
+window.addEventListener('pagehide', () => liveStop.abort());
+
 async function streamLive() {
-  const res = await fetch('/api/v1/live/events', { headers: headers({ Accept: 'text/event-stream' }) });
+  const res = await fetch('/api/v1/live/events', { headers: headers({ Accept: 'text/event-stream' }), signal: liveStop.signal });
   if (!res.ok || !res.body) throw new ApiError(res.status, null);
   setLiveStatus('live', 'server-sent events');
   const reader = res.body.getReader();
@@ -338,7 +343,7 @@ function followRows(table) {
         row.state = run.state;
         row.progress = '';
         const res = run.result || {};
-        Object.assign(row, { Uz: res.uz ?? null, Uz_text: res.uz_text || '', dz: res.dz ?? null, conclusive: res.conclusive,
+        Object.assign(row, { Uz: res.uz ?? null, Uz_text: (res.uz_text || '').replace(' m/s', ''), dz: res.dz ?? null, conclusive: res.conclusive,
           inconclusive_reason: res.inconclusive_reason || '', precision_met: res.precision_met, broke_surface: res.broke_surface, near_floor: res.near_floor });
         changed = true;
       } catch (e) { console.warn('run', id, e); }
@@ -355,10 +360,10 @@ const branchSign = name => (/ris|neg/.test(name) ? -1 : 1);
 async function sweepUzPlot(el, sweep) {
   const axes = (sweep.spec && sweep.spec.axes) || [];
   const param = axes.length === 1 ? axes[0].param : null;
-  if (!param) { el.innerHTML = '<p class="muted">No single swept parameter: no U_z curve.</p>'; return; }
+  if (!param) { el.innerHTML = '<p class="muted">No single swept parameter: no U_z curve.</p>'; return false; }
   const [results, fits] = await Promise.all([get(`/api/v1/sweeps/${sweep.id}/results`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
   const pts = (results.aggregates || []).filter(a => a.uz_mean !== undefined && a.conclusive > 0);
-  if (!pts.length) { el.innerHTML = `<p class="muted">${esc(sweep.name)}: no conclusive U_z yet.</p>`; return; }
+  if (!pts.length) { el.innerHTML = `<p class="muted">${esc(sweep.name)}: no conclusive U_z yet.</p>`; return false; }
   const x = pts.map(a => a[param]), y = pts.map(a => a.uz_mean), err = pts.map(a => a.uz_ci95 ?? null);
   const curves = [];
   for (const b of (fits && fits.branches) || []) {
@@ -373,7 +378,13 @@ async function sweepUzPlot(el, sweep) {
     }
   }
   uzPlot(el, { title: `${sweep.name}: U_z against ${param}`, xLabel: param, yLabel: 'U_z (m/s)', x, y, err, curves });
+  return true;
 }
+
+// The daemon's own U_z figure of a sweep (PLplot, as in the report), once it has a conclusive U_z
+// to draw (before that the daemon answers 422).
+const uzFigure = (sweep, caption) => `<figure><img class="figure" loading="lazy" alt="U_z of sweep ${esc(sweep.name)}" ` +
+  `src="/api/v1/sweeps/${sweep.id}/uz.svg"><figcaption>${esc(caption)}</figcaption></figure>`;
 
 // ---- Pages --------------------------------------------------------------------------------------
 
@@ -446,10 +457,14 @@ async function campaignRunPage(id) {
     const div = document.createElement('div');
     div.className = 'plot';
     plots.appendChild(div);
-    sweepUzPlot(div, sweep).catch(e => { div.textContent = `${sweep.name}: ${e.message}`; });
-    figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="U_z of sweep ${esc(sweep.name)}" src="/api/v1/sweeps/${sid}/uz.svg"><figcaption>${esc(sweep.name)} (the daemon's figure)</figcaption></figure>`);
+    const drawn = await sweepUzPlot(div, sweep).catch(e => { div.textContent = `${sweep.name}: ${e.message}`; return false; });
+    if (drawn) figures.insertAdjacentHTML('beforeend', uzFigure(sweep, `${sweep.name} (the daemon's figure)`));
   }
-  figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="modes" src="/api/v1/campaign-runs/${id}/modes.svg"><figcaption>the drive modes (paper Fig. 2)</figcaption></figure>`);
+  const modes = info.sweeps.length ? await get(`/api/v1/campaign-runs/${id}/results`).catch(() => null) : null;
+  if (modes && (modes.results || []).some(r => r.mode !== 'oscillatory' && r.state === 'done')) {
+    figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="modes" src="/api/v1/campaign-runs/${id}/modes.svg"><figcaption>the drive modes (paper Fig. 2)</figcaption></figure>`);
+  }
+  if (!figures.children.length) figures.innerHTML = '<p class="muted">The daemon draws its figures once runs have finished with a conclusive U_z.</p>';
 }
 
 async function sweepPage(id) {
@@ -462,8 +477,9 @@ async function sweepPage(id) {
       <a href="/api/v1/sweeps/${id}/results?format=csv">results as CSV</a></dd></dl></section>
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
     <section class="card grid2"><div><h2>U_z</h2><div id="uz-plot" class="plot"></div></div><div><h2>z(t)</h2><div id="zt-plot" class="plot"></div></div></section>
-    <section class="card"><h2>The daemon's figures</h2><div class="grid2"><img class="figure" alt="U_z" src="/api/v1/sweeps/${id}/uz.svg">
-      <img class="figure" alt="trajectories" loading="lazy" src="/api/v1/sweeps/${id}/trajectories.svg"></div></section>`;
+    <section class="card"><h2>The daemon's figures</h2><div class="grid2" id="figures">${sweep.counts.done > 0
+      ? `<figure><img class="figure" alt="trajectories" loading="lazy" src="/api/v1/sweeps/${id}/trajectories.svg"><figcaption>Δz(t) of every run</figcaption></figure>`
+      : '<p class="muted">Drawn once runs have finished.</p>'}</div></section>`;
   const table = dataTable($('#runs'), resultColumns(false), results.results || [], { rowId: r => r.run_id });
   followRows(table);
   $('#cancel').addEventListener('click', async () => {
@@ -477,7 +493,9 @@ async function sweepPage(id) {
     const mine = (snap.sweeps || []).find(s => s.id === id);
     if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.started_at, daemonNow());
   });
-  sweepUzPlot($('#uz-plot'), sweep).catch(e => { $('#uz-plot').textContent = e.message; });
+  sweepUzPlot($('#uz-plot'), sweep).then(drawn => {
+    if (drawn) $('#figures').insertAdjacentHTML('afterbegin', uzFigure(sweep, 'U_z (the daemon\'s figure, as in the report)'));
+  }).catch(e => { $('#uz-plot').textContent = e.message; });
   const done = (results.results || []).filter(r => r.state === 'done').slice(0, 12);
   const runs = await Promise.all(done.map(r => get(`/api/v1/runs/${r.run_id}`)));
   const series = runs.filter(r => r.trajectory && r.trajectory.t.length).map(r => Object.assign(decimate(r.trajectory.t, r.trajectory.z), { label: `run ${r.id}: ${pointText(r.point)}` }));

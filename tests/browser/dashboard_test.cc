@@ -1,0 +1,259 @@
+// The web dashboard (server/dashboard/) in a real headless Chromium, against a real sandswimd with
+// a token and a real sandswim-worker whose engine is the STAND-IN (tests/bench/stand_in_engine.cc,
+// named as such: it simulates nothing; its dump grows over SANDSWIM_STAND_IN_SECONDS as a real
+// engine's does). The dashboard with a real smoke run: e2e_test.cc.
+//
+// Screenshots are test outputs, under build/tests/browser/output/ (dashboard-*.png).
+#include <stdlib.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "tests/browser/webdriver.h"
+#include "tests/engine_fixture.h"
+#include "tests/service_fixture.h"
+
+namespace sandswim::testing {
+namespace {
+
+using nlohmann::json;
+using ::testing::HasSubstr;
+
+constexpr char kDashToken[] = "dashboard-test-token";
+
+// Console errors since entry `from`, less the network errors of refusals a test provoked on
+// purpose (Chromium logs every 4xx answer to a fetch as an error).
+std::vector<std::string> ErrorsSince(Browser& browser, size_t from, const std::vector<std::string>& expected_statuses) {
+  std::vector<std::string> out;
+  const std::vector<std::string> all = browser.ConsoleErrors();
+  for (size_t i = from; i < all.size(); ++i) {
+    bool expected = false;
+    for (const std::string& s : expected_statuses) expected = expected || all[i].find("status of " + s) != std::string::npos;
+    if (!expected) out.push_back(all[i]);
+  }
+  return out;
+}
+
+class DashboardTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    std::string why;
+    if (!BrowserAvailable(&why)) return;
+    out_ = new std::string(SANDSWIM_BROWSER_TEST_DIR);
+    std::filesystem::create_directories(*out_);
+    const std::string dir = CacheDir() + "/dashboard";
+    std::filesystem::remove_all(dir);
+    setenv("SANDSWIM_TOKEN", kDashToken, 1);     // the daemon, its worker and this test's REST calls
+    setenv("SANDSWIM_STAND_IN_SECONDS", "6", 1);  // long enough to watch a run go
+    daemon_ = new Daemon(dir + "/daemon", {"--lease-ttl", "6"});
+    int status = 0;
+    // Submitted first, so run first (oldest first): the sweep whose runs the tests watch.
+    json sweep = daemon_->Post("/api/v1/sweeps", OmegaSweep("dash-omega", {-80, -40, 40, 80}, 1.5), &status);
+    ASSERT_EQ(status, 201) << sweep.dump();
+    sweep_id_ = sweep["id"].get<int64_t>();
+    json campaign = daemon_->Post("/api/v1/sweeps", {{"campaign", "paper-58"}, {"scale", "smoke"}}, &status);
+    ASSERT_EQ(status, 201) << campaign.dump();
+    campaign_run_id_ = campaign["id"].get<int64_t>();
+    campaign_sweep_id_ = campaign["sweeps"][0].get<int64_t>();
+    worker_ = StartWorker(*daemon_, dir + "/worker", 2,
+                          {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH, "--heartbeat", "0.3"})
+                  .release();
+    browser_ = new Browser(*out_);
+  }
+  static void TearDownTestSuite() {
+    delete browser_;
+    if (worker_ != nullptr) worker_->Stop();
+    delete worker_;
+    delete daemon_;
+    delete out_;
+    unsetenv("SANDSWIM_TOKEN");
+  }
+  void SetUp() override {
+    std::string why;
+    if (!BrowserAvailable(&why)) GTEST_SKIP() << why;
+    ASSERT_NE(browser_, nullptr);
+    // A fresh tab state: no token typed, no draft.
+    browser_->Navigate(daemon_->url() + "/beds");
+    browser_->Script("sessionStorage.clear();");
+    errors_before_ = browser_->ConsoleErrors().size();
+  }
+  // This test's console errors (see ErrorsSince).
+  std::vector<std::string> UnexpectedErrors(Browser& browser, const std::vector<std::string>& expected_statuses = {}) {
+    return ErrorsSince(browser, errors_before_, expected_statuses);
+  }
+  void Open(const std::string& path) {
+    browser_->Navigate(daemon_->url() + path);
+    ASSERT_TRUE(browser_->WaitUntil("document.querySelector('#live-status').classList.contains('live')", 20))
+        << "the live stream did not connect: " << browser_->Text("#live-status");
+  }
+  void Shot(const std::string& name) { browser_->Screenshot(*out_ + "/dashboard-" + name + ".png"); }
+
+  size_t errors_before_ = 0;
+  static std::string* out_;
+  static Daemon* daemon_;
+  static ChildProcess* worker_;
+  static Browser* browser_;
+  static int64_t sweep_id_, campaign_run_id_, campaign_sweep_id_;
+};
+std::string* DashboardTest::out_ = nullptr;
+Daemon* DashboardTest::daemon_ = nullptr;
+ChildProcess* DashboardTest::worker_ = nullptr;
+Browser* DashboardTest::browser_ = nullptr;
+int64_t DashboardTest::sweep_id_ = 0, DashboardTest::campaign_run_id_ = 0, DashboardTest::campaign_sweep_id_ = 0;
+
+// The campaign run's page lists every one of its runs (as many rows as the API counts), filters
+// and sorts them, and shows the claims' verdicts.
+TEST_F(DashboardTest, CampaignPageListsItsRunsFiltersAndSorts) {
+  const json info = daemon_->Get("/api/v1/campaign-runs/" + std::to_string(campaign_run_id_));
+  const int total = info["counts"]["queued"].get<int>() + info["counts"]["running"].get<int>() +
+                    info["counts"]["done"].get<int>() + info["counts"]["failed"].get<int>();
+  ASSERT_EQ(total, 58) << info.dump();
+  Open("/campaign-runs/" + std::to_string(campaign_run_id_));
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#runs tbody tr').length === 58", 20))
+      << browser_->Text("#main");
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#claims-table tbody tr').length === 6", 20))
+      << browser_->Text("#claims");
+  EXPECT_THAT(browser_->Text("#claims-table"), HasSubstr("F1"));
+  // Filter: the Omega sweep's 16 points (the baseline's two are also the Omega sweep's).
+  browser_->Type("#runs .table-filter", "Omega-sweep");
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#runs tbody tr').length === 16", 5))
+      << browser_->Text(".table-count");
+  // Sort by Omega, twice: ascending, then descending.
+  browser_->Click("#runs th[data-key='Omega']");
+  const json ascending = browser_->Script(
+      "return [...document.querySelectorAll('#runs tbody td[data-key=Omega]')].map(td => Number(td.textContent));");
+  browser_->Click("#runs th[data-key='Omega']");
+  const json descending = browser_->Script(
+      "return [...document.querySelectorAll('#runs tbody td[data-key=Omega]')].map(td => Number(td.textContent));");
+  ASSERT_EQ(ascending.size(), 16u);
+  EXPECT_EQ(ascending.front().get<double>(), -1280);
+  EXPECT_EQ(ascending.back().get<double>(), 1280);
+  EXPECT_EQ(descending.front().get<double>(), 1280);
+  Shot("campaign");
+  EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
+}
+
+// A running run's page shows its simulated time and z(t) growing, and then its result, without a
+// reload (a mark left on the window survives).
+TEST_F(DashboardTest, RunningRunProgressesOnScreenWithoutReload) {
+  int64_t run_id = 0;
+  for (int i = 0; i < 200 && run_id == 0; ++i) {
+    const json board = daemon_->Get("/api/v1/live");
+    for (const json& r : board["running"]) {
+      const double t = r["progress"]["sim_time_s"].get<double>();
+      if (t > 0 && t < 0.6 * r["run_duration_s"].get<double>()) {
+        run_id = r["id"].get<int64_t>();
+      }
+    }
+    if (run_id == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_NE(run_id, 0) << "no run was seen early in its run";
+  Open("/runs/" + std::to_string(run_id));
+  browser_->Script("window.__sameDocument = 42;");
+  ASSERT_TRUE(browser_->WaitUntil("/ of 1.5 s simulated/.test(document.querySelector('#sim-time').textContent)", 10));
+  const std::string first = browser_->Text("#sim-time");
+  ASSERT_TRUE(browser_->WaitUntil(
+      "document.querySelector('#sim-time').textContent !== " + json(first).dump() + " && !!document.querySelector('#zt-plot canvas')",
+      15))
+      << first;
+  const int points = browser_->Script("return document.querySelector('#zt-plot .u-over') ? 1 : 0;").get<int>();
+  EXPECT_EQ(points, 1) << "z(t) is drawn";
+  Shot("run-live");
+  // The run ends: its result appears in place.
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#result')", 30)) << browser_->Text("#main");
+  EXPECT_EQ(browser_->Script("return window.__sameDocument;").get<int>(), 42) << "the page was reloaded";
+  EXPECT_THAT(browser_->Text("#run-state"), HasSubstr("done"));
+  EXPECT_THAT(browser_->Text("#result"), HasSubstr("U_z"));
+  Shot("run-done");
+  EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
+}
+
+// A finished sweep's page draws U_z against Omega (uPlot) and the daemon's own figure renders.
+TEST_F(DashboardTest, SweepPageDrawsItsFigures) {
+  const json sweep = daemon_->WaitForSweep(sweep_id_, 120);
+  ASSERT_EQ(sweep["counts"]["done"], 4) << sweep.dump();
+  Open("/sweeps/" + std::to_string(sweep_id_));
+  if (!browser_->WaitUntil("document.querySelectorAll('#runs tbody tr').length === 4", 20)) {
+    Shot("sweep-failed");
+    for (const auto& e : browser_->BrowserLog()) std::printf("LOG %s %s\n", e.level.c_str(), e.message.c_str());
+    FAIL() << browser_->Text("#main") << " | " << browser_->Script("return performance.getEntriesByType('resource').map(e => e.name + ' ' + Math.round(e.duration)).join('\\n')").dump();
+  }
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#uz-plot canvas')", 20)) << browser_->Text("#uz-plot");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#zt-plot canvas')", 20)) << browser_->Text("#zt-plot");
+  ASSERT_TRUE(browser_->WaitUntil(
+      "[...document.querySelectorAll('img.figure')].every(i => i.complete && i.naturalWidth > 100)", 60))
+      << "the daemon's SVG figures did not load";
+  // Hover over the U_z plot: its legend shows a value with its interval.
+  browser_->Script(R"(
+    const over = document.querySelector('#uz-plot .u-over'), box = over.getBoundingClientRect();
+    over.dispatchEvent(new MouseEvent('mousemove', {clientX: box.left + 2, clientY: box.top + box.height / 2, bubbles: true}));)");
+  ASSERT_TRUE(browser_->WaitUntil("/±/.test(document.querySelector('#uz-plot .u-legend').textContent)", 5))
+      << browser_->Text("#uz-plot");
+  Shot("sweep");
+  EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
+}
+
+// A bad sweep: the daemon's problem+json names the field, and the editor shows the reason next to
+// that field's line. Nothing is stored.
+TEST_F(DashboardTest, BadSweepShowsTheFieldErrorNextToTheField) {
+  const std::string before = daemon_->Query("SELECT count(*) FROM sweeps");
+  Open("/submit");
+  browser_->Type("#token", kDashToken);
+  browser_->Script("document.querySelector('#token').dispatchEvent(new Event('change'));");
+  json bad = OmegaSweep("bad", {-80, 80}, 0.5);
+  bad["base"]["A"] = -0.03;
+  const std::string text = bad.dump(2);
+  browser_->Script("const a = document.querySelector('#sweep-json'); a.value = arguments[0];"
+                   "a.dispatchEvent(new Event('input'));",
+                   json::array({text}));
+  browser_->Click("#submit");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('.field-error')", 10))
+      << browser_->Text("#main") << "\nresult: " << browser_->Text("#submit-result") << "\nlog: " << browser_->BrowserLog().size();
+  EXPECT_EQ(browser_->Attribute(".field-error", "data-field"), "base.A");
+  // The line of "A" inside "base" in the text as sent.
+  int line = 1;
+  const size_t at = text.find("\"A\"", text.find("\"base\""));
+  for (size_t i = 0; i < at; ++i) line += text[i] == '\n';
+  EXPECT_EQ(browser_->Attribute(".field-error", "data-line"), std::to_string(line));
+  EXPECT_THAT(browser_->Text(".field-error"), HasSubstr("base.A"));
+  EXPECT_THAT(browser_->Text("#gutter .bad"), HasSubstr(std::to_string(line)));
+  Shot("submit-error");
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM sweeps"), before) << "nothing stored";
+  EXPECT_THAT(UnexpectedErrors(*browser_, {"400"}), ::testing::IsEmpty());
+}
+
+// Cancel without the token: refused with the daemon's reason on screen, and nothing changes.
+TEST_F(DashboardTest, CancelWithoutTheTokenIsRefusedAndChangesNothing) {
+  const std::string path = "/api/v1/sweeps/" + std::to_string(campaign_sweep_id_);
+  Open("/sweeps/" + std::to_string(campaign_sweep_id_));
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#cancel')", 20));
+  browser_->Click("#cancel");
+  ASSERT_TRUE(browser_->WaitUntil("!document.querySelector('#action-message').hidden", 10));
+  EXPECT_THAT(browser_->Text("#action-message"), HasSubstr("401"));
+  EXPECT_THAT(browser_->Text("#action-message"), HasSubstr("token"));
+  Shot("cancel-refused");
+  const json after = daemon_->Get(path);
+  EXPECT_EQ(after["cancelled"], false) << after.dump();
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs WHERE state = 'cancelled'"), "0");
+  EXPECT_THAT(UnexpectedErrors(*browser_, {"401"}), ::testing::IsEmpty());
+}
+
+// The overview lists the campaign run and the sweeps with their progress (the README's picture).
+TEST_F(DashboardTest, OverviewShowsProgress) {
+  Open("/");
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#campaign-runs tbody tr').length >= 1", 20));
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#sweeps tbody tr').length === 11", 20));
+  EXPECT_THAT(browser_->Text("#campaign-runs"), HasSubstr("paper-58"));
+  EXPECT_THAT(browser_->Text("#sweeps"), HasSubstr("4 done · 0 running · 0 queued")) << "dash-omega has finished";
+  Shot("overview");
+  EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
+}
+
+}  // namespace
+}  // namespace sandswim::testing
