@@ -439,6 +439,7 @@ async function campaignRunPage(id) {
     <section class="card"><h2>U_z against the swept parameter</h2><div id="uz-plots" class="grid2"></div>
       <h2>Figures</h2><div id="figures" class="grid2"></div></section>`;
   const table = dataTable($('#runs'), resultColumns(true), results.results || [], { filterPlaceholder: 'filter runs (e.g. "Omega done", "inconclusive")', rowId: r => r.run_id });
+  performance.mark('runs-table');  // the page's first render with its runs (tests/bench/bench_dashboard.cc)
   followRows(table);
   onLive(snap => {
     const mine = (snap.campaign_runs || []).find(c => c.id === id);
@@ -460,8 +461,7 @@ async function campaignRunPage(id) {
     const drawn = await sweepUzPlot(div, sweep).catch(e => { div.textContent = `${sweep.name}: ${e.message}`; return false; });
     if (drawn) figures.insertAdjacentHTML('beforeend', uzFigure(sweep, `${sweep.name} (the daemon's figure)`));
   }
-  const modes = info.sweeps.length ? await get(`/api/v1/campaign-runs/${id}/results`).catch(() => null) : null;
-  if (modes && (modes.results || []).some(r => r.mode !== 'oscillatory' && r.state === 'done')) {
+  if ((results.results || []).some(r => r.mode !== 'oscillatory' && r.state === 'done')) {
     figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="modes" src="/api/v1/campaign-runs/${id}/modes.svg"><figcaption>the drive modes (paper Fig. 2)</figcaption></figure>`);
   }
   if (!figures.children.length) figures.innerHTML = '<p class="muted">The daemon draws its figures once runs have finished with a conclusive U_z.</p>';

@@ -135,6 +135,7 @@ TEST_F(DashboardTest, CampaignPageListsItsRunsFiltersAndSorts) {
   EXPECT_EQ(ascending.front().get<double>(), -1280);
   EXPECT_EQ(ascending.back().get<double>(), 1280);
   EXPECT_EQ(descending.front().get<double>(), 1280);
+  browser_->Script("window.scrollTo(0, 0);");
   Shot("campaign");
   EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
 }
