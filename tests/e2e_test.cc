@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <sstream>
+#include <thread>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 #include "core/api.h"
 #include "core/deck.h"
 #include "core/trajectory.h"
+#include "tests/browser/webdriver.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
 
@@ -107,6 +109,37 @@ class EndToEndTest : public ::testing::Test {
     EXPECT_EQ(status, 404);
   }
 
+  // The dashboard with a real smoke run (the stand-in's pages: tests/browser/dashboard_test.cc):
+  // the run's page, opened while LIGGGHTS runs it, shows its simulated time moving and its z(t)
+  // drawn, without a reload.
+  void WatchInTheDashboard(int64_t run_id) {
+    std::string why;
+    if (!testing::BrowserAvailable(&why)) {
+      std::printf("E2E dashboard: not checked (%s)\n", why.c_str());
+      return;
+    }
+    const std::string path = "/api/v1/runs/" + std::to_string(run_id);
+    for (int i = 0; i < 600 && !(daemon_->Get(path)["progress"]["sim_time_s"].get<double>() > 0); ++i) {
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+    }
+    ASSERT_EQ(daemon_->Get(path)["state"], "running");
+    const std::string out = SANDSWIM_BROWSER_TEST_DIR;
+    std::filesystem::create_directories(out);
+    testing::Browser browser(out);
+    browser.Navigate(daemon_->url() + "/runs/" + std::to_string(run_id));
+    browser.Script("window.__sameDocument = 7;");
+    ASSERT_TRUE(browser.WaitUntil("/ s simulated/.test(document.querySelector('#sim-time').textContent)", 30));
+    const std::string first = browser.Text("#sim-time");
+    ASSERT_TRUE(browser.WaitUntil("document.querySelector('#sim-time').textContent !== " + json(first).dump(), 120))
+        << first;
+    ASSERT_TRUE(browser.WaitUntil("!!document.querySelector('#zt-plot canvas')", 60)) << browser.Text("#main");
+    EXPECT_EQ(browser.Script("return window.__sameDocument;").get<int>(), 7) << "the page was reloaded";
+    std::printf("E2E dashboard: run %lld's page went from \"%s\" to \"%s\" on its own\n",
+                static_cast<long long>(run_id), first.c_str(), browser.Text("#sim-time").c_str());
+    browser.Screenshot(out + "/e2e-run-live.png");
+    EXPECT_THAT(browser.ConsoleErrors(), ::testing::IsEmpty());
+  }
+
   static std::string* dir_;
   static Daemon* daemon_;
 };
@@ -142,6 +175,7 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
   ASSERT_EQ(replicate0.grant().deck, RenderBedDeck(smoke, 0));
   auto worker = testing::StartWorker(*daemon_, *dir_ + "/worker-pair", 2);
   replicate0.Complete(testing::PrepareBed(smoke));
+  WatchInTheDashboard(Runs(id_sinking).at(0)["id"].get<int64_t>());
 
   json sweep = daemon_->WaitForSweep(id, kTimeoutS);
   ASSERT_EQ(sweep["counts"]["done"], 2) << sweep.dump() << "\nworker:\n" << worker->Output();

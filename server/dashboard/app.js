@@ -236,6 +236,9 @@ function dataTable(container, columns, rows, { filterPlaceholder = 'filter…', 
 
 // ---- Plots (uPlot) -------------------------------------------------------------------------------
 
+// Axis labels to their needed digits (uPlot's default rounds small steps, 0.0015 to "0.002").
+const tickValues = (u, splits) => splits.map(v => (v === null ? '' : String(+v.toPrecision(6))));
+
 const palette = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#17becf', '#8c564b', '#e377c2', '#7f7f7f', '#bcbd22'];
 
 // Points with vertical error bars (half-widths `err`), and optional law curves: hover shows values.
@@ -271,7 +274,7 @@ function uzPlot(el, { xLabel, yLabel, x, y, err, curves = [], title }) {
   return new uPlot({
     title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
     scales: { x: { time: false }, y: { range: [yMin - pad, yMax + pad] } },
-    axes: [{ label: xLabel }, { label: yLabel, size: 70 }],
+    axes: [{ label: xLabel, values: tickValues }, { label: yLabel, size: 70, values: tickValues }],
     hooks: { draw: [errorBars] },
   }, data, el);
 }
@@ -285,7 +288,7 @@ function trajectoriesPlot(el, runs, { title = 'z(t) of the SO' } = {}) {
     .concat(runs.map((r, i) => ({ label: r.label, stroke: palette[i % palette.length], width: 1.4, spanGaps: true, points: { show: false },
       value: (u, v) => (v === null ? '—' : `${num(v, 4)} m`) })));
   return new uPlot({ title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
-    scales: { x: { time: false } }, axes: [{ label: 't (s)' }, { label: 'z (m)', size: 70 }] }, data, el);
+    scales: { x: { time: false } }, axes: [{ label: 't (s)', values: tickValues }, { label: 'z (m)', size: 80, values: tickValues }] }, data, el);
 }
 
 function decimate(t, z, max = 800) {
