@@ -212,7 +212,7 @@ function dataTable(container, columns, rows, { filterPlaceholder = 'filter…', 
     }
     const visible = shown.slice(0, state.limit);
     tbody.innerHTML = visible.map(r => `<tr${rowId ? ` data-id="${esc(rowId(r))}"` : ''}>` + columns.map(c =>
-      `<td${c.num ? ' class="num"' : ''} data-key="${esc(c.key)}">${c.html ? c.html(r) : esc(r[c.key])}</td>`).join('') + '</tr>').join('');
+      `<td${c.num ? ' class="num"' : ''} data-key="${esc(c.key)}">${c.html ? c.html(r) : esc(valueOf(c, r))}</td>`).join('') + '</tr>').join('');
     $('.table-count', container).textContent = visible.length < shown.length
       ? `showing ${visible.length} of ${shown.length} (${state.rows.length} in all)` : `${shown.length} of ${state.rows.length}`;
     $('.show-all', container).hidden = visible.length >= shown.length;
@@ -612,7 +612,7 @@ async function bedPage(id) {
     <dt>height</dt><dd>${num(r.bed_height)} m</dd>
     <dt>SO depth</dt><dd>${num(r.so_depth)} m</dd>
     <dt>packing fraction</dt><dd>${num(r.packing_fraction)} (in the shell around the SO)</dd>
-    <dt>runs on it</dt><dd><a href="/api/v1/runs?bed=${id}">${b.runs}</a></dd>
+    <dt>runs on it</dt><dd>${b.runs}</dd>
     ${b.last_error ? `<dt>failure</dt><dd class="error">${esc(JSON.stringify(b.last_error))}</dd>` : ''}
     <dt>key</dt><dd><code>${esc(b.key)}</code></dd></dl></section>`;
 }
