@@ -22,6 +22,15 @@ LiveFeed::LiveFeed(Store* store, Clock* clock, double tick_s, int max_streams, i
       campaign_runs_(campaign_runs) {}
 
 std::string LiveFeed::BuildContent() {
+  try {
+    return BuildContentOrThrow();
+  } catch (const std::exception& e) {  // e.g. a string that is not UTF-8: keep the last snapshot
+    spdlog::warn("live feed: cannot build a snapshot ({}); pages keep the last one", e.what());
+    return "";
+  }
+}
+
+std::string LiveFeed::BuildContentOrThrow() {
   Result<LiveBoard> board = store_->ReadLiveBoard(sweeps_, campaign_runs_, 1000);
   if (!board.ok()) {
     spdlog::warn("live feed: cannot read the board ({}); pages keep the last snapshot", board.status().ToString());
@@ -53,8 +62,10 @@ std::string LiveFeed::BuildContent() {
       j["trail_points"] = it == trails_.end() ? 0 : it->second.t.size();
       running.push_back(std::move(j));
     }
+    // Trails of runs the board shows not running end (runs past the board's 1,000 are left to
+    // RecordBeat's idle sweep).
     for (auto it = trails_.begin(); it != trails_.end();) {
-      it = running_ids.count(it->first) ? std::next(it) : trails_.erase(it);
+      it = running_ids.count(it->first) || board->running.size() >= 1000 ? std::next(it) : trails_.erase(it);
     }
   }
   json content = {
@@ -77,19 +88,23 @@ std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::Current() {
     if (current_) return current_;
     content = json{{"error", "the daemon cannot read its database; see its log"}}.dump();
   }
-  if (!current_ || content != last_content_) {
-    ++version_;
-    last_content_ = content;
-    auto snap = std::make_shared<Snapshot>();
-    snap->version = version_;
-    // {"version":N,"time":T, ...content}: the content's leading brace is replaced.
-    char head[96];
-    std::snprintf(head, sizeof head, "{\"version\":%llu,\"time\":%.3f%s", static_cast<unsigned long long>(version_),
-                  clock_->Now(), content.size() > 2 ? "," : "");
-    snap->json = head + content.substr(1);
-    current_ = std::move(snap);
-    changed_.notify_all();
+  const bool changed = !current_ || content != last_content_;
+  if (changed) {
+    // Versions start from the daemon's clock in ms, so a page's version or ETag from before a
+    // restart is never taken for a newer snapshot's.
+    version_ = version_ == 0 ? std::max<uint64_t>(1, static_cast<uint64_t>(clock_->Now() * 1000)) : version_ + 1;
+    last_content_ = std::move(content);
   }
+  // {"version":N,"time":T, ...content}: the content's leading brace is replaced. The time is the
+  // build's even when the content is unchanged (a page's ETA counts from it).
+  auto snap = std::make_shared<Snapshot>();
+  snap->version = version_;
+  char head[96];
+  std::snprintf(head, sizeof head, "{\"version\":%llu,\"time\":%.3f%s", static_cast<unsigned long long>(version_),
+                clock_->Now(), last_content_.size() > 2 ? "," : "");
+  snap->json = head + last_content_.substr(1);
+  current_ = std::move(snap);
+  if (changed) changed_.notify_all();
   return current_;
 }
 
@@ -122,26 +137,45 @@ bool LiveFeed::OpenStream() {
 void LiveFeed::CloseStream() { streams_.fetch_sub(1); }
 
 void LiveFeed::RecordBeat(int64_t run_id, double sim_time_s, double so_z) {
+  const auto now = std::chrono::steady_clock::now();
   std::lock_guard<std::mutex> lock(mu_);
+  // Trails of runs that stopped beating end, whether or not a page asked for a snapshot since.
+  if (now - last_idle_sweep_ > kTrailIdle) {
+    last_idle_sweep_ = now;
+    for (auto it = trails_.begin(); it != trails_.end();) {
+      it = now - it->second.last_beat > kTrailIdle ? trails_.erase(it) : std::next(it);
+    }
+  }
   Trail& trail = trails_[run_id];
-  if (!trail.t.empty() && sim_time_s <= trail.t.back()) return;  // a repeated or older beat
+  trail.last_beat = now;
+  if (!trail.t.empty() && sim_time_s == trail.t.back()) return;  // the same beat again (a retried request)
+  if (!trail.t.empty() && sim_time_s < trail.t.back()) {          // an attempt started again: a new trail
+    trail.t.clear();
+    trail.z.clear();
+  }
   trail.t.push_back(sim_time_s);
   trail.z.push_back(so_z);
-  if (trail.t.size() >= kMaxTrailPoints) {  // keep the whole run at half the resolution
+  if (trail.t.size() >= kMaxTrailPoints) {  // keep the whole run at half the resolution, and its last point
     size_t w = 0;
-    for (size_t i = 0; i < trail.t.size(); i += 2, ++w) {
+    for (size_t i = 0; i + 1 < trail.t.size(); i += 2, ++w) {
       trail.t[w] = trail.t[i];
       trail.z[w] = trail.z[i];
     }
-    trail.t.resize(w);
-    trail.z.resize(w);
+    trail.t[w] = trail.t.back();
+    trail.z[w] = trail.z.back();
+    trail.t.resize(w + 1);
+    trail.z.resize(w + 1);
   }
 }
 
 LiveFeed::Trail LiveFeed::TrailOf(int64_t run_id) const {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = trails_.find(run_id);
-  return it == trails_.end() ? Trail{} : it->second;
+  if (it == trails_.end()) return Trail{};
+  Trail copy;
+  copy.t = it->second.t;
+  copy.z = it->second.z;
+  return copy;
 }
 
 }  // namespace sandswim

@@ -10,8 +10,10 @@
 // content equals the last keeps its version, so a page hears only of changes.
 //
 // Trails: a running run's z(t) as its heartbeats reported it (one point per heartbeat), kept in
-// memory for the run's page while it runs; its stored trajectory replaces it at completion. A
-// restarted daemon starts trails afresh (each run's latest progress is in the database anyway).
+// memory for the run's page while it runs (ended when a snapshot shows the run not running, or
+// after kTrailIdle without a beat); its stored trajectory replaces it at completion. A restarted
+// daemon starts trails afresh (each run's latest progress is in the database anyway). Versions
+// start from the clock in ms, so they never repeat across restarts.
 //
 // Snapshot JSON: {"version", "time" (the daemon's clock, s), "runs": counts,
 //   "sweeps": [{id, name, scale, campaign_run_id?, cancelled, counts, runs, created_at, started_at?}],
@@ -45,6 +47,7 @@ class LiveFeed {
   };
   struct Trail {
     std::vector<double> t, z;  // simulated time (s) and the SO's z (m), one point per heartbeat
+    std::chrono::steady_clock::time_point last_beat;
   };
 
   // Shown: the newest `sweeps` sweeps and `campaign_runs` campaign runs, and up to 1,000 running
@@ -68,16 +71,19 @@ class LiveFeed {
   void CloseStream();
   int open_streams() const { return streams_.load(); }
 
-  // From a heartbeat the lease queue accepted.
+  // From a heartbeat the lease queue accepted. A beat earlier than the trail's last starts the
+  // trail again (the run's next attempt); a trail no beat reached for kTrailIdle ends.
   void RecordBeat(int64_t run_id, double sim_time_s, double so_z);
   // The run's trail so far (empty when it is not running or no beat came since the daemon started).
   Trail TrailOf(int64_t run_id) const;
 
   uint64_t builds() const { return builds_.load(); }  // snapshots built (for tests and benchmarks)
   static constexpr size_t kMaxTrailPoints = 4096;     // past it, every other point is dropped
+  static constexpr std::chrono::minutes kTrailIdle{10};
 
  private:
-  std::string BuildContent();  // the snapshot without version and time; throws nothing
+  std::string BuildContent();  // the snapshot without version and time; "" when it cannot
+  std::string BuildContentOrThrow();
 
   Store* store_;
   Clock* clock_;
@@ -92,6 +98,7 @@ class LiveFeed {
   std::string last_content_;
   uint64_t version_ = 0;
   std::map<int64_t, Trail> trails_;
+  std::chrono::steady_clock::time_point last_idle_sweep_;
 
   std::atomic<bool> stopped_{false};
   std::atomic<int> streams_{0};

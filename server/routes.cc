@@ -949,9 +949,13 @@ void GetLive(Call& c) {
 void GetLiveEvents(Call& c) {
   LiveFeed* feed = NeedLiveFeed(c);
   if (feed == nullptr) return;
-  if (!feed->OpenStream()) {
+  if (!feed->OpenStream()) {  // expected under many pages: answered without the error log of a 5xx
     c.res.set_header("Retry-After", "10");
-    return Fail(c, Status::Unavailable("every live stream this daemon allows is open: poll GET /api/v1/live"));
+    c.res.status = 503;
+    c.res.set_content(api::ToJsonText(ProblemFor(
+                          Status::Unavailable("every live stream this daemon allows is open: poll GET /api/v1/live"), 503)),
+                      kProblemType);
+    return;
   }
   auto last = std::make_shared<uint64_t>(0);
   c.res.set_header("Cache-Control", "no-store");
@@ -975,7 +979,8 @@ void GetLiveEvents(Call& c) {
       [feed](bool) { feed->CloseStream(); });
 }
 
-// The run's z(t) so far, from its heartbeats while it runs; the stored trajectory once it is done.
+// The run's z(t) so far, from its heartbeats while it runs (empty once it is not running: its
+// stored trajectory is GET /api/v1/runs/{id}'s).
 void GetRunTrail(Call& c) {
   auto id = PathId(c);
   if (!id.ok()) return Fail(c, id.status());
