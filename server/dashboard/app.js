@@ -234,6 +234,18 @@ function dataTable(container, columns, rows, { filterPlaceholder = 'filter…', 
   return { setRows(r) { state.rows = r; render(); }, rows: () => state.rows, render };
 }
 
+// ---- Navigation: a page's late answers and plots end with it -----------------------------------
+
+// Bumped at every client-side navigation; a page's code checks it after each await (current()).
+const nav = { generation: 0, plots: [] };  // plots: the page's uPlot instances
+function leavePage() {
+  nav.generation++;
+  live.listeners.clear();
+  for (const p of nav.plots.splice(0)) p.destroy();
+}
+const current = generation => generation === nav.generation;
+const keepPlot = p => { nav.plots.push(p); return p; };
+
 // ---- Plots (uPlot) -------------------------------------------------------------------------------
 
 // Axis labels to their needed digits (uPlot's default rounds small steps, 0.0015 to "0.002").
@@ -271,12 +283,12 @@ function uzPlot(el, { xLabel, yLabel, x, y, err, curves = [], title }) {
   const ys = yCol.map((v, i) => (v === null ? null : [v - (errCol[i] || 0), v + (errCol[i] || 0)])).filter(Boolean).flat();
   const yMin = Math.min(0, ...ys, ...curves.flatMap(c => c.y)), yMax = Math.max(0, ...ys, ...curves.flatMap(c => c.y));
   const pad = (yMax - yMin) * 0.08 || 0.01;
-  return new uPlot({
+  return keepPlot(new uPlot({
     title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
     scales: { x: { time: false }, y: { range: [yMin - pad, yMax + pad] } },
     axes: [{ label: xLabel, values: tickValues }, { label: yLabel, size: 70, values: tickValues }],
     hooks: { draw: [errorBars] },
-  }, data, el);
+  }, data, el));
 }
 
 // z(t) of several runs (each its own times), on one plot: hover shows each run's z.
@@ -287,8 +299,8 @@ function trajectoriesPlot(el, runs, { title = 'z(t) of the SO' } = {}) {
   const series = [{ label: 't (s)', value: (u, v) => (v === null ? '—' : num(v, 4)) }]
     .concat(runs.map((r, i) => ({ label: r.label, stroke: palette[i % palette.length], width: 1.4, spanGaps: true, points: { show: false },
       value: (u, v) => (v === null ? '—' : `${num(v, 4)} m`) })));
-  return new uPlot({ title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
-    scales: { x: { time: false } }, axes: [{ label: 't (s)', values: tickValues }, { label: 'z (m)', size: 80, values: tickValues }] }, data, el);
+  return keepPlot(new uPlot({ title, width: Math.min(el.clientWidth || 640, 900), height: 320, series, data,
+    scales: { x: { time: false } }, axes: [{ label: 't (s)', values: tickValues }, { label: 'z (m)', size: 80, values: tickValues }] }, data, el));
 }
 
 function decimate(t, z, max = 800) {
@@ -324,7 +336,7 @@ function resultColumns(withSweeps) {
 // Keeps a results table in step with the live feed: running runs show their simulated time; a run
 // that stops running is read once (its own row) and its row replaced.
 function followRows(table) {
-  let running = new Set();
+  let running = new Set(table.rows().filter(r => r.state === 'running').map(r => r.run_id));
   onLive(async snap => {
     const now = new Map((snap.running || []).map(r => [r.id, r]));
     const rows = table.rows();
@@ -364,7 +376,9 @@ async function sweepUzPlot(el, sweep) {
   const axes = (sweep.spec && sweep.spec.axes) || [];
   const param = axes.length === 1 ? axes[0].param : null;
   if (!param) { el.innerHTML = '<p class="muted">No single swept parameter: no U_z curve.</p>'; return false; }
+  const generation = nav.generation;
   const [results, fits] = await Promise.all([get(`/api/v1/sweeps/${sweep.id}/results`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
+  if (!current(generation)) return false;
   const pts = (results.aggregates || []).filter(a => a.uz_mean !== undefined && a.conclusive > 0);
   if (!pts.length) { el.innerHTML = `<p class="muted">${esc(sweep.name)}: no conclusive U_z yet.</p>`; return false; }
   const x = pts.map(a => a[param]), y = pts.map(a => a.uz_mean), err = pts.map(a => a.uz_ci95 ?? null);
@@ -431,7 +445,9 @@ async function rerunCampaign(name) {
 
 async function campaignRunPage(id) {
   document.title = `campaign run ${id} · sandswim`;
+  const generation = nav.generation;
   const [info, results] = await Promise.all([get(`/api/v1/campaign-runs/${id}`), get(`/api/v1/campaign-runs/${id}/results`)]);
+  if (!current(generation)) return;
   main().innerHTML = `<h1>Campaign run ${id}: ${esc(info.campaign)} at ${esc(info.scale)}</h1>
     <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
       <dt>progress</dt><dd id="progress">${progressHtml(info.counts, null, daemonNow())}</dd>
@@ -458,10 +474,12 @@ async function campaignRunPage(id) {
   const plots = $('#uz-plots'), figures = $('#figures');
   for (const sid of info.sweeps) {
     const sweep = await get(`/api/v1/sweeps/${sid}`);
+    if (!current(generation)) return;
     const div = document.createElement('div');
     div.className = 'plot';
     plots.appendChild(div);
     const drawn = await sweepUzPlot(div, sweep).catch(e => { div.textContent = `${sweep.name}: ${e.message}`; return false; });
+    if (!current(generation)) return;
     if (drawn) figures.insertAdjacentHTML('beforeend', uzFigure(sweep, `${sweep.name} (the daemon's figure)`));
   }
   if ((results.results || []).some(r => r.mode !== 'oscillatory' && r.state === 'done')) {
@@ -472,7 +490,9 @@ async function campaignRunPage(id) {
 
 async function sweepPage(id) {
   document.title = `sweep ${id} · sandswim`;
+  const generation = nav.generation;
   const [sweep, results] = await Promise.all([get(`/api/v1/sweeps/${id}`), get(`/api/v1/sweeps/${id}/results`)]);
+  if (!current(generation)) return;
   main().innerHTML = `<h1>Sweep ${id}: ${esc(sweep.name)} <span class="muted">(${esc(sweep.scale)})</span></h1>
     <section class="card"><dl class="facts"><dt>submitted</dt><dd>${esc(when(sweep.created_at))}${sweep.campaign_run_id ? ` in <a href="/campaign-runs/${sweep.campaign_run_id}">campaign run ${sweep.campaign_run_id}</a>` : ''}</dd>
       <dt>progress</dt><dd id="progress">${progressHtml(sweep.counts, null, daemonNow())}</dd>
@@ -497,10 +517,11 @@ async function sweepPage(id) {
     if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.started_at, daemonNow());
   });
   sweepUzPlot($('#uz-plot'), sweep).then(drawn => {
-    if (drawn) $('#figures').insertAdjacentHTML('afterbegin', uzFigure(sweep, 'U_z (the daemon\'s figure, as in the report)'));
+    if (drawn && current(generation)) $('#figures').insertAdjacentHTML('afterbegin', uzFigure(sweep, 'U_z (the daemon\'s figure, as in the report)'));
   }).catch(e => { $('#uz-plot').textContent = e.message; });
   const done = (results.results || []).filter(r => r.state === 'done').slice(0, 12);
   const runs = await Promise.all(done.map(r => get(`/api/v1/runs/${r.run_id}`)));
+  if (!current(generation)) return;
   const series = runs.filter(r => r.trajectory && r.trajectory.t.length).map(r => Object.assign(decimate(r.trajectory.t, r.trajectory.z), { label: `run ${r.id}: ${pointText(r.point)}` }));
   if (series.length) trajectoriesPlot($('#zt-plot'), series);
   else $('#zt-plot').innerHTML = '<p class="muted">No finished run yet.</p>';
@@ -508,7 +529,9 @@ async function sweepPage(id) {
 
 async function runPage(id) {
   document.title = `run ${id} · sandswim`;
+  const generation = nav.generation;
   let run = await get(`/api/v1/runs/${id}`);
+  if (!current(generation)) return;
   const render = () => {
     const res = run.result;
     const err = run.last_error;
@@ -554,6 +577,7 @@ async function runPage(id) {
     showProgress(run.progress.sim_time_s, run.run_duration_s);
     if (run.state === 'running') {
       const trail = await get(`/api/v1/runs/${id}/trail`);
+      if (!current(generation)) return;
       t = trail.t.slice(); z = trail.z.slice();
       draw('Live: one point per heartbeat; the whole trajectory replaces it when the run ends.');
     } else {
@@ -572,8 +596,11 @@ async function runPage(id) {
         draw('Live: one point per heartbeat; the whole trajectory replaces it when the run ends.');
       }
     } else if (wasRunning) {
+      const fresh = await get(`/api/v1/runs/${id}`).catch(() => null);
+      if (!fresh || !current(generation) || !wasRunning) return;  // a later snapshot tries again
       wasRunning = false;
-      run = await get(`/api/v1/runs/${id}`);
+      run = fresh;
+      if (plot) { nav.plots = nav.plots.filter(q => q !== plot); plot.destroy(); }
       plot = null;
       render();
       if (run.trajectory && run.trajectory.t.length) { ({ t, z } = run.trajectory); draw('The stored trajectory (every dump frame).'); }
@@ -638,20 +665,24 @@ function jsonPathOffsets(text) {
       i++; ws();
       while (i < text.length && text[i] !== '}') {
         ws();
-        if (text[i] !== '"') return;
+        if (text[i] !== '"') return;  // not JSON here: stop (the map so far is still useful)
         const keyAt = i, key = str();
         const child = path ? `${path}.${key}` : key;
         out.set(child, keyAt);
         ws(); if (text[i] === ':') i++;
+        const before = i;
         value(child); out.set(child, keyAt);
         ws(); if (text[i] === ',') i++; ws();
+        if (i === before) return;
       }
       i++;
     } else if (text[i] === '[') {
       i++; ws();
       for (let k = 0; i < text.length && text[i] !== ']'; k++) {
+        const before = i;
         value(`${path}[${k}]`);
         ws(); if (text[i] === ',') i++; ws();
+        if (i === before) return;  // a stray '}' or ':' inside an array: no progress, stop
       }
       i++;
     } else if (text[i] === '"') {
@@ -753,13 +784,14 @@ function start() {
     if (!a || a.target || e.ctrlKey || e.metaKey || e.shiftKey || a.origin !== location.origin || a.pathname.startsWith('/api/')) return;
     e.preventDefault();
     history.pushState(null, '', a.pathname);
-    live.listeners.clear();
     $('#action-message').hidden = true;
     route();
   });
-  window.addEventListener('popstate', () => { live.listeners.clear(); route(); });
+  window.addEventListener('popstate', () => { leavePage(); route(); });
   const pushState = history.pushState.bind(history);
-  history.pushState = (...args) => { live.listeners.clear(); pushState(...args); };
+  history.pushState = (...args) => { leavePage(); pushState(...args); };
+  // A page brought back from the browser's back-forward cache has closed its stream: start afresh.
+  window.addEventListener('pageshow', e => { if (e.persisted) location.reload(); });
   runLive();
   route();
 }

@@ -225,6 +225,14 @@ TEST_F(DashboardTest, BadSweepShowsTheFieldErrorNextToTheField) {
   EXPECT_THAT(browser_->Text(".field-error"), HasSubstr("base.A"));
   EXPECT_THAT(browser_->Text("#gutter .bad"), HasSubstr(std::to_string(line)));
   Shot("submit-error");
+  // Text that is not JSON (a '}' closing an array): the daemon's reason, and the page stays alive.
+  browser_->Script("const a = document.querySelector('#sweep-json'); a.value = arguments[0];"
+                   "a.dispatchEvent(new Event('input'));",
+                   json::array({"{\"name\": \"x\", \"axes\": [1}"}));
+  browser_->Click("#submit");
+  ASSERT_TRUE(browser_->WaitUntil("/malformed JSON/.test(document.querySelector('#submit-errors').textContent)", 10))
+      << browser_->Text("#submit-errors");
+  EXPECT_EQ(browser_->Script("return 6 * 7;").get<int>(), 42) << "the page answers";
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM sweeps"), before) << "nothing stored";
   EXPECT_THAT(UnexpectedErrors(*browser_, {"400"}), ::testing::IsEmpty());
 }
@@ -247,6 +255,7 @@ TEST_F(DashboardTest, CancelWithoutTheTokenIsRefusedAndChangesNothing) {
 
 // The overview lists the campaign run and the sweeps with their progress (the README's picture).
 TEST_F(DashboardTest, OverviewShowsProgress) {
+  ASSERT_EQ(daemon_->WaitForSweep(sweep_id_, 120)["counts"]["done"], 4);
   Open("/");
   ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#campaign-runs tbody tr').length >= 1", 20));
   ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#sweeps tbody tr').length === 11", 20));
