@@ -20,6 +20,7 @@ case "$kind" in
     build=${2:-$root/build-asan}
     flags="-fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer"
     export ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:abort_on_error=0
+    export LSAN_OPTIONS=suppressions=$root/tests/lsan.supp
     export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
     targets=()
     tests=(-LE "engine|crash|fuzz|browser|slurm")
