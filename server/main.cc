@@ -214,10 +214,11 @@ int main(int argc, char** argv) {
   if (Status s = ReanalyzeOldResults(**store); !s.ok()) {
     return Die(s, "the database's results could not be re-analysed; restore a backup of " + flags.db);
   }
-  if (auto stale = sandswim::ClearBackupDir(flags.data); !stale.ok()) {
+  if (auto stale = sandswim::ClearScratchDirs(flags.data); !stale.ok()) {
     return Die(stale.status(), "check that --data " + flags.data + " is writable");
   } else if (*stale > 0) {
-    spdlog::info("removed {} backup file(s) left by an earlier daemon in {}", *stale, sandswim::BackupDir(flags.data));
+    spdlog::info("removed {} unfinished backup or upload file(s) left by an earlier daemon in {} and {}", *stale,
+                 sandswim::BackupDir(flags.data), sandswim::UploadDir(flags.data));
   }
   sandswim::SystemClock clock;
   sandswim::LeaseQueueOptions lease_options;

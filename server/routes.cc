@@ -709,7 +709,7 @@ struct Upload {
 // reaches the client instead of a reset.
 bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Upload& upload) {
   static std::atomic<uint64_t> upload_counter{0};
-  std::filesystem::path dir = std::filesystem::path(c.deps.data_dir) / "uploads";
+  std::filesystem::path dir = UploadDir(c.deps.data_dir);
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) {
@@ -901,19 +901,20 @@ void GetBackup(Call& c) {
 
 std::string BackupDir(const std::string& data_dir) { return data_dir + "/backups"; }
 
-Result<int> ClearBackupDir(const std::string& data_dir) {
-  const std::string dir = BackupDir(data_dir);
-  std::error_code ec;
-  if (!std::filesystem::exists(dir, ec)) return 0;
+std::string UploadDir(const std::string& data_dir) { return data_dir + "/uploads"; }
+
+Result<int> ClearScratchDirs(const std::string& data_dir) {
   int removed = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    std::filesystem::remove_all(entry.path(), ec);
-    if (ec) {
-      return Status::IOError("cannot remove the stale backup " + entry.path().string() + ": " + ec.message());
+  for (const std::string& dir : {BackupDir(data_dir), UploadDir(data_dir)}) {
+    std::error_code ec;
+    if (!std::filesystem::exists(dir, ec)) continue;
+    for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+      std::filesystem::remove_all(entry.path(), ec);
+      if (ec) return Status::IOError("cannot remove the stale " + entry.path().string() + ": " + ec.message());
+      ++removed;
     }
-    ++removed;
+    if (ec) return Status::IOError("cannot list " + dir + ": " + ec.message());
   }
-  if (ec) return Status::IOError("cannot list " + dir + ": " + ec.message());
   return removed;
 }
 

@@ -86,11 +86,13 @@ std::vector<RouteInfo> RouteTable();
 // Installs the routes, the problem+json error and exception handlers, auth and body limits.
 void RegisterRoutes(httplib::Server& server, Deps& deps);
 
-// GET /api/v1/backup writes its copy under DATA/backups/ and removes it once sent. A daemon that
-// died mid-backup leaves a copy (or a .partial) there: the next start removes them all, returning
-// how many it removed.
+// Scratch directories under DATA hold only what a request in flight writes, removed when it ends:
+// GET /api/v1/backup's copy (DATA/backups/) and an upload's body before it is checked and stored
+// (DATA/uploads/: bed restarts, snapshots). A daemon that died mid-request leaves its file there:
+// the next start empties both, returning how many files it removed.
 std::string BackupDir(const std::string& data_dir);
-Result<int> ClearBackupDir(const std::string& data_dir);
+std::string UploadDir(const std::string& data_dir);
+Result<int> ClearScratchDirs(const std::string& data_dir);
 
 // The HTTP status a Status code answers with (the one table).
 int HttpStatusFor(StatusCode code);

@@ -9,8 +9,12 @@
 // Outages are drawn up to 1.5 lease TTLs long, so some outlast a lease. Every trial asserts: every run done, once (one engine start per run, counted by the stand-in),
 // one result per run, none left running, `PRAGMA integrity_check` ok, and the bed's file still
 // has the checksum its row records.
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -188,6 +192,164 @@ TEST(CrashTrialsTest, APausedWorkersLateCompletionIsRefused) {
   other->Stop();
 }
 
+
+namespace {
+
+// Files directly in `dir` (none when it does not exist).
+std::vector<fs::path> FilesIn(const std::string& dir) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) files.push_back(e.path());
+  return files;
+}
+
+// A PUT of a bed restart that stops halfway: the headers promise `promised` bytes and `sent` of
+// them follow. The connection is left open, as a client's would be while the daemon dies.
+int StartHalfUpload(const std::string& listen, int64_t bed_id, const std::string& token, size_t promised,
+                    size_t sent) {
+  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(std::stoi(listen.substr(listen.rfind(':') + 1))));
+  inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    close(fd);
+    return -1;
+  }
+  std::string head = "PUT /api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token +
+                     " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/octet-stream\r\n"
+                     "X-Sha256: " + std::string(64, '0') + "\r\nContent-Length: " + std::to_string(promised) +
+                     "\r\n\r\n";
+  head += std::string(sent, 'x');
+  for (size_t off = 0; off < head.size();) {
+    const ssize_t n = send(fd, head.data() + off, head.size() - off, MSG_NOSIGNAL);
+    if (n <= 0) break;
+    off += static_cast<size_t>(n);
+  }
+  return fd;
+}
+
+}  // namespace
+
+// The daemon SIGKILLed while a bed's restart is being uploaded: the half-received body left in
+// DATA/uploads/ is removed at the next start, no part of it is recorded as the bed, the bed's
+// lease expires, a worker makes the bed again and the sweep finishes on a bed whose file has the
+// checksum its row records.
+TEST(CrashTrialsTest, ADaemonKilledDuringABedUploadRecordsNoPartOfIt) {
+  const std::string dir = testing::CacheDir() + "/crash-trials/bed-upload";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string starts_log = dir + "/engine-starts.log";
+  setenv("SANDSWIM_STAND_IN_STARTS", starts_log.c_str(), 1);
+  setenv("SANDSWIM_STAND_IN_SECONDS", "0.3", 1);
+  const std::vector<std::string> flags = {"--lease-ttl", "3", "--max-attempts", "3"};
+  auto daemon = std::make_unique<testing::Daemon>(dir + "/daemon", flags);
+  const std::string listen = daemon->listen();
+  int status = 0;
+  json submitted = daemon->Post("/api/v1/sweeps", testing::OmegaSweep("upload", {-80}, 0.05, 20), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const std::string uploads = dir + "/daemon/data/uploads";
+  {
+    testing::BedHandIn held(*daemon);
+    const int fd = StartHalfUpload(listen, held.grant().id, held.grant().token, 8 << 20, 4 << 20);
+    ASSERT_GE(fd, 0);
+    // The daemon is writing the body when it dies.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    auto received = [&] {
+      std::error_code ec;
+      for (const auto& f : FilesIn(uploads))
+        if (fs::file_size(f, ec) > 0) return true;
+      return false;
+    };
+    while (!received()) {
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no upload file appeared in " << uploads;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    daemon->process().Kill(SIGKILL);
+    for (int i = 0; i < 500 && daemon->process().running(); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    close(fd);
+    EXPECT_EQ(FilesIn(uploads).size(), 1u) << "the killed daemon left its half upload";
+  }  // the hand-in stops heartbeating: its lease expires after the restart
+  daemon.reset();
+  daemon = std::make_unique<testing::Daemon>(dir + "/daemon", flags, listen);
+  EXPECT_TRUE(FilesIn(uploads).empty()) << "the restarted daemon kept a half upload";
+  EXPECT_THAT(daemon->process().Output(), ::testing::HasSubstr("removed 1 unfinished backup or upload file(s)"));
+  EXPECT_EQ(daemon->Query("SELECT count(*) FROM beds WHERE sha256 IS NOT NULL"), "0");
+  EXPECT_TRUE(FilesIn(dir + "/daemon/data/beds").empty());
+
+  auto worker = testing::StartWorker(*daemon, dir + "/worker", 1,
+                                     {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
+  const json s = daemon->WaitForSweep(submitted["id"].get<int64_t>(), 60);
+  worker->Stop();
+  EXPECT_EQ(s["counts"]["done"], 1) << s.dump() << "\n" << worker->Output();
+  EXPECT_EQ(daemon->Query("SELECT count(*) FROM results"), "1");
+  EXPECT_EQ(daemon->Query("PRAGMA integrity_check"), "ok");
+  const std::string bed_path = daemon->Query("SELECT path FROM beds");
+  auto sha = Sha256OfFile(fs::path(bed_path).is_absolute() ? bed_path : dir + "/daemon/" + bed_path);
+  ASSERT_TRUE(sha.ok()) << bed_path;
+  EXPECT_EQ(*sha, daemon->Query("SELECT sha256 FROM beds"));
+  EXPECT_TRUE(FilesIn(uploads).empty());
+}
+
+namespace {
+
+// The engine alone, or mpirun alone, SIGKILLed under a live worker in the middle of a run: the
+// worker reports the attempt failed on that signal, the run is queued again and run once more
+// (the stand-in counts two starts), and there is one result. `launcher`: "direct" or "mpirun";
+// `victim`: the command name of the process killed.
+void KillAloneAndRunAgain(const std::string& launcher, const std::string& victim) {
+  SCOPED_TRACE(launcher + ", " + victim + " killed");
+  const std::string dir = testing::CacheDir() + "/crash-trials/alone-" + launcher;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string starts_log = dir + "/engine-starts.log";
+  setenv("SANDSWIM_STAND_IN_STARTS", starts_log.c_str(), 1);
+  setenv("SANDSWIM_STAND_IN_SECONDS", "3", 1);
+  testing::Daemon daemon(dir + "/daemon", {"--lease-ttl", "3", "--max-attempts", "3"});
+  int status = 0;
+  json submitted = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("alone", {-80}, 0.05, 20), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const std::string worker_dir = dir + "/worker";
+  auto worker = testing::StartWorker(daemon, worker_dir, 1,
+                                     {"--launcher", launcher, "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
+  pid_t target = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (target == 0) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no " << victim << " of a run seen\n" << worker->Output();
+    if (daemon.Query("SELECT count(*) FROM runs WHERE state = 'running'") == "1") {
+      for (const auto& p : testing::ProcessesUnder(worker_dir + "/"))
+        if (p.comm == victim) target = p.pid;
+    }
+    if (target == 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // well into the run
+  ASSERT_EQ(kill(target, SIGKILL), 0);
+  const json s = daemon.WaitForSweep(submitted["id"].get<int64_t>(), 60);
+  EXPECT_TRUE(worker->running()) << "the worker died with its engine\n" << worker->Output();
+  // Nothing of either attempt outlives it: no rank orphaned by its mpirun.
+  std::string left;
+  for (const auto& p : testing::ProcessesUnder(worker_dir + "/")) left += " " + p.comm;
+  EXPECT_EQ(left, "") << "processes left in the runs' directories";
+  worker->Stop();
+  EXPECT_EQ(s["counts"]["done"], 1) << s.dump() << "\n" << worker->Output();
+  EXPECT_EQ(daemon.Query("SELECT attempts FROM runs"), "2");
+  EXPECT_EQ(daemon.Query("SELECT count(*) FROM results"), "1");
+  const std::string requeued = daemon.Query("SELECT detail FROM events WHERE kind = 'run.requeued'");
+  EXPECT_THAT(requeued, ::testing::HasSubstr("\"signal\"")) << requeued;
+  const std::map<int64_t, int> starts = StartsPerRun(starts_log);
+  ASSERT_EQ(starts.size(), 1u);
+  EXPECT_EQ(starts.begin()->second, 2);
+  EXPECT_EQ(daemon.Query("PRAGMA integrity_check"), "ok");
+  std::printf("CRASH %s killed alone under a %s worker: run requeued (%s), done once more, 1 result\n",
+              victim.c_str(), launcher.c_str(), requeued.c_str());
+}
+
+}  // namespace
+
+TEST(CrashTrialsTest, AnEngineKilledAloneIsRunAgain) { KillAloneAndRunAgain("direct", "sandswim-stand-"); }
+
+TEST(CrashTrialsTest, MpirunKilledAloneIsRunAgain) { KillAloneAndRunAgain("mpirun", "mpirun"); }
 
 // A submission is all or nothing: the daemon SIGKILLed while it plans and writes a large sweep
 // (50,000 runs, one transaction) leaves either the whole sweep or none of it.

@@ -57,22 +57,7 @@ class EndToEndFaultsTest : public ::testing::Test {
 std::string* EndToEndFaultsTest::dir_ = nullptr;
 Daemon* EndToEndFaultsTest::daemon_ = nullptr;
 
-// Processes (not zombies) whose working directory is under `dir`: the engines a worker started
-// there.
-int ProcessesUnder(const std::string& dir) {
-  int n = 0;
-  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
-    std::error_code ec;
-    const std::string cwd = std::filesystem::read_symlink(entry.path() / "cwd", ec).string();
-    if (ec || cwd.compare(0, dir.size(), dir) != 0) continue;
-    std::ifstream stat(entry.path() / "stat");
-    std::string line;
-    std::getline(stat, line);
-    const size_t paren = line.rfind(')');
-    if (paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] != 'Z') ++n;
-  }
-  return n;
-}
+int ProcessesUnder(const std::string& dir) { return static_cast<int>(testing::ProcessesUnder(dir).size()); }
 
 // A worker killed with SIGKILL in the middle of a run: its engine dies with it, its lease
 // expires, a second worker runs the run again, and exactly one result exists. The first worker

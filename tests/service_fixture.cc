@@ -150,6 +150,23 @@ void Check(int rc, sqlite3* db, const std::string& sql) {
 }
 }  // namespace
 
+std::vector<ProcessInfo> ProcessesUnder(const std::string& dir) {
+  std::vector<ProcessInfo> found;
+  for (const auto& entry : fs::directory_iterator("/proc")) {
+    std::error_code ec;
+    const std::string cwd = fs::read_symlink(entry.path() / "cwd", ec).string();
+    if (ec || cwd.compare(0, dir.size(), dir) != 0) continue;
+    std::ifstream stat(entry.path() / "stat");
+    std::string line;
+    std::getline(stat, line);
+    const size_t open = line.find('('), close = line.rfind(')');
+    if (open == std::string::npos || close == std::string::npos || close + 2 >= line.size()) continue;
+    if (line[close + 2] == 'Z') continue;
+    found.push_back({static_cast<pid_t>(std::stol(line)), line.substr(open + 1, close - open - 1)});
+  }
+  return found;
+}
+
 std::string Daemon::Query(const std::string& sql) const {
   Connection c(db_, /*write=*/false);
   sqlite3_stmt* st = nullptr;

@@ -16,6 +16,8 @@
 #include <mutex>
 #include <string>
 #include <thread>
+
+#include <sys/types.h>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -113,6 +115,15 @@ class BedHandIn {
 // {"--launcher", "direct"}) with its workdir and output (worker.out) in `dir`.
 std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::string& dir, int slots,
                                           const std::vector<std::string>& extra = {});
+
+// A live process (not a zombie) and its command name (/proc/PID/comm, at most 15 characters).
+struct ProcessInfo {
+  pid_t pid = 0;
+  std::string comm;
+};
+// The live processes whose working directory is under `dir`: the engines (and mpirun) a worker
+// started there.
+std::vector<ProcessInfo> ProcessesUnder(const std::string& dir);
 
 // A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz unless `f` says otherwise) over the
 // given Omega values, each run `duration` s long: the sweep JSON to POST.
