@@ -1,8 +1,11 @@
 #include "server/database.h"
 
 #include <sqlite3.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 #include <utility>
@@ -40,15 +43,25 @@ constexpr const char* kTables[] = {
 
 Status SqlError(sqlite3* db, const std::string& what) {
   int code = sqlite3_extended_errcode(db);
-  std::string msg = what + ": " + sqlite3_errmsg(db);
+  std::string msg = what.empty() ? std::string(sqlite3_errmsg(db)) : what + ": " + sqlite3_errmsg(db);
   if ((code & 0xff) == SQLITE_BUSY || (code & 0xff) == SQLITE_LOCKED) {
     return Status::Unavailable(msg);
   }
   if ((code & 0xff) == SQLITE_CONSTRAINT) return Status::Conflict(msg);
+  // Faults of the disk, not of the request: the operator's to fix, and the request can be retried
+  // once they are (503).
+  if ((code & 0xff) == SQLITE_FULL) {
+    return Status::Unavailable(msg + ": the disk that holds the database is full; free space on it, and writes "
+                                     "resume by themselves (nothing was written)");
+  }
+  if ((code & 0xff) == SQLITE_READONLY) {
+    return Status::Unavailable(msg + ": the database cannot be written; make its file, its directory and their "
+                                     "filesystem writable again (nothing was written)");
+  }
   if ((code & 0xff) == SQLITE_CORRUPT || (code & 0xff) == SQLITE_NOTADB) {
     return Status::Corruption(msg);
   }
-  if ((code & 0xff) == SQLITE_IOERR || (code & 0xff) == SQLITE_FULL || (code & 0xff) == SQLITE_CANTOPEN) {
+  if ((code & 0xff) == SQLITE_IOERR || (code & 0xff) == SQLITE_CANTOPEN) {
     return Status::IOError(msg);
   }
   return Status::Internal(msg);
@@ -57,10 +70,8 @@ Status SqlError(sqlite3* db, const std::string& what) {
 Status ExecRaw(sqlite3* db, const std::string& sql) {
   char* err = nullptr;
   if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
-    std::string msg = err ? err : "unknown error";
-    sqlite3_free(err);
-    Status s = SqlError(db, "sql");
-    return Status(s.code(), msg);
+    sqlite3_free(err);  // the same text as sqlite3_errmsg()
+    return SqlError(db, "");
   }
   return Status::Ok();
 }
@@ -213,6 +224,25 @@ Status Transaction::Commit() {
 
 // ---- Database -----------------------------------------------------------------------------------
 
+namespace {
+
+// Why `path` (or, while it does not exist, its directory) cannot be written, said for an error
+// that SQLite words as "unable to open database file"; "" when nothing is found.
+std::string WhyNotWritable(const std::string& path) {
+  std::error_code ec;
+  std::string target = std::filesystem::exists(path, ec) ? path : std::filesystem::path(path).parent_path().string();
+  if (target.empty()) target = ".";
+  if (access(target.c_str(), W_OK) == 0) return "";
+  const int err = errno;
+  if (err == EROFS) {
+    return " (" + target + " is on a read-only filesystem: check the filesystem and remount it read-write, or "
+           "move the database)";
+  }
+  return " (" + target + " cannot be written: " + std::strerror(err) + ")";
+}
+
+}  // namespace
+
 Status Database::OpenFile(const std::string& path) {
   path_ = path;
   if (path != ":memory:") {
@@ -232,13 +262,17 @@ Status Database::OpenFile(const std::string& path) {
       sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
     std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
-    return Status::IOError("cannot open database " + path + ": " + msg);
+    return Status::IOError("cannot open database " + path + ": " + msg + WhyNotWritable(path));
   }
   sqlite3_busy_timeout(db_, 5000);
-  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_,
-                                   "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
-                                   "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = "
-                                   "-65536; PRAGMA wal_autocheckpoint = 10000;"));
+  // The first statement is where a database that cannot be written fails (its WAL cannot be made).
+  if (Status s = ExecRaw(db_,
+                         "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
+                         "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = "
+                         "-65536; PRAGMA wal_autocheckpoint = 10000;");
+      !s.ok()) {
+    return Status(s.code(), "cannot open database " + path + ": " + s.reason() + WhyNotWritable(path));
+  }
   SANDSWIM_RETURN_IF_ERROR(Migrate());
   return Status::Ok();
 }

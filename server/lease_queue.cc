@@ -191,7 +191,7 @@ Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) 
   if (run.stored_deck) {  // runs submitted before migration 3: the stored deck says it
     Result<DriveInfo> drive = ReadDriveInfo(*run.stored_deck);
     if (!drive.ok()) return Status::FailedPrecondition("deck", "its stored deck: " + drive.status().reason());
-    return RunDeck{*run.stored_deck, *drive, std::nullopt};  // such runs have no target
+    return RunDeck{*run.stored_deck, *drive, std::nullopt, {}};  // such runs have no target or snapshots
   }
   Result<Point> point = StoredPoint(run.mode, run.axis, run.A, run.f, run.Omega, run.omega, run.duration_s);
   const Scale* scale = FindScale(run.scale);

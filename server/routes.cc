@@ -100,6 +100,7 @@ void SendProblem(httplib::Response& res, const Status& status, int http_status =
   if (http_status == 0) http_status = HttpStatusFor(status.code());
   res.status = http_status;
   res.set_content(api::ToJsonText(ProblemFor(status, http_status)), kProblemType);
+  if (http_status == 503 && !res.has_header("Retry-After")) res.set_header("Retry-After", "10");
   if (http_status >= 500) {
     spdlog::error(
         "HTTP {}: {} (check the daemon's --db and --data paths and disk space; "

@@ -12,11 +12,14 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
+#include <sys/mount.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -350,6 +353,129 @@ void KillAloneAndRunAgain(const std::string& launcher, const std::string& victim
 TEST(CrashTrialsTest, AnEngineKilledAloneIsRunAgain) { KillAloneAndRunAgain("direct", "sandswim-stand-"); }
 
 TEST(CrashTrialsTest, MpirunKilledAloneIsRunAgain) { KillAloneAndRunAgain("mpirun", "mpirun"); }
+
+// Disk faults: the daemon's database and data directory on a small filesystem the test mounts
+// (a 64 MiB tmpfs: root only; the test is skipped, saying why, where it cannot mount), filled to
+// its last byte while a sweep runs, and later made read-only. The daemon's own output stays on the
+// ordinary disk beside them (symbolic links), so what it says can be read.
+class DiskFaultsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::CacheDir() + "/crash-trials/disk";
+    mnt_ = dir_ + "/fs";
+    umount2(mnt_.c_str(), MNT_DETACH);  // left by an earlier run that died
+    fs::remove_all(dir_);
+    fs::create_directories(mnt_);
+    if (mount("tmpfs", mnt_.c_str(), "tmpfs", 0, "size=64m") != 0) {
+      GTEST_SKIP() << "cannot mount a tmpfs at " << mnt_ << " (" << std::strerror(errno)
+                   << "): the disk-fault tests need root";
+    }
+    mounted_ = true;
+    fs::create_directories(dir_ + "/daemon");
+    fs::create_directories(mnt_ + "/data");
+    fs::create_symlink(mnt_ + "/data", dir_ + "/daemon/data");
+    fs::create_symlink(mnt_ + "/sandswim.db", dir_ + "/daemon/sandswim.db");
+  }
+  void TearDown() override {
+    if (mounted_) umount2(mnt_.c_str(), MNT_DETACH);
+  }
+  // Fills the filesystem to its last byte with one file; returns its path.
+  std::string Fill() {
+    const std::string path = mnt_ + "/filler";
+    FILE* f = std::fopen(path.c_str(), "wb");
+    EXPECT_NE(f, nullptr);
+    std::setvbuf(f, nullptr, _IONBF, 0);
+    std::vector<char> block(1 << 16, 'f');
+    for (size_t size = block.size(); size > 0; size /= 2) {
+      while (std::fwrite(block.data(), 1, size, f) == size) {
+      }
+      std::clearerr(f);
+    }
+    std::fclose(f);
+    return path;
+  }
+  bool mounted_ = false;
+  std::string dir_, mnt_;
+};
+
+// Full to the last byte while a worker completes runs: a new sweep is refused with a problem that
+// says the disk is full and what to do, and nothing of it is stored; reads still answer; the
+// worker's completions wait (retried), and once space returns the sweep finishes with every run
+// done once, one result each, the database intact, and new sweeps accepted again.
+TEST_F(DiskFaultsTest, AFullDiskRefusesWritesClearlyAndServiceResumesWhenSpaceReturns) {
+  const std::string starts_log = dir_ + "/engine-starts.log";
+  setenv("SANDSWIM_STAND_IN_STARTS", starts_log.c_str(), 1);
+  setenv("SANDSWIM_STAND_IN_SECONDS", "0.3", 1);
+  testing::Daemon daemon(dir_ + "/daemon", {"--lease-ttl", "10", "--max-attempts", "3"});
+  const int runs = 12;
+  std::vector<double> omegas;
+  for (int i = 0; i < runs; ++i) omegas.push_back(-10.0 - i);
+  int status = 0;
+  json submitted = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("disk", omegas, 0.05, 20), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const int64_t sweep = submitted["id"].get<int64_t>();
+  auto worker = testing::StartWorker(daemon, dir_ + "/worker", 1,
+                                     {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (daemon.Query("SELECT count(*) FROM results") < "2") {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << worker->Output();
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  const std::string filler = Fill();
+  const std::string done_when_full = daemon.Query("SELECT count(*) FROM results");
+
+  json refused = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("while-full", {-5}, 0.05, 20), &status);
+  EXPECT_EQ(status, 503) << refused.dump();
+  EXPECT_THAT(refused.value("detail", ""), ::testing::HasSubstr("disk that holds the database is full")) << refused.dump();
+  EXPECT_EQ(daemon.Query("SELECT count(*) FROM sweeps"), "1");
+  daemon.Get("/api/v1/sweeps/" + std::to_string(sweep), &status);
+  EXPECT_EQ(status, 200) << "reads stop when the disk is full";
+  std::this_thread::sleep_for(std::chrono::seconds(3));  // the worker's completions meet the full disk
+  const std::string done_while_full = daemon.Query("SELECT count(*) FROM results");
+
+  fs::remove(filler);
+  const json s = daemon.WaitForSweep(sweep, 60);
+  EXPECT_EQ(s["counts"]["done"], runs) << s.dump() << "\n" << worker->Output();
+  EXPECT_EQ(daemon.Query("SELECT count(*) FROM results"), std::to_string(runs));
+  const std::map<int64_t, int> starts = StartsPerRun(starts_log);
+  EXPECT_EQ(starts.size(), static_cast<size_t>(runs));
+  for (const auto& [run, n] : starts) EXPECT_EQ(n, 1) << "run " << run << " started " << n << " times";
+  EXPECT_EQ(daemon.Query("PRAGMA integrity_check"), "ok");
+  json accepted = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("after", {-5}, 0.05, 20), &status);
+  EXPECT_EQ(status, 201) << accepted.dump();
+  worker->Stop();
+  EXPECT_TRUE(daemon.process().running());
+  std::printf("DISK full: %s results when filled, %s after 3 s full, %d after space returned; refused: %s\n",
+              done_when_full.c_str(), done_while_full.c_str(), runs, refused.value("detail", "").c_str());
+}
+
+// A database on a filesystem that became read-only: the daemon does not start, and says why and
+// what to do; made writable again, it starts on the same files with everything it had.
+TEST_F(DiskFaultsTest, ADaemonOnAReadOnlyDatabaseSaysSoAndStartsWhenWritable) {
+  std::string listen;
+  {
+    testing::Daemon daemon(dir_ + "/daemon");
+    listen = daemon.listen();
+    int status = 0;
+    json submitted = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("ro", {-5, -6}, 0.05, 20), &status);
+    ASSERT_EQ(status, 201) << submitted.dump();
+    daemon.process().Stop();
+  }
+  ASSERT_EQ(mount("tmpfs", mnt_.c_str(), "tmpfs", MS_REMOUNT | MS_RDONLY, "size=64m"), 0) << std::strerror(errno);
+  std::string said;
+  try {
+    testing::Daemon daemon(dir_ + "/daemon", {}, listen);
+    ADD_FAILURE() << "the daemon started on a read-only database";
+  } catch (const std::runtime_error& e) {
+    said = e.what();
+  }
+  EXPECT_THAT(said, ::testing::HasSubstr("is on a read-only filesystem")) << said;
+  ASSERT_EQ(mount("tmpfs", mnt_.c_str(), "tmpfs", MS_REMOUNT, "size=64m"), 0) << std::strerror(errno);
+  testing::Daemon daemon(dir_ + "/daemon", {}, listen);
+  EXPECT_EQ(daemon.Query("SELECT count(*) FROM runs"), "2");
+  EXPECT_EQ(daemon.Query("PRAGMA integrity_check"), "ok");
+  std::printf("DISK read-only: the daemon said: %s\n", said.substr(said.rfind("\n", said.size() - 2) + 1).c_str());
+}
 
 // A submission is all or nothing: the daemon SIGKILLed while it plans and writes a large sweep
 // (50,000 runs, one transaction) leaves either the whole sweep or none of it.
