@@ -1,4 +1,4 @@
-// LoopbackServer (tests only): the routes of RegisterRoutes served for real -- an httplib::Server
+// LoopbackServer (tests only): the routes of RegisterRoutes served for real -- the daemon's server
 // on 127.0.0.1 and an ephemeral port, its accept loop in a thread of the test -- with a client.
 // Requests sent right after construction queue on the bound socket until the loop accepts them.
 // The destructor stops the server and joins its thread.
@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "server/guarded_http_server.h"
 #include "server/routes.h"
 
 namespace sandswim {
@@ -41,7 +42,7 @@ class LoopbackServer {
 
  private:
   Deps deps_;
-  httplib::Server server_;
+  GuardedHttpServer server_;  // as the daemon serves
   int port_ = 0;
   std::thread thread_;
   std::unique_ptr<httplib::Client> client_;

@@ -34,6 +34,7 @@
 #include "server/drift_report.h"
 #include "server/dashboard_files.h"
 #include "server/figures.h"
+#include "server/guarded_http_server.h"
 #include "server/live_feed.h"
 #include "server/report.h"
 #include "server/schema_files.h"
@@ -735,6 +736,7 @@ bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Up
     out.write(data, static_cast<std::streamsize>(n));
     return static_cast<bool>(out);
   });
+  GuardedHttpServer::BodyReceived();
   out.close();
   if (too_big) {
     c.res.set_header("Connection", "close");
@@ -1190,6 +1192,7 @@ bool ReadBody(const httplib::ContentReader& reader, size_t limit, std::string& b
     }
     return true;
   });
+  GuardedHttpServer::BodyReceived();
   return !too_big;
 }
 
@@ -1442,7 +1445,9 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
 
 // ---- ApiServer ---------------------------------------------------------------------------------
 
-ApiServer::ApiServer(Deps deps) : deps_(std::move(deps)), server_(std::make_unique<httplib::Server>()) {
+// Slow clients are cut off by the server's deadlines (server/guarded_http_server.h): a request head
+// in 10 s, a body at 256 KiB/s after 30 s; one read that receives nothing may take 60 s.
+ApiServer::ApiServer(Deps deps) : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>()) {
   // Keep-alive connections hold a thread each; give concurrent workers and clients room: 64, and
   // as many again as the dashboard's live streams may hold (LiveFeed's max_streams, 128).
   server_->new_task_queue = [] { return new httplib::ThreadPool(64 + 128); };
@@ -1450,7 +1455,6 @@ ApiServer::ApiServer(Deps deps) : deps_(std::move(deps)), server_(std::make_uniq
   // Without TCP_NODELAY a small response written as headers + body meets the client's delayed
   // ACK: ~40 ms per request on loopback (bench_daemon: 173 -> thousands of cycles/s).
   server_->set_tcp_nodelay(true);
-  server_->set_read_timeout(60, 0);
   RegisterRoutes(*server_, deps_);
 }
 
