@@ -77,6 +77,11 @@ class DeadlineStream final : public httplib::Stream {
     return true;
   }
   ssize_t read(char* ptr, size_t size) override {
+    // Checked before every read, not only when one waits: a client dribbling bytes never waits.
+    if (deadline_ && Steady::now() >= *deadline_) {
+      missed_ = what_;
+      return -1;
+    }
     if (begin_ == end_) {
       if (!PollUntil(fd_, POLLIN, ReadUntil())) {
         if (deadline_ && Steady::now() >= *deadline_) missed_ = what_;
@@ -123,6 +128,11 @@ class DeadlineStream final : public httplib::Stream {
 thread_local DeadlineStream* current_stream = nullptr;
 
 }  // namespace
+
+bool GuardedHttpServer::SetBacklog(int n) {
+  const socket_t sock = svr_sock_;
+  return sock != INVALID_SOCKET && ::listen(sock, n) == 0;  // a second listen() sets the backlog anew
+}
 
 void GuardedHttpServer::BodyReceived() {
   if (current_stream != nullptr) current_stream->set_deadline(std::nullopt, "");

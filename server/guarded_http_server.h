@@ -38,6 +38,11 @@ class GuardedHttpServer : public httplib::Server {
  public:
   explicit GuardedHttpServer(ConnectionLimits limits = {}) : limits_(limits) {}
 
+  // Lets `n` connections wait to be accepted, after bind_to_port() or bind_to_any_port(): the HTTP
+  // library listens with a backlog of 5, and a burst of more clients (workers finishing together, a
+  // dashboard's requests) would otherwise wait a second for their SYN to be sent again.
+  bool SetBacklog(int n);
+
   // The handler serving this thread's request has read its body: its deadline ends.
   static void BodyReceived();
 

@@ -1472,6 +1472,7 @@ Result<int> ApiServer::Bind(const ListenAddress& address) {
     return Status::Unavailable("cannot listen on " + address.host + ":" + std::to_string(address.port) +
                                " (address in use or not local?): pick another --listen");
   }
+  if (!server_->SetBacklog(SOMAXCONN)) spdlog::warn("could not widen the listen backlog past 5 connections");
   return port;
 }
 

@@ -1,5 +1,6 @@
 // Routes: the REST API of sandswimd (/api/v1, /healthz, /metrics) over cpp-httplib. This is the
-// only server file that includes httplib.h; everything else speaks Status and values.
+// only server file, with the server it runs on (guarded_http_server.h), that includes httplib.h;
+// everything else speaks Status and values.
 //
 // Every route stands in one table (RouteTable(), in routes.cc, read top to bottom): method, path
 // in OpenAPI form ("/api/v1/sweeps/{id}"), who may call it, what body it takes, and its handler.
@@ -110,6 +111,8 @@ bool IsLoopbackHost(const std::string& host);
 Status CheckListenPolicy(const ListenAddress& address, bool have_token);
 
 // The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib.
+class GuardedHttpServer;  // server/guarded_http_server.h
+
 class ApiServer {
  public:
   explicit ApiServer(Deps deps);
@@ -126,7 +129,7 @@ class ApiServer {
 
  private:
   Deps deps_;
-  std::unique_ptr<httplib::Server> server_;
+  std::unique_ptr<GuardedHttpServer> server_;
 };
 
 }  // namespace sandswim
