@@ -44,6 +44,7 @@ struct Flags {
   std::vector<std::string> schedules;  // NAME[:SCALE]
   double scheduler_tick_s = 20;
   double slurm_check_s = 30;
+  double http_head_timeout_s = 10;
 };
 
 void AddFlags(CLI::App& app, Flags& flags) {
@@ -60,6 +61,11 @@ void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--max-attempts", flags.max_attempts, "leases a job gets before it fails")
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
+  app.add_option("--http-head-timeout", flags.http_head_timeout_s,
+                 "seconds a client may take to send a request's line and headers, from their first byte "
+                 "(a slower connection is closed)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 3600.0));
   app.add_option("--engine-version", flags.engine_version, "LIGGGHTS version string (default: ask liggghts)");
   app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
@@ -268,7 +274,7 @@ int main(int argc, char** argv) {
   leases.SetProgressObserver(
       [&live](int64_t run_id, const sandswim::api::Heartbeat& beat) { live.RecordBeat(run_id, beat.sim_time_s, beat.so_z); });
   deps.live = &live;
-  sandswim::ApiServer server(deps);
+  sandswim::ApiServer server(deps, flags.http_head_timeout_s);
   auto port = server.Bind(*address);
   if (!port.ok()) return Die(port.status(), "stop whatever holds the port, or pass another --listen");
   std::thread serve([&server] { server.Serve(); });

@@ -1445,9 +1445,18 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
 
 // ---- ApiServer ---------------------------------------------------------------------------------
 
+namespace {
+ConnectionLimits LimitsWithHead(double head_timeout_s) {
+  ConnectionLimits limits;
+  limits.head_s = head_timeout_s;
+  return limits;
+}
+}  // namespace
+
 // Slow clients are cut off by the server's deadlines (server/guarded_http_server.h): a request head
 // in 10 s, a body at 256 KiB/s after 30 s; one read that receives nothing may take 60 s.
-ApiServer::ApiServer(Deps deps) : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>()) {
+ApiServer::ApiServer(Deps deps, double head_timeout_s)
+    : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(LimitsWithHead(head_timeout_s))) {
   // Keep-alive connections hold a thread each; give concurrent workers and clients room: 64, and
   // as many again as the dashboard's live streams may hold (LiveFeed's max_streams, 128).
   server_->new_task_queue = [] { return new httplib::ThreadPool(64 + 128); };

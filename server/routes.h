@@ -110,12 +110,13 @@ bool IsLoopbackHost(const std::string& host);
 // Refuses a non-loopback address without a token (field "--listen").
 Status CheckListenPolicy(const ListenAddress& address, bool have_token);
 
-// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib.
 class GuardedHttpServer;  // server/guarded_http_server.h
 
+// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib. A client must
+// send a request head within `head_timeout_s` of its first byte (server/guarded_http_server.h).
 class ApiServer {
  public:
-  explicit ApiServer(Deps deps);
+  explicit ApiServer(Deps deps, double head_timeout_s = 10);
   ~ApiServer();
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;
