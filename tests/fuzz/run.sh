@@ -5,11 +5,13 @@
 #   tests/fuzz/run.sh BUILD_DIR [SECONDS]
 #
 # BUILD_DIR is the main build (the targets take its generated, embedded templates); the fuzz build
-# goes to BUILD_DIR/fuzz. ctest runs it for 10 s a target (test `fuzz`); a long run on demand:
+# goes to BUILD_DIR/fuzz. ctest runs it for 5 s a target (test `fuzz`); a long run on demand:
 #   tests/fuzz/run.sh build 3600
 # Targets: fuzz_sweep (sweep, campaign and submission JSON, planned when it parses), fuzz_dump (a
 # trajectory dump as the worker follows it, a full-bed snapshot as the daemon checks an upload),
-# fuzz_engine_log (the engine's log as the worker judges a job). Each first replays every input in
+# fuzz_engine_log (the engine's log as the worker judges a job), fuzz_request (what a client sends
+# on a connection, through the HTTP library's parser and sandswimd's server, routes and handlers on
+# a real SQLite file). SANDSWIM_FUZZ_TARGETS="..." picks some. Each first replays every input in
 # tests/fuzz/regressions/TARGET/ (inputs that once crashed it: keep each one there, beside the fix);
 # a new crash is written to BUILD_DIR/fuzz/crashes/ and fails the run -- copy it into regressions.
 set -euo pipefail
@@ -26,32 +28,54 @@ mkdir -p "$out/obj" "$out/crashes"
 sanitize="-fsanitize=address,undefined -fno-sanitize-recover=undefined"
 flags=(-std=c++17 ${SANDSWIM_FUZZ_OPT:--O1} -g -fno-omit-frame-pointer $sanitize -I"$root")
 
-# The core library once, as objects, compiled in batches of 8 sources as the main build does (its
+# The libraries once, as objects, compiled in batches of 8 sources as the main build does (its
 # unity build: the big headers are parsed once a batch, not once a file); a batch is rebuilt when
-# one of its sources is newer than its object.
-sources=()
-for f in "$root"/core/*.cc; do
-  case "$f" in *_test.cc) continue ;; esac
-  sources+=("$f")
-done
+# one of its sources is newer than its object. The core serves every target; the platform and
+# server libraries (and the HTTP library's flags, which change its classes' layout) only
+# fuzz_request.
 mkdir -p "$out/unity"
+batches() {  # batches NAME SOURCES...: appends each batch's (unity source, object) to jobs, object to $2's array
+  local name=$1 list=$2
+  shift 2
+  local sources=("$@") i unity obj src
+  for ((i = 0; i < ${#sources[@]}; i += 8)); do
+    unity=$out/unity/${name}_$((i / 8)).cc
+    obj=$out/obj/${name}_$((i / 8)).o
+    {
+      for src in "${sources[@]:i:8}"; do printf '#include "%s"\n' "$src"; done
+    } > "$unity.new"
+    if cmp -s "$unity.new" "$unity"; then rm "$unity.new"; else mv "$unity.new" "$unity"; rm -f "$obj"; fi
+    for src in "${sources[@]:i:8}"; do if [ "$src" -nt "$obj" ]; then rm -f "$obj"; fi; done
+    eval "$list+=(\"\$obj\")"
+    jobs+=("$unity" "$obj")
+  done
+}
+library_sources() {  # library_sources DIR: its .cc files but tests and programs' mains
+  local f
+  for f in "$1"/*.cc; do
+    case "$f" in *_test.cc | */main.cc | */render_main.cc) continue ;; esac
+    printf '%s\n' "$f"
+  done
+}
+targets=(${SANDSWIM_FUZZ_TARGETS:-fuzz_sweep fuzz_dump fuzz_engine_log fuzz_request})
 objs=("$out/obj/templates_embedded.o")
+server_objs=("$out/obj/schema_embedded.o" "$out/obj/dashboard_embedded.o")
 jobs=("$build/templates/sandswim_templates_embedded.cc" "$out/obj/templates_embedded.o")
-for ((i = 0; i < ${#sources[@]}; i += 8)); do
-  unity=$out/unity/core_$((i / 8)).cc
-  obj=$out/obj/core_$((i / 8)).o
-  {
-    for src in "${sources[@]:i:8}"; do printf '#include "%s"\n' "$src"; done
-  } > "$unity.new"
-  if cmp -s "$unity.new" "$unity"; then rm "$unity.new"; else mv "$unity.new" "$unity"; rm -f "$obj"; fi
-  for src in "${sources[@]:i:8}"; do if [ "$src" -nt "$obj" ]; then rm -f "$obj"; fi; done
-  objs+=("$obj")
-  jobs+=("$unity" "$obj")
-done
+mapfile -t core_sources < <(library_sources "$root/core")
+batches core objs "${core_sources[@]}"
+if [[ " ${targets[*]} " == *" fuzz_request "* ]]; then
+  mapfile -t server_sources < <(library_sources "$root/platform"; library_sources "$root/server")
+  batches server server_objs "${server_sources[@]}"
+  jobs+=("$build/templates/sandswim_schema_embedded.cc" "$out/obj/schema_embedded.o"
+         "$build/server/sandswim_dashboard_embedded.cc" "$out/obj/dashboard_embedded.o")
+fi
+# The HTTP library's and the figures' flags for every object, so that all see one layout.
+read -r -a lib_cflags <<< "$(pkg-config --cflags cpp-httplib plplot spdlog)"
+flags+=("${lib_cflags[@]}")
 start=$(date +%s)
 printf '%s\0%s\0' "${jobs[@]}" | FLAGS="${flags[*]}" xargs -0 -n 2 -P "$(nproc)" bash -c \
   'src=$0 obj=$1; if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ]; then '"$cxx"' $FLAGS -fsanitize=fuzzer-no-link -c "$src" -o "$obj"; fi'
-echo "fuzz: core built with $cxx in $(( $(date +%s) - start )) s"
+echo "fuzz: libraries built with $cxx in $(( $(date +%s) - start )) s"
 
 seed() {  # seed TARGET FILES...: the corpus starts from these
   local dir=$out/corpus/$1
@@ -64,11 +88,35 @@ printf '%s' '{"name": "omega-sign", "scale": "smoke", "base": {"mode": "oscillat
   > "$out/corpus/fuzz_sweep/example-sweep.json"
 seed fuzz_dump "$root"/tests/fixtures/*.dump
 seed fuzz_engine_log "$root"/tests/fixtures/*.log "$root"/tests/fixtures/runs/*/log.liggghts
+# Requests as a client sends them: the API's own examples and a worker's calls.
+mkdir -p "$out/corpus/fuzz_request"
+request() {  # request NAME METHOD PATH [BODY]
+  local body=${4-}
+  printf '%s %s HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: %d\r\n\r\n%s' \
+    "$2" "$3" "${#body}" "$body" > "$out/corpus/fuzz_request/$1"
+}
+request sweep POST /api/v1/sweeps "$(cat "$out/corpus/fuzz_sweep/example-sweep.json")"
+request campaign POST /api/v1/sweeps '{"campaign": "paper-58", "scale": "smoke"}'
+request status GET /api/v1/sweeps/1
+request runs GET '/api/v1/runs?sweep=1&state=queued&limit=10'
+request results GET '/api/v1/sweeps/1/results?format=csv'
+request run GET /api/v1/runs/1
+request figure GET /api/v1/sweeps/1/uz.svg
+request lease POST /api/v1/leases '{"worker": "w", "host": "h", "ranks": 1}'
+request heartbeat POST /api/v1/leases/abc/heartbeat '{"sim_time_s": 0.1, "so_z": -0.01, "step": 10}'
+request cancel POST /api/v1/sweeps/1/cancel '{}'
+request metrics GET /metrics
 
 status=0
-for target in fuzz_sweep fuzz_dump fuzz_engine_log; do
-  "$cxx" "${flags[@]}" -fsanitize=fuzzer "$root/tests/fuzz/$target.cc" "${objs[@]}" -lcrypto -lgsl -lgslcblas -lm \
-    -o "$out/$target"
+for target in "${targets[@]}"; do
+  if [ "$target" = fuzz_request ]; then
+    read -r -a libs <<< "$(pkg-config --libs cpp-httplib plplot spdlog) -lsqlite3"
+    "$cxx" "${flags[@]}" -fsanitize=fuzzer "$root/tests/fuzz/$target.cc" "${server_objs[@]}" "${objs[@]}" "${libs[@]}" \
+      -lcrypto -lgsl -lgslcblas -lm -o "$out/$target"
+  else
+    "$cxx" "${flags[@]}" -fsanitize=fuzzer "$root/tests/fuzz/$target.cc" "${objs[@]}" -lcrypto -lgsl -lgslcblas -lm \
+      -o "$out/$target"
+  fi
   regressions=("$root"/tests/fuzz/regressions/$target/*)
   if [ -e "${regressions[0]}" ]; then
     "$out/$target" "${regressions[@]}" > "$out/$target.regressions.log" 2>&1 || {
