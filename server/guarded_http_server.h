@@ -29,7 +29,7 @@ struct ConnectionLimits {
   double idle_s = 5;       // silence allowed before a request starts (the library's keep-alive timeout)
   double head_s = 10;      // a request head, from its first byte to its blank line
   double body_grace_s = 30;
-  double min_body_bytes_per_s = 256 * 1024;  // a 100 MB bed restart may take 30 s + 400 s
+  double min_body_bytes_per_s = 256 * 1024;  // a 100 MiB bed restart may take 30 s + 400 s
   double read_timeout_s = 60;                // one read that receives nothing
   double write_timeout_s = 5;                // one write the client does not take (the library's default)
 };
