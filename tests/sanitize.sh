@@ -5,7 +5,7 @@
 #                                           fast test (ctest -LE "engine|crash|fuzz|browser|slurm")
 #   tests/sanitize.sh thread [BUILD_DIR]    ThreadSanitizer (gcc): the daemon's concurrent parts: the
 #                                           store and its group commit, the lease queue, the live
-#                                           feed and the HTTP routes (server_tests), and the real
+#                                           feed, the HTTP server and routes (server_tests), and the real
 #                                           daemon started by its tests
 #
 # BUILD_DIR defaults to build-asan or build-tsan. On demand (a sanitized build takes about as long
@@ -30,7 +30,7 @@ case "$kind" in
     flags="-fsanitize=thread -fno-omit-frame-pointer"
     export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
     targets=(--target server_tests sandswimd sandswim-render)
-    tests=(-R "^(StoreTest|DatabaseTest|GroupCommit|LeaseQueue|LiveFeed|Routes|Sandswimd)")
+    tests=(-R "^(StoreTest|DatabaseTest|GroupCommit|LeaseQueue|LiveFeed|Routes|Sandswimd|GuardedHttpServer)")
     ;;
   *)
     echo "sanitize: address or thread, not '$kind'" >&2
