@@ -62,6 +62,8 @@ class DeadlineStream final : public httplib::Stream {
   }
   // What missed its deadline ("" when nothing did).
   const char* missed() const { return missed_; }
+  // Bytes received and not yet read.
+  bool has_buffered() const { return begin_ < end_; }
 
   bool is_readable() const override {
     return begin_ < end_ || PollUntil(fd_, POLLIN, ReadUntil());
@@ -125,8 +127,6 @@ class DeadlineStream final : public httplib::Stream {
   size_t begin_ = 0, end_ = 0;
 };
 
-thread_local DeadlineStream* current_stream = nullptr;
-
 }  // namespace
 
 bool GuardedHttpServer::SetBacklog(int n) {
@@ -134,13 +134,33 @@ bool GuardedHttpServer::SetBacklog(int n) {
   return sock != INVALID_SOCKET && ::listen(sock, n) == 0;  // a second listen() sets the backlog anew
 }
 
-void GuardedHttpServer::BodyReceived() {
-  if (current_stream != nullptr) current_stream->set_deadline(std::nullopt, "");
+// The library reads a body as it is framed: chunked first, else by Content-Length, else -- for
+// the methods that carry one -- until the client closes. A chunked body, or one read to the end,
+// has no length to allow time for: the grace alone. A length is trusted only up to the largest
+// body the server takes (a larger one is refused before it is read).
+std::optional<std::chrono::steady_clock::time_point> GuardedHttpServer::BodyDeadline(const httplib::Request& req) const {
+  const auto now = Steady::now();
+  const std::string encoding = req.get_header_value("Transfer-Encoding");
+  if (!encoding.empty() && encoding.find("chunked") != std::string::npos) return now + Seconds(limits_.body_grace_s);
+  if (req.has_header("Content-Length")) {
+    const std::string text = req.get_header_value("Content-Length");
+    errno = 0;
+    char* end = nullptr;
+    const unsigned long long n = std::strtoull(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || errno != 0 || text[0] == '-') return now + Seconds(limits_.body_grace_s);
+    if (n == 0) return std::nullopt;
+    const double bytes = std::min(static_cast<double>(n), static_cast<double>(payload_max_length_));
+    return now + Seconds(std::min(limits_.body_grace_s + bytes / limits_.min_body_bytes_per_s, 86400.0));
+  }
+  const std::string& m = req.method;
+  if (m == "POST" || m == "PUT" || m == "PATCH" || m == "PRI") return now + Seconds(limits_.body_grace_s);
+  return std::nullopt;
 }
+
+bool GuardedHttpServer::ServeConnection(socket_t sock) { return process_and_close_socket(sock); }
 
 bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
   DeadlineStream stream(sock, limits_);
-  current_stream = &stream;
   bool ret = false;
   std::string peer = "?";
   int port = 0;
@@ -148,25 +168,15 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
   for (size_t count = keep_alive_max_count_; count > 0 && svr_sock_ != INVALID_SOCKET; --count) {
     // Silence before a request: a tenth of a second at a time, so that a stopping server ends it.
     const Steady::time_point idle_until = Steady::now() + Seconds(limits_.idle_s);
-    bool readable = false;
+    bool readable = stream.has_buffered();  // a request sent right behind the last one
     while (!readable && svr_sock_ != INVALID_SOCKET && Steady::now() < idle_until) {
       readable = PollUntil(sock, POLLIN, std::min(idle_until, Steady::now() + std::chrono::milliseconds(100)));
     }
     if (!readable) break;
     stream.set_deadline(Steady::now() + Seconds(limits_.head_s), "request head");
     bool connection_closed = false;
-    ret = process_request(stream, /*close_connection=*/count == 1, connection_closed, [&](httplib::Request& req) {
-      const std::string length = req.get_header_value("Content-Length");
-      if (!length.empty() && std::strtoull(length.c_str(), nullptr, 10) > 0) {
-        const double bytes = static_cast<double>(std::strtoull(length.c_str(), nullptr, 10));
-        stream.set_deadline(Steady::now() + Seconds(limits_.body_grace_s + bytes / limits_.min_body_bytes_per_s),
-                            "request body");
-      } else if (req.has_header("Transfer-Encoding")) {
-        stream.set_deadline(Steady::now() + Seconds(limits_.body_grace_s), "request body (chunked)");
-      } else {
-        stream.set_deadline(std::nullopt, "");
-      }
-    });
+    ret = process_request(stream, /*close_connection=*/count == 1, connection_closed,
+                          [&](httplib::Request& req) { stream.set_deadline(BodyDeadline(req), "request body"); });
     if (*stream.missed() != '\0') {
       slow_closed_.fetch_add(1);
       spdlog::warn("closed a connection from {}: its {} did not arrive in time (a slow or stalled client; "
@@ -177,7 +187,6 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
     stream.set_deadline(std::nullopt, "");
     if (!ret || connection_closed) break;
   }
-  current_stream = nullptr;
   shutdown(sock, SHUT_RDWR);
   close(sock);
   return ret;

@@ -7,19 +7,20 @@
 // but reads each request through a stream with deadlines:
 //  - the request head (request line and headers) must all arrive within `head_s` of its first byte;
 //  - a body must arrive within `body_grace_s` plus its Content-Length at `min_body_bytes_per_s`
-//    (a chunked body, whose length is not known, within `body_grace_s`); a handler ends the body's
-//    deadline when it has read the body (BodyReceived());
+//    (a chunked body, or one without a length, read to the end, within `body_grace_s`);
 //  - a connection that says nothing is closed after `idle_s`, between requests as before the first.
 // A connection past a deadline is closed, and counted (slow_clients_closed()). What a handler does
-// and how long a response streams (the live feed's events) is not limited here; a response's
-// writes have the library's write timeout.
+// and how long a response streams (the live feed's events) is not limited here (deadlines are
+// checked when the server reads); a response's writes have the library's write timeout.
 //
-// Thread safety: as httplib::Server. BodyReceived() is called on the thread serving the request.
+// Thread safety: as httplib::Server.
 #ifndef SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
 #define SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <optional>
 
 #include <httplib.h>
 
@@ -43,14 +44,17 @@ class GuardedHttpServer : public httplib::Server {
   // dashboard's requests) would otherwise wait a second for their SYN to be sent again.
   bool SetBacklog(int n);
 
-  // The handler serving this thread's request has read its body: its deadline ends.
-  static void BodyReceived();
+  // Serves one accepted connection on this thread until it closes, then closes it (what the
+  // accept loop runs on a pool thread; the request fuzz target hands it one end of a socketpair).
+  bool ServeConnection(socket_t sock);
 
   // Connections closed because a request head or body came too slowly.
   int64_t slow_clients_closed() const { return slow_closed_.load(); }
 
  private:
   bool process_and_close_socket(socket_t sock) override;
+  // When the body of `req` (its head just read) must have arrived; nullopt: it has none.
+  std::optional<std::chrono::steady_clock::time_point> BodyDeadline(const httplib::Request& req) const;
 
   ConnectionLimits limits_;
   std::atomic<int64_t> slow_closed_{0};

@@ -8,8 +8,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -736,7 +738,6 @@ bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Up
     out.write(data, static_cast<std::streamsize>(n));
     return static_cast<bool>(out);
   });
-  GuardedHttpServer::BodyReceived();
   out.close();
   if (too_big) {
     c.res.set_header("Connection", "close");
@@ -746,7 +747,11 @@ bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Up
     return false;
   }
   if (!out) {
-    Fail(c, Status::IOError("cannot write " + upload.temp.string() + " (disk full?)"));
+    const int err = errno;
+    Fail(c, err == ENOSPC ? Status::Unavailable("cannot write " + upload.temp.string() +
+                                                ": the disk that holds --data is full; free space on it and send "
+                                                "it again (nothing was kept)")
+                          : Status::IOError("cannot write " + upload.temp.string() + ": " + std::strerror(err)));
     return false;
   }
   Status s = upload.mapped.Open(upload.temp.string());
@@ -1192,7 +1197,6 @@ bool ReadBody(const httplib::ContentReader& reader, size_t limit, std::string& b
     }
     return true;
   });
-  GuardedHttpServer::BodyReceived();
   return !too_big;
 }
 

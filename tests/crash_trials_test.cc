@@ -309,7 +309,9 @@ void KillAloneAndRunAgain(const std::string& launcher, const std::string& victim
   const std::string starts_log = dir + "/engine-starts.log";
   setenv("SANDSWIM_STAND_IN_STARTS", starts_log.c_str(), 1);
   setenv("SANDSWIM_STAND_IN_SECONDS", "3", 1);
-  testing::Daemon daemon(dir + "/daemon", {"--lease-ttl", "3", "--max-attempts", "3"});
+  // The requeue comes from the signal, not a lease's expiry: a long TTL keeps a busy machine's
+  // late heartbeat from adding an attempt.
+  testing::Daemon daemon(dir + "/daemon", {"--lease-ttl", "30", "--max-attempts", "3"});
   int status = 0;
   json submitted = daemon.Post("/api/v1/sweeps", testing::OmegaSweep("alone", {-80}, 0.05, 20), &status);
   ASSERT_EQ(status, 201) << submitted.dump();
@@ -417,7 +419,7 @@ TEST_F(DiskFaultsTest, AFullDiskRefusesWritesClearlyAndServiceResumesWhenSpaceRe
   auto worker = testing::StartWorker(daemon, dir_ + "/worker", 1,
                                      {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (daemon.Query("SELECT count(*) FROM results") < "2") {
+  while (std::stoll(daemon.Query("SELECT count(*) FROM results")) < 2) {
     ASSERT_LT(std::chrono::steady_clock::now(), deadline) << worker->Output();
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
@@ -432,6 +434,7 @@ TEST_F(DiskFaultsTest, AFullDiskRefusesWritesClearlyAndServiceResumesWhenSpaceRe
   EXPECT_EQ(status, 200) << "reads stop when the disk is full";
   std::this_thread::sleep_for(std::chrono::seconds(3));  // the worker's completions meet the full disk
   const std::string done_while_full = daemon.Query("SELECT count(*) FROM results");
+  EXPECT_LT(std::stoll(done_while_full), runs) << "the sweep finished before the full disk was met";
 
   fs::remove(filler);
   const json s = daemon.WaitForSweep(sweep, 60);
