@@ -210,15 +210,8 @@ std::vector<fs::path> FilesIn(const std::string& dir) {
 // them follow. The connection is left open, as a client's would be while the daemon dies.
 int StartHalfUpload(const std::string& listen, int64_t bed_id, const std::string& token, size_t promised,
                     size_t sent) {
-  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(std::stoi(listen.substr(listen.rfind(':') + 1))));
-  inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    close(fd);
-    return -1;
-  }
+  const int fd = testing::ConnectTo(listen);
+  if (fd < 0) return -1;
   std::string head = "PUT /api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token +
                      " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/octet-stream\r\n"
                      "X-Sha256: " + std::string(64, '0') + "\r\nContent-Length: " + std::to_string(promised) +

@@ -125,6 +125,9 @@ struct ProcessInfo {
 // started there.
 std::vector<ProcessInfo> ProcessesUnder(const std::string& dir);
 
+// A TCP connection to "127.0.0.1:PORT" (Daemon::listen()), as a raw client's; -1 when refused.
+int ConnectTo(const std::string& listen);
+
 // A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz unless `f` says otherwise) over the
 // given Omega values, each run `duration` s long: the sweep JSON to POST.
 nlohmann::json OmegaSweep(const std::string& name, const std::vector<double>& omegas, double duration, double f = 3);
