@@ -104,8 +104,11 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(HeartbeatReply, ttl_s, cancel)
 // core/trajectory.h).
 // The version of that analysis: 1 was a least-squares line + sinusoid at f over [1/f, end] with
 // the fit's own standard error (too small, biased by the harmonics); results made by it are
-// re-analysed from their stored trajectories when the daemon upgrades its database.
-inline constexpr int kAnalysisVersion = 2;
+// re-analysed from their stored trajectories when the daemon upgrades its database. 2 took U_z
+// from whole-period block rates; 3 takes a run ended by its precision target from the blocks
+// after its pilot, with the two-stage interval (core/precision.h), instead of from every block
+// with the interval its stop was chosen on, which was too narrow.
+inline constexpr int kAnalysisVersion = 3;
 struct RunResult {
   std::optional<double> uz;         // m/s, mean rate over the window's whole blocks; absent: none
   std::optional<double> uz_stderr;  // m/s, from the scatter of the block rates; absent: too few

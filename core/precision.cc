@@ -103,7 +103,8 @@ double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target)
   if (!target) return p.duration_s;
   const WindowRule rule;
   const double block = p.has_vibration() ? 1.0 / p.f : rule.undriven_block_s;
-  const double needed = (rule.transient_blocks + target->min_periods) * block;
+  // The pilot and the two blocks after it that the two-stage rule needs at the least.
+  const double needed = (rule.transient_blocks + target->min_periods + 2) * block;
   return std::min(p.duration_s, std::max(target->max_duration_s, needed));
 }
 
@@ -113,13 +114,42 @@ bool TargetMet(const api::RunResult& r, const PrecisionTarget& t) {
   return *r.uz_ci95 <= allowed;
 }
 
-StopVerdict DecideStop(const api::RunResult& so_far, const PrecisionTarget& t) {
-  if (TargetMet(so_far, t)) return StopVerdict::kTargetMet;
+std::optional<StopPlan> PlanStop(const std::vector<SoSample>& samples, const api::RunResult& so_far,
+                                 const PrecisionTarget& t) {
+  const int n0 = t.min_periods;
+  if (n0 < 2 || so_far.uz_blocks < n0 || so_far.block_s <= 0 || samples.empty()) return std::nullopt;
+  // The pilot: the window's first n0 blocks, which later samples never change.
+  const BlockRate pilot = MeanBlockRate(samples, so_far.window_t0, so_far.block_s, n0, /*min_blocks_for_error=*/2);
+  if (!pilot.se) return std::nullopt;
+  StopPlan plan;
+  plan.pilot_blocks = n0;
+  plan.pilot_rate = pilot.rate;
+  plan.pilot_sd = *pilot.se * std::sqrt(static_cast<double>(n0));
+  plan.half_width = std::max(t.uz_rel * std::fabs(pilot.rate), t.uz_abs);
+  // After the pilot: two blocks at least (a conclusive rate needs two), and as many as the
+  // pilot's scatter asks for the half-width.
+  constexpr int64_t kBeyond = kMaxPrecisionPeriods + 1;
+  int64_t after = kBeyond;
+  if (plan.half_width > 0) {
+    const double needed = std::ceil(std::pow(StudentT95(n0 - 1) * plan.pilot_sd / plan.half_width, 2));
+    after = needed >= static_cast<double>(kBeyond) ? kBeyond : std::max<int64_t>(2, static_cast<int64_t>(needed));
+  }
+  plan.blocks_needed = n0 + after;
+  return plan;
+}
+
+double TwoStageHalfWidth(const StopPlan& plan, int blocks) {
+  return StudentT95(plan.pilot_blocks - 1) * plan.pilot_sd / std::sqrt(static_cast<double>(std::max(blocks, 1)));
+}
+
+StopVerdict DecideStop(const api::RunResult& so_far, const std::optional<StopPlan>& plan) {
+  if (plan && so_far.uz_blocks >= plan->blocks_needed) return StopVerdict::kTargetMet;
   if (so_far.window_end == "surface" || so_far.window_end == "floor") return StopVerdict::kWindowClosed;
   return StopVerdict::kContinue;
 }
 
-std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t) {
+std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t,
+                         const std::optional<StopPlan>& plan) {
   const std::string at = "at t = " + Num(r.sim_time_s, 3) + " s";
   auto interval = [&] {
     if (!r.uz_ci95 || !r.uz) return std::string("no interval yet");
@@ -129,8 +159,15 @@ std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionT
            (r.uz_blocks == 1 ? "" : "s");
   };
   const bool met = t && TargetMet(r, *t);  // on the final analysis, which may hold more than the last look
-  if (r.stop_reason == "target")
-    return (met ? "precision target met " : "stopped for its precision target ") + at + ": " + interval();
+  if (r.stop_reason == "target") {
+    std::string text = (met ? "precision target met " : "stopped for its precision target ") + at + ": " + interval();
+    if (plan)
+      text += " (two-stage: a pilot of " + std::to_string(plan->pilot_blocks) + " " + r.block_kind +
+              "s, rate " + Num(plan->pilot_rate, 3) + " m/s, scatter " + Num(plan->pilot_sd, 3) + " m/s, asked " +
+              std::to_string(plan->blocks_needed - plan->pilot_blocks) + " more for +-" + Num(plan->half_width, 3) +
+              " m/s; U_z is theirs)";
+    return text;
+  }
   if (r.stop_reason == "window")
     return "stopped " + at + ": the steady window had closed (the SO came within the clearance of the " +
            (r.window_end.empty()        ? std::string("boundary")

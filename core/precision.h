@@ -2,22 +2,41 @@
 // "precision target"), and the rule a worker applies to the growing trajectory to end it.
 //
 // A run with a target lasts at most RunDuration() and ends earlier, cleanly (the deck reads a
-// control file every chunk, core/deck.h), as soon as DecideStop() says so:
-//   - "target": the steady window holds at least min_periods whole blocks (and at least the
-//     blocks an error needs) and the 95 % interval's half-width is within the target,
-//       ci95 <= max(uz_rel * |U_z|, uz_abs)
-//     (uz_rel alone is unreachable for a rate near 0; uz_abs alone ignores the rate's size:
-//     either may be 0, not both);
+// control file every chunk, core/deck.h), when DecideStop() says so. The rule is two-stage (after
+// Stein, 1945), because stopping as soon as the interval *looks* narrow enough is optional
+// stopping: with 2-4 degrees of freedom an interval looks narrow mostly when its blocks happened to
+// scatter little. Stopped that way, runs whose target was tight for their scatter held the truth in
+// their 95 % interval 61 % and 83 % of the time (tests/bench/bench_precision_coverage.cc: per-period
+// scatter 20 % and 38 % of the rate, uz_rel 0.1 and 0.25; 69 and 206 stopped runs). Instead:
+//   - pilot: once the steady window holds n0 = min_periods whole blocks, their block rates give a
+//     rate u0 and a scatter s0 (n0 - 1 degrees of freedom), which fix the half-width the target
+//     asks for,
+//       h = max(uz_rel * |u0|, uz_abs)
+//     (uz_rel alone is unreachable for a rate near 0; uz_abs alone ignores the rate's size: either
+//     may be 0, not both), and the whole blocks the run holds in all,
+//       N = n0 + max(2, ceil((t(0.975, n0 - 1) * s0 / h)^2)).
+//   - "target": the window holds at least N whole blocks.
 //   - "window": the window has closed -- the SO came within the clearance of the bed surface or
 //     the floor (core/trajectory.h WindowRule), so no later sample can tighten the interval.
+// A run that stopped for its target (core/trajectory.h AnalyzeRun) takes U_z from the m >= 2
+// blocks after its pilot -- the pilot only plans: its blocks decided how many more to run, so a run
+// whose pilot came out fast or calm would otherwise stop early carrying that luck into its rate --
+// with the wider of two 95 % intervals: the two-stage one, t(0.975, n0 - 1) * s0 / sqrt(m), which
+// holds the truth 95 % of the time whatever N came out (the m blocks are independent of the pilot
+// when block rates are), and the blocks' own, t(0.975, m - 1) * sd / sqrt(m). Its standard error is
+// that half-width over the quantile it was made with, so the fits weigh the run with it.
+// A larger pilot costs fewer blocks after it (t(0.975, 2) = 4.30, t(0.975, 4) = 2.78):
+// min_periods is the user's trade between the two.
 // Without a target a run lasts its whole duration (or until the SO is at a boundary).
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_PRECISION_H_
 #define SANDSWIM_CORE_PRECISION_H_
 
+#include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -28,6 +47,7 @@ namespace sandswim {
 namespace api {
 struct RunResult;  // core/api.h, which carries a target in its lease grant
 }  // namespace api
+struct SoSample;  // core/trajectory.h
 
 // Caps stated in every refusal.
 inline constexpr int kMinPrecisionPeriods = 3;  // an interval needs three blocks (trajectory.h)
@@ -65,21 +85,40 @@ Result<std::optional<PrecisionTarget>> StoredPrecision(const std::optional<std::
 std::optional<PrecisionTarget> Tightest(const PrecisionTarget& a, const PrecisionTarget& b);
 
 // Physical time a run of `p` lasts at most. Without a target: the duration asked. With one: the
-// target's maximum, but never shorter than the start-up transient plus min_periods whole blocks
-// (else the target could never be met), and never longer than the duration asked.
+// target's maximum, but never shorter than the start-up transient, the pilot's min_periods whole
+// blocks and the two after it (else the target could never be met), and never longer than the
+// duration asked.
 double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target);
 
-// Whether the interval of `r` meets the target (false when r has fewer blocks than min_periods
-// or no interval).
+// Whether the interval of `r` meets the target's half-width at r's own rate (false when r has
+// fewer blocks than min_periods or no interval): what a result reports as precision_met.
 bool TargetMet(const api::RunResult& r, const PrecisionTarget& t);
 
-// What the worker does with a run it follows, from the analysis of the trajectory so far.
+// The two-stage plan a run's pilot fixes (see above).
+struct StopPlan {
+  int pilot_blocks = 0;    // n0
+  double pilot_rate = 0;   // m/s, u0
+  double pilot_sd = 0;     // m/s, s0: the pilot's block rates' standard deviation
+  double half_width = 0;   // m/s, h
+  int64_t blocks_needed = 0;  // N, the pilot's included (at most n0 + kMaxPrecisionPeriods + 1: unreachable)
+};
+// The plan of a run analysed so far (`so_far` = AnalyzeRun of `samples`): nullopt until its
+// window holds min_periods whole blocks.
+std::optional<StopPlan> PlanStop(const std::vector<SoSample>& samples, const api::RunResult& so_far,
+                                 const PrecisionTarget& t);
+// The two-stage 95 % half-width of the mean of `blocks` whole blocks after the pilot of `plan`.
+double TwoStageHalfWidth(const StopPlan& plan, int blocks);
+
+// What the worker does with a run it follows, from the analysis of the trajectory so far and its
+// plan (nullopt before the pilot is complete).
 enum class StopVerdict { kContinue, kTargetMet, kWindowClosed };
-StopVerdict DecideStop(const api::RunResult& so_far, const PrecisionTarget& t);
+StopVerdict DecideStop(const api::RunResult& so_far, const std::optional<StopPlan>& plan);
 
 // One sentence on why a run ended, for its result: the engine's stop reason ("duration",
 // "surface", "floor", "target", "window") with the figures behind it.
-std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t);
+// `plan`, when given, adds the two-stage numbers.
+std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t,
+                         const std::optional<StopPlan>& plan = std::nullopt);
 
 }  // namespace sandswim
 

@@ -350,8 +350,30 @@ RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log, const std:
 Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const RunInputs& in, const WindowRule& rule) {
   auto r = AnalyzeTrajectory(samples, in.f, in.bounds, in.start, in.stop, rule);
   if (!r.ok()) return r;
+  std::optional<StopPlan> plan;
+  if (in.precision && r->stop_reason == "target") plan = PlanStop(samples, *r, *in.precision);
+  if (plan && r->uz_blocks - plan->pilot_blocks >= rule.min_periods) {
+    // Ended by its two-stage rule (core/precision.h): U_z from the blocks after the pilot, with the
+    // wider of the two-stage interval and the blocks' own; the standard error says which, so that
+    // a fit weighs the run with it.
+    const int m = r->uz_blocks - plan->pilot_blocks;
+    const double t0 = r->window_t0 + plan->pilot_blocks * r->block_s;
+    const BlockRate after = MeanBlockRate(samples, t0, r->block_s, m, rule.min_blocks_for_error);
+    r->uz = after.rate;
+    r->uz_blocks = m;
+    r->window_t0 = t0;
+    const double two_stage = TwoStageHalfWidth(*plan, m);
+    if (after.ci95 && *after.ci95 > two_stage) {
+      r->uz_ci95 = after.ci95;
+      r->uz_stderr = after.se;
+    } else {
+      r->uz_ci95 = two_stage;
+      r->uz_stderr = two_stage / StudentT95(plan->pilot_blocks - 1);
+    }
+    r->uz_stderr_note.clear();
+  }
   if (in.precision) r->precision_met = TargetMet(*r, *in.precision);
-  r->stop_note = DescribeStop(*r, in.precision);
+  r->stop_note = DescribeStop(*r, in.precision, plan);
   return r;
 }
 

@@ -85,7 +85,7 @@ StopVerdict FollowRun(const std::vector<SoSample>& so_far, const DriveInfo& driv
   log.drive_start = start;
   auto r = AnalyzeRun(so_far, RunInputsFrom(drive, log, target));
   if (!r.ok()) return StopVerdict::kContinue;  // too few samples yet
-  return DecideStop(*r, target);
+  return DecideStop(*r, PlanStop(so_far, *r, target));
 }
 
 }  // namespace sandswim::worker
