@@ -345,6 +345,8 @@ struct OldResult {
   double sim_time_s = 0, z0 = 0;
   int64_t steps = 0, grains = 0;
   bool vibrates = false;
+  int analysis = 1;
+  std::optional<std::string> precision;  // the run's precision target (JSON), if it had one
 };
 
 // The result analysis `kAnalysisVersion` makes of `o`'s stored trajectory, or why there is none.
@@ -363,8 +365,17 @@ Result<api::RunResult> Reanalyse(const OldResult& o) {
     if (bed.is_object() && bed.contains("grain_top")) bounds.surface = bed["grain_top"].get<double>();
     DriveStartMarker start{o.grains, o.z0, bounds.surface.value_or(0)};
     DriveStopMarker stop{o.stop_reason, o.steps, o.sim_time_s, samples.empty() ? 0 : samples.back().z};
-    auto r = AnalyzeTrajectory(samples, o.vibrates ? o.f : 0.0, bounds,
-                               bounds.surface ? std::optional(start) : std::nullopt, stop);
+    // As the worker analyses a run (core/trajectory.h AnalyzeRun): a run ended by its precision
+    // target takes its rate from the blocks after its pilot.
+    Result<std::optional<PrecisionTarget>> precision = StoredPrecision(o.precision);
+    if (!precision.ok()) return precision.status();
+    RunInputs in;
+    in.f = o.vibrates ? o.f : 0.0;
+    in.bounds = bounds;
+    if (bounds.surface) in.start = start;
+    in.stop = stop;
+    in.precision = *precision;
+    auto r = AnalyzeRun(samples, in);
     if (!r.ok()) return r.status();
     r->grains = o.grains;  // as the engine reported it
     r->analysed_from = "trajectory";
@@ -389,7 +400,8 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
       if (!t.ok()) return t.status();
       Statement st = t->Prepare(
           "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), "
-          "res.stop_reason, res.sim_time_s, res.steps, res.grains, res.z0 FROM results res "
+          "res.stop_reason, res.sim_time_s, res.steps, res.grains, res.z0, res.analysis, r.precision "
+          "FROM results res "
           "JOIN runs r ON r.id = res.run_id JOIN beds b ON b.id = r.bed_id "
           "LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
           "WHERE res.analysis < ? AND res.analysed_from != 'unreadable' AND res.run_id > ? "
@@ -412,6 +424,8 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
         o.steps = st.Int(8);
         o.grains = st.Int(9);
         o.z0 = st.Double(10);
+        o.analysis = static_cast<int>(st.Int(11));
+        o.precision = st.OptText(12);
         page.push_back(std::move(o));
       }
     }
@@ -423,18 +437,31 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
       Statement fresh = t.Prepare(
           "UPDATE results SET uz = ?, uz_stderr = ?, uz_ci95 = ?, uz_stderr_note = ?, uz_blocks = ?, "
           "block_s = ?, window_t0 = ?, window_t1 = ?, window_end = ?, conclusive = ?, inconclusive_reason = ?, "
-          "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ?, analysed_from = ? WHERE run_id = ?");
+          "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ?, analysed_from = ?, stop_note = ?, "
+          "precision_met = ? WHERE run_id = ?");
       Statement kept = t.Prepare(
           "UPDATE results SET analysed_from = 'unreadable', conclusive = 0, inconclusive_reason = ? "
           "WHERE run_id = ?");
+      Statement same = t.Prepare("UPDATE results SET analysis = ? WHERE run_id = ?");
       for (const OldResult& o : page) {
+        if (o.analysis >= 2 && o.stop_reason != "target") {
+          // Analysis 3 changed only the runs ended by their precision target: this one's numbers
+          // are this analysis's already, from its full dump (a trajectory is downsampled).
+          same.Reset();
+          same.Bind(1, api::kAnalysisVersion).Bind(2, o.run_id);
+          SANDSWIM_RETURN_IF_ERROR(same.Run());
+          ++counts.unchanged;
+          continue;
+        }
         Result<api::RunResult> r = Reanalyse(o);
         if (!r.ok()) {
           kept.Reset();
           kept.Bind(1,
-                    "made by the old estimator (analysis 1: a line and a sinusoid fitted over one period, "
-                    "with a standard error ~10x too small); it cannot be re-analysed: " +
-                        r.status().reason());
+                    (o.analysis == 1 ? std::string("made by the old estimator (analysis 1: a line and a sinusoid "
+                                                   "fitted over one period, with a standard error ~10x too small)")
+                                     : "ended by its precision target under analysis " + std::to_string(o.analysis) +
+                                           ", whose interval was too narrow (the one its stop was chosen on)") +
+                        "; it cannot be re-analysed: " + r.status().reason());
           kept.Bind(2, o.run_id);
           SANDSWIM_RETURN_IF_ERROR(kept.Run());
           ++counts.kept_old;
@@ -445,7 +472,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
         fresh.Bind(5, r->uz_blocks).Bind(6, r->block_s).Bind(7, r->window_t0).Bind(8, r->window_t1);
         fresh.Bind(9, r->window_end).Bind(10, r->conclusive).Bind(11, r->inconclusive_reason);
         fresh.Bind(12, r->dz_rate).Bind(13, r->z_osc_amplitude).Bind(14, r->analysis).Bind(15, r->block_kind);
-        fresh.Bind(16, r->analysed_from).Bind(17, o.run_id);
+        fresh.Bind(16, r->analysed_from).Bind(17, r->stop_note).Bind(18, r->precision_met).Bind(19, o.run_id);
         SANDSWIM_RETURN_IF_ERROR(fresh.Run());
         ++counts.reanalysed;
       }
@@ -454,6 +481,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
     if (!s.ok()) return s;
     out.reanalysed += counts.reanalysed;
     out.kept_old += counts.kept_old;
+    out.unchanged += counts.unchanged;
   }
 }
 

@@ -232,10 +232,12 @@ class Store : public Database {
   // engine reported), in pages of rows written one transaction each; such a result says
   // analysed_from "trajectory". A result with no trajectory that can be re-analysed keeps its old
   // numbers, stays inconclusive with the reason and is marked "unreadable", never tried again.
-  // Idempotent: the daemon calls it at start-up.
+  // A result of analysis 2 that its run's precision target did not end keeps its numbers (3 changed
+  // only those) and is marked analysis 3. Idempotent: the daemon calls it at start-up.
   struct Reanalysis {
     int64_t reanalysed = 0;
-    int64_t kept_old = 0;  // marked unreadable by this call
+    int64_t kept_old = 0;   // marked unreadable by this call
+    int64_t unchanged = 0;  // marked as this analysis's with their numbers kept
   };
   Result<Reanalysis> ReanalyzeOldResults();
 

@@ -193,6 +193,81 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   EXPECT_EQ(again->kept_old, 0);
 }
 
+// Analysis 3 changed only the runs ended by their precision target: such a result of analysis 2 is
+// re-analysed from its trajectory as the worker now analyses one (the rate of the blocks after its
+// pilot, with the two-stage interval); any other keeps its numbers, marked as this analysis's.
+TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
+  auto store = MustOpen();
+  ASSERT_TRUE(store);
+  auto req = ParseSubmitRequest(Sweep("v2", 2));
+  ASSERT_TRUE(req.ok()) << req.status().ToString();
+  ASSERT_TRUE(Submit(*store, *req, "engine", 1.7e9).ok());
+  RunFilter all;
+  auto runs = store->ListRuns(all);
+  ASSERT_EQ(runs->runs.size(), 2u);
+  const int64_t stopped = runs->runs[0].id, whole = runs->runs[1].id;
+  // At 3 Hz: a still transient period, a pilot of 3 periods (rates 0.012, 0.060, 0.054 m/s), then
+  // 12 periods at 0.036 m/s; every 1 ms.
+  const std::vector<double> advances = {0.004, 0.020, 0.018, 0.012, 0.012, 0.012, 0.012, 0.012,
+                                        0.012, 0.012, 0.012, 0.012, 0.012, 0.012, 0.012};
+  api::Trajectory tr;
+  for (int i = 0; i <= 5340; ++i) {
+    const double time = i * 1e-3, periods = time * 3;
+    const int k = static_cast<int>(std::floor(periods)) - 1;  // the period after the transient
+    double z = 0;
+    for (int j = 0; j < k && j < static_cast<int>(advances.size()); ++j) z += advances[j];
+    if (k >= 0 && k < static_cast<int>(advances.size())) z += advances[k] * (periods - std::floor(periods));
+    tr.t.push_back(time);
+    tr.x.push_back(0);
+    tr.y.push_back(0);
+    tr.z.push_back(z);
+  }
+  {
+    auto t = store->Begin();
+    ASSERT_TRUE(t->Exec("UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}'; UPDATE runs SET state = "
+                        "'done'; UPDATE runs SET precision = '{\"uz_rel\": 0.5, \"uz_abs\": 0, \"min_periods\": 3, "
+                        "\"max_duration_s\": 10}' WHERE id = " +
+                        std::to_string(stopped))
+                    .ok());
+    for (int64_t id : {stopped, whole}) {
+      ASSERT_TRUE(t->Exec("INSERT INTO results (run_id, uz, uz_stderr, uz_ci95, uz_blocks, block_s, block_kind, "
+                          "window_t0, window_t1, window_end, conclusive, dz, dz_rate, z_osc_amplitude, x_drift, "
+                          "broke_surface, near_floor, stop_reason, sim_time_s, steps, grains, z0, analysis, "
+                          "engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at) VALUES (" +
+                          std::to_string(id) + ", 0.0385, 0.001, 0.002, 15, 0.3333, 'period', 0.3333, 5.3333, "
+                          "'run_end', 1, 0.2, 0.0375, 0.001, 0, 0, 0, '" +
+                          (id == stopped ? "target" : "duration") +
+                          "', 5.34, 534000, 5000, 0, 2, 'engine', 'h', 1, 'mpirun', 60, 60, 'k', 1.7e9)")
+                      .ok());
+    }
+    Statement st = t->Prepare("INSERT INTO trajectories (run_id, data) VALUES (?, ?)");
+    st.Bind(1, stopped).Bind(2, nlohmann::json(tr).dump());
+    ASSERT_TRUE(st.Run().ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto re = store->ReanalyzeOldResults();
+  ASSERT_TRUE(re.ok()) << re.status().ToString();
+  EXPECT_EQ(re->reanalysed, 1);
+  EXPECT_EQ(re->unchanged, 1);
+  EXPECT_EQ(re->kept_old, 0);
+  const api::RunResult fresh = store->GetRun(stopped)->result->result;
+  EXPECT_EQ(fresh.analysis, api::kAnalysisVersion);
+  EXPECT_EQ(fresh.analysed_from, "trajectory");
+  EXPECT_EQ(fresh.uz_blocks, 12);
+  ASSERT_TRUE(fresh.uz && fresh.uz_ci95);
+  EXPECT_NEAR(*fresh.uz, 0.036, 1e-4);  // the blocks after the pilot
+  EXPECT_GT(*fresh.uz_ci95, 0.02);       // the pilot's scatter, t(0.975, 2) * 0.026 / sqrt(12)
+  EXPECT_NE(fresh.stop_note.find("two-stage"), std::string::npos) << fresh.stop_note;
+  const api::RunResult kept = store->GetRun(whole)->result->result;
+  EXPECT_EQ(kept.analysis, api::kAnalysisVersion);
+  EXPECT_EQ(kept.analysed_from, "dump");
+  EXPECT_EQ(kept.uz, 0.0385);
+  EXPECT_EQ(kept.uz_ci95, 0.002);
+  // Idempotent.
+  auto again = store->ReanalyzeOldResults();
+  EXPECT_EQ(again->reanalysed + again->unchanged + again->kept_old, 0);
+}
+
 TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
   auto store = MustOpen();
   {
