@@ -1,5 +1,7 @@
 #include "core/api.h"
 
+#include <algorithm>
+
 namespace sandswim::api {
 namespace {
 
@@ -176,6 +178,15 @@ void to_json(nlohmann::json& j, const CompletionReply& r) {
 void from_json(const nlohmann::json& j, CompletionReply& r) {
   r.state = j.at("state").get<std::string>();
   GetOptional(j, "next", r.next);
+}
+
+int AttemptsFor(const std::string& failure_kind, int max_attempts) {
+  static const char* const kRepeatByNature[] = {"deck_error", "not_equilibrated", "lost_atoms", "bad_output",
+                                                "bad_lease"};
+  for (const char* k : kRepeatByNature)
+    if (failure_kind == k) return 1;
+  if (failure_kind == "stalled") return std::min(2, max_attempts);
+  return max_attempts;
 }
 
 }  // namespace sandswim::api

@@ -190,6 +190,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Snapshot, idx, fraction, t_s, st
 //   "lost_atoms"     LIGGGHTS lost atoms
 //   "signal"         the engine died on a signal
 //   "timeout"        the job outlived its wall-time budget
+//   "stalled"        the engine's simulated time stood still (a hung engine); stopped by the worker
 //   "engine_missing" mpirun/srun/liggghts could not be started
 //   "incomplete"     the engine exited without doing all its steps
 //   "bad_output"     the dump or log could not be read
@@ -201,6 +202,14 @@ struct Failure {
   std::string message;
 };
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Failure, kind, message)
+
+// How many attempts a job gets when its attempts fail this way, at most `max_attempts` (the
+// daemon's): a failure that repeats by nature -- the same deck, bed and engine give the same error,
+// lost atoms, unreadable output, missed equilibrium, or a lease the worker cannot use -- gets no
+// second attempt (1); a hung engine ("stalled") one more (2: a stall may be the host's); the rest
+// (signals, a missing engine, an incomplete run, a bed checksum, an expired lease, a time-out) are
+// the infrastructure's and get them all.
+int AttemptsFor(const std::string& failure_kind, int max_attempts);
 
 // Facts about the execution, for every completion.
 struct Execution {

@@ -207,6 +207,7 @@ std::optional<api::Failure> ClassifyExit(api::JobKind kind, const ExitFacts& exi
   // The worker's own reasons come first: they explain the signal the engine then died on.
   if (exit.cancelled) return fail("cancelled", "stopped because the sweep was cancelled");
   if (exit.timed_out) return fail("timeout", "stopped after its wall-time budget");
+  if (exit.stalled) return fail("stalled", "stopped: " + exit.stall_note);
   if (log.lost_atoms) {
     return fail("lost_atoms", log.error_line.empty() ? "LIGGGHTS lost atoms" : log.error_line);
   }

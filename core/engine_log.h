@@ -79,6 +79,8 @@ struct ExitFacts {
   int signal = 0;           // non-zero: the process died on this signal
   bool timed_out = false;   // the worker stopped it after its wall-time budget
   bool cancelled = false;   // the worker stopped it because the sweep was cancelled
+  bool stalled = false;     // the worker stopped it: its simulated time stood still (stall_note says how long)
+  std::string stall_note;   // "no step past 0 for 610 s of wall time"
   std::string start_error;  // why it could not start
 };
 

@@ -385,8 +385,9 @@ Result<std::string> LeaseQueue::CompleteBed(Transaction& t, int64_t id, const ap
 Result<std::string> LeaseQueue::CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
                                                 const api::Failure& f, double now) {
   if (f.kind != "cancelled") {
+    // A failure that repeats by nature is not tried again (core/api.h AttemptsFor).
     return RetryOrFail(t, kind, id, job, f.kind, f.message,
-                       /*retryable=*/f.kind != "deck_error" && f.kind != "not_equilibrated", now);
+                       /*retryable=*/job.attempts < api::AttemptsFor(f.kind, job.max_attempts), now);
   }
   // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
   const std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";

@@ -13,8 +13,9 @@
 //   Complete   under the current token: ok -> done (a run gets its result, trajectory and log
 //              tail; a bed must have had its restart uploaded with PutBedRestart first and
 //              becomes done with its sha256/grains/result). Failure -> back to queued while
-//              attempts < max_attempts, else failed with the reason; a "deck_error" is never
-//              retried (the same deck fails the same way); "cancelled" -> cancelled (a bed goes
+//              attempts < max_attempts, else failed with the reason; a failure that repeats by
+//              nature (a deck error, lost atoms, unreadable output, a missed equilibrium) is never
+//              retried and a "stalled" engine once (core/api.h AttemptsFor); "cancelled" -> cancelled (a bed goes
 //              back to queued). A bed that fails for good fails its queued runs ("bed_failed").
 //              Completing a token that already completed answers "duplicate" and changes
 //              nothing; a token that is not the job's current lease (expired and re-leased,

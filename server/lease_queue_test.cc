@@ -234,21 +234,38 @@ TEST_F(LeaseQueueTest, FailuresRetryUntilMaxAttemptsAndKeepTheLastReason) {
     api::LeaseGrant g = MustLease();
     if (id == 0) id = g.id;
     ASSERT_EQ(g.id, id);
-    auto r = queue_->Complete(g.token, Failed("lost_atoms", "attempt " + std::to_string(i)));
+    auto r = queue_->Complete(g.token, Failed("signal", "attempt " + std::to_string(i)));
     ASSERT_TRUE(r.ok());
     EXPECT_EQ(r->state, i < 3 ? "queued" : "failed");
   }
   auto run = store_->GetRun(id);
   EXPECT_EQ(run->summary.state, "failed");
-  EXPECT_EQ(run->summary.last_error->kind, "lost_atoms");
+  EXPECT_EQ(run->summary.last_error->kind, "signal");
   EXPECT_EQ(run->summary.last_error->message, "attempt 3");
 }
 
-TEST_F(LeaseQueueTest, DeckErrorIsNotRetried) {
+// The same deck on the same bed fails the same way again: these are not retried.
+TEST_F(LeaseQueueTest, FailuresThatRepeatByNatureAreNotRetried) {
+  for (const char* kind : {"deck_error", "lost_atoms", "bad_output", "not_equilibrated", "bad_lease"}) {
+    SCOPED_TRACE(kind);
+    TearDown();  // a fresh store and queue for each kind
+    SetUp();
+    SubmitJson(OmegaSignSweep());
+    PrepareBed();
+    api::LeaseGrant g = MustLease();
+    EXPECT_EQ(queue_->Complete(g.token, Failed(kind, "x"))->state, "failed");
+  }
+}
+
+// A hung engine may be the host's: it gets one more attempt, not all of them.
+TEST_F(LeaseQueueTest, AStalledRunIsRetriedOnce) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();
-  api::LeaseGrant g = MustLease();
-  EXPECT_EQ(queue_->Complete(g.token, Failed("deck_error", "ERROR: x"))->state, "failed");
+  api::LeaseGrant first = MustLease();
+  EXPECT_EQ(queue_->Complete(first.token, Failed("stalled", "no step past 0 for 600 s"))->state, "queued");
+  api::LeaseGrant second = MustLease();
+  ASSERT_EQ(second.id, first.id);
+  EXPECT_EQ(queue_->Complete(second.token, Failed("stalled", "no step past 0 for 600 s"))->state, "failed");
 }
 
 TEST_F(LeaseQueueTest, CompletionIsIdempotentPerToken) {

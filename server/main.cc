@@ -39,6 +39,7 @@ struct Flags {
   int local_workers = 0;
   double lease_ttl_s = 60;
   int max_attempts = 3;
+  double wall_budget_s = 0;
   std::string engine_version;
   std::string log_level = "info";
   std::vector<std::string> schedules;  // NAME[:SCALE]
@@ -61,6 +62,11 @@ void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--max-attempts", flags.max_attempts, "leases a job gets before it fails")
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
+  app.add_option("--wall-budget", flags.wall_budget_s,
+                 "seconds of wall time a lease may run before its worker stops it as a time-out (0: none; a hung "
+                 "engine is stopped anyway once its simulated time stands still: sandswim-worker --stall-after)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--http-head-timeout", flags.http_head_timeout_s,
                  "seconds a client may take to send a request's line and headers, from their first byte "
                  "(a slower connection is closed)")
@@ -230,6 +236,7 @@ int main(int argc, char** argv) {
   sandswim::LeaseQueueOptions lease_options;
   lease_options.ttl_s = flags.lease_ttl_s;
   lease_options.max_attempts = flags.max_attempts;
+  lease_options.wall_budget_s = flags.wall_budget_s;
   lease_options.data_dir = flags.data;
   sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
   if (auto extended = leases.ExtendLeasesAfterRestart(); !extended.ok()) {

@@ -38,6 +38,10 @@ int main(int argc, char** argv) {
   app.add_option("--token-file", token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
   app.add_option("--engine", options.engine, "the LIGGGHTS executable")->capture_default_str();
   app.add_option("--heartbeat", options.heartbeat_every_s, "seconds between heartbeats")->capture_default_str();
+  app.add_option("--stall-after", options.stall_after_s,
+                 "seconds of wall time without the engine's simulated time moving before a run is stopped as stalled (0: never)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--name", options.name, "worker name (default host:pid)");
   app.add_option("--end-margin", options.end_margin_s,
                  "inside a Slurm allocation: seconds a run is expected to take before one has finished here "

@@ -495,6 +495,8 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
   const double hb_every = std::max(0.001, std::min(options_.heartbeat_every_s, grant.ttl_s / 3));
   auto next_beat = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
   bool stop_asked = false;  // the control file asks the deck to end the run
+  int64_t last_step = -1;   // the furthest step seen, and when it was first seen
+  auto moved_at = start;
   while (true) {
     // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
     double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
@@ -512,6 +514,18 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
     }
     if (Clock::now() >= next_beat) {
       const api::Heartbeat beat = progress.Read();
+      if (beat.step > last_step) {
+        last_step = beat.step;
+        moved_at = Clock::now();
+      } else if (options_.stall_after_s > 0 && Since(moved_at) > options_.stall_after_s) {
+        facts.stalled = true;
+        facts.stall_note = "its simulated time stood at t = " + FormatNumber(beat.sim_time_s) + " s (step " +
+                           std::to_string(std::max<int64_t>(last_step, 0)) + ") for " +
+                           std::to_string(static_cast<int64_t>(Since(moved_at))) + " s of wall time";
+        spdlog::warn("{}: the engine is hung ({}); stopping it", job.name, facts.stall_note);
+        proc->Stop(options_.stop_grace_s);
+        break;
+      }
       if (!grant.snapshots.empty()) DropUnneededSnapshotFrames(dir, grant.dt_s, grant.snapshots, beat.sim_time_s);
       if (grant.precision && !stop_asked) {
         const StopVerdict verdict = progress.Follow(drive, *grant.precision);

@@ -11,6 +11,7 @@
 //   - a heartbeat reply says cancel      -> completes with failure "cancelled";
 //   - a heartbeat gets 409 (lease lost)  -> does not complete (the lease is someone else's now);
 //   - the grant's wall-time budget ends  -> completes with failure "timeout";
+//   - its simulated time stands still for stall_after_s -> completes with failure "stalled";
 //   - the worker is asked to stop        -> hands the job back (see below).
 // When the engine exits, the job is judged by the pure workers/job_outcome.h (the log's markers
 // and steps, the run's results and downsampled trajectory from the dump, which was read once as it
@@ -70,6 +71,11 @@ struct WorkerOptions {
   bool keep_run_dirs = false;    // keep directories of jobs that completed ok (failed ones are kept)
   double heartbeat_every_s = 5;  // also capped at a third of the lease's ttl
   double stop_grace_s = 10;      // SIGTERM -> SIGKILL
+  // A hung engine: when its simulated time (a bed's step) has not moved for this long, the engine
+  // is stopped and the job fails as "stalled" (0: never). A drive run's dump and a bed's log move
+  // every 100 and 1,000 steps: at paper scale on one core (7x10^4 grains, ~25 steps/s) that is
+  // every 4 and 40 s, so 600 s is ample.
+  double stall_after_s = 600;
   double stop_settle_s = 2;      // after an engine fails, how long to wait for the worker's own stop
   double idle_poll_s = 2;        // when the queue is empty
   double exit_when_idle_s = 0;   // > 0: a slot returns after this long without work (array jobs)

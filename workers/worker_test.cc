@@ -350,6 +350,24 @@ TEST(WorkerTest, WallBudgetStopsTheEngineAsTimeout) {
   EXPECT_EQ(client.completions[0].failure->kind, "timeout");
 }
 
+// An engine that runs on without its simulated time moving (no dump is ever written here) is
+// stopped and reported as stalled, with the step it stood at.
+TEST(WorkerTest, AHungEngineIsStoppedAsStalled) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.runs_until_stopped = true;
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.stall_after_s = 0.05;
+  Worker worker(o, client, launcher);
+  worker.RunJob(RunGrant());
+  EXPECT_GT(launcher.stops.load(), 0);
+  ASSERT_EQ(client.completions.size(), 1u);
+  ASSERT_TRUE(client.completions[0].failure.has_value());
+  EXPECT_EQ(client.completions[0].failure->kind, "stalled");
+  EXPECT_NE(client.completions[0].failure->message.find("step 0"), std::string::npos)
+      << client.completions[0].failure->message;
+}
+
 TEST(WorkerTest, BedChecksumMismatchNeverStartsTheEngine) {
   FakeClient client;
   client.bed_bytes = "tampered bytes";
