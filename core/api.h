@@ -105,9 +105,9 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(HeartbeatReply, ttl_s, cancel)
 // The version of that analysis: 1 was a least-squares line + sinusoid at f over [1/f, end] with
 // the fit's own standard error (too small, biased by the harmonics); results made by it are
 // re-analysed from their stored trajectories when the daemon upgrades its database. 2 took U_z
-// from whole-period block rates; 3 takes a run ended by its precision target from the blocks
-// after its pilot, with the two-stage interval (core/precision.h), instead of from every block
-// with the interval its stop was chosen on, which was too narrow.
+// from whole-period block rates; 3 takes a run ended by its precision target (its rate, error and
+// interval) from the blocks after its two-stage rule's pilot (core/precision.h), instead of from
+// every block with the interval its stop was chosen on, which was too narrow.
 inline constexpr int kAnalysisVersion = 3;
 struct RunResult {
   std::optional<double> uz;         // m/s, mean rate over the window's whole blocks; absent: none

@@ -126,9 +126,8 @@ TEST(DeckTest, StepsCoverTheRunOrItsTargetsMaximum) {
   // A target's maximum (2 s here) caps it...
   const PrecisionTarget t{0.1, 0.002, 3, 2.0};
   EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 3, 80, 4), t), 200000);
-  // ...but never below the transient, min_periods whole periods and the two-stage rule's two
-  // after them: 6 periods at 1 Hz.
-  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 10), t), 600000);
+  // ...but never below the transient and min_periods whole periods: 4 periods at 1 Hz.
+  EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 10), t), 400000);
   // Never longer than asked.
   EXPECT_EQ(DriveSteps(OscillatoryPoint(0.03, 1, 80, 0.1), t), 10000);
   std::string d = RenderDriveDeck(OscillatoryPoint(0.03, 3, 80, 4), Smoke(), t);

@@ -103,8 +103,7 @@ double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target)
   if (!target) return p.duration_s;
   const WindowRule rule;
   const double block = p.has_vibration() ? 1.0 / p.f : rule.undriven_block_s;
-  // The pilot and the two blocks after it that the two-stage rule needs at the least.
-  const double needed = (rule.transient_blocks + target->min_periods + 2) * block;
+  const double needed = (rule.transient_blocks + target->min_periods) * block;
   return std::min(p.duration_s, std::max(target->max_duration_s, needed));
 }
 
@@ -126,20 +125,16 @@ std::optional<StopPlan> PlanStop(const std::vector<SoSample>& samples, const api
   plan.pilot_rate = pilot.rate;
   plan.pilot_sd = *pilot.se * std::sqrt(static_cast<double>(n0));
   plan.half_width = std::max(t.uz_rel * std::fabs(pilot.rate), t.uz_abs);
-  // After the pilot: two blocks at least (a conclusive rate needs two), and as many as the
-  // pilot's scatter asks for the half-width.
+  // After the pilot: three blocks at least (an interval needs three), and as many as the pilot's
+  // scatter asks for the half-width.
   constexpr int64_t kBeyond = kMaxPrecisionPeriods + 1;
   int64_t after = kBeyond;
   if (plan.half_width > 0) {
     const double needed = std::ceil(std::pow(StudentT95(n0 - 1) * plan.pilot_sd / plan.half_width, 2));
-    after = needed >= static_cast<double>(kBeyond) ? kBeyond : std::max<int64_t>(2, static_cast<int64_t>(needed));
+    after = needed >= static_cast<double>(kBeyond) ? kBeyond : std::max<int64_t>(3, static_cast<int64_t>(needed));
   }
   plan.blocks_needed = n0 + after;
   return plan;
-}
-
-double TwoStageHalfWidth(const StopPlan& plan, int blocks) {
-  return StudentT95(plan.pilot_blocks - 1) * plan.pilot_sd / std::sqrt(static_cast<double>(std::max(blocks, 1)));
 }
 
 StopVerdict DecideStop(const api::RunResult& so_far, const std::optional<StopPlan>& plan) {

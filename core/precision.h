@@ -14,17 +14,18 @@
 //       h = max(uz_rel * |u0|, uz_abs)
 //     (uz_rel alone is unreachable for a rate near 0; uz_abs alone ignores the rate's size: either
 //     may be 0, not both), and the whole blocks the run holds in all,
-//       N = n0 + max(2, ceil((t(0.975, n0 - 1) * s0 / h)^2)).
+//       N = n0 + max(3, ceil((t(0.975, n0 - 1) * s0 / h)^2)).
 //   - "target": the window holds at least N whole blocks.
 //   - "window": the window has closed -- the SO came within the clearance of the bed surface or
 //     the floor (core/trajectory.h WindowRule), so no later sample can tighten the interval.
-// A run that stopped for its target (core/trajectory.h AnalyzeRun) takes U_z from the m >= 2
-// blocks after its pilot -- the pilot only plans: its blocks decided how many more to run, so a run
-// whose pilot came out fast or calm would otherwise stop early carrying that luck into its rate --
-// with the wider of two 95 % intervals: the two-stage one, t(0.975, n0 - 1) * s0 / sqrt(m), which
-// holds the truth 95 % of the time whatever N came out (the m blocks are independent of the pilot
-// when block rates are), and the blocks' own, t(0.975, m - 1) * sd / sqrt(m). Its standard error is
-// that half-width over the quantile it was made with, so the fits weigh the run with it.
+// A run that stopped for its target (core/trajectory.h AnalyzeRun) takes U_z, its standard error
+// and its 95 % interval from the m >= 3 blocks after its pilot alone. The pilot only plans: it
+// decided how many more blocks to run, so a run stopped early is one whose pilot came out calm (or
+// fast); its own scatter or rate in the estimate would carry that luck into the interval. The
+// blocks after it are chosen by the pilot's numbers only, so their t interval (m - 1 degrees of
+// freedom) holds the truth 95 % of the time whatever m came out, early stop or not, when block
+// rates are independent and normal. Their interval meets h on average, not always: precision_met
+// says whether it did.
 // A larger pilot costs fewer blocks after it (t(0.975, 2) = 4.30, t(0.975, 4) = 2.78):
 // min_periods is the user's trade between the two.
 // Without a target a run lasts its whole duration (or until the SO is at a boundary).
@@ -85,9 +86,10 @@ Result<std::optional<PrecisionTarget>> StoredPrecision(const std::optional<std::
 std::optional<PrecisionTarget> Tightest(const PrecisionTarget& a, const PrecisionTarget& b);
 
 // Physical time a run of `p` lasts at most. Without a target: the duration asked. With one: the
-// target's maximum, but never shorter than the start-up transient, the pilot's min_periods whole
-// blocks and the two after it (else the target could never be met), and never longer than the
-// duration asked.
+// target's maximum, but never shorter than the start-up transient plus min_periods whole blocks,
+// and never longer than the duration asked. (A maximum that leaves no room for the three blocks
+// after the pilot lets the run last it: a run of fixed length, whose interval needs no correction.
+// Unchanged by the two-stage rule, so that no deck or run key changed with it.)
 double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target);
 
 // Whether the interval of `r` meets the target's half-width at r's own rate (false when r has
@@ -106,9 +108,6 @@ struct StopPlan {
 // window holds min_periods whole blocks.
 std::optional<StopPlan> PlanStop(const std::vector<SoSample>& samples, const api::RunResult& so_far,
                                  const PrecisionTarget& t);
-// The two-stage 95 % half-width of the mean of `blocks` whole blocks after the pilot of `plan`.
-double TwoStageHalfWidth(const StopPlan& plan, int blocks);
-
 // What the worker does with a run it follows, from the analysis of the trajectory so far and its
 // plan (nullopt before the pilot is complete).
 enum class StopVerdict { kContinue, kTargetMet, kWindowClosed };

@@ -352,25 +352,18 @@ Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const Ru
   if (!r.ok()) return r;
   std::optional<StopPlan> plan;
   if (in.precision && r->stop_reason == "target") plan = PlanStop(samples, *r, *in.precision);
-  if (plan && r->uz_blocks - plan->pilot_blocks >= rule.min_periods) {
-    // Ended by its two-stage rule (core/precision.h): U_z from the blocks after the pilot, with the
-    // wider of the two-stage interval and the blocks' own; the standard error says which, so that
-    // a fit weighs the run with it.
+  if (plan && r->uz_blocks - plan->pilot_blocks >= rule.min_blocks_for_error) {
+    // Ended by its two-stage rule (core/precision.h): U_z, its error and its interval from the
+    // blocks after the pilot alone, which the stop was not chosen on.
     const int m = r->uz_blocks - plan->pilot_blocks;
     const double t0 = r->window_t0 + plan->pilot_blocks * r->block_s;
     const BlockRate after = MeanBlockRate(samples, t0, r->block_s, m, rule.min_blocks_for_error);
     r->uz = after.rate;
+    r->uz_stderr = after.se;
+    r->uz_ci95 = after.ci95;
+    r->uz_stderr_note.clear();
     r->uz_blocks = m;
     r->window_t0 = t0;
-    const double two_stage = TwoStageHalfWidth(*plan, m);
-    if (after.ci95 && *after.ci95 > two_stage) {
-      r->uz_ci95 = after.ci95;
-      r->uz_stderr = after.se;
-    } else {
-      r->uz_ci95 = two_stage;
-      r->uz_stderr = two_stage / StudentT95(plan->pilot_blocks - 1);
-    }
-    r->uz_stderr_note.clear();
   }
   if (in.precision) r->precision_met = TargetMet(*r, *in.precision);
   r->stop_note = DescribeStop(*r, in.precision, plan);

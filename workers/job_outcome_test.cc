@@ -92,7 +92,7 @@ TEST(JobOutcomeTest, FollowingARealRunStopsOnceItsTargetIsMet) {
     n += 10;
   ASSERT_LT(n, all.size());
   const double block = 1.0 / f.drive.f;
-  EXPECT_NEAR(all[n - 1].t, 6 * block, 0.011);  // the transient, a pilot of 3 periods and 2 after it
+  EXPECT_NEAR(all[n - 1].t, 7 * block, 0.011);  // the transient, a pilot of 3 periods and 3 after it
   JobOutcome out = JudgeJob(api::JobKind::kRun, 0, ExitFacts{}, f.log, f.drive,
                             std::vector<SoSample>(all.begin(), all.begin() + n), loose);
   ASSERT_TRUE(out.result.has_value());
