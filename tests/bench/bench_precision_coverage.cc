@@ -1,7 +1,7 @@
 // bench_precision_coverage: whether a run ended by its precision target keeps its 95 % interval's
 // coverage (core/precision.h), on synthetic trajectories with a known drift.
 //
-//   bench_precision_coverage [--seeds N]
+//   bench_precision_coverage [--seeds N] [--model correlated|independent]
 //
 // Each trajectory (tests/synthetic_trajectory.h: harmonics at f, 2f, 3f and a wandering term, so
 // that each period's advance varies as in real runs) is followed as the worker follows a run: the
@@ -83,25 +83,33 @@ void FollowOne(const std::vector<SoSample>& all, double truth, const DriveInfo& 
 int main(int argc, char** argv) {
   using namespace sandswim;
   int seeds = 2000;
-  for (int i = 1; i < argc; ++i)
+  bool independent = false;  // --model independent: block rates independent of each other
+  for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--seeds") == 0 && i + 1 < argc) seeds = std::atoi(argv[++i]);
+    if (std::strcmp(argv[i], "--model") == 0 && i + 1 < argc) independent = std::strcmp(argv[++i], "independent") == 0;
+  }
 
   const double f = 3, drift = 0.05, max_duration = 4;  // 12 periods: the transient and 11 blocks
   DriveInfo drive;
   drive.dt = 1e-5;
   drive.f = f;
-  std::printf("precision-target stops, f = %g Hz, drift %g m/s, at most %g s, looks every 10 ms, %d seeds a case\n",
-              f, drift, max_duration, seeds);
+  std::printf("precision-target stops, f = %g Hz, drift %g m/s, at most %g s, looks every 10 ms, %d seeds a case, "
+              "%s block rates\n",
+              f, drift, max_duration, seeds,
+              independent ? "independent (white velocity noise)" : "correlated (velocity noise with 0.1 s memory)");
   std::printf("| per-period sd / U | uz_rel | coverage (all) | coverage (stopped) | stopped | periods | rms err / rms se (stopped) |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
   // v_noise_sd sets the wandering term's size; the per-period scatter it gives is measured below.
-  for (double v_sd : {0.015, 0.03}) {
+  // The velocity noise's size; the per-period scatter it gives is measured below. White noise
+  // (phi = 0) makes the blocks' rates independent; phi = 0.99 a sample (0.1 s) correlates neighbours.
+  const double phi = independent ? 0.0 : 0.99;
+  for (double v_sd : independent ? std::vector<double>{0.18, 0.35} : std::vector<double>{0.015, 0.03}) {
     testing::SyntheticSo so;
     so.drift = drift;
     so.f = f;
     so.duration = max_duration;
     so.v_noise_sd = v_sd;
-    so.v_noise_phi = 0.99;
+    so.v_noise_phi = phi;
     // The realised per-period scatter of the block rates, relative to the drift.
     double sum_sd = 0;
     const int probe = 200;
