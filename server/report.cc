@@ -255,7 +255,8 @@ std::string ClaimsHtml(const ReportInput& in) {
     }
     html += "<tr id=\"claim-" + Escape(v.claim.id) + "\"><td><b>" + Escape(v.claim.id) + "</b> " +
             Escape(v.claim.title) + "<br><small>" + Escape(v.claim.source) + "; rule: " + Escape(v.claim.kind()) +
-            "</small></td><td>" + VerdictHtml(v.verdict) + "</td><td>" + measured + "</td><td>" +
+            "</small></td><td>" + VerdictHtml(v.verdict) + (v.scale.empty() ? "" : " at " + Escape(v.scale)) +
+            "</td><td>" + measured + "</td><td>" +
             PaperHtml(v.claim.paper) + "</td></tr>\n";
   }
   return html + "</table>\n";
@@ -302,11 +303,13 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
         sample.point = row.point;
         sample.run_id = first_done->run_id;
         sample.has_uz = agg.uz_mean.has_value();
-        sample.conclusive = sample.has_uz;
+        // Conclusive only over all K beds (core/aggregate.h): the mean of the beds that happened to
+        // be conclusive is shown, not fitted.
+        sample.conclusive = agg.complete;
         sample.uz = agg.uz_mean.value_or(0);
         sample.uz_stderr = agg.uz_stderr.value_or(0);
         sample.uz_ci95 = agg.uz_ci95.value_or(0);
-        if (!sample.has_uz) sample.inconclusive_reason = DescribeAggregate(agg);
+        if (!sample.conclusive) sample.inconclusive_reason = DescribeAggregate(agg) + (agg.note.empty() ? "" : ": " + agg.note);
         a.samples.push_back(std::move(sample));
       }
     }
