@@ -96,8 +96,10 @@
 //                     combined half-widths, Bonferroni over them for differs), "stays near x"
 //                     (every run of `fastest` drifts at most `x_within_m` in x), "z oscillates
 //                     with an x component" (the smallest z amplitude at f of `z_osc_with` runs is
-//                     at least `osc_ratio` times the largest of `z_osc_without`; differs when it is
-//                     at most the largest; a run whose window held no whole period has no amplitude
+//                     at least `osc_ratio` times the largest of `z_osc_without`; differs when the
+//                     largest without is at least `osc_ratio` times the smallest with (the
+//                     amplitudes have no error: as much margin either way); a run whose window held
+//                     no whole period has no amplitude
 //                     and leaves the part inconclusive), "x oscillates with a z component"
 //                     (inconclusive: the run analysis does not measure x's amplitude at f).
 // Every verdict names the scale it was decided at (ClaimVerdict::scale, "holds at smoke"): a

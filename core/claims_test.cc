@@ -454,6 +454,17 @@ TEST(ClaimsTest, ModesHoldDifferOrAreInconclusive) {
   ASSERT_GE(v.parts.size(), 4u);
   EXPECT_EQ(v.parts[3].verdict, Verdict::kInconclusive) << v.parts[3].reason;
   EXPECT_THAT(v.parts[3].reason, HasSubstr("not measured"));
+  // Amplitudes without errors: a with-x amplitude a little below a without-x one is not a
+  // refutation (within the factor osc_ratio either way: inconclusive); one at most half of it is.
+  Synth close = build(0.005);
+  for (ClaimSweep& sweep : close.input.sweeps)
+    if (sweep.name == "rot-xz") sweep.runs[0].result->z_osc_amplitude = 0.0025;  // below rot-z's 0.003
+  v = Evaluate(f5, close.input);
+  EXPECT_EQ(v.parts[3].verdict, Verdict::kInconclusive) << v.parts[3].reason;
+  for (ClaimSweep& sweep : close.input.sweeps)
+    if (sweep.name == "rot-xz") sweep.runs[0].result->z_osc_amplitude = 0.0015;
+  v = Evaluate(f5, close.input);
+  EXPECT_EQ(v.parts[3].verdict, Verdict::kDiffers) << v.parts[3].reason;
   // x's oscillation at f is not measured: asked for, it stays inconclusive.
   const Claim with_x = ClaimOf(R"({"id": "F5", "title": "t", "source": "s", "paper": {"text": "p"}, "rule": {)" + rule +
                                R"(, "x_osc_with": ["rot-z", "rot-xz"]}})");
