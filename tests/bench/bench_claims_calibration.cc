@@ -8,7 +8,10 @@
 //
 //   bench_claims_calibration [--campaigns N] [--beds K] [--duration-multiplier M] [--no-precision] [--no-follow]
 //                            [--laws a,b,...] [--threads T] [--world W] [--drift-campaigns N]
-//                            [--json FILE]
+//                            [--json FILE] [--show W]
+//
+// --show W prints one campaign of world W instead (each law's verdicts with their reasons, and
+// every run's true U_z against its result): what a table's row is made of.
 //
 // Defaults: 1,000 campaigns per law (rates within +-3.1 %; 2,500 for +-2 %), the campaign's
 // design (paper-58 at smoke, one bed), every law, all cores. A program to run on demand: it
@@ -17,11 +20,13 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "core/trajectory.h"
 #include "tests/truth/calibration.h"
 
 namespace sandswim::truth {
@@ -33,6 +38,7 @@ int Main(int argc, char** argv) {
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   uint64_t world = 1;
   std::string json_file, law_list;
+  std::optional<uint64_t> show;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* {
@@ -60,12 +66,15 @@ int Main(int argc, char** argv) {
       world = std::strtoull(value(), nullptr, 10);
     } else if (a == "--drift-campaigns") {
       drift_campaigns = std::atoll(value());
+    } else if (a == "--show") {
+      show = std::strtoull(value(), nullptr, 10);
     } else if (a == "--json") {
       json_file = value();
     } else {
       std::fprintf(stderr,
                    "usage: bench_claims_calibration [--campaigns N] [--beds K] [--duration-multiplier M] "
-                   "[--no-precision] [--no-follow] [--laws a,b] [--threads T] [--world W] [--drift-campaigns N] [--json FILE]\n");
+                   "[--no-precision] [--no-follow] [--laws a,b] [--threads T] [--world W] [--drift-campaigns N] [--json FILE] "
+                   "[--show W]\n");
       return 2;
     }
   }
@@ -87,6 +96,25 @@ int Main(int argc, char** argv) {
       }
       laws.push_back(l);
     }
+  }
+  if (show) {
+    for (const Law* law : laws) {
+      const SimCampaign c = cal->Simulate(*law, Noise(), *show);
+      std::printf("## law %s, world %llu\n\n", law->name.c_str(), static_cast<unsigned long long>(*show));
+      for (const ClaimVerdict& v : c.verdicts) {
+        std::printf("%s %s: %s\n", v.claim.id.c_str(), VerdictName(v.verdict), v.reason.c_str());
+        for (const ClaimPart& p : v.parts)
+          std::printf("  [%s] %s: %s\n", VerdictName(p.verdict), p.name.c_str(), p.reason.c_str());
+      }
+      std::printf("\n");
+      for (const SimRun& r : c.runs) {
+        std::printf("%s bed %d: true %.4f m/s, %s, stop %s at %.3f of %.3f s\n", PointToJson(r.point).dump().c_str(),
+                    r.replicate, r.true_uz, r.result ? DescribeUz(*r.result).c_str() : r.failure.c_str(),
+                    r.stop_reason.c_str(), r.simulated_s, r.planned_s);
+      }
+      std::printf("\n");
+    }
+    return 0;
   }
   std::printf("%zu runs per campaign on %zu bed(s); planned simulated time %.1f s per campaign; %d thread(s)\n\n",
               cal->plan().runs.size(), cal->plan().beds.size(), cal->PlannedSimSeconds(), threads);
