@@ -8,10 +8,12 @@
 //
 //   bench_claims_calibration [--campaigns N] [--beds K] [--duration-multiplier M] [--no-precision] [--no-follow]
 //                            [--laws a,b,...] [--threads T] [--world W] [--drift-campaigns N]
-//                            [--json FILE] [--show W]
+//                            [--json FILE] [--show W] [--bed-common S] [--bed-point S] [--no-transient]
 //
 // --show W prints one campaign of world W instead (each law's verdicts with their reasons, and
-// every run's true U_z against its result): what a table's row is made of.
+// every run's true U_z against its result): what a table's row is made of. --bed-common and
+// --bed-point change the bed effect's two relative standard deviations (0.10 and 0.15),
+// --no-transient removes the start-up transient: how the rates depend on the noise model.
 //
 // Defaults: 1,000 campaigns per law (rates within +-3.1 %; 2,500 for +-2 %), the campaign's
 // design (paper-58 at smoke, one bed), every law, all cores. A program to run on demand: it
@@ -39,6 +41,7 @@ int Main(int argc, char** argv) {
   uint64_t world = 1;
   std::string json_file, law_list;
   std::optional<uint64_t> show;
+  Noise noise;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* {
@@ -66,6 +69,12 @@ int Main(int argc, char** argv) {
       world = std::strtoull(value(), nullptr, 10);
     } else if (a == "--drift-campaigns") {
       drift_campaigns = std::atoll(value());
+    } else if (a == "--bed-common") {
+      noise.bed_common = std::atof(value());
+    } else if (a == "--bed-point") {
+      noise.bed_point = std::atof(value());
+    } else if (a == "--no-transient") {
+      noise.transient_v0 = 0;
     } else if (a == "--show") {
       show = std::strtoull(value(), nullptr, 10);
     } else if (a == "--json") {
@@ -74,7 +83,7 @@ int Main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: bench_claims_calibration [--campaigns N] [--beds K] [--duration-multiplier M] "
                    "[--no-precision] [--no-follow] [--laws a,b] [--threads T] [--world W] [--drift-campaigns N] [--json FILE] "
-                   "[--show W]\n");
+                   "[--show W] [--bed-common S] [--bed-point S] [--no-transient]\n");
       return 2;
     }
   }
@@ -99,7 +108,7 @@ int Main(int argc, char** argv) {
   }
   if (show) {
     for (const Law* law : laws) {
-      const SimCampaign c = cal->Simulate(*law, Noise(), *show);
+      const SimCampaign c = cal->Simulate(*law, noise, *show);
       std::printf("## law %s, world %llu\n\n", law->name.c_str(), static_cast<unsigned long long>(*show));
       for (const ClaimVerdict& v : c.verdicts) {
         std::printf("%s %s: %s\n", v.claim.id.c_str(), VerdictName(v.verdict), v.reason.c_str());
@@ -119,7 +128,6 @@ int Main(int argc, char** argv) {
   std::printf("%zu runs per campaign on %zu bed(s); planned simulated time %.1f s per campaign; %d thread(s)\n\n",
               cal->plan().runs.size(), cal->plan().beds.size(), cal->PlannedSimSeconds(), threads);
   std::vector<LawTally> tallies;
-  const Noise noise;
   for (const Law* law : laws) {
     tallies.push_back(RunLaw(*cal, *law, noise, campaigns, world, threads));
     std::fprintf(stderr, "%s: %lld campaigns in %.1f s\n", law->name.c_str(), static_cast<long long>(campaigns),
