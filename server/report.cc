@@ -266,19 +266,15 @@ std::string ClaimsHtml(const ReportInput& in) {
 
 // ---- Analysis ----------------------------------------------------------------------------------
 
-Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
+SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<ResultRow>& rows) {
   SweepAnalysis a;
-  auto info = store.GetSweep(sweep_id);
-  if (!info.ok()) return info.status();
-  a.info = *info;
-  auto rows = store.SweepResults(sweep_id);
-  if (!rows.ok()) return rows.status();
+  a.info = info;
   // A point run on several replicate beds is one sample: its aggregate (core/aggregate.h), whose
   // standard error over the beds weights the fit and whose 95 % interval the figure draws.
   std::map<DriveId, std::vector<const ResultRow*>> replicates;
-  for (const ResultRow& row : *rows) replicates[DriveIdOf(row.point)].push_back(&row);
+  for (const ResultRow& row : rows) replicates[DriveIdOf(row.point)].push_back(&row);
   std::set<DriveId> aggregated;
-  for (const ResultRow& row : *rows) {
+  for (const ResultRow& row : rows) {
     const std::vector<const ResultRow*>& beds = replicates.at(DriveIdOf(row.point));
     if (beds.size() > 1 && aggregated.insert(DriveIdOf(row.point)).second) {
       std::vector<ReplicateValue> values;
@@ -314,11 +310,6 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
       }
     }
     if (row.state != "done" || !row.result) continue;
-    // Every run's trajectory, on every bed.
-    auto run = store.GetRun(row.run_id);
-    if (!run.ok()) return run.status();
-    if (run->trajectory && !run->trajectory->t.empty())
-      a.runs.push_back({row.run_id, row.point, *run->trajectory, row.replicate});
     if (beds.size() > 1) continue;  // its sample is the aggregate
     const api::RunResult& r = row.result->result;
     SweepSample sample;
@@ -334,11 +325,28 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   }
   // The law is what the sweep varies (all its points), whatever has finished so far.
   std::vector<Point> points;
-  for (const ResultRow& row : *rows) points.push_back(row.point);
+  for (const ResultRow& row : rows) points.push_back(row.point);
   a.fits = FitSweep(a.samples, ChooseFit(points));
   std::set<double> swept;
   for (const Point& p : points) swept.insert(SweptValue(p, a.fits.choice.param));
   a.swept_values = swept.size();
+  return a;
+}
+
+Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
+  auto info = store.GetSweep(sweep_id);
+  if (!info.ok()) return info.status();
+  auto rows = store.SweepResults(sweep_id);
+  if (!rows.ok()) return rows.status();
+  SweepAnalysis a = AnalyzeSweepResults(*info, *rows);
+  // Every finished run's trajectory, on every bed.
+  for (const ResultRow& row : *rows) {
+    if (row.state != "done" || !row.result) continue;
+    auto run = store.GetRun(row.run_id);
+    if (!run.ok()) return run.status();
+    if (run->trajectory && !run->trajectory->t.empty())
+      a.runs.push_back({row.run_id, row.point, *run->trajectory, row.replicate});
+  }
   return a;
 }
 
