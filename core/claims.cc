@@ -829,7 +829,7 @@ void EvaluateSaturation(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
     const bool rising = std::string(branch) == "rising";
     const int sign = rising ? 1 : -1;
     const std::string grows = std::string(branch) + ": |U_z| grows with |Omega|";
-    const std::string saturates = std::string(branch) + ": the growth flattens within the swept |Omega|";
+    const std::string saturates = std::string(branch) + ": saturates (the growth flattens within the swept |Omega|)";
     // The branch's points with a U_z on every bed, by |Omega|; x = log2 |Omega| (the sweep doubles
     // |Omega|), y = |U_z| the paper's way (sign * U_z).
     std::vector<const PointView*> points;
