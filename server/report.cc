@@ -223,9 +223,11 @@ std::string ClaimsHtml(const ReportInput& in) {
   const VerdictCounts counts = CountVerdicts(in.claims);
   html += "<p>" + std::to_string(counts.holds) + " hold, " + std::to_string(counts.differs) + " differ, " +
           std::to_string(counts.inconclusive) +
-          " inconclusive. Each claim is decided by the rule the campaign file states, from the results' own errors "
-          "(95 % intervals; over replicate beds where there are several); a claim never holds while a point it "
-          "needs has no conclusive U<sub>z</sub>." +
+          " inconclusive, at the scale " + Escape(in.campaign_run.scale) +
+          ". Each claim is decided by the rule the campaign file states (core/claims.h): a point counts only over "
+          "all its replicate beds; a run cut short at the surface or the floor gives a sign and a lower bound on "
+          "|U<sub>z</sub>|, not a rate; fitted laws are tested on their residuals, not on each run's few-period "
+          "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive." +
           (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
           "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
   for (const ClaimVerdict& v : in.claims) {
