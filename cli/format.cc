@@ -500,9 +500,10 @@ std::string RenderResultsCsv(const json& rows) {
 
 namespace {
 
-std::string VerdictCell(const std::string& verdict, const RenderOptions& options) {
+// `text` is what is shown ("holds at smoke"), coloured by `verdict`.
+std::string VerdictCell(const std::string& verdict, const RenderOptions& options, const std::string& text = "") {
   const std::string code = verdict == "holds" ? "32" : verdict == "differs" ? "31" : "33";
-  return Colorize(verdict, code, options.color);
+  return Colorize(text.empty() ? verdict : text, code, options.color);
 }
 
 }  // namespace
@@ -521,7 +522,8 @@ std::string RenderClaims(const json& reply, const RenderOptions& options) {
          Str(counts, "inconclusive", "0") + " inconclusive\n";
   if (!Str(reply, "note").empty()) out += "(" + Str(reply, "note") + ")\n";
   for (const auto& c : claims) {
-    out += "\n" + Str(c, "id", "?") + "  " + VerdictCell(Str(c, "verdict", "inconclusive"), options) + "  " +
+    out += "\n" + Str(c, "id", "?") + "  " +
+           VerdictCell(Str(c, "verdict", "inconclusive"), options, Str(c, "verdict_text")) + "  " +
            Str(c, "title") + " (" + Str(c, "source") + ")\n";
     out += "    here:  " + Str(c, "reason") + "\n";
     for (const auto& p : c.value("parts", json::array())) {

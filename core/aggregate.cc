@@ -29,6 +29,7 @@ ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
     }
   }
   a.conclusive = static_cast<int>(rates.size());
+  a.complete = a.conclusive > 0 && a.conclusive == a.replicates;
   const int n = a.conclusive;
   const std::string of_k = std::to_string(n) + " of " + std::to_string(a.replicates) + " replicate(s)";
   if (n == 0) {
@@ -49,7 +50,7 @@ ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
     a.uz_mean = mean;
     a.uz_sd_between = sd;
     a.uz_stderr = sd / std::sqrt(static_cast<double>(n));
-    if (n < a.replicates) a.note = "over " + of_k + ": the others are not conclusive";
+    if (n < a.replicates) a.note = "over " + of_k + ": the others are not conclusive, so the point is not";
     // The runs' own noise alone gives the mean an error of sqrt(sum se_i^2) / n; a few beds that
     // happen to agree more closely than that must not claim a smaller one.
     const double within = std::sqrt(within_ss) / n;
@@ -103,6 +104,7 @@ std::string DescribeAggregate(const ReplicateAggregate& a, bool with_units) {
 nlohmann::json AggregateToJson(const ReplicateAggregate& a) {
   nlohmann::json j = {{"replicates", a.replicates},
                       {"conclusive", a.conclusive},
+                      {"complete", a.complete},
                       {"note", a.note},
                       {"uz_text", DescribeAggregate(a, false)}};
   auto put = [&](const char* key, const std::optional<double>& v) {

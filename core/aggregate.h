@@ -12,6 +12,10 @@
 //   - n == 1: the one run's U_z and its own error (within-run only): the scatter between beds is
 //     not known, and `note` says so.
 //   - n == 0: no value; inconclusive, `note` says why.
+// The point is conclusive (`complete`) only when all K of its replicates are: a mean over the
+// conclusive ones alone leans towards the beds that happened to run long enough (the fast ones meet
+// the surface or the floor first), so it is shown, never used as the point's value by fits or
+// claims (core/claims.h states what a claim does with the other beds).
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_AGGREGATE_H_
@@ -44,6 +48,7 @@ struct ReplicateValue {
 struct ReplicateAggregate {
   int replicates = 0;                   // K: the replicates of the point (runs), finished or not
   int conclusive = 0;                   // n: those whose U_z is conclusive, which the aggregate is made of
+  bool complete = false;                // n == K >= 1: the point is conclusive
   std::optional<double> uz_mean;        // m/s
   std::optional<double> uz_sd_between;  // m/s, n >= 2
   std::optional<double> uz_stderr;      // m/s: s / sqrt(n) or the runs' own (n >= 2), the run's own (n == 1)

@@ -27,6 +27,7 @@ TEST(AggregateTest, ThreeBedsGiveTheirMeanAndTheScatterBetweenThem) {
   ReplicateAggregate a = AggregateReplicates({Value(2, 0.14), Value(0, 0.10), Value(1, 0.12)});
   EXPECT_EQ(a.replicates, 3);
   EXPECT_EQ(a.conclusive, 3);
+  EXPECT_TRUE(a.complete);
   ASSERT_TRUE(a.uz_mean && a.uz_sd_between && a.uz_stderr && a.uz_ci95);
   EXPECT_NEAR(*a.uz_mean, 0.12, 1e-12);
   EXPECT_NEAR(*a.uz_sd_between, 0.02, 1e-12);
@@ -44,6 +45,8 @@ TEST(AggregateTest, InconclusiveAndUnfinishedReplicatesAreListedNotAveraged) {
   ReplicateAggregate a = AggregateReplicates({Value(0, 0.10), Value(1, 0.5, false), queued, Value(3, 0.14)});
   EXPECT_EQ(a.replicates, 4);
   EXPECT_EQ(a.conclusive, 2);
+  EXPECT_FALSE(a.complete);  // the point is not conclusive: its mean is shown, not used
+  EXPECT_EQ(AggregateToJson(a)["complete"], false);
   EXPECT_NEAR(*a.uz_mean, 0.12, 1e-12);
   EXPECT_NE(a.note.find("2 of 4"), std::string::npos) << a.note;
   EXPECT_EQ(a.values.size(), 4u);

@@ -7,45 +7,84 @@
 // campaign's sweep names and names the bad field ("[2].rule.kind"; ParseCampaign prefixes
 // "claims").
 //
-// Kinds and how each decides (every interval is a 95 % one; "the runs' own errors" are the U_z
-// standard errors of core/trajectory.h, or over replicate beds, core/aggregate.h):
+// Points. A point of a sweep runs on K replicate beds; a claim looks at all K runs, never at the
+// beds that happen to suit it (the fast beds meet the surface first: dropping them biases towards
+// slow ones). Each run is one of:
+//   measured   done, conclusive, U_z with a standard error (core/trajectory.h);
+//   censored   done, cut short at the surface's or the floor's clearance (its stop or its window
+//              ended there) before enough whole periods: its sign is the boundary's, and its drift
+//              covered at least |dz| - a in its simulated time t, a = the z amplitude at f the
+//              analysis measured over whole periods or, with no whole period, the drive's A; so
+//              |U_z| >= (|dz| - a) / t. A run that moved less than a is no evidence;
+//   no evidence  failed, cancelled, queued, running, or done with neither a U_z nor a boundary.
+// A point is *measured* when all K runs are: its value is their aggregate (core/aggregate.h: the
+// mean, the between-bed error for K >= 2, the run's own for K = 1). A point is *censored* when
+// every run is measured or censored, one at least censored: a sign when every bed shows the same
+// one (a censored bed by its boundary, a measured one by its 95 % interval), and a bound, the
+// smallest of its censored beds'. Any other point is missing, listed in `missing` with each bed's
+// reason. A rule that needs a sign (sign, modes "rises") takes censored points; a rule that needs a
+// rate (the fits) takes only measured points and lists censored ones as missing ("a sign and a
+// bound, no rate"). A claim never holds while a point it needs is missing.
+//
+// Errors that do not rest on a few periods. A run's error rests on 2-4 degrees of freedom (3-5
+// periods): a chi^2 of points about a law with such errors refuses a true law 21-43 % of the time.
+// The fitted rules below (saturation, linear_in_A, interior_maximum) therefore weight points by a
+// variance model, sd = a + b |U_z| fitted to the own errors of the points a law is fitted to (their
+// shape only), and take the scale from the fit's residuals: every t and F test on them has its
+// stated size for normal errors of that shape. Lack of power is "inconclusive", never "differs".
+//
+// Kinds and how each decides:
 //   sign              every point of `sweeps` moves the way `expect` says ("rise", "sink", or
-//                     "against_Omega": rises for Omega < 0, sinks for Omega > 0). A point holds
-//                     when its U_z interval excludes 0 on that side. The claim holds when every
-//                     point of the sweeps holds; differs when some point's interval excludes 0 on
-//                     the other side at the family-wise level (Bonferroni over the m points: the
-//                     interval widened to t(1 - 0.025/m) standard errors, so that one wrong sign
-//                     among many points is not a chance of the 95 % level); else inconclusive.
-//   saturation        eq. 8 per branch of `sweep` (SweepFits' fit, core/fit.h). Parts, per branch:
-//                     "grows": C1's interval (t, n - 2 dof) above 0 holds, below 0 differs; and
-//                     "saturates": |Omega| at which U_z reaches `reached_fraction` of C1,
-//                     -ln(1 - fraction) / C2 with C2's interval, holds when the whole interval is
-//                     inside the swept |Omega|, differs when all of it lies beyond. And "beyond":
-//                     the runs past |Omega| = `beyond_abs_Omega` reach the surface (rising) or the
-//                     floor (sinking): holds when every one did, differs when one ran at least
-//                     `min_duration_s` without, inconclusive when one stopped earlier (a precision
-//                     target) or did not finish. A branch with fewer than `min_points` conclusive
-//                     points is inconclusive.
-//   linear_in_A       eq. 9 per branch of `sweep`. Rising: the sweep's fit (core/fit.h: C3, and
-//                     the range of A over which every point lies in the line's 3-sigma prediction
-//                     band); holds when C3's interval (t, n - 1 dof) is above 0, every point is in
-//                     the range and the points' chi^2 about the line (their own errors) has an
-//                     upper tail >= 0.01; differs when C3's interval is below 0, a point leaves the
-//                     band or chi^2 refuses the line. Sinking, when `sinking_linear_to_A` is set:
-//                     the same law fitted to the points up to it; holds when they lie on their
-//                     line (chi^2 tail >= 0.01) and the points past it + `break_tolerance_m` do
-//                     not (chi^2 tail < 0.01 about the extrapolated line, its slope's error
-//                     included); differs when the points up to it are not a line, or those past it
-//                     stay on it. Inconclusive while C3's interval holds 0 (a line and a plateau
-//                     cannot be told apart) or points are missing.
-//   interior_maximum  the rising branch (Omega < 0) of `sweep` against f: the largest U_z must be
-//                     at an interior f and above both edge values (their difference beyond the
-//                     combined 95 % half-widths); then f_c (core/fit.h FitFastestRise) with its
-//                     interval, f_c +- 1.96 stderr clipped to the neighbours' f, holds when it meets
-//                     `f_c_hz` +- `f_c_tolerance_hz` (the paper read f_c off its grid of f), differs
-//                     when not. The largest U_z at an edge, above its neighbour
-//                     by more than their combined half-widths: differs ("no interior maximum in
-//                     the swept range"). Otherwise inconclusive.
+//                     "against_Omega": rises for Omega < 0, sinks for Omega > 0). A measured point
+//                     holds when its U_z interval excludes 0 on that side; a censored one when its
+//                     beds all show that sign. The claim holds when every point of the sweeps
+//                     holds; differs when some measured point's interval excludes 0 on the other
+//                     side at the family-wise level (Bonferroni over the m measured points: the
+//                     interval widened to t(1 - 0.025/m) standard errors), or a censored point's
+//                     beds all reached the other boundary; else inconclusive.
+//   saturation        per branch of `sweep` (rising Omega < 0, sinking Omega > 0), on its measured
+//                     points, y = |U_z| the paper's way against x = log2 |Omega| (the sweep doubles
+//                     |Omega|), weighted least squares as above, at least `min_points` (default 4):
+//                     "grows": the slope of y on x, its 95 % t interval (n - 2 dof) above 0 holds,
+//                     below 0 differs (a flat law holds at most 2.5 % of the time);
+//                     "the growth flattens" (needs 5 points): y = a + b x + d (x - x_m)+, a hinge
+//                     at the middle point x_m; d's 95 % interval (n - 3 dof) below 0, with "grows"
+//                     holding, holds; above 0 (growth speeding up: e.g. U_z linear in |Omega|)
+//                     differs; a law that keeps growing as log |Omega| has d = 0, so holds at most
+//                     2.5 % of the time. Eq. 8's C1, C2 and the |Omega| at which it reaches
+//                     `reached_fraction` of C1 are shown as figures; the decision does not rest on
+//                     them. And "beyond": the runs past |Omega| = `beyond_abs_Omega` reach the
+//                     surface (rising) or the floor (sinking): holds when every one did, differs
+//                     when one ran at least `min_duration_s` without, inconclusive when one stopped
+//                     earlier (a precision target) or did not finish.
+//   linear_in_A       eq. 9 per branch of `sweep`, on measured points, weighted as above, at least 4.
+//                     The line through the origin is tested against U_z = a + b A + c A^2 by an F
+//                     test (2 and n - 3 dof) on the larger model's residuals; p < 0.01 differs (a
+//                     true line is refused 1 % of the time). Rising: holds when C3's 95 % interval
+//                     (n - 1 dof) is above 0, the F test's p >= 0.05 and the intercept of a + b A is
+//                     shown (95 % interval) within +- `intercept_tolerance` (default 0.5) times C3 at
+//                     the smallest A: an affine law is not eq. 9. Sinking, when
+//                     `sinking_linear_to_A` is set: the same on the points up to it; past it +
+//                     `break_tolerance_m`, d = the points' departure from that line as a fraction
+//                     of a plateau's from the break (0: on the line, 1: a plateau), by least
+//                     squares, its error from the line's residual variance (or the points' own
+//                     errors where larger) and C3's; d's 95 % interval above 0 holds (they leave the
+//                     line), below 0.5 differs (they stay nearer the line than a plateau), else
+//                     inconclusive. C3's interval holding 0: inconclusive.
+//   interior_maximum  the rising branch (Omega < 0) of `sweep` against f, every point measured, with
+//                     the errors of the scatter model above. An interior maximum is established when
+//                     T = the largest interior U_z minus the larger edge value is improbable under
+//                     equal rates at every f (the least favourable law without one): p = P(T* >= T)
+//                     over 4,000 draws of that law with the points' errors, below 0.025 (the errors
+//                     are estimates; at 0.05 the size was 5.5-6 %). The peak is the f of the largest
+//                     U_z, refined where interior by the vertex of the parabola through it and its
+//                     neighbours; its 95 % interval is a parametric bootstrap (4,000 draws around the
+//                     data, the peak located in each alike: the 2.5 and 97.5 % quantiles, not
+//                     clipped). Draws use a fixed seed: a verdict is the same each time. Holds when
+//                     an interior maximum is established and the interval meets `f_c_hz` +-
+//                     `f_c_tolerance_hz` (the paper read f_c off its grid of f); differs when the
+//                     interval lies apart from that (a law rising to the top edge gives an interval
+//                     at the edge: "no interior maximum"); else inconclusive.
 //   grain_count       the beds' grains against the paper's `paper_grains` in `paper_bed_m3`: each
 //                     prepared bed's solid fraction (its grains' volume over the box below its
 //                     surface, the SO's volume taken out; the surface at the highest grain centre
@@ -57,12 +96,14 @@
 //                     combined half-widths, Bonferroni over them for differs), "stays near x"
 //                     (every run of `fastest` drifts at most `x_within_m` in x), "z oscillates
 //                     with an x component" (the smallest z amplitude at f of `z_osc_with` runs is
-//                     at least `osc_ratio` times the largest of `z_osc_without`; differs when it is
-//                     at most the largest), "x oscillates with a z component" (inconclusive: the
-//                     run analysis does not measure x's amplitude at f).
-// A point that has no conclusive U_z (its runs failed, are unfinished or inconclusive) is named
-// with why in `missing`; a claim never holds with a point missing, and differs only on what the
-// conclusive points show.
+//                     at least `osc_ratio` times the largest of `z_osc_without`; differs when the
+//                     largest without is at least `osc_ratio` times the smallest with (the
+//                     amplitudes have no error: as much margin either way); a run whose window held
+//                     no whole period has no amplitude
+//                     and leaves the part inconclusive), "x oscillates with a z component"
+//                     (inconclusive: the run analysis does not measure x's amplitude at f).
+// Every verdict names the scale it was decided at (ClaimVerdict::scale, "holds at smoke"): a
+// verdict at smoke is a statement about the smoke box.
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_CLAIMS_H_
@@ -146,6 +187,11 @@ struct ClaimFigure {
   std::string unit;                // "m/s", "Hz", ...
   std::optional<Verdict> verdict;  // this figure's own, where it has one
   std::string note;
+  // A point whose runs were cut short at the surface or the floor (censored): no value, a sign and
+  // `bound`, a lower bound on |U_z| (lo = bound, hi = infinity rising; lo = -infinity, hi = -bound
+  // sinking); `note` says how the bound was made.
+  bool censored = false;
+  std::optional<double> bound;
 };
 
 struct ClaimPart {
@@ -169,15 +215,19 @@ struct ClaimVerdict {
   std::string reason;
   std::vector<ClaimPart> parts;
   std::vector<ClaimMissing> missing;
+  std::string scale;  // the scale it was decided at (ClaimInput::scale): "holds at smoke"
 };
 
 // One verdict per claim, in the claims' order.
 std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const ClaimInput& input);
 
-// {"id","title","source","paper","rule","verdict","reason","parts":[{"name","verdict","reason",
-//  "figures":[{"name","value"?,"stderr"?,"lo"?,"hi"?,"unit","verdict"?,"note"}]}],
+// {"id","title","source","paper","rule","verdict","scale","verdict_text" ("holds at smoke"),"reason",
+//  "parts":[{"name","verdict","reason","figures":[{"name","value"?,"stderr"?,"lo"?,"hi"?,"unit",
+//  "verdict"?,"note","censored"?,"bound"?}]}],
 //  "missing":[{"sweep","point","run_ids","why"}]}
 nlohmann::json ClaimVerdictToJson(const ClaimVerdict& v);
+// "holds at smoke": the verdict and the scale it was decided at (the verdict alone without one).
+std::string VerdictAtScale(const ClaimVerdict& v);
 // How many verdicts hold, differ and are inconclusive.
 struct VerdictCounts {
   int holds = 0, differs = 0, inconclusive = 0;

@@ -57,6 +57,26 @@ Result<std::map<int64_t, std::string>> FailuresOf(Store& store, int64_t sweep_id
 
 }  // namespace
 
+ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultRow>& rows,
+                        const std::map<int64_t, std::string>& failures) {
+  ClaimSweep sweep;
+  sweep.name = analysis.info.name;
+  sweep.samples = analysis.samples;
+  sweep.fits = analysis.fits;
+  for (const ResultRow& row : rows) {
+    ClaimRun run;
+    run.run_id = row.run_id;
+    run.point = row.point;
+    run.replicate = row.replicate;
+    run.state = row.state;
+    // A requeued run's old result is not its result.
+    if (row.state == "done" && row.result) run.result = row.result->result;
+    if (auto f = failures.find(row.run_id); f != failures.end()) run.failure = f->second;
+    sweep.runs.push_back(std::move(run));
+  }
+  return sweep;
+}
+
 Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id) {
   Result<CampaignRunInfo> info = store.GetCampaignRun(campaign_run_id);
   if (!info.ok()) return info.status();
@@ -77,27 +97,12 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   input.scale = campaign_run.scale;
   std::set<int64_t> bed_ids;
   for (const SweepAnalysis& a : analyses) {
-    ClaimSweep sweep;
-    sweep.name = a.info.name;
-    sweep.samples = a.samples;
-    sweep.fits = a.fits;
     Result<std::vector<ResultRow>> rows = store.SweepResults(a.info.id);
     if (!rows.ok()) return rows.status();
     Result<std::map<int64_t, std::string>> failures = FailuresOf(store, a.info.id);
     if (!failures.ok()) return failures.status();
-    for (const ResultRow& row : *rows) {
-      ClaimRun run;
-      run.run_id = row.run_id;
-      run.point = row.point;
-      run.replicate = row.replicate;
-      run.state = row.state;
-      // A requeued run's old result is not its result.
-      if (row.state == "done" && row.result) run.result = row.result->result;
-      if (auto f = failures->find(row.run_id); f != failures->end()) run.failure = f->second;
-      sweep.runs.push_back(std::move(run));
-      bed_ids.insert(row.bed_id);
-    }
-    input.sweeps.push_back(std::move(sweep));
+    for (const ResultRow& row : *rows) bed_ids.insert(row.bed_id);
+    input.sweeps.push_back(ClaimSweepOf(a, *rows, *failures));
   }
   for (int64_t id : bed_ids) {
     Result<BedView> bed = store.GetBed(id);

@@ -14,6 +14,7 @@
 #define SANDSWIM_SERVER_CLAIM_CHECK_H_
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,13 @@ Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id);
 // as AnalyzeSweep made them): the report has them at hand.
 Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
                                       const std::vector<SweepAnalysis>& analyses);
+
+// The pure part: what the claims see of one sweep -- its analysis's samples and fits, and every
+// run of its result rows with its state, result and last error (`failures`: run id -> "kind:
+// message" of its failed runs). The truth engine's calibration (tests/truth/) assembles its
+// ClaimInput with it, as CheckClaims does.
+ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultRow>& rows,
+                        const std::map<int64_t, std::string>& failures);
 
 }  // namespace sandswim
 

@@ -223,9 +223,11 @@ std::string ClaimsHtml(const ReportInput& in) {
   const VerdictCounts counts = CountVerdicts(in.claims);
   html += "<p>" + std::to_string(counts.holds) + " hold, " + std::to_string(counts.differs) + " differ, " +
           std::to_string(counts.inconclusive) +
-          " inconclusive. Each claim is decided by the rule the campaign file states, from the results' own errors "
-          "(95 % intervals; over replicate beds where there are several); a claim never holds while a point it "
-          "needs has no conclusive U<sub>z</sub>." +
+          " inconclusive, at the scale " + Escape(in.campaign_run.scale) +
+          ". Each claim is decided by the rule the campaign file states (core/claims.h): a point counts only over "
+          "all its replicate beds; a run cut short at the surface or the floor gives a sign and a lower bound on "
+          "|U<sub>z</sub>|, not a rate; fitted laws are tested on their residuals, not on each run's few-period "
+          "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive." +
           (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
           "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
   for (const ClaimVerdict& v : in.claims) {
@@ -255,7 +257,8 @@ std::string ClaimsHtml(const ReportInput& in) {
     }
     html += "<tr id=\"claim-" + Escape(v.claim.id) + "\"><td><b>" + Escape(v.claim.id) + "</b> " +
             Escape(v.claim.title) + "<br><small>" + Escape(v.claim.source) + "; rule: " + Escape(v.claim.kind()) +
-            "</small></td><td>" + VerdictHtml(v.verdict) + "</td><td>" + measured + "</td><td>" +
+            "</small></td><td>" + VerdictHtml(v.verdict) + (v.scale.empty() ? "" : " at " + Escape(v.scale)) +
+            "</td><td>" + measured + "</td><td>" +
             PaperHtml(v.claim.paper) + "</td></tr>\n";
   }
   return html + "</table>\n";
@@ -265,19 +268,15 @@ std::string ClaimsHtml(const ReportInput& in) {
 
 // ---- Analysis ----------------------------------------------------------------------------------
 
-Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
+SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<ResultRow>& rows) {
   SweepAnalysis a;
-  auto info = store.GetSweep(sweep_id);
-  if (!info.ok()) return info.status();
-  a.info = *info;
-  auto rows = store.SweepResults(sweep_id);
-  if (!rows.ok()) return rows.status();
+  a.info = info;
   // A point run on several replicate beds is one sample: its aggregate (core/aggregate.h), whose
   // standard error over the beds weights the fit and whose 95 % interval the figure draws.
   std::map<DriveId, std::vector<const ResultRow*>> replicates;
-  for (const ResultRow& row : *rows) replicates[DriveIdOf(row.point)].push_back(&row);
+  for (const ResultRow& row : rows) replicates[DriveIdOf(row.point)].push_back(&row);
   std::set<DriveId> aggregated;
-  for (const ResultRow& row : *rows) {
+  for (const ResultRow& row : rows) {
     const std::vector<const ResultRow*>& beds = replicates.at(DriveIdOf(row.point));
     if (beds.size() > 1 && aggregated.insert(DriveIdOf(row.point)).second) {
       std::vector<ReplicateValue> values;
@@ -302,20 +301,17 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
         sample.point = row.point;
         sample.run_id = first_done->run_id;
         sample.has_uz = agg.uz_mean.has_value();
-        sample.conclusive = sample.has_uz;
+        // Conclusive only over all K beds (core/aggregate.h): the mean of the beds that happened to
+        // be conclusive is shown, not fitted.
+        sample.conclusive = agg.complete;
         sample.uz = agg.uz_mean.value_or(0);
         sample.uz_stderr = agg.uz_stderr.value_or(0);
         sample.uz_ci95 = agg.uz_ci95.value_or(0);
-        if (!sample.has_uz) sample.inconclusive_reason = DescribeAggregate(agg);
+        if (!sample.conclusive) sample.inconclusive_reason = DescribeAggregate(agg) + (agg.note.empty() ? "" : ": " + agg.note);
         a.samples.push_back(std::move(sample));
       }
     }
     if (row.state != "done" || !row.result) continue;
-    // Every run's trajectory, on every bed.
-    auto run = store.GetRun(row.run_id);
-    if (!run.ok()) return run.status();
-    if (run->trajectory && !run->trajectory->t.empty())
-      a.runs.push_back({row.run_id, row.point, *run->trajectory, row.replicate});
     if (beds.size() > 1) continue;  // its sample is the aggregate
     const api::RunResult& r = row.result->result;
     SweepSample sample;
@@ -331,11 +327,28 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   }
   // The law is what the sweep varies (all its points), whatever has finished so far.
   std::vector<Point> points;
-  for (const ResultRow& row : *rows) points.push_back(row.point);
+  for (const ResultRow& row : rows) points.push_back(row.point);
   a.fits = FitSweep(a.samples, ChooseFit(points));
   std::set<double> swept;
   for (const Point& p : points) swept.insert(SweptValue(p, a.fits.choice.param));
   a.swept_values = swept.size();
+  return a;
+}
+
+Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
+  auto info = store.GetSweep(sweep_id);
+  if (!info.ok()) return info.status();
+  auto rows = store.SweepResults(sweep_id);
+  if (!rows.ok()) return rows.status();
+  SweepAnalysis a = AnalyzeSweepResults(*info, *rows);
+  // Every finished run's trajectory, on every bed.
+  for (const ResultRow& row : *rows) {
+    if (row.state != "done" || !row.result) continue;
+    auto run = store.GetRun(row.run_id);
+    if (!run.ok()) return run.status();
+    if (run->trajectory && !run->trajectory->t.empty())
+      a.runs.push_back({row.run_id, row.point, *run->trajectory, row.replicate});
+  }
   return a;
 }
 

@@ -45,6 +45,10 @@ struct SweepAnalysis {
 };
 // NotFound when the sweep does not exist.
 Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id);
+// Its pure part: the samples, fits and swept values of a sweep's result rows (`runs`, the
+// trajectories, stays empty), so that a caller holding rows without a Store (the truth engine's
+// calibration, tests/truth/) analyses them exactly as the daemon does.
+SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<ResultRow>& rows);
 // Every sweep of a campaign run, in its order.
 Result<std::vector<SweepAnalysis>> AnalyzeCampaignRun(Store& store, const CampaignRunInfo& campaign_run);
 

@@ -453,7 +453,8 @@ TEST_F(ReportTest, NothingFinishedIsUnprocessableNotAnError) {
 
 // A campaign that states claims: the report's first section lists every claim with its verdict,
 // the numbers behind it and the paper's, and GET /campaign-runs/{id}/claims answers the same
-// verdicts (the fixture's runs follow eq. 8 with clear signs; its bed holds 3,700 grains).
+// verdicts (the fixture's runs follow eq. 8 with clear signs, four points a branch; its bed holds
+// 3,700 grains).
 TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) {
   StoredCampaign campaign;
   campaign.name = "tiny-claims";
@@ -505,9 +506,15 @@ TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) 
   ASSERT_EQ(reply["claims"].size(), 3u);
   EXPECT_EQ(reply["claims"][0]["id"], "F1");
   EXPECT_EQ(reply["claims"][0]["verdict"], "holds") << reply["claims"][0]["reason"];
-  EXPECT_EQ(reply["claims"][1]["verdict"], "holds") << reply["claims"][1]["reason"];
+  // Each verdict names its scale.
+  EXPECT_EQ(reply["claims"][0]["verdict_text"], "holds at " + reply["scale"].get<std::string>());
+  // Four points a branch show growth, but a change of slope (the growth flattening) needs five:
+  // too little to decide, never a verdict from it.
+  EXPECT_EQ(reply["claims"][1]["verdict"], "inconclusive") << reply["claims"][1]["reason"];
+  EXPECT_THAT(reply["claims"][1]["reason"].get<std::string>(), HasSubstr("needs 5"));
+  EXPECT_EQ(reply["claims"][1]["parts"][0]["verdict"], "holds") << reply["claims"][1]["parts"][0]["reason"];
   EXPECT_EQ(reply["claims"][2]["verdict"], "differs") << reply["claims"][2]["reason"];
-  EXPECT_EQ(reply["counts"]["holds"], 2);
+  EXPECT_EQ(reply["counts"]["holds"], 1);
 
   // The fixture's campaign states none: an empty list.
   auto none = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());

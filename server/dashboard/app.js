@@ -469,7 +469,7 @@ async function campaignRunPage(id) {
     const n = c.counts || {};
     $('#claims').innerHTML = `<p>${n.holds || 0} hold · ${n.differs || 0} differ · ${n.inconclusive || 0} inconclusive. ${esc(c.note || '')}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>why</th></tr></thead><tbody>` +
       (c.claims || []).map(v => `<tr><td title="${esc(v.paper && v.paper.text)}"><b>${esc(v.id)}</b> ${esc(v.title)}</td>` +
-        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict)}</span></td><td style="white-space:normal">${esc(v.reason)}</td></tr>`).join('') + '</tbody></table>';
+        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td style="white-space:normal">${esc(v.reason)}</td></tr>`).join('') + '</tbody></table>';
   }).catch(e => { $('#claims').textContent = `No verdicts: ${e.message}`; });
   const plots = $('#uz-plots'), figures = $('#figures');
   for (const sid of info.sweeps) {

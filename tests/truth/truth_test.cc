@@ -1,0 +1,239 @@
+// The truth engine and its calibration harness checked on their own (not the claims' rules, whose
+// error rates they measure): the analysis recovers a law's U_z from its trajectories, without bias
+// when there is noise; the bed effect is shared by a bed's points and averages out over beds; a
+// simulated campaign is reproducible from its seed; and on near-noiseless data the harness hands
+// the claims what the law says (the signs of F1 and F5's "vibration alone rises").
+#include <cmath>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/engine_log.h"
+#include "core/trajectory.h"
+#include "tests/truth/calibration.h"
+#include "tests/truth/truth_law.h"
+
+namespace sandswim::truth {
+namespace {
+
+Result<api::RunResult> Analyze(const EngineRun& run, const Point& p, const Scale& scale) {
+  EngineLog log;
+  log.drive_start = run.start;
+  log.drive_stop = run.stop;
+  return AnalyzeRun(run.samples, RunInputsFrom(DriveFacts(p, scale), log));
+}
+
+// Only the per-period scatter: no bed effect, no transient, no jitter.
+Noise PeriodNoiseOnly() {
+  Noise n = Noise::None();
+  Noise d;
+  n.period_rel = d.period_rel;
+  n.diffusion = d.diffusion;
+  n.ma_theta = d.ma_theta;
+  return n;
+}
+
+// A slow point that keeps far from the boundaries for 3 s at smoke.
+Point SlowPoint() { return OscillatoryPoint(0.03, 3, -10, 3); }
+
+TEST(TruthLawTest, LawsAgreeAtTheBaselineAndBreakWhatTheySay) {
+  const Law& paper = *FindLaw("paper");
+  const Point rise = OscillatoryPoint(0.03, 3, -80, 4), sink = OscillatoryPoint(0.03, 3, 80, 4);
+  for (const Law& law : AllLaws()) {
+    EXPECT_NEAR(LawUz(law, rise), LawUz(paper, rise), 1e-12) << law.name;
+    EXPECT_NEAR(LawUz(law, sink), LawUz(paper, sink), 1e-12) << law.name;
+    if (law.name != "paper") {
+      EXPECT_FALSE(law.breaks.empty()) << law.name;
+    }
+  }
+  EXPECT_GT(LawUz(paper, rise), 0);
+  EXPECT_LT(LawUz(paper, sink), 0);
+  // The paper law peaks at 5 Hz; no_peak_f rises monotonically.
+  const Law& nopeak = *FindLaw("no_peak_f");
+  EXPECT_GT(LawUz(paper, OscillatoryPoint(0.03, 5, -80, 4)), LawUz(paper, OscillatoryPoint(0.03, 4, -80, 4)));
+  EXPECT_GT(LawUz(paper, OscillatoryPoint(0.03, 5, -80, 4)), LawUz(paper, OscillatoryPoint(0.03, 6, -80, 4)));
+  EXPECT_GT(LawUz(nopeak, OscillatoryPoint(0.03, 30, -80, 4)), LawUz(nopeak, OscillatoryPoint(0.03, 20, -80, 4)));
+  // sign_wrong: the slowest |Omega| moves the other way.
+  EXPECT_LT(LawUz(*FindLaw("sign_wrong"), OscillatoryPoint(0.03, 3, -10, 4)), 0);
+  EXPECT_GT(LawUz(paper, OscillatoryPoint(0.03, 3, -10, 4)), 0);
+}
+
+TEST(TruthLawTest, NoiselessTrajectoryGivesTheLawsRate) {
+  const Scale& smoke = *FindScale("smoke");
+  const Law& paper = *FindLaw("paper");
+  const Noise none = Noise::None();
+  const Bed bed = MakeBed(7, 0, none);
+  for (const Point& p : {SlowPoint(), OscillatoryPoint(0.03, 5, -20, 3), OscillatoryPoint(0.05, 2, 20, 3),
+                         OscillatoryPoint(0.03, 10, 10, 3)}) {
+    RunSpec spec;
+    spec.point = p;
+    spec.duration_s = p.duration_s;
+    spec.z_floor = smoke.z_floor;
+    const EngineRun run = GenerateRun(paper, none, bed, spec, 1);
+    EXPECT_DOUBLE_EQ(run.true_uz, LawUz(paper, p));
+    Result<api::RunResult> r = Analyze(run, p, smoke);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_TRUE(r->uz.has_value());
+    EXPECT_NEAR(*r->uz, LawUz(paper, p), 1e-4 * std::fabs(LawUz(paper, p))) << PointToJson(p).dump();
+    EXPECT_EQ(r->stop_reason, "duration");
+  }
+}
+
+TEST(TruthLawTest, NoisyRatesAreUnbiasedAndTheirScatterIsTheStatedOne) {
+  const Scale& smoke = *FindScale("smoke");
+  const Law& paper = *FindLaw("paper");
+  const Noise noise = PeriodNoiseOnly();
+  const Point p = SlowPoint();
+  const Bed bed = MakeBed(3, 0, noise);
+  double sum = 0, sum2 = 0;
+  int n = 0;
+  for (uint64_t seed = 1; seed <= 400; ++seed) {
+    RunSpec spec;
+    spec.point = p;
+    spec.duration_s = p.duration_s;
+    spec.z_floor = smoke.z_floor;
+    const EngineRun run = GenerateRun(paper, noise, bed, spec, seed);
+    Result<api::RunResult> r = Analyze(run, p, smoke);
+    ASSERT_TRUE(r.ok() && r->uz && r->conclusive);
+    const double e = *r->uz - run.true_uz;
+    sum += e;
+    sum2 += e * e;
+    ++n;
+  }
+  const double mean = sum / n, sd = std::sqrt((sum2 - n * mean * mean) / (n - 1));
+  EXPECT_LT(std::fabs(mean), 4 * sd / std::sqrt(n)) << "bias " << mean << " m/s";
+  // The scatter of a run's U_z is the per-period scatter over its blocks: 8 blocks in 3 s at 3 Hz
+  // after one transient period, each with sd sqrt(D T + (rel U T)^2) / T, MA(1)-correlated: the
+  // mean's variance is (1 + 2 rho (n - 1) / n) sd^2 / n.
+  const double u = LawUz(paper, p), T = 1.0 / 3;
+  const double block_sd = std::sqrt(noise.diffusion * T + std::pow(noise.period_rel * u * T, 2)) / T;
+  const double rho = noise.ma_theta / (1 + noise.ma_theta * noise.ma_theta);
+  const double expected = block_sd * std::sqrt((1 + 2 * rho * 7 / 8) / 8);
+  EXPECT_NEAR(sd, expected, 0.15 * expected);
+}
+
+TEST(TruthLawTest, BedEffectIsSharedOnABedAndAveragesOutOverBeds) {
+  const Law& paper = *FindLaw("paper");
+  const Noise noise;
+  const Point a = OscillatoryPoint(0.03, 3, -80, 4), b = OscillatoryPoint(0.03, 3, -160, 4);
+  double sum = 0, sab = 0, sa = 0, sb = 0, saa = 0, sbb = 0;
+  const int beds = 2000;
+  for (int w = 0; w < beds; ++w) {
+    const Bed bed = MakeBed(static_cast<uint64_t>(w), 0, noise);
+    const double ua = BedUz(paper, noise, bed, a) / LawUz(paper, a), ub = BedUz(paper, noise, bed, b) / LawUz(paper, b);
+    sum += ua;
+    sa += ua, sb += ub, sab += ua * ub, saa += ua * ua, sbb += ub * ub;
+    // The same bed gives the same effect again.
+    EXPECT_DOUBLE_EQ(BedUz(paper, noise, MakeBed(static_cast<uint64_t>(w), 0, noise), a), ua * LawUz(paper, a));
+  }
+  const double mean = sum / beds;
+  const double cov = sab / beds - (sa / beds) * (sb / beds);
+  const double corr = cov / std::sqrt((saa / beds - std::pow(sa / beds, 2)) * (sbb / beds - std::pow(sb / beds, 2)));
+  const double sd = std::sqrt(saa / beds - mean * mean);
+  EXPECT_NEAR(mean, 1, 4 * sd / std::sqrt(beds));
+  // Shared: two points on one bed are correlated by the common part of the effect.
+  const double common = noise.bed_common * noise.bed_common;
+  const double expected = common / (common + noise.bed_point * noise.bed_point);
+  EXPECT_NEAR(corr, expected, 0.1);
+  // Another replicate of the same world is another bed.
+  EXPECT_NE(MakeBed(1, 0, noise).seed, MakeBed(1, 1, noise).seed);
+}
+
+TEST(TruthLawTest, EngineStopsAtTheSurfaceAndObeysTheStopHookAfterItsLag) {
+  const Scale& smoke = *FindScale("smoke");
+  const Law& paper = *FindLaw("paper");
+  const Noise none = Noise::None();
+  const Bed bed = MakeBed(1, 0, none);
+  RunSpec spec;
+  spec.point = OscillatoryPoint(0.03, 3, -1280, 4);
+  spec.duration_s = 4;
+  spec.z_floor = smoke.z_floor;
+  const EngineRun up = GenerateRun(paper, none, bed, spec, 1);
+  EXPECT_EQ(up.stop.reason, "surface");
+  EXPECT_GE(up.samples.back().z + kMaterials.d_so / 2, bed.surface);
+  EXPECT_LT(up.samples.back().t, 4);
+  spec.point = OscillatoryPoint(0.03, 3, 1280, 4);
+  EXPECT_EQ(GenerateRun(paper, none, bed, spec, 1).stop.reason, "floor");
+  // The worker asks at t >= 0.5 s; the run ends lag_s later.
+  spec.point = SlowPoint();
+  spec.lag_s = 0.05;
+  spec.stop_hook = [](const std::vector<SoSample>& s, std::string* reason) {
+    *reason = "target";
+    return s.back().t >= 0.5;
+  };
+  const EngineRun asked = GenerateRun(paper, none, bed, spec, 1);
+  EXPECT_EQ(asked.stop.reason, "target");
+  EXPECT_NEAR(asked.samples.back().t, 0.55, 1.5e-3);
+}
+
+TEST(CalibrationTest, CampaignIsReproducibleAndFollowsThePlan) {
+  Design design;
+  Result<Calibrator> cal = Calibrator::Make(design);
+  ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+  EXPECT_EQ(cal->plan().runs.size(), 58u);  // paper-58's distinct runs on its one bed
+  const Law& paper = *FindLaw("paper");
+  const SimCampaign a = cal->Simulate(paper, Noise(), 11), b = cal->Simulate(paper, Noise(), 11);
+  ASSERT_EQ(a.runs.size(), cal->plan().runs.size());
+  ASSERT_EQ(a.verdicts.size(), cal->claims().size());
+  for (size_t i = 0; i < a.runs.size(); ++i) {
+    ASSERT_EQ(a.runs[i].result.has_value(), b.runs[i].result.has_value());
+    if (a.runs[i].result) {
+      EXPECT_EQ(a.runs[i].result->uz, b.runs[i].result->uz);
+    }
+    // No run outlasts its plan (plus the worker's lag).
+    EXPECT_LE(a.runs[i].simulated_s, a.runs[i].planned_s + 1e-9);
+  }
+  for (size_t i = 0; i < a.verdicts.size(); ++i) EXPECT_EQ(a.verdicts[i].verdict, b.verdicts[i].verdict);
+  // Another world is another draw.
+  const SimCampaign c = cal->Simulate(paper, Noise(), 12);
+  bool differ = false;
+  for (size_t i = 0; i < a.runs.size(); ++i)
+    differ = differ || (a.runs[i].result && c.runs[i].result && a.runs[i].result->uz != c.runs[i].result->uz);
+  EXPECT_TRUE(differ);
+}
+
+TEST(CalibrationTest, NearNoiselessSignsReachTheClaims) {
+  // The paper's box and durations: room for every point's periods, so no point is missing.
+  Design design;
+  design.scale = "paper";
+  Result<Calibrator> cal = Calibrator::Make(design);
+  ASSERT_TRUE(cal.ok()) << cal.status().ToString();
+  Noise tiny = PeriodNoiseOnly();
+  tiny.period_rel = 1e-3;
+  tiny.diffusion = 1e-12;
+  auto verdict = [&](const std::string& law, const std::string& claim, const std::string& part) {
+    const SimCampaign c = cal->Simulate(*FindLaw(law), tiny, 5);
+    for (const ClaimVerdict& v : c.verdicts) {
+      if (v.claim.id != claim) continue;
+      if (part.empty()) return v.verdict;
+      for (const ClaimPart& p : v.parts)
+        if (p.name == part) return p.verdict;
+    }
+    ADD_FAILURE() << "no " << claim << " " << part;
+    return Verdict::kInconclusive;
+  };
+  EXPECT_EQ(verdict("paper", "F1", ""), Verdict::kHolds);
+  EXPECT_EQ(verdict("sign_wrong", "F1", ""), Verdict::kDiffers);
+  EXPECT_EQ(verdict("paper", "F5", "vibration alone rises"), Verdict::kHolds);
+}
+
+TEST(CalibrationTest, TruthTableNamesTheBrokenParts) {
+  const Law& paper = *FindLaw("paper");
+  EXPECT_EQ(TruthOf(paper, "F1", ""), std::optional<bool>(true));
+  EXPECT_EQ(TruthOf(*FindLaw("sign_wrong"), "F1", ""), std::optional<bool>(false));
+  EXPECT_EQ(TruthOf(*FindLaw("flat_Omega"), "F2", "rising: |U_z| grows with |Omega| (C1 > 0)"),
+            std::optional<bool>(false));
+  EXPECT_EQ(TruthOf(*FindLaw("no_saturation"), "F2", "sinking: saturates within the swept |Omega|"),
+            std::optional<bool>(false));
+  EXPECT_EQ(TruthOf(*FindLaw("affine_A"), "F3", "rising: U_z = C3 A over the swept A"), std::optional<bool>(false));
+  EXPECT_EQ(TruthOf(*FindLaw("affine_A"), "F4", ""), std::optional<bool>(true));
+  EXPECT_EQ(TruthOf(*FindLaw("no_peak_f"), "F4", ""), std::optional<bool>(false));
+  EXPECT_EQ(TruthOf(*FindLaw("modes_equal"), "F5", "vibration alone rises"), std::optional<bool>(true));
+  EXPECT_EQ(TruthOf(paper, "F6", ""), std::nullopt);
+  auto [lo, hi] = Wilson(50, 100);
+  EXPECT_LT(lo, 0.5);
+  EXPECT_GT(hi, 0.5);
+}
+
+}  // namespace
+}  // namespace sandswim::truth
