@@ -1,5 +1,8 @@
 // The real `sandswim` against a real `sandswimd` (no workers, so runs stay queued): every
-// subcommand's output in table, CSV and JSON, every exit code, and the "no daemon" message.
+// subcommand's output in table, CSV and JSON, every exit code, and the "no daemon" message. The
+// daemon starts as a user's does, without being given a token: it makes one in its data
+// directory (./var/data/token under the test's directory), and the CLI, run from that directory
+// and told nothing, finds it there.
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -41,6 +44,11 @@ std::string ReadAll(const fs::path& p) {
   return s.str();
 }
 
+std::string Trimmed(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  return s;
+}
+
 fs::path MakeTempDir() {
   std::string pattern = (fs::temp_directory_path() / "sandswim-cli-test-XXXXXX").string();
   char* made = mkdtemp(pattern.data());
@@ -48,11 +56,14 @@ fs::path MakeTempDir() {
   return made;
 }
 
-// Spawns argv with stdin/stdout/stderr from/to files; the environment is this process's, minus
-// SANDSWIM_SERVER / SANDSWIM_TOKEN / NO_COLOR so the machine's settings do not leak in.
-pid_t Spawn(const std::vector<std::string>& args, const fs::path& in, const fs::path& out, const fs::path& err) {
+// Spawns argv with stdin/stdout/stderr from/to files, in directory `cwd` when it is given; the
+// environment is this process's, minus SANDSWIM_SERVER / SANDSWIM_TOKEN / NO_COLOR so the
+// machine's settings do not leak in.
+pid_t Spawn(const std::vector<std::string>& args, const fs::path& in, const fs::path& out, const fs::path& err,
+            const fs::path& cwd = {}) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
+  if (!cwd.empty()) posix_spawn_file_actions_addchdir_np(&actions, cwd.c_str());
   posix_spawn_file_actions_addopen(&actions, 0, in.c_str(), O_RDONLY, 0);
   posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -85,17 +96,22 @@ class CliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new fs::path(MakeTempDir());
-    std::string url = StartDaemon(*dir_ / "db.sqlite", "daemon", &daemon_);
+    std::string url = StartDaemon(*dir_ / "db.sqlite", "daemon", &daemon_, {}, *dir_ / "var/data");
     if (!url.empty()) server_ = new std::string(url);
   }
 
-  // Starts sandswimd on the SQLite file `db` (data and logs under <dir>/<tag>...); returns its URL,
-  // or "" (and a test failure) when it does not start.
-  static std::string StartDaemon(const fs::path& db, const std::string& tag, pid_t* pid) {
+  // Starts sandswimd on the SQLite file `db` (data under `data`, else <dir>/<tag>-data; logs under
+  // <dir>/<tag>...) with `extra` flags; returns its URL, or "" (and a test failure) when it does
+  // not start.
+  static std::string StartDaemon(const fs::path& db, const std::string& tag, pid_t* pid,
+                                 const std::vector<std::string>& extra = {}, fs::path data = {}) {
     fs::path log = *dir_ / (tag + ".log");
-    *pid = Spawn({SANDSWIMD_BIN, "--listen", "127.0.0.1:0", "--db", db.string(), "--data",
-                  (*dir_ / (tag + "-data")).string(), "--local-workers", "0", "--engine-version", "test-engine"},
-                 "/dev/null", log, *dir_ / (tag + ".err"));
+    if (data.empty()) data = *dir_ / (tag + "-data");
+    std::vector<std::string> argv = {SANDSWIMD_BIN, "--listen",         "127.0.0.1:0", "--db",
+                                     db.string(),   "--data",           data.string(), "--local-workers",
+                                     "0",           "--engine-version", "test-engine"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    *pid = Spawn(argv, "/dev/null", log, *dir_ / (tag + ".err"));
     // Wait for the line that names the port (the daemon prints it once it listens).
     static const std::regex kListening(R"(listening on http://127\.0\.0\.1:([0-9]+))");
     auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
@@ -139,7 +155,7 @@ class CliTest : public ::testing::Test {
       argv.push_back(*server_);
     }
     argv.insert(argv.end(), args.begin(), args.end());
-    pid_t pid = Spawn(argv, in, out, err);
+    pid_t pid = Spawn(argv, in, out, err, *dir_);  // where ./var/data/token is the daemon's
     int status = 0;
     waitpid(pid, &status, 0);
     Outcome o;
@@ -180,6 +196,21 @@ fs::path* CliTest::dir_ = nullptr;
 std::string* CliTest::server_ = nullptr;
 pid_t CliTest::daemon_ = -1;
 
+// The daemon, told nothing, made its token file (owner-only); the CLI, told nothing, found it (as
+// every test here does). A wrong token file is refused with the way to the right one.
+TEST_F(CliTest, FindsTheDaemonsTokenByItself) {
+  const fs::path token = *dir_ / "var/data/token";
+  ASSERT_TRUE(fs::exists(token));
+  EXPECT_EQ(fs::status(token).permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write);
+  Outcome o = Sandswim({"status"});
+  EXPECT_EQ(o.code, 0) << o.err;
+  const std::string wrong = WriteFile("wrong-token", std::string(64, 'a'));
+  o = Sandswim({"--token-file", wrong, "status"});
+  EXPECT_NE(o.code, 0);
+  EXPECT_THAT(o.err, HasSubstr("not the daemon's token"));
+  EXPECT_THAT(o.err, HasSubstr("--token-file DATA/token"));
+}
+
 TEST_F(CliTest, SubmitPrintsTheSweepIdAndStatusShowsIt) {
   int64_t id = SubmitSweep("status-sweep", 10);
   Outcome o = Sandswim({"status", std::to_string(id)});
@@ -219,7 +250,7 @@ TEST_F(CliTest, BackupIsAConsistentCopyThatADaemonServes) {
   EXPECT_THAT(o.err, HasSubstr("wrote a consistent copy of the daemon's database"));
   EXPECT_THAT(o.err, HasSubstr("To restore it: stop sandswimd"));
   EXPECT_FALSE(fs::exists(copy.string() + ".part"));
-  EXPECT_TRUE(fs::is_empty(*dir_ / "daemon-data" / "backups"));  // the daemon keeps no copy
+  EXPECT_TRUE(fs::is_empty(*dir_ / "var/data" / "backups"));  // the daemon keeps no copy
 
   // The restored daemon's data directory holds what a daemon killed mid-backup leaves: its start
   // removes it.
@@ -227,7 +258,9 @@ TEST_F(CliTest, BackupIsAConsistentCopyThatADaemonServes) {
   fs::create_directories(stale);
   std::ofstream(stale / "backup-1-1.db.partial") << "half a copy";
   pid_t restored = -1;
-  const std::string url = StartDaemon(copy, "restored", &restored);
+  // With the first daemon's token, so the CLI's one token file serves both.
+  const std::string url =
+      StartDaemon(copy, "restored", &restored, {"--token-file", (*dir_ / "var/data/token").string()});
   ASSERT_FALSE(url.empty());
   EXPECT_TRUE(fs::is_empty(stale));
   o = Sandswim({"--server", url, "status", std::to_string(id), "--json"}, "", /*with_server=*/false);
@@ -294,6 +327,7 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
   ASSERT_EQ(o.code, 0) << o.err;
   // The CLI's CSV is the daemon's, byte for byte.
   httplib::Client http(*server_);
+  http.set_bearer_token_auth(Trimmed(ReadAll(*dir_ / "var/data/token")));
   auto daemon_csv = http.Get("/api/v1/sweeps/" + std::to_string(id) + "/results?format=csv");
   ASSERT_TRUE(daemon_csv);
   EXPECT_EQ(o.out, daemon_csv->body);

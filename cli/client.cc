@@ -126,7 +126,7 @@ class HttpDaemonClient : public DaemonClient {
   }
 
   Result<int64_t> DownloadBackup(const std::string& file) override {
-    const std::string path = "/api/v1/backup";
+    const std::string path = "/api/v1/backup";  // a POST: it makes a copy
     std::ofstream out(file, std::ios::binary | std::ios::trunc);
     if (!out) return Status::IOError("cannot write " + file);
     // The daemon copies the whole database before it answers: allow it time.
@@ -134,21 +134,25 @@ class HttpDaemonClient : public DaemonClient {
     int64_t bytes = 0;
     std::string error_body;
     int status = 0;
-    httplib::Result res = http_.Get(
-        path.c_str(),
-        [&](const httplib::Response& r) {
-          status = r.status;
-          return true;
-        },
-        [&](const char* data, size_t n) {
-          if (status != 200) {
-            error_body.append(data, n);  // a problem document
-            return true;
-          }
-          out.write(data, static_cast<std::streamsize>(n));
-          bytes += static_cast<int64_t>(n);
-          return static_cast<bool>(out);
-        });
+    httplib::Request req;
+    req.method = "POST";
+    req.path = path;
+    req.body = "{}";
+    req.set_header("Content-Type", "application/json");
+    req.response_handler = [&](const httplib::Response& r) {
+      status = r.status;
+      return true;
+    };
+    req.content_receiver = [&](const char* data, size_t n, uint64_t, uint64_t) {
+      if (status != 200) {
+        error_body.append(data, n);  // a problem document
+        return true;
+      }
+      out.write(data, static_cast<std::streamsize>(n));
+      bytes += static_cast<int64_t>(n);
+      return static_cast<bool>(out);
+    };
+    httplib::Result res = http_.send(req);
     if (status == 200 && !out) return Status::IOError("cannot write " + file + " (disk full?)");
     if (res && res->status == 200) {
       out.close();
@@ -156,9 +160,9 @@ class HttpDaemonClient : public DaemonClient {
       return bytes;
     }
     if (res) res->body = error_body;
-    auto error = Answer(res, "GET", path);
+    auto error = Answer(res, "POST", path);
     if (!error.ok()) return error.status();
-    return Status::Corruption("the daemon answered GET " + path + " with HTTP " + std::to_string(res->status));
+    return Status::Corruption("the daemon answered POST " + path + " with HTTP " + std::to_string(res->status));
   }
 
  private:
@@ -229,7 +233,11 @@ class HttpDaemonClient : public DaemonClient {
     }
     Status error = StatusFromHttp(res->status, parsed ? res->body : "", method + " " + path);
     if (res->status != 401) return error;
-    return Status(error.code(), error.reason() + " (pass --token-file FILE or set SANDSWIM_TOKEN)", error.field());
+    return Status(error.code(),
+                  error.reason() +
+                      " (pass --token-file DATA/token, the daemon's --data directory's token file, "
+                      "or set SANDSWIM_TOKEN)",
+                  error.field());
   }
 
   ClientOptions options_;
@@ -254,13 +262,14 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
   if (url.empty()) url = kDefaultServer;
   while (url.size() > 7 && url.back() == '/') url.pop_back();
   static const std::regex kUrl(R"(http://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)(:[0-9]{1,5})?)");
-  if (!std::regex_match(url, kUrl)) {
+  std::smatch parts;
+  if (!std::regex_match(url, parts, kUrl)) {
     return Status::InvalidArgument(
         field, "expected http://HOST:PORT (e.g. " + std::string(kDefaultServer) + "), got \"" + url + "\"");
   }
   options.server = url;
 
-  auto token = LoadToken(token_file_flag, getenv);
+  auto token = LoadClientToken(token_file_flag, parts[1].str(), getenv);
   if (!token.ok()) return token.status();
   options.token = *token;
   return options;

@@ -11,7 +11,8 @@
 //     table, shared with the worker), the reason being its "detail".
 //
 // Where the daemon is: --server, else $SANDSWIM_SERVER, else http://127.0.0.1:8640. The bearer
-// token: --token-file, else $SANDSWIM_TOKEN, else none (reads from loopback need none).
+// token: platform/token.h's client rule (--token-file, else $SANDSWIM_TOKEN, else, for a daemon on
+// loopback, ./var/data/token, the token file of a daemon started with its default --data).
 //
 // Thread safety: one client per thread.
 #ifndef SANDSWIM_CLI_CLIENT_H_
@@ -71,7 +72,7 @@ class DaemonClient {
     (void)name, (void)scale, (void)campaign_run_id;
     return Status::Unavailable("this client cannot fetch reports");
   }
-  // GET /api/v1/backup, streamed into the file at `path` (created or truncated): a consistent copy
+  // POST /api/v1/backup, streamed into the file at `path` (created or truncated): a consistent copy
   // of the daemon's database. Returns the bytes written.
   virtual Result<int64_t> DownloadBackup(const std::string& path) {
     (void)path;

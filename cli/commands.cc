@@ -980,7 +980,9 @@ int RunCli(int argc, const char* const* argv, Environment& env) {
   app.require_subcommand(1);
   app.fallthrough();
   app.add_option("--server", args.server, "daemon URL, http://HOST:PORT (else $SANDSWIM_SERVER)");
-  app.add_option("--token-file", args.token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
+  app.add_option(
+      "--token-file", args.token_file,
+      "file holding the bearer token (else $SANDSWIM_TOKEN, else ./var/data/token for a daemon on loopback)");
   app.add_flag("--no-color", args.no_color, "no colour (also: NO_COLOR set, or output not a terminal)");
 
   std::vector<std::pair<CLI::App*, const Command*>> subs;

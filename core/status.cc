@@ -20,6 +20,8 @@ const char* StatusCodeName(StatusCode code) {
       return "resource exhausted";
     case StatusCode::kUnauthenticated:
       return "unauthenticated";
+    case StatusCode::kPermissionDenied:
+      return "permission denied";
     case StatusCode::kUnavailable:
       return "unavailable";
     case StatusCode::kIOError:

@@ -25,7 +25,8 @@ enum class StatusCode {
   kFailedPrecondition,  // e.g. a point the scale cannot take
   kResourceExhausted,   // e.g. a sweep past the run limit, a body too large
   kUnauthenticated,
-  kUnavailable,  // a peer (daemon, engine) that does not answer
+  kPermissionDenied,  // e.g. a write from a web page of another site
+  kUnavailable,       // a peer (daemon, engine) that does not answer
   kIOError,
   kCorruption,  // a file or row that does not parse
   kInternal,

@@ -27,5 +27,9 @@ for _ in $(seq 100); do
   kill -0 $daemon 2>/dev/null || { echo "demo: sandswimd exited; see $var/sandswimd.log" >&2; exit 1; }
   sleep 0.1
 done
+# The daemon made its token in $var/data/token (mode 0600) on its first start; its workers and the
+# CLI read it from there.
+token_file=$var/data/token
 echo "demo: sandswimd on $SANDSWIM_SERVER with $workers local workers (log: $var/sandswimd.log)" >&2
-"$bin/sandswim" submit "$campaign" --scale "$scale" --wait
+echo "demo: dashboard $SANDSWIM_SERVER/?token=$(cat "$token_file")" >&2
+"$bin/sandswim" --token-file "$token_file" submit "$campaign" --scale "$scale" --wait

@@ -25,6 +25,8 @@ class LoopbackServer {
     RegisterRoutes(server_, deps_);
     port_ = server_.bind_to_any_port("127.0.0.1");
     if (port_ <= 0) throw std::runtime_error("LoopbackServer: cannot bind 127.0.0.1");
+    deps_.host_policy.listen_host = "127.0.0.1";  // as ApiServer::Bind does, before the loop runs
+    deps_.host_policy.listen_port = port_;
     thread_ = std::thread([this] { server_.listen_after_bind(); });
     client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
   }

@@ -34,8 +34,11 @@ using sandswim::Status;
 struct Flags {
   std::string db = "./var/sandswim.db";
   std::string listen = "127.0.0.1:8640";
-  std::string data = "./var/data";
+  std::string data = sandswim::kDefaultDataDir;
   std::string token_file;
+  bool no_token = false;
+  bool public_reads = false;
+  std::vector<std::string> allow_hosts;
   int local_workers = 0;
   double lease_ttl_s = 60;
   int max_attempts = 3;
@@ -52,7 +55,14 @@ void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--db", flags.db, "SQLite file")->capture_default_str();
   app.add_option("--listen", flags.listen, "HOST:PORT to serve on (port 0: any free port)")->capture_default_str();
   app.add_option("--data", flags.data, "directory for beds, dumps and artifacts")->capture_default_str();
-  app.add_option("--token-file", flags.token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
+  app.add_option("--token-file", flags.token_file,
+                 "file holding the bearer token (else $SANDSWIM_TOKEN, else DATA/token, made on the first start)");
+  app.add_flag("--no-token", flags.no_token,
+               "serve without a token (loopback only): anyone on this machine may read and write");
+  app.add_flag("--public-reads", flags.public_reads, "reads (GET) need no token; writes still do");
+  app.add_option("--allow-host", flags.allow_hosts,
+                 "a name clients reach the daemon by, besides its address and localhost (repeatable; e.g. "
+                 "the login node's name for Slurm workers, a proxy's name); other Host headers get 421");
   app.add_option("--local-workers", flags.local_workers, "worker processes to run on this machine")
       ->capture_default_str()
       ->check(CLI::Range(0, 1024));
@@ -92,6 +102,67 @@ void AddFlags(CLI::App& app, Flags& flags) {
 int Die(const Status& s, const std::string& next) {
   spdlog::critical("{}; {}", s.ToString(), next);
   return 1;
+}
+
+// The daemon's token (platform/token.h has the rule): --token-file, $SANDSWIM_TOKEN, else
+// DATA/token, made on the first start. `file` is where local workers read it ("" from the
+// environment, which they inherit); `token` is "" with --no-token.
+struct DaemonToken {
+  std::string token;
+  std::string file;
+  bool own = false;  // DATA/token, the daemon's own
+};
+
+sandswim::Result<DaemonToken> ResolveToken(const Flags& flags) {
+  DaemonToken out;
+  const char* env = std::getenv("SANDSWIM_TOKEN");
+  const bool env_set = env != nullptr && *env != '\0';
+  if (flags.no_token) {
+    if (!flags.token_file.empty() || env_set) {
+      return Status::InvalidArgument("--no-token", "cannot be given with a token (--token-file or SANDSWIM_TOKEN)");
+    }
+    spdlog::warn(
+        "*** --no-token: serving WITHOUT A TOKEN. Every process and user on this machine (and every web page "
+        "your browser opens that gets past the Host and Origin checks) may read and change this daemon's "
+        "studies. Drop --no-token to serve with the token in {} ***",
+        sandswim::TokenFileIn(flags.data));
+    return out;
+  }
+  if (!flags.token_file.empty() || env_set) {
+    auto given = sandswim::LoadToken(flags.token_file);
+    if (!given.ok()) return given.status();
+    if (Status s = sandswim::CheckTokenStrength(*given, flags.token_file.empty() ? "SANDSWIM_TOKEN" : "--token-file");
+        !s.ok()) {
+      return s;
+    }
+    out.token = *given;
+    out.file = flags.token_file;
+    return out;
+  }
+  auto file = sandswim::LoadOrCreateTokenFile(sandswim::TokenFileIn(flags.data));
+  if (!file.ok()) return file.status();
+  out.token = file->token;
+  out.file = file->path;
+  out.own = true;
+  spdlog::info("{} the token in {} (mode 0600): the CLI and local workers read it from there",
+               file->created ? "made" : "using", file->path);
+  return out;
+}
+
+// Where a new user goes: the dashboard's link, with the token when the daemon keeps it in a file
+// of its own (one the operator gave is theirs to paste). On stdout, after the "listening on" line.
+void PrintDashboardLink(const sandswim::ListenAddress& address, int port, const DaemonToken& token) {
+  std::string host = address.host;
+  if (host == "0.0.0.0" || host == "::" || host.empty()) host = "127.0.0.1";
+  if (host.find(':') != std::string::npos) host = "[" + host + "]";
+  const std::string base = "http://" + host + ":" + std::to_string(port) + "/";
+  if (token.token.empty()) {
+    std::cout << "dashboard: " << base << " (no token: --no-token)" << std::endl;
+  } else if (token.own) {
+    std::cout << "dashboard: " << base << "?token=" << token.token << std::endl;
+  } else {
+    std::cout << "dashboard: " << base << "?token=TOKEN (your token: it stays in the browser tab)" << std::endl;
+  }
 }
 
 // The engine the workers on this machine run, for content keys; "unknown" (with a warning) when
@@ -213,9 +284,9 @@ int main(int argc, char** argv) {
 
   auto address = sandswim::ParseListenAddress(flags.listen);
   if (!address.ok()) return Die(address.status(), "use --listen HOST:PORT, e.g. 127.0.0.1:8640");
-  auto token = sandswim::LoadToken(flags.token_file);
-  if (!token.ok()) return Die(token.status(), "write the token into the file, or unset SANDSWIM_TOKEN");
-  Status policy = sandswim::CheckListenPolicy(*address, !token->empty());
+  auto token = ResolveToken(flags);
+  if (!token.ok()) return Die(token.status(), "sandswimd serves with a token unless told --no-token");
+  Status policy = sandswim::CheckListenPolicy(*address, !token->token.empty());
   if (!policy.ok()) return Die(policy, "give a token or listen on a loopback address");
 
   if (flags.engine_version.empty()) flags.engine_version = ProbedEngineVersion();
@@ -275,7 +346,9 @@ int main(int argc, char** argv) {
   deps.clock = &clock;
   deps.data_dir = flags.data;
   deps.engine_version = flags.engine_version;
-  deps.token = *token;
+  deps.token = token->token;
+  deps.public_reads = flags.public_reads;
+  deps.host_policy.allowed_names = flags.allow_hosts;
   // The dashboard's live view: one snapshot a second however many pages are open (server/live_feed.h).
   sandswim::LiveFeed live(store->get(), &clock);
   leases.SetProgressObserver(
@@ -299,6 +372,7 @@ int main(int argc, char** argv) {
       /*run_at_start=*/true);
   periodic.Start();
 
+  PrintDashboardLink(*address, *port, *token);  // before the line scripts wait for, which ends what they read
   std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
 
   sandswim::PosixSubprocesses processes;
@@ -313,9 +387,9 @@ int main(int argc, char** argv) {
                          "1",
                          "--workdir",
                          flags.data + "/worker"};
-  // A token from SANDSWIM_TOKEN reaches the workers through the environment.
-  if (!flags.token_file.empty())
-    worker_options.argv.insert(worker_options.argv.end(), {"--token-file", flags.token_file});
+  // A token from SANDSWIM_TOKEN reaches the workers through the environment; one from a file, as
+  // that file.
+  if (!token->file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", token->file});
   sandswim::LocalWorkers workers(worker_options, &processes, &clock);
   std::thread supervisor;
   int exit_code = 0;

@@ -66,17 +66,21 @@ std::string HttpTitle(int http_status) {
                                                      {413, "Content Too Large"},
                                                      {415, "Unsupported Media Type"},
                                                      {416, "Range Not Satisfiable"},
+                                                     {421, "Misdirected Request"},
                                                      {422, "Unprocessable Content"},
+                                                     {429, "Too Many Requests"},
                                                      {500, "Internal Server Error"},
                                                      {503, "Service Unavailable"}};
   auto it = kTitles.find(http_status);
   return it != kTitles.end() ? it->second : "HTTP " + std::to_string(http_status);
 }
 
-// Counts every answered request by status code, for /metrics.
+// Counts every answered request by status code, for /metrics; and the failed token attempts
+// (server/request_policy.h), which it also shows.
 struct HttpCounters {
   std::mutex mu;
   std::map<int, uint64_t> by_status;
+  std::unique_ptr<FailedAuthThrottle> auth_failures;
   void Count(int status) {
     std::lock_guard<std::mutex> lock(mu);
     ++by_status[status == -1 ? 200 : status];
@@ -99,10 +103,12 @@ void SendJson(Call& c, int http_status, const json& body) {
   c.res.set_content(api::ToJsonText(body), "application/json");
 }
 
+// A 5xx says what failed but not where: file paths stay in the log.
 void SendProblem(httplib::Response& res, const Status& status, int http_status = 0) {
   if (http_status == 0) http_status = HttpStatusFor(status.code());
   res.status = http_status;
-  res.set_content(api::ToJsonText(ProblemFor(status, http_status)), kProblemType);
+  const Status told = http_status >= 500 ? Status(status.code(), RedactPaths(status.reason()), status.field()) : status;
+  res.set_content(api::ToJsonText(ProblemFor(told, http_status)), kProblemType);
   if (http_status == 503 && !res.has_header("Retry-After")) res.set_header("Retry-After", "10");
   if (http_status >= 500) {
     spdlog::error(
@@ -514,10 +520,16 @@ FigureCache FiguresOf(const Deps& deps) {
   return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string(), deps.renderer);
 }
 
+// The HTML report and SVG figures are documents of their own, made by the daemon: inline styles
+// (the report's <style>, PLplot's style attributes) and inline images, but no script at all.
+constexpr const char* kDocumentCsp =
+    "default-src 'none'; style-src 'unsafe-inline'; img-src 'self' data:; frame-ancestors 'none'";
+
 void SendFigure(Call& c, const std::string& name, const Plot& plot, ImageFormat format) {
   auto bytes = FiguresOf(c.deps).Get(name, plot, format);
   if (!bytes.ok()) return Fail(c, bytes.status());
   c.res.status = 200;
+  c.res.set_header("Content-Security-Policy", kDocumentCsp);
   c.res.set_content(*bytes, ImageContentType(format));
 }
 
@@ -607,6 +619,7 @@ void SendReport(Call& c, int64_t campaign_run_id) {
   auto html = CampaignReport(*c.deps.store, figures, campaign_run_id, c.deps.clock->Now(), c.deps.data_dir);
   if (!html.ok()) return Fail(c, html.status());
   c.res.status = 200;
+  c.res.set_header("Content-Security-Policy", kDocumentCsp);
   c.res.set_content(*html, "text/html; charset=utf-8");
 }
 
@@ -885,8 +898,9 @@ void GetSnapshotSlice(Call& c) {
 }
 
 // A consistent copy of the database, made while the daemon serves (Database::BackupTo) under
-// DATA/backups/ and streamed; the file is removed once sent.
-void GetBackup(Call& c) {
+// DATA/backups/ and streamed; the file is removed once sent. A POST: it writes a file and costs a
+// whole copy, which no link or image of another page may start.
+void PostBackup(Call& c) {
   const std::string dir = BackupDir(c.deps.data_dir);
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -1046,6 +1060,15 @@ std::string MetricsText(const Metrics& m, HttpCounters& http) {
   counter("sandswim_lease_expirations_total", "Leases that ran out.", m.expirations);
   counter("sandswim_pilots_gone_total", "Leases reclaimed early because Slurm no longer ran their job.", m.pilots_gone);
   counter("sandswim_duplicate_completions_total", "Repeated completions answered duplicate.", m.duplicates);
+  if (http.auth_failures) {
+    const FailedAuthThrottle::Counts auth = http.auth_failures->counts();
+    counter("sandswim_auth_failures_total", "Requests refused for a wrong token.", auth.failures);
+    counter("sandswim_auth_delayed_total", "Wrong-token requests answered after a delay.", auth.delayed);
+    out << "# HELP sandswim_auth_delay_seconds_total Seconds wrong-token requests were held.\n"
+           "# TYPE sandswim_auth_delay_seconds_total counter\nsandswim_auth_delay_seconds_total "
+        << auth.delay_s_total << "\n";
+    counter("sandswim_auth_busy_total", "Wrong-token requests answered 429 at once (no free delay slot).", auth.busy);
+  }
   out << "# HELP sandswim_http_requests_total HTTP requests answered, by status code.\n"
          "# TYPE sandswim_http_requests_total counter\n";
   std::lock_guard<std::mutex> lock(http.mu);
@@ -1109,7 +1132,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/campaign-runs/{id}/modes.png",  Access::kRead,   BodyKind::kNone,    GetCampaignRunModesFigure<ImageFormat::kPng>},
   {"GET",  "/api/v1/campaign-runs/{id}/report",     Access::kRead,   BodyKind::kNone,    GetCampaignRunReport},
   {"GET",  "/api/v1/campaigns/{name}/report",       Access::kRead,   BodyKind::kNone,    GetCampaignReport},
-  {"GET",  "/api/v1/backup",                        Access::kWrite,  BodyKind::kNone,    GetBackup},
+  {"POST", "/api/v1/backup",                        Access::kWrite,  BodyKind::kJson,    PostBackup},
   {"GET",  "/api/v1/live",                          Access::kRead,   BodyKind::kNone,    GetLive},
   {"GET",  "/api/v1/live/events",                   Access::kRead,   BodyKind::kNone,    GetLiveEvents},
   {"GET",  "/api/v1/runs/{id}/trail",               Access::kRead,   BodyKind::kNone,    GetRunTrail},
@@ -1160,25 +1183,64 @@ const Route* FindRoute(const std::string& method, const std::string& path) {
   return nullptr;
 }
 
-bool IsLoopbackPeer(const std::string& addr) {
-  return addr.rfind("127.", 0) == 0 || addr == "::1" || addr.rfind("::ffff:127.", 0) == 0;
+// Why a request may not reach its route, and with which HTTP status.
+struct Refusal {
+  Status status;
+  int http_status = 0;
+};
+
+// The token the request carries: the Authorization header's bearer token, else, for a read, the
+// access_token query parameter (the dashboard's images and links, which cannot send a header).
+std::optional<std::string> GivenToken(const Route& route, const httplib::Request& req) {
+  const std::string header = req.get_header_value("Authorization");
+  const std::string prefix = "Bearer ";
+  if (header.rfind(prefix, 0) == 0) return header.substr(prefix.size());
+  if (route.access == Access::kRead && req.has_param("access_token")) return req.get_param_value("access_token");
+  return std::nullopt;
 }
 
-// Empty when the caller may go on; otherwise why not.
-std::optional<Status> CheckAuth(const Deps& deps, const Route& route, const httplib::Request& req) {
+std::optional<Refusal> CheckAuth(const Deps& deps, const Route& route, const httplib::Request& req,
+                                 FailedAuthThrottle& throttle) {
   if (deps.token.empty() || route.access == Access::kPublic) return std::nullopt;
-  if (route.access == Access::kRead && IsLoopbackPeer(req.remote_addr)) return std::nullopt;
-  std::string header = req.get_header_value("Authorization");
-  const std::string prefix = "Bearer ";
-  if (header.rfind(prefix, 0) == 0) {
-    std::string given = header.substr(prefix.size());
-    if (given.size() == deps.token.size() && CRYPTO_memcmp(given.data(), deps.token.data(), given.size()) == 0) {
-      return std::nullopt;
-    }
-    return Status(StatusCode::kUnauthenticated, "the bearer token is not the daemon's token", "Authorization");
+  if (route.access == Access::kRead && deps.public_reads) return std::nullopt;
+  std::optional<std::string> given = GivenToken(route, req);
+  if (!given) {
+    return Refusal{Status(StatusCode::kUnauthenticated,
+                          "this daemon has a token: send \"Authorization: Bearer <token>\" (sandswimd printed "
+                          "the dashboard's link with it when it started; the CLI and local workers read its "
+                          "token file)",
+                          "Authorization"),
+                   401};
   }
-  return Status(StatusCode::kUnauthenticated, "this daemon has a token: send \"Authorization: Bearer <token>\"",
-                "Authorization");
+  if (given->size() == deps.token.size() && CRYPTO_memcmp(given->data(), deps.token.data(), given->size()) == 0) {
+    return std::nullopt;
+  }
+  if (throttle.Failed(req.remote_addr, req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
+    return Refusal{
+        Status(StatusCode::kResourceExhausted,
+               "too many requests with a wrong token from " + req.remote_addr + "; try again later", "Authorization"),
+        429};
+  }
+  return Refusal{Status(StatusCode::kUnauthenticated, "the bearer token is not the daemon's token", "Authorization"),
+                 401};
+}
+
+// Empty when the request may reach its route; otherwise why not (server/request_policy.h).
+std::optional<Refusal> CheckRequest(const Deps& deps, const Route& route, const httplib::Request& req,
+                                    FailedAuthThrottle& throttle) {
+  if (std::string_view(route.method) != "GET") {
+    if (auto cross = CrossSiteRefusal(deps.host_policy, req.get_header_value("Origin"),
+                                      req.get_header_value("Sec-Fetch-Site"))) {
+      spdlog::warn("refused {} {} from {}: {}", req.method, req.path, req.remote_addr, cross->reason());
+      return Refusal{*cross, 403};
+    }
+    if (route.body == BodyKind::kJson && !IsJsonMediaType(req.get_header_value("Content-Type"))) {
+      return Refusal{Status::InvalidArgument("Content-Type", "this route takes only application/json, not \"" +
+                                                                 req.get_header_value("Content-Type") + "\""),
+                     415};
+    }
+  }
+  return CheckAuth(deps, route, req, throttle);
 }
 
 // Reads a JSON body up to `limit` bytes; past it, reads on (discarding) up to the drain cap.
@@ -1203,12 +1265,13 @@ bool ReadBody(const httplib::ContentReader& reader, size_t limit, std::string& b
 void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const httplib::Request& req,
               httplib::Response& res, const httplib::ContentReader* reader) {
   Call c{req, res, deps, {}, nullptr, counters};
-  std::optional<Status> denied = CheckAuth(deps, route, req);
+  std::optional<Refusal> denied = CheckRequest(deps, route, req, *counters->auth_failures);
+  if (denied && denied->http_status == 429) res.set_header("Retry-After", "1");
   if (reader != nullptr && (route.body == BodyKind::kJson || denied)) {
     bool drained = true;
     bool fits = ReadBody(*reader, deps.max_json_body, c.body, drained);
     if (!drained) res.set_header("Connection", "close");
-    if (denied) return SendProblem(res, *denied);
+    if (denied) return SendProblem(res, denied->status, denied->http_status);
     if (!fits) {
       return SendProblem(res,
                          Status::ResourceExhausted(
@@ -1216,7 +1279,7 @@ void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const http
                          413);
     }
   }
-  if (denied) return SendProblem(res, *denied);
+  if (denied) return SendProblem(res, denied->status, denied->http_status);
   if (route.body == BodyKind::kRestart) c.reader = reader;
   route.handler(c);
 }
@@ -1246,6 +1309,8 @@ int HttpStatusFor(StatusCode code) {
       return 400;
     case StatusCode::kUnauthenticated:
       return 401;
+    case StatusCode::kPermissionDenied:
+      return 403;
     case StatusCode::kNotFound:
       return 404;
     case StatusCode::kAlreadyExists:
@@ -1283,6 +1348,7 @@ json ProblemFor(const Status& status, int http_status) {
 void RegisterRoutes(httplib::Server& server, Deps& deps) {
   Deps* d = &deps;
   auto counters = std::make_shared<HttpCounters>();
+  counters->auth_failures = std::make_unique<FailedAuthThrottle>(deps.clock, FailedAuthThrottle::Options{});
   for (const Route& route : kRoutes) {
     const Route* r = &route;
     std::string pattern = PathRegex(route.path);
@@ -1318,7 +1384,6 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
                        : ext == ".css" ? "text/css; charset=utf-8"
                                        : "text/html; charset=utf-8";
     res.set_header("Cache-Control", "no-cache");
-    res.set_header("X-Content-Type-Options", "nosniff");
     res.status = 200;
     res.set_content(bytes->data(), bytes->size(), type);
     counters->Count(200);
@@ -1327,6 +1392,11 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
     dashboard_file("index.html", res);
   };
   server.Get("/", page);
+  // No icon (the page names this one so the browser asks for nothing else): 204, not a 404.
+  server.Get("/favicon.ico", [counters](const httplib::Request&, httplib::Response& res) {
+    res.status = 204;
+    counters->Count(204);
+  });
   server.Get("/submit", page);
   server.Get(R"(/(campaign-runs|sweeps|runs|beds)(/[0-9]+)?)", page);
   server.Get(R"(/ui/([A-Za-z0-9_-][A-Za-z0-9._-]*))",
@@ -1334,8 +1404,36 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
                dashboard_file(req.matches[1].str(), res);
              });
 
-  // Refuse what cannot be drained before any byte of the body is read.
+  // OPTIONS says which methods a path takes, and approves no other origin (no CORS headers): a
+  // browser's preflight for a cross-origin JSON write fails here.
+  server.Options(R"(.*)", [counters](const httplib::Request& req, httplib::Response& res) {
+    std::set<std::string> methods = {"OPTIONS"};
+    for (const CompiledRoute& cr : CompiledRoutes()) {
+      if (std::regex_match(req.path, cr.pattern)) methods.insert(cr.route->method);
+    }
+    if (methods.size() == 1) methods.insert("GET");  // the dashboard's pages and files
+    std::string allow;
+    for (const std::string& m : methods) allow += (allow.empty() ? "" : ", ") + m;
+    res.status = 204;
+    res.set_header("Allow", allow);
+    counters->Count(204);
+  });
+
+  // Refuse a Host that does not name this daemon (DNS rebinding), and what cannot be drained,
+  // before any byte of the body is read.
   server.set_pre_routing_handler([d, counters](const httplib::Request& req, httplib::Response& res) {
+    if (!HostAllowed(d->host_policy, req.get_header_value("Host"))) {
+      spdlog::warn("refused {} {} from {}: Host \"{}\" does not name this daemon", req.method, req.path,
+                   req.remote_addr, req.get_header_value("Host"));
+      res.set_header("Connection", "close");
+      SendProblem(res,
+                  Status::InvalidArgument("Host", "\"" + req.get_header_value("Host") +
+                                                      "\" is not a name of this daemon (its address, localhost, "
+                                                      "or a name given to sandswimd with --allow-host)"),
+                  421);
+      counters->Count(421);
+      return httplib::Server::HandlerResponse::Handled;
+    }
     // Compress with gzip, never brotli: the library compresses brotli at its highest quality, and
     // a 10,000-run result table (12 MB of JSON) took 41 s that way against 0.24 s with gzip
     // (tests/bench/bench_dashboard.cc). Every browser asks for both; the header is rewritten
@@ -1396,6 +1494,17 @@ void RegisterRoutes(httplib::Server& server, Deps& deps) {
     }
   });
 
+  // Every response, the library's own answers too: no framing, no sniffing, no referrer, and only
+  // the daemon's own scripts, styles and images (the dashboard has no inline script or style).
+  server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
+    if (!res.has_header("Content-Security-Policy")) {
+      res.set_header("Content-Security-Policy", "default-src 'self'; frame-ancestors 'none'");
+    }
+    res.set_header("X-Frame-Options", "DENY");
+    res.set_header("X-Content-Type-Options", "nosniff");
+    res.set_header("Referrer-Policy", "no-referrer");
+  });
+
   server.set_logger([](const httplib::Request& req, const httplib::Response& res) {
     spdlog::debug("{} {} -> {}", req.method, req.path, res.status);
   });
@@ -1429,20 +1538,11 @@ Result<ListenAddress> ParseListenAddress(const std::string& text) {
   return address;
 }
 
-bool IsLoopbackHost(const std::string& host) {
-  if (host == "localhost") return true;
-  in_addr v4{};
-  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
-  in6_addr v6{};
-  if (inet_pton(AF_INET6, host.c_str(), &v6) == 1) return IN6_IS_ADDR_LOOPBACK(&v6);
-  return false;
-}
-
 Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
   if (IsLoopbackHost(address.host) || have_token) return Status::Ok();
   return Status(StatusCode::kFailedPrecondition,
                 "refusing to listen on " + address.host +
-                    " (not loopback) without a token: pass --token-file FILE or set SANDSWIM_TOKEN, "
+                    " (not loopback) without a token: drop --no-token (the daemon makes one in DATA/token), "
                     "or listen on 127.0.0.1",
                 "--listen");
 }
@@ -1486,6 +1586,9 @@ Result<int> ApiServer::Bind(const ListenAddress& address) {
                                " (address in use or not local?): pick another --listen");
   }
   if (!server_->SetBacklog(SOMAXCONN)) spdlog::warn("could not widen the listen backlog past 5 connections");
+  // Before Serve(): the routes read the policy without a lock.
+  deps_.host_policy.listen_host = address.host;
+  deps_.host_policy.listen_port = port;
   return port;
 }
 

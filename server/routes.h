@@ -11,8 +11,19 @@
 // the HTTP status from one table (HttpStatusFor). An exception handler and an error handler are
 // the backstop, so nothing a client sends produces anything but a problem document.
 //
-// Auth: when Deps::token is non-empty, every write and every worker call needs
-// "Authorization: Bearer <token>" (401 otherwise); reads need it only from non-loopback peers.
+// Before a route runs (server/request_policy.h): a Host header that does not name this daemon is
+// refused (421, every path); a request that changes state (POST, PUT) from a web page of another
+// site is refused (403), and one whose route takes JSON must say Content-Type: application/json
+// (415). No GET changes state. OPTIONS answers 204 with Allow and no CORS approval. Every response
+// carries Content-Security-Policy (default-src 'self'; frame-ancestors 'none'; a stricter one with
+// inline styles for the HTML report and SVG figures), X-Frame-Options DENY, X-Content-Type-Options
+// nosniff and Referrer-Policy no-referrer. A 5xx names no file path (the log does).
+//
+// Auth: when Deps::token is non-empty, every route but the public ones (/healthz, the OpenAPI
+// document, the dashboard's files) needs "Authorization: Bearer <token>" (401 otherwise); reads
+// (GET) may carry it as ?access_token= instead (what the dashboard's images and links do), and
+// need none when Deps::public_reads. Wrong tokens are logged and slowed per peer
+// (FailedAuthThrottle; 429 when too many wait at once); a correct token is never slowed.
 // Body limits: JSON bodies at most Deps::max_json_body bytes, bed restart uploads at most
 // Deps::max_restart_body (streamed to a file under data_dir); past the limit: 413.
 //
@@ -31,7 +42,9 @@
 
 #include "core/status.h"
 #include "platform/clock.h"
+#include "platform/token.h"
 #include "server/lease_queue.h"
+#include "server/request_policy.h"
 #include "server/store.h"
 
 namespace httplib {
@@ -54,6 +67,9 @@ struct Deps {
   std::string data_dir;        // beds' restart files and upload temp files live under it
   std::string engine_version;  // enters every content key (Submit)
   std::string token;           // bearer token; empty: no auth
+  bool public_reads = false;   // reads need no token (--public-reads)
+  // Which Host headers name this daemon; ApiServer::Bind fills in the address and port it got.
+  HostPolicy host_policy;
   size_t max_json_body = kMaxJsonBodyBytes;
   size_t max_restart_body = kMaxRestartBodyBytes;
   // Draws figures not drawn before (server/plot_renderer.h): sandswimd's runs sandswim-render, a
@@ -66,7 +82,7 @@ struct Deps {
 // Who may call a route when a token is configured.
 enum class Access {
   kPublic,  // always open (/healthz, /api/v1/openapi.json)
-  kRead,    // open to loopback peers; others need the token
+  kRead,    // needs the token, unless Deps::public_reads
   kWrite,   // needs the token
   kWorker,  // needs the token (the worker protocol)
 };
@@ -88,7 +104,7 @@ std::vector<RouteInfo> RouteTable();
 void RegisterRoutes(httplib::Server& server, Deps& deps);
 
 // Scratch directories under DATA hold only what a request in flight writes, removed when it ends:
-// GET /api/v1/backup's copy (DATA/backups/) and an upload's body before it is checked and stored
+// POST /api/v1/backup's copy (DATA/backups/) and an upload's body before it is checked and stored
 // (DATA/uploads/: bed restarts, snapshots). A daemon that died mid-request leaves its file there:
 // the next start empties both, returning how many files it removed.
 std::string BackupDir(const std::string& data_dir);
@@ -106,8 +122,8 @@ struct ListenAddress {
   int port = kDefaultPort;
 };
 Result<ListenAddress> ParseListenAddress(const std::string& text);
-bool IsLoopbackHost(const std::string& host);
-// Refuses a non-loopback address without a token (field "--listen").
+// Refuses a non-loopback address without a token (field "--listen"); IsLoopbackHost is
+// platform/token.h's.
 Status CheckListenPolicy(const ListenAddress& address, bool have_token);
 
 class GuardedHttpServer;  // server/guarded_http_server.h

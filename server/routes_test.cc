@@ -294,7 +294,7 @@ class TokenRoutesTest : public RoutesTest {
   void SetUp() override { Start("s3cret"); }
 };
 
-TEST_F(TokenRoutesTest, WritesAndWorkerCallsNeedTheTokenReadsStayOpenOnLoopback) {
+TEST_F(TokenRoutesTest, EveryRouteButThePublicOnesNeedsTheToken) {
   auto none = Post("/api/v1/sweeps", kExampleSweep);
   EXPECT_EQ(none->status, 401);
   EXPECT_EQ(none->get_header_value("Content-Type"), "application/problem+json");
@@ -310,8 +310,150 @@ TEST_F(TokenRoutesTest, WritesAndWorkerCallsNeedTheTokenReadsStayOpenOnLoopback)
   EXPECT_EQ(client_->Put("/api/v1/beds/1/restart?token=x", "bytes", "application/octet-stream")->status, 401);
   auto right = Post("/api/v1/sweeps", kExampleSweep, {{"Authorization", "Bearer s3cret"}});
   EXPECT_EQ(right->status, 201) << right->body;
-  EXPECT_EQ(client_->Get("/api/v1/sweeps")->status, 200);
+  // Reads too, from loopback as from anywhere (a local proxy makes every client a loopback peer).
+  for (const char* read : {"/api/v1/sweeps", "/api/v1/runs", "/api/v1/sweeps/1/results", "/metrics", "/api/v1/live"}) {
+    auto r = client_->Get(read);
+    EXPECT_EQ(r->status, 401) << read;
+    EXPECT_EQ(Body(r)["field"], "Authorization") << read;
+  }
+  EXPECT_EQ(client_->Get("/api/v1/sweeps", {{"Authorization", "Bearer s3cret"}})->status, 200);
+  // An image or a link of the dashboard carries it as ?access_token= (reads only).
+  EXPECT_EQ(client_->Get("/api/v1/sweeps?access_token=s3cret")->status, 200);
+  EXPECT_EQ(client_->Get("/api/v1/sweeps?access_token=s3creT")->status, 401);
+  EXPECT_EQ(client_->Post("/api/v1/sweeps?access_token=s3cret", kExampleSweep, "application/json")->status, 401);
+  EXPECT_EQ(client_->Get("/api/v1/beds/1/restart?access_token=s3cret")->status, 401) << "a worker call";
+  // Public: health, the API's description, the dashboard's files (they hold no data).
   EXPECT_EQ(client_->Get("/healthz")->status, 200);
+  EXPECT_EQ(client_->Get("/api/v1/openapi.json")->status, 200);
+  EXPECT_EQ(client_->Get("/")->status, 200);
+  EXPECT_EQ(client_->Get("/ui/app.js")->status, 200);
+}
+
+// --public-reads: reads need no token; writes still do.
+TEST_F(TokenRoutesTest, PublicReadsOpenReadsOnly) {
+  Shutdown();
+  deps_.public_reads = true;
+  Start("s3cret");
+  EXPECT_EQ(client_->Get("/api/v1/sweeps")->status, 200);
+  EXPECT_EQ(client_->Get("/metrics")->status, 200);
+  EXPECT_EQ(Post("/api/v1/sweeps", kExampleSweep)->status, 401);
+  EXPECT_EQ(Post("/api/v1/leases", "{}")->status, 401);
+  EXPECT_EQ(client_->Post("/api/v1/backup", "{}", "application/json")->status, 401);
+}
+
+// Wrong tokens: refused, counted, and after the first few each waits before its 401 (the waits
+// are counted, not timed); the right token still passes at once.
+TEST_F(TokenRoutesTest, WrongTokensAreCountedAndSlowedTheRightOneIsNot) {
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(client_->Get("/api/v1/sweeps", {{"Authorization", "Bearer guess" + std::to_string(i)}})->status, 401);
+  }
+  auto metrics = client_->Get("/metrics", {{"Authorization", "Bearer s3cret"}});
+  ASSERT_EQ(metrics->status, 200);
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_failures_total 5\n"));
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_delayed_total 2\n"));  // the 4th and the 5th
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_delay_seconds_total 0.75\n"));
+  // A missing token is not a guess: not counted.
+  EXPECT_EQ(client_->Get("/api/v1/sweeps")->status, 401);
+  metrics = client_->Get("/metrics", {{"Authorization", "Bearer s3cret"}});
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_failures_total 5\n"));
+}
+
+// A Host that does not name this daemon (a page on a rebound DNS name) gets 421 on every path,
+// and nothing runs.
+TEST_F(RoutesTest, AHostThatIsNotThisDaemonIsMisdirected) {
+  for (const char* path : {"/api/v1/sweeps", "/healthz", "/", "/api/v1/openapi.json"}) {
+    auto r = client_->Get(path, {{"Host", "evil.example"}});
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 421) << path;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json") << path;
+    EXPECT_EQ(Body(r)["field"], "Host") << path;
+  }
+  auto post = Post("/api/v1/sweeps", kExampleSweep, {{"Host", "evil.example:" + std::to_string(server_->port())}});
+  EXPECT_EQ(post->status, 421);
+  EXPECT_EQ(Post("/api/v1/sweeps", kExampleSweep, {{"Host", "127.0.0.1:1"}})->status, 421) << "another port";
+  EXPECT_EQ(Rows("sweeps"), 0);
+  const std::string port = std::to_string(server_->port());
+  for (const std::string& host : {"127.0.0.1:" + port, "localhost:" + port, "[::1]:" + port}) {
+    EXPECT_EQ(client_->Get("/healthz", {{"Host", host}})->status, 200) << host;
+  }
+}
+
+// A JSON route takes application/json only: a form or text/plain body (what a page of another
+// site can send without a preflight) is 415, naming the header, and stores nothing.
+TEST_F(RoutesTest, JsonRoutesTakeOnlyApplicationJson) {
+  for (const char* type : {"text/plain", "application/x-www-form-urlencoded", "multipart/form-data; boundary=x", ""}) {
+    auto r = client_->Post("/api/v1/sweeps", kExampleSweep, type);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 415) << type;
+    EXPECT_EQ(Body(r)["field"], "Content-Type") << type;
+  }
+  EXPECT_EQ(client_->Post("/api/v1/sweeps/1/cancel", "{}", "text/plain")->status, 415);
+  EXPECT_EQ(client_->Post("/api/v1/leases", "{}", "text/plain")->status, 415);
+  EXPECT_EQ(Rows("sweeps"), 0);
+  EXPECT_EQ(client_->Post("/api/v1/sweeps", kExampleSweep, "application/json; charset=utf-8")->status, 201);
+}
+
+// A write whose Origin or Sec-Fetch-Site says another site is refused (403), whatever its type;
+// the daemon's own pages and programs (no such headers) may write.
+TEST_F(RoutesTest, WritesFromPagesOfOtherSitesAreRefused) {
+  const std::string own = "http://127.0.0.1:" + std::to_string(server_->port());
+  for (const httplib::Headers& h : std::vector<httplib::Headers>{{{"Origin", "http://evil.example"}},
+                                                                 {{"Origin", "http://127.0.0.1:1"}},
+                                                                 {{"Origin", "null"}},
+                                                                 {{"Sec-Fetch-Site", "cross-site"}},
+                                                                 {{"Sec-Fetch-Site", "same-site"}},
+                                                                 {{"Origin", own}, {"Sec-Fetch-Site", "cross-site"}}}) {
+    auto r = Post("/api/v1/sweeps", kExampleSweep, h);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 403) << h.begin()->second;
+    EXPECT_EQ(Body(r)["field"], "Origin");
+    EXPECT_EQ(Body(r)["type"], "urn:sandswim:problem:permission-denied");
+  }
+  // Uploads keep their type but not another site's Origin.
+  EXPECT_EQ(client_
+                ->Put("/api/v1/beds/1/restart?token=x", {{"Origin", "http://evil.example"}}, "bytes",
+                      "application/octet-stream")
+                ->status,
+            403);
+  EXPECT_EQ(Rows("sweeps"), 0);
+  EXPECT_EQ(Post("/api/v1/sweeps", kExampleSweep, {{"Origin", own}, {"Sec-Fetch-Site", "same-origin"}})->status, 201);
+}
+
+// No GET changes state: the backup is a POST (GET is no route); OPTIONS approves no other origin.
+TEST_F(RoutesTest, BackupIsAPostAndOptionsApprovesNoOtherOrigin) {
+  auto get = client_->Get("/api/v1/backup");
+  EXPECT_EQ(get->status, 404);
+  EXPECT_FALSE(std::filesystem::exists(BackupDir(deps_.data_dir))) << "nothing was copied";
+  auto post = client_->Post("/api/v1/backup", "{}", "application/json");
+  EXPECT_EQ(post->status, 200);
+  EXPECT_EQ(post->get_header_value("Content-Type"), "application/vnd.sqlite3");
+  EXPECT_EQ(client_->Post("/api/v1/backup", "", "text/plain")->status, 415);
+
+  auto options = client_->Options("/api/v1/sweeps", {{"Origin", "http://evil.example"},
+                                                     {"Access-Control-Request-Method", "POST"},
+                                                     {"Access-Control-Request-Headers", "content-type"}});
+  ASSERT_TRUE(options);
+  EXPECT_EQ(options->status, 204);
+  EXPECT_EQ(options->get_header_value("Allow"), "GET, OPTIONS, POST");
+  for (const auto& [name, value] : options->headers) {
+    EXPECT_EQ(name.rfind("Access-Control-", 0), std::string::npos) << name << ": " << value;
+  }
+}
+
+// Every response, the router's own 404 included, carries the browser-facing headers.
+TEST_F(RoutesTest, EveryResponseCarriesTheSecurityHeaders) {
+  SubmitExample();
+  for (const char* path : {"/", "/ui/app.js", "/api/v1/sweeps", "/healthz", "/no/such/route", "/api/v1/sweeps/999"}) {
+    auto r = client_->Get(path);
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->get_header_value("Content-Security-Policy"), "default-src 'self'; frame-ancestors 'none'") << path;
+    EXPECT_EQ(r->get_header_value("X-Frame-Options"), "DENY") << path;
+    EXPECT_EQ(r->get_header_value("X-Content-Type-Options"), "nosniff") << path;
+    EXPECT_EQ(r->get_header_value("Referrer-Policy"), "no-referrer") << path;
+    EXPECT_EQ(r->headers.count("X-Content-Type-Options"), 1u) << path;
+  }
+  auto refused = client_->Post("/api/v1/sweeps", "x", "text/plain");
+  EXPECT_EQ(refused->get_header_value("X-Frame-Options"), "DENY");
 }
 
 // lease (bed) -> upload restart -> complete bed -> lease (run) -> heartbeat -> complete run ->
@@ -676,7 +818,7 @@ TEST(RoutesUnitTest, ListenAddressAndPolicy) {
   Status refused = CheckListenPolicy({"0.0.0.0", 1}, false);
   EXPECT_FALSE(refused.ok());
   EXPECT_EQ(refused.field(), "--listen");
-  EXPECT_THAT(refused.reason(), HasSubstr("--token-file"));
+  EXPECT_THAT(refused.reason(), HasSubstr("--no-token"));
   EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true).ok());
 }
 

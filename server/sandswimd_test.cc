@@ -1,5 +1,6 @@
-// The real sandswimd binary on an ephemeral port with a temp SQLite file: it serves, refuses to
-// listen beyond loopback without a token, and survives SIGKILL with a run leased — after a
+// The real sandswimd binary on an ephemeral port with a temp SQLite file: it serves, makes its own
+// token on a first start and reuses it, refuses a weak token and --no-token beyond loopback, logs
+// and slows wrong tokens, refuses a Host that is not its own, and survives SIGKILL with a run leased — after a
 // restart on the same file nothing is lost (the lease, the bed, the Idempotency-Key) and nothing
 // is doubled (no second run, no second result).
 #include <fcntl.h>
@@ -11,6 +12,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -26,6 +29,7 @@ namespace sandswim {
 namespace {
 
 using json = nlohmann::json;
+using ::testing::HasSubstr;
 
 #ifndef SANDSWIMD_PATH
 #error "SANDSWIMD_PATH must name the sandswimd binary (server/CMakeLists.txt)"
@@ -76,6 +80,7 @@ class Daemon {
       out.append(buffer, static_cast<size_t>(n));
     }
     close(fds[0]);  // the daemon prints nothing else on stdout
+    stdout_ = out;
     size_t at = out.find(ready);
     if (at == std::string::npos) {
       int status = 0;
@@ -97,8 +102,11 @@ class Daemon {
   }
 
   int port() const { return port_; }
+  // What it printed on stdout up to its "listening on" line.
+  const std::string& printed() const { return stdout_; }
 
  private:
+  std::string stdout_;
   pid_t pid_ = 0;
   int port_ = 0;
 };
@@ -112,18 +120,22 @@ class SandswimdTest : public ::testing::Test {
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
-  std::vector<std::string> Flags(const std::string& listen = "127.0.0.1:0") {
-    return {"--db",
-            dir_ + "/var/sandswim.db",
-            "--data",
-            dir_ + "/var/data",
-            "--listen",
-            listen,
-            "--engine-version",
-            "LIGGGHTS (Version test)",
-            "--lease-ttl",
-            "600"};
+  // `no_token`: these tests' requests send none (the tests of the token pass false).
+  std::vector<std::string> Flags(const std::string& listen = "127.0.0.1:0", bool no_token = true) {
+    std::vector<std::string> flags = {"--db",
+                                      dir_ + "/var/sandswim.db",
+                                      "--data",
+                                      dir_ + "/var/data",
+                                      "--listen",
+                                      listen,
+                                      "--engine-version",
+                                      "LIGGGHTS (Version test)",
+                                      "--lease-ttl",
+                                      "600"};
+    if (no_token) flags.push_back("--no-token");
+    return flags;
   }
+  std::string TokenPath() { return dir_ + "/var/data/token"; }
   std::string Log() { return dir_ + "/sandswimd.log"; }
 
   std::string dir_;
@@ -133,10 +145,101 @@ json Parse(const httplib::Result& r) { return json::parse(r->body); }
 
 TEST_F(SandswimdTest, RefusesANonLoopbackAddressWithoutAToken) {
   Daemon d;
-  auto exited = d.Start(Flags("0.0.0.0:0"), Log());
+  auto exited = d.Start(Flags("0.0.0.0:0"), Log());  // with --no-token
   ASSERT_TRUE(exited.has_value()) << "it started";
   EXPECT_TRUE(WIFEXITED(*exited) && WEXITSTATUS(*exited) != 0);
   EXPECT_FALSE(std::filesystem::exists(dir_ + "/var/sandswim.db"));
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A first start with no token given makes one (256 bits, DATA/token, mode 0600), prints the
+// dashboard's link with it, and serves with it: reads and writes need it, /healthz does not. The
+// next start reuses it.
+TEST_F(SandswimdTest, AFirstStartMakesItsTokenFileAndTheNextReusesIt) {
+  std::string token;
+  {
+    Daemon d;
+    ASSERT_FALSE(d.Start(Flags("127.0.0.1:0", /*no_token=*/false), Log()).has_value()) << ReadText(Log());
+    ASSERT_TRUE(std::filesystem::exists(TokenPath()));
+    EXPECT_EQ(std::filesystem::status(TokenPath()).permissions() & std::filesystem::perms::all,
+              std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+    token = ReadText(TokenPath());
+    while (!token.empty() && token.back() == '\n') token.pop_back();
+    EXPECT_THAT(token, ::testing::MatchesRegex("[0-9a-f]{64}"));
+    EXPECT_THAT(d.printed(), HasSubstr("dashboard: http://127.0.0.1:" + std::to_string(d.port()) + "/?token=" + token));
+    httplib::Client c("127.0.0.1", d.port());
+    EXPECT_EQ(c.Get("/healthz")->status, 200);
+    EXPECT_EQ(c.Get("/api/v1/sweeps")->status, 401);
+    EXPECT_EQ(c.Post("/api/v1/sweeps", kDaemonExampleSweep, "application/json")->status, 401);
+    c.set_bearer_token_auth(token);
+    EXPECT_EQ(c.Get("/api/v1/sweeps")->status, 200);
+    EXPECT_EQ(c.Post("/api/v1/sweeps", kDaemonExampleSweep, "application/json")->status, 201);
+    d.Kill(SIGTERM);
+  }
+  Daemon again;
+  ASSERT_FALSE(again.Start(Flags("127.0.0.1:0", /*no_token=*/false), Log()).has_value()) << ReadText(Log());
+  EXPECT_THAT(again.printed(), HasSubstr("/?token=" + token));
+  httplib::Client c("127.0.0.1", again.port());
+  c.set_bearer_token_auth(token);
+  EXPECT_EQ(c.Get("/api/v1/sweeps")->status, 200);
+  EXPECT_THAT(ReadText(Log()), HasSubstr("using the token in " + TokenPath()));
+}
+
+// A token the operator gives must hold 128 bits; the refusal says how to make one.
+TEST_F(SandswimdTest, AShortOperatorTokenIsRefusedAtStart) {
+  const std::string file = dir_ + "/short-token";
+  std::ofstream(file) << "s3cret\n";
+  std::vector<std::string> flags = Flags("127.0.0.1:0", /*no_token=*/false);
+  flags.insert(flags.end(), {"--token-file", file});
+  Daemon d;
+  auto exited = d.Start(flags, Log());
+  ASSERT_TRUE(exited.has_value()) << "it started";
+  EXPECT_TRUE(WIFEXITED(*exited) && WEXITSTATUS(*exited) != 0);
+  EXPECT_THAT(ReadText(Log()), HasSubstr("openssl rand -hex 32"));
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/var/sandswim.db"));
+}
+
+// Wrong tokens: 401, one log line naming the peer and the route, and later ones slowed (counted
+// in /metrics); the right token is not slowed by them.
+TEST_F(SandswimdTest, WrongTokensAreRefusedLoggedAndSlowed) {
+  Daemon d;
+  ASSERT_FALSE(d.Start(Flags("127.0.0.1:0", /*no_token=*/false), Log()).has_value()) << ReadText(Log());
+  httplib::Client c("127.0.0.1", d.port());
+  for (int i = 0; i < 6; ++i) {
+    auto r = c.Post("/api/v1/sweeps", {{"Authorization", "Bearer " + std::string(64, 'a' + i)}}, kDaemonExampleSweep,
+                    "application/json");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 401);
+  }
+  std::string token = ReadText(TokenPath());
+  token.pop_back();
+  auto metrics = c.Get("/metrics", {{"Authorization", "Bearer " + token}});
+  ASSERT_EQ(metrics->status, 200);
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_failures_total 6\n"));
+  EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_delayed_total 3\n"));
+  const std::string log = ReadText(Log());
+  EXPECT_THAT(log, HasSubstr("refused 1 request(s) with a wrong token from 127.0.0.1 (last: POST /api/v1/sweeps"));
+  EXPECT_EQ(log.find("refused 2 request(s)"), std::string::npos) << "one line per peer per 10 s";
+  EXPECT_EQ(log.find(std::string(64, 'a')), std::string::npos) << "the guesses are not logged";
+}
+
+// --no-token: only on loopback, and said loudly. A Host that is not the daemon's is refused.
+TEST_F(SandswimdTest, NoTokenIsLoudAndAForeignHostIsRefused) {
+  Daemon d;
+  ASSERT_FALSE(d.Start(Flags(), Log()).has_value()) << ReadText(Log());
+  EXPECT_THAT(ReadText(Log()), HasSubstr("serving WITHOUT A TOKEN"));
+  EXPECT_FALSE(std::filesystem::exists(TokenPath()));
+  httplib::Client c("127.0.0.1", d.port());
+  auto r = c.Post("/api/v1/sweeps", {{"Host", "evil.example"}}, kDaemonExampleSweep, "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 421);
+  EXPECT_EQ(Parse(c.Get("/api/v1/sweeps"))["sweeps"].size(), 0u);
 }
 
 TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {

@@ -213,9 +213,10 @@ int StartHalfUpload(const std::string& listen, int64_t bed_id, const std::string
   const int fd = testing::ConnectTo(listen);
   if (fd < 0) return -1;
   std::string head = "PUT /api/v1/beds/" + std::to_string(bed_id) + "/restart?token=" + token +
-                     " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/octet-stream\r\n"
-                     "X-Sha256: " + std::string(64, '0') + "\r\nContent-Length: " + std::to_string(promised) +
-                     "\r\n\r\n";
+                     " HTTP/1.1\r\nHost: " + listen +
+                     "\r\nContent-Type: application/octet-stream\r\n"
+                     "X-Sha256: " +
+                     std::string(64, '0') + "\r\nContent-Length: " + std::to_string(promised) + "\r\n\r\n";
   head += std::string(sent, 'x');
   for (size_t off = 0; off < head.size();) {
     const ssize_t n = send(fd, head.data() + off, head.size() - off, MSG_NOSIGNAL);

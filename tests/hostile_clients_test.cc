@@ -114,7 +114,7 @@ TEST_F(HostileClientsTest, SlowAndSilentConnectionsBeyondThePoolDelayOthersBound
   for (int i = 0; i < kSlow; ++i) {
     slow.push_back(Connect(listen));
     ASSERT_GE(slow.back(), 0);
-    Send(slow.back(), "GET /api/v1/sweeps HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ");
+    Send(slow.back(), "GET /api/v1/sweeps HTTP/1.1\r\nHost: " + listen + "\r\nX-Slow: ");
   }
   for (int i = 0; i < kSilent; ++i) {
     silent.push_back(Connect(listen));
@@ -175,8 +175,10 @@ TEST_F(HostileClientsTest, BodiesThatNestLieOrOverflowChangeNothing) {
   const std::string listen = daemon_->listen();
   auto post = [&](const std::string& body, const std::string& length) {
     const int fd = Connect(listen);
-    Send(fd, "POST /api/v1/sweeps HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-                 "Connection: close\r\nContent-Length: " + length + "\r\n\r\n" + body);
+    Send(fd, "POST /api/v1/sweeps HTTP/1.1\r\nHost: " + listen +
+                 "\r\nContent-Type: application/json\r\n"
+                 "Connection: close\r\nContent-Length: " +
+                 length + "\r\n\r\n" + body);
     std::string answer = ReadUntilClosed(fd, 15);
     close(fd);
     return answer;

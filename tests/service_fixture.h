@@ -1,7 +1,8 @@
 // Test support: the real sandswimd and sandswim-worker as child processes, and a REST client.
 //
 // Daemon starts `sandswimd --listen 127.0.0.1:0` on a fresh SQLite file and data directory under
-// `dir`, and learns its port from the "listening on" line it prints. Worker starts
+// `dir`, and learns its port from the "listening on" line it prints. It serves with the token of
+// $SANDSWIM_TOKEN when the test set one (its REST calls send it), else with --no-token. Worker starts
 // `sandswim-worker --server URL`. Both run in their own process groups under the engine guard
 // (workers/launcher.h); Kill(SIGKILL) kills the process alone (the guard passes the SIGKILL on;
 // the process's own children, in their own groups, are left to their own guards), Stop() ends

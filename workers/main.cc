@@ -35,7 +35,9 @@ int main(int argc, char** argv) {
   app.add_option("--launcher", launcher_name, "mpirun | srun | direct (direct: one rank, no MPI launcher)")
       ->check(CLI::IsMember({"mpirun", "srun", "direct"}));
   app.add_option("--workdir", options.workdir, "run directories and the bed cache")->capture_default_str();
-  app.add_option("--token-file", token_file, "file holding the bearer token (else $SANDSWIM_TOKEN)");
+  app.add_option(
+      "--token-file", token_file,
+      "file holding the bearer token (else $SANDSWIM_TOKEN, else ./var/data/token for a daemon on loopback)");
   app.add_option("--engine", options.engine, "the LIGGGHTS executable")->capture_default_str();
   app.add_option("--heartbeat", options.heartbeat_every_s, "seconds between heartbeats")->capture_default_str();
   app.add_option("--stall-after", options.stall_after_s,
@@ -72,7 +74,12 @@ int main(int argc, char** argv) {
   if (options.name.empty()) options.name = options.host + ":" + std::to_string(getpid());
   options.as_root = geteuid() == 0;
 
-  auto token = sandswim::LoadToken(token_file);
+  // The daemon's host, for the token rule (platform/token.h): its default token file is read only
+  // for a daemon on this machine.
+  std::string server_host = server.substr(server.find("://") == std::string::npos ? 0 : server.find("://") + 3);
+  server_host = server_host.substr(
+      0, !server_host.empty() && server_host.front() == '[' ? server_host.find(']') + 1 : server_host.find(':'));
+  auto token = sandswim::LoadClientToken(token_file, server_host);
   if (!token.ok()) {
     spdlog::error("{}", token.status().ToString());
     return 2;

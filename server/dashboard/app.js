@@ -8,7 +8,28 @@
 // it shows finishes (that run's own row), so its cost does not grow with ticks.
 'use strict';
 
+// The token: sandswimd prints the dashboard's link with ?token=...; the page keeps it for this tab
+// (sessionStorage) and takes it out of the address bar and the history at once.
+(function takeTokenFromAddress() {
+  const params = new URLSearchParams(location.search);
+  if (!params.has('token')) return;
+  sessionStorage.setItem('sandswim-token', (params.get('token') || '').trim());
+  params.delete('token');
+  const rest = params.toString();
+  history.replaceState(history.state, '', location.pathname + (rest ? `?${rest}` : '') + location.hash);
+})();
+
 const $ = (sel, root = document) => root.querySelector(sel);
+
+// Widths come as data-width: the daemon's Content-Security-Policy drops style attributes, so they
+// are set through the CSSOM whenever such elements appear in the page.
+function applyWidths(node) {
+  if (node.nodeType !== 1) return;
+  if (node.dataset.width) node.style.width = node.dataset.width;
+  for (const el of node.querySelectorAll('[data-width]')) el.style.width = el.dataset.width;
+}
+new MutationObserver(records => { for (const r of records) r.addedNodes.forEach(applyWidths); })
+  .observe(document.documentElement, { childList: true, subtree: true });
 const main = () => $('#main');
 
 // ---- Formatting ---------------------------------------------------------------------------------
@@ -58,7 +79,7 @@ function progressHtml(counts, startedAt, now) {
       : ' · ETA unknown until a run finishes';
   }
   return `<div class="progress" title="${c.done} done, ${c.running} running, ${c.queued} queued, ${c.failed} failed">` +
-    ['done', 'running', 'failed', 'cancelled'].map(k => `<span class="p-${k}" style="width:${pct(k)}%"></span>`).join('') +
+    ['done', 'running', 'failed', 'cancelled'].map(k => `<span class="p-${k}" data-width="${pct(k)}%"></span>`).join('') +
     `</div><div class="progress-text" data-role="progress-text">${c.done} done · ${c.running} running · ${c.queued} queued · ` +
     `${c.failed} failed${c.cancelled ? ` · ${c.cancelled} cancelled` : ''}${eta}</div>`;
 }
@@ -66,6 +87,11 @@ function progressHtml(counts, startedAt, now) {
 // ---- The API ------------------------------------------------------------------------------------
 
 function token() { return sessionStorage.getItem('sandswim-token') || ''; }
+// An API address for an image or a link, which cannot send the Authorization header: the token
+// goes as ?access_token= (reads only; the daemon sends no Referer onwards).
+function authed(path) {
+  return token() ? `${path}${path.includes('?') ? '&' : '?'}access_token=${encodeURIComponent(token())}` : path;
+}
 function headers(extra = {}) {
   const h = Object.assign({}, extra);
   if (token()) h.Authorization = `Bearer ${token()}`;
@@ -98,7 +124,7 @@ function say(text, ok = false) {
   box.hidden = false;
 }
 function refusal(err) {
-  if (err.status === 401) return `Refused (401): ${err.message}. Paste the daemon's token in the token box above and try again.`;
+  if (err.status === 401) return `Refused (401): ${err.message}. Open the link sandswimd printed when it started (…/?token=…), or paste the daemon's token (the file token in its --data directory) in the token box above, and try again.`;
   return `Refused (${err.status || 'network'}): ${err.message}`;
 }
 
@@ -401,7 +427,7 @@ async function sweepUzPlot(el, sweep) {
 // The daemon's own U_z figure of a sweep (PLplot, as in the report), once it has a conclusive U_z
 // to draw (before that the daemon answers 422).
 const uzFigure = (sweep, caption) => `<figure><img class="figure" loading="lazy" alt="U_z of sweep ${esc(sweep.name)}" ` +
-  `src="/api/v1/sweeps/${sweep.id}/uz.svg"><figcaption>${esc(caption)}</figcaption></figure>`;
+  `src="${esc(authed(`/api/v1/sweeps/${sweep.id}/uz.svg`))}"><figcaption>${esc(caption)}</figcaption></figure>`;
 
 // ---- Pages --------------------------------------------------------------------------------------
 
@@ -452,7 +478,7 @@ async function campaignRunPage(id) {
     <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
       <dt>progress</dt><dd id="progress">${progressHtml(info.counts, null, daemonNow())}</dd>
       <dt>sweeps</dt><dd>${info.sweeps.map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
-      <dt>report</dt><dd><a href="/api/v1/campaign-runs/${id}/report">the HTML report</a> · <a href="/api/v1/campaign-runs/${id}/results?format=csv">results as CSV</a></dd></dl></section>
+      <dt>report</dt><dd><a href="${esc(authed(`/api/v1/campaign-runs/${id}/report`))}">the HTML report</a> · <a href="${esc(authed(`/api/v1/campaign-runs/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
     <section class="card"><h2>U_z against the swept parameter</h2><div id="uz-plots" class="grid2"></div>
@@ -469,7 +495,7 @@ async function campaignRunPage(id) {
     const n = c.counts || {};
     $('#claims').innerHTML = `<p>${n.holds || 0} hold · ${n.differs || 0} differ · ${n.inconclusive || 0} inconclusive. ${esc(c.note || '')}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>why</th></tr></thead><tbody>` +
       (c.claims || []).map(v => `<tr><td title="${esc(v.paper && v.paper.text)}"><b>${esc(v.id)}</b> ${esc(v.title)}</td>` +
-        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td style="white-space:normal">${esc(v.reason)}</td></tr>`).join('') + '</tbody></table>';
+        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td class="wrap">${esc(v.reason)}</td></tr>`).join('') + '</tbody></table>';
   }).catch(e => { $('#claims').textContent = `No verdicts: ${e.message}`; });
   const plots = $('#uz-plots'), figures = $('#figures');
   for (const sid of info.sweeps) {
@@ -483,7 +509,7 @@ async function campaignRunPage(id) {
     if (drawn) figures.insertAdjacentHTML('beforeend', uzFigure(sweep, `${sweep.name} (the daemon's figure)`));
   }
   if ((results.results || []).some(r => r.mode !== 'oscillatory' && r.state === 'done')) {
-    figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="modes" src="/api/v1/campaign-runs/${id}/modes.svg"><figcaption>the drive modes (paper Fig. 2)</figcaption></figure>`);
+    figures.insertAdjacentHTML('beforeend', `<figure><img class="figure" loading="lazy" alt="modes" src="${esc(authed(`/api/v1/campaign-runs/${id}/modes.svg`))}"><figcaption>the drive modes (paper Fig. 2)</figcaption></figure>`);
   }
   if (!figures.children.length) figures.innerHTML = '<p class="muted">The daemon draws its figures once runs have finished with a conclusive U_z.</p>';
 }
@@ -497,11 +523,11 @@ async function sweepPage(id) {
     <section class="card"><dl class="facts"><dt>submitted</dt><dd>${esc(when(sweep.created_at))}${sweep.campaign_run_id ? ` in <a href="/campaign-runs/${sweep.campaign_run_id}">campaign run ${sweep.campaign_run_id}</a>` : ''}</dd>
       <dt>progress</dt><dd id="progress">${progressHtml(sweep.counts, null, daemonNow())}</dd>
       <dt></dt><dd><button id="cancel" class="danger" ${sweep.cancelled ? 'disabled' : ''}>${sweep.cancelled ? 'cancelled' : 'Cancel this sweep'}</button>
-      <a href="/api/v1/sweeps/${id}/results?format=csv">results as CSV</a></dd></dl></section>
+      <a href="${esc(authed(`/api/v1/sweeps/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
     <section class="card grid2"><div><h2>U_z</h2><div id="uz-plot" class="plot"></div></div><div><h2>z(t)</h2><div id="zt-plot" class="plot"></div></div></section>
     <section class="card"><h2>The daemon's figures</h2><div class="grid2" id="figures">${sweep.counts.done > 0
-      ? `<figure><img class="figure" alt="trajectories" loading="lazy" src="/api/v1/sweeps/${id}/trajectories.svg"><figcaption>Δz(t) of every run</figcaption></figure>`
+      ? `<figure><img class="figure" alt="trajectories" loading="lazy" src="${esc(authed(`/api/v1/sweeps/${id}/trajectories.svg`))}"><figcaption>Δz(t) of every run</figcaption></figure>`
       : '<p class="muted">Drawn once runs have finished.</p>'}</div></section>`;
   const table = dataTable($('#runs'), resultColumns(false), results.results || [], { rowId: r => r.run_id });
   followRows(table);
@@ -540,7 +566,7 @@ async function runPage(id) {
         <dt>bed</dt><dd><a href="/beds/${run.bed_id}">bed ${run.bed_id}</a></dd>
         <dt>sweeps</dt><dd>${(run.sweeps || []).map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
         <dt>attempts</dt><dd>${run.attempts}${run.worker ? ` · worker ${esc(run.worker)}` : ''}</dd>
-        <dt>progress</dt><dd><span class="bar"><span id="sim-bar" style="width:0%"></span></span> <span id="sim-time"></span></dd>
+        <dt>progress</dt><dd><span class="bar"><span id="sim-bar" data-width="0%"></span></span> <span id="sim-time"></span></dd>
         ${err ? `<dt>failure</dt><dd id="failure" class="error">${esc(err.kind)}: ${esc(err.message || err.reason || JSON.stringify(err))}</dd>` : ''}
       </dl></section>
       <section class="card"><h2>z(t) of the SO</h2><div id="zt-plot" class="plot"></div><p class="muted" id="zt-note"></p></section>
@@ -552,7 +578,7 @@ async function runPage(id) {
         ${res.conclusive ? '' : `<dt>inconclusive</dt><dd>${esc(res.inconclusive_reason)}</dd>`}
         <dt>engine</dt><dd>${esc(res.engine_version)} · ${res.ranks} rank(s) · ${esc(res.launcher)} · ${num(res.wall_s)} s wall</dd></dl></section>` : ''}
       ${(run.snapshots_taken || []).length ? `<section class="card"><h2>The bed</h2><div class="grid2">${run.snapshots_taken.map(s =>
-        `<figure><img class="figure" loading="lazy" src="${esc(s.links.slice_svg)}" alt="slice"><figcaption>t = ${num(s.t_s)} s · <a href="${esc(s.links.vtk)}">VTK</a> · <a href="${esc(s.links.dump)}">dump</a></figcaption></figure>`).join('')}</div></section>` : ''}
+        `<figure><img class="figure" loading="lazy" src="${esc(authed(s.links.slice_svg))}" alt="slice"><figcaption>t = ${num(s.t_s)} s · <a href="${esc(authed(s.links.vtk))}">VTK</a> · <a href="${esc(authed(s.links.dump))}">dump</a></figcaption></figure>`).join('')}</div></section>` : ''}
       <section class="card"><h2>Log tail</h2><pre id="log-tail">${esc(run.log_tail || '(none yet)')}</pre></section>
       <section class="card"><details><summary>The deck</summary><pre id="deck">${esc(run.deck)}</pre></details></section>`;
   };
@@ -770,7 +796,7 @@ async function route() {
     else main().innerHTML = `<h1>Not found</h1><p>No page at ${esc(path)}. <a href="/">The overview</a>.</p>`;
   } catch (e) {
     main().innerHTML = `<h1>Cannot show this page</h1><p class="error">${esc(e.message)}</p>` +
-      (e.status === 401 ? '<p>This daemon needs its token to be read from here: paste it in the token box above.</p>' : '') +
+      (e.status === 401 ? '<p class="needs-token">This daemon needs its token: open the link sandswimd printed when it started (…/?token=…), or paste the token (the file <code>token</code> in its --data directory) in the token box above.</p>' : '') +
       (e.status === 404 ? '<p>It does not exist on this daemon. <a href="/">The overview</a>.</p>' : '');
   }
 }
@@ -778,7 +804,10 @@ async function route() {
 function start() {
   const tokenBox = $('#token');
   tokenBox.value = token();
-  tokenBox.addEventListener('change', () => { sessionStorage.setItem('sandswim-token', tokenBox.value.trim()); });
+  tokenBox.addEventListener('change', () => {
+    sessionStorage.setItem('sandswim-token', tokenBox.value.trim());
+    if ($('#main .needs-token')) route();  // a page the token was missing for: show it now
+  });
   document.addEventListener('click', e => {
     const a = e.target.closest('a');
     if (!a || a.target || e.ctrlKey || e.metaKey || e.shiftKey || a.origin !== location.origin || a.pathname.startsWith('/api/')) return;

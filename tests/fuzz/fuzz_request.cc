@@ -79,6 +79,7 @@ std::unique_ptr<Daemon> Start() {
   d->deps.clock = &d->clock;
   d->deps.data_dir = d->dir + "/data";
   d->deps.engine_version = "LIGGGHTS (Version fuzz)";
+  d->deps.host_policy.listen_host = "127.0.0.1";  // any port: the seeds say "Host: 127.0.0.1"
   d->server = std::make_unique<sandswim::GuardedHttpServer>();
   sandswim::RegisterRoutes(*d->server, d->deps);
   // Bound, never listened on: a server serves connections only while it has its socket.
@@ -87,8 +88,9 @@ std::unique_ptr<Daemon> Start() {
   const char* sweep = R"({"name": "fuzz", "scale": "smoke",
     "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
     "axes": [{"param": "Omega", "values": [-80, 80]}]})";
-  std::string request = "POST /api/v1/sweeps HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: " +
-                        std::to_string(std::char_traits<char>::length(sweep)) + "\r\n\r\n" + sweep;
+  std::string request =
+      "POST /api/v1/sweeps HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: " +
+      std::to_string(std::char_traits<char>::length(sweep)) + "\r\n\r\n" + sweep;
   ServeBytes(*d->server, request.data(), request.size());
   return d;
 }
