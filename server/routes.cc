@@ -67,6 +67,7 @@ std::string HttpTitle(int http_status) {
                                                      {415, "Unsupported Media Type"},
                                                      {416, "Range Not Satisfiable"},
                                                      {422, "Unprocessable Content"},
+                                                     {429, "Too Many Requests"},
                                                      {500, "Internal Server Error"},
                                                      {503, "Service Unavailable"}};
   auto it = kTitles.find(http_status);
@@ -930,8 +931,9 @@ namespace {
 
 // ---- Handlers: the dashboard's live feed (server/live_feed.h) -------------------------------
 
-// A stream says it is alive at least this often (proxies close silent connections).
-constexpr double kLiveKeepAliveS = 15;
+// A stream says it is alive at least this often: proxies close silent connections, and a write is
+// how the server learns that the page went away, so a closed stream frees its slot within ~2 s.
+constexpr double kLiveKeepAliveS = 2;
 
 LiveFeed* NeedLiveFeed(Call& c) {
   if (c.deps.live == nullptr) Fail(c, Status::Unavailable("this daemon serves no live feed"));
@@ -954,15 +956,19 @@ void GetLive(Call& c) {
 }
 
 // Server-sent events: "event: board" with the snapshot as data, at each new version; a comment
-// line every kLiveKeepAliveS otherwise. At most LiveFeed's max_streams at once (503 past them).
+// line every kLiveKeepAliveS otherwise. At most LiveFeed's max_streams at once, and its
+// max_streams_per_client from one peer address (503 past them).
 void GetLiveEvents(Call& c) {
   LiveFeed* feed = NeedLiveFeed(c);
   if (feed == nullptr) return;
-  if (!feed->OpenStream()) {  // expected under many pages: answered without the error log of a 5xx
+  const std::string client = c.req.remote_addr;
+  if (!feed->OpenStream(client)) {  // expected under many pages: answered without the error log of a 5xx
     c.res.set_header("Retry-After", "10");
     c.res.status = 503;
     c.res.set_content(api::ToJsonText(ProblemFor(
-                          Status::Unavailable("every live stream this daemon allows is open: poll GET /api/v1/live"), 503)),
+                          Status::Unavailable("every live stream this daemon allows (in all, or to this client) is "
+                                              "open: poll GET /api/v1/live"),
+                          503)),
                       kProblemType);
     return;
   }
@@ -985,7 +991,7 @@ void GetLiveEvents(Call& c) {
         }
         return sink.write(message.data(), message.size());  // false: the page went away
       },
-      [feed](bool) { feed->CloseStream(); });
+      [feed, client](bool) { feed->CloseStream(client); });
 }
 
 // The run's z(t) so far, from its heartbeats while it runs (empty once it is not running: its
@@ -1450,21 +1456,22 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
 // ---- ApiServer ---------------------------------------------------------------------------------
 
 namespace {
-ConnectionLimits LimitsWithHead(double head_timeout_s) {
-  ConnectionLimits limits;
-  limits.head_s = head_timeout_s;
-  return limits;
+// The worker protocol and /healthz: what the reserved threads serve (server/guarded_http_server.h),
+// so that no reader can cost a worker its lease.
+bool IsReservedRoute(const std::string& method, const std::string& path) {
+  const Route* route = FindRoute(method, path);
+  return route != nullptr && (route->access == Access::kWorker || route->path == "/healthz");
 }
 }  // namespace
 
-// Slow clients are cut off by the server's deadlines (server/guarded_http_server.h): a request head
-// in 10 s, a body at 256 KiB/s after 30 s; one read that receives nothing may take 60 s.
-ApiServer::ApiServer(Deps deps, double head_timeout_s)
-    : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(LimitsWithHead(head_timeout_s))) {
-  // Keep-alive connections hold a thread each; give concurrent workers and clients room: 64, and
-  // as many again as the dashboard's live streams may hold (LiveFeed's max_streams, 128).
-  server_->new_task_queue = [] { return new httplib::ThreadPool(64 + 128); };
-  server_->set_keep_alive_max_count(100000);
+// Slow, idle and greedy clients are held off by the server (server/guarded_http_server.h).
+ApiServer::ApiServer(Deps deps, ConnectionLimits limits)
+    : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(limits)) {
+  server_->SetReserved(IsReservedRoute);
+  server_->SetRefusalBody([](int http_status, const std::string& detail) {
+    const Status why = http_status == 429 ? Status::ResourceExhausted("", detail) : Status::Unavailable(detail);
+    return api::ToJsonText(ProblemFor(why, http_status));
+  });
   // Without TCP_NODELAY a small response written as headers + body meets the client's delayed
   // ACK: ~40 ms per request on loopback (bench_daemon: 173 -> thousands of cycles/s).
   server_->set_tcp_nodelay(true);

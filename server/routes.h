@@ -31,6 +31,7 @@
 
 #include "core/status.h"
 #include "platform/clock.h"
+#include "server/connection_limits.h"
 #include "server/lease_queue.h"
 #include "server/store.h"
 
@@ -112,11 +113,12 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token);
 
 class GuardedHttpServer;  // server/guarded_http_server.h
 
-// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib. A client must
-// send a request head within `head_timeout_s` of its first byte (server/guarded_http_server.h).
+// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib. Clients are
+// held to `limits` (server/guarded_http_server.h); the worker protocol and /healthz are the
+// requests its reserved threads serve.
 class ApiServer {
  public:
-  explicit ApiServer(Deps deps, double head_timeout_s = 10);
+  explicit ApiServer(Deps deps, ConnectionLimits limits = {});
   ~ApiServer();
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;
