@@ -47,6 +47,8 @@ struct Flags {
   double http_head_timeout_s = 10;
   sandswim::ConnectionLimits http;  // the rest of the HTTP server's limits
   int live_streams_per_client = 8;
+  int64_t max_queued_runs = sandswim::kMaxQueuedRuns;
+  int max_renderers = 4;
 };
 
 void AddFlags(CLI::App& app, Flags& flags) {
@@ -90,6 +92,15 @@ void AddFlags(CLI::App& app, Flags& flags) {
                  "requests one keep-alive connection may carry before the server closes it")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
+  app.add_option("--max-queued-runs", flags.max_queued_runs,
+                 "runs queued or running across all sweeps; a submission past it is refused (503) and stores nothing")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{1}, int64_t{100000000}));
+  app.add_option("--max-renderers", flags.max_renderers,
+                 "figure renderers (sandswim-render processes) at once; a figure past them waits up to 10 s, "
+                 "then is answered 503 with Retry-After")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
   app.add_option("--live-streams-per-client", flags.live_streams_per_client,
                  "dashboard live streams (GET /api/v1/live/events) one peer address may hold open; past them "
                  "503 (the page polls instead)")
@@ -289,7 +300,7 @@ int main(int argc, char** argv) {
         "to sandswimd (cmake --build build; deploy/install.sh)",
         renderer_path);
   }
-  sandswim::SubprocessRenderer renderer(&renderer_processes, renderer_path);
+  sandswim::SubprocessRenderer renderer(&renderer_processes, renderer_path, /*timeout_s=*/120, flags.max_renderers);
   sandswim::Deps deps;
   deps.renderer = &renderer;
   deps.store = store->get();
@@ -298,6 +309,7 @@ int main(int argc, char** argv) {
   deps.data_dir = flags.data;
   deps.engine_version = flags.engine_version;
   deps.token = *token;
+  deps.max_queued_runs = flags.max_queued_runs;
   // The dashboard's live view: one snapshot a second however many pages are open (server/live_feed.h).
   sandswim::LiveFeed live(store->get(), &clock, /*tick_s=*/1.0, /*max_streams=*/128, /*sweeps=*/50,
                           /*campaign_runs=*/20, flags.live_streams_per_client);

@@ -317,8 +317,12 @@ void SubmitSweeps(Call& c) {
   auto request = ParseSubmitRequest(*body);
   if (!request.ok()) return Fail(c, request.status());
   if (c.req.has_header("Idempotency-Key")) request->idempotency_key = c.req.get_header_value("Idempotency-Key");
+  request->max_queued_runs = c.deps.max_queued_runs;
   auto result = Submit(*c.deps.store, *request, c.deps.engine_version, c.deps.clock->Now());
-  if (!result.ok()) return Fail(c, result.status());
+  if (!result.ok()) {
+    if (result.status().code() == StatusCode::kUnavailable) c.res.set_header("Retry-After", "60");  // the queue cap
+    return Fail(c, result.status());
+  }
   json reply = *result;
   std::string location;
   if (result->campaign_run_id) {
@@ -636,6 +640,7 @@ void GetCampaignReport(Call& c) {
 void LeaseJob(Call& c) {
   auto request = ParseMessage<api::LeaseRequest>(c.body, "LeaseRequest", /*allow_empty=*/true);
   if (!request.ok()) return Fail(c, request.status());
+  if (Status s = api::LimitLengths(*request); !s.ok()) return Fail(c, s);
   auto grant = c.deps.leases->Lease(*request);
   if (!grant.ok()) return Fail(c, grant.status());
   if (!*grant) {
@@ -656,6 +661,7 @@ void HeartbeatLease(Call& c) {
 void CompleteLease(Call& c) {
   auto completion = ParseMessage<api::Completion>(c.body, "Completion", /*allow_empty=*/false);
   if (!completion.ok()) return Fail(c, completion.status());
+  if (Status s = api::LimitLengths(*completion); !s.ok()) return Fail(c, s);
   auto reply = c.deps.leases->Complete(PathToken(c), *completion);
   if (!reply.ok()) return Fail(c, reply.status());
   SendJson(c, 200, *reply);
@@ -664,6 +670,7 @@ void CompleteLease(Call& c) {
 void ReleaseLease(Call& c) {
   auto request = ParseMessage<api::ReleaseRequest>(c.body, "ReleaseRequest", /*allow_empty=*/true);
   if (!request.ok()) return Fail(c, request.status());
+  if (Status s = api::LimitLengths(*request); !s.ok()) return Fail(c, s);
   auto reply = c.deps.leases->Release(PathToken(c), request->reason);
   if (!reply.ok()) return Fail(c, reply.status());
   SendJson(c, 200, *reply);
@@ -710,8 +717,9 @@ struct Upload {
 };
 
 // Receives the body into `upload` (at most max_restart_body bytes: 413 past it). False when it
-// answered the request with a problem instead. The body is read first either way, so a refusal
-// reaches the client instead of a reset.
+// answered the request with a problem instead. Called once the lease is checked: a body is read
+// only for a lease that may upload it (a refusal before it ends the connection; the server then
+// drains what the client still sends for a moment, so that the answer reaches it, not a reset).
 bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Upload& upload) {
   static std::atomic<uint64_t> upload_counter{0};
   std::filesystem::path dir = UploadDir(c.deps.data_dir);
@@ -763,15 +771,26 @@ bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Up
   return true;
 }
 
+// An upload refused before its body is read: the rest of the body is not read either, so the
+// connection ends with the answer.
+void RefuseUpload(Call& c, const Status& why) {
+  c.res.set_header("Connection", "close");
+  Fail(c, why);
+}
+
 void UploadBedRestart(Call& c) {
   auto id = PathId(c);
-  if (!id.ok()) return Fail(c, id.status());
-  Upload upload;
-  if (!ReceiveUpload(c, "bed-" + std::to_string(*id), "a bed restart", upload)) return;
+  if (!id.ok()) return RefuseUpload(c, id.status());
   std::string token = c.req.get_param_value("token");
   std::string sha256 = c.req.get_header_value("X-Sha256");
-  if (token.empty()) return Fail(c, Status::InvalidArgument("token", "the query parameter token= is required"));
-  if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  if (token.empty()) return RefuseUpload(c, Status::InvalidArgument("token", "the query parameter token= is required"));
+  if (sha256.empty()) return RefuseUpload(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  // The lease, and that it is this bed's, before a byte of the body reaches the disk.
+  if (Status held = c.deps.leases->CheckUploadLease(token, api::JobKind::kBed, *id); !held.ok()) {
+    return RefuseUpload(c, held);
+  }
+  Upload upload;
+  if (!ReceiveUpload(c, "bed-" + std::to_string(*id), "a bed restart", upload)) return;
   Status s = c.deps.leases->PutBedRestart(token, upload.mapped.view(), sha256, c.deps.data_dir);
   if (!s.ok()) return Fail(c, s);
   SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
@@ -779,12 +798,15 @@ void UploadBedRestart(Call& c) {
 
 // A full-bed snapshot of a running run, handed in before the completion that lists it.
 void UploadRunSnapshot(Call& c) {
+  auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
+  if (!n.ok()) return RefuseUpload(c, n.status());
+  std::string sha256 = c.req.get_header_value("X-Sha256");
+  if (sha256.empty()) return RefuseUpload(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  if (Status held = c.deps.leases->CheckUploadLease(PathToken(c), api::JobKind::kRun); !held.ok()) {
+    return RefuseUpload(c, held);
+  }
   Upload upload;
   if (!ReceiveUpload(c, "snapshot", "a snapshot", upload)) return;
-  auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
-  if (!n.ok()) return Fail(c, n.status());
-  std::string sha256 = c.req.get_header_value("X-Sha256");
-  if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
   Status s = c.deps.leases->PutRunSnapshot(PathToken(c), static_cast<int>(*n), upload.mapped.view(), sha256);
   if (!s.ok()) return Fail(c, s);
   SendJson(c, 200, {{"n", *n}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});

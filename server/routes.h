@@ -34,6 +34,7 @@
 #include "server/connection_limits.h"
 #include "server/lease_queue.h"
 #include "server/store.h"
+#include "server/submission.h"
 
 namespace httplib {
 class Server;
@@ -57,6 +58,7 @@ struct Deps {
   std::string token;           // bearer token; empty: no auth
   size_t max_json_body = kMaxJsonBodyBytes;
   size_t max_restart_body = kMaxRestartBodyBytes;
+  int64_t max_queued_runs = kMaxQueuedRuns;  // submissions past it: 503 (server/submission.h)
   // Draws figures not drawn before (server/plot_renderer.h): sandswimd's runs sandswim-render, a
   // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
   PlotRenderer* renderer = nullptr;
