@@ -189,4 +189,50 @@ int AttemptsFor(const std::string& failure_kind, int max_attempts) {
   return max_attempts;
 }
 
+namespace {
+
+Status LimitName(const std::string& value, const std::string& field) {
+  if (value.size() <= kMaxWorkerNameLength) return Status::Ok();
+  return Status::InvalidArgument(field, "may be at most " + std::to_string(kMaxWorkerNameLength) + " bytes, got " +
+                                            std::to_string(value.size()));
+}
+
+void CutText(std::string& text) {
+  if (text.size() <= kMaxWorkerTextLength) return;
+  const size_t was = text.size();
+  size_t cut = kMaxWorkerTextLength;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a character
+  text.resize(cut);
+  text += "\n[cut at " + std::to_string(cut) + " of " + std::to_string(was) + " bytes by the daemon]";
+}
+
+}  // namespace
+
+Status LimitLengths(LeaseRequest& r) {
+  SANDSWIM_RETURN_IF_ERROR(LimitName(r.worker, "worker"));
+  SANDSWIM_RETURN_IF_ERROR(LimitName(r.host, "host"));
+  return LimitName(r.slurm_job, "slurm_job");
+}
+
+Status LimitLengths(Completion& c) {
+  SANDSWIM_RETURN_IF_ERROR(LimitName(c.execution.engine_version, "execution.engine_version"));
+  SANDSWIM_RETURN_IF_ERROR(LimitName(c.execution.host, "execution.host"));
+  SANDSWIM_RETURN_IF_ERROR(LimitName(c.execution.launcher, "execution.launcher"));
+  if (c.next) {
+    Status s = LimitLengths(*c.next);
+    if (!s.ok()) return s.WithFieldPrefix("next");
+  }
+  if (c.failure) {
+    SANDSWIM_RETURN_IF_ERROR(LimitName(c.failure->kind, "failure.kind"));
+    CutText(c.failure->message);
+  }
+  CutText(c.log_tail);
+  return Status::Ok();
+}
+
+Status LimitLengths(ReleaseRequest& r) {
+  CutText(r.reason);
+  return Status::Ok();
+}
+
 }  // namespace sandswim::api

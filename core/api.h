@@ -34,6 +34,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/precision.h"
+#include "core/status.h"
 
 namespace sandswim::api {
 
@@ -263,6 +264,18 @@ struct ReleaseRequest {
   std::string reason;  // for the event log, e.g. "slurm allocation 123 ends"
 };
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(ReleaseRequest, reason)
+
+// Lengths the daemon takes in worker messages: every string a worker sends is stored and shown on
+// the live feed, and a 1 MB worker name once made every live snapshot 19 MB. Names (worker, host,
+// slurm_job, engine_version, launcher) past kMaxWorkerNameLength are refused (InvalidArgument
+// naming the field); free text (a failure's message, the log tail, a release reason) is cut to
+// kMaxWorkerTextLength bytes, at a UTF-8 boundary, with a note -- a completion is never refused
+// for a long log. Real values are far inside: "host:pid" names, a 40-line log tail.
+inline constexpr size_t kMaxWorkerNameLength = 256;
+inline constexpr size_t kMaxWorkerTextLength = 16 * 1024;
+Status LimitLengths(LeaseRequest& r);
+Status LimitLengths(Completion& c);
+Status LimitLengths(ReleaseRequest& r);
 
 }  // namespace sandswim::api
 

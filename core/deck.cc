@@ -84,7 +84,14 @@ Values CommonValues(const Scale& s) {
   };
 }
 
-long long StepsFor(double seconds) { return std::llround(seconds / kMaterials.dt); }
+// Steps in `seconds`, clamped before the conversion to an integer: Validate() keeps a point's
+// durations in [kMinDurationS, kMaxDurationS] (8.64e9 steps at most), and a value outside that
+// (NaN included) must not reach llround, whose result is undefined past long long.
+long long StepsFor(double seconds) {
+  const double steps = seconds / kMaterials.dt;
+  if (!(steps > 0)) return 0;
+  return std::llround(std::min(steps, kMaxDurationS / kMaterials.dt));
+}
 
 }  // namespace
 
@@ -180,13 +187,16 @@ std::string RenderBedDeck(const Scale& s, int replicate) {
 int OmegaUpdateSteps(const Point& p) {
   if (!p.has_vibration()) return kOmegaUpdateSteps;
   const double period_steps = 1.0 / (p.f * kMaterials.dt);
-  const auto most = static_cast<long long>(std::floor(period_steps / kMinOmegaUpdatesPerPeriod));
-  return static_cast<int>(std::clamp<long long>(most, 1, kOmegaUpdateSteps));
+  // Clamped as a double first: a tiny f makes period_steps past long long (or inf), and the cast
+  // of such a value is undefined.
+  const double most = std::floor(period_steps / kMinOmegaUpdatesPerPeriod);
+  if (!(most >= 1)) return 1;
+  return static_cast<int>(std::min(most, static_cast<double>(kOmegaUpdateSteps)));
 }
 
 long long DriveSteps(const Point& p, const std::optional<PrecisionTarget>& target) {
   const long long chunk = OmegaUpdateSteps(p);
-  long long steps = StepsFor(RunDuration(p, target));
+  const long long steps = std::max(1LL, StepsFor(RunDuration(p, target)));  // never a 0-step deck
   return (steps + chunk - 1) / chunk * chunk;
 }
 

@@ -31,6 +31,15 @@ Status CheckPositive(const char* field, double v, double cap, const char* unit) 
   return Status::Ok();
 }
 
+// As CheckPositive, with a lower bound above 0 (said with its reason).
+Status CheckAtLeast(const char* field, double v, double least, double cap, const char* unit, const char* why) {
+  SANDSWIM_RETURN_IF_ERROR(CheckPositive(field, v, cap, unit));
+  if (v < least)
+    return Status::InvalidArgument(field,
+                                   "must be >= " + Num(least) + " " + unit + " (" + why + "), got " + Num(v));
+  return Status::Ok();
+}
+
 Status CheckSigned(const char* field, double v, double cap, const char* unit) {
   if (!std::isfinite(v)) return Status::InvalidArgument(field, "must be a finite number");
   if (std::fabs(v) > cap)
@@ -97,7 +106,8 @@ Point OscillatoryPoint(double A, double f, double Omega, double duration_s) {
 Status Validate(const Point& p) {
   if (p.has_vibration()) {
     SANDSWIM_RETURN_IF_ERROR(CheckPositive("A", p.A, kMaxAmplitudeM, "m"));
-    SANDSWIM_RETURN_IF_ERROR(CheckPositive("f", p.f, kMaxFrequencyHz, "Hz"));
+    SANDSWIM_RETURN_IF_ERROR(CheckAtLeast("f", p.f, kMinFrequencyHz, kMaxFrequencyHz, "Hz",
+                                          "one period must fit in the longest run, a day"));
   } else {
     SANDSWIM_RETURN_IF_ERROR(CheckUnused("A", p.A, p.mode));
     SANDSWIM_RETURN_IF_ERROR(CheckUnused("f", p.f, p.mode));
@@ -112,7 +122,8 @@ Status Validate(const Point& p) {
   } else {
     SANDSWIM_RETURN_IF_ERROR(CheckUnused("omega", p.omega, p.mode));
   }
-  SANDSWIM_RETURN_IF_ERROR(CheckPositive("duration_s", p.duration_s, kMaxDurationS, "s"));
+  SANDSWIM_RETURN_IF_ERROR(CheckAtLeast("duration_s", p.duration_s, kMinDurationS, kMaxDurationS, "s",
+                                        "the deck's shortest loop, 100 steps of 1e-5 s"));
   return Status::Ok();
 }
 

@@ -41,6 +41,14 @@ inline constexpr double kMaxAmplitudeM = 1.0;          // A
 inline constexpr double kMaxFrequencyHz = 1000.0;      // f
 inline constexpr double kMaxAngularVelocity = 5000.0;  // |Omega|, |omega| in rad/s
 inline constexpr double kMaxDurationS = 86400.0;       // a day of physical time
+// Lower bounds, from what a deck must hold. A run needs at least one whole drive period (U_z is
+// taken over whole periods), so a period may be at most the longest run: f >= 1 / kMaxDurationS.
+// A run needs at least one step; the deck advances in chunks of the 1 ms omega-update loop
+// (kOmegaUpdateSteps steps of dt = 1e-5 s), so anything shorter than 1 ms renders the same deck
+// as 1 ms: duration_s >= 1 ms. Both keep every step count the deck converts to an integer finite
+// and far inside long long (f = 1e-300 once made a 5e303-step period).
+inline constexpr double kMinFrequencyHz = 1.0 / kMaxDurationS;  // ~1.16e-5 Hz
+inline constexpr double kMinDurationS = 1e-3;
 
 struct Point {
   Mode mode = Mode::kOscillatory;

@@ -375,6 +375,14 @@ Status TooMany(size_t cap) {
                                                " points (at most " + std::to_string(cap) + " runs per submission)");
 }
 
+// A sweep that passes what is left of the submission's cap (`cap` runs in all) once the sweeps
+// before it took `used`: said in runs of the submission, not as "more than 0 points".
+Status PastSubmissionCap(const Status& st, size_t cap, size_t used) {
+  return Status::ResourceExhausted(st.field(), "with the " + std::to_string(used) +
+                                                   " runs of the sweeps before it, the submission comes to more than " +
+                                                   std::to_string(cap) + " runs, the most one submission may hold");
+}
+
 // The path of an axis' i-th value, as the user wrote it.
 Status AtAxisValue(const Status& s, const SweepAxis& axis, size_t axis_index, size_t value_index) {
   std::string path = "axes[" + std::to_string(axis_index) + "]";
@@ -686,7 +694,10 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
     auto points = ExpandSweep(s, (options.max_runs - expanded) / k);
     if (!points.ok()) {
       Status st = points.status();
-      if (k > 1 && st.code() == StatusCode::kResourceExhausted)
+      const size_t used = options.runs_before + expanded;
+      if (used > 0 && st.code() == StatusCode::kResourceExhausted)
+        st = PastSubmissionCap(st, options.runs_before + options.max_runs, used);
+      else if (k > 1 && st.code() == StatusCode::kResourceExhausted)
         st = Status::ResourceExhausted("replicates", "its points on " + std::to_string(k) +
                                                          " beds each come to more than " +
                                                          std::to_string(options.max_runs - expanded) + " runs");
@@ -816,6 +827,7 @@ Result<std::vector<ScalePlan>> PlanSubmission(const std::vector<SweepSpec>& swee
     for (size_t i : g.sweep_indexes) group_sweeps.push_back(sweeps[i]);
     PlanOptions group_options = options;
     group_options.max_runs = options.max_runs > planned ? options.max_runs - planned : 0;
+    group_options.runs_before = options.runs_before + planned;
     Result<Plan> plan = PlanSweeps(group_sweeps, *FindScale(g.scale), engine_version, group_options);
     if (!plan.ok()) {
       Status s = plan.status();

@@ -134,7 +134,8 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
 // scale) gives the same bytes again when the run is leased). `threads` > 1 renders on that many
 // threads; the plan is identical to the single-threaded one.
 struct PlanOptions {
-  size_t max_runs = kMaxRunsPerSubmission;
+  size_t max_runs = kMaxRunsPerSubmission;  // what is left of the submission's cap for these sweeps
+  size_t runs_before = 0;                   // runs of the submission planned before these (other scales)
   bool keep_decks = true;
   int threads = 1;
 };

@@ -181,13 +181,13 @@ TEST_F(SweepSchemaTest, PointCapsAreThePointCaps) {
   EXPECT_EQ(defs_.at("A").at("maximum").get<double>(), kMaxAmplitudeM);
   EXPECT_EQ(defs_.at("A").at("exclusiveMinimum").get<double>(), 0);
   EXPECT_EQ(defs_.at("f").at("maximum").get<double>(), kMaxFrequencyHz);
-  EXPECT_EQ(defs_.at("f").at("exclusiveMinimum").get<double>(), 0);
+  EXPECT_EQ(defs_.at("f").at("minimum").get<double>(), kMinFrequencyHz);
   for (const char* w : {"Omega", "omega"}) {
     EXPECT_EQ(defs_.at(w).at("maximum").get<double>(), kMaxAngularVelocity) << w;
     EXPECT_EQ(defs_.at(w).at("minimum").get<double>(), -kMaxAngularVelocity) << w;
   }
   EXPECT_EQ(defs_.at("duration_s").at("maximum").get<double>(), kMaxDurationS);
-  EXPECT_EQ(defs_.at("duration_s").at("exclusiveMinimum").get<double>(), 0);
+  EXPECT_EQ(defs_.at("duration_s").at("minimum").get<double>(), kMinDurationS);
   EXPECT_EQ(defs_.at("name").at("maxLength"), kMaxNameLength);
   EXPECT_EQ(defs_.at("name").at("pattern"), "^[A-Za-z0-9._-]+$");
   EXPECT_EQ(defs_.at("description").at("maxLength"), kMaxDescriptionLength);

@@ -3,6 +3,9 @@
 #include <arpa/inet.h>
 #include <netdb.h>
 #include <poll.h>
+#include <sys/epoll.h>
+#include <sys/eventfd.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -12,6 +15,8 @@
 #include <cstdlib>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <utility>
 
 #include <spdlog/spdlog.h>
 
@@ -51,7 +56,7 @@ void AddressOf(int fd, bool peer, std::string& ip, int& port) {
 
 // One connection's socket, read and written by the library's request handling, with the
 // deadline of the part of a request now arriving (none while a handler works or a response
-// streams).
+// streams). Between requests the poller fills its buffer (ReadAvailable) until a whole head is in.
 class DeadlineStream final : public httplib::Stream {
  public:
   DeadlineStream(int fd, const ConnectionLimits& limits) : fd_(fd), limits_(limits) {}
@@ -59,11 +64,53 @@ class DeadlineStream final : public httplib::Stream {
   void set_deadline(std::optional<Steady::time_point> d, const char* what) {
     deadline_ = d;
     what_ = what;
+    missed_ = "";
   }
   // What missed its deadline ("" when nothing did).
   const char* missed() const { return missed_; }
   // Bytes received and not yet read.
   bool has_buffered() const { return begin_ < end_; }
+  // Bytes the library has read, in all.
+  uint64_t consumed() const { return consumed_; }
+  // Drops what has arrived, without waiting, adding its size to `*dropped`: false once the peer
+  // closed (or the socket failed).
+  bool Discard(uint64_t* dropped) {
+    begin_ = end_ = 0;
+    char sink[16 * 1024];
+    for (;;) {
+      const ssize_t n = recv(fd_, sink, sizeof sink, MSG_DONTWAIT);
+      if (n > 0) {
+        *dropped += static_cast<uint64_t>(n);
+        continue;
+      }
+      if (n < 0 && errno == EINTR) continue;
+      return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK);
+    }
+  }
+  bool full() const { return begin_ == 0 && end_ == sizeof buffer_; }
+  // The buffer holds a request line and headers up to their blank line.
+  bool has_whole_head() const {
+    const std::string_view v(buffer_ + begin_, end_ - begin_);
+    return v.find("\n\r\n") != std::string_view::npos || v.find("\n\n") != std::string_view::npos;
+  }
+  // Takes what has arrived without waiting: > 0 bytes taken, 0 the peer closed, < 0 nothing
+  // (errno says why; EAGAIN: nothing yet).
+  ssize_t ReadAvailable() {
+    if (begin_ > 0) {
+      std::copy(buffer_ + begin_, buffer_ + end_, buffer_);
+      end_ -= begin_;
+      begin_ = 0;
+    }
+    if (end_ == sizeof buffer_) {
+      errno = ENOBUFS;
+      return -1;
+    }
+    ssize_t n;
+    do n = recv(fd_, buffer_ + end_, sizeof buffer_ - end_, MSG_DONTWAIT);
+    while (n < 0 && errno == EINTR);
+    if (n > 0) end_ += static_cast<size_t>(n);
+    return n;
+  }
 
   bool is_readable() const override {
     return begin_ < end_ || PollUntil(fd_, POLLIN, ReadUntil());
@@ -99,6 +146,7 @@ class DeadlineStream final : public httplib::Stream {
     const size_t take = std::min(size, end_ - begin_);
     std::copy(buffer_ + begin_, buffer_ + begin_ + take, ptr);
     begin_ += take;
+    consumed_ += take;
     return static_cast<ssize_t>(take);
   }
   ssize_t write(const char* ptr, size_t size) override {
@@ -125,6 +173,21 @@ class DeadlineStream final : public httplib::Stream {
   const char* missed_ = "";
   char buffer_[16 * 1024];
   size_t begin_ = 0, end_ = 0;
+  uint64_t consumed_ = 0;
+};
+
+// How long a connection answered before its request body was read (a refusal) goes on being
+// drained, so that the client, still sending, reads the answer instead of a reset.
+constexpr double kDrainS = 2;
+constexpr uint64_t kDrainBytes = 8 << 20;  // past them the client is not reading: closed
+
+// A request refused after its head was read, before any handler ran: answered here, and the
+// connection closed (thrown out of the library's setup callback, which runs outside its handlers'
+// exception handling).
+struct Refused {
+  int status;
+  int retry_after_s;
+  std::string detail;
 };
 
 }  // namespace
@@ -157,39 +220,353 @@ std::optional<std::chrono::steady_clock::time_point> GuardedHttpServer::BodyDead
   return std::nullopt;
 }
 
-bool GuardedHttpServer::ServeConnection(socket_t sock) { return process_and_close_socket(sock); }
-
-bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
-  DeadlineStream stream(sock, limits_);
-  bool ret = false;
+struct GuardedHttpServer::Connection {
+  Connection(int socket, const ConnectionLimits& limits) : fd(socket), stream(socket, limits) {}
+  int fd;
   std::string peer = "?";
   int port = 0;
-  AddressOf(sock, /*peer=*/true, peer, port);
-  for (size_t count = keep_alive_max_count_; count > 0 && svr_sock_ != INVALID_SOCKET; --count) {
+  DeadlineStream stream;
+  bool counted = false;     // in open_ and per_client_
+  bool restricted = false;  // opened past its client's connection cap: reserved requests only
+  bool draining = false;    // answered and half-closed: what still arrives is dropped until idle_until
+  uint64_t drained = 0;     // bytes dropped so far
+  int served = 0;
+  Steady::time_point idle_until;                  // parked without a byte: closed then
+  std::optional<Steady::time_point> head_started;  // the next head's first byte
+};
+
+// The library hands each accepted socket to a task queue. This one admits it on the accept
+// loop's own thread (Admit: a few system calls, never a wait) and ends the server's threads when
+// the accept loop ends.
+class GuardedHttpServer::Queue final : public httplib::TaskQueue {
+ public:
+  explicit Queue(GuardedHttpServer* server) : server_(server) { server_->StartThreads(); }
+  void enqueue(std::function<void()> fn) override { fn(); }
+  void shutdown() override { server_->StopThreads(); }
+
+ private:
+  GuardedHttpServer* server_;
+};
+
+GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits) : limits_(limits) {
+  new_task_queue = [this] { return new Queue(this); };
+}
+
+GuardedHttpServer::~GuardedHttpServer() { StopThreads(); }
+
+void GuardedHttpServer::SetReserved(std::function<bool(const std::string&, const std::string&)> reserved) {
+  reserved_ = std::move(reserved);
+}
+
+void GuardedHttpServer::SetRefusalBody(std::function<std::string(int, const std::string&)> body) {
+  refusal_body_ = std::move(body);
+}
+
+int GuardedHttpServer::open_connections() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return open_;
+}
+
+void GuardedHttpServer::StartThreads() {
+  std::lock_guard<std::mutex> lock(mu_);
+  stopping_ = false;
+  max_open_ = std::max(1, limits_.max_connections);
+  // Every open connection is a file descriptor: leave room for the database, uploads and renderers.
+  rlimit files{};
+  if (getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur != RLIM_INFINITY) {
+    max_open_ = std::max(16, std::min<int>(max_open_, static_cast<int>(files.rlim_cur) - 256));
+  }
+  epoll_fd_ = epoll_create1(EPOLL_CLOEXEC);
+  wake_fd_ = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  epoll_event wake{};
+  wake.events = EPOLLIN;
+  wake.data.fd = wake_fd_;
+  epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, wake_fd_, &wake);
+  poller_ = std::thread([this] { PollLoop(); });
+  const int n = std::max(1, limits_.threads) + std::max(0, limits_.reserved_threads);
+  for (int i = 0; i < n; ++i) servers_.emplace_back([this] { ServeLoop(); });
+}
+
+void GuardedHttpServer::StopThreads() {
+  std::vector<std::unique_ptr<Connection>> dropped;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!poller_.joinable()) return;
+    stopping_ = true;
+    for (auto& [fd, c] : parked_) dropped.push_back(std::move(c));
+    parked_.clear();
+    for (auto& c : ready_) dropped.push_back(std::move(c));
+    ready_.clear();
+  }
+  for (auto& c : dropped) Close(std::move(c));
+  const uint64_t one = 1;
+  (void)!::write(wake_fd_, &one, sizeof one);
+  work_ready_.notify_all();
+  poller_.join();
+  for (std::thread& t : servers_) t.join();  // requests in flight end first (streams: when their feed stops)
+  servers_.clear();
+  std::lock_guard<std::mutex> lock(mu_);
+  close(epoll_fd_);
+  close(wake_fd_);
+  epoll_fd_ = wake_fd_ = -1;
+}
+
+bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
+  Admit(sock);
+  return true;
+}
+
+void GuardedHttpServer::Admit(socket_t sock) {
+  auto c = std::make_unique<Connection>(sock, limits_);
+  AddressOf(sock, /*peer=*/true, c->peer, c->port);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!stopping_ && open_ < max_open_) {
+      ++open_;
+      const int n = ++per_client_[c->peer];
+      c->counted = true;
+      c->restricted = n > limits_.max_connections_per_client;
+    }
+  }
+  if (!c->counted) {  // past the fd budget: no thread, no read, no answer
+    client_refused_.fetch_add(1);
+    spdlog::warn("closed a connection from {} at once: {} connections are open, the most this daemon keeps",
+                 c->peer, max_open_);
+    return Close(std::move(c));
+  }
+  c->idle_until = Steady::now() + Seconds(limits_.idle_s);
+  Park(std::move(c));
+}
+
+void GuardedHttpServer::Park(std::unique_ptr<Connection> c) {
+  if (!c->draining && (c->stream.has_whole_head() || c->stream.full())) return Enqueue(std::move(c));
+  std::unique_lock<std::mutex> lock(mu_);
+  if (stopping_) {
+    lock.unlock();
+    return Close(std::move(c));
+  }
+  epoll_event ev{};
+  ev.events = EPOLLIN | EPOLLONESHOT;
+  ev.data.fd = c->fd;
+  const int fd = c->fd;
+  parked_[fd] = std::move(c);
+  if (epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &ev) != 0) {
+    auto failed = std::move(parked_[fd]);
+    parked_.erase(fd);
+    lock.unlock();
+    Close(std::move(failed));
+  }
+}
+
+void GuardedHttpServer::Enqueue(std::unique_ptr<Connection> c) {
+  std::unique_lock<std::mutex> lock(mu_);
+  if (stopping_) {
+    lock.unlock();
+    return Close(std::move(c));
+  }
+  ready_.push_back(std::move(c));
+  lock.unlock();
+  work_ready_.notify_one();
+}
+
+void GuardedHttpServer::Close(std::unique_ptr<Connection> c) {
+  shutdown(c->fd, SHUT_RDWR);
+  close(c->fd);
+  if (!c->counted) return;
+  std::lock_guard<std::mutex> lock(mu_);
+  --open_;
+  auto it = per_client_.find(c->peer);
+  if (it != per_client_.end() && --it->second <= 0) per_client_.erase(it);
+}
+
+// Waits for parked connections' bytes; a connection whose head is whole goes to a serving thread.
+// Every 0.1 s, the parked connections past their deadlines are closed.
+void GuardedHttpServer::PollLoop() {
+  epoll_event events[256];
+  Steady::time_point next_sweep = Steady::now();
+  for (;;) {
+    const int n = epoll_wait(epoll_fd_, events, 256, 100);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (stopping_) return;
+    }
+    for (int i = 0; i < n; ++i) {
+      const int fd = events[i].data.fd;
+      if (fd == wake_fd_) continue;
+      std::unique_ptr<Connection> c;
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        auto it = parked_.find(fd);
+        if (it == parked_.end()) continue;
+        c = std::move(it->second);
+        parked_.erase(it);
+        epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, fd, nullptr);
+      }
+      if (c->draining) {
+        if (c->stream.Discard(&c->drained) && c->drained <= kDrainBytes) {
+          Park(std::move(c));
+        } else {
+          Close(std::move(c));  // the client has read the answer and closed
+        }
+        continue;
+      }
+      const ssize_t got = c->stream.ReadAvailable();
+      if (got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != ENOBUFS)) {
+        Close(std::move(c));  // the client closed (or the socket failed) between requests
+        continue;
+      }
+      if (got > 0 && !c->head_started) c->head_started = Steady::now();
+      Park(std::move(c));  // to a serving thread once its head is whole
+    }
+    const Steady::time_point now = Steady::now();
+    if (now < next_sweep) continue;
+    next_sweep = now + std::chrono::milliseconds(100);
+    std::vector<std::unique_ptr<Connection>> slow, idle;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      for (auto it = parked_.begin(); it != parked_.end();) {
+        Connection& c = *it->second;
+        const bool head_late = !c.draining && c.head_started && now >= *c.head_started + Seconds(limits_.head_s);
+        const bool idle_over = !c.head_started && now >= c.idle_until;
+        if (!head_late && !idle_over) {
+          ++it;
+          continue;
+        }
+        epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, c.fd, nullptr);
+        (head_late ? slow : idle).push_back(std::move(it->second));
+        it = parked_.erase(it);
+      }
+    }
+    for (auto& c : slow) {
+      slow_closed_.fetch_add(1);
+      spdlog::warn("closed a connection from {}: its request head did not arrive in time (a slow or stalled "
+                   "client; limit: {} s from its first byte)",
+                   c->peer, limits_.head_s);
+      Close(std::move(c));
+    }
+    for (auto& c : idle) Close(std::move(c));
+  }
+}
+
+void GuardedHttpServer::ServeLoop() {
+  for (;;) {
+    std::unique_ptr<Connection> c;
+    {
+      std::unique_lock<std::mutex> lock(mu_);
+      work_ready_.wait(lock, [this] { return stopping_ || !ready_.empty(); });
+      if (ready_.empty()) return;  // stopping
+      c = std::move(ready_.front());
+      ready_.pop_front();
+    }
+    const After after = ServeOne(*c);
+    if (after == After::kPark) {
+      c->head_started.reset();
+      if (c->stream.has_buffered()) c->head_started = Steady::now();  // the next request, sent behind this one
+      c->idle_until = Steady::now() + Seconds(limits_.idle_s);
+      Park(std::move(c));
+    } else if (after == After::kDrain) {
+      shutdown(c->fd, SHUT_WR);  // the answer is sent whole; then FIN
+      c->draining = true;
+      c->head_started.reset();
+      c->idle_until = Steady::now() + Seconds(kDrainS);
+      Park(std::move(c));
+    } else {
+      Close(std::move(c));
+    }
+  }
+}
+
+GuardedHttpServer::After GuardedHttpServer::ServeOne(Connection& c) {
+  DeadlineStream& stream = c.stream;
+  const Steady::time_point head_from = c.head_started.value_or(Steady::now());
+  stream.set_deadline(head_from + Seconds(limits_.head_s), "request head");
+  ++c.served;
+  // Keep-alive ends when the readers' threads are more than half taken (clients then reconnect
+  // instead of holding a connection each while the daemon is loaded), after the last request a
+  // connection may carry, and for a connection past its client's cap.
+  const bool busy = readers_in_flight_.load() * 2 > limits_.threads;
+  const bool last = c.restricted || busy || c.served >= limits_.max_requests_per_connection ||
+                    svr_sock_ == INVALID_SOCKET;
+  bool holds_reader = false;
+  bool connection_closed = false;
+  bool ret = false;
+  // Whether the handler read the whole body: a connection with body bytes left unread cannot carry
+  // another request (they would be read as one).
+  uint64_t body_from = 0;
+  std::optional<uint64_t> body_length;
+  bool body_unframed = false;  // chunked, or read to the end: never kept alive
+  try {
+    ret = process_request(stream, last, connection_closed, [&](httplib::Request& req) {
+      const bool reserved = reserved_ && reserved_(req.method, req.path);
+      if (!reserved) {
+        if (c.restricted) {
+          throw Refused{429, 2,
+                        "this client has more than " + std::to_string(limits_.max_connections_per_client) +
+                            " connections open: reuse one, or close some and retry"};
+        }
+        if (readers_in_flight_.fetch_add(1) >= limits_.threads) {
+          readers_in_flight_.fetch_sub(1);
+          throw Refused{503, 1,
+                        "all " + std::to_string(limits_.threads) +
+                            " request threads are busy (the worker protocol and /healthz have threads of their own): "
+                            "retry shortly"};
+        }
+        holds_reader = true;
+      }
+      stream.set_deadline(BodyDeadline(req), "request body");
+      body_from = stream.consumed();
+      if (req.has_header("Content-Length")) {
+        body_length = std::strtoull(req.get_header_value("Content-Length").c_str(), nullptr, 10);
+      } else if (req.has_header("Transfer-Encoding") || req.method == "POST" || req.method == "PUT" ||
+                 req.method == "PATCH") {
+        body_unframed = true;
+      }
+    });
+  } catch (const Refused& r) {
+    if (holds_reader) readers_in_flight_.fetch_sub(1);
+    (r.status == 429 ? client_refused_ : busy_refused_).fetch_add(1);
+    const std::string body = refusal_body_ ? refusal_body_(r.status, r.detail) : r.detail;
+    const std::string head = "HTTP/1.1 " + std::to_string(r.status) +
+                             (r.status == 429 ? " Too Many Requests" : " Service Unavailable") +
+                             "\r\nContent-Type: " + (refusal_body_ ? "application/problem+json" : "text/plain") +
+                             "\r\nRetry-After: " + std::to_string(r.retry_after_s) +
+                             "\r\nConnection: close\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n";
+    stream.set_deadline(std::nullopt, "");
+    stream.write(head.data(), head.size());
+    stream.write(body.data(), body.size());
+    return After::kDrain;
+  }
+  if (holds_reader) readers_in_flight_.fetch_sub(1);
+  if (*stream.missed() != '\0') {
+    slow_closed_.fetch_add(1);
+    spdlog::warn("closed a connection from {}: its {} did not arrive in time (a slow or stalled client; "
+                 "limits: head {} s, body {} s + {} KiB/s)",
+                 c.peer, stream.missed(), limits_.head_s, limits_.body_grace_s, limits_.min_body_bytes_per_s / 1024);
+    return After::kClose;
+  }
+  stream.set_deadline(std::nullopt, "");
+  const bool body_left = body_unframed || (body_length && stream.consumed() - body_from < *body_length);
+  if (ret && body_left) return After::kDrain;  // answered before its body was read (e.g. a refused upload)
+  return !ret || connection_closed || last ? After::kClose : After::kPark;
+}
+
+bool GuardedHttpServer::ServeConnection(socket_t sock) {
+  Connection c(sock, limits_);
+  AddressOf(sock, /*peer=*/true, c.peer, c.port);
+  for (;;) {
     // Silence before a request: a tenth of a second at a time, so that a stopping server ends it.
     const Steady::time_point idle_until = Steady::now() + Seconds(limits_.idle_s);
-    bool readable = stream.has_buffered();  // a request sent right behind the last one
-    while (!readable && svr_sock_ != INVALID_SOCKET && Steady::now() < idle_until) {
+    bool readable = c.stream.has_buffered();  // a request sent right behind the last one
+    while (!readable && Steady::now() < idle_until) {
       readable = PollUntil(sock, POLLIN, std::min(idle_until, Steady::now() + std::chrono::milliseconds(100)));
     }
     if (!readable) break;
-    stream.set_deadline(Steady::now() + Seconds(limits_.head_s), "request head");
-    bool connection_closed = false;
-    ret = process_request(stream, /*close_connection=*/count == 1, connection_closed,
-                          [&](httplib::Request& req) { stream.set_deadline(BodyDeadline(req), "request body"); });
-    if (*stream.missed() != '\0') {
-      slow_closed_.fetch_add(1);
-      spdlog::warn("closed a connection from {}: its {} did not arrive in time (a slow or stalled client; "
-                   "limits: head {} s, body {} s + {} KiB/s)",
-                   peer, stream.missed(), limits_.head_s, limits_.body_grace_s, limits_.min_body_bytes_per_s / 1024);
-      break;
-    }
-    stream.set_deadline(std::nullopt, "");
-    if (!ret || connection_closed) break;
+    c.head_started = Steady::now();
+    if (ServeOne(c) != After::kPark) break;
   }
   shutdown(sock, SHUT_RDWR);
   close(sock);
-  return ret;
+  return true;
 }
 
 }  // namespace sandswim

@@ -7,9 +7,13 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 namespace sandswim {
@@ -23,14 +27,28 @@ double SecondsSince(Steady::time_point t) { return std::chrono::duration<double>
 // 0.5 s + its length at 1 MB/s.
 class GuardedHttpServerTest : public ::testing::Test {
  protected:
+  // What a fixture changes of the limits below.
+  virtual void Adjust(ConnectionLimits&) {}
+
   void SetUp() override {
     ConnectionLimits limits;
     limits.idle_s = 0.5;
     limits.head_s = 0.5;
     limits.body_grace_s = 0.5;
     limits.min_body_bytes_per_s = 1e6;
+    Adjust(limits);
     server_ = std::make_unique<GuardedHttpServer>(limits);
+    server_->SetReserved([](const std::string&, const std::string& path) { return path == "/reserved"; });
     server_->Get("/hello", [](const httplib::Request&, httplib::Response& res) { res.set_content("hi", "text/plain"); });
+    server_->Get("/reserved", [](const httplib::Request&, httplib::Response& res) { res.set_content("yes", "text/plain"); });
+    // Holds its thread until Release().
+    server_->Get("/block", [this](const httplib::Request&, httplib::Response& res) {
+      std::unique_lock<std::mutex> lock(gate_mu_);
+      ++blocked_;
+      gate_.notify_all();
+      gate_.wait(lock, [this] { return released_; });
+      res.set_content("released", "text/plain");
+    });
     // Reads its body, then works for longer than any deadline.
     server_->Post("/body", [](const httplib::Request&, httplib::Response& res, const httplib::ContentReader& reader) {
       size_t n = 0;
@@ -58,8 +76,29 @@ class GuardedHttpServerTest : public ::testing::Test {
     for (int i = 0; i < 5000 && !server_->is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   void TearDown() override {
+    Release();
     server_->stop();
     thread_.join();
+  }
+  void WaitBlocked(int n) {
+    std::unique_lock<std::mutex> lock(gate_mu_);
+    gate_.wait(lock, [&] { return blocked_ >= n; });
+  }
+  void Release() {
+    std::lock_guard<std::mutex> lock(gate_mu_);
+    released_ = true;
+    gate_.notify_all();
+  }
+  // One request on a connection of its own; the whole answer (the server closes after it).
+  std::string Ask(const std::string& path) {
+    const int fd = Connect();
+    Send(fd, "GET " + path + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    std::string got;
+    char buf[4096];
+    ssize_t n;
+    while ((n = recv(fd, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+    close(fd);
+    return got;
   }
 
   int Connect() {
@@ -91,6 +130,10 @@ class GuardedHttpServerTest : public ::testing::Test {
   std::unique_ptr<GuardedHttpServer> server_;
   int port_ = 0;
   std::thread thread_;
+  std::mutex gate_mu_;
+  std::condition_variable gate_;
+  int blocked_ = 0;
+  bool released_ = false;
 };
 
 TEST_F(GuardedHttpServerTest, ARequestHeadSentSlowlyIsCutOffWhileOthersAreServed) {
@@ -193,6 +236,92 @@ TEST_F(GuardedHttpServerTest, OneConnectionServesRequestAfterRequest) {
     ASSERT_TRUE(r) << "request " << i;
     EXPECT_EQ(r->body, "hi");
   }
+}
+
+// Two threads for any request, one more for reserved ones; keep-alive connections kept 30 s.
+class GuardedHttpServerPoolTest : public GuardedHttpServerTest {
+ protected:
+  void Adjust(ConnectionLimits& limits) override {
+    limits.threads = 2;
+    limits.reserved_threads = 1;
+    limits.idle_s = 30;
+    limits.max_requests_per_connection = 3;
+  }
+};
+
+// Readers hold every thread they may have: the next reader is answered 503 at once, and a reserved
+// request (the worker protocol, /healthz in the daemon) is served on the thread kept for it.
+TEST_F(GuardedHttpServerPoolTest, ReservedRequestsAreServedWhileReadersHoldEveryOtherThread) {
+  std::vector<std::thread> readers;
+  for (int i = 0; i < 2; ++i) {
+    readers.emplace_back([this] {
+      httplib::Client c("127.0.0.1", port_);
+      c.set_read_timeout(60, 0);
+      auto r = c.Get("/block");
+      ASSERT_TRUE(r);
+      EXPECT_EQ(r->body, "released");
+    });
+  }
+  WaitBlocked(2);
+  const std::string busy = Ask("/hello");
+  EXPECT_THAT(busy, ::testing::StartsWith("HTTP/1.1 503")) << busy;
+  EXPECT_THAT(busy, ::testing::HasSubstr("Retry-After: 1"));
+  EXPECT_THAT(busy, ::testing::HasSubstr("request threads are busy"));
+  const std::string reserved = Ask("/reserved");
+  EXPECT_THAT(reserved, ::testing::StartsWith("HTTP/1.1 200")) << reserved;
+  EXPECT_EQ(server_->busy_refused(), 1);
+  Release();
+  for (std::thread& t : readers) t.join();
+  EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200"));
+}
+
+// 40 idle keep-alive connections on a server of three threads: none of them holds a thread, so a
+// new client is served at once, and they are still open.
+TEST_F(GuardedHttpServerPoolTest, IdleKeepAliveConnectionsHoldNoThread) {
+  std::vector<std::unique_ptr<httplib::Client>> idle;
+  for (int i = 0; i < 40; ++i) {
+    idle.push_back(std::make_unique<httplib::Client>("127.0.0.1", port_));
+    idle.back()->set_keep_alive(true);
+    auto r = idle.back()->Get("/hello");
+    ASSERT_TRUE(r) << "client " << i;
+  }
+  EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200"));
+  EXPECT_GE(server_->open_connections(), 40);
+}
+
+// A connection carries at most max_requests_per_connection requests: the last says so.
+TEST_F(GuardedHttpServerPoolTest, AConnectionCarriesALimitedNumberOfRequests) {
+  httplib::Client c("127.0.0.1", port_);
+  c.set_keep_alive(true);
+  for (int i = 1; i <= 3; ++i) {
+    auto r = c.Get("/hello");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->get_header_value("Connection"), i == 3 ? "close" : "") << "request " << i;
+  }
+}
+
+// Three connections per client; past them, a connection is served only for reserved requests.
+class GuardedHttpServerClientCapTest : public GuardedHttpServerTest {
+ protected:
+  void Adjust(ConnectionLimits& limits) override {
+    limits.idle_s = 30;
+    limits.max_connections_per_client = 3;
+  }
+};
+
+TEST_F(GuardedHttpServerClientCapTest, AClientPastItsConnectionsIsServedOnlyReservedRequests) {
+  std::vector<int> held;
+  for (int i = 0; i < 3; ++i) held.push_back(Connect());
+  const std::string refused = Ask("/hello");
+  EXPECT_THAT(refused, ::testing::StartsWith("HTTP/1.1 429")) << refused;
+  EXPECT_THAT(refused, ::testing::HasSubstr("Retry-After: 2"));
+  EXPECT_THAT(refused, ::testing::HasSubstr("more than 3 connections open"));
+  const std::string reserved = Ask("/reserved");
+  EXPECT_THAT(reserved, ::testing::StartsWith("HTTP/1.1 200")) << reserved;
+  EXPECT_EQ(server_->client_refused(), 1);
+  for (int fd : held) close(fd);
+  for (int i = 0; i < 500 && server_->open_connections() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200")) << "the client's connections were closed";
 }
 
 }  // namespace

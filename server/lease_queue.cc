@@ -67,6 +67,19 @@ Status RequireCurrent(const JobRow& job, const std::string& token, api::JobKind 
   return Status::Ok();
 }
 
+// The uploads' lease check: `token` is a current, uncompleted lease of `kind`; its lease row.
+Result<LeaseRow> CurrentUploadLease(Transaction& t, const std::string& token, api::JobKind kind, int max_attempts) {
+  Result<LeaseRow> lease = jobs::FindLease(t, token);
+  if (!lease.ok()) return lease.status();
+  const std::string noun = kind == api::JobKind::kBed ? "bed" : "run";
+  if (lease->kind != kind) return Status::Conflict("this lease is not a " + noun + "'s");
+  if (lease->completed) return Status::Conflict("this " + noun + " lease already completed");
+  Result<JobRow> job = jobs::LoadJob(t, kind, lease->job_id, max_attempts);
+  if (!job.ok()) return job.status();
+  SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
+  return lease;
+}
+
 // Moves a running job to queued (retry) or failed, recording why. Returns the new state.
 Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
                                 const std::string& kind_text, const std::string& message, bool retryable, double now) {
@@ -508,13 +521,8 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
   // Check the lease, write the file without holding the store, then record it under a second
   // check: the token may have been lost while the bytes were being written.
   auto check = [&](Transaction& t) -> Result<std::pair<int64_t, std::string>> {
-    Result<LeaseRow> lease = jobs::FindLease(t, token);
+    Result<LeaseRow> lease = CurrentUploadLease(t, token, api::JobKind::kBed, options_.max_attempts);
     if (!lease.ok()) return lease.status();
-    if (lease->kind != api::JobKind::kBed) return Status::Conflict("this lease is not a bed's");
-    if (lease->completed) return Status::Conflict("this bed lease already completed");
-    Result<JobRow> job = jobs::LoadJob(t, api::JobKind::kBed, lease->job_id, options_.max_attempts);
-    if (!job.ok()) return job.status();
-    SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, api::JobKind::kBed));
     Result<jobs::BedRow> bed = jobs::LoadBed(t, lease->job_id);
     if (!bed.ok()) return bed.status();
     return std::make_pair(lease->job_id, bed->key);
@@ -540,6 +548,18 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
   return t->Commit();
 }
 
+Status LeaseQueue::CheckUploadLease(const std::string& token, api::JobKind kind, std::optional<int64_t> job_id) {
+  Result<Transaction> t = store_->BeginRead();
+  if (!t.ok()) return t.status();
+  Result<LeaseRow> lease = CurrentUploadLease(*t, token, kind, options_.max_attempts);
+  if (!lease.ok()) return lease.status();
+  if (job_id && lease->job_id != *job_id) {
+    return Status::Conflict("this lease is for bed " + std::to_string(lease->job_id) + ", not bed " +
+                            std::to_string(*job_id) + " (the path's id)");
+  }
+  return Status::Ok();
+}
+
 Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string_view bytes,
                                   const std::string& sha256) {
   if (options_.data_dir.empty()) return Status::FailedPrecondition("n", "this daemon keeps no snapshots");
@@ -554,13 +574,8 @@ Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string
   {
     Result<Transaction> t = store_->BeginRead();
     if (!t.ok()) return t.status();
-    Result<LeaseRow> lease = jobs::FindLease(*t, token);
+    Result<LeaseRow> lease = CurrentUploadLease(*t, token, api::JobKind::kRun, options_.max_attempts);
     if (!lease.ok()) return lease.status();
-    if (lease->kind != api::JobKind::kRun) return Status::Conflict("this lease is not a run's");
-    if (lease->completed) return Status::Conflict("this run lease already completed");
-    Result<JobRow> job = jobs::LoadJob(*t, api::JobKind::kRun, lease->job_id, options_.max_attempts);
-    if (!job.ok()) return job.status();
-    SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, api::JobKind::kRun));
     Statement st = t->Prepare("SELECT snapshots FROM runs WHERE id = ?");
     st.Bind(1, lease->job_id);
     Result<bool> row = st.Step();

@@ -166,6 +166,11 @@ class LeaseQueue {
   // snapshot not uploaded, or uploaded with other bytes, is refused (kFailedPrecondition). kConflict
   // when the token is not a current run lease; kFailedPrecondition when the queue has no data_dir.
   Status PutRunSnapshot(const std::string& token, int idx, std::string_view bytes, const std::string& sha256);
+
+  // The lease check of PutBedRestart / PutRunSnapshot alone, made before an upload's body is read
+  // (a body is written to disk as it arrives): kConflict when `token` is not a current,
+  // uncompleted lease of `kind`, or (`job_id` given) is a lease of another job.
+  Status CheckUploadLease(const std::string& token, api::JobKind kind, std::optional<int64_t> job_id = std::nullopt);
   // Removes snapshot files no done run recorded (a run that failed or was leased again after an
   // upload). A running run's files stay: its worker may still complete it, listing them (the
   // daemon stopped between the upload and the completion). Called at start-up. Returns how many

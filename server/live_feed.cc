@@ -13,13 +13,15 @@ namespace sandswim {
 
 using json = nlohmann::json;
 
-LiveFeed::LiveFeed(Store* store, Clock* clock, double tick_s, int max_streams, int sweeps, int campaign_runs)
+LiveFeed::LiveFeed(Store* store, Clock* clock, double tick_s, int max_streams, int sweeps, int campaign_runs,
+                   int max_streams_per_client)
     : store_(store),
       clock_(clock),
       tick_(tick_s),
       max_streams_(max_streams),
       sweeps_(sweeps),
-      campaign_runs_(campaign_runs) {}
+      campaign_runs_(campaign_runs),
+      max_streams_per_client_(max_streams_per_client) {}
 
 std::string LiveFeed::BuildContent() {
   try {
@@ -127,14 +129,24 @@ void LiveFeed::Stop() {
   changed_.notify_all();
 }
 
-bool LiveFeed::OpenStream() {
-  int n = streams_.fetch_add(1) + 1;
-  if (n <= max_streams_ && !stopped()) return true;
-  streams_.fetch_sub(1);
-  return false;
+bool LiveFeed::OpenStream(const std::string& client) {
+  std::lock_guard<std::mutex> lock(clients_mu_);
+  int& mine = streams_by_client_[client];
+  if (mine >= max_streams_per_client_ || streams_.load() >= max_streams_ || stopped()) {
+    if (mine == 0) streams_by_client_.erase(client);
+    return false;
+  }
+  ++mine;
+  streams_.fetch_add(1);
+  return true;
 }
 
-void LiveFeed::CloseStream() { streams_.fetch_sub(1); }
+void LiveFeed::CloseStream(const std::string& client) {
+  std::lock_guard<std::mutex> lock(clients_mu_);
+  auto it = streams_by_client_.find(client);
+  if (it != streams_by_client_.end() && --it->second <= 0) streams_by_client_.erase(it);
+  streams_.fetch_sub(1);
+}
 
 void LiveFeed::RecordBeat(int64_t run_id, double sim_time_s, double so_z) {
   const auto now = std::chrono::steady_clock::now();

@@ -6,7 +6,7 @@
 // Cost: a snapshot is built at most once per tick however many pages watch, and only while
 // someone asks (nothing runs when no page is open). Pages either wait for the next version
 // (WaitNewer: GET /api/v1/live/events, server-sent events, one HTTP thread each, at most
-// max_streams at once) or poll (Current: GET /api/v1/live, with an ETag). A snapshot whose
+// max_streams at once and max_streams_per_client from one peer address) or poll (Current: GET /api/v1/live, with an ETag). A snapshot whose
 // content equals the last keeps its version, so a page hears only of changes.
 //
 // Trails: a running run's z(t) as its heartbeats reported it (one point per heartbeat), kept in
@@ -53,7 +53,7 @@ class LiveFeed {
   // Shown: the newest `sweeps` sweeps and `campaign_runs` campaign runs, and up to 1,000 running
   // runs. REQUIRES: store and clock outlive the feed; tick_s > 0.
   LiveFeed(Store* store, Clock* clock, double tick_s = 1.0, int max_streams = 128, int sweeps = 50,
-           int campaign_runs = 20);
+           int campaign_runs = 20, int max_streams_per_client = 8);
 
   // The snapshot, rebuilt first when the last is a tick old (one caller builds; the others wait
   // for it and share it). A build that fails keeps the last snapshot (logged).
@@ -65,10 +65,11 @@ class LiveFeed {
   void Stop();
   bool stopped() const { return stopped_.load(); }
 
-  // A stream holds an HTTP thread: OpenStream says false once max_streams are open (the page then
-  // polls). Every true is paired with one CloseStream.
-  bool OpenStream();
-  void CloseStream();
+  // A stream holds an HTTP thread: OpenStream says false once max_streams are open, or
+  // max_streams_per_client from `client` (a peer address) (the page then polls). Every true is
+  // paired with one CloseStream of the same client.
+  bool OpenStream(const std::string& client = "");
+  void CloseStream(const std::string& client = "");
   int open_streams() const { return streams_.load(); }
 
   // From a heartbeat the lease queue accepted. A beat earlier than the trail's last starts the
@@ -88,7 +89,7 @@ class LiveFeed {
   Store* store_;
   Clock* clock_;
   const std::chrono::duration<double> tick_;
-  const int max_streams_, sweeps_, campaign_runs_;
+  const int max_streams_, sweeps_, campaign_runs_, max_streams_per_client_;
 
   std::mutex build_mu_;  // one builder at a time
   mutable std::mutex mu_;
@@ -102,6 +103,8 @@ class LiveFeed {
 
   std::atomic<bool> stopped_{false};
   std::atomic<int> streams_{0};
+  std::mutex clients_mu_;
+  std::map<std::string, int> streams_by_client_;
   std::atomic<uint64_t> builds_{0};
 };
 

@@ -96,5 +96,19 @@ TEST_F(LiveFeedTest, StreamsAreCapped) {
   EXPECT_EQ(feed.open_streams(), 0);
 }
 
+TEST_F(LiveFeedTest, StreamsAreCappedPerClient) {
+  LiveFeed feed(store_.get(), &clock_, 1.0, /*max_streams=*/10, /*sweeps=*/50, /*campaign_runs=*/20,
+                /*max_streams_per_client=*/2);
+  EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
+  EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
+  EXPECT_FALSE(feed.OpenStream("127.0.0.1")) << "a third from one client";
+  EXPECT_TRUE(feed.OpenStream("127.0.0.2")) << "another client has its own";
+  EXPECT_EQ(feed.open_streams(), 3);
+  feed.CloseStream("127.0.0.1");
+  EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
+  for (const char* client : {"127.0.0.1", "127.0.0.1", "127.0.0.2"}) feed.CloseStream(client);
+  EXPECT_EQ(feed.open_streams(), 0);
+}
+
 }  // namespace
 }  // namespace sandswim

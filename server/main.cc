@@ -49,6 +49,10 @@ struct Flags {
   double scheduler_tick_s = 20;
   double slurm_check_s = 30;
   double http_head_timeout_s = 10;
+  sandswim::ConnectionLimits http;  // the rest of the HTTP server's limits
+  int live_streams_per_client = 8;
+  int64_t max_queued_runs = sandswim::kMaxQueuedRuns;
+  int max_renderers = 4;
 };
 
 void AddFlags(CLI::App& app, Flags& flags) {
@@ -82,6 +86,42 @@ void AddFlags(CLI::App& app, Flags& flags) {
                  "(a slower connection is closed)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--http-threads", flags.http.threads,
+                 "requests served at once (any route); past them a request is answered 503 with Retry-After")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 4096));
+  app.add_option("--http-reserved-threads", flags.http.reserved_threads,
+                 "more threads that serve only the worker protocol and /healthz, so that readers cannot cost "
+                 "a worker its lease")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--http-connections-per-client", flags.http.max_connections_per_client,
+                 "connections one peer address may open; past them its new connections are served only for the "
+                 "worker protocol and /healthz, anything else answered 429 with Retry-After")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--http-max-connections", flags.http.max_connections,
+                 "connections open in all (at most the file limit allows); past them a new one is closed at once")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 1000000));
+  app.add_option("--http-requests-per-connection", flags.http.max_requests_per_connection,
+                 "requests one keep-alive connection may carry before the server closes it")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
+  app.add_option("--max-queued-runs", flags.max_queued_runs,
+                 "runs queued or running across all sweeps; a submission past it is refused (503) and stores nothing")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{1}, int64_t{100000000}));
+  app.add_option("--max-renderers", flags.max_renderers,
+                 "figure renderers (sandswim-render processes) at once; a figure past them waits up to 10 s, "
+                 "then is answered 503 with Retry-After")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
+  app.add_option("--live-streams-per-client", flags.live_streams_per_client,
+                 "dashboard live streams (GET /api/v1/live/events) one peer address may hold open; past them "
+                 "503 (the page polls instead)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 128));
   app.add_option("--engine-version", flags.engine_version, "LIGGGHTS version string (default: ask liggghts)");
   app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
@@ -338,7 +378,7 @@ int main(int argc, char** argv) {
         "to sandswimd (cmake --build build; deploy/install.sh)",
         renderer_path);
   }
-  sandswim::SubprocessRenderer renderer(&renderer_processes, renderer_path);
+  sandswim::SubprocessRenderer renderer(&renderer_processes, renderer_path, /*timeout_s=*/120, flags.max_renderers);
   sandswim::Deps deps;
   deps.renderer = &renderer;
   deps.store = store->get();
@@ -349,12 +389,15 @@ int main(int argc, char** argv) {
   deps.token = token->token;
   deps.public_reads = flags.public_reads;
   deps.host_policy.allowed_names = flags.allow_hosts;
+  deps.max_queued_runs = flags.max_queued_runs;
   // The dashboard's live view: one snapshot a second however many pages are open (server/live_feed.h).
-  sandswim::LiveFeed live(store->get(), &clock);
+  sandswim::LiveFeed live(store->get(), &clock, /*tick_s=*/1.0, /*max_streams=*/128, /*sweeps=*/50,
+                          /*campaign_runs=*/20, flags.live_streams_per_client);
   leases.SetProgressObserver(
       [&live](int64_t run_id, const sandswim::api::Heartbeat& beat) { live.RecordBeat(run_id, beat.sim_time_s, beat.so_z); });
   deps.live = &live;
-  sandswim::ApiServer server(deps, flags.http_head_timeout_s);
+  flags.http.head_s = flags.http_head_timeout_s;
+  sandswim::ApiServer server(deps, flags.http);
   auto port = server.Bind(*address);
   if (!port.ok()) return Die(port.status(), "stop whatever holds the port, or pass another --listen");
   std::thread serve([&server] { server.Serve(); });

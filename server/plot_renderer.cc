@@ -3,6 +3,8 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -62,11 +64,45 @@ std::string ReadAll(const std::string& path) {
 
 }  // namespace
 
-SubprocessRenderer::SubprocessRenderer(Subprocesses* processes, std::string program, double timeout_s)
-    : processes_(processes), program_(std::move(program)), timeout_s_(timeout_s) {}
+SubprocessRenderer::SubprocessRenderer(Subprocesses* processes, std::string program, double timeout_s,
+                                       int max_running, double wait_s)
+    : processes_(processes),
+      program_(std::move(program)),
+      timeout_s_(timeout_s),
+      max_running_(std::max(1, max_running)),
+      wait_s_(wait_s) {}
+
+int SubprocessRenderer::running() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return running_;
+}
+
+int SubprocessRenderer::most_running() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return most_running_;
+}
 
 Result<std::string> SubprocessRenderer::Render(const Plot& plot, ImageFormat format) {
   SANDSWIM_RETURN_IF_ERROR(CheckPlot(plot));
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    if (!freed_.wait_for(lock, std::chrono::duration<double>(wait_s_), [this] { return running_ < max_running_; })) {
+      return Status::Unavailable("all " + std::to_string(max_running_) + " figure renderers are busy and none was free in " +
+                                 Num(wait_s_, 3) + " s: retry shortly");
+    }
+    ++running_;
+    most_running_ = std::max(most_running_, running_);
+  }
+  Result<std::string> drawn = RenderNow(plot, format);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    --running_;
+  }
+  freed_.notify_one();
+  return drawn;
+}
+
+Result<std::string> SubprocessRenderer::RenderNow(const Plot& plot, ImageFormat format) {
   Result<TempFile> input = TempFile::Make("sandswim-plot");
   if (!input.ok()) return input.status();
   Result<TempFile> output = TempFile::Make("sandswim-figure");

@@ -14,11 +14,18 @@
 // is started; Internal for a renderer that failed or died (its exit, its last stderr lines);
 // Unavailable when it cannot be started or ran out of time; IOError for the temporary files.
 //
+// Concurrency: SubprocessRenderer runs at most `max_running` renderers at once (46 parallel figure
+// requests once started 43); a figure past them waits up to `wait_s` for one to finish, then is
+// Unavailable ("retry shortly"; the route answers 503 with Retry-After). A figure drawn before is
+// served from the cache (server/figures.h) without a renderer.
+//
 // Thread safety: both are safe from any thread; SubprocessRenderer draws several figures at once
 // in separate processes.
 #ifndef SANDSWIM_SERVER_PLOT_RENDERER_H_
 #define SANDSWIM_SERVER_PLOT_RENDERER_H_
 
+#include <condition_variable>
+#include <mutex>
 #include <string>
 
 #include "core/status.h"
@@ -40,14 +47,26 @@ class InProcessRenderer : public PlotRenderer {
 
 class SubprocessRenderer : public PlotRenderer {
  public:
-  // `program`: the path of sandswim-render. `processes` must outlive this.
-  SubprocessRenderer(Subprocesses* processes, std::string program, double timeout_s = 120);
+  // `program`: the path of sandswim-render. `processes` must outlive this. REQUIRES: max_running >= 1.
+  SubprocessRenderer(Subprocesses* processes, std::string program, double timeout_s = 120, int max_running = 4,
+                     double wait_s = 10);
   Result<std::string> Render(const Plot& plot, ImageFormat format) override;
 
+  int running() const;       // renderers now running
+  int most_running() const;  // the most that ever ran at once (for tests and benchmarks)
+
  private:
+  Result<std::string> RenderNow(const Plot& plot, ImageFormat format);
+
   Subprocesses* processes_;
   std::string program_;
   double timeout_s_;
+  const int max_running_;
+  const double wait_s_;
+  mutable std::mutex mu_;
+  std::condition_variable freed_;
+  int running_ = 0;
+  int most_running_ = 0;
 };
 
 // The renderer's command line: `sandswim-render PLOT.json svg|png OUT`. Exit codes of

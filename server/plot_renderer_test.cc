@@ -5,9 +5,15 @@
 #include <stdlib.h>
 #include <sys/stat.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <thread>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -119,6 +125,69 @@ TEST_F(PlotRendererTest, AFailedDeadOrHungRendererIsOneClearError) {
   auto absent = missing.Render(TwoSeries(), ImageFormat::kSvg);
   ASSERT_FALSE(absent.ok());
   EXPECT_THAT(absent.status().reason(), HasSubstr("sandswim-render"));
+}
+
+// A renderer that holds every figure until opened, counting how many it holds at once.
+class GatedSubprocesses : public Subprocesses {
+ public:
+  Result<CommandOutput> Run(const std::vector<std::string>&, const EnvVars&, double) override {
+    std::unique_lock<std::mutex> lock(mu_);
+    ++holding_;
+    changed_.notify_all();
+    changed_.wait(lock, [this] { return open_; });
+    --holding_;
+    return CommandOutput{};  // drew nothing: the figure is an IOError, which is not under test
+  }
+  Result<pid_t> Spawn(const std::vector<std::string>&) override { return Status::Unavailable("not here"); }
+  std::optional<int> Reap(pid_t) override { return 0; }
+  void SignalGroup(pid_t, int) override {}
+  void Pause(double) override {}
+
+  void WaitHolding(int n) {
+    std::unique_lock<std::mutex> lock(mu_);
+    changed_.wait(lock, [&] { return holding_ >= n; });
+  }
+  void Open() {
+    std::lock_guard<std::mutex> lock(mu_);
+    open_ = true;
+    changed_.notify_all();
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable changed_;
+  int holding_ = 0;
+  bool open_ = false;
+};
+
+// 10 figures asked at once of a renderer allowed 3: three renderers run, the other seven wait
+// their 0.2 s and are told to retry, none started.
+TEST_F(PlotRendererTest, AtMostMaxRunningRenderersRunAtOnce) {
+  GatedSubprocesses gate;
+  SubprocessRenderer renderer(&gate, "sandswim-render", /*timeout_s=*/60, /*max_running=*/3, /*wait_s=*/0.2);
+  std::atomic<int> busy{0}, drawn_or_failed{0};
+  std::vector<std::thread> askers;
+  for (int i = 0; i < 10; ++i) {
+    askers.emplace_back([&] {
+      auto figure = renderer.Render(TwoSeries(), ImageFormat::kSvg);
+      if (!figure.ok() && figure.status().code() == StatusCode::kUnavailable &&
+          figure.status().reason().find("renderers are busy") != std::string::npos) {
+        busy.fetch_add(1);
+      } else {
+        drawn_or_failed.fetch_add(1);
+      }
+    });
+  }
+  gate.WaitHolding(3);
+  // The seven past the limit give up on their own while the three are held.
+  for (int i = 0; i < 3000 && busy.load() + drawn_or_failed.load() < 7; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  gate.Open();
+  for (std::thread& t : askers) t.join();
+  EXPECT_EQ(renderer.most_running(), 3);
+  EXPECT_EQ(busy.load(), 7);
+  EXPECT_EQ(drawn_or_failed.load(), 3);
+  EXPECT_EQ(renderer.running(), 0);
 }
 
 TEST_F(PlotRendererTest, TheRendererRefusesABadCommandLineOrPlot) {

@@ -322,8 +322,12 @@ void SubmitSweeps(Call& c) {
   auto request = ParseSubmitRequest(*body);
   if (!request.ok()) return Fail(c, request.status());
   if (c.req.has_header("Idempotency-Key")) request->idempotency_key = c.req.get_header_value("Idempotency-Key");
+  request->max_queued_runs = c.deps.max_queued_runs;
   auto result = Submit(*c.deps.store, *request, c.deps.engine_version, c.deps.clock->Now());
-  if (!result.ok()) return Fail(c, result.status());
+  if (!result.ok()) {
+    if (result.status().code() == StatusCode::kUnavailable) c.res.set_header("Retry-After", "60");  // the queue cap
+    return Fail(c, result.status());
+  }
   json reply = *result;
   std::string location;
   if (result->campaign_run_id) {
@@ -648,6 +652,7 @@ void GetCampaignReport(Call& c) {
 void LeaseJob(Call& c) {
   auto request = ParseMessage<api::LeaseRequest>(c.body, "LeaseRequest", /*allow_empty=*/true);
   if (!request.ok()) return Fail(c, request.status());
+  if (Status s = api::LimitLengths(*request); !s.ok()) return Fail(c, s);
   auto grant = c.deps.leases->Lease(*request);
   if (!grant.ok()) return Fail(c, grant.status());
   if (!*grant) {
@@ -668,6 +673,7 @@ void HeartbeatLease(Call& c) {
 void CompleteLease(Call& c) {
   auto completion = ParseMessage<api::Completion>(c.body, "Completion", /*allow_empty=*/false);
   if (!completion.ok()) return Fail(c, completion.status());
+  if (Status s = api::LimitLengths(*completion); !s.ok()) return Fail(c, s);
   auto reply = c.deps.leases->Complete(PathToken(c), *completion);
   if (!reply.ok()) return Fail(c, reply.status());
   SendJson(c, 200, *reply);
@@ -676,6 +682,7 @@ void CompleteLease(Call& c) {
 void ReleaseLease(Call& c) {
   auto request = ParseMessage<api::ReleaseRequest>(c.body, "ReleaseRequest", /*allow_empty=*/true);
   if (!request.ok()) return Fail(c, request.status());
+  if (Status s = api::LimitLengths(*request); !s.ok()) return Fail(c, s);
   auto reply = c.deps.leases->Release(PathToken(c), request->reason);
   if (!reply.ok()) return Fail(c, reply.status());
   SendJson(c, 200, *reply);
@@ -722,8 +729,9 @@ struct Upload {
 };
 
 // Receives the body into `upload` (at most max_restart_body bytes: 413 past it). False when it
-// answered the request with a problem instead. The body is read first either way, so a refusal
-// reaches the client instead of a reset.
+// answered the request with a problem instead. Called once the lease is checked: a body is read
+// only for a lease that may upload it (a refusal before it ends the connection; the server then
+// drains what the client still sends for a moment, so that the answer reaches it, not a reset).
 bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Upload& upload) {
   static std::atomic<uint64_t> upload_counter{0};
   std::filesystem::path dir = UploadDir(c.deps.data_dir);
@@ -775,15 +783,26 @@ bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Up
   return true;
 }
 
+// An upload refused before its body is read: the rest of the body is not read either, so the
+// connection ends with the answer.
+void RefuseUpload(Call& c, const Status& why) {
+  c.res.set_header("Connection", "close");
+  Fail(c, why);
+}
+
 void UploadBedRestart(Call& c) {
   auto id = PathId(c);
-  if (!id.ok()) return Fail(c, id.status());
-  Upload upload;
-  if (!ReceiveUpload(c, "bed-" + std::to_string(*id), "a bed restart", upload)) return;
+  if (!id.ok()) return RefuseUpload(c, id.status());
   std::string token = c.req.get_param_value("token");
   std::string sha256 = c.req.get_header_value("X-Sha256");
-  if (token.empty()) return Fail(c, Status::InvalidArgument("token", "the query parameter token= is required"));
-  if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  if (token.empty()) return RefuseUpload(c, Status::InvalidArgument("token", "the query parameter token= is required"));
+  if (sha256.empty()) return RefuseUpload(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  // The lease, and that it is this bed's, before a byte of the body reaches the disk.
+  if (Status held = c.deps.leases->CheckUploadLease(token, api::JobKind::kBed, *id); !held.ok()) {
+    return RefuseUpload(c, held);
+  }
+  Upload upload;
+  if (!ReceiveUpload(c, "bed-" + std::to_string(*id), "a bed restart", upload)) return;
   Status s = c.deps.leases->PutBedRestart(token, upload.mapped.view(), sha256, c.deps.data_dir);
   if (!s.ok()) return Fail(c, s);
   SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
@@ -791,12 +810,15 @@ void UploadBedRestart(Call& c) {
 
 // A full-bed snapshot of a running run, handed in before the completion that lists it.
 void UploadRunSnapshot(Call& c) {
+  auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
+  if (!n.ok()) return RefuseUpload(c, n.status());
+  std::string sha256 = c.req.get_header_value("X-Sha256");
+  if (sha256.empty()) return RefuseUpload(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
+  if (Status held = c.deps.leases->CheckUploadLease(PathToken(c), api::JobKind::kRun); !held.ok()) {
+    return RefuseUpload(c, held);
+  }
   Upload upload;
   if (!ReceiveUpload(c, "snapshot", "a snapshot", upload)) return;
-  auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
-  if (!n.ok()) return Fail(c, n.status());
-  std::string sha256 = c.req.get_header_value("X-Sha256");
-  if (sha256.empty()) return Fail(c, Status::InvalidArgument("X-Sha256", "the header X-Sha256 is required"));
   Status s = c.deps.leases->PutRunSnapshot(PathToken(c), static_cast<int>(*n), upload.mapped.view(), sha256);
   if (!s.ok()) return Fail(c, s);
   SendJson(c, 200, {{"n", *n}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
@@ -944,8 +966,9 @@ namespace {
 
 // ---- Handlers: the dashboard's live feed (server/live_feed.h) -------------------------------
 
-// A stream says it is alive at least this often (proxies close silent connections).
-constexpr double kLiveKeepAliveS = 15;
+// A stream says it is alive at least this often: proxies close silent connections, and a write is
+// how the server learns that the page went away, so a closed stream frees its slot within ~2 s.
+constexpr double kLiveKeepAliveS = 2;
 
 LiveFeed* NeedLiveFeed(Call& c) {
   if (c.deps.live == nullptr) Fail(c, Status::Unavailable("this daemon serves no live feed"));
@@ -968,15 +991,19 @@ void GetLive(Call& c) {
 }
 
 // Server-sent events: "event: board" with the snapshot as data, at each new version; a comment
-// line every kLiveKeepAliveS otherwise. At most LiveFeed's max_streams at once (503 past them).
+// line every kLiveKeepAliveS otherwise. At most LiveFeed's max_streams at once, and its
+// max_streams_per_client from one peer address (503 past them).
 void GetLiveEvents(Call& c) {
   LiveFeed* feed = NeedLiveFeed(c);
   if (feed == nullptr) return;
-  if (!feed->OpenStream()) {  // expected under many pages: answered without the error log of a 5xx
+  const std::string client = c.req.remote_addr;
+  if (!feed->OpenStream(client)) {  // expected under many pages: answered without the error log of a 5xx
     c.res.set_header("Retry-After", "10");
     c.res.status = 503;
     c.res.set_content(api::ToJsonText(ProblemFor(
-                          Status::Unavailable("every live stream this daemon allows is open: poll GET /api/v1/live"), 503)),
+                          Status::Unavailable("every live stream this daemon allows (in all, or to this client) is "
+                                              "open: poll GET /api/v1/live"),
+                          503)),
                       kProblemType);
     return;
   }
@@ -999,7 +1026,7 @@ void GetLiveEvents(Call& c) {
         }
         return sink.write(message.data(), message.size());  // false: the page went away
       },
-      [feed](bool) { feed->CloseStream(); });
+      [feed, client](bool) { feed->CloseStream(client); });
 }
 
 // The run's z(t) so far, from its heartbeats while it runs (empty once it is not running: its
@@ -1550,21 +1577,22 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
 // ---- ApiServer ---------------------------------------------------------------------------------
 
 namespace {
-ConnectionLimits LimitsWithHead(double head_timeout_s) {
-  ConnectionLimits limits;
-  limits.head_s = head_timeout_s;
-  return limits;
+// The worker protocol and /healthz: what the reserved threads serve (server/guarded_http_server.h),
+// so that no reader can cost a worker its lease.
+bool IsReservedRoute(const std::string& method, const std::string& path) {
+  const Route* route = FindRoute(method, path);
+  return route != nullptr && (route->access == Access::kWorker || route->path == "/healthz");
 }
 }  // namespace
 
-// Slow clients are cut off by the server's deadlines (server/guarded_http_server.h): a request head
-// in 10 s, a body at 256 KiB/s after 30 s; one read that receives nothing may take 60 s.
-ApiServer::ApiServer(Deps deps, double head_timeout_s)
-    : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(LimitsWithHead(head_timeout_s))) {
-  // Keep-alive connections hold a thread each; give concurrent workers and clients room: 64, and
-  // as many again as the dashboard's live streams may hold (LiveFeed's max_streams, 128).
-  server_->new_task_queue = [] { return new httplib::ThreadPool(64 + 128); };
-  server_->set_keep_alive_max_count(100000);
+// Slow, idle and greedy clients are held off by the server (server/guarded_http_server.h).
+ApiServer::ApiServer(Deps deps, ConnectionLimits limits)
+    : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(limits)) {
+  server_->SetReserved(IsReservedRoute);
+  server_->SetRefusalBody([](int http_status, const std::string& detail) {
+    const Status why = http_status == 429 ? Status::ResourceExhausted("", detail) : Status::Unavailable(detail);
+    return api::ToJsonText(ProblemFor(why, http_status));
+  });
   // Without TCP_NODELAY a small response written as headers + body meets the client's delayed
   // ACK: ~40 ms per request on loopback (bench_daemon: 173 -> thousands of cycles/s).
   server_->set_tcp_nodelay(true);

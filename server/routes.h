@@ -43,9 +43,11 @@
 #include "core/status.h"
 #include "platform/clock.h"
 #include "platform/token.h"
+#include "server/connection_limits.h"
 #include "server/lease_queue.h"
 #include "server/request_policy.h"
 #include "server/store.h"
+#include "server/submission.h"
 
 namespace httplib {
 class Server;
@@ -72,6 +74,7 @@ struct Deps {
   HostPolicy host_policy;
   size_t max_json_body = kMaxJsonBodyBytes;
   size_t max_restart_body = kMaxRestartBodyBytes;
+  int64_t max_queued_runs = kMaxQueuedRuns;  // submissions past it: 503 (server/submission.h)
   // Draws figures not drawn before (server/plot_renderer.h): sandswimd's runs sandswim-render, a
   // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
   PlotRenderer* renderer = nullptr;
@@ -128,11 +131,12 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token);
 
 class GuardedHttpServer;  // server/guarded_http_server.h
 
-// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib. A client must
-// send a request head within `head_timeout_s` of its first byte (server/guarded_http_server.h).
+// The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib. Clients are
+// held to `limits` (server/guarded_http_server.h); the worker protocol and /healthz are the
+// requests its reserved threads serve.
 class ApiServer {
  public:
-  explicit ApiServer(Deps deps, double head_timeout_s = 10);
+  explicit ApiServer(Deps deps, ConnectionLimits limits = {});
   ~ApiServer();
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;

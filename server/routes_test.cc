@@ -2,7 +2,12 @@
 // a real SQLite file in a temp directory, and httplib::Client as the caller.
 #include "server/routes.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <stdlib.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
@@ -776,6 +781,123 @@ TEST_F(RoutesTest, LiveSnapshotVersionsAndStreamLimit) {
   for (std::thread& t : readers) t.join();
   for (int i = 0; i < 100 && live_->open_streams() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_EQ(live_->open_streams(), 0) << "each stream gave its slot back";
+}
+
+// The queue cap: a submission that would pass it is refused with the count and the cap, and
+// stores nothing; one that only shares runs already queued passes.
+TEST_F(RoutesTest, ASubmissionPastTheQueueCapIsRefusedAndStoresNothing) {
+  Shutdown();
+  deps_.max_queued_runs = 2;
+  Start("");
+  SubmitExample();  // two runs: at the cap
+  const auto before = AllRows();
+  auto more = Post("/api/v1/sweeps", R"({"name": "more", "scale": "smoke",
+    "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -40, "duration_s": 0.3}})");
+  ASSERT_TRUE(more);
+  EXPECT_EQ(more->status, 503) << more->body;
+  EXPECT_EQ(more->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_TRUE(more->has_header("Retry-After"));
+  const std::string detail = Body(more)["detail"].get<std::string>();
+  EXPECT_THAT(detail, HasSubstr("2 runs are queued or running"));
+  EXPECT_THAT(detail, HasSubstr("cap of 2"));
+  EXPECT_EQ(AllRows(), before) << "a refused submission stores nothing";
+  std::string same = kExampleSweep;
+  same.replace(same.find("omega-sign"), 10, "omega-again");
+  auto shared = Post("/api/v1/sweeps", same);
+  EXPECT_EQ(shared->status, 201) << "runs already queued are shared, not added: " << shared->body;
+  EXPECT_EQ(Body(shared)["runs_shared"], 2);
+}
+
+// f = 1e-300 once made a 5e303-step period (converted to long long: undefined) and
+// duration_s = 1e-300 a 0-step deck: both are refused naming the field, and nothing is stored.
+TEST_F(RoutesTest, ATinyFrequencyOrDurationIsRefusedNamingItsField) {
+  const auto before = AllRows();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"base.f", R"("f": 1e-300, "duration_s": 0.3)"},
+      {"base.duration_s", R"("f": 3, "duration_s": 1e-300)"},
+      {"base.f", R"("f": 1e-6, "duration_s": 0.3)"},
+      {"base.duration_s", R"("f": 3, "duration_s": 0.0009)"},
+  };
+  for (const auto& [field, values] : cases) {
+    auto r = Post("/api/v1/sweeps", R"({"name": "tiny", "scale": "smoke", "base": {"mode": "oscillatory",
+      "A": 0.03, "Omega": -80, )" + values + "}}");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 400) << values << ": " << r->body;
+    EXPECT_EQ(Body(r)["field"], field) << r->body;
+  }
+  EXPECT_EQ(AllRows(), before);
+}
+
+// An upload under a token that is not a current lease -- or a bed lease used on another bed's
+// path -- is answered at once: 300 MB are announced, 64 KiB sent, and no upload file is made.
+TEST_F(RoutesTest, AnUploadUnderAWrongLeaseIsRefusedBeforeItsBodyIsRead) {
+  SubmitExample();
+  auto lease = Post("/api/v1/leases", R"({"worker": "test:1", "host": "test", "ranks": 1})");
+  ASSERT_EQ(lease->status, 200) << lease->body;
+  api::LeaseGrant bed = Body(lease)["lease"].get<api::LeaseGrant>();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  auto put = [&](const std::string& path) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(server_->port()));
+    inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    const std::string head = "PUT " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Sha256: " + std::string(64, '0') +
+                             "\r\nContent-Type: application/octet-stream\r\nContent-Length: 300000000\r\n\r\n" +
+                             std::string(64 * 1024, 'x');
+    send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+    std::string answer;
+    for (int i = 0; i < 300; ++i) {  // until the daemon closes, at most 30 s
+      pollfd p{fd, POLLIN, 0};
+      if (poll(&p, 1, 100) <= 0) continue;
+      char buf[4096];
+      const ssize_t n = recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) break;
+      answer.append(buf, static_cast<size_t>(n));
+    }
+    close(fd);
+    return answer;
+  };
+  const std::string bogus(32, 'f');
+  const std::string wrong_token = put("/api/v1/beds/" + std::to_string(bed.id) + "/restart?token=" + bogus);
+  EXPECT_THAT(wrong_token, ::testing::StartsWith("HTTP/1.1 409")) << wrong_token.substr(0, 400);
+  EXPECT_THAT(wrong_token, HasSubstr("unknown lease token"));
+  const std::string other_bed = put("/api/v1/beds/" + std::to_string(bed.id + 1) + "/restart?token=" + bed.token);
+  EXPECT_THAT(other_bed, ::testing::StartsWith("HTTP/1.1 409")) << other_bed.substr(0, 400);
+  EXPECT_THAT(other_bed, HasSubstr("not bed " + std::to_string(bed.id + 1)));
+  const std::string snapshot = put("/api/v1/leases/" + bogus + "/snapshots/0");
+  EXPECT_THAT(snapshot, ::testing::StartsWith("HTTP/1.1 409")) << snapshot.substr(0, 400);
+  std::error_code ec;
+  const bool any_upload = std::filesystem::exists(UploadDir(deps_.data_dir), ec) &&
+                          !std::filesystem::is_empty(UploadDir(deps_.data_dir), ec);
+  EXPECT_FALSE(any_upload) << "a refused upload reached the disk";
+  // The lease itself still uploads on its own bed's path.
+  const std::string restart = "restart bytes";
+  auto ok = client_->Put(("/api/v1/beds/" + std::to_string(bed.id) + "/restart?token=" + bed.token).c_str(),
+                         {{"X-Sha256", Sha256Hex(restart)}}, restart, "application/octet-stream");
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->status, 200) << ok->body;
+}
+
+// Worker names past the cap are refused naming the field; a long failure message is cut, not
+// refused (a completion is never lost to its log).
+TEST_F(RoutesTest, WorkerProtocolStringsAreCapped) {
+  SubmitExample();
+  auto long_name = Post("/api/v1/leases", json{{"worker", std::string(100000, 'w')}}.dump());
+  EXPECT_EQ(long_name->status, 400);
+  EXPECT_EQ(Body(long_name)["field"], "worker");
+  auto long_host = Post("/api/v1/leases", json{{"worker", "w:1"}, {"host", std::string(300, 'h')}}.dump());
+  EXPECT_EQ(long_host->status, 400);
+  EXPECT_EQ(Body(long_host)["field"], "host");
+  auto lease = Post("/api/v1/leases", R"({"worker": "test:1", "host": "test", "ranks": 1})");
+  ASSERT_EQ(lease->status, 200) << lease->body;
+  api::LeaseGrant bed = Body(lease)["lease"].get<api::LeaseGrant>();
+  api::Completion failed;
+  failed.ok = false;
+  failed.failure = api::Failure{"deck_error", std::string(200000, 'e')};
+  auto completed = Post("/api/v1/leases/" + bed.token + "/complete", json(failed).dump());
+  EXPECT_EQ(completed->status, 200) << completed->body.substr(0, 300);
 }
 
 TEST(RoutesUnitTest, StatusTableAndProblemShape) {

@@ -404,6 +404,24 @@ Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const 
   return Status::Ok();
 }
 
+// The queue cap, counted after this submission's rows are written (in its transaction, so the
+// count is exact and a refusal rolls everything back). A submission that queues nothing new
+// (every run reused or shared) passes whatever the count.
+Status CheckQueueCap(Transaction& t, int64_t cap, const SubmitResult& out) {
+  const int64_t added = out.runs_new + out.runs_requeued - out.runs_failed_bed;
+  if (added <= 0) return Status::Ok();
+  Statement st = t.Prepare("SELECT COUNT(*) FROM runs WHERE state IN ('queued', 'running')");
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  const int64_t queued = st.Int(0);
+  if (queued <= cap) return Status::Ok();
+  return Status(StatusCode::kUnavailable,
+                std::to_string(queued - added) + " runs are queued or running and this submission would add " +
+                    std::to_string(added) + ", past the daemon's cap of " + std::to_string(cap) +
+                    " (sandswimd --max-queued-runs): nothing was stored; submit again once runs finish, or cancel a sweep",
+                "queue");
+}
+
 }  // namespace
 
 Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::string& engine_version, double now) {
@@ -470,6 +488,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
       out.runs_failed_bed += *n;
     }
   }
+  SANDSWIM_RETURN_IF_ERROR(CheckQueueCap(t, req.max_queued_runs, out));
   SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
   nlohmann::json response = out;
   {

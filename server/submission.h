@@ -23,6 +23,9 @@
 // kConflict naming "Idempotency-Key". A scheduled campaign run (trigger "schedule") is unique
 // per (campaign, due_time): submitting it again returns the existing one (replayed = true).
 //
+// Queue cap: a submission after which more than `max_queued_runs` runs would be queued or running
+// (all sweeps together) is kUnavailable, saying how many are and the cap, and stores nothing.
+//
 // Thread safety: a free function over a thread-safe Store.
 #ifndef SANDSWIM_SERVER_SUBMISSION_H_
 #define SANDSWIM_SERVER_SUBMISSION_H_
@@ -41,6 +44,11 @@
 
 namespace sandswim {
 
+// Runs queued or running across all sweeps that a daemon holds by default (sandswimd
+// --max-queued-runs): two paper-58 campaigns at full replication are under a thousand; 200,000
+// is days of engine time on a cluster and a few hundred MB of rows.
+inline constexpr int64_t kMaxQueuedRuns = 200000;
+
 struct SubmitRequest {
   // Exactly one of: sweeps (non-empty), or campaign (a name: a campaign stored with
   // Store::PutCampaign, else a builtin one such as "paper-58").
@@ -52,6 +60,7 @@ struct SubmitRequest {
   std::string trigger = "manual";              // "manual" | "schedule" (campaigns)
   std::optional<double> due_time;              // schedule trigger: the slot it fills
   size_t max_runs = kMaxRunsPerSubmission;
+  int64_t max_queued_runs = kMaxQueuedRuns;  // the daemon's queue cap (see above)
 };
 
 struct SubmitResult {

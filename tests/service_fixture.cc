@@ -65,7 +65,10 @@ std::string ChildProcess::Output() const { return ReadFile(output_path_); }
 
 Daemon::Daemon(const std::string& dir, std::vector<std::string> extra, const std::string& listen)
     : dir_(dir), db_(dir + "/sandswim.db") {
-  std::vector<std::string> argv = {SANDSWIMD_PATH,    "--db", db_, "--data", dir + "/data", "--listen", listen,
+  // SANDSWIMD_UNDER_TEST: another build's daemon, for a benchmark's before-and-after figures.
+  const char* other = std::getenv("SANDSWIMD_UNDER_TEST");
+  const std::string program = other != nullptr && *other != '\0' ? other : SANDSWIMD_PATH;
+  std::vector<std::string> argv = {program, "--db", db_, "--data", dir + "/data", "--listen", listen,
                                    "--local-workers", "0"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   // These tests are about runs, not access: without a token, unless the test set one.
@@ -159,8 +162,17 @@ void Check(int rc, sqlite3* db, const std::string& sql) {
 }
 }  // namespace
 
-int ConnectTo(const std::string& listen) {
+int ConnectTo(const std::string& listen, const std::string& from) {
   const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (!from.empty()) {
+    sockaddr_in source{};
+    source.sin_family = AF_INET;
+    inet_pton(AF_INET, from.c_str(), &source.sin_addr);
+    if (bind(fd, reinterpret_cast<sockaddr*>(&source), sizeof source) != 0) {
+      close(fd);
+      return -1;
+    }
+  }
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<uint16_t>(std::stoi(listen.substr(listen.rfind(':') + 1))));

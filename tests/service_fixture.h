@@ -127,7 +127,9 @@ struct ProcessInfo {
 std::vector<ProcessInfo> ProcessesUnder(const std::string& dir);
 
 // A TCP connection to "127.0.0.1:PORT" (Daemon::listen()), as a raw client's; -1 when refused.
-int ConnectTo(const std::string& listen);
+// `from`: the loopback address it comes from (e.g. "127.0.0.2": another client to the daemon's
+// per-client limits); "" the kernel's choice (127.0.0.1).
+int ConnectTo(const std::string& listen, const std::string& from = "");
 
 // A smoke-scale oscillatory sweep (A = 0.03 m, f = 3 Hz unless `f` says otherwise) over the
 // given Omega values, each run `duration` s long: the sweep JSON to POST.

@@ -1,0 +1,214 @@
+// bench_hostile: what a greedy client costs everyone else, on the real sandswimd. One client
+// (127.0.0.1) holds `--connections` keep-alive connections (default 250), each asking for /healthz
+// every 3 s and opened again when the daemon closes it, while:
+//  - a fresh client asks for /healthz every 0.2 s, on a new connection each time (latency);
+//  - a worker holds a bed lease and heartbeats it every second, each heartbeat on a new connection
+//    (as after any pause longer than the daemon's keep-alive), with a 6 s lease TTL (latency, and
+//    whether the lease was lost: a heartbeat answered 409);
+//  - `--readers` threads (default 4), another client (127.0.0.2), read a large sweep's results over
+//    and over (GET /api/v1/sweeps/{id}/results of a `--read-runs`-run sweep, default 20,000).
+// It prints one line of figures. SANDSWIMD_UNDER_TEST=PATH measures another build's daemon (the
+// same benchmark before and after a change).
+//
+//   bench_hostile [--connections 250] [--seconds 30] [--readers 4] [--read-runs 20000]
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "tests/engine_fixture.h"
+#include "tests/service_fixture.h"
+
+namespace {
+
+using nlohmann::json;
+using Steady = std::chrono::steady_clock;
+
+double SecondsSince(Steady::time_point t) { return std::chrono::duration<double>(Steady::now() - t).count(); }
+
+double Pct(std::vector<double> v, double p) {
+  if (v.empty()) return -1;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
+}
+
+void Send(int fd, const std::string& bytes) {
+  for (size_t off = 0; off < bytes.size();) {
+    const ssize_t n = send(fd, bytes.data() + off, bytes.size() - off, MSG_NOSIGNAL);
+    if (n <= 0) return;
+    off += static_cast<size_t>(n);
+  }
+}
+
+// Drops what has arrived; false once the daemon closed the connection.
+bool Drain(int fd) {
+  char buf[8192];
+  for (;;) {
+    const ssize_t n = recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+    if (n > 0) continue;
+    return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR);
+  }
+}
+
+// GET `path` on a new connection from `from`; the bytes of the answer when it is a 200, else -1.
+int64_t ReadFrom(const std::string& listen, const std::string& from, const std::string& path) {
+  const int fd = sandswim::testing::ConnectTo(listen, from);
+  if (fd < 0) return -1;
+  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  std::string head;
+  int64_t bytes = 0;
+  char buf[65536];
+  for (;;) {
+    pollfd p{fd, POLLIN, 0};
+    if (poll(&p, 1, 300 * 1000) <= 0) break;
+    const ssize_t n = recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    if (head.size() < 12) head.append(buf, static_cast<size_t>(std::min<ssize_t>(n, 12)));
+    bytes += n;
+  }
+  close(fd);
+  return head.rfind("HTTP/1.1 200", 0) == 0 ? bytes : -1;
+}
+
+int Flag(int argc, char** argv, const std::string& name, int fallback) {
+  for (int i = 1; i + 1 < argc; ++i)
+    if (argv[i] == name) return std::atoi(argv[i + 1]);
+  return fallback;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int connections = Flag(argc, argv, "--connections", 250);
+  const int seconds = Flag(argc, argv, "--seconds", 30);
+  const int readers = Flag(argc, argv, "--readers", 4);
+  const int read_runs = Flag(argc, argv, "--read-runs", 20000);
+  const std::string dir = sandswim::testing::CacheDir() + "/bench-hostile";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  sandswim::testing::Daemon daemon(dir + "/daemon", {"--lease-ttl", "6"});
+  const std::string listen = daemon.listen();
+
+  // A bed to lease (the worker below holds it), and a large sweep to read.
+  int status = 0;
+  daemon.Post("/api/v1/sweeps", sandswim::testing::OmegaSweep("leased", {-10}, 0.05, 20), &status);
+  if (status != 201) return std::fprintf(stderr, "bench_hostile: cannot submit (%d)\n", status), 1;
+  int64_t big = 0;
+  if (readers > 0) {
+    std::vector<double> omegas;
+    for (int i = 0; i < read_runs; ++i) omegas.push_back(-1.0 - 0.1 * i);
+    const auto t = Steady::now();
+    json s = daemon.Post("/api/v1/sweeps", sandswim::testing::OmegaSweep("big", omegas, 0.05, 20), &status);
+    if (status != 201) return std::fprintf(stderr, "bench_hostile: cannot submit the big sweep (%d)\n", status), 1;
+    big = s["id"].get<int64_t>();
+    std::printf("submitted a %d-run sweep in %.1f s\n", read_runs, SecondsSince(t));
+  }
+  httplib::Client lessor(daemon.url());
+  auto leased = lessor.Post("/api/v1/leases", R"({"worker": "bench:1", "host": "bench", "ranks": 1})",
+                            "application/json");
+  if (!leased || leased->status != 200) return std::fprintf(stderr, "bench_hostile: no lease\n"), 1;
+  const std::string token = json::parse(leased->body)["lease"]["token"].get<std::string>();
+
+  std::atomic<bool> stop{false};
+  // The crowd.
+  std::atomic<int64_t> crowd_reconnects{0};
+  std::thread crowd([&] {
+    std::vector<int> fds(connections, -1);
+    std::vector<Steady::time_point> next(connections, Steady::now());
+    while (!stop.load()) {
+      const auto now = Steady::now();
+      for (int i = 0; i < connections; ++i) {
+        if (fds[i] >= 0 && !Drain(fds[i])) {
+          close(fds[i]);
+          fds[i] = -1;
+          crowd_reconnects.fetch_add(1);
+        }
+        if (now < next[i]) continue;
+        if (fds[i] < 0) fds[i] = sandswim::testing::ConnectTo(listen);
+        if (fds[i] >= 0) Send(fds[i], "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        next[i] = now + std::chrono::seconds(3);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    for (int fd : fds)
+      if (fd >= 0) close(fd);
+  });
+  std::this_thread::sleep_for(std::chrono::seconds(4));  // every crowd connection open and asking
+
+  std::mutex mu;
+  std::vector<double> healthz, beats;
+  int healthz_errors = 0, beat_errors = 0, beats_409 = 0;
+  std::atomic<int64_t> reads{0}, read_bytes{0}, read_errors{0};
+  std::vector<std::thread> threads;
+  for (int r = 0; r < readers; ++r) {
+    threads.emplace_back([&] {
+      while (!stop.load()) {
+        const int64_t got = ReadFrom(listen, "127.0.0.2", "/api/v1/sweeps/" + std::to_string(big) + "/results");
+        if (got >= 0) {
+          reads.fetch_add(1);
+          read_bytes.fetch_add(got);
+        } else {
+          read_errors.fetch_add(1);
+          std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        }
+      }
+    });
+  }
+  threads.emplace_back([&] {
+    while (!stop.load()) {
+      const auto t = Steady::now();
+      httplib::Client c(daemon.url());
+      c.set_read_timeout(120, 0);
+      auto res = c.Get("/healthz");
+      std::lock_guard<std::mutex> lock(mu);
+      if (res && res->status == 200) healthz.push_back(SecondsSince(t));
+      else ++healthz_errors;
+      std::this_thread::sleep_until(t + std::chrono::milliseconds(200));
+    }
+  });
+  threads.emplace_back([&] {
+    while (!stop.load()) {
+      const auto t = Steady::now();
+      httplib::Client c(daemon.url());
+      c.set_read_timeout(120, 0);
+      auto res = c.Post("/api/v1/leases/" + token + "/heartbeat", R"({"sim_time_s": 0})", "application/json");
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        if (res && res->status == 200) beats.push_back(SecondsSince(t));
+        else if (res && res->status == 409) ++beats_409;
+        else ++beat_errors;
+      }
+      std::this_thread::sleep_until(t + std::chrono::seconds(1));
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::seconds(seconds));
+  stop.store(true);
+  for (std::thread& t : threads) t.join();
+  crowd.join();
+  std::lock_guard<std::mutex> lock(mu);
+  std::printf(
+      "bench_hostile: %d keep-alive connections (/healthz every 3 s, %lld reconnects), %d readers, %d s\n"
+      "  fresh /healthz: %zu answered, %d failed; p50 %.3f s, p99 %.3f s, max %.3f s\n"
+      "  heartbeat (new connection, TTL 6 s): %zu answered, %d lost lease (409), %d failed; p50 %.3f s, "
+      "p99 %.3f s, max %.3f s\n"
+      "  large reads: %lld of %.1f MB each, %lld failed\n",
+      connections, static_cast<long long>(crowd_reconnects.load()), readers, seconds, healthz.size(), healthz_errors,
+      Pct(healthz, 0.5), Pct(healthz, 0.99), Pct(healthz, 1.0), beats.size(), beats_409, beat_errors, Pct(beats, 0.5),
+      Pct(beats, 0.99), Pct(beats, 1.0), static_cast<long long>(reads.load()),
+      reads.load() > 0 ? static_cast<double>(read_bytes.load()) / reads.load() / 1e6 : 0.0,
+      static_cast<long long>(read_errors.load()));
+  return 0;
+}
