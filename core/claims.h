@@ -82,9 +82,12 @@
 //                     data, the peak located in each alike: the 2.5 and 97.5 % quantiles, not
 //                     clipped). Draws use a fixed seed: a verdict is the same each time. Holds when
 //                     an interior maximum is established and the interval meets `f_c_hz` +-
-//                     `f_c_tolerance_hz` (the paper read f_c off its grid of f); differs when the
-//                     interval lies apart from that (a law rising to the top edge gives an interval
-//                     at the edge: "no interior maximum"); else inconclusive.
+//                     `f_c_tolerance_hz` (the paper read f_c off its grid of f); differs when an
+//                     interior maximum is established and the interval lies apart from that, or when
+//                     an edge's rate is established above every interior one by the same test the
+//                     other way (p = P(T* <= T) below 0.025: "no interior maximum in the swept
+//                     range"); else inconclusive (an interval away from f_c without either is a
+//                     lack of power, not a refutation).
 //   grain_count       the beds' grains against the paper's `paper_grains` in `paper_bed_m3`: each
 //                     prepared bed's solid fraction (its grains' volume over the box below its
 //                     surface, the SO's volume taken out; the surface at the highest grain centre

@@ -146,14 +146,20 @@ StopVerdict DecideStop(const api::RunResult& so_far, const std::optional<StopPla
 std::string DescribeStop(const api::RunResult& r, const std::optional<PrecisionTarget>& t,
                          const std::optional<StopPlan>& plan) {
   const std::string at = "at t = " + Num(r.sim_time_s, 3) + " s";
+  // With a plan, the half-width its pilot asked for; else the target's at the result's rate.
+  auto allowed_at = [&](double uz) {
+    if (plan) return plan->half_width;
+    return t ? std::max(t->uz_rel * std::fabs(uz), t->uz_abs) : 0.0;
+  };
   auto interval = [&] {
     if (!r.uz_ci95 || !r.uz) return std::string("no interval yet");
-    const double allowed = t ? std::max(t->uz_rel * std::fabs(*r.uz), t->uz_abs) : 0;
+    const double allowed = allowed_at(*r.uz);
     return "95 % interval +-" + Num(*r.uz_ci95, 3) + " m/s " + (*r.uz_ci95 <= allowed ? "<=" : ">") + " the target's " +
            Num(allowed, 3) + " m/s, " + std::to_string(r.uz_blocks) + " whole " + r.block_kind +
            (r.uz_blocks == 1 ? "" : "s");
   };
-  const bool met = t && TargetMet(r, *t);  // on the final analysis, which may hold more than the last look
+  // On the final analysis, which may hold more than the last look.
+  const bool met = plan ? (r.uz_ci95 && *r.uz_ci95 <= plan->half_width) : (t && TargetMet(r, *t));
   if (r.stop_reason == "target") {
     std::string text = (met ? "precision target met " : "stopped for its precision target ") + at + ": " + interval();
     if (plan)

@@ -364,8 +364,11 @@ Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const Ru
     r->uz_stderr_note.clear();
     r->uz_blocks = m;
     r->window_t0 = t0;
+    r->precision_met = r->uz_ci95 && *r->uz_ci95 <= plan->half_width;  // the half-width the pilot asked
+  } else {
+    plan.reset();  // not ended by the rule as it stands: no two-stage numbers to state
+    if (in.precision) r->precision_met = TargetMet(*r, *in.precision);
   }
-  if (in.precision) r->precision_met = TargetMet(*r, *in.precision);
   r->stop_note = DescribeStop(*r, in.precision, plan);
   return r;
 }

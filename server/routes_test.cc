@@ -843,7 +843,8 @@ TEST_F(RoutesTest, AnUploadUnderAWrongLeaseIsRefusedBeforeItsBodyIsRead) {
     addr.sin_port = htons(static_cast<uint16_t>(server_->port()));
     inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
     EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
-    const std::string head = "PUT " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Sha256: " + std::string(64, '0') +
+    const std::string head = "PUT " + path + " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(server_->port()) +
+                             "\r\nX-Sha256: " + std::string(64, '0') +
                              "\r\nContent-Type: application/octet-stream\r\nContent-Length: 300000000\r\n\r\n" +
                              std::string(64 * 1024, 'x');
     send(fd, head.data(), head.size(), MSG_NOSIGNAL);

@@ -7,6 +7,7 @@
 #include "core/deck.h"
 #include "core/scale.h"
 #include "core/sweep.h"
+#include "core/text.h"
 #include "core/trajectory.h"
 
 namespace sandswim {
@@ -365,18 +366,31 @@ Result<api::RunResult> Reanalyse(const OldResult& o) {
     if (bed.is_object() && bed.contains("grain_top")) bounds.surface = bed["grain_top"].get<double>();
     DriveStartMarker start{o.grains, o.z0, bounds.surface.value_or(0)};
     DriveStopMarker stop{o.stop_reason, o.steps, o.sim_time_s, samples.empty() ? 0 : samples.back().z};
-    // As the worker analyses a run (core/trajectory.h AnalyzeRun): a run ended by its precision
-    // target takes its rate from the blocks after its pilot.
+    // As the worker analyses a run (core/trajectory.h AnalyzeRun) -- except a run that the rule of
+    // analysis 2 ended once its interval looked narrow enough: the blocks after a pilot were part
+    // of that decision too, so no interval of it is honest (optional stopping). Its rate stays,
+    // without an error.
     Result<std::optional<PrecisionTarget>> precision = StoredPrecision(o.precision);
     if (!precision.ok()) return precision.status();
+    const bool old_stop = o.analysis == 2 && o.stop_reason == "target";
     RunInputs in;
     in.f = o.vibrates ? o.f : 0.0;
     in.bounds = bounds;
     if (bounds.surface) in.start = start;
     in.stop = stop;
-    in.precision = *precision;
+    if (!old_stop) in.precision = *precision;
     auto r = AnalyzeRun(samples, in);
     if (!r.ok()) return r.status();
+    if (old_stop) {
+      r->uz_stderr.reset();
+      r->uz_ci95.reset();
+      r->uz_stderr_note =
+          "ended by the precision rule of analysis 2 once its interval looked narrow enough, which made that "
+          "interval too narrow (optional stopping): none is given; submit the sweep again with --force for one";
+      r->precision_met = false;
+      r->stop_note = "stopped for its precision target at t = " + Num(o.sim_time_s, 3) +
+                     " s under the rule of analysis 2 (optional stopping): no interval";
+    }
     r->grains = o.grains;  // as the engine reported it
     r->analysed_from = "trajectory";
     return r;

@@ -193,9 +193,9 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   EXPECT_EQ(again->kept_old, 0);
 }
 
-// Analysis 3 changed only the runs ended by their precision target: such a result of analysis 2 is
-// re-analysed from its trajectory as the worker now analyses one (the rate of the blocks after its
-// pilot, with the two-stage interval); any other keeps its numbers, marked as this analysis's.
+// Analysis 3 changed only the runs ended by their precision target: such a result of analysis 2
+// keeps its rate but loses its interval (its stop was chosen on it: optional stopping); any other
+// keeps its numbers, marked as this analysis's.
 TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
   auto store = MustOpen();
   ASSERT_TRUE(store);
@@ -253,11 +253,13 @@ TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
   const api::RunResult fresh = store->GetRun(stopped)->result->result;
   EXPECT_EQ(fresh.analysis, api::kAnalysisVersion);
   EXPECT_EQ(fresh.analysed_from, "trajectory");
-  EXPECT_EQ(fresh.uz_blocks, 12);
-  ASSERT_TRUE(fresh.uz && fresh.uz_ci95);
-  EXPECT_NEAR(*fresh.uz, 0.036, 1e-4);  // the blocks after the pilot
-  EXPECT_LT(*fresh.uz_ci95, 1e-4);  // the 12 blocks after the pilot, alike: not the pilot's 0.026 m/s scatter
-  EXPECT_NE(fresh.stop_note.find("two-stage"), std::string::npos) << fresh.stop_note;
+  EXPECT_EQ(fresh.uz_blocks, 15);  // every block: no two-stage pilot to leave out
+  ASSERT_TRUE(fresh.uz.has_value());
+  EXPECT_NEAR(*fresh.uz, (0.004 + 0.020 + 0.018 + 12 * 0.012) / 5, 1e-4);
+  EXPECT_FALSE(fresh.uz_stderr.has_value());
+  EXPECT_FALSE(fresh.uz_ci95.has_value());
+  EXPECT_NE(fresh.uz_stderr_note.find("optional stopping"), std::string::npos) << fresh.uz_stderr_note;
+  EXPECT_EQ(fresh.precision_met, false);
   const api::RunResult kept = store->GetRun(whole)->result->result;
   EXPECT_EQ(kept.analysis, api::kAnalysisVersion);
   EXPECT_EQ(kept.analysed_from, "dump");

@@ -69,7 +69,7 @@ Answer Ask(const std::string& listen, const std::string& from, const std::string
   const auto start = Steady::now();
   const int fd = testing::ConnectTo(listen, from);
   if (fd < 0) return a;
-  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: " + listen + "\r\nConnection: close\r\n\r\n");
   while (SecondsSince(start) < limit_s) {
     pollfd p{fd, POLLIN, 0};
     if (poll(&p, 1, 100) <= 0) continue;
@@ -119,7 +119,7 @@ TEST_F(LoadLimitsTest, AKeepAliveCrowdAndItsStreamsCostNoWorkerItsLease) {
   for (int i = 0; i < kStreams; ++i) {
     const int fd = testing::ConnectTo(listen);
     ASSERT_GE(fd, 0);
-    Send(fd, "GET /api/v1/live/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    Send(fd, std::string("GET /api/v1/live/events HTTP/1.1\r\nHost: ") + listen + "\r\n\r\n");
     streams.push_back(fd);
   }
   std::vector<std::string> stream_heads(kStreams);
@@ -145,7 +145,7 @@ TEST_F(LoadLimitsTest, AKeepAliveCrowdAndItsStreamsCostNoWorkerItsLease) {
       if (now < next_ask[i]) continue;
       if (crowd[i] < 0) crowd[i] = testing::ConnectTo(listen);
       if (crowd[i] < 0) continue;
-      Send(crowd[i], "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+      Send(crowd[i], std::string("GET /healthz HTTP/1.1\r\nHost: ") + listen + "\r\n\r\n");
       next_ask[i] = now + std::chrono::seconds(3);
     }
     for (int i = 0; i < kStreams; ++i) {
@@ -209,7 +209,7 @@ TEST_F(LoadLimitsTest, AClosedEventStreamGivesItsSlotBackWithinSeconds) {
   const std::string listen = daemon_->listen();
   auto open_stream = [&](std::string* head) {
     const int fd = testing::ConnectTo(listen);
-    Send(fd, "GET /api/v1/live/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    Send(fd, std::string("GET /api/v1/live/events HTTP/1.1\r\nHost: ") + listen + "\r\n\r\n");
     const auto start = Steady::now();
     while (SecondsSince(start) < 30 && head->find("\r\n\r\n") == std::string::npos) {
       pollfd p{fd, POLLIN, 0};

@@ -67,7 +67,7 @@ bool Drain(int fd) {
 int64_t ReadFrom(const std::string& listen, const std::string& from, const std::string& path) {
   const int fd = sandswim::testing::ConnectTo(listen, from);
   if (fd < 0) return -1;
-  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: " + listen + "\r\nConnection: close\r\n\r\n");
   std::string head;
   int64_t bytes = 0;
   char buf[65536];
@@ -138,7 +138,7 @@ int main(int argc, char** argv) {
         }
         if (now < next[i]) continue;
         if (fds[i] < 0) fds[i] = sandswim::testing::ConnectTo(listen);
-        if (fds[i] >= 0) Send(fds[i], "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        if (fds[i] >= 0) Send(fds[i], std::string("GET /healthz HTTP/1.1\r\nHost: ") + listen + "\r\n\r\n");
         next[i] = now + std::chrono::seconds(3);
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
