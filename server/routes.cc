@@ -1294,11 +1294,17 @@ void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const http
   Call c{req, res, deps, {}, nullptr, counters};
   std::optional<Refusal> denied = CheckRequest(deps, route, req, *counters->auth_failures);
   if (denied && denied->http_status == 429) res.set_header("Retry-After", "1");
-  if (reader != nullptr && (route.body == BodyKind::kJson || denied)) {
+  if (denied) {
+    // Not a byte of a refused body is read on a request thread (a client sending it a byte a
+    // minute would hold the thread for hours): the answer goes at once, and the server drains what
+    // the client still sends for a moment before closing (server/guarded_http_server.cc).
+    if (reader != nullptr) res.set_header("Connection", "close");
+    return SendProblem(res, denied->status, denied->http_status);
+  }
+  if (reader != nullptr && route.body == BodyKind::kJson) {
     bool drained = true;
     bool fits = ReadBody(*reader, deps.max_json_body, c.body, drained);
     if (!drained) res.set_header("Connection", "close");
-    if (denied) return SendProblem(res, denied->status, denied->http_status);
     if (!fits) {
       return SendProblem(res,
                          Status::ResourceExhausted(
@@ -1306,7 +1312,6 @@ void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const http
                          413);
     }
   }
-  if (denied) return SendProblem(res, denied->status, denied->http_status);
   if (route.body == BodyKind::kRestart) c.reader = reader;
   route.handler(c);
 }
