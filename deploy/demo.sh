@@ -29,7 +29,14 @@ for _ in $(seq 100); do
 done
 # The daemon made its token in $var/data/token (mode 0600) on its first start; its workers and the
 # CLI read it from there.
+# ($SANDSWIM_TOKEN, when exported, is the token instead: the daemon, its workers and the CLI all
+# take it from the environment.)
 token_file=$var/data/token
 echo "demo: sandswimd on $SANDSWIM_SERVER with $workers local workers (log: $var/sandswimd.log)" >&2
-echo "demo: dashboard $SANDSWIM_SERVER/?token=$(cat "$token_file")" >&2
-"$bin/sandswim" --token-file "$token_file" submit "$campaign" --scale "$scale" --wait
+if [ -n "${SANDSWIM_TOKEN:-}" ]; then
+  echo "demo: dashboard $SANDSWIM_SERVER/?token=\$SANDSWIM_TOKEN" >&2
+  "$bin/sandswim" submit "$campaign" --scale "$scale" --wait
+else
+  echo "demo: dashboard $SANDSWIM_SERVER/?token=$(cat "$token_file")" >&2
+  "$bin/sandswim" --token-file "$token_file" submit "$campaign" --scale "$scale" --wait
+fi

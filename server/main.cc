@@ -190,7 +190,9 @@ sandswim::Result<DaemonToken> ResolveToken(const Flags& flags) {
 }
 
 // Where a new user goes: the dashboard's link, with the token when the daemon keeps it in a file
-// of its own (one the operator gave is theirs to paste). On stdout, after the "listening on" line.
+// of its own (one the operator gave is theirs to paste) and stdout is a terminal -- under systemd
+// stdout is the journal, which more users read than the 0600 file: there the link names the file.
+// On stdout, after the "listening on" line.
 void PrintDashboardLink(const sandswim::ListenAddress& address, int port, const DaemonToken& token) {
   std::string host = address.host;
   if (host == "0.0.0.0" || host == "::" || host.empty()) host = "127.0.0.1";
@@ -198,8 +200,10 @@ void PrintDashboardLink(const sandswim::ListenAddress& address, int port, const 
   const std::string base = "http://" + host + ":" + std::to_string(port) + "/";
   if (token.token.empty()) {
     std::cout << "dashboard: " << base << " (no token: --no-token)" << std::endl;
-  } else if (token.own) {
+  } else if (token.own && isatty(STDOUT_FILENO)) {
     std::cout << "dashboard: " << base << "?token=" << token.token << std::endl;
+  } else if (token.own) {
+    std::cout << "dashboard: " << base << "?token=TOKEN, TOKEN the contents of " << token.file << std::endl;
   } else {
     std::cout << "dashboard: " << base << "?token=TOKEN (your token: it stays in the browser tab)" << std::endl;
   }

@@ -148,8 +148,9 @@ Daemon* EndToEndTest::daemon_ = nullptr;
 
 // Precision targets and replicate beds, end to end. Three sweeps at once:
 //   - Omega = -80 at 20 Hz on 2 replicate beds, with a target any interval meets (uz_abs 1 m/s):
-//     each run ends, through the deck's control file, as soon as its window holds 3 whole periods
-//     (0.2 s), before its 0.5 s maximum, saying the target was met; the two beds are prepared once
+//     each run ends, through the deck's control file, once its window holds the pilot's 3 whole
+//     periods and the 3 after it (0.35 s), before its 0.5 s maximum, saying the target was met; the
+//     two beds are prepared once
 //     each, lie differently, and the point's results aggregate over both (K = 2);
 //   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.2 s maximum (the least
 //     a target of 3 periods allows) and says so
@@ -189,8 +190,8 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
     EXPECT_EQ(res["stop_reason"], "target") << res.dump();
     EXPECT_EQ(res["precision_met"], true) << res.dump();
     EXPECT_THAT(res["stop_note"].get<std::string>(), HasSubstr("precision target met"));
-    // Ended after its transient and 3 whole periods (0.2 s), at the worker's next look, well
-    // before the 0.5 s maximum.
+    // Ended after its transient, the pilot's 3 whole periods and 3 more (0.35 s), at the worker's
+    // next look, before the 0.5 s maximum; U_z from the 3 after the pilot.
     EXPECT_GE(res["uz_blocks"].get<int>(), 3) << res.dump();
     EXPECT_GE(res["sim_time_s"].get<double>(), 0.2);
     EXPECT_LT(res["sim_time_s"].get<double>(), 0.5) << res.dump();
