@@ -16,11 +16,14 @@ using ::testing::Not;
 
 std::string GoldenPath(const std::string& name) { return std::string(SANDSWIM_SOURCE_DIR) + "/tests/golden/" + name; }
 
-// Compares with tests/golden/<name>; SANDSWIM_UPDATE_GOLDEN=1 rewrites the file instead (then
-// review the diff: a changed deck changes every content key, so bump kTemplateVersion).
+// Compares with tests/golden/<name>; SANDSWIM_UPDATE_GOLDEN=1 rewrites the file instead and fails,
+// so a run with it set never passes (review the diff, then run again without it: a changed deck
+// changes every content key, so bump kTemplateVersion).
 void ExpectGolden(const std::string& name, const std::string& text) {
   if (std::getenv("SANDSWIM_UPDATE_GOLDEN")) {
     std::ofstream(GoldenPath(name), std::ios::binary) << text;
+    ADD_FAILURE() << "rewrote " << GoldenPath(name)
+                  << ": review the diff, then run again without SANDSWIM_UPDATE_GOLDEN";
     return;
   }
   std::ifstream in(GoldenPath(name), std::ios::binary);

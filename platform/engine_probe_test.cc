@@ -3,6 +3,7 @@
 #include <stdlib.h>
 #include <sys/stat.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -56,8 +57,20 @@ TEST_F(EngineProbeProcessTest, NoBannerOrNoEngineIsUnavailable) {
 }
 
 TEST_F(EngineProbeProcessTest, AHangingEngineTimesOut) {
+  // The engine sleeps 30 s: a probe that waited for it to exit would take that long, and say
+  // nothing of a deadline.
+  auto start = std::chrono::steady_clock::now();
   auto hung = ProbeEngineVersion(Script("exec sleep 30"), 0.2);
+  double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(hung.status().code(), StatusCode::kUnavailable);
+  EXPECT_THAT(hung.status().reason(), HasSubstr("printed no banner within"));
+  EXPECT_LT(waited, 15);
+}
+
+TEST_F(EngineProbeProcessTest, ABannerBeforeAHangStillCounts) {
+  auto version = ProbeEngineVersion(Script(R"sh(echo "LIGGGHTS (Version hangs)"; exec sleep 30)sh"), 0.5);
+  ASSERT_TRUE(version.ok()) << version.status().ToString();
+  EXPECT_EQ(*version, "LIGGGHTS (Version hangs)");
 }
 
 }  // namespace

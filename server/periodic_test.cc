@@ -1,8 +1,10 @@
 #include "server/periodic.h"
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <thread>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -18,9 +20,10 @@ class CallCounter {
     ++calls_;
     cv_.notify_all();
   }
-  void WaitFor(int n) {
+  // False when n calls have not happened within 10 s (a job that never runs fails, not hangs).
+  bool WaitFor(int n) {
     std::unique_lock<std::mutex> lock(mu_);
-    cv_.wait(lock, [&] { return calls_ >= n; });
+    return cv_.wait_for(lock, std::chrono::seconds(10), [&] { return calls_ >= n; });
   }
   int calls() {
     std::lock_guard<std::mutex> lock(mu_);
@@ -38,9 +41,12 @@ TEST(PeriodicJobsTest, AJobRunsAgainAndAgainUntilStopped) {
   PeriodicJobs jobs;
   jobs.Add("often", 0.001, [&] { counter.Called(); });
   jobs.Start();
-  counter.WaitFor(3);
+  ASSERT_TRUE(counter.WaitFor(3));
   jobs.Stop();
   const int after_stop = counter.calls();
+  // Fifty periods later a job that outlived Stop() would have run again.
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(counter.calls(), after_stop);
   jobs.Stop();  // idempotent
   EXPECT_EQ(counter.calls(), after_stop);
 }
@@ -52,7 +58,7 @@ TEST(PeriodicJobsTest, RunAtStartRunsBeforeTheFirstPeriodAndStopDoesNotWaitForTh
       "nightly", 3600, [&] { counter.Called(); }, /*run_at_start=*/true);
   jobs.Add("hourly", 3600, [&] { ADD_FAILURE() << "ran before its first period"; });
   jobs.Start();
-  counter.WaitFor(1);
+  ASSERT_TRUE(counter.WaitFor(1));
   jobs.Stop();  // returns although both jobs wait for an hour
   EXPECT_EQ(counter.calls(), 1);
 }

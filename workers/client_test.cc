@@ -24,7 +24,8 @@ class FakeDaemon {
     port_ = server_.bind_to_any_port("127.0.0.1");
     thread_ = std::thread([this] { server_.listen_after_bind(); });
     // The socket already listens (bind_to_any_port), so early connections queue; still, wait.
-    while (!server_.is_running()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    for (int i = 0; i < 10000 && !server_.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    if (!server_.is_running()) ADD_FAILURE() << "the fake daemon did not start listening within 10 s";
   }
   ~FakeDaemon() {
     server_.stop();

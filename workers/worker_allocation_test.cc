@@ -129,6 +129,15 @@ TEST(WorkerAllocationTest, NoLeaseWhenTheAllocationEndsBeforeARunWouldFinish) {
   EXPECT_TRUE(worker.stats().allocation_ending);
 }
 
+// Waits for the worker's first lease, at most `limit`: a worker that never leases fails the test
+// (and is stopped by it) instead of hanging it.
+bool LeasedWithin(const QueueClient& client, std::chrono::milliseconds limit) {
+  auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!client.leased && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  return client.leased;
+}
+
 TEST(WorkerAllocationTest, LeasesWhileTheAllocationHasRoom) {
   QueueClient client;
   EndlessLauncher launcher;
@@ -136,7 +145,7 @@ TEST(WorkerAllocationTest, LeasesWhileTheAllocationHasRoom) {
   o.allocation_seconds_left = []() -> Result<std::optional<double>> { return std::optional<double>(3600); };
   Worker worker(o, client, launcher);
   std::thread run([&] { worker.Run(); });
-  while (!client.leased) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_TRUE(LeasedWithin(client, std::chrono::seconds(10)));
   worker.RequestStop();
   run.join();
   EXPECT_EQ(client.leases, 1);
@@ -150,7 +159,7 @@ TEST(WorkerAllocationTest, SlurmNotAnsweringDoesNotIdleTheAllocation) {
   o.allocation_seconds_left = []() -> Result<std::optional<double>> { return Status::Unavailable("slurmctld down"); };
   Worker worker(o, client, launcher);
   std::thread run([&] { worker.Run(); });
-  while (!client.leased) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_TRUE(LeasedWithin(client, std::chrono::seconds(10)));
   worker.RequestStop();
   run.join();
   EXPECT_EQ(client.leases, 1);
@@ -161,7 +170,7 @@ TEST(WorkerAllocationTest, StopHandsTheRunningJobBack) {
   EndlessLauncher launcher;
   Worker worker(Options(), client, launcher);
   std::thread run([&] { worker.Run(); });
-  while (!client.leased) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_TRUE(LeasedWithin(client, std::chrono::seconds(10)));
   worker.RequestStop();
   run.join();
   ASSERT_EQ(client.released.size(), 1u);
