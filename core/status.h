@@ -34,7 +34,8 @@ enum class StatusCode {
 
 const char* StatusCodeName(StatusCode code);
 
-class Status {
+// [[nodiscard]]: a Status dropped on the floor is a failure nobody sees; (void) says "on purpose".
+class [[nodiscard]] Status {
  public:
   Status() = default;  // OK
   Status(StatusCode code, std::string reason, std::string field = "")
@@ -73,12 +74,15 @@ class Status {
   std::string field_;
 };
 
-// Result<T>: a T or a non-OK Status.
+// Result<T>: a T or a non-OK Status. Made from an OK Status (a bug: there is no value), it holds an
+// Internal error saying so rather than a Result that is neither.
 template <typename T>
-class Result {
+class [[nodiscard]] Result {
  public:
-  Result(T value) : v_(std::move(value)) {}         // NOLINT: implicit by design
-  Result(Status status) : v_(std::move(status)) {}  // NOLINT: implicit by design
+  Result(T value) : v_(std::move(value)) {}  // NOLINT: implicit by design
+  Result(Status status)                      // NOLINT: implicit by design
+      : v_(status.ok() ? Status::Internal("a Result was made from an OK status, without a value")
+                       : std::move(status)) {}
   bool ok() const { return std::holds_alternative<T>(v_); }
   const Status& status() const {
     static const Status kOk;

@@ -1,5 +1,7 @@
 #include "platform/http_client.h"
 
+#include "platform/http_status.h"
+
 #include <cmath>
 
 #include <httplib.h>
@@ -7,32 +9,11 @@
 
 namespace sandswim {
 
-StatusCode StatusCodeForHttp(int http_status) {
-  switch (http_status) {
-    case 401:
-    case 403:
-      return StatusCode::kUnauthenticated;
-    case 404:
-      return StatusCode::kNotFound;
-    case 409:
-      return StatusCode::kConflict;
-    case 413:
-      return StatusCode::kResourceExhausted;
-    case 422:
-      return StatusCode::kFailedPrecondition;
-    case 502:
-    case 503:
-    case 504:
-      return StatusCode::kUnavailable;
-    default:
-      return http_status >= 500 ? StatusCode::kInternal : StatusCode::kInvalidArgument;
-  }
-}
-
 Status StatusFromHttp(int http_status, const std::string& body, const std::string& what) {
   nlohmann::json problem = nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
-  std::string detail, field;
+  std::string detail, field, type;
   if (problem.is_object()) {
+    if (auto t = problem.find("type"); t != problem.end() && t->is_string()) type = t->get<std::string>();
     if (auto d = problem.find("detail"); d != problem.end() && d->is_string()) detail = d->get<std::string>();
     if (auto f = problem.find("field"); f != problem.end() && f->is_string()) field = f->get<std::string>();
   }
@@ -40,12 +21,10 @@ Status StatusFromHttp(int http_status, const std::string& body, const std::strin
     detail = "HTTP " + std::to_string(http_status) + " for " + what;
     if (!body.empty()) detail += ": " + body.substr(0, 300);
   }
-  return Status(StatusCodeForHttp(http_status), detail, field);
+  return Status(StatusCodeForAnswer(http_status, type), detail, field);
 }
 
-bool DaemonTrouble(const Status& status) {
-  return status.code() == StatusCode::kUnavailable || status.code() == StatusCode::kInternal;
-}
+bool DaemonTrouble(const Status& status) { return HttpStatusFor(status.code()) >= 500; }
 
 std::unique_ptr<httplib::Client> NewHttpClient(const ClientOptions& options) {
   auto client = std::make_unique<httplib::Client>(options.server);

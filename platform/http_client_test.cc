@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <httplib.h>
 
+#include "platform/http_status.h"
+
 namespace sandswim {
 namespace {
 
@@ -68,7 +70,7 @@ TEST(HttpClientTest, EveryStatusMapsAsTheTableSays) {
   for (const auto& [http, code] : table) {
     Status s = Ask(server, http);
     EXPECT_EQ(s.code(), code) << "HTTP " << http << ": " << s.ToString();
-    EXPECT_EQ(StatusCodeForHttp(http), code) << http;
+    EXPECT_EQ(StatusCodeForAnswer(http), code) << http;
     // 5xx is the daemon's trouble, never the request's.
     EXPECT_EQ(DaemonTrouble(s), http >= 500) << http;
   }

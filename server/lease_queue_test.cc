@@ -585,7 +585,7 @@ TEST_F(LeaseQueueTest, BedFailingForGoodFailsItsRuns) {
   for (int i = 0; i < 3; ++i) {
     api::LeaseGrant g = MustLease();
     ASSERT_EQ(g.kind, api::JobKind::kBed);
-    queue_->Complete(g.token, Failed("signal", "killed"));
+    ASSERT_TRUE(queue_->Complete(g.token, Failed("signal", "killed")).ok());
   }
   auto info = store_->GetSweep(sweep);
   EXPECT_EQ(info->counts.failed, 2);
@@ -630,7 +630,7 @@ TEST_F(LeaseQueueTest, BedFailedOtherwiseIsPreparedAgainByALaterSubmission) {
   for (int i = 0; i < 3; ++i) {
     api::LeaseGrant g = MustLease();
     ASSERT_EQ(g.kind, api::JobKind::kBed);
-    queue_->Complete(g.token, Failed("signal", "killed"));
+    ASSERT_TRUE(queue_->Complete(g.token, Failed("signal", "killed")).ok());
   }
   int64_t sweep = SubmitJson(OmegaSignSweep());
   EXPECT_EQ(store_->GetSweep(sweep)->counts.queued, 2);

@@ -31,6 +31,7 @@
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "platform/http_status.h"
 #include "server/campaigns.h"
 #include "server/claim_check.h"
 #include "server/drift_report.h"
@@ -1333,45 +1334,9 @@ std::vector<RouteInfo> RouteTable() {
   return table;
 }
 
-int HttpStatusFor(StatusCode code) {
-  switch (code) {
-    case StatusCode::kOk:
-      return 200;
-    case StatusCode::kInvalidArgument:
-      return 400;
-    case StatusCode::kUnauthenticated:
-      return 401;
-    case StatusCode::kPermissionDenied:
-      return 403;
-    case StatusCode::kNotFound:
-      return 404;
-    case StatusCode::kAlreadyExists:
-      return 409;
-    case StatusCode::kConflict:
-      return 409;
-    case StatusCode::kFailedPrecondition:
-      return 422;
-    case StatusCode::kResourceExhausted:
-      return 422;  // e.g. a sweep past the run limit
-    case StatusCode::kUnavailable:
-      return 503;
-    case StatusCode::kIOError:
-      return 500;
-    case StatusCode::kCorruption:
-      return 500;
-    case StatusCode::kInternal:
-      return 500;
-  }
-  return 500;
-}
-
 json ProblemFor(const Status& status, int http_status) {
-  std::string name = StatusCodeName(status.code());
-  std::string slug;
-  for (char ch : name) slug += ch == ' ' || ch == '_' ? '-' : static_cast<char>(std::tolower(ch));
-  std::string title = HttpTitle(http_status);
-  return {{"type", "urn:sandswim:problem:" + slug},
-          {"title", title},
+  return {{"type", ProblemTypeFor(status.code())},
+          {"title", HttpTitle(http_status)},
           {"status", http_status},
           {"detail", status.field().empty() ? status.reason() : status.field() + ": " + status.reason()},
           {"field", status.field()}};
@@ -1586,7 +1551,7 @@ namespace {
 // so that no reader can cost a worker its lease.
 bool IsReservedRoute(const std::string& method, const std::string& path) {
   const Route* route = FindRoute(method, path);
-  return route != nullptr && (route->access == Access::kWorker || route->path == "/healthz");
+  return route != nullptr && (route->access == Access::kWorker || std::string_view(route->path) == "/healthz");
 }
 }  // namespace
 

@@ -8,7 +8,7 @@
 // the request, call Store / LeaseQueue / Submit, and render; they hold no business logic.
 //
 // Errors are RFC 9457 application/problem+json: {"type","title","status","detail","field"}, with
-// the HTTP status from one table (HttpStatusFor). An exception handler and an error handler are
+// the HTTP status from one table (HttpStatusFor, platform/http_status.h). An exception handler and an error handler are
 // the backstop, so nothing a client sends produces anything but a problem document.
 //
 // Before a route runs (server/request_policy.h): a Host header that does not name this daemon is
@@ -114,8 +114,6 @@ std::string BackupDir(const std::string& data_dir);
 std::string UploadDir(const std::string& data_dir);
 Result<int> ClearScratchDirs(const std::string& data_dir);
 
-// The HTTP status a Status code answers with (the one table).
-int HttpStatusFor(StatusCode code);
 // The RFC 9457 body for a Status: {"type","title","status","detail","field"}.
 nlohmann::json ProblemFor(const Status& status, int http_status);
 

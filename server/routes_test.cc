@@ -23,6 +23,7 @@
 #include "core/keys.h"
 #include "core/point.h"
 #include "core/sweep.h"
+#include "platform/http_status.h"
 #include "server/loopback_server_test_util.h"
 #include "server/live_feed.h"
 

@@ -248,7 +248,8 @@ void Worker::SlotLoop() {
     api::LeaseRequest request{options_.name, options_.host, options_.ranks, options_.slurm_job};
     auto lease = client_.Lease(request);
     if (!lease.ok()) {
-      if (lease.status().code() == StatusCode::kUnauthenticated) {
+      if (lease.status().code() == StatusCode::kUnauthenticated ||
+          lease.status().code() == StatusCode::kPermissionDenied) {
         spdlog::error("lease refused: {}", lease.status().ToString());
       } else {
         spdlog::warn("cannot lease ({}); retrying in {:.1f} s. Is the daemon running at the --server URL?",
@@ -349,7 +350,11 @@ void Worker::Complete(Job& job, const RunDir* dir) {
     spdlog::warn("{}: failed {}: {} ({})", job.name, completion.failure->kind, completion.failure->message,
                  reply->state);
   }
-  if (dir != nullptr && completion.ok && !options_.keep_run_dirs) dir->Remove();
+  if (dir != nullptr && completion.ok && !options_.keep_run_dirs) {
+    if (Status removed = dir->Remove(); !removed.ok())
+      spdlog::warn("{}: its run directory {} stays ({}): the result is stored; remove it by hand", job.name,
+                   dir->path(), removed.ToString());
+  }
 }
 
 void Worker::Fail(Job& job, const RunDir* dir, const std::string& kind, const std::string& message) {
