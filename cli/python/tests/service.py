@@ -33,10 +33,12 @@ class Service:
 
     `pace`: the truth engine's wall seconds per simulated second (0: a run is written at once).
     The token file is root/var/data/token, so a client started in `root` finds it as
-    ./var/data/token, the file a daemon started with its default --data makes.
+    ./var/data/token, the file a daemon started with its default --data makes. A root that already
+    holds sandswim.db (a benchmark's seeded store) is served as it is; `worker=False` starts none.
     """
 
-    def __init__(self, root: str, *, slots: int = 2, pace: float = 0.0, law: str = "paper", seed: int = 1) -> None:
+    def __init__(self, root: str, *, slots: int = 2, pace: float = 0.0, law: str = "paper", seed: int = 1,
+                 worker: bool = True) -> None:
         self.root = os.path.abspath(root)
         os.makedirs(self.root, exist_ok=True)
         self.token_file = os.path.join(self.root, "var", "data", "token")
@@ -52,6 +54,8 @@ class Service:
                  "--data", os.path.join(self.root, "var", "data"), "--listen", "127.0.0.1:0",
                  "--local-workers", "0"], self._daemon_log, env)
             self.url = self._wait_for_url()
+            if not worker:
+                return
             self._worker = self._start(
                 [_program("SANDSWIM_WORKER", "sandswim-worker"), "--server", self.url, "--token-file", self.token_file,
                  "--slots", str(slots), "--ranks", "1", "--workdir", os.path.join(self.root, "worker"),
