@@ -70,7 +70,7 @@ def _targets(target: Target) -> list[tuple[str, int]]:
                         field="target")
 
 
-def _submission_body(what: Union[Mapping[str, Any], str, os.PathLike], scale: Optional[str]) -> dict[str, Any]:
+def _submission_body(what: Union[Mapping[str, Any], str, "os.PathLike[str]"], scale: Optional[str]) -> dict[str, Any]:
     """The POST /api/v1/sweeps body: the CLI's rule (a file's JSON, else a campaign's name)."""
     if isinstance(what, Mapping):
         body = dict(what)
@@ -218,6 +218,13 @@ class Client:
         except ValueError:
             raise SandswimError(f"the daemon's answer to {method} {path} is not JSON") from None
 
+    def _object(self, path: str) -> dict[str, Any]:
+        """GET `path`, whose answer is a JSON object."""
+        answer = self._json("GET", path)
+        if not isinstance(answer, dict):
+            raise SandswimError(f"the daemon's answer to GET {path} is not a JSON object")
+        return answer
+
     def get(self, path: str, **params: Any) -> Any:
         """GET any route of the API (path from /api/v1/...) as parsed JSON: for what has no method."""
         return self._json("GET", path, params=params or None)
@@ -235,7 +242,7 @@ class Client:
 
     def api(self) -> dict[str, Any]:
         """The daemon's API description (GET /api/v1/openapi.json)."""
-        return self._json("GET", "/api/v1/openapi.json")
+        return self._object("/api/v1/openapi.json")
 
     def _units(self) -> frames.Schemas:
         if self._schemas is None:
@@ -250,7 +257,7 @@ class Client:
 
     # ---- submitting and following ----------------------------------------------------------------
 
-    def submit(self, what: Union[Mapping[str, Any], str, os.PathLike], *, scale: Optional[str] = None,
+    def submit(self, what: Union[Mapping[str, Any], str, "os.PathLike[str]"], *, scale: Optional[str] = None,
                force: bool = False, idempotency_key: Optional[str] = None) -> Submission:
         """Submits a sweep (a dict, or a JSON file: a sweep, {"sweeps": [...]} or {"campaign": NAME})
         or a campaign by name ("paper-58"). `scale` (paper, mini, smoke) overrides the file's or
@@ -341,7 +348,7 @@ class Client:
         if len(targets) != 1 or targets[0][0] != "campaign-runs":
             raise SandswimError("claims belong to a campaign run: give its id (7, \"cr:7\") or its Submission",
                                 field="campaign_run")
-        return self._json("GET", f"/api/v1/campaign-runs/{int(targets[0][1])}/claims")
+        return self._object(f"/api/v1/campaign-runs/{int(targets[0][1])}/claims")
 
     def claims(self, campaign_run: Target) -> pd.DataFrame:
         """The verdict of each claim of a campaign run (holds, differs, inconclusive) at its scale,
@@ -367,7 +374,7 @@ class Client:
 
     def run(self, run_id: int) -> dict[str, Any]:
         """A run's whole record: point, state, deck, trajectory, result, log tail, snapshots."""
-        return self._json("GET", f"/api/v1/runs/{int(run_id)}")
+        return self._object(f"/api/v1/runs/{int(run_id)}")
 
     def trajectory(self, run_id: int) -> pd.DataFrame:
         """The SO's path in a run: "t [s]", "x [m]", "y [m]", "z [m]", one row per dump frame."""
@@ -404,11 +411,11 @@ class Client:
         if format not in ("svg", "png"):
             raise SandswimError(f"format must be svg or png, got {format!r}", field="format")
         path = "/api/v1/" + paths[kind].format(int(ident)) + "." + format
-        return self._request("GET", path, params=params or None).content
+        return bytes(self._request("GET", path, params=params or None).content)
 
     def report(self, campaign_run: int) -> str:
         """A campaign run's report, a self-contained HTML page (IPython.display.HTML(text))."""
-        return self._request("GET", f"/api/v1/campaign-runs/{int(campaign_run)}/report").text
+        return str(self._request("GET", f"/api/v1/campaign-runs/{int(campaign_run)}/report").text)
 
     def beds(self) -> pd.DataFrame:
         """Every bed: scale, replicate, seeds, state, its figures once prepared ("result.grains")."""
@@ -416,14 +423,14 @@ class Client:
 
     def bed(self, bed_id: int) -> dict[str, Any]:
         """One bed's record."""
-        return self._json("GET", f"/api/v1/beds/{int(bed_id)}")
+        return self._object(f"/api/v1/beds/{int(bed_id)}")
 
     def snapshots(self, run_id: int) -> pd.DataFrame:
         """The full-bed snapshots a run handed in: idx, t_s, grains, bytes and their links."""
         return frames.table_frame(self.run(run_id).get("snapshots_taken") or [])
 
     def snapshot(self, run_id: int, n: int, format: str = "vtk",
-                 path: Optional[Union[str, os.PathLike]] = None) -> Union[bytes, str]:
+                 path: Optional[Union[str, "os.PathLike[str]"]] = None) -> Union[bytes, str]:
         """Snapshot n of a run as a legacy VTK file (ParaView opens it) or as the engine's dump
         ("dump"), or its slice figure ("slice.svg", "slice.png"): the bytes, or, given `path`, the
         file written there (streamed) and its path."""
@@ -432,7 +439,7 @@ class Client:
             raise SandswimError(f"format must be one of {', '.join(suffix)}, got {format!r}", field="format")
         url_path = f"/api/v1/runs/{int(run_id)}/snapshots/{int(n)}{suffix[format]}"
         if path is None:
-            return self._request("GET", url_path).content
+            return bytes(self._request("GET", url_path).content)
         try:
             response = self._session.get(self.url + url_path, stream=True, timeout=self.timeout)
         except requests.RequestException as e:
