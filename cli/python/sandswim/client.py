@@ -164,15 +164,19 @@ class Client:
 
     The bearer token, when not given, is found as the CLI finds it: `token_file` (the daemon's
     DATA/token), else $SANDSWIM_TOKEN, else ./var/data/token when the daemon is on this machine's
-    loopback (sandswim.token.find_token). `timeout` bounds each request, in seconds.
+    loopback (sandswim.token.find_token). `timeout` bounds each request, in seconds. `verify`,
+    for an https:// daemon: True (the system's CAs), or the path of the CA file that signed its
+    certificate.
     """
 
     def __init__(self, url: Optional[str] = None, token: Optional[str] = None, *,
-                 token_file: Optional[str] = None, timeout: float = 120.0) -> None:
+                 token_file: Optional[str] = None, timeout: float = 120.0,
+                 verify: Union[bool, str] = True) -> None:
         url = url or os.environ.get("SANDSWIM_SERVER") or DEFAULT_SERVER
         self.url = url.rstrip("/")
         self.timeout = timeout
         self._session = requests.Session()
+        self._session.verify = verify
         self._session.headers["User-Agent"] = f"sandswim-python/{__version__}"
         found = find_token(self.url, token, token_file)
         if found:
