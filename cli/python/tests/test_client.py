@@ -63,6 +63,20 @@ def test_version_is_the_api_version_the_daemon_serves(client):
     assert sandswim.__version__.split(".")[0] == served
 
 
+def test_a_daemon_serving_another_api_version_is_refused_with_what_to_do():
+    class Newer(Client):
+        def api(self):
+            return {"openapi": "3.0.3", "info": {"version": "2"}, "paths": {}}
+
+        def _results_json(self, target):
+            return [{"results": []}]
+
+    with pytest.raises(SandswimError) as e:
+        Newer("http://127.0.0.1:9", token="x").results(1)
+    assert e.value.field == "version"
+    assert "pip install cli/python" in str(e.value)
+
+
 def test_package_is_typed_and_the_one_under_test():
     assert os.path.exists(os.path.join(os.path.dirname(sandswim.__file__), "py.typed"))
     # ctest runs these tests in a venv the package was pip-installed into: that copy, not the source.
@@ -89,6 +103,21 @@ def test_token_order_given_then_file_then_environment_then_loopback_default(tmp_
     # The default file never goes to another machine.
     assert find_token("http://10.0.0.7:8640", None, None, {}, str(default)) is None
     assert find_token(url, None, None, {}, str(tmp_path / "absent")) is None
+
+
+def test_defaults_are_the_clis():
+    # Two languages, one rule: the C++ constants the CLI uses, read from this source tree.
+    import re
+
+    from sandswim import token
+
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..")
+    with open(os.path.join(root, "platform", "http_client.h"), encoding="utf-8") as f:
+        server = re.search(r'kDefaultServer = "([^"]+)"', f.read()).group(1)
+    with open(os.path.join(root, "platform", "token.h"), encoding="utf-8") as f:
+        data_dir = re.search(r'kDefaultDataDir = "([^"]+)"', f.read()).group(1)
+    assert token.DEFAULT_SERVER == server
+    assert os.path.normpath(token.DEFAULT_TOKEN_FILE) == os.path.normpath(os.path.join(data_dir, "token"))
 
 
 def test_an_unreadable_or_empty_token_file_is_an_error_naming_it(tmp_path):
