@@ -122,17 +122,29 @@ def fits_frame(fits: Mapping[str, Any]) -> pd.DataFrame:
     return frame
 
 
-def _scalars(d: Mapping[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in d.items() if not isinstance(v, (Mapping, list))}
+def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """`d` in one level: nested objects as "rule.kind", lists of plain values kept as one cell,
+    lists of objects (parts, figures, missing points) left to frames of their own."""
+    flat: dict[str, Any] = {}
+    for key, value in d.items():
+        name = prefix + key
+        if isinstance(value, Mapping):
+            flat.update(_flat(value, name + "."))
+        elif isinstance(value, list) and any(isinstance(v, (Mapping, list)) for v in value):
+            continue
+        else:
+            flat[name] = value
+    return flat
 
 
 def claims_frame(claims: Mapping[str, Any]) -> pd.DataFrame:
     """One row per claim (F1 ...) of a campaign run: its verdict at the run's scale, the reason,
-    how many parts decided it and how many points were missing, and every other plain field the
-    daemon gives (a verdict's error rate among them when the daemon states one)."""
+    how many parts decided it and how many points were missing, and every other field the daemon
+    gives, nested ones as "paper.text", "rule.kind" (a verdict's error rate among them when the
+    daemon states one)."""
     rows = []
     for claim in claims.get("claims", []):
-        row = _scalars(claim)
+        row = _flat(claim)
         row["parts"] = len(claim.get("parts", []))
         row["missing"] = len(claim.get("missing", []))
         rows.append(row)
@@ -144,7 +156,7 @@ def claim_parts_frame(claims: Mapping[str, Any]) -> pd.DataFrame:
     rows = []
     for claim in claims.get("claims", []):
         for part in claim.get("parts", []):
-            rows.append({"claim": claim.get("id"), **_scalars(part)})
+            rows.append({"claim": claim.get("id"), **_flat(part)})
     return pd.DataFrame.from_records(rows)
 
 
@@ -156,7 +168,7 @@ def claim_figures_frame(claims: Mapping[str, Any]) -> pd.DataFrame:
     for claim in claims.get("claims", []):
         for part in claim.get("parts", []):
             for figure in part.get("figures", []):
-                rows.append({"claim": claim.get("id"), "part": part.get("name"), **_scalars(figure)})
+                rows.append({"claim": claim.get("id"), "part": part.get("name"), **_flat(figure)})
     order = ["claim", "part", "name", "value", "stderr", "lo", "hi", "unit", "censored", "bound", "text", "verdict"]
     frame = pd.DataFrame.from_records(rows)
     return frame[_ordered(frame.columns, order)] if rows else frame

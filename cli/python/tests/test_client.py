@@ -298,6 +298,9 @@ def test_a_campaign_by_name_its_fits_and_its_claims(service, client):
     assert list(claims["id"]) == [c["id"] for c in reply]
     assert list(claims["verdict"]) == [c["verdict"] for c in reply]
     assert set(claims["verdict"]) <= {"holds", "differs", "inconclusive"}
+    # Nested fields stay, flattened: nothing the daemon adds to a claim is dropped.
+    assert list(claims["rule.kind"]) == [c["rule"]["kind"] for c in reply]
+    assert list(claims["missing"]) == [len(c["missing"]) for c in reply]
     parts = client.claim_parts(f"cr:{job.campaign_run}")
     assert len(parts) == sum(len(c["parts"]) for c in reply)
     figures = client.claim_figures(job.campaign_run)
