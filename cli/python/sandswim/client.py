@@ -332,8 +332,9 @@ class Client:
         with its standard error and 95 % half-width beside it, why it ended, units in the column
         names ("Uz [m/s]"). Uz is NaN until a run is done, or when it is not measured; `conclusive`
         and `Uz_text` say which."""
+        schemas = self._units()  # the API's version checked before a large answer is fetched
         rows = [row for reply in self._results_json(target) for row in reply.get("results", [])]
-        return frames.results_frame(rows, self._units())
+        return frames.results_frame(rows, schemas)
 
     def aggregates(self, target: Target) -> pd.DataFrame:
         """One row per point over its replicate beds: K beds, n conclusive, the mean U_z with its
@@ -419,7 +420,8 @@ class Client:
 
     def report(self, campaign_run: int) -> str:
         """A campaign run's report, a self-contained HTML page (IPython.display.HTML(text))."""
-        return str(self._request("GET", f"/api/v1/campaign-runs/{int(campaign_run)}/report").text)
+        # UTF-8 whatever the Content-Type says (requests reads text/* without a charset as Latin-1).
+        return str(self._request("GET", f"/api/v1/campaign-runs/{int(campaign_run)}/report").content.decode("utf-8"))
 
     def beds(self) -> pd.DataFrame:
         """Every bed: scale, replicate, seeds, state, its figures once prepared ("result.grains")."""
