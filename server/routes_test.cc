@@ -22,6 +22,7 @@
 
 #include "core/keys.h"
 #include "core/point.h"
+#include "core/result_table.h"
 #include "core/sweep.h"
 #include "platform/http_status.h"
 #include "server/loopback_server_test_util.h"
@@ -665,6 +666,24 @@ TEST_F(RoutesTest, OpenApiDescribesExactlyTheRouteTable) {
   EXPECT_EQ(doc["x-caps"]["max_json_body_bytes"], kMaxJsonBodyBytes);
   EXPECT_EQ(doc["x-caps"]["max_restart_body_bytes"], kMaxRestartBodyBytes);
   EXPECT_EQ(doc["components"]["schemas"]["Point"]["properties"]["Omega"]["maximum"], kMaxAngularVelocity);
+}
+
+// Every column of the results table is described, and every number of a point, a result row and
+// an aggregate states its unit (x-unit): the Python client (cli/python) names its DataFrame
+// columns with them, so a field added without one would reach a notebook without its unit.
+TEST_F(RoutesTest, OpenApiDescribesEveryResultColumnWithItsUnit) {
+  auto r = client_->Get("/api/v1/openapi.json");
+  ASSERT_EQ(r->status, 200);
+  const json schemas = Body(r)["components"]["schemas"];
+  const json& row = schemas["ResultRow"]["properties"];
+  for (const std::string& column : ResultColumns()) EXPECT_TRUE(row.contains(column)) << column;
+  for (const char* name : {"Point", "ResultRow", "PointAggregate"}) {
+    for (const auto& [field, property] : schemas[name]["properties"].items()) {
+      if (property.value("type", "") != "number") continue;
+      EXPECT_TRUE(property.contains("x-unit")) << name << "." << field << " is a number without x-unit";
+    }
+  }
+  EXPECT_EQ(row["Uz"]["x-unit"], "m/s");
 }
 
 // Every route of the table is served (none falls through to the router's 404).

@@ -18,7 +18,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -26,10 +25,7 @@
 
 #include <httplib.h>
 
-#include "core/keys.h"
-#include "server/lease_queue.h"
-#include "server/store.h"
-#include "server/submission.h"
+#include "tests/bench/synthetic_campaign.h"
 #include "tests/browser/webdriver.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
@@ -92,78 +88,12 @@ double CpuSeconds(pid_t pid) {
 // ---- 1. A campaign run of 10,000 runs -----------------------------------------------------------
 
 void TenThousandRuns(const fs::path& dir, int runs_done) {
-  const std::string engine = "LIGGGHTS (SYNTHETIC, bench_dashboard)";
-  fs::create_directories(dir / "daemon" / "data");
-  const std::string db = (dir / "daemon" / "sandswim.db").string();
-  {
-    auto store = sandswim::Store::Open(db);
-    if (!store.ok()) Die(store.status().ToString());
-    sandswim::SystemClock clock;
-    sandswim::LeaseQueue leases(store->get(), &clock, sandswim::LeaseQueueOptions{});
-    std::vector<double> omegas, amplitudes;
-    for (int i = 0; i < 100; ++i) omegas.push_back(i < 50 ? -10.0 * (i + 1) : 10.0 * (i - 49));
-    for (int i = 0; i < 100; ++i) amplitudes.push_back(0.005 + 0.0005 * i);
-    sandswim::StoredCampaign campaign;
-    campaign.name = "big-10k";
-    campaign.definition = {
-        {"name", "big-10k"},
-        {"description", "bench_dashboard: 10,000 points"},
-        {"scale", "smoke"},
-        {"sweeps", json::array({{{"name", "Omega-A"},
-                                 {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", -80}, {"duration_s", 2}}},
-                                 {"axes", json::array({{{"param", "Omega"}, {"values", omegas}},
-                                                       {{"param", "A"}, {"values", amplitudes}}})},
-                                 {"combine", "product"}}})}};
-    if (sandswim::Status s = (*store)->PutCampaign(campaign); !s.ok()) Die(s.ToString());
-    sandswim::SubmitRequest request;
-    request.campaign = "big-10k";
-    request.scale = "smoke";
-    auto submitted = sandswim::Submit(**store, request, engine, clock.Now());
-    if (!submitted.ok()) Die(submitted.status().ToString());
-    std::mt19937 rng(10000);
-    std::normal_distribution<double> noise(0.0, 1.0);
-    const Steady::time_point start = Steady::now();
-    int done = 0;
-    while (done < runs_done) {
-      auto grant = leases.Lease(sandswim::api::LeaseRequest{"bench:1", "bench", 1});
-      if (!grant.ok() || !grant->has_value()) Die("lease: " + grant.status().ToString());
-      const sandswim::api::LeaseGrant& g = **grant;
-      sandswim::api::Completion c;
-      c.ok = true;
-      c.execution.engine_version = engine;
-      if (g.kind == sandswim::api::JobKind::kBed) {
-        const std::string restart = "a synthetic bed";
-        if (!leases.PutBedRestart(g.token, restart, sandswim::Sha256Hex(restart), (dir / "daemon" / "data").string()).ok())
-          Die("bed");
-        c.bed_result = sandswim::api::BedResult{6682, -0.011, 0.329, true, 1e-4, sandswim::Sha256Hex(restart), 15, 0.68, 0.28, 0.55, 154};
-      } else {
-        sandswim::api::RunResult r;
-        r.uz = 0.05 + 0.004 * noise(rng);
-        r.uz_stderr = 0.004;
-        r.uz_ci95 = 3.18 * 0.004;
-        r.uz_blocks = 4;
-        r.block_s = 1.0 / 3;
-        r.block_kind = "period";
-        r.conclusive = true;
-        r.stop_reason = "target";
-        r.dz = 0.1;
-        c.result = r;
-        sandswim::api::Trajectory t;
-        for (int i = 0; i < 50; ++i) {
-          t.t.push_back(0.04 * i);
-          t.x.push_back(0);
-          t.y.push_back(0);
-          t.z.push_back(*r.uz * 0.04 * i);
-        }
-        c.trajectory = t;
-        ++done;
-      }
-      auto reply = leases.Complete(g.token, c);
-      if (!reply.ok()) Die(reply.status().ToString());
-    }
-    std::printf("10,000-run campaign: %d runs completed with SYNTHETIC results in %.1f s, %d queued\n", done,
-                Seconds(start), 10000 - done);
-  }
+  auto seeded = sandswim::bench::SeedTenThousandRunCampaign((dir / "daemon" / "sandswim.db").string(),
+                                                            (dir / "daemon" / "data").string(), runs_done,
+                                                            "LIGGGHTS (SYNTHETIC, bench_dashboard)");
+  if (!seeded.ok()) Die(seeded.status().ToString());
+  std::printf("10,000-run campaign: %d runs completed with SYNTHETIC results in %.1f s, %d queued\n",
+              seeded->runs_done, seeded->seconds, seeded->runs - seeded->runs_done);
   // The real daemon on that file.
   sandswim::testing::Daemon daemon((dir / "daemon").string());
   const json runs = daemon.Get("/api/v1/campaign-runs");
