@@ -285,7 +285,7 @@ void SendRows(Call& c, int64_t id, const std::vector<json>& rows, const std::vec
     std::vector<std::string> columns = ResultColumns();
     if (with_sweeps) columns.push_back("sweeps");
     c.res.status = 200;
-    c.res.set_content(RowsToCsv(rows, columns), "text/csv");
+    c.res.set_content(RowsToCsv(rows, columns), "text/csv; charset=utf-8");
     return;
   }
   SendJson(c, 200, {{"id", id}, {"results", rows}, {"aggregates", AggregatesJson(distinct)}});
