@@ -25,7 +25,7 @@ constexpr double kViscousGamma = 0.2;         // N s/m: damping time m_grain / g
 constexpr int kViscousSteps = 20000;          // 0.2 s of damping
 constexpr int kCheckSamples = 100;            // at most 1 s of undamped checking
 constexpr double kKineticEnergyRatio = 1e-4;  // Sec. 2.3
-constexpr double kSkin = 0.01;                // m; fastest measured here (issue 2)
+constexpr double kSkin = 0.01;                // m; fastest measured here
 constexpr int kThermoEvery = 1000;
 
 std::string Fmt(double v) { return FormatNumber(v); }

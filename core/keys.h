@@ -1,8 +1,8 @@
 // Content keys: what makes a bed or a run the same as one already done.
 //
 // A bed's key hashes its rendered deck, the template version and the engine version; a run's key
-// hashes its rendered drive deck, its bed's key, the template version and the engine version
-// (issue 3). Equal keys mean equal work, so a stored result under the key can be reused.
+// hashes its rendered drive deck, its bed's key, the template version and the engine version.
+// Equal keys mean equal work, so a stored result under the key can be reused.
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_KEYS_H_

@@ -1,5 +1,5 @@
--- sandswim schema, migration 3: what a 100,000-run sweep needs to stay cheap (issue 3,
--- "Measure"; figures in tests/bench/bench_daemon.cc).
+-- sandswim schema, migration 3: what a 100,000-run sweep needs to stay cheap (figures
+-- in tests/bench/bench_daemon.cc).
 
 -- 1. A sweep's run counts by state, one row per sweep, so GET /api/v1/sweeps/{id} reads one row
 --    instead of joining every membership row to its run. A new sweep's row comes from the trigger

@@ -1,4 +1,4 @@
-// Daemon crash trials (issue 15): the promise that nothing is lost and a run is done once, tried by
+// Daemon crash trials: the promise that nothing is lost and a run is done once, tried by
 // killing the daemon. A real sandswimd and two real sandswim-workers (launcher "direct"), whose
 // engine is sandswim-stand-in-engine -- a STAND-IN that simulates nothing and lasts a set time, so
 // that the orchestration alone is under test -- work through a sweep while the daemon is SIGKILLed

@@ -1,4 +1,4 @@
-// End to end, faults (issue 4): a worker killed mid-run and a deck the engine rejects, with the
+// End to end, faults: a worker killed mid-run and a deck the engine rejects, with the
 // real sandswimd, real sandswim-workers and LIGGGHTS at smoke scale. One daemon serves both tests;
 // its bed is the tests' shared smoke bed (ctest's smoke_bed fixture), handed in through the worker
 // protocol. A ctest test of its own, so that it runs beside the long e2e (e2e_test.cc).

@@ -1,4 +1,4 @@
-// End to end (issue 4): the real sandswimd, a real sandswim-worker launching LIGGGHTS under mpirun
+// End to end: the real sandswimd, a real sandswim-worker launching LIGGGHTS under mpirun
 // at smoke scale, a real SQLite file. The daemon's smoke bed replicate 0 is the tests' shared bed
 // (ctest's smoke_bed fixture prepares it, beside this test), handed in through the worker
 // protocol; replicate 1 is prepared by the daemon's own bed job on the worker, as a user's bed is,

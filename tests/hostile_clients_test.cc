@@ -1,4 +1,4 @@
-// Hostile clients (issue 15): the real sandswimd, a real sandswim-worker whose engine is the
+// Hostile clients: the real sandswimd, a real sandswim-worker whose engine is the
 // STAND-IN (tests/bench/stand_in_engine.cc: it simulates nothing, so that only the service is
 // under test), and clients that try to take the daemon's threads or feed it what no client should:
 // more slow and silent connections than it has threads, deeply nested JSON, a body larger than any

@@ -1,4 +1,4 @@
-// Physics of the decks with the real engine at smoke scale (issue 2): the SO follows its
+// Physics of the decks with the real engine at smoke scale: the SO follows its
 // prescription, its x and z are free, and runs from one bed start alike. Each test runs LIGGGHTS
 // under mpirun on the shared smoke bed (engine_fixture.h; ctest's smoke_bed fixture prepares it).
 // The early stop at the surface needs a bed of its own: shallow_bed_test.cc.

@@ -1,4 +1,4 @@
-// bench_daemon: the daemon's figures of issue 3, printed one per line.
+// bench_daemon: the daemon's figures, printed one per line.
 //
 //   submit   ParseSubmitRequest + Submit of a N-point sweep (default 100,000) into a fresh SQLite
 //            file, in-process; then the same body POSTed to /api/v1/sweeps of a real in-process

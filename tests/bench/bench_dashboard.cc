@@ -1,4 +1,4 @@
-// bench_dashboard: issue 14's two figures, on the real sandswimd.
+// bench_dashboard: two figures, on the real sandswimd.
 //
 //  1. Time to first render of a campaign run's page with 10,000 runs, in headless Chromium: a
 //     campaign of one 100 x 100 sweep at smoke, 9,000 runs completed with SYNTHETIC results (the

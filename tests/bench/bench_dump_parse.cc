@@ -1,5 +1,5 @@
 // bench_dump_parse: how fast the streaming DumpReader (core/dump_reader.h) reads a LIGGGHTS dump,
-// next to `wc -l` on the same file (issue 4's goal: at least half of wc -l's speed). The figure
+// next to `wc -l` on the same file (the goal: at least half of wc -l's speed). The figure
 // compared is the worker's path: the file in 1 MB chunks fed to DumpReader::Feed(chunk, sink) with
 // the SoSampleSink that makes the run's samples (core/trajectory.h); a DumpFrameCollector (every
 // frame copied into a DumpFrame, what tools and tests use) is timed too.

@@ -1,4 +1,4 @@
-// bench_load: issue 15's load figures on the real sandswimd. A campaign runs (a sweep whose runs a
+// bench_load: load figures on the real sandswimd. A campaign runs (a sweep whose runs a
 // worker runs with the STAND-IN engine, tests/bench/stand_in_engine.cc, 1 s each, 2 slots) while
 // a second process sends status queries at a fixed rate (default 1,000 requests/s for 60 s: a
 // sweep's status, the running runs, the dashboard's live snapshot, in turn) over 16 keep-alive

@@ -1,4 +1,4 @@
-// bench_orchestration: issue 4's orchestration figures, with a STAND-IN engine
+// bench_orchestration: orchestration figures, with a STAND-IN engine
 // (sandswim-stand-in-engine, which simulates nothing and exits at once; for this measurement only).
 //
 //   throughput   end-to-end runs per second: an in-process daemon (store + lease queue + REST on

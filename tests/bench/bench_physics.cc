@@ -1,4 +1,4 @@
-// bench_physics: the figures issue 2 asks for, measured with the real engine.
+// bench_physics: the physics figures, measured with the real engine.
 //
 //   bench_physics [--mini]
 //

@@ -1,4 +1,4 @@
-// bench_report: issue 13's figure -- how long a finished campaign's claims and its full HTML
+// bench_report: how long a finished campaign's claims and its full HTML
 // report take. paper-58 at smoke on K replicate beds (default 3: 174 runs) is submitted to an
 // in-process store and every job is completed with SYNTHETIC results (eq. 8 shaped rates with
 // noise, 2 s trajectories of 400 samples: for this measurement only, no physics); then it times

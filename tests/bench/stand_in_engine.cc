@@ -1,5 +1,5 @@
 // sandswim-stand-in-engine: a STAND-IN for LIGGGHTS, for measuring and breaking the orchestration
-// ONLY: the runs-per-second benchmark of issue 4, the daemon crash trials of issue 15
+// ONLY: the runs-per-second benchmark, the daemon crash trials
 // (tests/crash_trials_test.cc) and the dashboard's browser tests (tests/browser/). It simulates nothing. It takes LIGGGHTS's command line (-in DECK
 // -log LOG [-screen X]), writes a minimal valid log with the markers the worker reads, a short SO
 // dump (drive decks) or a small bed.restart (bed decks), and exits 0. Its version line says what

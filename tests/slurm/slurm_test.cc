@@ -1,4 +1,4 @@
-// sandswim on a real Slurm (issue 7): deploy/slurm/local-cluster.sh brings up a single-node
+// sandswim on a real Slurm: deploy/slurm/local-cluster.sh brings up a single-node
 // Slurm (munge, slurmctld, slurmd), a real sandswimd hands out smoke runs, and `sandswim slurm
 // submit` sbatches pilots (srun-launched LIGGGHTS) and job arrays of one-shot workers.
 //
