@@ -332,6 +332,61 @@ TEST_F(GuardedHttpServerClientCapTest, AClientPastItsConnectionsIsServedOnlyRese
   EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200")) << "the client's connections were closed";
 }
 
+// 48 connections in all, the last 6 kept for reserved requests; no per-client cap in the way.
+class GuardedHttpServerReserveTest : public GuardedHttpServerTest {
+ protected:
+  void Adjust(ConnectionLimits& limits) override {
+    limits.idle_s = 30;
+    limits.max_connections = 48;
+    limits.max_connections_per_client = 1000;
+  }
+  int ConnectFrom(const char* address) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, address, &from.sin_addr);
+    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from), 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(port_));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    return fd;
+  }
+  void WaitOpen(int n) {
+    for (int i = 0; i < 500 && server_->open_connections() < n; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ASSERT_EQ(server_->open_connections(), n);
+  }
+};
+
+TEST_F(GuardedHttpServerReserveTest, TheLastSlotsServeOnlyReservedRequestsAFewPerClient) {
+  std::vector<int> held;
+  for (int i = 0; i < 42; ++i) held.push_back(Connect());
+  WaitOpen(42);
+  // In the reserve: the worker protocol and /healthz are served, anything else refused at once.
+  const std::string refused = Ask("/hello");
+  EXPECT_THAT(refused, ::testing::StartsWith("HTTP/1.1 429")) << refused;
+  EXPECT_THAT(refused, ::testing::HasSubstr("nearly all taken"));
+  EXPECT_THAT(Ask("/reserved"), ::testing::StartsWith("HTTP/1.1 200"));
+  // One client holds at most 4 of the 6 reserved slots: its fifth connection is closed unanswered,
+  // and another client still gets one.
+  for (int i = 0; i < 4; ++i) held.push_back(Connect());
+  WaitOpen(46);
+  const int fifth = Connect();
+  char c;
+  EXPECT_LE(recv(fifth, &c, 1, 0), 0) << "a client past its share of the reserve was kept";
+  close(fifth);
+  const int other = ConnectFrom("127.0.0.2");
+  Send(other, "GET /reserved HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+  std::string got;
+  char buf[4096];
+  ssize_t n;
+  while ((n = recv(other, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+  close(other);
+  EXPECT_THAT(got, ::testing::StartsWith("HTTP/1.1 200")) << "another client found no reserved slot";
+  for (int fd : held) close(fd);
+}
+
 TEST_F(GuardedHttpServerTest, ARequestHeadLargerThanTheBufferIsAnswered431WithoutAThread) {
   const int fd = Connect();
   Send(fd, "GET /hello HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(20 * 1024, 'a'));
