@@ -1,5 +1,6 @@
 #include "cli/client.h"
 
+#include "platform/tls.h"
 #include "platform/token.h"
 
 #include <cerrno>
@@ -207,6 +208,7 @@ class HttpDaemonClient : public DaemonClient {
   Result<json> Answer(const httplib::Result& res, const std::string& method, const std::string& path) {
     if (!res) {
       httplib::Error error = res.error();
+      if (auto tls = TlsFailure(http_, static_cast<int>(error), options_.server); tls) return *tls;
       if (error == httplib::Error::Connection || error == httplib::Error::ConnectionTimeout) {
         std::string why =
             error == httplib::Error::ConnectionTimeout ? "connection timed out" : WhyNoConnection(options_.server);
@@ -248,7 +250,8 @@ class HttpDaemonClient : public DaemonClient {
 }  // namespace
 
 Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const std::string& token_file_flag,
-                                           const std::function<const char*(const char*)>& getenv) {
+                                           const std::function<const char*(const char*)>& getenv,
+                                           const std::string& tls_fingerprint_flag, const std::string& tls_ca_flag) {
   ClientOptions options;
   std::string field = "--server";
   std::string url = server_flag;
@@ -261,17 +264,28 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
   }
   if (url.empty()) url = kDefaultServer;
   while (url.size() > 7 && url.back() == '/') url.pop_back();
-  static const std::regex kUrl(R"(http://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)(:[0-9]{1,5})?)");
+  static const std::regex kUrl(R"((https?)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)(:[0-9]{1,5})?)");
   std::smatch parts;
   if (!std::regex_match(url, parts, kUrl)) {
-    return Status::InvalidArgument(
-        field, "expected http://HOST:PORT (e.g. " + std::string(kDefaultServer) + "), got \"" + url + "\"");
+    return Status::InvalidArgument(field, "expected http://HOST:PORT or https://HOST:PORT (e.g. " +
+                                              std::string(kDefaultServer) + "), got \"" + url + "\"");
   }
   options.server = url;
+  const std::string host = parts[2].str();
 
-  auto token = LoadClientToken(token_file_flag, parts[1].str(), getenv);
+  auto token = LoadClientToken(token_file_flag, host, getenv);
   if (!token.ok()) return token.status();
   options.token = *token;
+  auto tls = ResolveTlsTrust(tls_fingerprint_flag, tls_ca_flag, getenv);
+  if (!tls.ok()) return tls.status();
+  options.tls = *tls;
+  const std::string own_cert = TlsDirIn(kDefaultDataDir) + "/cert.pem";
+  if (parts[1].str() == "https" && tls->fingerprint.empty() && tls->ca_file.empty() && IsLoopbackHost(host) &&
+      access(own_cert.c_str(), R_OK) == 0) {
+    auto pinned = CertificateFingerprint(own_cert);
+    if (!pinned.ok()) return Status::InvalidArgument("--tls-fingerprint", pinned.status().reason());
+    options.tls.fingerprint = *pinned;
+  }
   return options;
 }
 

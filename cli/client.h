@@ -82,10 +82,16 @@ class DaemonClient {
 
 // Resolves the daemon's URL and token from the flags and the environment (`getenv` is injected
 // for tests). Errors name the flag or variable ("--server", "--token-file", "SANDSWIM_TOKEN").
+// For an https:// URL, how its certificate is trusted (platform/tls.h): --tls-fingerprint or
+// $SANDSWIM_TLS_FINGERPRINT, --tls-ca or $SANDSWIM_TLS_CA; else, for a daemon on loopback, the
+// fingerprint of the default data directory's self-signed certificate (./var/data/tls/cert.pem)
+// when it exists, as the token; else the system's CAs.
 Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const std::string& token_file_flag,
-                                           const std::function<const char*(const char*)>& getenv);
+                                           const std::function<const char*(const char*)>& getenv,
+                                           const std::string& tls_fingerprint_flag = "",
+                                           const std::string& tls_ca_flag = "");
 
-// The REST client over cpp-httplib. REQUIRES: options.server starts with "http://".
+// The REST client over cpp-httplib. REQUIRES: options.server starts with "http://" or "https://".
 std::unique_ptr<DaemonClient> NewDaemonClient(const ClientOptions& options);
 
 }  // namespace sandswim::cli

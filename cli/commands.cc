@@ -33,6 +33,8 @@ struct Args {
   // Global.
   std::string server;
   std::string token_file;
+  std::string tls_fingerprint;
+  std::string tls_ca;
   bool no_color = false;
   // Subcommands.
   std::string target;  // the positional: FILE | CAMPAIGN | SWEEP | CAMPAIGN-RUN | RUN
@@ -79,7 +81,7 @@ class Context {
   // The REST client, made on first use (offline commands never make one).
   Result<DaemonClient*> Client() {
     if (!client_) {
-      auto options = ResolveClientOptions(args.server, args.token_file, env.getenv);
+      auto options = ResolveClientOptions(args.server, args.token_file, env.getenv, args.tls_fingerprint, args.tls_ca);
       if (!options.ok()) return options.status();
       client_ = env.make_client(*options);
     }
@@ -850,7 +852,7 @@ void SetupSlurm(CLI::App& sub, Args& a) {
 }
 
 int RunSlurm(Context& c) {
-  auto options = ResolveClientOptions(c.args.server, c.args.token_file, c.env.getenv);
+  auto options = ResolveClientOptions(c.args.server, c.args.token_file, c.env.getenv, c.args.tls_fingerprint, c.args.tls_ca);
   if (!options.ok()) return FailUsageIfInvalid(c, options.status());
   SlurmSubmitOptions submit = c.args.slurm;
   submit.server = options->server;
@@ -979,7 +981,13 @@ int RunCli(int argc, const char* const* argv, Environment& env) {
              "holds).\n");
   app.require_subcommand(1);
   app.fallthrough();
-  app.add_option("--server", args.server, "daemon URL, http://HOST:PORT (else $SANDSWIM_SERVER)");
+  app.add_option("--server", args.server, "daemon URL, http://HOST:PORT or https://HOST:PORT (else $SANDSWIM_SERVER)");
+  app.add_option("--tls-fingerprint", args.tls_fingerprint,
+                 "for https: the daemon's certificate must have this SHA-256 fingerprint, as sandswimd prints it "
+                 "(else $SANDSWIM_TLS_FINGERPRINT; for a daemon on loopback, ./var/data/tls/cert.pem's)");
+  app.add_option("--tls-ca", args.tls_ca,
+                 "for https: CA certificate(s) (PEM) the daemon's certificate must chain to (else $SANDSWIM_TLS_CA, "
+                 "else the system's CAs)");
   app.add_option(
       "--token-file", args.token_file,
       "file holding the bearer token (else $SANDSWIM_TOKEN, else ./var/data/token for a daemon on loopback)");

@@ -161,7 +161,33 @@ TEST(CommandsTest, ServerFromTheEnvironmentIsValidated) {
   h.vars["SANDSWIM_SERVER"] = "not a url";
   EXPECT_EQ(h.Run({"status"}, false), kExitUsage);
   EXPECT_EQ(h.err.str(),
-            "sandswim: SANDSWIM_SERVER: expected http://HOST:PORT (e.g. http://127.0.0.1:8640), got \"not a url\"\n");
+            "sandswim: SANDSWIM_SERVER: expected http://HOST:PORT or https://HOST:PORT (e.g. http://127.0.0.1:8640), "
+            "got \"not a url\"\n");
+}
+
+TEST(ClientOptionsTest, HttpsTakesAPinnedFingerprintFromTheFlagOrTheEnvironment) {
+  std::map<std::string, std::string> vars;
+  auto getenv = [&vars](const char* name) -> const char* {
+    auto it = vars.find(name);
+    return it == vars.end() ? nullptr : it->second.c_str();
+  };
+  const std::string pin = "SHA256:" + [] {
+    std::string hex;
+    for (int i = 0; i < 32; ++i) hex += (i ? ":" : "") + std::string("0A");
+    return hex;
+  }();
+  vars["SANDSWIM_TLS_FINGERPRINT"] = "0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a0a";
+  auto o = ResolveClientOptions("https://login1:8640", "", getenv);
+  ASSERT_TRUE(o.ok()) << o.status().ToString();
+  EXPECT_EQ(o->server, "https://login1:8640");
+  EXPECT_EQ(o->tls.fingerprint, pin);
+  vars["SANDSWIM_TLS_FINGERPRINT"] = "SHA256:12:34";
+  auto bad = ResolveClientOptions("https://login1:8640", "", getenv);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().field(), "SANDSWIM_TLS_FINGERPRINT");
+  auto flag_wins = ResolveClientOptions("https://login1:8640", "", getenv, pin);
+  ASSERT_TRUE(flag_wins.ok()) << flag_wins.status().ToString();
+  EXPECT_EQ(flag_wins->tls.fingerprint, pin);
 }
 
 TEST(CommandsTest, ExpandWithoutEngineWarnsAndUsesUnknown) {

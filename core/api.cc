@@ -114,6 +114,7 @@ void to_json(nlohmann::json& j, const LeaseGrant& g) {
                      {"steps", g.steps}, {"wall_budget_s", g.wall_budget_s},
                      {"dt_s", g.dt_s},   {"f_hz", g.f_hz},
                      {"A_m", g.A_m}};
+  if (!g.key_engine.empty()) j["key_engine"] = g.key_engine;
   PutOptional(j, "bed", g.bed);
   PutOptional(j, "z_floor_m", g.z_floor_m);
   if (g.precision) j["precision"] = PrecisionToJson(*g.precision);
@@ -126,6 +127,7 @@ void from_json(const nlohmann::json& j, LeaseGrant& g) {
   g.id = j.at("id").get<int64_t>();
   g.key = j.value("key", "");
   g.deck = j.at("deck").get<std::string>();
+  g.key_engine = j.value("key_engine", "");
   g.attempt = j.value("attempt", 1);
   g.ttl_s = j.value("ttl_s", 60.0);
   g.duration_s = j.value("duration_s", 0.0);

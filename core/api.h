@@ -56,8 +56,9 @@ struct BedRef {
   int64_t id = 0;
   std::string sha256;  // of the restart file; a run never starts from a bed that differs
   std::string url;     // "/api/v1/beds/{id}/restart"
+  std::string key;     // the bed's content key (a run's key hashes it)
 };
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedRef, id, sha256, url)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(BedRef, id, sha256, url, key)
 
 struct LeaseGrant {
   std::string token;
@@ -65,6 +66,10 @@ struct LeaseGrant {
   int64_t id = 0;             // bed id or run id
   std::string key;            // content key of the bed or run
   std::string deck;           // LIGGGHTS input, rendered by the daemon
+  // The engine version `key` hashes (core/keys.h): the worker recomputes the key from `deck` (and
+  // for a run its bed's key) and refuses a deck that does not match. "": not checkable (an older
+  // daemon, a deck stored before migration 3).
+  std::string key_engine;
   int attempt = 1;            // 1 for the first lease of this job
   double ttl_s = 60;          // heartbeat before this runs out
   double duration_s = 0;      // physical time the run simulates (0 for beds)
@@ -197,6 +202,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Snapshot, idx, fraction, t_s, st
 //   "bad_output"     the dump or log could not be read
 //   "bed_mismatch"   the bed restart's checksum did not match
 //   "bad_lease"      the lease lacks what the worker needs (a daemon older than the worker)
+//   "key_mismatch"   the lease's deck does not hash to its content key (changed on its way): not run
 //   "cancelled"      stopped because the sweep was cancelled
 struct Failure {
   std::string kind;

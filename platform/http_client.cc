@@ -36,6 +36,7 @@ std::unique_ptr<httplib::Client> NewHttpClient(const ClientOptions& options) {
   // Small requests go out at once (Nagle + the peer's delayed ACK cost ~40 ms per request).
   client->set_tcp_nodelay(true);
   if (!options.token.empty()) client->set_bearer_token_auth(options.token);
+  ConfigureTls(*client, options.tls);
   return client;
 }
 

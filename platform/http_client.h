@@ -19,6 +19,7 @@
 #include <string>
 
 #include "core/status.h"
+#include "platform/tls.h"
 
 namespace httplib {
 class Client;
@@ -29,8 +30,9 @@ namespace sandswim {
 inline constexpr const char* kDefaultServer = "http://127.0.0.1:8640";
 
 struct ClientOptions {
-  std::string server = kDefaultServer;  // "http://HOST:PORT"
+  std::string server = kDefaultServer;  // "http://HOST:PORT" or "https://HOST:PORT"
   std::string token;                    // bearer token; "" : no Authorization header
+  TlsTrust tls;                         // for https: how the daemon's certificate is checked (platform/tls.h)
   double connect_timeout_s = 3;
   double read_timeout_s = 60;
   double retry_for_s = 3600;  // how long the worker's retried calls keep trying
@@ -45,8 +47,9 @@ Status StatusFromHttp(int http_status, const std::string& body, const std::strin
 // kCorruption): asking again later may succeed.
 bool DaemonTrouble(const Status& status);
 
-// A client for options.server with the options' timeouts and token.
-// REQUIRES: options.server starts with "http://".
+// A client for options.server with the options' timeouts and token, and for https:// the
+// options' TLS trust.
+// REQUIRES: options.server starts with "http://" or "https://".
 std::unique_ptr<httplib::Client> NewHttpClient(const ClientOptions& options);
 
 }  // namespace sandswim

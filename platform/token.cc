@@ -58,27 +58,54 @@ Result<std::string> GenerateToken() {
   return token;
 }
 
+Status CheckPrivateFd(int fd, const std::string& path, const std::string& field) {
+  struct stat st {};
+  if (fstat(fd, &st) != 0) return Status::IOError("cannot look at " + path + ": " + std::strerror(errno));
+  if (!S_ISREG(st.st_mode)) return Status::InvalidArgument(field, path + " is not a regular file");
+  if (st.st_uid != geteuid()) {
+    return Status::FailedPrecondition(
+        field, path + " belongs to user " + std::to_string(st.st_uid) + ", not to this process's user " +
+                   std::to_string(geteuid()) + ": chown " + std::to_string(geteuid()) + " " + path +
+                   " (as root), or remove it and start again");
+  }
+  if ((st.st_mode & 077) != 0) {
+    char mode[8];
+    std::snprintf(mode, sizeof(mode), "%04o", static_cast<unsigned>(st.st_mode & 07777));
+    return Status::FailedPrecondition(field, path + " may be read by other users (mode " + std::string(mode) +
+                                                 "): chmod 600 " + path);
+  }
+  return Status::Ok();
+}
+
 Result<TokenFile> LoadOrCreateTokenFile(const std::string& path) {
   TokenFile out;
   out.path = path;
-  struct stat st {};
-  if (stat(path.c_str(), &st) == 0) {
-    if (!S_ISREG(st.st_mode)) return Status::InvalidArgument("token file", path + " is not a regular file");
-    if ((st.st_mode & 077) != 0) {
-      return Status::FailedPrecondition(
-          "token file", path + " may be read by other users (mode " +
-                            [&] {
-                              char mode[8];
-                              std::snprintf(mode, sizeof(mode), "%04o", static_cast<unsigned>(st.st_mode & 07777));
-                              return std::string(mode);
-                            }() +
-                            "): chmod 600 " + path + ", or remove it and a new token is made");
+  // O_NOFOLLOW, and the checks on the opened file itself: a link planted at DATA/token (or a file
+  // swapped in between a check and the read) is not followed to someone else's file.
+  const int fd = open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd >= 0) {
+    Status private_file = CheckPrivateFd(fd, path, "token file");
+    std::string text;
+    char chunk[4096];
+    ssize_t n;
+    while (private_file.ok() && (n = read(fd, chunk, sizeof chunk)) > 0) text.append(chunk, static_cast<size_t>(n));
+    close(fd);
+    if (!private_file.ok()) {
+      return Status(private_file.code(), private_file.reason() +
+                                             (private_file.code() == StatusCode::kFailedPrecondition
+                                                  ? ", or remove it and a new token is made"
+                                                  : ""),
+                    private_file.field());
     }
-    auto token = LoadToken(path, [](const char*) { return nullptr; });
-    if (!token.ok()) return Status::InvalidArgument("token file", token.status().reason());
-    if (Status strong = CheckTokenStrength(*token, "token file " + path); !strong.ok()) return strong;
-    out.token = *token;
+    std::string token(Trim(text));
+    if (token.empty()) return Status::InvalidArgument("token file", path + " is empty");
+    if (Status strong = CheckTokenStrength(token, "token file " + path); !strong.ok()) return strong;
+    out.token = token;
     return out;
+  }
+  if (errno == ELOOP) {
+    return Status::FailedPrecondition("token file", path + " is a symbolic link: the daemon reads its token only "
+                                                           "from a file of its own (remove the link)");
   }
   if (errno != ENOENT) return Status::IOError("cannot look at " + path + ": " + std::strerror(errno));
   std::error_code ec;
@@ -88,14 +115,14 @@ Result<TokenFile> LoadOrCreateTokenFile(const std::string& path) {
   auto token = GenerateToken();
   if (!token.ok()) return token.status();
   // O_EXCL: two daemons starting at once on one data directory do not overwrite each other's.
-  int fd = open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-  if (fd < 0) {
+  const int out_fd = open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (out_fd < 0) {
     if (errno == EEXIST) return LoadOrCreateTokenFile(path);
     return Status::IOError("cannot create " + path + ": " + std::strerror(errno));
   }
   const std::string text = *token + "\n";
-  bool written = write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) && fsync(fd) == 0;
-  close(fd);
+  bool written = write(out_fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) && fsync(out_fd) == 0;
+  close(out_fd);
   if (!written) {
     unlink(path.c_str());
     return Status::IOError("cannot write " + path + " (disk full?)");

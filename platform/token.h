@@ -54,8 +54,13 @@ struct TokenFile {
   std::string path;
   bool created = false;  // made now (else read from an earlier start)
 };
-// Reads `path` when it exists (it must be a regular file that only its owner may read: mode 0600
-// or 0400, else an error saying to chmod it), else creates it (and its directory) with mode 0600
+// OK when the open file `fd` (`path`) is a regular file of this process's user that no one else
+// may read or write (mode 0600 or 0400); else an error naming `field` that says the chmod or
+// chown to run.
+Status CheckPrivateFd(int fd, const std::string& path, const std::string& field);
+
+// Reads `path` when it exists (opened without following a symbolic link; it must pass
+// CheckPrivateFd), else creates it (and its directory) with mode 0600
 // holding a new GenerateToken(). A file that exists but holds a weak token is an error.
 Result<TokenFile> LoadOrCreateTokenFile(const std::string& path);
 

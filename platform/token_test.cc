@@ -95,6 +95,20 @@ TEST_F(TokenTest, TheDaemonsFileIsMadeOwnerOnlyAndReused) {
   EXPECT_FALSE(LoadOrCreateTokenFile(path).ok());
 }
 
+// A link planted where the token file goes is not followed (to a file of another user's, or one
+// the attacker can read back): refused, saying to remove it.
+TEST_F(TokenTest, ALinkInPlaceOfTheTokenFileIsRefused) {
+  const std::string real = (dir_ / "elsewhere").string();
+  std::ofstream(real) << std::string(64, 'a') << "\n";
+  std::filesystem::permissions(real, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write,
+                               std::filesystem::perm_options::replace);
+  const std::string path = (dir_ / "token").string();
+  std::filesystem::create_symlink(real, path);
+  auto linked = LoadOrCreateTokenFile(path);
+  ASSERT_FALSE(linked.ok());
+  EXPECT_NE(linked.status().reason().find("symbolic link"), std::string::npos) << linked.status().ToString();
+}
+
 TEST_F(TokenTest, ClientsFindTheDefaultFileOnlyForALoopbackDaemon) {
   const std::string file = TokenFile(std::string(64, 'b'));
   const std::string other = (dir_ / "other").string();

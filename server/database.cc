@@ -79,12 +79,39 @@ Status ExecRaw(sqlite3* db, const std::string& sql) {
 
 }  // namespace
 
+struct Connection {
+  sqlite3* db = nullptr;
+  std::mutex mu;
+  std::map<std::string, sqlite3_stmt*> cache;  // guarded by mu
+  std::set<sqlite3_stmt*> in_use;              // cached statements held by a Statement
+
+  ~Connection() {
+    for (auto& [sql, stmt] : cache) sqlite3_finalize(stmt);
+    if (db != nullptr) sqlite3_close_v2(db);
+  }
+  sqlite3_stmt* Cached(const std::string& sql, Status* error) {
+    auto it = cache.find(sql);
+    if (it != cache.end()) return it->second;
+    sqlite3_stmt* stmt = nullptr;
+    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+      *error = SqlError(db, "prepare \"" + sql.substr(0, 60) + "\"");
+      return nullptr;
+    }
+    cache.emplace(sql, stmt);
+    return stmt;
+  }
+};
+
+// Read-only connections of a file database: enough for a few long reads (results, backups of
+// figures) to run at once while short reads still find one free.
+constexpr int kReadConnections = 4;
+
 // ---- Statement ----------------------------------------------------------------------------------
 
-Statement::Statement(sqlite3_stmt* stmt, Database* db, bool owned) : stmt_(stmt), database_(db), owned_(owned) {}
+Statement::Statement(sqlite3_stmt* stmt, Connection* conn, bool owned) : stmt_(stmt), conn_(conn), owned_(owned) {}
 
 Statement::Statement(Statement&& o) noexcept
-    : stmt_(o.stmt_), database_(o.database_), owned_(o.owned_), bind_error_(std::move(o.bind_error_)) {
+    : stmt_(o.stmt_), conn_(o.conn_), owned_(o.owned_), bind_error_(std::move(o.bind_error_)) {
   o.stmt_ = nullptr;
 }
 
@@ -95,14 +122,14 @@ Statement::~Statement() {
   if (owned_) {
     sqlite3_finalize(stmt_);
   } else {
-    database_->in_use_.erase(stmt_);
+    conn_->in_use.erase(stmt_);
   }
 }
 
 #define SANDSWIM_BIND(call)                                                    \
   do {                                                                         \
     if (stmt_ != nullptr && (call) != SQLITE_OK && bind_error_.ok()) {         \
-      bind_error_ = SqlError(database_->db_, "bind " + std::to_string(index)); \
+      bind_error_ = SqlError(conn_->db, "bind " + std::to_string(index)); \
     }                                                                          \
     return *this;                                                              \
   } while (0)
@@ -124,7 +151,7 @@ Result<bool> Statement::Step() {
   int rc = sqlite3_step(stmt_);
   if (rc == SQLITE_ROW) return true;
   if (rc == SQLITE_DONE) return false;
-  Status s = SqlError(database_->db_, "step");
+  Status s = SqlError(conn_->db, "step");
   sqlite3_reset(stmt_);
   return s;
 }
@@ -165,10 +192,10 @@ std::optional<std::string> Statement::OptText(int col) const {
 
 // ---- Transaction --------------------------------------------------------------------------------
 
-Transaction::Transaction(Database* db, std::unique_lock<std::mutex> lock)
-    : database_(db), lock_(std::move(lock)), open_(true) {}
+Transaction::Transaction(Connection* conn, std::unique_lock<std::mutex> lock)
+    : conn_(conn), lock_(std::move(lock)), open_(true) {}
 
-Transaction::Transaction(Transaction&& o) noexcept : database_(o.database_), lock_(std::move(o.lock_)), open_(o.open_) {
+Transaction::Transaction(Transaction&& o) noexcept : conn_(o.conn_), lock_(std::move(o.lock_)), open_(o.open_) {
   o.open_ = false;
 }
 
@@ -176,34 +203,34 @@ Transaction::~Transaction() {
   if (!open_) return;
   // A destructor cannot return the failure; the log says it, and SQLite itself rolls back a
   // transaction whose ROLLBACK failed when the connection closes.
-  if (Status s = ExecRaw(database_->db_, "ROLLBACK"); !s.ok())
+  if (Status s = ExecRaw(conn_->db, "ROLLBACK"); !s.ok())
     spdlog::error("database: rolling back an abandoned transaction failed: {}", s.ToString());
 }
 
 Statement Transaction::Prepare(const std::string& sql) {
   Status error;
-  sqlite3_stmt* stmt = database_->Cached(sql, &error);
-  if (stmt != nullptr && database_->in_use_.insert(stmt).second) {
-    return Statement(stmt, database_, /*owned=*/false);
+  sqlite3_stmt* stmt = conn_->Cached(sql, &error);
+  if (stmt != nullptr && conn_->in_use.insert(stmt).second) {
+    return Statement(stmt, conn_, /*owned=*/false);
   }
   if (stmt != nullptr) {
     // Its cached twin is held by a live Statement (nested use of one SQL text): a private copy.
     stmt = nullptr;
-    if (sqlite3_prepare_v2(database_->db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
-      error = SqlError(database_->db_, "prepare");
+    if (sqlite3_prepare_v2(conn_->db, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+      error = SqlError(conn_->db, "prepare");
       sqlite3_finalize(stmt);
       stmt = nullptr;
     }
-    if (stmt != nullptr) return Statement(stmt, database_, /*owned=*/true);
+    if (stmt != nullptr) return Statement(stmt, conn_, /*owned=*/true);
   }
-  Statement st(nullptr, database_, /*owned=*/true);
+  Statement st(nullptr, conn_, /*owned=*/true);
   st.bind_error_ = error;
   return st;
 }
 
-Status Transaction::Exec(const std::string& sql) { return ExecRaw(database_->db_, sql); }
-int64_t Transaction::LastInsertId() const { return sqlite3_last_insert_rowid(database_->db_); }
-int64_t Transaction::Changes() const { return sqlite3_changes(database_->db_); }
+Status Transaction::Exec(const std::string& sql) { return ExecRaw(conn_->db, sql); }
+int64_t Transaction::LastInsertId() const { return sqlite3_last_insert_rowid(conn_->db); }
+int64_t Transaction::Changes() const { return sqlite3_changes(conn_->db); }
 
 Status Transaction::Event(double time, std::string_view kind, std::string_view subject, const nlohmann::json& detail) {
   Statement st = Prepare("INSERT INTO events (time, kind, subject, detail) VALUES (?, ?, ?, ?)");
@@ -221,7 +248,7 @@ Status Transaction::Count(std::string_view counter, int64_t delta) {
 
 Status Transaction::Commit() {
   if (!open_) return Status::Internal("transaction already finished");
-  Status s = ExecRaw(database_->db_, "COMMIT");
+  Status s = ExecRaw(conn_->db, "COMMIT");
   if (!s.ok()) return s;  // still open: the destructor rolls back
   open_ = false;
   return Status::Ok();
@@ -263,15 +290,16 @@ Status Database::OpenFile(const std::string& path) {
     return true;
   }();
   (void)kConfigured;
+  writer_ = std::make_unique<Connection>();
   int rc =
-      sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
+      sqlite3_open_v2(path.c_str(), &writer_->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
-    std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    std::string msg = writer_->db ? sqlite3_errmsg(writer_->db) : "out of memory";
     return Status::IOError("cannot open database " + path + ": " + msg + WhyNotWritable(path));
   }
-  sqlite3_busy_timeout(db_, 5000);
+  sqlite3_busy_timeout(writer_->db, 5000);
   // The first statement is where a database that cannot be written fails (its WAL cannot be made).
-  if (Status s = ExecRaw(db_,
+  if (Status s = ExecRaw(writer_->db,
                          "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
                          "PRAGMA synchronous = NORMAL; PRAGMA temp_store = MEMORY; PRAGMA cache_size = "
                          "-65536; PRAGMA wal_autocheckpoint = 10000;");
@@ -279,36 +307,39 @@ Status Database::OpenFile(const std::string& path) {
     return Status(s.code(), "cannot open database " + path + ": " + s.reason() + WhyNotWritable(path));
   }
   SANDSWIM_RETURN_IF_ERROR(Migrate());
+  return OpenReaders(kReadConnections);
+}
+
+Database::Database() = default;
+Database::~Database() = default;
+
+Status Database::OpenReaders(int n) {
+  if (path_.empty() || path_ == ":memory:" || path_.rfind("file:", 0) == 0) return Status::Ok();
+  for (int i = 0; i < n; ++i) {
+    auto reader = std::make_unique<Connection>();
+    if (sqlite3_open_v2(path_.c_str(), &reader->db, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
+      return Status::IOError("cannot open a read connection to " + path_ + ": " +
+                             (reader->db ? sqlite3_errmsg(reader->db) : "out of memory"));
+    }
+    sqlite3_busy_timeout(reader->db, 5000);
+    // query_only: a write slipped into a read transaction fails here instead of waiting on the lock.
+    SANDSWIM_RETURN_IF_ERROR(ExecRaw(reader->db, "PRAGMA query_only = 1; PRAGMA foreign_keys = ON; PRAGMA temp_store = MEMORY; "
+                                                 "PRAGMA cache_size = -16384;"));
+    readers_.push_back(std::move(reader));
+  }
   return Status::Ok();
 }
 
-Database::~Database() {
-  for (auto& [sql, stmt] : cache_) sqlite3_finalize(stmt);
-  if (db_ != nullptr) sqlite3_close_v2(db_);
-}
-
-sqlite3_stmt* Database::Cached(const std::string& sql, Status* error) {
-  auto it = cache_.find(sql);
-  if (it != cache_.end()) return it->second;
-  sqlite3_stmt* stmt = nullptr;
-  if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
-    *error = SqlError(db_, "prepare \"" + sql.substr(0, 60) + "\"");
-    return nullptr;
-  }
-  cache_.emplace(sql, stmt);
-  return stmt;
-}
-
 Status Database::Migrate() {
-  std::unique_lock<std::mutex> lock(mu_);
-  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_,
+  std::unique_lock<std::mutex> lock(writer_->mu);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(writer_->db,
                                    "CREATE TABLE IF NOT EXISTS schema_migrations ("
                                    " version INTEGER PRIMARY KEY, name TEXT NOT NULL,"
                                    " applied_at REAL NOT NULL)"));
   auto user_version = [this]() -> int {
     sqlite3_stmt* st = nullptr;
     int v = 0;
-    if (sqlite3_prepare_v2(db_, "PRAGMA user_version", -1, &st, nullptr) == SQLITE_OK &&
+    if (sqlite3_prepare_v2(writer_->db, "PRAGMA user_version", -1, &st, nullptr) == SQLITE_OK &&
         sqlite3_step(st) == SQLITE_ROW) {
       v = sqlite3_column_int(st, 0);
     }
@@ -333,17 +364,17 @@ Status Database::Migrate() {
     if (m.version <= current) continue;
     std::optional<std::string_view> sql = SchemaFile(m.file);
     if (!sql) return Status::Internal("migration not compiled in: " + m.file);
-    SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
-    Status s = ExecRaw(db_, std::string(*sql));
+    SANDSWIM_RETURN_IF_ERROR(ExecRaw(writer_->db, "BEGIN IMMEDIATE"));
+    Status s = ExecRaw(writer_->db, std::string(*sql));
     if (s.ok()) {
-      s = ExecRaw(db_, "INSERT INTO schema_migrations (version, name, applied_at) VALUES (" +
+      s = ExecRaw(writer_->db, "INSERT INTO schema_migrations (version, name, applied_at) VALUES (" +
                            std::to_string(m.version) + ", '" + m.file + "', CAST(strftime('%s','now') AS REAL))");
     }
-    if (s.ok()) s = ExecRaw(db_, "PRAGMA user_version = " + std::to_string(m.version));
-    if (s.ok()) s = ExecRaw(db_, "COMMIT");
+    if (s.ok()) s = ExecRaw(writer_->db, "PRAGMA user_version = " + std::to_string(m.version));
+    if (s.ok()) s = ExecRaw(writer_->db, "COMMIT");
     if (!s.ok()) {
       std::string reason = std::string("migration ") + m.file + ": " + s.reason();
-      if (Status r = ExecRaw(db_, "ROLLBACK"); !r.ok()) reason += " (and its rollback failed: " + r.reason() + ")";
+      if (Status r = ExecRaw(writer_->db, "ROLLBACK"); !r.ok()) reason += " (and its rollback failed: " + r.reason() + ")";
       return Status(s.code(), reason);
     }
     current = m.version;
@@ -353,15 +384,30 @@ Status Database::Migrate() {
 }
 
 Result<Transaction> Database::Begin() {
-  std::unique_lock<std::mutex> lock(mu_);
-  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN IMMEDIATE"));
-  return Transaction(this, std::move(lock));
+  std::unique_lock<std::mutex> lock(writer_->mu);
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(writer_->db, "BEGIN IMMEDIATE"));
+  return Transaction(writer_.get(), std::move(lock));
 }
 
 Result<Transaction> Database::BeginRead() {
-  std::unique_lock<std::mutex> lock(mu_);
-  SANDSWIM_RETURN_IF_ERROR(ExecRaw(db_, "BEGIN"));
-  return Transaction(this, std::move(lock));
+  Connection* conn = writer_.get();
+  std::unique_lock<std::mutex> lock;
+  if (readers_.empty()) {
+    lock = std::unique_lock<std::mutex>(conn->mu);
+  } else {
+    // A free reader, starting from the next in turn; when all are taken, wait for that one.
+    const size_t first = next_reader_.fetch_add(1) % readers_.size();
+    for (size_t i = 0; i < readers_.size() && !lock.owns_lock(); ++i) {
+      conn = readers_[(first + i) % readers_.size()].get();
+      lock = std::unique_lock<std::mutex>(conn->mu, std::try_to_lock);
+    }
+    if (!lock.owns_lock()) {
+      conn = readers_[first].get();
+      lock = std::unique_lock<std::mutex>(conn->mu);
+    }
+  }
+  SANDSWIM_RETURN_IF_ERROR(ExecRaw(conn->db, "BEGIN"));
+  return Transaction(conn, std::move(lock));
 }
 
 // ---- Group commit -------------------------------------------------------------------------------
@@ -429,7 +475,7 @@ void Database::RunGroup(const std::vector<PendingWrite*>& group) {
     Status broken;                       // set when the transaction itself was lost
     for (; i < group.size() && broken.ok(); ++i) {
       PendingWrite* w = group[i];
-      Status s = ExecRaw(db_, "SAVEPOINT grouped_change");
+      Status s = ExecRaw(writer_->db, "SAVEPOINT grouped_change");
       if (s.ok()) {
         try {
           s = (*w->change)(*t);
@@ -439,7 +485,7 @@ void Database::RunGroup(const std::vector<PendingWrite*>& group) {
           s = Status::Internal("exception in a store change");
         }
       }
-      if (sqlite3_get_autocommit(db_)) {
+      if (sqlite3_get_autocommit(writer_->db)) {
         // SQLite rolled the whole transaction back (I/O error, disk full, ...): the changes
         // already in it are gone too.
         broken = s.ok() ? Status::Internal("the transaction ended inside a change") : s;
@@ -447,10 +493,10 @@ void Database::RunGroup(const std::vector<PendingWrite*>& group) {
         break;
       }
       if (s.ok()) {
-        s = ExecRaw(db_, "RELEASE grouped_change");
+        s = ExecRaw(writer_->db, "RELEASE grouped_change");
       } else {
-        Status undo = ExecRaw(db_, "ROLLBACK TO grouped_change");
-        if (undo.ok()) undo = ExecRaw(db_, "RELEASE grouped_change");
+        Status undo = ExecRaw(writer_->db, "ROLLBACK TO grouped_change");
+        if (undo.ok()) undo = ExecRaw(writer_->db, "RELEASE grouped_change");
         if (!undo.ok()) {
           // The failed change's writes could not be undone alone: drop the whole transaction
           // rather than commit them with the others.
@@ -520,8 +566,8 @@ Result<int64_t> Database::BackupTo(const std::string& path) {
   }
   sqlite3_backup* backup = nullptr;
   {
-    std::lock_guard<std::mutex> lock(mu_);
-    backup = sqlite3_backup_init(dest, "main", db_, "main");
+    std::lock_guard<std::mutex> lock(writer_->mu);
+    backup = sqlite3_backup_init(dest, "main", writer_->db, "main");
   }
   if (backup == nullptr) return fail("cannot start the backup");
   // Another process holding the file's lock (BUSY) is waited for, but not for ever.
@@ -530,7 +576,7 @@ Result<int64_t> Database::BackupTo(const std::string& path) {
   int rc = SQLITE_OK;
   while (rc == SQLITE_OK || rc == SQLITE_BUSY || rc == SQLITE_LOCKED) {
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(writer_->mu);
       rc = sqlite3_backup_step(backup, 256);
     }
     if (rc == SQLITE_BUSY || rc == SQLITE_LOCKED) {
@@ -543,7 +589,7 @@ Result<int64_t> Database::BackupTo(const std::string& path) {
     }
   }
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(writer_->mu);
     sqlite3_backup_finish(backup);
   }
   if (rc != SQLITE_DONE) {

@@ -26,14 +26,20 @@
 // This is how the lease queue's hot path (lease, heartbeat, complete) writes: one commit (one WAL
 // append of the pages the group dirtied) for many state changes.
 //
-// Thread safety: a Database owns one connection guarded by one mutex. A Transaction holds that mutex
-// for its whole life, and every read query takes it for its duration, so a Database is safe to use
-// from any number of threads (httplib's pool); work is serialised. Do not call a Database's (or
-// Store's) methods or open a second Transaction on the same thread while a Transaction is alive
-// (self-deadlock). Statements are only valid inside the Transaction that prepared them.
+// Reads off the writer's path: beside the connection that writes, a file database has a small pool
+// of read-only connections (kReadConnections); BeginRead() takes a free one. In WAL mode a reader
+// sees the last commit before its transaction began and never waits for a writer, nor a writer for
+// it: a 100,000-run results read does not hold up heartbeats and completions.
+//
+// Thread safety: each connection is guarded by its own mutex. A Transaction holds its
+// connection's mutex for its whole life, so a Database is safe to use from any number of threads
+// (httplib's pool); writes are serialised, reads run beside them and each other (up to the pool's
+// size). Do not open a write Transaction on a thread that holds one already (self-deadlock).
+// Statements are only valid inside the Transaction that prepared them.
 #ifndef SANDSWIM_SERVER_DATABASE_H_
 #define SANDSWIM_SERVER_DATABASE_H_
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
@@ -54,6 +60,10 @@ struct sqlite3;
 struct sqlite3_stmt;
 
 namespace sandswim {
+
+// One SQLite connection: its handle, the lock that serialises its use and its statement cache
+// (defined in database.cc).
+struct Connection;
 
 class Database;
 
@@ -98,9 +108,9 @@ class Statement {
 
  private:
   friend class Transaction;
-  Statement(sqlite3_stmt* stmt, Database* db, bool owned);
+  Statement(sqlite3_stmt* stmt, Connection* conn, bool owned);
   sqlite3_stmt* stmt_;
-  Database* database_;
+  Connection* conn_;
   bool owned_;         // finalized on destruction (else: returned to the store's cache)
   Status bind_error_;  // the first failed Bind(), reported by Step()
 };
@@ -129,8 +139,8 @@ class Transaction {
 
  private:
   friend class Database;
-  Transaction(Database* db, std::unique_lock<std::mutex> lock);
-  Database* database_;
+  Transaction(Connection* conn, std::unique_lock<std::mutex> lock);
+  Connection* conn_;
   std::unique_lock<std::mutex> lock_;
   bool open_ = false;
 };
@@ -154,7 +164,12 @@ class Database {
 
   // Blocks until the lock is free. Write: BEGIN IMMEDIATE.
   Result<Transaction> Begin();
+  // A read transaction on one of the read-only connections (see the top of this file), waiting
+  // only for other readers when all of them are taken; on the writer's connection for an
+  // in-memory database. REQUIRES: nothing is written in it.
   Result<Transaction> BeginRead();
+  // Read-only connections opened beside the writer's (0 for an in-memory database).
+  int read_connections() const { return static_cast<int>(readers_.size()); }
 
   // Runs `change` inside a grouped write transaction (see the top of this file) and returns its
   // status once the group has committed (or the commit's error). `change` must not commit, must
@@ -187,7 +202,7 @@ class Database {
   Result<int64_t> BackupTo(const std::string& path);
 
  protected:
-  Database() = default;
+  Database();
   // Opens (creating if needed) the SQLite file at `path` and migrates it (see the top of this file).
   Status OpenFile(const std::string& path);
 
@@ -195,16 +210,15 @@ class Database {
   friend class Transaction;
   friend class Statement;
   Status Migrate();
-  sqlite3_stmt* Cached(const std::string& sql, Status* error);
+  Status OpenReaders(int n);
   struct PendingWrite;
   void RunGroup(const std::vector<PendingWrite*>& group);
 
   std::string path_;
-  sqlite3* db_ = nullptr;
   int schema_version_ = 0;
-  std::mutex mu_;
-  std::map<std::string, sqlite3_stmt*> cache_;  // guarded by mu_
-  std::set<sqlite3_stmt*> in_use_;              // cached statements held by a Statement
+  std::unique_ptr<Connection> writer_;                // every write, and reads of an in-memory database
+  std::vector<std::unique_ptr<Connection>> readers_;  // read-only (WAL): reads never wait for a writer
+  std::atomic<size_t> next_reader_{0};
 
   // Group commit (Write): changes waiting for a leader, and whether one is running a group.
   std::mutex group_mu_;

@@ -6,6 +6,7 @@
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
 #include <sys/resource.h>
+#include <fcntl.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -18,7 +19,11 @@
 #include <string_view>
 #include <utility>
 
+#include <openssl/err.h>
+#include <openssl/ssl.h>
 #include <spdlog/spdlog.h>
+
+#include "server/request_policy.h"
 
 namespace sandswim {
 
@@ -57,9 +62,17 @@ void AddressOf(int fd, bool peer, std::string& ip, int& port) {
 // One connection's socket, read and written by the library's request handling, with the
 // deadline of the part of a request now arriving (none while a handler works or a response
 // streams). Between requests the poller fills its buffer (ReadAvailable) until a whole head is in.
+//
+// Over TLS (`ssl` set; its socket non-blocking) the same, through the TLS session: what arrives is
+// decrypted into the buffer, and a read or write the session cannot finish yet waits on the socket.
 class DeadlineStream final : public httplib::Stream {
  public:
   DeadlineStream(int fd, const ConnectionLimits& limits) : fd_(fd), limits_(limits) {}
+  ~DeadlineStream() override {
+    if (ssl_ != nullptr) SSL_free(ssl_);
+  }
+  void set_ssl(SSL* ssl) { ssl_ = ssl; }
+  SSL* ssl() const { return ssl_; }
 
   void set_deadline(std::optional<Steady::time_point> d, const char* what) {
     deadline_ = d;
@@ -69,7 +82,7 @@ class DeadlineStream final : public httplib::Stream {
   // What missed its deadline ("" when nothing did).
   const char* missed() const { return missed_; }
   // Bytes received and not yet read.
-  bool has_buffered() const { return begin_ < end_; }
+  bool has_buffered() const { return begin_ < end_ || (ssl_ != nullptr && SSL_pending(ssl_) > 0); }
   // Bytes the library has read, in all.
   uint64_t consumed() const { return consumed_; }
   // Drops what has arrived, without waiting, adding its size to `*dropped`: false once the peer
@@ -88,6 +101,25 @@ class DeadlineStream final : public httplib::Stream {
     }
   }
   bool full() const { return begin_ == 0 && end_ == sizeof buffer_; }
+  // TLS: the bytes the session has decrypted and not handed out yet, into the buffer (the socket
+  // will not say they are there).
+  void TakePending() {
+    while (ssl_ != nullptr && SSL_pending(ssl_) > 0 && ReadAvailable() > 0) {
+    }
+  }
+  // Sends what fits without waiting (a refusal from the poller thread).
+  void SendNow(const std::string& bytes) {
+    if (ssl_ != nullptr) {
+      (void)SSL_write(ssl_, bytes.data(), static_cast<int>(bytes.size()));
+    } else {
+      (void)send(fd_, bytes.data(), bytes.size(), MSG_DONTWAIT | MSG_NOSIGNAL);
+    }
+  }
+  // Ends what this side sends: TLS's close_notify, then FIN.
+  void ShutdownWrite() {
+    if (ssl_ != nullptr) (void)SSL_shutdown(ssl_);
+    shutdown(fd_, SHUT_WR);
+  }
   // The buffer holds a request line and headers up to their blank line.
   bool has_whole_head() const {
     const std::string_view v(buffer_ + begin_, end_ - begin_);
@@ -106,14 +138,28 @@ class DeadlineStream final : public httplib::Stream {
       return -1;
     }
     ssize_t n;
-    do n = recv(fd_, buffer_ + end_, sizeof buffer_ - end_, MSG_DONTWAIT);
-    while (n < 0 && errno == EINTR);
+    if (ssl_ != nullptr) {
+      n = TlsRead(buffer_ + end_, sizeof buffer_ - end_);
+    } else {
+      do n = recv(fd_, buffer_ + end_, sizeof buffer_ - end_, MSG_DONTWAIT);
+      while (n < 0 && errno == EINTR);
+    }
     if (n > 0) end_ += static_cast<size_t>(n);
     return n;
   }
+  // TLS: one step of the server's handshake, without waiting. 1 done, 0 more bytes needed (or
+  // room to send: *want_write), -1 failed.
+  int Handshake(bool* want_write) {
+    ERR_clear_error();
+    const int r = SSL_do_handshake(ssl_);
+    if (r == 1) return 1;
+    const int e = SSL_get_error(ssl_, r);
+    *want_write = e == SSL_ERROR_WANT_WRITE;
+    return e == SSL_ERROR_WANT_READ || e == SSL_ERROR_WANT_WRITE ? 0 : -1;
+  }
 
   bool is_readable() const override {
-    return begin_ < end_ || PollUntil(fd_, POLLIN, ReadUntil());
+    return has_buffered() || PollUntil(fd_, POLLIN, ReadUntil());
   }
   bool is_writable() const override {
     if (!PollUntil(fd_, POLLOUT, Steady::now() + Seconds(limits_.write_timeout_s))) return false;
@@ -131,14 +177,19 @@ class DeadlineStream final : public httplib::Stream {
       missed_ = what_;
       return -1;
     }
-    if (begin_ == end_) {
-      if (!PollUntil(fd_, POLLIN, ReadUntil())) {
+    while (begin_ == end_) {
+      if (!has_buffered() && !PollUntil(fd_, POLLIN, ReadUntil())) {
         if (deadline_ && Steady::now() >= *deadline_) missed_ = what_;
         return -1;
       }
       ssize_t n;
-      do n = recv(fd_, buffer_, sizeof buffer_, 0);
-      while (n < 0 && errno == EINTR);
+      if (ssl_ != nullptr) {
+        n = TlsRead(buffer_, sizeof buffer_);
+        if (n < 0 && errno == EAGAIN) continue;  // a part of a record: wait for the rest
+      } else {
+        do n = recv(fd_, buffer_, sizeof buffer_, 0);
+        while (n < 0 && errno == EINTR);
+      }
       if (n <= 0) return n;
       begin_ = 0;
       end_ = static_cast<size_t>(n);
@@ -150,6 +201,16 @@ class DeadlineStream final : public httplib::Stream {
     return static_cast<ssize_t>(take);
   }
   ssize_t write(const char* ptr, size_t size) override {
+    if (ssl_ != nullptr) {
+      for (;;) {
+        if (!PollUntil(fd_, POLLOUT, Steady::now() + Seconds(limits_.write_timeout_s))) return -1;
+        ERR_clear_error();
+        const int n = SSL_write(ssl_, ptr, static_cast<int>(std::min<size_t>(size, 1 << 30)));
+        if (n > 0) return n;
+        const int e = SSL_get_error(ssl_, n);
+        if (e != SSL_ERROR_WANT_WRITE && e != SSL_ERROR_WANT_READ) return -1;
+      }
+    }
     if (!PollUntil(fd_, POLLOUT, Steady::now() + Seconds(limits_.write_timeout_s))) return -1;
     ssize_t n;
     do n = send(fd_, ptr, size, MSG_NOSIGNAL);
@@ -161,12 +222,25 @@ class DeadlineStream final : public httplib::Stream {
   socket_t socket() const override { return fd_; }
 
  private:
+  // SSL_read without waiting: > 0 bytes, 0 the peer ended the session, -1 with errno EAGAIN (nothing
+  // whole yet) or EIO.
+  ssize_t TlsRead(char* into, size_t room) {
+    ERR_clear_error();
+    const int n = SSL_read(ssl_, into, static_cast<int>(std::min<size_t>(room, 1 << 30)));
+    if (n > 0) return n;
+    const int e = SSL_get_error(ssl_, n);
+    if (e == SSL_ERROR_ZERO_RETURN) return 0;
+    errno = e == SSL_ERROR_WANT_READ || e == SSL_ERROR_WANT_WRITE ? EAGAIN : EIO;
+    return -1;
+  }
+
   Steady::time_point ReadUntil() const {
     const Steady::time_point timeout = Steady::now() + Seconds(limits_.read_timeout_s);
     return deadline_ ? std::min(timeout, *deadline_) : timeout;
   }
 
   int fd_;
+  SSL* ssl_ = nullptr;  // owned
   const ConnectionLimits& limits_;
   std::optional<Steady::time_point> deadline_;
   const char* what_ = "";
@@ -224,10 +298,14 @@ struct GuardedHttpServer::Connection {
   Connection(int socket, const ConnectionLimits& limits) : fd(socket), stream(socket, limits) {}
   int fd;
   std::string peer = "?";
+  std::string client;  // ClientKey(peer): what the per-client limits count
   int port = 0;
   DeadlineStream stream;
   bool counted = false;     // in open_ and per_client_
-  bool restricted = false;  // opened past its client's connection cap: reserved requests only
+  bool restricted = false;  // opened past its client's connection cap, or in the reserve: reserved requests only
+  bool in_reserve = false;  // one of the last connection slots (ReserveSlots)
+  bool handshaking = false;  // TLS: the session is not set up yet
+  bool want_write = false;   // TLS: the handshake waits for room to send
   bool draining = false;    // answered and half-closed: what still arrives is dropped until idle_until
   uint64_t drained = 0;     // bytes dropped so far
   int served = 0;
@@ -252,7 +330,33 @@ GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits) : limits_(limits) 
   new_task_queue = [this] { return new Queue(this); };
 }
 
-GuardedHttpServer::~GuardedHttpServer() { StopThreads(); }
+GuardedHttpServer::~GuardedHttpServer() {
+  StopThreads();
+  if (tls_ != nullptr) SSL_CTX_free(tls_);
+}
+
+bool GuardedHttpServer::SetTls(const std::string& cert_file, const std::string& key_file, std::string* error) {
+  SSL_CTX* ctx = SSL_CTX_new(TLS_server_method());
+  auto fail = [&](const std::string& what) {
+    const unsigned long e = ERR_get_error();
+    char text[256] = "no detail from OpenSSL";
+    if (e != 0) ERR_error_string_n(e, text, sizeof text);
+    ERR_clear_error();
+    *error = what + ": " + text;
+    if (ctx != nullptr) SSL_CTX_free(ctx);
+    return false;
+  };
+  if (ctx == nullptr) return fail("cannot make a TLS context");
+  SSL_CTX_set_min_proto_version(ctx, TLS1_2_VERSION);
+  SSL_CTX_set_options(ctx, SSL_OP_NO_COMPRESSION | SSL_OP_NO_RENEGOTIATION);
+  SSL_CTX_set_mode(ctx, SSL_MODE_ENABLE_PARTIAL_WRITE | SSL_MODE_ACCEPT_MOVING_WRITE_BUFFER);
+  if (SSL_CTX_use_certificate_chain_file(ctx, cert_file.c_str()) != 1) return fail("cannot use " + cert_file);
+  if (SSL_CTX_use_PrivateKey_file(ctx, key_file.c_str(), SSL_FILETYPE_PEM) != 1) return fail("cannot use " + key_file);
+  if (SSL_CTX_check_private_key(ctx) != 1) return fail(key_file + " is not " + cert_file + "'s key");
+  if (tls_ != nullptr) SSL_CTX_free(tls_);
+  tls_ = ctx;
+  return true;
+}
 
 void GuardedHttpServer::SetReserved(std::function<bool(const std::string&, const std::string&)> reserved) {
   reserved_ = std::move(reserved);
@@ -319,19 +423,38 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
 void GuardedHttpServer::Admit(socket_t sock) {
   auto c = std::make_unique<Connection>(sock, limits_);
   AddressOf(sock, /*peer=*/true, c->peer, c->port);
+  if (tls_ != nullptr) {
+    // The handshake is stepped by the poller as its bytes arrive: no thread waits on it.
+    SSL* ssl = SSL_new(tls_);
+    const int flags = fcntl(sock, F_GETFL);
+    if (ssl == nullptr || flags < 0 || fcntl(sock, F_SETFL, flags | O_NONBLOCK) != 0 || SSL_set_fd(ssl, sock) != 1) {
+      if (ssl != nullptr) SSL_free(ssl);
+      return Close(std::move(c));
+    }
+    SSL_set_accept_state(ssl);
+    c->stream.set_ssl(ssl);
+    c->handshaking = true;
+  }
+  c->client = ClientKey(c->peer);
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (!stopping_ && open_ < max_open_) {
+    // The last slots are kept for the worker protocol and /healthz, a few per client, so that
+    // clients that fill every other slot (one spread over many addresses) cannot keep a worker out.
+    const bool reserve = open_ >= max_open_ - ReserveSlots();
+    if (!stopping_ && open_ < max_open_ && (!reserve || in_reserve_[c->client] < kReservePerClient)) {
       ++open_;
-      const int n = ++per_client_[c->peer];
+      const int n = ++per_client_[c->client];
       c->counted = true;
-      c->restricted = n > limits_.max_connections_per_client;
+      c->in_reserve = reserve;
+      if (reserve) ++in_reserve_[c->client];
+      c->restricted = reserve || n > limits_.max_connections_per_client;
     }
   }
   if (!c->counted) {  // past the fd budget: no thread, no read, no answer
     client_refused_.fetch_add(1);
-    spdlog::warn("closed a connection from {} at once: {} connections are open, the most this daemon keeps",
-                 c->peer, max_open_);
+    spdlog::warn("closed a connection from {} at once: {} connections are open, the most this daemon keeps "
+                 "(its last {} for the worker protocol and /healthz, {} per client)",
+                 c->peer, max_open_, ReserveSlots(), kReservePerClient);
     return Close(std::move(c));
   }
   c->idle_until = Steady::now() + Seconds(limits_.idle_s);
@@ -339,14 +462,34 @@ void GuardedHttpServer::Admit(socket_t sock) {
 }
 
 void GuardedHttpServer::Park(std::unique_ptr<Connection> c) {
-  if (!c->draining && (c->stream.has_whole_head() || c->stream.full())) return Enqueue(std::move(c));
+  if (!c->draining && !c->handshaking) {
+    c->stream.TakePending();
+    if (c->stream.has_whole_head()) return Enqueue(std::move(c));
+    if (c->stream.full()) {
+      // A request head larger than the buffer: answered here, without a thread, and drained.
+      client_refused_.fetch_add(1);
+      spdlog::warn("refused a request from {}: its head is larger than {} KiB (431)", c->peer, 16);
+      const std::string detail = "the request's line and headers are larger than 16 KiB: send fewer or shorter headers";
+      const std::string body = refusal_body_ ? refusal_body_(431, detail) : detail;
+      c->stream.SendNow("HTTP/1.1 431 Request Header Fields Too Large\r\nContent-Type: " +
+                        std::string(refusal_body_ ? "application/problem+json" : "text/plain") +
+                        "\r\nConnection: close\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n" +
+                        body);
+      c->stream.ShutdownWrite();
+      c->draining = true;
+      c->head_started.reset();
+      c->idle_until = Steady::now() + Seconds(kDrainS);
+      uint64_t dropped = 0;
+      c->stream.Discard(&dropped);
+    }
+  }
   std::unique_lock<std::mutex> lock(mu_);
   if (stopping_) {
     lock.unlock();
     return Close(std::move(c));
   }
   epoll_event ev{};
-  ev.events = EPOLLIN | EPOLLONESHOT;
+  ev.events = EPOLLIN | EPOLLONESHOT | (c->want_write ? static_cast<uint32_t>(EPOLLOUT) : 0u);
   ev.data.fd = c->fd;
   const int fd = c->fd;
   parked_[fd] = std::move(c);
@@ -375,8 +518,12 @@ void GuardedHttpServer::Close(std::unique_ptr<Connection> c) {
   if (!c->counted) return;
   std::lock_guard<std::mutex> lock(mu_);
   --open_;
-  auto it = per_client_.find(c->peer);
+  auto it = per_client_.find(c->client);
   if (it != per_client_.end() && --it->second <= 0) per_client_.erase(it);
+  if (c->in_reserve) {
+    auto r = in_reserve_.find(c->client);
+    if (r != in_reserve_.end() && --r->second <= 0) in_reserve_.erase(r);
+  }
 }
 
 // Waits for parked connections' bytes; a connection whose head is whole goes to a serving thread.
@@ -409,6 +556,21 @@ void GuardedHttpServer::PollLoop() {
           Close(std::move(c));  // the client has read the answer and closed
         }
         continue;
+      }
+      if (c->handshaking) {
+        if (!c->head_started) c->head_started = Steady::now();  // the head's deadline counts the handshake's time
+        const int step = c->stream.Handshake(&c->want_write);
+        if (step < 0) {
+          spdlog::debug("TLS handshake with {} failed", c->peer);
+          Close(std::move(c));
+          continue;
+        }
+        c->handshaking = step == 0;
+        if (c->handshaking) {
+          Park(std::move(c));
+          continue;
+        }
+        c->want_write = false;
       }
       const ssize_t got = c->stream.ReadAvailable();
       if (got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != ENOBUFS)) {
@@ -465,7 +627,7 @@ void GuardedHttpServer::ServeLoop() {
       c->idle_until = Steady::now() + Seconds(limits_.idle_s);
       Park(std::move(c));
     } else if (after == After::kDrain) {
-      shutdown(c->fd, SHUT_WR);  // the answer is sent whole; then FIN
+      c->stream.ShutdownWrite();  // the answer is sent whole; then FIN
       c->draining = true;
       c->head_started.reset();
       c->idle_until = Steady::now() + Seconds(kDrainS);
@@ -501,8 +663,11 @@ GuardedHttpServer::After GuardedHttpServer::ServeOne(Connection& c) {
       if (!reserved) {
         if (c.restricted) {
           throw Refused{429, 2,
-                        "this client has more than " + std::to_string(limits_.max_connections_per_client) +
-                            " connections open: reuse one, or close some and retry"};
+                        c.in_reserve ? std::string("the daemon's connections are nearly all taken (the last are kept "
+                                                   "for workers and /healthz): retry shortly")
+                                     : "this client has more than " +
+                                           std::to_string(limits_.max_connections_per_client) +
+                                           " connections open: reuse one, or close some and retry"};
         }
         if (readers_in_flight_.fetch_add(1) >= limits_.threads) {
           readers_in_flight_.fetch_sub(1);

@@ -18,11 +18,17 @@
 //    many and however slow their handlers -- cannot take the last thread from a worker. A request
 //    that is not reserved while `threads` such requests are in flight is answered 503 with
 //    Retry-After at once, and its connection closed.
-//  - Per client (peer address): past `max_connections_per_client` open connections, a new
+//  - Per client (ClientKey of the peer address, server/request_policy.h: an IPv4 address, an IPv6
+//    /64): past `max_connections_per_client` open connections, a new
 //    connection is served only for reserved requests (one request, then closed); any other request
 //    on it is answered 429 with Retry-After and the connection closed. Workers on the same host as
 //    a greedy client keep their heartbeats that way. Past `max_connections` in all, a new connection
-//    is closed at once.
+//    is closed at once; the last ReserveSlots() before it (up to 64) are admitted as restricted
+//    connections, at most kReservePerClient per client, so that clients spread over many
+//    addresses (127.0.0.0/8 on one machine) that fill every other slot still leave workers some.
+//  - A request head larger than the 16 KiB buffer is answered 431 by the poller (no thread) and the
+//    connection drained and closed.
+//  - TLS (SetTls): the handshake is stepped by the poller as its bytes arrive, under the head's deadline.
 //  - Keep-alive: a connection serves at most `max_requests_per_connection` requests; while more
 //    than half of `threads` are in flight, responses carry "Connection: close".
 // What a handler does and how long a response streams is not limited here (deadlines are checked
@@ -32,6 +38,7 @@
 #ifndef SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
 #define SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -65,6 +72,11 @@ class GuardedHttpServer : public httplib::Server {
   // the detail as plain text.
   void SetRefusalBody(std::function<std::string(int http_status, const std::string& detail)> body);
 
+  // Serves HTTPS with this certificate (chain) and key, PEM files; false with *error when they
+  // cannot be used. Before listening. The TLS handshake is read by the poller like a request head
+  // and within the same deadline (`head_s` from its first byte): a slow handshake holds no thread.
+  bool SetTls(const std::string& cert_file, const std::string& key_file, std::string* error);
+
   // Lets `n` connections wait to be accepted, after bind_to_port() or bind_to_any_port(): the HTTP
   // library listens with a backlog of 5, and a burst of more clients (workers finishing together, a
   // dashboard's requests) would otherwise wait a second for their SYN to be sent again.
@@ -77,7 +89,7 @@ class GuardedHttpServer : public httplib::Server {
   // Connections closed because a request head or body came too slowly.
   int64_t slow_clients_closed() const { return slow_closed_.load(); }
   // Requests answered 503 because every thread for them was taken, or 429 because their client
-  // had too many connections open.
+  // had too many connections open (or 431: a request head past the buffer).
   int64_t busy_refused() const { return busy_refused_.load(); }
   int64_t client_refused() const { return client_refused_.load(); }
   // Open connections (parked, queued or served).
@@ -105,6 +117,7 @@ class GuardedHttpServer : public httplib::Server {
   void StopThreads();  // the accept loop has ended: every connection is closed
 
   ConnectionLimits limits_;
+  ssl_ctx_st* tls_ = nullptr;  // SSL_CTX, owned; null: plain HTTP
   std::function<bool(const std::string&, const std::string&)> reserved_;
   std::function<std::string(int, const std::string&)> refusal_body_;
   std::atomic<int64_t> slow_closed_{0}, busy_refused_{0}, client_refused_{0};
@@ -117,7 +130,11 @@ class GuardedHttpServer : public httplib::Server {
   int wake_fd_ = -1;  // an eventfd that ends the poller's wait
   std::map<int, std::unique_ptr<Connection>> parked_;
   std::deque<std::unique_ptr<Connection>> ready_;
-  std::map<std::string, int> per_client_;
+  std::map<std::string, int> per_client_;  // by ClientKey (server/request_policy.h)
+  std::map<std::string, int> in_reserve_;  // connections in the reserved slots, by client
+  // The last open-connection slots, admitted only for reserved requests, at most kReservePerClient each.
+  int ReserveSlots() const { return std::max(4, std::min(64, max_open_ / 8)); }
+  static constexpr int kReservePerClient = 4;
   int open_ = 0;
   int max_open_ = 0;
   std::thread poller_;

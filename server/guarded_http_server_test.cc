@@ -13,8 +13,13 @@
 #include <thread>
 #include <vector>
 
+#include <filesystem>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "platform/http_client.h"
+#include "platform/tls.h"
 
 namespace sandswim {
 namespace {
@@ -29,6 +34,8 @@ class GuardedHttpServerTest : public ::testing::Test {
  protected:
   // What a fixture changes of the limits below.
   virtual void Adjust(ConnectionLimits&) {}
+  // What a fixture sets on the server before it listens.
+  virtual void Configure(GuardedHttpServer&) {}
 
   void SetUp() override {
     ConnectionLimits limits;
@@ -38,6 +45,7 @@ class GuardedHttpServerTest : public ::testing::Test {
     limits.min_body_bytes_per_s = 1e6;
     Adjust(limits);
     server_ = std::make_unique<GuardedHttpServer>(limits);
+    Configure(*server_);
     server_->SetReserved([](const std::string&, const std::string& path) { return path == "/reserved"; });
     server_->Get("/hello", [](const httplib::Request&, httplib::Response& res) { res.set_content("hi", "text/plain"); });
     server_->Get("/reserved", [](const httplib::Request&, httplib::Response& res) { res.set_content("yes", "text/plain"); });
@@ -327,6 +335,196 @@ TEST_F(GuardedHttpServerClientCapTest, AClientPastItsConnectionsIsServedOnlyRese
   for (int fd : held) close(fd);
   for (int i = 0; i < 500 && server_->open_connections() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200")) << "the client's connections were closed";
+}
+
+// 48 connections in all, the last 6 kept for reserved requests; no per-client cap in the way.
+class GuardedHttpServerReserveTest : public GuardedHttpServerTest {
+ protected:
+  void Adjust(ConnectionLimits& limits) override {
+    limits.idle_s = 30;
+    limits.max_connections = 48;
+    limits.max_connections_per_client = 1000;
+  }
+  int ConnectFrom(const char* address) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, address, &from.sin_addr);
+    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from), 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(port_));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    return fd;
+  }
+  void WaitOpen(int n) {
+    for (int i = 0; i < 500 && server_->open_connections() < n; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ASSERT_EQ(server_->open_connections(), n);
+  }
+};
+
+TEST_F(GuardedHttpServerReserveTest, TheLastSlotsServeOnlyReservedRequestsAFewPerClient) {
+  std::vector<int> held;
+  for (int i = 0; i < 42; ++i) held.push_back(Connect());
+  WaitOpen(42);
+  // In the reserve: the worker protocol and /healthz are served, anything else refused at once.
+  const std::string refused = Ask("/hello");
+  EXPECT_THAT(refused, ::testing::StartsWith("HTTP/1.1 429")) << refused;
+  EXPECT_THAT(refused, ::testing::HasSubstr("nearly all taken"));
+  EXPECT_THAT(Ask("/reserved"), ::testing::StartsWith("HTTP/1.1 200"));
+  // One client holds at most 4 of the 6 reserved slots: its fifth connection is closed unanswered,
+  // and another client still gets one.
+  for (int i = 0; i < 4; ++i) held.push_back(Connect());
+  WaitOpen(46);
+  const int fifth = Connect();
+  char c;
+  EXPECT_LE(recv(fifth, &c, 1, 0), 0) << "a client past its share of the reserve was kept";
+  close(fifth);
+  const int other = ConnectFrom("127.0.0.2");
+  Send(other, "GET /reserved HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+  std::string got;
+  char buf[4096];
+  ssize_t n;
+  while ((n = recv(other, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+  close(other);
+  EXPECT_THAT(got, ::testing::StartsWith("HTTP/1.1 200")) << "another client found no reserved slot";
+  for (int fd : held) close(fd);
+}
+
+TEST_F(GuardedHttpServerTest, ARequestHeadLargerThanTheBufferIsAnswered431WithoutAThread) {
+  const int fd = Connect();
+  Send(fd, "GET /hello HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(20 * 1024, 'a'));
+  std::string got;
+  char buf[4096];
+  ssize_t n;
+  while ((n = recv(fd, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+  close(fd);
+  EXPECT_THAT(got, ::testing::StartsWith("HTTP/1.1 431")) << got;
+  EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200"));
+}
+
+// The same server over TLS, with a self-signed certificate made for the test.
+class GuardedHttpsServerTest : public GuardedHttpServerTest {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("sandswim-tls-" + std::to_string(getpid()) + "-" + std::to_string(Steady::now().time_since_epoch().count()));
+    auto files = LoadOrCreateSelfSigned(dir_.string(), {});
+    ASSERT_TRUE(files.ok()) << files.status().ToString();
+    files_ = *files;
+    GuardedHttpServerTest::SetUp();
+  }
+  void TearDown() override {
+    GuardedHttpServerTest::TearDown();
+    std::filesystem::remove_all(dir_);
+  }
+  void Configure(GuardedHttpServer& server) override {
+    std::string error;
+    ASSERT_TRUE(server.SetTls(files_.cert, files_.key, &error)) << error;
+  }
+  std::unique_ptr<httplib::Client> Client(const TlsTrust& trust) {
+    ClientOptions options;
+    options.server = "https://127.0.0.1:" + std::to_string(port_);
+    options.tls = trust;
+    return NewHttpClient(options);
+  }
+
+  std::filesystem::path dir_;
+  TlsFiles files_;
+};
+
+TEST_F(GuardedHttpsServerTest, APinnedClientIsServedAndAWrongPinIsRefusedWithTheReason) {
+  auto pinned = Client(TlsTrust{"", files_.fingerprint});
+  for (int i = 0; i < 3; ++i) {
+    auto r = pinned->Get("/hello");
+    ASSERT_TRUE(r) << httplib::to_string(r.error());
+    EXPECT_EQ(r->status, 200);
+    EXPECT_EQ(r->body, "hi");
+  }
+  // The certificate as a CA file: it names 127.0.0.1.
+  auto by_ca = Client(TlsTrust{files_.cert, ""});
+  auto r = by_ca->Get("/hello");
+  ASSERT_TRUE(r) << httplib::to_string(r.error());
+  EXPECT_EQ(r->status, 200);
+
+  std::string wrong_pin = files_.fingerprint;
+  wrong_pin.back() = wrong_pin.back() == '0' ? '1' : '0';
+  auto wrong = Client(TlsTrust{"", wrong_pin});
+  auto refused = wrong->Get("/hello");
+  ASSERT_FALSE(refused);
+  std::optional<Status> why = TlsFailure(*wrong, static_cast<int>(refused.error()), "https://127.0.0.1");
+  ASSERT_TRUE(why.has_value());
+  EXPECT_EQ(why->code(), StatusCode::kUnauthenticated);
+  EXPECT_THAT(why->reason(), ::testing::HasSubstr("presented a certificate with fingerprint " + files_.fingerprint));
+  EXPECT_THAT(why->reason(), ::testing::HasSubstr("not the pinned " + wrong_pin));
+  EXPECT_FALSE(DaemonTrouble(*why)) << "a mismatch is not retried as the daemon's trouble";
+
+  // The system's CAs do not know a self-signed certificate.
+  auto system = Client(TlsTrust{});
+  auto untrusted = system->Get("/hello");
+  ASSERT_FALSE(untrusted);
+  why = TlsFailure(*system, static_cast<int>(untrusted.error()), "https://127.0.0.1");
+  ASSERT_TRUE(why.has_value());
+  EXPECT_THAT(why->reason(), ::testing::HasSubstr("does not trust"));
+  EXPECT_THAT(why->reason(), ::testing::HasSubstr("--tls-fingerprint"));
+}
+
+TEST_F(GuardedHttpsServerTest, PlainHttpGetsNoAnswerAndASlowHandshakeHoldsNoThread) {
+  // Plain HTTP to the TLS port: the handshake fails, the connection is closed.
+  const std::string plain = Ask("/hello");
+  EXPECT_THAT(plain, ::testing::Not(::testing::HasSubstr("200 OK")));
+  // A handshake started and left: closed at the head's deadline, while a pinned client is served.
+  const int stalled = Connect();
+  Send(stalled, std::string("\x16\x03\x01\x00\xff\x01", 6));
+  auto pinned = Client(TlsTrust{"", files_.fingerprint});
+  auto r = pinned->Get("/hello");
+  ASSERT_TRUE(r) << httplib::to_string(r.error());
+  EXPECT_EQ(r->status, 200);
+  const double closed_after = SecondsUntilClosed(stalled, 10);
+  close(stalled);
+  EXPECT_GE(closed_after, 0) << "a stalled handshake was not cut off in 10 s";
+  EXPECT_LT(closed_after, 4);
+}
+
+TEST(SelfSignedCertificateTest, IsMadeOnceWithAPrivateKeyAndAStableFingerprint) {
+  const auto dir = std::filesystem::temp_directory_path() / ("sandswim-cert-" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  auto made = LoadOrCreateSelfSigned(dir.string(), {"login1.example", "10.1.2.3"});
+  ASSERT_TRUE(made.ok()) << made.status().ToString();
+  EXPECT_TRUE(made->created);
+  EXPECT_EQ((std::filesystem::status(made->key).permissions() & std::filesystem::perms::all),
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  EXPECT_THAT(made->fingerprint, ::testing::MatchesRegex("SHA256(:[0-9A-F][0-9A-F]){32}"));
+  auto again = LoadOrCreateSelfSigned(dir.string(), {});
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_FALSE(again->created);
+  EXPECT_EQ(again->fingerprint, made->fingerprint);
+  auto read = CertificateFingerprint(made->cert);
+  ASSERT_TRUE(read.ok());
+  EXPECT_EQ(*read, made->fingerprint);
+  // A key others may read is refused, with the chmod to run.
+  std::filesystem::permissions(made->key, std::filesystem::perms::group_read, std::filesystem::perm_options::add);
+  auto loose = LoadOrCreateSelfSigned(dir.string(), {});
+  ASSERT_FALSE(loose.ok());
+  EXPECT_THAT(loose.status().reason(), ::testing::HasSubstr("chmod 600 " + made->key));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(FingerprintTest, IsReadInTheFormsPeopleCopy) {
+  const std::string hex = "ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01ab01";
+  auto plain = ParseFingerprint(hex, "--tls-fingerprint");
+  ASSERT_TRUE(plain.ok());
+  EXPECT_EQ(plain->substr(0, 16), "SHA256:AB:01:AB:");
+  auto openssl = ParseFingerprint("sha256 Fingerprint=" + plain->substr(7), "--tls-fingerprint");
+  ASSERT_TRUE(openssl.ok());
+  EXPECT_EQ(*openssl, *plain);
+  auto same = ParseFingerprint(*plain, "x");
+  ASSERT_TRUE(same.ok());
+  EXPECT_EQ(*same, *plain);
+  auto bad = ParseFingerprint("SHA256:AB:CD", "--tls-fingerprint");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().field(), "--tls-fingerprint");
 }
 
 }  // namespace

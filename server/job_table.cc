@@ -235,13 +235,14 @@ Status MarkReleased(Transaction& t, api::JobKind kind, int64_t id, bool wanted, 
 
 Result<std::optional<QueuedBed>> NextQueuedBed(Transaction& t) {
   Statement st = t.Prepare(
-      "SELECT b.id, b.key, b.deck, b.attempts FROM beds b WHERE b.state = 'queued' AND "
+      "SELECT b.id, b.key, b.deck, b.attempts, b.engine_version FROM beds b WHERE b.state = 'queued' AND "
       "EXISTS (SELECT 1 FROM runs r WHERE r.bed_id = b.id AND r.state = 'queued') "
       "ORDER BY b.id LIMIT 1");
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
   if (!*row) return std::optional<QueuedBed>();
-  return std::optional<QueuedBed>(QueuedBed{st.Int(0), st.Text(1), st.Text(2), static_cast<int>(st.Int(3))});
+  return std::optional<QueuedBed>(
+      QueuedBed{st.Int(0), st.Text(1), st.Text(2), static_cast<int>(st.Int(3)), st.OptText(4)});
 }
 
 Status ExtendBedLease(Transaction& t, int64_t bed_id, double expires_at) {

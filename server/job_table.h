@@ -104,6 +104,7 @@ struct QueuedBed {
   std::string key;
   std::string deck;
   int attempts = 0;
+  std::optional<std::string> engine_version;  // its key's (beds before migration 3: not stored)
 };
 Result<std::optional<QueuedBed>> NextQueuedBed(Transaction& t);
 

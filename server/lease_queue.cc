@@ -194,6 +194,7 @@ Result<bool> LeaseQueue::NextBed(Transaction& t, api::LeaseGrant& g) {
   g.deck = (*bed)->deck;
   g.attempt = (*bed)->attempts + 1;
   g.dt_s = kMaterials.dt;  // the bed deck's timestep (core/deck.cc)
+  g.key_engine = (*bed)->engine_version.value_or("");
   return true;
 }
 
@@ -248,7 +249,9 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
       g.attempt = r.attempts + 1;
       g.duration_s = r.run_duration_s;
       g.steps = r.steps;
-      g.bed = api::BedRef{r.bed_id, r.bed_sha256, "/api/v1/beds/" + std::to_string(r.bed_id) + "/restart"};
+      g.bed = api::BedRef{r.bed_id, r.bed_sha256, "/api/v1/beds/" + std::to_string(r.bed_id) + "/restart", r.bed_key};
+      // A stored deck (before migration 3) was not rendered here: its key is not checked against it.
+      if (!r.stored_deck) g.key_engine = r.engine_version.value_or("");
       g.deck = std::move(deck->deck);
       g.dt_s = deck->drive.dt;
       g.f_hz = deck->drive.f;

@@ -15,6 +15,7 @@
 
 #include "platform/clock.h"
 #include "platform/engine_probe.h"
+#include "platform/tls.h"
 #include "platform/token.h"
 #include "server/drift_report.h"
 #include "server/lease_queue.h"
@@ -38,6 +39,9 @@ struct Flags {
   std::string token_file;
   bool no_token = false;
   bool public_reads = false;
+  std::string tls;  // "" or "self-signed"
+  std::string tls_cert, tls_key;
+  bool plain_http = false;
   std::vector<std::string> allow_hosts;
   int local_workers = 0;
   double lease_ttl_s = 60;
@@ -64,6 +68,15 @@ void AddFlags(CLI::App& app, Flags& flags) {
   app.add_flag("--no-token", flags.no_token,
                "serve without a token (loopback only): anyone on this machine may read and write");
   app.add_flag("--public-reads", flags.public_reads, "reads (GET) need no token; writes still do");
+  app.add_option("--tls", flags.tls,
+                 "serve HTTPS with a certificate of its own: self-signed, made in DATA/tls on the first start "
+                 "(its fingerprint is printed: pin it on workers and the CLI with --tls-fingerprint)")
+      ->check(CLI::IsMember({"self-signed"}));
+  app.add_option("--tls-cert", flags.tls_cert, "serve HTTPS with this certificate (PEM, with its chain)");
+  app.add_option("--tls-key", flags.tls_key, "the certificate's private key (PEM, mode 0600, this user's)");
+  app.add_flag("--plain-http", flags.plain_http,
+               "serve plain HTTP on a non-loopback --listen (refused otherwise: the token and the decks would "
+               "cross the network readable); for a TLS proxy or a private network in front");
   app.add_option("--allow-host", flags.allow_hosts,
                  "a name clients reach the daemon by, besides its address and localhost (repeatable; e.g. "
                  "the login node's name for Slurm workers, a proxy's name); other Host headers get 421");
@@ -193,11 +206,12 @@ sandswim::Result<DaemonToken> ResolveToken(const Flags& flags) {
 // of its own (one the operator gave is theirs to paste) and stdout is a terminal -- under systemd
 // stdout is the journal, which more users read than the 0600 file: there the link names the file.
 // On stdout, after the "listening on" line.
-void PrintDashboardLink(const sandswim::ListenAddress& address, int port, const DaemonToken& token) {
+void PrintDashboardLink(const sandswim::ListenAddress& address, int port, const DaemonToken& token,
+                        const std::string& scheme) {
   std::string host = address.host;
   if (host == "0.0.0.0" || host == "::" || host.empty()) host = "127.0.0.1";
   if (host.find(':') != std::string::npos) host = "[" + host + "]";
-  const std::string base = "http://" + host + ":" + std::to_string(port) + "/";
+  const std::string base = scheme + "://" + host + ":" + std::to_string(port) + "/";
   if (token.token.empty()) {
     std::cout << "dashboard: " << base << " (no token: --no-token)" << std::endl;
   } else if (token.own && isatty(STDOUT_FILENO)) {
@@ -207,6 +221,34 @@ void PrintDashboardLink(const sandswim::ListenAddress& address, int port, const 
   } else {
     std::cout << "dashboard: " << base << "?token=TOKEN (your token: it stays in the browser tab)" << std::endl;
   }
+}
+
+// The certificate the daemon serves HTTPS with: the operator's (--tls-cert/--tls-key) or its own
+// (--tls self-signed, DATA/tls); nullopt for plain HTTP.
+sandswim::Result<std::optional<sandswim::TlsFiles>> ResolveTls(const Flags& flags,
+                                                               const sandswim::ListenAddress& address) {
+  if (flags.tls_cert.empty() != flags.tls_key.empty()) {
+    return Status::InvalidArgument(flags.tls_cert.empty() ? "--tls-cert" : "--tls-key",
+                                   "--tls-cert and --tls-key go together");
+  }
+  if (!flags.tls.empty() && !flags.tls_cert.empty()) {
+    return Status::InvalidArgument("--tls", "give --tls self-signed or --tls-cert/--tls-key, not both");
+  }
+  if (!flags.tls_cert.empty()) {
+    auto files = sandswim::CheckCertificateFiles(flags.tls_cert, flags.tls_key);
+    if (!files.ok()) return files.status();
+    return std::optional<sandswim::TlsFiles>(*files);
+  }
+  if (flags.tls.empty()) return std::optional<sandswim::TlsFiles>();
+  std::vector<std::string> names = flags.allow_hosts;
+  names.push_back(address.host);
+  char host[256] = {0};
+  if (gethostname(host, sizeof(host) - 1) == 0) names.push_back(host);
+  auto files = sandswim::LoadOrCreateSelfSigned(sandswim::TlsDirIn(flags.data), names);
+  if (!files.ok()) return files.status();
+  spdlog::info("{} the self-signed certificate {} (key {}, mode 0600)", files->created ? "made" : "using",
+               files->cert, files->key);
+  return std::optional<sandswim::TlsFiles>(*files);
 }
 
 // The engine the workers on this machine run, for content keys; "unknown" (with a warning) when
@@ -330,8 +372,18 @@ int main(int argc, char** argv) {
   if (!address.ok()) return Die(address.status(), "use --listen HOST:PORT, e.g. 127.0.0.1:8640");
   auto token = ResolveToken(flags);
   if (!token.ok()) return Die(token.status(), "sandswimd serves with a token unless told --no-token");
-  Status policy = sandswim::CheckListenPolicy(*address, !token->token.empty());
-  if (!policy.ok()) return Die(policy, "give a token or listen on a loopback address");
+  auto tls = ResolveTls(flags, *address);
+  if (!tls.ok()) {
+    return Die(tls.status(), "give a readable certificate and its key, or --tls self-signed, or neither for plain HTTP");
+  }
+  const std::string scheme = tls->has_value() ? "https" : "http";
+  Status policy = sandswim::CheckListenPolicy(*address, !token->token.empty(), tls->has_value(), flags.plain_http);
+  if (!policy.ok()) return Die(policy, "serve with a token and HTTPS, or listen on a loopback address");
+  if (!tls->has_value() && !sandswim::IsLoopbackHost(address->host)) {
+    spdlog::warn("*** --plain-http: serving plain HTTP on {}: the token and the decks workers run cross the network "
+                 "readable and changeable unless a TLS proxy or a private network stands in front ***",
+                 address->host);
+  }
 
   if (flags.engine_version.empty()) flags.engine_version = ProbedEngineVersion();
   spdlog::info("engine: {}", flags.engine_version);
@@ -402,6 +454,11 @@ int main(int argc, char** argv) {
   deps.live = &live;
   flags.http.head_s = flags.http_head_timeout_s;
   sandswim::ApiServer server(deps, flags.http);
+  if (tls->has_value()) {
+    if (Status s = server.UseTls((*tls)->cert, (*tls)->key); !s.ok()) {
+      return Die(s, "check the certificate and key files");
+    }
+  }
   auto port = server.Bind(*address);
   if (!port.ok()) return Die(port.status(), "stop whatever holds the port, or pass another --listen");
   std::thread serve([&server] { server.Serve(); });
@@ -419,15 +476,20 @@ int main(int argc, char** argv) {
       /*run_at_start=*/true);
   periodic.Start();
 
-  PrintDashboardLink(*address, *port, *token);  // before the line scripts wait for, which ends what they read
-  std::cout << "sandswimd listening on http://" << address->host << ":" << *port << std::endl;
+  // Before the line scripts wait for, which ends what they read.
+  if (tls->has_value()) {
+    std::cout << "tls: certificate " << (*tls)->cert << ", fingerprint " << (*tls)->fingerprint
+              << " (workers and the CLI elsewhere: --tls-fingerprint " << (*tls)->fingerprint << ")" << std::endl;
+  }
+  PrintDashboardLink(*address, *port, *token, scheme);
+  std::cout << "sandswimd listening on " << scheme << "://" << address->host << ":" << *port << std::endl;
 
   sandswim::PosixSubprocesses processes;
   sandswim::LocalWorkersOptions worker_options;
   worker_options.count = flags.local_workers;
   worker_options.argv = {sandswim::ExecutableDir() + "/sandswim-worker",
                          "--server",
-                         "http://127.0.0.1:" + std::to_string(*port),
+                         scheme + "://127.0.0.1:" + std::to_string(*port),
                          "--slots",
                          "1",
                          "--ranks",
@@ -437,6 +499,10 @@ int main(int argc, char** argv) {
   // A token from SANDSWIM_TOKEN reaches the workers through the environment; one from a file, as
   // that file.
   if (!token->file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", token->file});
+  // Local workers pin the certificate itself: it need not name 127.0.0.1 nor chain to a CA they know.
+  if (tls->has_value()) {
+    worker_options.argv.insert(worker_options.argv.end(), {"--tls-fingerprint", (*tls)->fingerprint});
+  }
   sandswim::LocalWorkers workers(worker_options, &processes, &clock);
   std::thread supervisor;
   int exit_code = 0;

@@ -150,6 +150,20 @@ std::string RedactPaths(std::string_view text) {
   return out;
 }
 
+std::string ClientKey(const std::string& address) {
+  in6_addr v6{};
+  if (inet_pton(AF_INET6, address.c_str(), &v6) != 1) return address;  // IPv4 (a /32), or not an address
+  if (IN6_IS_ADDR_V4MAPPED(&v6)) {
+    char v4[INET_ADDRSTRLEN];
+    if (inet_ntop(AF_INET, &v6.s6_addr[12], v4, sizeof v4) != nullptr) return v4;
+  }
+  if (IN6_IS_ADDR_LOOPBACK(&v6)) return "::1";
+  for (int i = 8; i < 16; ++i) v6.s6_addr[i] = 0;
+  char text[INET6_ADDRSTRLEN];
+  if (inet_ntop(AF_INET6, &v6, text, sizeof text) == nullptr) return address;
+  return std::string(text) + "/64";
+}
+
 FailedAuthThrottle::FailedAuthThrottle(Clock* clock, Options options, std::function<void(double)> sleep,
                                        std::function<void(const std::string&)> log)
     : clock_(clock), options_(options), sleep_(std::move(sleep)), log_(std::move(log)) {
@@ -163,18 +177,19 @@ FailedAuthThrottle::Verdict FailedAuthThrottle::Failed(const std::string& peer, 
   {
     std::lock_guard<std::mutex> lock(mu_);
     const double now = clock_->Now();
-    if (peers_.size() > 4096) {  // many peers (a network): drop the ones long quiet
-      for (auto it = peers_.begin(); it != peers_.end();) {
-        it = now - it->second.last_failure > options_.forget_after_s && !it->second.sleeping ? peers_.erase(it)
-                                                                                             : std::next(it);
-      }
+    auto [it, fresh] = peers_.try_emplace(peer);
+    Peer& p = it->second;
+    if (fresh) {
+      p.in_order = order_.insert(order_.end(), peer);
+    } else {
+      order_.splice(order_.end(), order_, p.in_order);  // now the most recent
     }
-    Peer& p = peers_[peer];
     if (p.failures > 0 && now - p.last_failure > options_.forget_after_s) p.failures = 0;
     ++p.failures;
     ++p.unlogged;
     p.last_failure = now;
     ++counts_.failures;
+    ForgetQuiet(now);
     if (now - p.last_log >= options_.log_every_s) {
       std::ostringstream text;
       text << "refused " << p.unlogged << " request(s) with a wrong token from " << peer << " (last: " << route << "; "
@@ -208,6 +223,16 @@ FailedAuthThrottle::Verdict FailedAuthThrottle::Failed(const std::string& peer, 
     --sleeping_;
   }
   return Verdict::kDelayed;
+}
+
+void FailedAuthThrottle::ForgetQuiet(double now) {
+  while (!order_.empty()) {
+    auto it = peers_.find(order_.front());
+    const bool quiet = now - it->second.last_failure > options_.forget_after_s;
+    if ((!quiet && peers_.size() <= std::max<size_t>(1, options_.max_peers)) || it->second.sleeping) return;
+    peers_.erase(it);
+    order_.pop_front();
+  }
 }
 
 FailedAuthThrottle::Counts FailedAuthThrottle::counts() const {

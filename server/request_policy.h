@@ -18,7 +18,9 @@
 
 #include <cstdint>
 #include <functional>
+#include <list>
 #include <map>
+#include <unordered_map>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -53,6 +55,11 @@ bool HostAllowed(const HostPolicy& policy, std::string_view host);
 std::optional<Status> CrossSiteRefusal(const HostPolicy& policy, std::string_view origin,
                                        std::string_view sec_fetch_site);
 
+// The client a peer address counts as, for per-client limits: an IPv4 address itself (/32; an
+// IPv4-mapped IPv6 address as IPv4), an IPv6 address's /64 ("2001:db8:1:2::/64": one host or
+// one site is usually given a /64 whole, and picks addresses in it at will). Anything else as it is.
+std::string ClientKey(const std::string& address);
+
 // "application/json", with or without parameters (charset=utf-8), in any case.
 bool IsJsonMediaType(std::string_view content_type);
 
@@ -67,6 +74,9 @@ std::string RedactPaths(std::string_view text);
 // again. A correct token is never delayed, whatever the peer did before (so a guesser on the same
 // address cannot lock out the workers or the CLI).
 //
+// Bounded memory: at most `max_peers` peers are remembered (the one quiet longest forgotten first),
+// kept in order of their last failure so that no failure scans them all.
+//
 // Bounded threads: a delay holds the request's thread, so at most one request per peer and
 // `max_sleeping` in all wait at once; a failed attempt that finds no free slot is answered at once
 // with 429 (kBusy) and Retry-After, not with 401. A guesser is thus slowed to a few attempts a
@@ -80,6 +90,7 @@ class FailedAuthThrottle {
     int max_sleeping = 4;
     double forget_after_s = 600;
     double log_every_s = 10;
+    size_t max_peers = 4096;  // peers remembered; past them the one quiet longest is forgotten
   };
   enum class Verdict { kDelayed, kBusy };
   struct Counts {
@@ -106,14 +117,19 @@ class FailedAuthThrottle {
     int64_t unlogged = 0;
     double last_log = -1e300;
     bool sleeping = false;
+    std::list<std::string>::iterator in_order;
   };
+  // Forgets the peers quiet for forget_after_s, and the quietest past max_peers: from the front of
+  // order_, so a failure costs O(1) however many peers a network has.
+  void ForgetQuiet(double now);
 
   Clock* clock_;
   Options options_;
   std::function<void(double)> sleep_;
   std::function<void(const std::string&)> log_;
   mutable std::mutex mu_;
-  std::map<std::string, Peer> peers_;
+  std::unordered_map<std::string, Peer> peers_;
+  std::list<std::string> order_;  // peers by their last failure, the longest quiet first
   int sleeping_ = 0;
   Counts counts_;
 };

@@ -68,6 +68,18 @@ TEST(CrossSiteRefusalTest, PagesOfOtherOriginsMayNot) {
   EXPECT_TRUE(CrossSiteRefusal(p, "http://127.0.0.1:8640", "Cross-Site"));
 }
 
+// Per-client limits count an IPv4 address, or an IPv6 /64, as one client.
+TEST(ClientKeyTest, IPv4ByAddressIPv6ByItsSlash64) {
+  EXPECT_EQ(ClientKey("127.0.0.1"), "127.0.0.1");
+  EXPECT_EQ(ClientKey("10.1.2.3"), "10.1.2.3");
+  EXPECT_EQ(ClientKey("::ffff:10.1.2.3"), "10.1.2.3");
+  EXPECT_EQ(ClientKey("2001:db8:1:2:aaaa:bbbb:cccc:dddd"), "2001:db8:1:2::/64");
+  EXPECT_EQ(ClientKey("2001:db8:1:2::99"), ClientKey("2001:db8:1:2:ffff::1"));
+  EXPECT_NE(ClientKey("2001:db8:1:2::1"), ClientKey("2001:db8:1:3::1"));
+  EXPECT_EQ(ClientKey("::1"), "::1");
+  EXPECT_EQ(ClientKey("?"), "?");
+}
+
 TEST(IsJsonMediaTypeTest, OnlyApplicationJson) {
   EXPECT_TRUE(IsJsonMediaType("application/json"));
   EXPECT_TRUE(IsJsonMediaType("Application/JSON; charset=utf-8"));
@@ -132,6 +144,27 @@ TEST_F(FailedAuthThrottleTest, LogsAtMostOneLinePerPeerPerIntervalWithTheCount) 
   EXPECT_THAT(log_[1], HasSubstr("GET /api/v1/runs"));
   t.Failed("10.0.0.7", "GET /api/v1/runs");
   EXPECT_EQ(log_.size(), 3u) << "another peer has a line of its own";
+}
+
+// A network of guessers cannot grow the throttle's memory: past max_peers the peer quiet longest
+// is forgotten (it starts again, free), while the busiest keeps its count.
+TEST_F(FailedAuthThrottleTest, RemembersAtMostMaxPeersForgettingTheQuietestFirst) {
+  FailedAuthThrottle::Options options;
+  options.free_failures = 1;
+  options.max_peers = 3;
+  FailedAuthThrottle t = Make(options);
+  t.Failed("busy", "x");
+  for (int i = 0; i < 50; ++i) {
+    clock_.Advance(1);
+    t.Failed("10.0.0." + std::to_string(i), "x");
+    t.Failed("busy", "x");  // the most recent each time: never forgotten
+  }
+  const size_t slept_before = slept_.size();
+  EXPECT_EQ(slept_before, 50u) << "busy's failures after its first free one are each delayed";
+  t.Failed("10.0.0.0", "x");  // forgotten long ago: its first failure again, free
+  EXPECT_EQ(slept_.size(), slept_before);
+  t.Failed("10.0.0.49", "x");  // still remembered: its second failure waits
+  EXPECT_EQ(slept_.size(), slept_before + 1);
 }
 
 // Delays hold threads: one per peer and max_sleeping in all; past that, 429 at once.

@@ -1243,7 +1243,7 @@ std::optional<Refusal> CheckAuth(const Deps& deps, const Route& route, const htt
   if (given->size() == deps.token.size() && CRYPTO_memcmp(given->data(), deps.token.data(), given->size()) == 0) {
     return std::nullopt;
   }
-  if (throttle.Failed(req.remote_addr, req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
+  if (throttle.Failed(ClientKey(req.remote_addr), req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
     return Refusal{
         Status(StatusCode::kResourceExhausted,
                "too many requests with a wrong token from " + req.remote_addr + "; try again later", "Authorization"),
@@ -1535,13 +1535,24 @@ Result<ListenAddress> ParseListenAddress(const std::string& text) {
   return address;
 }
 
-Status CheckListenPolicy(const ListenAddress& address, bool have_token) {
-  if (IsLoopbackHost(address.host) || have_token) return Status::Ok();
-  return Status(StatusCode::kFailedPrecondition,
-                "refusing to listen on " + address.host +
-                    " (not loopback) without a token: drop --no-token (the daemon makes one in DATA/token), "
-                    "or listen on 127.0.0.1",
-                "--listen");
+Status CheckListenPolicy(const ListenAddress& address, bool have_token, bool tls, bool plain_http_ok) {
+  if (IsLoopbackHost(address.host)) return Status::Ok();
+  if (!have_token) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "refusing to listen on " + address.host +
+                      " (not loopback) without a token: drop --no-token (the daemon makes one in DATA/token), "
+                      "or listen on 127.0.0.1",
+                  "--listen");
+  }
+  if (!tls && !plain_http_ok) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "refusing to serve plain HTTP on " + address.host +
+                      " (not loopback): the token, and the decks workers run, would cross the network readable "
+                      "and changeable. Serve HTTPS (--tls self-signed, or --tls-cert FILE --tls-key FILE), or "
+                      "say --plain-http when a TLS proxy or a private network stands in front",
+                  "--listen");
+  }
+  return Status::Ok();
 }
 
 // ---- ApiServer ---------------------------------------------------------------------------------
@@ -1570,6 +1581,12 @@ ApiServer::ApiServer(Deps deps, ConnectionLimits limits)
 }
 
 ApiServer::~ApiServer() { Stop(); }
+
+Status ApiServer::UseTls(const std::string& cert_file, const std::string& key_file) {
+  std::string error;
+  if (!server_->SetTls(cert_file, key_file, &error)) return Status::InvalidArgument("--tls-cert", error);
+  return Status::Ok();
+}
 
 Result<int> ApiServer::Bind(const ListenAddress& address) {
   int port = address.port;

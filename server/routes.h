@@ -123,9 +123,10 @@ struct ListenAddress {
   int port = kDefaultPort;
 };
 Result<ListenAddress> ParseListenAddress(const std::string& text);
-// Refuses a non-loopback address without a token (field "--listen"); IsLoopbackHost is
+// Refuses a non-loopback address without a token, or without TLS unless `plain_http_ok`
+// (--plain-http: a TLS proxy or a private network in front), field "--listen"; IsLoopbackHost is
 // platform/token.h's.
-Status CheckListenPolicy(const ListenAddress& address, bool have_token);
+Status CheckListenPolicy(const ListenAddress& address, bool have_token, bool tls = false, bool plain_http_ok = false);
 
 class GuardedHttpServer;  // server/guarded_http_server.h
 
@@ -139,6 +140,8 @@ class ApiServer {
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;
 
+  // Serves HTTPS with these PEM files (server/guarded_http_server.h SetTls). Before Bind().
+  Status UseTls(const std::string& cert_file, const std::string& key_file);
   // Binds and listens; returns the bound port (the real one when address.port is 0).
   Result<int> Bind(const ListenAddress& address);
   // Serves until Stop(). REQUIRES: Bind() succeeded.

@@ -962,7 +962,13 @@ TEST(RoutesUnitTest, ListenAddressAndPolicy) {
   EXPECT_FALSE(refused.ok());
   EXPECT_EQ(refused.field(), "--listen");
   EXPECT_THAT(refused.reason(), HasSubstr("--no-token"));
-  EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true).ok());
+  // Off loopback with a token: HTTPS, or plain HTTP only when the operator says so.
+  Status plain = CheckListenPolicy({"0.0.0.0", 1}, true);
+  EXPECT_FALSE(plain.ok());
+  EXPECT_THAT(plain.reason(), HasSubstr("--tls self-signed"));
+  EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true, /*tls=*/true).ok());
+  EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true, /*tls=*/false, /*plain_http_ok=*/true).ok());
+  EXPECT_TRUE(CheckListenPolicy({"127.0.0.1", 1}, true).ok());
 }
 
 }  // namespace

@@ -474,5 +474,33 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
   EXPECT_EQ(st.Int(0), ok.load());
 }
 
+// Reads run on read-only connections beside the writer's: a read transaction held open (a long
+// results read) does not hold up a write, and sees the file as it was when it began.
+TEST_F(StoreTest, AnOpenReadDoesNotHoldUpWrites) {
+  auto store = MustOpen();
+  ASSERT_TRUE(store);
+  EXPECT_GT(store->read_connections(), 0);
+  auto read = store->BeginRead();
+  ASSERT_TRUE(read.ok());
+  Statement before = read->Prepare("SELECT count(*) FROM events");
+  ASSERT_TRUE(*before.Step());
+  const int64_t seen = before.Int(0);
+  before.Reset();
+  std::atomic<bool> written{false};
+  std::thread writer([&] {
+    Status s = store->Write([&](Transaction& t) { return t.Event(1, "during-read", "x/1"); });
+    EXPECT_TRUE(s.ok()) << s.ToString();
+    written = true;
+  });
+  for (int i = 0; i < 500 && !written; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(written.load()) << "a write waited for an open read";
+  Statement again = read->Prepare("SELECT count(*) FROM events");
+  ASSERT_TRUE(*again.Step());
+  EXPECT_EQ(again.Int(0), seen) << "the read's snapshot changed under it";
+  writer.join();
+  // A write slipped into a read transaction fails at once.
+  EXPECT_FALSE(read->Exec("INSERT INTO events (time, kind, subject, detail) VALUES (1, 'x', 'y', '{}')").ok());
+}
+
 }  // namespace
 }  // namespace sandswim

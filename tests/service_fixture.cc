@@ -21,6 +21,7 @@
 
 #include "core/deck.h"
 #include "core/engine_log.h"
+#include "platform/tls.h"
 #include "tests/engine_fixture.h"
 #include "workers/client.h"
 #include "workers/job_outcome.h"
@@ -77,7 +78,8 @@ Daemon::Daemon(const std::string& dir, std::vector<std::string> extra, const std
     argv.push_back("--no-token");
   }
   process_ = std::make_unique<ChildProcess>(argv, dir, "sandswimd.out");
-  static const std::regex re(R"(listening on (http://127\.0\.0\.1:\d+))");
+  static const std::regex re(R"(listening on (https?://127\.0\.0\.1:\d+))");
+  static const std::regex fingerprint(R"(tls: certificate .*, fingerprint (SHA256:[0-9A-F:]+))");
   auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   std::smatch m;
   std::string out;
@@ -85,6 +87,7 @@ Daemon::Daemon(const std::string& dir, std::vector<std::string> extra, const std
     out = process_->Output();
     if (std::regex_search(out, m, re)) {
       url_ = m[1];
+      if (std::regex_search(out, m, fingerprint)) tls_fingerprint_ = m[1];
       return;
     }
     if (!process_->running()) break;
@@ -113,11 +116,13 @@ httplib::Headers TokenHeaders() {
 
 nlohmann::json Daemon::Get(const std::string& path, int* status) {
   httplib::Client c(url_);
+  ConfigureTls(c, TlsTrust{"", tls_fingerprint_});
   return Parse(c.Get(path, TokenHeaders()), "GET " + path, status);
 }
 
 std::string Daemon::GetText(const std::string& path, int* status) {
   httplib::Client c(url_);
+  ConfigureTls(c, TlsTrust{"", tls_fingerprint_});
   c.set_read_timeout(120, 0);
   auto r = c.Get(path, TokenHeaders());
   if (!r) throw std::runtime_error("GET " + path + ": " + httplib::to_string(r.error()));
@@ -127,6 +132,7 @@ std::string Daemon::GetText(const std::string& path, int* status) {
 
 nlohmann::json Daemon::Post(const std::string& path, const nlohmann::json& body, int* status) {
   httplib::Client c(url_);
+  ConfigureTls(c, TlsTrust{"", tls_fingerprint_});
   return Parse(c.Post(path, TokenHeaders(), body.dump(), "application/json"), "POST " + path, status);
 }
 
@@ -232,6 +238,7 @@ namespace {
 std::unique_ptr<worker::HttpServerClient> BedClient(const Daemon& daemon) {
   ClientOptions options;
   options.server = daemon.url();
+  options.tls.fingerprint = daemon.tls_fingerprint();
   options.retry_for_s = 30;
   return std::make_unique<worker::HttpServerClient>(options);
 }
@@ -334,6 +341,10 @@ std::unique_ptr<ChildProcess> StartWorker(const Daemon& daemon, const std::strin
       SANDSWIM_WORKER_PATH, "--server", daemon.url(),  "--slots", std::to_string(slots), "--ranks", "1",
       "--workdir",          dir,        "--heartbeat", "1"};
   if (std::find(extra.begin(), extra.end(), "--heartbeat") != extra.end()) argv.resize(argv.size() - 2);  // theirs
+  if (!daemon.tls_fingerprint().empty() &&
+      std::find(extra.begin(), extra.end(), "--tls-fingerprint") == extra.end()) {
+    argv.insert(argv.end(), {"--tls-fingerprint", daemon.tls_fingerprint()});
+  }
   argv.insert(argv.end(), extra.begin(), extra.end());
   return std::make_unique<ChildProcess>(argv, dir, "worker.out");
 }

@@ -56,6 +56,9 @@ class Daemon {
   // "127.0.0.1:PORT", the port it got.
   std::string listen() const { return url_.substr(url_.find("//") + 2); }
   const std::string& url() const { return url_; }
+  // The certificate's fingerprint a daemon serving HTTPS printed ("" for plain HTTP): the REST
+  // calls, HandInBeds and StartWorker pin it.
+  const std::string& tls_fingerprint() const { return tls_fingerprint_; }
   const std::string& db() const { return db_; }
   ChildProcess& process() { return *process_; }
 
@@ -76,7 +79,7 @@ class Daemon {
   void StoreDeckForRun(int64_t run_id, const std::string& deck);
 
  private:
-  std::string dir_, db_, url_;
+  std::string dir_, db_, url_, tls_fingerprint_;
   std::unique_ptr<ChildProcess> process_;
 };
 

@@ -11,6 +11,8 @@
 #include <sstream>
 #include <thread>
 
+#include "platform/tls.h"
+
 namespace sandswim::worker {
 namespace {
 
@@ -56,9 +58,14 @@ auto WithRetries(double retry_for_s, double max_backoff_s, const std::atomic<boo
 
 std::unique_ptr<httplib::Client> MakeClient(const ClientOptions& o) { return NewHttpClient(o); }
 
-Exchange FromResult(const httplib::Result& res, const std::string& what) {
+Exchange FromResult(const httplib::Client& cli, const std::string& server, const httplib::Result& res, const std::string& what) {
   Exchange ex;
   if (!res) {
+    // A certificate that is not the daemon's is refused for good, not retried as the daemon's trouble.
+    if (auto tls = TlsFailure(cli, static_cast<int>(res.error()), server); tls) {
+      ex.status = Status(tls->code(), what + ": " + tls->reason(), tls->field());
+      return ex;
+    }
     ex.status = Status::Unavailable(what + ": daemon not reachable (" + httplib::to_string(res.error()) + ")");
     return ex;
   }
@@ -81,7 +88,7 @@ Result<T> ParseJson(const std::string& body, const std::string& what) {
 
 Result<std::optional<api::LeaseGrant>> HttpServerClient::Lease(const api::LeaseRequest& request) {
   auto cli = MakeClient(options_);
-  Exchange ex = FromResult(cli->Post("/api/v1/leases", api::ToJsonText(nlohmann::json(request)), "application/json"),
+  Exchange ex = FromResult(*cli, options_.server, cli->Post("/api/v1/leases", api::ToJsonText(nlohmann::json(request)), "application/json"),
                            "POST /api/v1/leases");
   if (!ex.status.ok()) return ex.status;
   if (ex.code == 204 || ex.body.empty()) return std::optional<api::LeaseGrant>();
@@ -104,7 +111,7 @@ Result<api::HeartbeatReply> HttpServerClient::Heartbeat(const std::string& token
   const std::string path = "/api/v1/leases/" + token + "/heartbeat";
   auto cli = MakeClient(options_);
   Exchange ex =
-      FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(beat)), "application/json"), "POST heartbeat");
+      FromResult(*cli, options_.server, cli->Post(path, api::ToJsonText(nlohmann::json(beat)), "application/json"), "POST heartbeat");
   if (!ex.status.ok()) return ex.status;
   return ParseJson<api::HeartbeatReply>(ex.body, "heartbeat");
 }
@@ -114,7 +121,7 @@ Result<api::CompletionReply> HttpServerClient::Release(const std::string& token,
   auto cli = MakeClient(options_);
   api::ReleaseRequest request{reason};
   Exchange ex =
-      FromResult(cli->Post(path, api::ToJsonText(nlohmann::json(request)), "application/json"), "POST release");
+      FromResult(*cli, options_.server, cli->Post(path, api::ToJsonText(nlohmann::json(request)), "application/json"), "POST release");
   if (!ex.status.ok()) return ex.status;
   return ParseJson<api::CompletionReply>(ex.body, "release");
 }
@@ -141,7 +148,7 @@ Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& 
           }
           return true;
         });
-    Exchange ex = FromResult(res, "GET " + path);
+    Exchange ex = FromResult(*cli, options_.server, res, "GET " + path);
     if (!ex.status.ok()) return ex.status;
     if (code != 200) return StatusFromHttp(code, error_body, "GET " + path);
     out.flush();
@@ -166,7 +173,7 @@ Status HttpServerClient::PutWithChecksum(const std::string& url, const std::stri
                                          const char* content_type, const std::string& what) {
   auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     auto cli = MakeClient(options_);
-    Exchange ex = FromResult(cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, content_type), what);
+    Exchange ex = FromResult(*cli, options_.server, cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, content_type), what);
     if (!ex.status.ok()) return ex.status;
     return true;
   });
@@ -188,7 +195,7 @@ Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token
   const std::string body = api::ToJsonText(nlohmann::json(completion));
   return WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<api::CompletionReply> {
     auto cli = MakeClient(options_);
-    Exchange ex = FromResult(cli->Post(path, body, "application/json"), "POST complete");
+    Exchange ex = FromResult(*cli, options_.server, cli->Post(path, body, "application/json"), "POST complete");
     if (!ex.status.ok()) return ex.status;
     auto reply = ParseJson<api::CompletionReply>(ex.body, "complete");
     if (reply.ok() && reply->next) NoteLeaseTtl(reply->next->ttl_s);

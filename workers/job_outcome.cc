@@ -5,6 +5,7 @@
 
 #include "core/bed_figures.h"
 #include "core/deck.h"
+#include "core/keys.h"
 
 namespace sandswim::worker {
 
@@ -54,6 +55,22 @@ JobOutcome JudgeBed(const EngineLog& log, const std::optional<std::string>& bed_
 }
 
 }  // namespace
+
+std::optional<api::Failure> CheckDeckKey(const api::LeaseGrant& grant) {
+  if (grant.key_engine.empty()) return std::nullopt;
+  const bool run = grant.kind == api::JobKind::kRun;
+  if (run && (!grant.bed || grant.bed->key.empty())) {
+    return api::Failure{"key_mismatch", "the run's lease names no bed key: its deck cannot be checked against its "
+                                        "content key, and is not run"};
+  }
+  const std::string key = run ? RunKey(grant.deck, grant.bed->key, grant.key_engine) : BedKey(grant.deck, grant.key_engine);
+  if (key == grant.key) return std::nullopt;
+  return api::Failure{"key_mismatch",
+                      "the deck sent with the lease hashes to content key " + key + ", not the lease's " + grant.key +
+                          ": it was changed on its way (or the daemon and this worker disagree on how keys are made: "
+                          "run the same sandswim version on both); not run. Serve the daemon over HTTPS "
+                          "(sandswimd --tls) when workers reach it over a network"};
+}
 
 JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& facts, const EngineLog& log,
                     const DriveInfo& drive, const Result<std::vector<SoSample>>& samples,

@@ -36,6 +36,13 @@ struct JobOutcome {
 // none: its figures join the log's. A bed that missed the kinetic-energy criterion fails as
 // "not_equilibrated" with its figures (the daemon does not retry it: the same deck gives the same
 // bed).
+// Why the lease's deck is not the job its content key names (core/keys.h: the key recomputed from
+// the deck, the bed's key for a run, and the lease's key_engine), or nullopt when it is -- or when
+// the lease cannot say (no key_engine: an older daemon, a deck stored before migration 3). The
+// worker runs the deck text it is sent: one that does not match its key is not run
+// ("key_mismatch").
+std::optional<api::Failure> CheckDeckKey(const api::LeaseGrant& grant);
+
 JobOutcome JudgeJob(api::JobKind kind, int64_t expected_steps, const ExitFacts& facts, const EngineLog& log,
                     const DriveInfo& drive, const Result<std::vector<SoSample>>& samples,
                     const std::optional<PrecisionTarget>& precision = std::nullopt,

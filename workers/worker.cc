@@ -459,6 +459,11 @@ std::optional<RunDir> Worker::Prepare(Job& job) {
     Abandon(job, dir.status().ToString());
     return std::nullopt;
   }
+  if (std::optional<api::Failure> wrong = CheckDeckKey(grant); wrong) {
+    spdlog::error("{}: {}", job.name, wrong->message);
+    Fail(job, &*dir, wrong->kind, wrong->message);
+    return std::nullopt;
+  }
   const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
   if (Status s = dir->Write(deck_file, grant.deck); !s.ok()) {
     Abandon(job, s.ToString());
