@@ -100,12 +100,13 @@ std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRa
   if (left.empty()) return std::nullopt;
   slots = std::max(slots, 1);
   expected_fraction = std::clamp(std::isfinite(expected_fraction) ? expected_fraction : 1.0, 0.0, 1.0);
-  double run_s = 0, bed_s = 0, longest = 0;
+  double run_s = 0, bed_s = 0, longest_run = 0, longest_bed = 0;
   for (const WorkLeft& w : left) {
     double s = 0;
     if (w.kind == WorkLeft::Kind::kBed) {
       s = std::max(0.0, w.particles * bed_rate.s_per_unit - (w.running ? w.elapsed_s : 0.0));
       bed_s += s;
+      longest_bed = std::max(longest_bed, s);
     } else {
       const double expected_steps = std::max(static_cast<double>(w.steps) * expected_fraction,
                                              static_cast<double>(w.steps_done));
@@ -113,11 +114,12 @@ std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRa
                                                   static_cast<double>(w.steps_done));
       s = steps_left * w.particles * run_rate.s_per_unit;
       run_s += s;
+      longest_run = std::max(longest_run, s);
     }
-    longest = std::max(longest, s);
   }
   Eta eta;
-  eta.seconds = std::max((run_s + bed_s) / slots, longest);
+  // As PlanCost::WallSeconds: the beds first (runs wait for theirs), then the runs over every slot.
+  eta.seconds = std::max(std::max(bed_s / slots, longest_bed) + run_s / slots, longest_bed + longest_run);
   const double total = run_s + bed_s;
   const double rate_error =
       total > 0 ? std::hypot(run_rate.rel_error * run_s, bed_rate.rel_error * bed_s) / total : run_rate.rel_error;

@@ -106,8 +106,9 @@ struct Eta {
 // Work left over `slots` engines (at least 1). Queued runs are expected to use
 // `expected_fraction` of their steps (the done runs' share, when some are done; 1 otherwise:
 // every run to its deck's end). A running bed's remaining time is its estimate less its elapsed
-// time, at least 0. The estimate is the work over the slots, but never less than the longest single
-// item left (one engine cannot be shared). nullopt when nothing is left.
+// time, at least 0. As PlanCost::WallSeconds: the beds left first (their runs wait for them; beds
+// share the slots), then the runs over every slot, and never less than the longest bed plus the
+// longest run (one engine cannot be shared). nullopt when nothing is left.
 std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRate& run_rate,
                                const EngineRate& bed_rate, double expected_fraction, double fraction_rel_error,
                                int slots);

@@ -400,6 +400,8 @@ int main(int argc, char** argv) {
   leases.SetProgressObserver(
       [&live](int64_t run_id, const sandswim::api::Heartbeat& beat) { live.RecordBeat(run_id, beat.sim_time_s, beat.so_z); });
   deps.live = &live;
+  deps.engine_slots = flags.local_workers;
+  live.set_engine_slots(flags.local_workers);
   flags.http.head_s = flags.http_head_timeout_s;
   sandswim::ApiServer server(deps, flags.http);
   auto port = server.Bind(*address);
