@@ -28,6 +28,13 @@ Status StepAll(Statement& st, const std::function<void(const Statement&)>& row) 
 
 std::string Plural(int n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? "" : "s"); }
 
+}  // namespace
+
+Result<EngineRate> PooledRunRate(Transaction& t);
+Result<EngineRate> BedRate(Transaction& t);
+
+namespace {
+
 Result<CostModelView> ReadIn(Transaction& t, double now) {
   CostModelView v;
   {
@@ -45,11 +52,33 @@ Result<CostModelView> ReadIn(Transaction& t, double now) {
                                      Plural(key.second, "rank"))});
     }
   }
+  Result<EngineRate> run_rate = PooledRunRate(t);
+  if (!run_rate.ok()) return run_rate.status();
+  v.run_rate = *run_rate;
+  Result<EngineRate> bed_rate = BedRate(t);
+  if (!bed_rate.ok()) return bed_rate.status();
+  v.bed_rate = *bed_rate;
+  {
+    Statement st = t.Prepare(
+        "SELECT (SELECT COUNT(*) FROM runs WHERE state = 'running') + (SELECT COUNT(*) FROM beds WHERE state = "
+        "'running')");
+    Result<bool> r = st.Step();
+    if (!r.ok()) return r.status();
+    v.engines_in_flight = static_cast<int>(st.Int(0));
+  }
+  (void)now;
+  return v;
+}
+
+}  // namespace
+
+Result<EngineRate> PooledRunRate(Transaction& t) {
   std::vector<RateSample> pooled;
   int done = 0, running = 0;
   {
+    // The newest results by run id (the primary key: no sort of the whole table).
     Statement st = t.Prepare(
-        "SELECT steps * (grains + 1.0), wall_s FROM results WHERE wall_s > 0 ORDER BY created_at DESC LIMIT ?1");
+        "SELECT steps * (grains + 1.0), wall_s FROM results WHERE wall_s > 0 ORDER BY run_id DESC LIMIT ?1");
     st.Bind(1, kRateWindow);
     Status s = StepAll(st, [&](const Statement& r) {
       pooled.push_back({r.Double(0), r.Double(1)});
@@ -74,7 +103,10 @@ Result<CostModelView> ReadIn(Transaction& t, double now) {
   if (done) basis += Plural(done, "done run");
   if (done && running) basis += " and ";
   if (running) basis += Plural(running, "running run");
-  v.run_rate = FitRate(pooled, DefaultRate(), basis);
+  return FitRate(pooled, DefaultRate(), basis);
+}
+
+Result<EngineRate> BedRate(Transaction& t) {
   {
     std::vector<RateSample> beds;
     Statement st = t.Prepare(
@@ -83,21 +115,32 @@ Result<CostModelView> ReadIn(Transaction& t, double now) {
     st.Bind(1, kRateWindow);
     Status s = StepAll(st, [&](const Statement& r) { beds.push_back({r.Double(0), r.Double(1)}); });
     if (!s.ok()) return s;
-    v.bed_rate = FitRate(beds, DefaultBedRate(), "measured: " + Plural(static_cast<int>(beds.size()), "done bed"));
+    return FitRate(beds, DefaultBedRate(), "measured: " + Plural(static_cast<int>(beds.size()), "done bed"));
   }
-  {
-    Statement st = t.Prepare(
-        "SELECT (SELECT COUNT(*) FROM runs WHERE state = 'running') + (SELECT COUNT(*) FROM beds WHERE state = "
-        "'running')");
-    Result<bool> r = st.Step();
-    if (!r.ok()) return r.status();
-    v.engines_in_flight = static_cast<int>(st.Int(0));
-  }
-  (void)now;
-  return v;
 }
 
-}  // namespace
+Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t steps) {
+  double grains = 0;
+  std::string scale_name;
+  {
+    Statement st = t.Prepare("SELECT grains, scale FROM beds WHERE id = ?1");
+    st.Bind(1, bed_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      grains = st.OptInt(0).value_or(0);
+      scale_name = st.Text(1);
+    }
+  }
+  if (!(grains > 0)) {
+    const Scale* scale = FindScale(scale_name);
+    grains = EstimatedGrains(scale ? *scale : *FindScale("smoke"));
+  }
+  Result<EngineRate> rate = bed ? BedRate(t) : PooledRunRate(t);
+  if (!rate.ok()) return rate.status();
+  const double predicted = bed ? grains * rate->s_per_unit : static_cast<double>(steps) * (grains + 1) * rate->s_per_unit;
+  return kWallBudgetMultiple * predicted + kWallBudgetMarginS;
+}
 
 void to_json(json& j, const EngineRate& r) {
   j = {{"s_per_unit", r.s_per_unit}, {"rel_error", r.rel_error}, {"samples", r.samples}, {"basis", r.basis}};

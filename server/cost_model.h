@@ -49,6 +49,20 @@ void to_json(nlohmann::json& j, const EngineRate& r);
 
 Result<CostModelView> ReadCostModel(Database& db, double now);
 
+// Inside a transaction: the pooled run rate (per particle-step) and the beds' (per grain).
+Result<EngineRate> PooledRunRate(Transaction& t);
+Result<EngineRate> BedRate(Transaction& t);
+
+// A lease's wall budget when the operator sets none (sandswimd --wall-budget 0): this multiple of
+// the cost model's prediction, plus a margin for the engine's start and a slow first rate. At the
+// default rate a smoke run of 2 s (200,000 steps of 6,683 particles) is predicted 869 s: its
+// budget is 4 x 869 + 600 = 4,076 s; a smoke bed 768 s: 3,673 s. A host 4x slower than its
+// measured rate still finishes; a hung engine is stopped sooner by the worker's --stall-after.
+inline constexpr double kWallBudgetMultiple = 4;
+inline constexpr double kWallBudgetMarginS = 600;
+// The budget of a lease on bed `bed_id` (bed = true) or of a run of `steps` steps on it.
+Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t steps);
+
 enum class EtaScope { kSweep, kCampaignRun };
 // The ETA of what is left of a sweep or a campaign run, over max(engines in flight, min_slots)
 // engines (sandswimd passes its local workers). nullopt when nothing is left.
