@@ -7,8 +7,7 @@
 // may end it earlier). The rate is measured, never assumed from the paper: FitRate pools the runs
 // done so far (a result's steps, grains and wall time) and the progress of running ones (their
 // simulated steps over their wall time so far, so an estimate exists from a run's first minute).
-// Before anything has run, DefaultRate() is tests/bench/bench_engine_rate's figure on this
-// project's 2-core machine. A bed is costed per grain the same way (its preparation's wall time
+// Before anything has run, DefaultRate() is the rate measured on this project's 2-core machine. A bed is costed per grain the same way (its preparation's wall time
 // over its grains; DefaultBedRate before one is done).
 //
 // Every estimate carries a relative 1-sigma error and says what it rests on ("basis"), so the
@@ -28,9 +27,10 @@
 
 namespace sandswim {
 
-// bench_engine_rate on this project's machine (2 cores, smoke bed of 6,683 particles, the drive
-// deck as rendered, one rank): 1.4-1.8e6 particle-steps/s with the other core busy (issue 30's
-// figures, and the benchmark's). The error says how far a new host may differ.
+// The smoke bed (6,683 particles) driven on one rank of this project's 2-core machine: 1.4-1.8e6
+// particle-steps/s with the other core busy (issue 30); bench_engine_rate measured 6.3e5-1.0e6
+// while the machine's load average was 10-11. The error says how far a new host may differ; any
+// measured run replaces it.
 inline constexpr double kDefaultSecondsPerParticleStep = 6.5e-7;
 inline constexpr double kDefaultRateRelError = 0.3;
 // A smoke bed of 6,682 grains took 708-840 s on one rank (issue 30; README's three beds).
