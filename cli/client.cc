@@ -105,6 +105,8 @@ class HttpDaemonClient : public DaemonClient {
     return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/claims");
   }
 
+  Result<json> CostModel() override { return Get("/api/v1/cost-model"); }
+
   Result<json> CampaignDrift(const std::string& name, const std::string& scale) override {
     std::string path = "/api/v1/campaigns/" + httplib::detail::encode_query_param(name) + "/drift";
     if (!scale.empty()) path += "?scale=" + httplib::detail::encode_query_param(scale);

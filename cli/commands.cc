@@ -8,6 +8,7 @@
 #include <optional>
 #include <regex>
 #include <sstream>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 
@@ -16,6 +17,7 @@
 #include "cli/slurm_submit.h"
 #include "cli/snapshot.h"
 #include "cli/watch.h"
+#include "core/cost.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 
@@ -50,6 +52,8 @@ struct Args {
   int64_t campaign_run = 0;
   double interval_s = 1.0;
   std::string engine_version;
+  bool cost = false;  // `expand --cost`
+  int cores = 0;      // `expand --cost --cores N`
   std::string out_file;      // `report --out`, `backup FILE`
   SlurmSubmitOptions slurm;  // `slurm submit`
   // `analyze`: NaN / -1 mean "not given".
@@ -500,7 +504,81 @@ void SetupExpand(CLI::App& sub, Args& a) {
   AddTarget(sub, a, "FILE|CAMPAIGN", "a sweep or campaign JSON file (- for stdin) or a builtin campaign name");
   sub.add_option("--scale", a.scale, "scale to plan at (default: the file's or campaign's)");
   sub.add_option("--engine-version", a.engine_version, "the LIGGGHTS version for the keys (default: ask liggghts)");
+  sub.add_flag("--cost", a.cost,
+               "also print what it costs: particle-steps, core-hours, and the wall time on the daemon's workers at "
+               "the rates it measured (a default rate when no daemon answers)");
+  sub.add_option("--cores", a.cores, "with --cost: also the wall time on this many one-rank engines")
+      ->check(CLI::PositiveNumber);
   AddJson(sub, a);
+}
+
+// The engine rates for `expand --cost`: the daemon's measured ones when one answers (and its
+// local workers), else core/cost.h's defaults. Says which on stderr.
+struct CostRates {
+  EngineRate run = DefaultRate(), bed = DefaultBedRate();
+  int slots = 0;  // the daemon's local workers; 0: no daemon answered
+};
+EngineRate RateFrom(const json& j, const EngineRate& fallback) {
+  if (!j.is_object() || !j.value("s_per_unit", json()).is_number() || !(j["s_per_unit"].get<double>() > 0))
+    return fallback;
+  return {j["s_per_unit"].get<double>(), j.value("rel_error", fallback.rel_error), j.value("samples", 0),
+          j.value("basis", std::string())};
+}
+CostRates RatesForCost(Context& c) {
+  CostRates r;
+  auto client = c.Client();
+  if (!client.ok()) return r;
+  auto model = (*client)->CostModel();
+  if (!model.ok()) {
+    c.err() << "sandswim: no cost model from the daemon (" << Describe(model.status())
+            << "); costing at the default rates\n";
+    return r;
+  }
+  r.run = RateFrom(model->value("run_rate", json()), r.run);
+  r.bed = RateFrom(model->value("bed_rate", json()), r.bed);
+  r.slots = model->value("engine_slots", 0);
+  return r;
+}
+
+// "1h05m ± 20m"
+std::string WithError(double s, double rel) { return FormatDuration(s) + " ± " + FormatDuration(s * rel); }
+
+// The cost lines of `expand --cost` for every scale's plan, and their JSON.
+json PrintCost(Context& c, const std::vector<ScalePlan>& plans) {
+  const CostRates rates = RatesForCost(c);
+  const int local = rates.slots > 0 ? rates.slots : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  json all = json::array();
+  for (const ScalePlan& group : plans) {
+    const PlanCost cost = CostOfPlan(group.plan, {}, rates.run, rates.bed);
+    json j = {{"scale", group.scale},
+              {"runs", cost.runs},
+              {"beds", cost.beds},
+              {"particle_steps", cost.particle_steps},
+              {"run_core_hours", cost.run_core_s / 3600},
+              {"bed_core_hours", cost.bed_core_s / 3600},
+              {"rel_error", cost.rel_error},
+              {"s_per_particle_step", rates.run.s_per_unit},
+              {"rate_basis", rates.run.basis},
+              {"wall_s", {{std::to_string(local), cost.WallSeconds(local)}}}};
+    if (c.args.cores > 0) j["wall_s"][std::to_string(c.args.cores)] = cost.WallSeconds(c.args.cores);
+    all.push_back(j);
+    if (c.args.json) continue;
+    char line[256];
+    std::snprintf(line, sizeof line, "%s: %lld runs on %lld bed(s), %.3g particle-steps at most (each run to its deck's end)\n",
+                  group.scale.c_str(), static_cast<long long>(cost.runs), static_cast<long long>(cost.beds),
+                  cost.particle_steps);
+    c.out() << line;
+    std::snprintf(line, sizeof line, "  %.3g core-hours of runs + %.2g of beds, ± %.0f %%, at %.3g s a particle-step\n",
+                  cost.run_core_s / 3600, cost.bed_core_s / 3600, cost.rel_error * 100, rates.run.s_per_unit);
+    c.out() << line << "    (" << rates.run.basis << ")\n";
+    c.out() << "  wall time on " << (rates.slots > 0 ? "the daemon's " : "this machine's ") << local
+            << " one-rank engine(s): " << WithError(cost.WallSeconds(local), cost.rel_error) << "\n";
+    if (c.args.cores > 0) {
+      c.out() << "  wall time on " << c.args.cores
+              << " one-rank engine(s): " << WithError(cost.WallSeconds(c.args.cores), cost.rel_error) << "\n";
+    }
+  }
+  return all;
 }
 
 // The sweeps `input` names and the scale each runs at.
@@ -597,10 +675,15 @@ int RunExpand(Context& c) {
     }
   }
   if (c.args.json) {
-    PrintJson(c, all);
+    if (c.args.cost) {
+      PrintJson(c, {{"runs", all}, {"cost", PrintCost(c, *plans)}});
+    } else {
+      PrintJson(c, all);
+    }
   } else {
     c.out() << lines;
     c.err() << "sandswim: " << runs << " distinct run(s); engine " << engine << "\n";
+    if (c.args.cost) PrintCost(c, *plans);
   }
   return kExitOk;
 }
@@ -930,7 +1013,8 @@ const Command kCommands[] = {
   {"expand", "offline: the distinct runs a sweep or campaign plans to (no daemon needed)",
    "  sandswim expand sweep.json\n"
    "  sandswim expand paper-58 --json | jq length   # 58\n"
-   "  sandswim expand paper-58 --scale smoke",
+   "  sandswim expand paper-58 --scale smoke\n"
+   "  sandswim expand paper-58 --scale smoke --cost --cores 8",
    SetupExpand, RunExpand},
   {"report", "write a campaign's HTML report (figures, fits, drift report) to a file and print its path",
    "  sandswim report paper-58\n"

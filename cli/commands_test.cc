@@ -197,6 +197,38 @@ TEST(CommandsTest, ExpandWithoutEngineWarnsAndUsesUnknown) {
   EXPECT_THAT(h.err.str(), HasSubstr("engine version \"unknown\""));
 }
 
+// --cost: the daemon's measured rates and workers when it answers, the defaults when not.
+TEST(CommandsTest, ExpandCostUsesTheDaemonsRates) {
+  Harness h;
+  h.fill = [](FakeClient& c) {
+    c.cost_model = {{"run_rate", {{"s_per_unit", 1e-6}, {"rel_error", 0.1}, {"samples", 4}, {"basis", "measured: 4 done runs"}}},
+                    {"bed_rate", {{"s_per_unit", 0.1}, {"rel_error", 0.2}, {"samples", 1}, {"basis", "measured: 1 done bed"}}},
+                    {"engine_slots", 2}};
+  };
+  ASSERT_EQ(h.Run({"expand", "paper-58", "--scale", "smoke", "--cost", "--cores", "4", "--json"}, false), kExitOk)
+      << h.err.str();
+  json j = json::parse(h.out.str());
+  ASSERT_EQ(j["runs"].size(), 58u);
+  const json& cost = j["cost"][0];
+  EXPECT_EQ(cost["scale"], "smoke");
+  EXPECT_EQ(cost["runs"], 58);
+  double steps = 0;
+  for (const json& r : j["runs"]) steps += r["steps"].get<double>();
+  EXPECT_DOUBLE_EQ(cost["particle_steps"].get<double>(), steps * 6683);
+  EXPECT_NEAR(cost["run_core_hours"].get<double>(), steps * 6683 * 1e-6 / 3600, 1e-9);
+  EXPECT_NEAR(cost["bed_core_hours"].get<double>(), 668.2 / 3600, 1e-9);
+  EXPECT_EQ(cost["rate_basis"], "measured: 4 done runs");
+  // The bed, then the runs over 2 (the daemon's workers) or 4 engines.
+  EXPECT_NEAR(cost["wall_s"]["2"].get<double>(), 668.2 + steps * 6683 * 1e-6 / 2, 1e-6);
+  EXPECT_NEAR(cost["wall_s"]["4"].get<double>(), 668.2 + steps * 6683 * 1e-6 / 4, 1e-6);
+
+  Harness offline;
+  ASSERT_EQ(offline.Run({"expand", "paper-58", "--scale", "smoke", "--cost"}, false), kExitOk) << offline.err.str();
+  EXPECT_THAT(offline.err.str(), HasSubstr("costing at the default rates"));
+  EXPECT_THAT(offline.out.str(), HasSubstr("smoke: 58 runs on 1 bed(s)"));
+  EXPECT_THAT(offline.out.str(), HasSubstr("default rate"));
+}
+
 TEST(ClientOptionsTest, FlagBeatsEnvironmentBeatsDefault) {
   std::map<std::string, std::string> vars;
   auto getenv = [&vars](const char* name) -> const char* {

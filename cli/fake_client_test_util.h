@@ -16,10 +16,15 @@ class FakeClient : public DaemonClient {
   std::map<int64_t, nlohmann::json> campaign_runs;
   std::map<int64_t, nlohmann::json> claims;       // GET /campaign-runs/{id}/claims, by campaign run id
   nlohmann::json runs = nlohmann::json::array();  // every run; ListRuns filters by state
+  nlohmann::json cost_model;                      // GET /api/v1/cost-model; null: Unavailable
   std::string url = "http://fake";
 
   const std::string& base_url() const override { return url; }
   Result<nlohmann::json> Healthz() override { return nlohmann::json{{"status", "ok"}}; }
+  Result<nlohmann::json> CostModel() override {
+    if (cost_model.is_null()) return Status::Unavailable("no daemon");
+    return cost_model;
+  }
   Result<nlohmann::json> Submit(const nlohmann::json&, const std::string&) override {
     return Status::Unavailable("FakeClient takes no submissions");
   }

@@ -186,22 +186,6 @@ std::string FormatPoint(const json& p) {
   return out;
 }
 
-std::optional<double> EstimateEtaSeconds(const std::vector<double>& done_wall_s, int64_t queued,
-                                         const std::vector<double>& running_fractions) {
-  if (queued <= 0 && running_fractions.empty()) return 0.0;
-  std::vector<double> samples;
-  for (double w : done_wall_s) {
-    if (std::isfinite(w) && w >= 0) samples.push_back(w);
-  }
-  if (samples.empty() || running_fractions.empty()) return std::nullopt;
-  double mean = 0;
-  for (double w : samples) mean += w;
-  mean /= static_cast<double>(samples.size());
-  double left = static_cast<double>(std::max<int64_t>(queued, 0));
-  for (double f : running_fractions) left += 1.0 - std::clamp(std::isfinite(f) ? f : 0.0, 0.0, 1.0);
-  return mean * left / static_cast<double>(running_fractions.size());
-}
-
 // ---- status / watch ----------------------------------------------------------------------------
 
 double RunInFlight::fraction() const {
@@ -210,11 +194,9 @@ double RunInFlight::fraction() const {
 }
 
 std::optional<double> Snapshot::eta_s() const {
-  std::vector<double> fractions;
-  for (const auto& r : running) fractions.push_back(r.fraction());
-  // The counts are authoritative for how many are in flight (the list may be a page).
-  while (static_cast<int64_t>(fractions.size()) < counts.running) fractions.push_back(0);
-  return EstimateEtaSeconds(done_wall_s, counts.queued, fractions);
+  if (counts.finished()) return 0.0;
+  if (!eta || (counts.running == 0 && waiting_bed_state != "running")) return std::nullopt;
+  return eta->s;
 }
 
 namespace {
@@ -222,14 +204,19 @@ namespace {
 std::string EtaText(const Snapshot& s) {
   if (s.counts.finished()) return "finished";
   auto eta = s.eta_s();
-  if (eta) return "ETA " + FormatDuration(*eta);
+  if (eta) {
+    std::string text = "ETA " + FormatDuration(*eta);
+    if (s.eta->rel_error > 0) text += " ± " + FormatDuration(*eta * s.eta->rel_error);
+    if (s.counts.running == 0) text += " (preparing the granular bed first)";
+    return text;
+  }
   if (s.counts.running == 0) {
     // Runs start only once their bed is prepared (minutes at smoke): say so, not "no worker".
     if (s.waiting_bed_state == "running") return "ETA unknown (preparing the granular bed first)";
     if (s.waiting_bed_state == "queued") return "ETA unknown (the bed waits for a worker: is one running?)";
     return "ETA unknown (no run in flight: is a worker running?)";
   }
-  return "ETA unknown (no run has finished yet)";
+  return "ETA unknown (the daemon gives none: older than its cost model?)";
 }
 
 std::string InFlightLine(const RunInFlight& r) {
@@ -243,6 +230,7 @@ std::string RenderStatus(const Snapshot& s, const RenderOptions& options) {
   std::string out = s.title + "\n";
   out += "  runs: " + std::to_string(s.counts.total()) + " (" + FormatCounts(s.counts, options) + ")\n";
   out += "  " + EtaText(s) + "\n";
+  if (s.eta_s() && s.eta && !s.eta->basis.empty()) out += "    (" + s.eta->basis + ")\n";
   if (!s.running.empty()) {
     out += "in flight:\n";
     for (const auto& r : s.running) {
@@ -277,7 +265,7 @@ json SnapshotToJson(const Snapshot& s) {
   }
   for (const auto& f : s.failed) failed.push_back({{"id", f.id}, {"point", f.point}, {"reason", f.reason}});
   auto eta = s.eta_s();
-  return {{"title", s.title},
+  json j = {{"title", s.title},
           {"counts",
            {{"queued", s.counts.queued},
             {"running", s.counts.running},
@@ -288,6 +276,11 @@ json SnapshotToJson(const Snapshot& s) {
           {"failed", failed},
           {"eta_s", eta ? json(*eta) : json(nullptr)},
           {"finished", s.counts.finished()}};
+  if (eta && s.eta) {
+    j["eta_rel_error"] = s.eta->rel_error;
+    j["eta_basis"] = s.eta->basis;
+  }
+  return j;
 }
 
 std::string RenderWatchLine(const Snapshot& s) {

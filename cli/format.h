@@ -78,14 +78,6 @@ std::string FormatCounts(const Counts& c, const RenderOptions& options = {});
 // "oscillatory A=0.03 f=3 Omega=-80 T=0.3s", "rotation omega=20 axis=z T=4s".
 std::string FormatPoint(const nlohmann::json& point);
 
-// ETA from measured throughput: the mean wall time of the done runs (`done_wall_s`), times the
-// work left (every queued run, plus the unfinished fraction of each running run), divided by the
-// runs in flight (the parallelism the daemon shows right now). nullopt when nothing has finished
-// yet, or when runs are queued but none is running (no worker: no throughput to measure).
-// 0 when nothing is left.
-std::optional<double> EstimateEtaSeconds(const std::vector<double>& done_wall_s, int64_t queued,
-                                         const std::vector<double>& running_fractions);
-
 // ---- What `status` and `watch` show --------------------------------------------------------------
 
 struct RunInFlight {
@@ -110,10 +102,18 @@ struct Snapshot {
   Counts counts;
   std::vector<RunInFlight> running;
   std::vector<RunFailure> failed;
-  std::vector<double> done_wall_s;  // finished_at - started_at of done runs
+  // The daemon's ETA (server/cost_model.h: the work left at the measured engine rates), with its
+  // relative 1-sigma error and what it rests on; absent from a daemon older than the cost model.
+  struct DaemonEta {
+    double s = 0, rel_error = 0;
+    std::string basis;
+  };
+  std::optional<DaemonEta> eta;
   // When runs are queued and none runs: the state of the bed they wait for ("queued",
   // "running", "done", "failed"), so the ETA line can say the bed is being prepared.
   std::string waiting_bed_state;
+  // The ETA while work is moving: runs in flight, or the bed they wait for being prepared. When
+  // nothing moves (no worker) there is no time to give, whatever the daemon estimates.
   std::optional<double> eta_s() const;
 };
 
@@ -123,7 +123,7 @@ std::string RenderStatus(const Snapshot& s, const RenderOptions& options);
 // A `watch` frame on a terminal: title, counts + ETA, one progress line per running run.
 std::string RenderWatchFrame(const Snapshot& s, const RenderOptions& options);
 // {"title","counts":{...},"running":[{"id","point","sim_time_s","duration_s","so_z","worker"}],
-//  "failed":[{"id","point","reason"}],"eta_s": number|null,"finished": bool}
+//  "failed":[{"id","point","reason"}],"eta_s": number|null,"eta_rel_error"?,"eta_basis"?,"finished": bool}
 nlohmann::json SnapshotToJson(const Snapshot& s);
 // The one line `watch` prints when piped: "sweep 3 ...: 5/8 done, 1 running, 2 queued, 0 failed,
 // 0 cancelled; ETA 3m20s".

@@ -69,17 +69,20 @@ TEST(FormatTest, ProgressBar) {
   EXPECT_EQ(ProgressBar(-1.0, 4), "[....]   0%");  // clamped
 }
 
-TEST(FormatTest, EtaFromMeasuredThroughput) {
-  // Nothing finished yet: no throughput to measure.
-  EXPECT_FALSE(EstimateEtaSeconds({}, 3, {0.5}).has_value());
-  // Queued runs and nobody running: no worker.
-  EXPECT_FALSE(EstimateEtaSeconds({10}, 3, {}).has_value());
-  // Nothing left.
-  EXPECT_EQ(EstimateEtaSeconds({}, 0, {}), 0.0);
-  // Mean wall 20 s; left: 3 queued + 0.5 + 1.0 of two running runs = 4.5 runs over 2 in flight.
-  auto eta = EstimateEtaSeconds({10, 30}, 3, {0.5, 0.0});
-  ASSERT_TRUE(eta.has_value());
-  EXPECT_DOUBLE_EQ(*eta, 20 * 4.5 / 2);
+// The daemon's ETA is shown while work moves; with nothing in flight there is no time to give.
+TEST(FormatTest, EtaIsTheDaemonsWhileWorkMoves) {
+  Snapshot s;
+  s.counts.queued = 3;
+  s.eta = Snapshot::DaemonEta{600, 0.25, "measured: 2 done runs"};
+  EXPECT_FALSE(s.eta_s().has_value()) << "nothing in flight, no bed being prepared";
+  s.waiting_bed_state = "running";
+  EXPECT_EQ(s.eta_s(), 600.0);
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 10m00s ± 2m30s (preparing the granular bed first)"));
+  s.counts = {0, 0, 3, 0, 0};
+  EXPECT_EQ(s.eta_s(), 0.0);
+  s.counts = {1, 1, 0, 0, 0};
+  s.eta.reset();
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA unknown (the daemon gives none"));
 }
 
 TEST(FormatTest, CountsAndPoints) {
@@ -163,16 +166,16 @@ Snapshot SampleSnapshot() {
   s.counts = {2, 1, 5, 1, 0};
   s.running.push_back({7, "oscillatory A=0.03 f=3 Omega=-80 T=5s", 2.5, 5.0, 0.4321, "node1:12"});
   s.failed.push_back({9, "oscillatory A=0.03 f=3 Omega=80 T=5s", "engine_error: ERROR: Lost atoms"});
-  s.done_wall_s = {100, 140};
+  s.eta = Snapshot::DaemonEta{300, 0.2, "measured: 2 done runs; 1 engine"};
   return s;
 }
 
 TEST(FormatTest, StatusGolden) {
-  // ETA: mean 120 s * (2 queued + 0.5) / 1 in flight = 300 s.
   EXPECT_EQ(RenderStatus(SampleSnapshot(), {}),
             "sweep 3 omega-sign (scale smoke)\n"
             "  runs: 9 (2 queued, 1 running, 5 done, 1 failed, 0 cancelled)\n"
-            "  ETA 5m00s\n"
+            "  ETA 5m00s ± 1m00s\n"
+            "    (measured: 2 done runs; 1 engine)\n"
             "in flight:\n"
             "  run 7  [##########..........]  50%  2.5/5 s  z=0.4321 m  oscillatory A=0.03 f=3 Omega=-80 T=5s"
             "  on node1:12\n"
@@ -197,7 +200,7 @@ TEST(FormatTest, EtaNamesTheBedWhileNothingRuns) {
 TEST(FormatTest, WatchLineAndFrame) {
   Snapshot s = SampleSnapshot();
   EXPECT_EQ(RenderWatchLine(s),
-            "sweep 3 omega-sign (scale smoke): 5/9 done, 1 running, 2 queued, 1 failed, 0 cancelled; ETA 5m00s");
+            "sweep 3 omega-sign (scale smoke): 5/9 done, 1 running, 2 queued, 1 failed, 0 cancelled; ETA 5m00s ± 1m00s");
   std::string frame = RenderWatchFrame(s, {});
   EXPECT_THAT(frame, HasSubstr("[##########..........]  50%"));
   EXPECT_THAT(frame, Not(HasSubstr("\x1b[")));
@@ -213,6 +216,8 @@ TEST(FormatTest, SnapshotJson) {
   EXPECT_EQ(j["running"][0]["id"], 7);
   EXPECT_EQ(j["failed"][0]["reason"], "engine_error: ERROR: Lost atoms");
   EXPECT_DOUBLE_EQ(j["eta_s"].get<double>(), 300);
+  EXPECT_DOUBLE_EQ(j["eta_rel_error"].get<double>(), 0.2);
+  EXPECT_EQ(j["eta_basis"], "measured: 2 done runs; 1 engine");
   EXPECT_EQ(j["finished"], false);
 }
 

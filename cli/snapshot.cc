@@ -23,28 +23,27 @@ std::string FailureReason(const json& run) {
   return message.empty() ? kind : kind + ": " + message;
 }
 
-// Adds the runs of one sweep (running, failed, and done when asked) to the snapshot, skipping run
-// ids already seen (campaign runs share runs between sweeps).
-Status AddRuns(DaemonClient& client, int64_t sweep_id, const SnapshotOptions& options, Snapshot& s,
-               std::set<int64_t>& seen) {
-  struct Want {
-    const char* state;
-    bool wanted;
-  };
-  const Want wants[] = {{"running", true}, {"failed", true}, {"done", options.done_timings}};
-  for (const Want& want : wants) {
-    if (!want.wanted) continue;
+// The daemon's "eta" object (server/cost_model.h EtaJson), absent or null: none.
+std::optional<Snapshot::DaemonEta> EtaFrom(const json& j) {
+  auto it = j.find("eta");
+  if (it == j.end() || !it->is_object() || !(*it)["s"].is_number()) return std::nullopt;
+  return Snapshot::DaemonEta{(*it)["s"].get<double>(), NumOr(*it, "rel_error", 0), it->value("basis", "")};
+}
+
+// Adds the runs of one sweep (running and failed) to the snapshot, skipping run ids already seen
+// (campaign runs share runs between sweeps).
+Status AddRuns(DaemonClient& client, int64_t sweep_id, Snapshot& s, std::set<int64_t>& seen) {
+  for (const char* state : {"running", "failed"}) {
     RunQuery query;
     query.sweep = sweep_id;
-    query.state = want.state;
+    query.state = state;
     auto runs = client.ListRuns(query);
     if (!runs.ok()) return runs.status();
     for (const json& run : *runs) {
       int64_t id = run.value("id", int64_t{0});
       if (!seen.insert(id).second) continue;
-      std::string state = want.state;
-      std::string point = FormatPoint(run.value("point", json::object()));
-      if (state == "running") {
+      const std::string point = FormatPoint(run.value("point", json::object()));
+      if (std::string(state) == "running") {
         json progress = run.value("progress", json::object());
         RunInFlight r;
         r.id = id;
@@ -54,11 +53,8 @@ Status AddRuns(DaemonClient& client, int64_t sweep_id, const SnapshotOptions& op
         r.so_z = NumOr(progress, "so_z", 0);
         r.worker = run.value("worker", "");
         s.running.push_back(r);
-      } else if (state == "failed") {
-        s.failed.push_back({id, point, FailureReason(run)});
       } else {
-        double started = NumOr(run, "started_at", -1), finished = NumOr(run, "finished_at", -1);
-        if (started >= 0 && finished >= started) s.done_wall_s.push_back(finished - started);
+        s.failed.push_back({id, point, FailureReason(run)});
       }
     }
   }
@@ -95,7 +91,7 @@ Result<Target> ParseTarget(const std::string& text, const std::string& field) {
   return t;
 }
 
-Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const SnapshotOptions& options) {
+Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target) {
   Snapshot s;
   std::vector<int64_t> sweep_ids;
   if (target.kind == Target::Kind::kSweep) {
@@ -104,6 +100,7 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const
     s.title = "sweep " + std::to_string(target.id) + " " + sweep->value("name", "") + " (scale " +
               sweep->value("scale", "?") + (sweep->value("cancelled", false) ? ", cancelled" : "") + ")";
     s.counts = CountsFromJson(sweep->value("counts", json::object()));
+    s.eta = EtaFrom(*sweep);
     sweep_ids.push_back(target.id);
   } else {
     auto run = client.GetCampaignRun(target.id);
@@ -111,13 +108,14 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const
     s.title = "campaign run cr:" + std::to_string(target.id) + " " + run->value("campaign", "") + " (scale " +
               run->value("scale", "?") + ", " + run->value("trigger", "manual") + ")";
     s.counts = CountsFromJson(run->value("counts", json::object()));
+    s.eta = EtaFrom(*run);
     for (const json& id : run->value("sweeps", json::array())) {
       if (id.is_number_integer()) sweep_ids.push_back(id.get<int64_t>());
     }
   }
   std::set<int64_t> seen;
   for (int64_t sweep_id : sweep_ids) {
-    SANDSWIM_RETURN_IF_ERROR(AddRuns(client, sweep_id, options, s, seen));
+    SANDSWIM_RETURN_IF_ERROR(AddRuns(client, sweep_id, s, seen));
   }
   if (s.counts.running == 0 && s.counts.queued > 0) {
     // Two small requests, only while nothing runs: the first queued run names its bed's state.

@@ -33,12 +33,8 @@ Result<Target> ParseTarget(const std::string& text, const std::string& field = "
 // A run id ("12"); InvalidArgument naming `field` otherwise.
 Result<int64_t> ParseId(const std::string& text, const std::string& field);
 
-struct SnapshotOptions {
-  bool done_timings = true;  // fetch the done runs' wall times (for the ETA)
-};
-
-// Counts, runs in flight and failures (and the done runs' wall times) of a sweep or campaign run.
-Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target, const SnapshotOptions& options = {});
+// Counts, runs in flight, failures and the daemon's ETA of a sweep or campaign run.
+Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target);
 
 // The results of a sweep or campaign run, as the daemon sends them: {"id", "results": [one row a
 // run], "aggregates": [one a point, over its replicate beds]} ("aggregates" is [] from a daemon

@@ -11,26 +11,11 @@ Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOp
   int frame_lines = 0;    // tty: lines of the frame on screen
   std::string last_line;  // piped: the last line written
   double last_line_at = -1e300;
-  std::optional<int64_t> timed_done;  // the done count the cached wall times belong to
-  std::vector<double> done_wall_s;
 
   while (true) {
-    // The wall times only change when runs finish: fetch them only then.
-    Snapshot s;
-    {
-      auto probe = FetchSnapshot(client, target, SnapshotOptions{/*done_timings=*/false});
-      if (!probe.ok()) return probe.status();
-      s = std::move(*probe);
-      if (!timed_done || *timed_done != s.counts.done) {
-        auto full = FetchSnapshot(client, target, SnapshotOptions{/*done_timings=*/true});
-        if (!full.ok()) return full.status();
-        s = std::move(*full);
-        done_wall_s = s.done_wall_s;
-        timed_done = s.counts.done;
-      } else {
-        s.done_wall_s = done_wall_s;
-      }
-    }
+    auto fetched = FetchSnapshot(client, target);
+    if (!fetched.ok()) return fetched.status();
+    Snapshot s = std::move(*fetched);
     bool finished = s.counts.finished();
     double now = clock.now();
     if (options.tty) {

@@ -85,7 +85,7 @@ TEST(WatchTest, PipedWritesOneLinePerChangeAtMostEveryInterval) {
   // First poll (t=0) and the final line; the changes in between came faster than 5 s.
   EXPECT_EQ(out.str(),
             "sweep 1 s (scale smoke): 0/2 done, 1 running, 1 queued, 0 failed, 0 cancelled; "
-            "ETA unknown (no run has finished yet)\n"
+            "ETA unknown (the daemon gives none: older than its cost model?)\n"
             "sweep 1 s (scale smoke): 2/2 done, 0 running, 0 queued, 0 failed, 0 cancelled; finished\n");
   EXPECT_EQ(out.str().find('\x1b'), std::string::npos);
 }

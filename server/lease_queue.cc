@@ -3,6 +3,7 @@
 #include <openssl/rand.h>
 
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +21,7 @@
 #include "core/scale.h"
 #include "core/trajectory.h"
 #include "platform/files.h"
+#include "server/cost_model.h"
 
 namespace sandswim {
 namespace {
@@ -171,6 +173,12 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   if (found.ok() && !*found) found = NextRun(t, g, now);
   if (!found.ok()) return found.status();
   if (!*found) return Out();  // committed with the group when it expired leases or failed decks
+  if (!(g.wall_budget_s > 0)) {  // none set by the operator: the cost model's (server/cost_model.h)
+    const bool bed = g.kind == api::JobKind::kBed;
+    Result<double> budget = WallBudget(t, bed, bed ? g.id : g.bed->id, g.steps);
+    if (!budget.ok()) return budget.status();
+    g.wall_budget_s = std::ceil(*budget);
+  }
   Result<std::string> token = NewToken();
   if (!token.ok()) return token.status();
   g.token = *token;

@@ -1,5 +1,6 @@
 #include "server/lease_queue.h"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -9,11 +10,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "server/cost_model.h"
+
 #include "core/keys.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
 #include "platform/clock.h"
+#include "server/cost_model.h"
 #include "server/store.h"
 #include "server/submission.h"
 #include "tests/fixture_file.h"
@@ -159,6 +163,35 @@ TEST_F(LeaseQueueTest, BedIsLeasedBeforeRunsAndRunsOnlyOnceTheBedIsDone) {
   EXPECT_GT(r1.duration_s, 0);
   auto none2 = queue_->Lease({"w3", "h", 1});
   EXPECT_FALSE(none2->has_value());
+}
+
+// With no budget from the operator every grant carries the cost model's: kWallBudgetMultiple times
+// its prediction plus the margin, at the default rates until jobs are measured; an operator's
+// budget is passed as it is.
+TEST_F(LeaseQueueTest, GrantsCarryAWallBudgetFromTheCostModel) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  const double smoke_grains = EstimatedGrains(*FindScale("smoke"));
+  EXPECT_DOUBLE_EQ(bed.wall_budget_s,
+                   std::ceil(kWallBudgetMultiple * smoke_grains * kDefaultBedSecondsPerGrain + kWallBudgetMarginS));
+  const std::string bytes = "restart";
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion c;
+  c.ok = true;
+  c.bed_result = api::BedResult{};
+  c.bed_result->grains = 3700;
+  c.bed_result->sha256 = Sha256Hex(bytes);
+  ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  api::LeaseGrant run = MustLease();
+  ASSERT_EQ(run.kind, api::JobKind::kRun);
+  EXPECT_DOUBLE_EQ(run.wall_budget_s, std::ceil(kWallBudgetMultiple * static_cast<double>(run.steps) * 3701 *
+                                                        kDefaultSecondsPerParticleStep +
+                                                    kWallBudgetMarginS));
+  LeaseQueue fixed(store_.get(), &clock_, LeaseQueueOptions{60, 3, /*wall_budget_s=*/1234});
+  auto other = fixed.Lease({"w2", "h", 1});
+  ASSERT_TRUE(other.ok() && other->has_value());
+  EXPECT_DOUBLE_EQ((*other)->wall_budget_s, 1234);
 }
 
 // A grant carries, typed, the numbers its deck states (core/deck.h DriveFacts): the worker reads

@@ -1,6 +1,7 @@
 #include "server/live_feed.h"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <utility>
 
@@ -8,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/api.h"
+#include "server/cost_model.h"
 
 namespace sandswim {
 
@@ -32,6 +34,20 @@ std::string LiveFeed::BuildContent() {
   }
 }
 
+json LiveFeed::EtaOf(EtaScope scope, int64_t id) {
+  Result<std::optional<Eta>> eta = ReadEta(*store_, scope, id, clock_->Now(), engine_slots_.load());
+  if (!eta.ok()) {
+    spdlog::warn("live feed: no ETA ({})", eta.status().ToString());
+    return nullptr;
+  }
+  json j = EtaJson(*eta);
+  // Whole seconds: a snapshot changes when the estimate does, not with every clock tick's fraction.
+  if (j.is_object()) {
+    for (const char* k : {"s", "low_s", "high_s"}) j[k] = std::round(j[k].get<double>());
+  }
+  return j;
+}
+
 std::string LiveFeed::BuildContentOrThrow() {
   Result<LiveBoard> board = store_->ReadLiveBoard(sweeps_, campaign_runs_, 1000);
   if (!board.ok()) {
@@ -43,6 +59,7 @@ std::string LiveFeed::BuildContentOrThrow() {
     json j = s;
     j.erase("spec");
     if (auto it = board->sweep_started_at.find(s.id); it != board->sweep_started_at.end()) j["started_at"] = it->second;
+    if (s.counts.queued + s.counts.running > 0) j["eta"] = EtaOf(EtaScope::kSweep, s.id);
     sweeps.push_back(std::move(j));
   }
   json campaign_runs = json::array();
@@ -51,6 +68,7 @@ std::string LiveFeed::BuildContentOrThrow() {
     if (auto it = board->campaign_run_started_at.find(c.id); it != board->campaign_run_started_at.end()) {
       j["started_at"] = it->second;
     }
+    if (c.counts.queued + c.counts.running > 0) j["eta"] = EtaOf(EtaScope::kCampaignRun, c.id);
     campaign_runs.push_back(std::move(j));
   }
   json running = json::array();

@@ -34,7 +34,10 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "platform/clock.h"
+#include "server/cost_model.h"
 #include "server/store.h"
 
 namespace sandswim {
@@ -78,6 +81,9 @@ class LiveFeed {
   // The run's trail so far (empty when it is not running or no beat came since the daemon started).
   Trail TrailOf(int64_t run_id) const;
 
+  // Engines the ETAs of unfinished sweeps and campaign runs spread work over, at least (server/cost_model.h).
+  void set_engine_slots(int slots) { engine_slots_.store(slots); }
+
   uint64_t builds() const { return builds_.load(); }  // snapshots built (for tests and benchmarks)
   static constexpr size_t kMaxTrailPoints = 4096;     // past it, every other point is dropped
   static constexpr std::chrono::minutes kTrailIdle{10};
@@ -85,6 +91,7 @@ class LiveFeed {
  private:
   std::string BuildContent();  // the snapshot without version and time; "" when it cannot
   std::string BuildContentOrThrow();
+  nlohmann::json EtaOf(EtaScope scope, int64_t id);  // EtaJson, null when it cannot be read
 
   Store* store_;
   Clock* clock_;
@@ -97,6 +104,7 @@ class LiveFeed {
   std::shared_ptr<const Snapshot> current_;
   std::chrono::steady_clock::time_point built_at_;
   std::string last_content_;
+  std::atomic<int> engine_slots_{0};
   uint64_t version_ = 0;
   std::map<int64_t, Trail> trails_;
   std::chrono::steady_clock::time_point last_idle_sweep_;

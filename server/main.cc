@@ -90,8 +90,8 @@ void AddFlags(CLI::App& app, Flags& flags) {
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
   app.add_option("--wall-budget", flags.wall_budget_s,
-                 "seconds of wall time a lease may run before its worker stops it as a time-out (0: none; a hung "
-                 "engine is stopped anyway once its simulated time stands still: sandswim-worker --stall-after)")
+                 "seconds of wall time a lease may run before its worker stops it as a time-out (0: 4x the cost "
+                 "model's prediction for the job + 600 s; a hung engine is stopped anyway once its simulated time stands still: sandswim-worker --stall-after)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_option("--http-head-timeout", flags.http_head_timeout_s,
@@ -452,6 +452,8 @@ int main(int argc, char** argv) {
   leases.SetProgressObserver(
       [&live](int64_t run_id, const sandswim::api::Heartbeat& beat) { live.RecordBeat(run_id, beat.sim_time_s, beat.so_z); });
   deps.live = &live;
+  deps.engine_slots = flags.local_workers;
+  live.set_engine_slots(flags.local_workers);
   flags.http.head_s = flags.http_head_timeout_s;
   sandswim::ApiServer server(deps, flags.http);
   if (tls->has_value()) {

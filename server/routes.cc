@@ -33,6 +33,7 @@
 #include "core/trajectory.h"
 #include "platform/http_status.h"
 #include "server/campaigns.h"
+#include "server/cost_model.h"
 #include "server/claim_check.h"
 #include "server/drift_report.h"
 #include "server/dashboard_files.h"
@@ -358,7 +359,11 @@ void GetSweep(Call& c) {
   if (!id.ok()) return Fail(c, id.status());
   auto sweep = c.deps.store->GetSweep(*id);
   if (!sweep.ok()) return Fail(c, sweep.status());
-  SendJson(c, 200, *sweep);
+  auto eta = ReadEta(*c.deps.store, EtaScope::kSweep, *id, c.deps.clock->Now(), c.deps.engine_slots);
+  if (!eta.ok()) return Fail(c, eta.status());
+  json reply = *sweep;
+  reply["eta"] = EtaJson(*eta);
+  SendJson(c, 200, reply);
 }
 
 void GetSweepResults(Call& c) {
@@ -475,8 +480,20 @@ void GetCampaignRun(Call& c) {
   if (!info.ok()) return Fail(c, info.status());
   auto drift = LastDriftFor(*c.deps.store, *info);
   if (!drift.ok()) return Fail(c, drift.status());
+  auto eta = ReadEta(*c.deps.store, EtaScope::kCampaignRun, *id, c.deps.clock->Now(), c.deps.engine_slots);
+  if (!eta.ok()) return Fail(c, eta.status());
   json reply = *info;
   reply["last_drift"] = drift->has_value() ? json(**drift) : json(nullptr);
+  reply["eta"] = EtaJson(*eta);
+  SendJson(c, 200, reply);
+}
+
+// The engine rates measured so far (server/cost_model.h): what `sandswim expand --cost` uses.
+void GetCostModel(Call& c) {
+  auto model = ReadCostModel(*c.deps.store, c.deps.clock->Now());
+  if (!model.ok()) return Fail(c, model.status());
+  json reply = *model;
+  reply["engine_slots"] = c.deps.engine_slots;
   SendJson(c, 200, reply);
 }
 
@@ -1176,6 +1193,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/openapi.json",                  Access::kPublic, BodyKind::kNone,    OpenApi},
   {"GET",  "/healthz",                              Access::kPublic, BodyKind::kNone,    Healthz},
   {"GET",  "/metrics",                              Access::kRead,   BodyKind::kNone,    GetMetrics},
+  {"GET",  "/api/v1/cost-model",                    Access::kRead,   BodyKind::kNone,    GetCostModel},
 };
 // clang-format on
 // clang-format on

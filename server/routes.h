@@ -80,6 +80,9 @@ struct Deps {
   PlotRenderer* renderer = nullptr;
   // The dashboard's live snapshots and trails (server/live_feed.h); nullptr: /api/v1/live* answer 503.
   LiveFeed* live = nullptr;
+  // Engines this daemon knows will work (its local workers): the ETA spreads work over at least
+  // this many (server/cost_model.h ReadEta), more when more are in flight.
+  int engine_slots = 0;
 };
 
 // Who may call a route when a token is configured.

@@ -64,24 +64,23 @@ function pointText(p) {
   return parts.join(' ');
 }
 
-// Counts -> a bar and a line of text with the ETA (remaining runs at the rate runs have finished
-// since the first one started; unknown until one has).
-function progressHtml(counts, startedAt, now) {
+// Counts -> a bar and a line of text with the daemon's ETA (server/cost_model.h: what is left at
+// the engine rates it measured, from the first heartbeats; ± its 1-sigma error; its basis on hover).
+function progressHtml(counts, eta) {
   const c = Object.assign({ done: 0, running: 0, queued: 0, failed: 0, cancelled: 0 }, counts || {});
   const total = c.done + c.running + c.queued + c.failed + c.cancelled;
   const pct = k => total ? (100 * c[k] / total).toFixed(2) : 0;
-  const finished = c.done + c.failed + c.cancelled;
   const remaining = c.queued + c.running;
-  let eta = '';
+  let etaText = '';
   if (remaining > 0) {
-    eta = startedAt && finished > 0 && now > startedAt
-      ? ` · ETA ${duration(remaining * (now - startedAt) / finished)}`
-      : ' · ETA unknown until a run finishes';
+    etaText = eta && typeof eta.s === 'number'
+      ? ` · <span data-role="eta" title="${esc(eta.basis || '')}">ETA ${duration(eta.s)} ± ${duration(eta.s * (eta.rel_error || 0))}</span>`
+      : ' · ETA unknown';
   }
   return `<div class="progress" title="${c.done} done, ${c.running} running, ${c.queued} queued, ${c.failed} failed">` +
     ['done', 'running', 'failed', 'cancelled'].map(k => `<span class="p-${k}" data-width="${pct(k)}%"></span>`).join('') +
     `</div><div class="progress-text" data-role="progress-text">${c.done} done · ${c.running} running · ${c.queued} queued · ` +
-    `${c.failed} failed${c.cancelled ? ` · ${c.cancelled} cancelled` : ''}${eta}</div>`;
+    `${c.failed} failed${c.cancelled ? ` · ${c.cancelled} cancelled` : ''}${etaText}</div>`;
 }
 
 // ---- The API ------------------------------------------------------------------------------------
@@ -142,7 +141,6 @@ function setLiveStatus(mode, why = '') {
 function publish(snapshot) {
   if (live.snapshot && snapshot.version === live.snapshot.version) return;
   live.snapshot = snapshot;
-  live.receivedAt = Date.now() / 1000;
   for (const fn of live.listeners) {
     try { fn(snapshot); } catch (e) { console.warn('live update', e); }
   }
@@ -150,10 +148,6 @@ function publish(snapshot) {
 function onLive(fn) {
   live.listeners.add(fn);
   if (live.snapshot) fn(live.snapshot);
-}
-// The daemon's "now", from the last snapshot's clock.
-function daemonNow() {
-  return live.snapshot ? live.snapshot.time + (Date.now() / 1000 - live.receivedAt) : Date.now() / 1000;
 }
 
 // The stream is closed when the page goes (a browser keeps only a few connections per host open;
@@ -448,14 +442,14 @@ async function overviewPage() {
     { key: 'id', label: 'id', num: true, html: r => `<a href="/campaign-runs/${r.id}">${r.id}</a>` },
     { key: 'campaign', label: 'campaign' }, { key: 'scale', label: 'scale' }, { key: 'trigger', label: 'trigger' },
     { key: 'created_at', label: 'started', html: r => esc(when(r.created_at)) },
-    { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.started_at, daemonNow()) },
+    { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.eta) },
   ], [], { rowId: r => r.id });
   const swTable = dataTable($('#sweeps'), [
     { key: 'id', label: 'id', num: true, html: r => `<a href="/sweeps/${r.id}">${r.id}</a>` },
     { key: 'name', label: 'name' }, { key: 'scale', label: 'scale' },
     { key: 'campaign_run_id', label: 'campaign run', html: r => (r.campaign_run_id ? `<a href="/campaign-runs/${r.campaign_run_id}">${r.campaign_run_id}</a>` : '') },
     { key: 'created_at', label: 'submitted', html: r => esc(when(r.created_at)) },
-    { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.started_at, daemonNow()) + (r.cancelled ? ' <span class="state state-cancelled">cancelled</span>' : '') },
+    { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.eta) + (r.cancelled ? ' <span class="state state-cancelled">cancelled</span>' : '') },
   ], [], { rowId: r => r.id });
   onLive(snap => { crTable.setRows(snap.campaign_runs || []); swTable.setRows(snap.sweeps || []); });
 }
@@ -476,7 +470,7 @@ async function campaignRunPage(id) {
   if (!current(generation)) return;
   main().innerHTML = `<h1>Campaign run ${id}: ${esc(info.campaign)} at ${esc(info.scale)}</h1>
     <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
-      <dt>progress</dt><dd id="progress">${progressHtml(info.counts, null, daemonNow())}</dd>
+      <dt>progress</dt><dd id="progress">${progressHtml(info.counts, info.eta)}</dd>
       <dt>sweeps</dt><dd>${info.sweeps.map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
       <dt>report</dt><dd><a href="${esc(authed(`/api/v1/campaign-runs/${id}/report`))}">the HTML report</a> · <a href="${esc(authed(`/api/v1/campaign-runs/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
@@ -488,7 +482,7 @@ async function campaignRunPage(id) {
   followRows(table);
   onLive(snap => {
     const mine = (snap.campaign_runs || []).find(c => c.id === id);
-    if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.started_at, daemonNow());
+    if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.eta);
   });
   get(`/api/v1/campaign-runs/${id}/claims`).then(c => {
     $('#claims').classList.remove('muted');
@@ -521,7 +515,7 @@ async function sweepPage(id) {
   if (!current(generation)) return;
   main().innerHTML = `<h1>Sweep ${id}: ${esc(sweep.name)} <span class="muted">(${esc(sweep.scale)})</span></h1>
     <section class="card"><dl class="facts"><dt>submitted</dt><dd>${esc(when(sweep.created_at))}${sweep.campaign_run_id ? ` in <a href="/campaign-runs/${sweep.campaign_run_id}">campaign run ${sweep.campaign_run_id}</a>` : ''}</dd>
-      <dt>progress</dt><dd id="progress">${progressHtml(sweep.counts, null, daemonNow())}</dd>
+      <dt>progress</dt><dd id="progress">${progressHtml(sweep.counts, sweep.eta)}</dd>
       <dt></dt><dd><button id="cancel" class="danger" ${sweep.cancelled ? 'disabled' : ''}>${sweep.cancelled ? 'cancelled' : 'Cancel this sweep'}</button>
       <a href="${esc(authed(`/api/v1/sweeps/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
@@ -540,7 +534,7 @@ async function sweepPage(id) {
   });
   onLive(snap => {
     const mine = (snap.sweeps || []).find(s => s.id === id);
-    if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.started_at, daemonNow());
+    if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.eta);
   });
   sweepUzPlot($('#uz-plot'), sweep).then(drawn => {
     if (drawn && current(generation)) $('#figures').insertAdjacentHTML('afterbegin', uzFigure(sweep, 'U_z (the daemon\'s figure, as in the report)'));

@@ -4,16 +4,13 @@
 //
 // Prints, per scale (smoke; mini with --mini, which prepares a ~1.5e4-grain bed: ~10 min):
 //   grain count and bed preparation wall time;
-//   drive-deck throughput in particle-timesteps/s on 1 and 2 MPI ranks;
-//   the ratio of throughput with the omega update every kOmegaUpdateSteps to a single `run`
-//   at constant omega (goal >= 0.97);
+//   (the engine's rate on 1 and 2 ranks and the cost of the omega update: bench_engine_rate);
 // and, at smoke, z(t) and U_z for Omega = -80 and +80 (A = 0.03 m, f = 3 Hz, two periods).
 // A program to run on demand, not a test: it asserts nothing.
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <regex>
 #include <string>
 
 #include "core/deck.h"
@@ -30,40 +27,6 @@ using testing::EngineRun;
 // The paper's baseline drive (A = 0.03 m, f = 3 Hz) at a given Omega.
 Point Oscillatory(double Omega, double duration) { return OscillatoryPoint(0.03, 3, Omega, duration); }
 
-// Sum of "Loop time of X on P procs for N steps" over the runs that advanced time.
-double LoopSeconds(const std::string& log, long long* steps) {
-  static const std::regex re(R"(Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps)");
-  double sum = 0;
-  *steps = 0;
-  for (auto it = std::sregex_iterator(log.begin(), log.end(), re); it != std::sregex_iterator(); ++it) {
-    long long n = std::stoll((*it)[2]);
-    if (n == 0) continue;
-    sum += std::stod((*it)[1]);
-    *steps += n;
-  }
-  return sum;
-}
-
-// The same deck with the chunked omega update replaced by one `run` at constant omega(0).
-std::string ConstantOmegaDeck(const std::string& deck, long long steps) {
-  size_t cut = deck.find("run 0\nlabel chunk");
-  return deck.substr(0, cut) + "run " + std::to_string(steps) + "\n";
-}
-
-double Throughput(const std::string& name, const std::string& deck, const std::string& bed, int ranks,
-                  long long grains) {
-  std::string dir = testing::CacheDir() + "/bench/" + name;
-  std::filesystem::remove_all(dir);
-  EngineRun r = testing::RunDeck(dir, deck, bed, ranks);
-  if (r.exit_code != 0) {
-    std::fprintf(stderr, "%s failed: see %s/log.liggghts\n", name.c_str(), dir.c_str());
-    return 0;
-  }
-  long long steps = 0;
-  double secs = LoopSeconds(r.log, &steps);
-  return grains * static_cast<double>(steps) / secs;
-}
-
 void BenchScale(const Scale& scale, bool trajectories) {
   auto t0 = std::chrono::steady_clock::now();
   std::string bed = testing::PrepareBed(scale);
@@ -78,18 +41,6 @@ void BenchScale(const Scale& scale, bool trajectories) {
               bed_log.bed_equilibrium ? bed_log.bed_equilibrium->ke / bed_log.bed_equilibrium->ke_peak : 0.0);
   std::printf("bed preparation wall time    %.1f s%s\n", prep,
               prep < 1 ? " (cached; delete the cache to re-measure)" : "");
-
-  const double probe = 0.05;  // s of drive per throughput probe
-  Point p = Oscillatory(-80, probe);
-  std::string deck = RenderDriveDeck(p, scale, std::nullopt);
-  long long steps = DriveSteps(p, std::nullopt);
-  double r1 = Throughput(std::string(scale.name) + "-1rank", deck, bed, 1, grains + 1);
-  double r2 = Throughput(std::string(scale.name) + "-2ranks", deck, bed, 2, grains + 1);
-  double rc = Throughput(std::string(scale.name) + "-constant", ConstantOmegaDeck(deck, steps), bed, 1, grains + 1);
-  std::printf("drive, 1 rank                %.3g particle-timesteps/s\n", r1);
-  std::printf("drive, 2 ranks               %.3g particle-timesteps/s (%.2fx)\n", r2, r2 / r1);
-  std::printf("omega update every %d steps vs constant omega: %.3f (%.3g vs %.3g)\n", kOmegaUpdateSteps, r1 / rc, r1,
-              rc);
 
   if (!trajectories) return;
   for (double Omega : {-80.0, 80.0}) {

@@ -1,0 +1,118 @@
+// Cost model: what runs and beds cost in engine time, and when a set of them will be done.
+//
+// A run costs particles x steps x the wall seconds one particle-step takes (the engine's rate) on
+// the host and rank count it runs on. Particles and steps are known before a run starts: the bed's
+// grains (before the bed exists, an estimate from the box's volume, EstimatedGrains) plus the SO,
+// and the deck's step count (core/deck.h DriveSteps: its most; a precision target or a boundary
+// may end it earlier). The rate is measured, never assumed from the paper: FitRate pools the runs
+// done so far (a result's steps, grains and wall time) and the progress of running ones (their
+// simulated steps over their wall time so far, so an estimate exists from a run's first minute).
+// Before anything has run, DefaultRate() is the rate measured on this project's 2-core machine. A bed is costed per grain the same way (its preparation's wall time
+// over its grains; DefaultBedRate before one is done).
+//
+// Every estimate carries a relative 1-sigma error and says what it rests on ("basis"), so the
+// CLI, the API and the dashboard can show "5h10m ± 40m (from 12 runs on this host)".
+//
+// Thread safety: pure functions and values.
+#ifndef SANDSWIM_CORE_COST_H_
+#define SANDSWIM_CORE_COST_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/scale.h"
+#include "core/sweep.h"
+
+namespace sandswim {
+
+// The smoke bed (6,683 particles) driven on one rank of this project's 2-core machine: 1.4-1.8e6
+// particle-steps/s with the other core busy (issue 30); bench_engine_rate measured 6.3e5-1.0e6
+// while the machine's load average was 10-11. The error says how far a new host may differ; any
+// measured run replaces it.
+inline constexpr double kDefaultSecondsPerParticleStep = 6.5e-7;
+inline constexpr double kDefaultRateRelError = 0.3;
+// A smoke bed of 6,682 grains took 708-840 s on one rank (issue 30; README's three beds).
+inline constexpr double kDefaultBedSecondsPerGrain = 0.115;
+// A fitted rate is never claimed better than this: the host's other work comes and goes.
+inline constexpr double kMinRateRelError = 0.1;
+
+// One measured stretch of engine work: `work` particle-steps (a run) or grains (a bed) done in
+// `wall_s` seconds.
+struct RateSample {
+  double work = 0;
+  double wall_s = 0;
+};
+
+// Wall seconds per unit of work (a particle-step, or a grain of a bed), with its relative 1-sigma
+// error as a predictor of more work of the same kind, and what it rests on.
+struct EngineRate {
+  double s_per_unit = 0;
+  double rel_error = 0;
+  int samples = 0;  // 0: a default, not a measurement
+  std::string basis;
+};
+
+EngineRate DefaultRate();     // drive runs, per particle-step
+EngineRate DefaultBedRate();  // bed preparation, per grain
+
+// Pools the samples: total wall time over total work. Error: the samples' own rates' relative
+// spread over sqrt(n), at least kMinRateRelError; with one sample, the larger of that floor and
+// half the default's error. Samples with no work or no time are left out; none left: `fallback`.
+EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fallback, const std::string& basis);
+
+// The grains a scale's bed holds before one was prepared: smoke's 6,682, scaled by the bed's volume.
+double EstimatedGrains(const Scale& scale);
+
+// ---- Before work: what a plan costs ------------------------------------------------------------
+
+struct PlanCost {
+  int64_t runs = 0;
+  int64_t beds = 0;
+  double particle_steps = 0;  // at most (every run to its deck's end)
+  double run_core_s = 0;      // particle_steps x rate (one rank a run)
+  double bed_core_s = 0;
+  double rel_error = 0;
+  // Wall time on `slots` engines of one rank each: beds first (one slot each, in parallel), then
+  // the runs spread over every slot; never less than the longest bed plus its longest run.
+  double WallSeconds(int slots) const;
+  double longest_bed_s = 0, longest_run_s = 0;
+};
+// A plan's runs (core/sweep.h: each its deck's steps, on plan.beds[replicate]) and beds;
+// bed_grains[i] is plan.beds[i]'s grain count where known (a bed prepared already), else
+// EstimatedGrains(plan's scale) is used. Every run takes grains + 1 (the SO) particles.
+PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& bed_grains,
+                    const EngineRate& run_rate, const EngineRate& bed_rate);
+
+// ---- During work: when will it be done ---------------------------------------------------------
+
+// One thing left to do in a sweep or campaign run.
+struct WorkLeft {
+  enum class Kind { kRun, kBed } kind = Kind::kRun;
+  bool running = false;
+  double particles = 0;    // run: grains + SO; bed: grains (estimated while not prepared)
+  int64_t steps = 0;       // run: the deck's most
+  int64_t steps_done = 0;  // run: from its progress (simulated time / dt)
+  double elapsed_s = 0;    // running: wall time since it started
+};
+
+struct Eta {
+  double seconds = 0;
+  double rel_error = 0;  // 1 sigma
+  std::string basis;     // what the rates rest on, and what the estimate assumes
+};
+
+// Work left over `slots` engines (at least 1). Queued runs are expected to use
+// `expected_fraction` of their steps (the done runs' share, when some are done; 1 otherwise:
+// every run to its deck's end). A running bed's remaining time is its estimate less its elapsed
+// time, at least 0. As PlanCost::WallSeconds: the beds left first (their runs wait for them; beds
+// share the slots), then the runs over every slot, and never less than the longest bed plus the
+// longest run (one engine cannot be shared). nullopt when nothing is left.
+std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRate& run_rate,
+                               const EngineRate& bed_rate, double expected_fraction, double fraction_rel_error,
+                               int slots);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_CORE_COST_H_
