@@ -5,6 +5,7 @@
 
 #include "core/embedded.h"
 #include "core/keys.h"
+#include "core/scale.h"
 #include "core/text.h"
 
 namespace sandswim {
@@ -43,7 +44,13 @@ void KeepWorst(std::optional<RateEstimate>& worst, const std::optional<RateEstim
 nlohmann::json DesignKeyToJson(const DesignKey& k) {
   return {{"campaign", k.campaign},         {"definition_hash", k.definition_hash},
           {"scale", k.scale},               {"beds", k.beds},
-          {"rules_version", k.rules_version}, {"analysis_version", k.analysis_version}};
+          {"rules_version", k.rules_version}, {"analysis_version", k.analysis_version},
+          {"bed_sd_rel", k.bed_sd_rel}};
+}
+
+double BedPriorOf(const std::string& scale, int beds) {
+  const Scale* s = FindScale(scale);
+  return beds == 1 && s != nullptr && s->bed_sd_rel ? *s->bed_sd_rel : 0.0;
 }
 
 Result<DesignKey> DesignKeyFromJson(const nlohmann::json& j) {
@@ -56,6 +63,7 @@ Result<DesignKey> DesignKeyFromJson(const nlohmann::json& j) {
     k.beds = j.at("beds").get<int>();
     k.rules_version = j.at("rules_version").get<int>();
     k.analysis_version = j.at("analysis_version").get<int>();
+    k.bed_sd_rel = j.value("bed_sd_rel", 0.0);  // absent: a table made with no prior
   } catch (const nlohmann::json::exception& e) {
     return Status::InvalidArgument("key", e.what());
   }
@@ -64,7 +72,8 @@ Result<DesignKey> DesignKeyFromJson(const nlohmann::json& j) {
 
 std::string DescribeDesign(const DesignKey& k) {
   return k.campaign + " at " + k.scale + ", K = " + std::to_string(k.beds) + (k.beds == 1 ? " bed" : " beds") +
-         ", rules " + std::to_string(k.rules_version) + ", analysis " + std::to_string(k.analysis_version);
+         ", rules " + std::to_string(k.rules_version) + ", analysis " + std::to_string(k.analysis_version) +
+         (k.bed_sd_rel > 0 ? ", bed prior " + Num(100 * k.bed_sd_rel, 3) + " %" : "");
 }
 
 std::string CampaignDefinitionHash(const nlohmann::json& definition, const std::optional<std::vector<Claim>>& claims) {
@@ -145,6 +154,8 @@ ClaimRates RatesFor(const std::string& claim_id, const std::string& part, const 
       if (t.key.definition_hash != key.definition_hash || t.key.scale != key.scale) continue;
       // The same campaign at the same scale: say what differs, so a stale table is told from none.
       if (t.key.beds != key.beds) why = "calibrated at K = " + std::to_string(t.key.beds) + ", not " + std::to_string(key.beds);
+      if (t.key.beds == key.beds && t.key.bed_sd_rel != key.bed_sd_rel)
+        why = "calibrated with a bed prior of " + Num(100 * t.key.bed_sd_rel, 3) + " %: stale";
       if (t.key.rules_version != key.rules_version || t.key.analysis_version != key.analysis_version) {
         why = "the calibration was made with rules " + std::to_string(t.key.rules_version) + ", analysis " +
               std::to_string(t.key.analysis_version) + ": stale";

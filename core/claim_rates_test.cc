@@ -81,6 +81,15 @@ TEST(ClaimRatesTest, AnotherDesignIsNeverQuoted) {
   DesignKey stale = Key();
   stale.rules_version = kClaimRulesVersion + 1;
   EXPECT_THAT(RatesFor("F9", "P", stale, tables).text, HasSubstr("stale"));
+  // A K = 1 table made with another bed prior (core/scale.h) is stale, not quoted.
+  DesignKey prior = Key();
+  prior.bed_sd_rel = 0.17;
+  const ClaimRates with_prior = RatesFor("F9", "P", prior, tables);
+  EXPECT_FALSE(with_prior.calibrated);
+  EXPECT_THAT(with_prior.text, HasSubstr("bed prior"));
+  EXPECT_EQ(BedPriorOf("smoke", 1), 0.17);
+  EXPECT_EQ(BedPriorOf("smoke", 3), 0.0);
+  EXPECT_EQ(BedPriorOf("paper", 1), 0.0);
   DesignKey other = Key();
   other.definition_hash = "def";
   const ClaimRates r = RatesFor("F9", "P", other, tables);

@@ -340,7 +340,8 @@ struct PointView {
   std::string why_open;   // the beds that give no evidence at all ("" when every bed gives some)
 };
 
-void Assess(PointView& p) {
+// `bed_sd_rel`: the scale's bed-to-bed prior for a point on one bed (core/aggregate.h).
+void Assess(PointView& p, double bed_sd_rel) {
   if (p.runs.empty()) {
     if (p.sample != nullptr && p.sample->conclusive && p.sample->has_uz && p.sample->uz_ci95 > 0) {
       p.complete = true;
@@ -380,7 +381,7 @@ void Assess(PointView& p) {
   }
   const int k = static_cast<int>(p.runs.size());
   if (measured == k) {
-    const ReplicateAggregate a = AggregateReplicates(values);
+    const ReplicateAggregate a = AggregateReplicates(values, bed_sd_rel);
     p.complete = a.uz_mean && a.uz_stderr && a.uz_ci95;
     p.uz = a.uz_mean.value_or(0);
     p.se = a.uz_stderr.value_or(0);
@@ -418,6 +419,11 @@ const ClaimSweep* FindSweep(const ClaimInput& in, const std::string& name) {
 }
 
 // Every point of the sweeps, each once (a point two sweeps share is the first sweep's), in order.
+double BedPrior(const std::string& scale) {
+  const Scale* s = FindScale(scale);
+  return s && s->bed_sd_rel ? *s->bed_sd_rel : 0.0;
+}
+
 std::vector<PointView> PointsOf(const ClaimInput& in, const std::vector<std::string>& sweeps) {
   std::vector<PointView> out;
   std::set<DriveId> seen;
@@ -448,7 +454,7 @@ std::vector<PointView> PointsOf(const ClaimInput& in, const std::vector<std::str
     }
     for (PointView& p : mine) {
       if (!seen.insert(DriveIdOf(p.point)).second) continue;
-      Assess(p);
+      Assess(p, BedPrior(in.scale));
       out.push_back(std::move(p));
     }
   }

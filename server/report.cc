@@ -307,7 +307,9 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         values.push_back(v);
       }
       if (first_done != nullptr) {  // a point none of whose beds has finished is not a sample yet
-        const ReplicateAggregate agg = AggregateReplicates(values);
+        const Scale* scale = FindScale(info.scale);
+        const ReplicateAggregate agg =
+            AggregateReplicates(values, scale && scale->bed_sd_rel ? *scale->bed_sd_rel : 0.0);
         SweepSample sample;
         sample.point = row.point;
         sample.run_id = first_done->run_id;
@@ -333,6 +335,20 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
     sample.has_uz = r.uz.has_value();
     sample.uz_stderr = r.uz_stderr.value_or(0);
     sample.uz_ci95 = r.uz_ci95.value_or(0);
+    if (const Scale* scale = FindScale(info.scale); scale && scale->bed_sd_rel && sample.conclusive) {
+      // One bed: the point's error adds the scale's bed-to-bed prior (core/aggregate.h), as the
+      // claims' points do; the run's own error stays in its result.
+      ReplicateValue v;
+      v.run_id = row.run_id;
+      v.state = row.state;
+      v.conclusive = true;
+      v.uz = r.uz;
+      v.uz_stderr = r.uz_stderr;
+      v.uz_ci95 = r.uz_ci95;
+      const ReplicateAggregate one = AggregateReplicates({v}, *scale->bed_sd_rel);
+      sample.uz_stderr = one.uz_stderr.value_or(sample.uz_stderr);
+      sample.uz_ci95 = one.uz_ci95.value_or(sample.uz_ci95);
+    }
     sample.inconclusive_reason = r.inconclusive_reason.empty() && !r.conclusive ? DescribeUz(r) : r.inconclusive_reason;
     a.samples.push_back(std::move(sample));
   }
