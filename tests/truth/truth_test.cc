@@ -263,6 +263,7 @@ TEST(CommittedCalibrationTest, IsCurrent) {
     EXPECT_EQ(t.key.definition_hash, now.definition_hash)
         << t.file << " was made for another definition of " << t.key.campaign << "; " << regenerate;
     EXPECT_EQ(t.key.rules_version, kClaimRulesVersion) << t.file << " was made with other claims rules; " << regenerate;
+    EXPECT_EQ(t.key.bed_sd_rel, now.bed_sd_rel) << t.file << " was made with another bed prior; " << regenerate;
     EXPECT_EQ(t.key.analysis_version, api::kAnalysisVersion)
         << t.file << " was made with another run analysis; " << regenerate;
     EXPECT_EQ(d.value("noise", nlohmann::json()), NoiseToJson(Noise{}))
