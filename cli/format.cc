@@ -499,6 +499,16 @@ std::string VerdictCell(const std::string& verdict, const RenderOptions& options
   return Colorize(text.empty() ? verdict : text, code, options.color);
 }
 
+// A verdict's error rates at its design (core/claim_rates.h), and what would help when its power
+// is low or it is not calibrated; nothing from a daemon that sends none.
+std::string RatesLine(const std::string& lead, const json& verdict) {
+  if (!verdict.contains("rates") || !verdict["rates"].is_object()) return "";
+  const json& r = verdict["rates"];
+  std::string out = lead + Str(r, "text") + "\n";
+  if (!Str(r, "advice").empty()) out += std::string(lead.size(), ' ') + Str(r, "advice") + "\n";
+  return out;
+}
+
 }  // namespace
 
 std::string RenderClaims(const json& reply, const RenderOptions& options) {
@@ -519,9 +529,11 @@ std::string RenderClaims(const json& reply, const RenderOptions& options) {
            VerdictCell(Str(c, "verdict", "inconclusive"), options, Str(c, "verdict_text")) + "  " +
            Str(c, "title") + " (" + Str(c, "source") + ")\n";
     out += "    here:  " + Str(c, "reason") + "\n";
+    out += RatesLine("    rates: ", c);
     for (const auto& p : c.value("parts", json::array())) {
       out += "      " + VerdictCell(Str(p, "verdict", "inconclusive"), options) + "  " + Str(p, "name") + ": " +
              Str(p, "reason") + "\n";
+      out += RatesLine("             rates: ", p);
     }
     const json paper = c.value("paper", json::object());
     const std::string numbers = DescribePaperNumbers(paper);

@@ -257,3 +257,31 @@ TEST(FormatTest, RunDetailShowsDeckResultAndLog) {
 
 }  // namespace
 }  // namespace sandswim::cli
+
+namespace sandswim::cli {
+namespace {
+
+// `sandswim check` prints each claim's and part's error rates at the design, and what would help;
+// a reply from a daemon without rates prints none.
+TEST(FormatTest, ClaimsShowTheirRatesAtTheDesign) {
+  json reply = json::parse(R"J({"campaign": "paper-58", "scale": "smoke", "campaign_run_id": 7,
+    "counts": {"holds": 0, "differs": 0, "inconclusive": 1},
+    "claims": [{"id": "F4", "title": "peaks", "source": "Fig. 8", "verdict": "inconclusive",
+      "verdict_text": "inconclusive at smoke", "reason": "no interior maximum established",
+      "rates": {"calibrated": true, "text": "false holds <= 2.4 %, false differs <= 1.9 %, power 4 % [2.3, 7] at this design (paper-58 at smoke, K = 1 bed, rules 2, analysis 3; 300 simulated campaigns a law)",
+                "advice": "power 4 % at this design: longer runs; measured at K = 3: 0 %", "low_power": true},
+      "parts": [{"name": "the rising rate peaks at an interior f", "verdict": "inconclusive", "reason": "p = 0.2",
+                 "rates": {"calibrated": false, "text": "not calibrated at this design (x)", "advice": "calibrate it", "low_power": false}}],
+      "paper": {"text": "f_c = 5 Hz"}, "missing": []}]})J");
+  RenderOptions options;
+  const std::string out = RenderClaims(reply, options);
+  EXPECT_THAT(out, HasSubstr("    rates: false holds <= 2.4 %, false differs <= 1.9 %, power 4 % [2.3, 7] at this design"));
+  EXPECT_THAT(out, HasSubstr("power 4 % at this design: longer runs; measured at K = 3: 0 %"));
+  EXPECT_THAT(out, HasSubstr("rates: not calibrated at this design (x)"));
+  reply["claims"][0].erase("rates");
+  reply["claims"][0]["parts"][0].erase("rates");
+  EXPECT_THAT(RenderClaims(reply, options), Not(HasSubstr("rates:")));
+}
+
+}  // namespace
+}  // namespace sandswim::cli

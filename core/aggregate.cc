@@ -9,7 +9,7 @@
 
 namespace sandswim {
 
-ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
+ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values, double bed_sd_rel) {
   std::sort(values.begin(), values.end(),
             [](const ReplicateValue& a, const ReplicateValue& b) { return a.replicate < b.replicate; });
   ReplicateAggregate a;
@@ -40,6 +40,18 @@ ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values) {
     a.uz_ci95 = single->uz_ci95;
     a.note = a.replicates == 1 ? "one bed: the scatter between beds is not known"
                                : "one conclusive replicate (" + of_k + "): the scatter between beds is not known";
+    if (a.replicates == 1 && bed_sd_rel > 0 && a.uz_stderr && a.uz_ci95) {
+      const double bed = bed_sd_rel * std::fabs(rates[0]);
+      a.uz_stderr = std::sqrt(*a.uz_stderr * *a.uz_stderr + bed * bed);
+      a.uz_ci95 = std::sqrt(*a.uz_ci95 * *a.uz_ci95 + 1.96 * 1.96 * bed * bed);
+      a.bed_prior = true;
+      char buf[160];
+      std::snprintf(buf, sizeof buf,
+                    "one bed: its error adds the scale's bed-to-bed scatter, %.0f %% of |U_z| (a prior from replicate "
+                    "beds)",
+                    100 * bed_sd_rel);
+      a.note = buf;
+    }
   } else {
     double mean = 0;
     for (double r : rates) mean += r;

@@ -54,10 +54,16 @@ struct ReplicateAggregate {
   std::optional<double> uz_stderr;      // m/s: s / sqrt(n) or the runs' own (n >= 2), the run's own (n == 1)
   std::optional<double> uz_ci95;        // m/s, half-width
   std::string note;                     // what the aggregate rests on, when it is less than K beds
+  bool bed_prior = false;               // K = 1: the error includes the scale's bed-to-bed prior
   std::vector<ReplicateValue> values;   // by replicate index
 };
 
-ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values);
+// `bed_sd_rel` (the scale's Scale::bed_sd_rel, 0: none): a point run on one bed only (K = 1) gets
+// the bed-to-bed scatter added to its run's own error, se^2 + (bed_sd_rel U)^2, and to its 95 %
+// half-width, ci^2 + (1.96 bed_sd_rel U)^2: one bed's interval says nothing of the bed it happened
+// to be (on the truth engine such intervals held the true U_z 71 % of the time). With K >= 2 the
+// beds' own scatter is measured and used instead.
+ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values, double bed_sd_rel = 0);
 
 // A sweep's runs grouped by point (SameDrive: a point's replicates differ only in their bed),
 // each group aggregated, in the order the points first appear.

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "core/scale.h"
+
 namespace sandswim {
 namespace {
 
@@ -66,6 +68,25 @@ TEST(AggregateTest, OneConclusiveBedKeepsItsOwnErrorAndSaysTheScatterIsUnknown) 
   EXPECT_FALSE(none.uz_mean.has_value());
   EXPECT_FALSE(none.uz_ci95.has_value());
   EXPECT_NE(none.note.find("no conclusive replicate"), std::string::npos);
+}
+
+// One bed at a scale with a measured bed-to-bed prior: the point's error adds it (se^2 + (r U)^2),
+// and says so; two beds measure their own scatter and never use the prior; a point of two beds
+// with one conclusive is not complete and keeps the run's error.
+TEST(AggregateTest, OneBedAddsTheScalesBedPrior) {
+  ReplicateAggregate one = AggregateReplicates({Value(0, 0.1)}, 0.17);
+  EXPECT_TRUE(one.bed_prior);
+  EXPECT_NEAR(*one.uz_stderr, std::sqrt(0.001 * 0.001 + 0.017 * 0.017), 1e-12);
+  EXPECT_NEAR(*one.uz_ci95, std::sqrt(0.003 * 0.003 + 1.96 * 1.96 * 0.017 * 0.017), 1e-12);
+  EXPECT_NE(one.note.find("17 % of |U_z|"), std::string::npos) << one.note;
+  ReplicateAggregate two = AggregateReplicates({Value(0, 0.1), Value(1, 0.12)}, 0.17);
+  EXPECT_FALSE(two.bed_prior);
+  EXPECT_NEAR(*two.uz_stderr, 0.01, 1e-12);
+  ReplicateAggregate half = AggregateReplicates({Value(0, 0.1), Value(1, std::nullopt, false)}, 0.17);
+  EXPECT_FALSE(half.bed_prior);
+  EXPECT_EQ(half.uz_stderr, 0.001);
+  EXPECT_EQ(FindScale("smoke")->bed_sd_rel, 0.17);
+  EXPECT_FALSE(FindScale("paper")->bed_sd_rel.has_value());
 }
 
 // On data with a known answer: beds whose rates scatter around a true mean (normal, between-bed

@@ -30,7 +30,8 @@
 // periods): a chi^2 of points about a law with such errors refuses a true law 21-43 % of the time.
 // The fitted rules below (saturation, linear_in_A, interior_maximum) therefore weight points by a
 // variance model, sd = a + b |U_z| fitted to the own errors of the points a law is fitted to (their
-// shape only), and take the scale from the fit's residuals: every t and F test on them has its
+// shape only) and evaluated at the law's fitted |U_z| (not each point's own noisy value), and take
+// the scale from the fit's residuals: every t and F test on them has its
 // stated size for normal errors of that shape. Lack of power is "inconclusive", never "differs".
 //
 // Kinds and how each decides:
@@ -97,7 +98,9 @@
 //   modes             Sec. 3.1 (Fig. 2): parts "rises" (sign rule, expect rise, on `rises`),
 //                     "fastest" (`fastest`'s U_z above each of `fastest_among` by more than the
 //                     combined half-widths, Bonferroni over them for differs), "stays near x"
-//                     (every run of `fastest` drifts at most `x_within_m` in x), "z oscillates
+//                     (the mean x drift of `fastest` over its K beds, its 95 % t interval from the
+//                     beds' scatter, within +- `x_within_m` holds, wholly beyond differs; one bed
+//                     gives no error: inconclusive), "z oscillates
 //                     with an x component" (the smallest z amplitude at f of `z_osc_with` runs is
 //                     at least `osc_ratio` times the largest of `z_osc_without`; differs when the
 //                     largest without is at least `osc_ratio` times the smallest with (the
@@ -107,6 +110,12 @@
 //                     (inconclusive: the run analysis does not measure x's amplitude at f).
 // Every verdict names the scale it was decided at (ClaimVerdict::scale, "holds at smoke"): a
 // verdict at smoke is a statement about the smoke box.
+//
+// Every verdict and part may also carry its rule's error rates at the campaign run's design
+// (ClaimRates, filled by core/claim_rates.h from the committed calibration of the truth engine):
+// "false holds <= x %, false differs <= y %, power z % at this design", or "not calibrated at
+// this design". kClaimRulesVersion names the rules above: a change to any rule's decision bumps it,
+// which makes every calibration table made with the old rules stale (tests/truth/ checks it).
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_CLAIMS_H_
@@ -197,11 +206,33 @@ struct ClaimFigure {
   std::optional<double> bound;
 };
 
+// What the truth engine's calibration says of a rule's verdicts at a design (core/claim_rates.h).
+struct RateEstimate {
+  int64_t count = 0, n = 0;  // verdicts of that kind in n simulated campaigns
+  double rate = 0, lo = 0, hi = 1;  // count / n and its 95 % (Wilson) interval
+  std::string law;                  // the truth engine's law it was measured under
+};
+struct ClaimRates {
+  bool calibrated = false;
+  std::string design;  // "paper-58 at smoke, K = 1 bed(s), rules 4, analysis 3"
+  std::string table;   // the calibration file the rates come from (calibrated only)
+  // Calibrated: the worst false holds over the laws that make the part false, the worst false
+  // differs over the laws that make it true (upper bounds quoted), the power under the law that
+  // makes every claim true (estimate and interval quoted). A rate no law measured stays absent.
+  std::optional<RateEstimate> false_holds, false_differs, power;
+  bool low_power = false;  // power below 50 % at this design
+  // "false holds <= 1.2 %, false differs <= 1.0 %, power 69 % [63, 74] at this design (300
+  // campaigns a law)", or "not calibrated at this design (...): calibrate with ...".
+  std::string text;
+  std::string advice;  // low power or no calibration: what would help
+};
+
 struct ClaimPart {
   std::string name;
   Verdict verdict = Verdict::kInconclusive;
   std::string reason;  // why this verdict, in a sentence with its numbers
   std::vector<ClaimFigure> figures;
+  std::optional<ClaimRates> rates;  // attached by AttachClaimRates (core/claim_rates.h)
 };
 
 // A point without a conclusive U_z, and why.
@@ -219,16 +250,26 @@ struct ClaimVerdict {
   std::vector<ClaimPart> parts;
   std::vector<ClaimMissing> missing;
   std::string scale;  // the scale it was decided at (ClaimInput::scale): "holds at smoke"
+  std::optional<ClaimRates> rates;  // of the claim as a whole (core/claim_rates.h)
 };
+
+// The version of the rules above. Bump it with any change to what a rule decides: the committed
+// calibration tables (templates/calibration/) record it, and a table of another version is not
+// quoted. 1: the rules of issue 26's first redesign; 2: the variance model at the fitted |U_z|,
+// F5's x drift tested with its error over the beds.
+inline constexpr int kClaimRulesVersion = 2;
 
 // One verdict per claim, in the claims' order.
 std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const ClaimInput& input);
 
 // {"id","title","source","paper","rule","verdict","scale","verdict_text" ("holds at smoke"),"reason",
 //  "parts":[{"name","verdict","reason","figures":[{"name","value"?,"stderr"?,"lo"?,"hi"?,"unit",
-//  "verdict"?,"note","censored"?,"bound"?}]}],
+//  "verdict"?,"note","censored"?,"bound"?}],"rates"?}],"rates"? (ClaimRatesToJson),
 //  "missing":[{"sweep","point","run_ids","why"}]}
 nlohmann::json ClaimVerdictToJson(const ClaimVerdict& v);
+// {"calibrated","design","table"?,"text","advice","low_power","false_holds"?,"false_differs"?,"power"?}
+// each rate {"count","n","rate","lo","hi","law"}.
+nlohmann::json ClaimRatesToJson(const ClaimRates& r);
 // "holds at smoke": the verdict and the scale it was decided at (the verdict alone without one).
 std::string VerdictAtScale(const ClaimVerdict& v);
 // How many verdicts hold, differ and are inconclusive.

@@ -396,6 +396,8 @@ TEST(ClaimsTest, GrainCountHoldsDiffersOrIsInconclusive) {
   EXPECT_THAT(v.reason, HasSubstr("no prepared bed"));
 }
 
+void OnBeds(Synth& synth, ClaimSweep& sweep, int k);
+
 Point VibRot(RotationAxis axis) {
   Point p;
   p.mode = Mode::kVibrationRotation;
@@ -435,10 +437,37 @@ TEST(ClaimsTest, ModesHoldDifferOrAreInconclusive) {
       sweep.runs[0].result->x_drift = facts.at(sweep.name).first;
       sweep.runs[0].result->z_osc_amplitude = facts.at(sweep.name).second;
     }
+    // The fastest mode on three beds: its x drift has an error from their scatter.
+    for (ClaimSweep& sweep : s.input.sweeps)
+      if (sweep.name == "rot-x") {
+        OnBeds(s, sweep, 3);
+        for (size_t i = 0; i < sweep.runs.size(); ++i) sweep.runs[i].result->x_drift += 0.002 * (double(i) - 1);
+      }
     return s;
   };
   ClaimVerdict v = Evaluate(f5, build(0.005).input);
   EXPECT_EQ(v.verdict, Verdict::kHolds) << v.reason;
+  // Stays near x: the mean drift over the beds with its t interval against +-0.02 m.
+  auto near_x = [&](const std::vector<double>& drifts) {
+    Synth s = build(0.005);
+    for (ClaimSweep& sweep : s.input.sweeps)
+      if (sweep.name == "rot-x") {
+        sweep.runs.resize(drifts.size());
+        for (size_t i = 0; i < drifts.size(); ++i) sweep.runs[i].result->x_drift = drifts[i];
+      }
+    return Evaluate(f5, s.input).parts.at(2);
+  };
+  EXPECT_EQ(near_x({0.003, 0.005, 0.001}).verdict, Verdict::kHolds);
+  EXPECT_EQ(near_x({0.05, 0.06, 0.055}).verdict, Verdict::kDiffers);
+  // A point estimate within 0.02 m whose interval reaches beyond it is not "holds" (nor one beyond
+  // whose interval reaches back "differs"): the measurement's error decides.
+  ClaimPart wide = near_x({0.0, 0.03, -0.01});
+  EXPECT_EQ(wide.verdict, Verdict::kInconclusive) << wide.reason;
+  EXPECT_EQ(near_x({0.01, 0.05, 0.02}).verdict, Verdict::kInconclusive);
+  // One bed gives no error: inconclusive, and it says what is needed.
+  ClaimPart one = near_x({0.003});
+  EXPECT_EQ(one.verdict, Verdict::kInconclusive);
+  EXPECT_THAT(one.reason, HasSubstr("2 or more replicate beds"));
   v = Evaluate(f5, build(-0.005).input);  // vibration alone sinks
   EXPECT_EQ(v.verdict, Verdict::kDiffers);
   EXPECT_THAT(v.reason, HasSubstr("vibration alone rises"));

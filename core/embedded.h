@@ -1,6 +1,7 @@
 // Files compiled into core (the list is in templates/CMakeLists.txt): deck templates
 // ("templates/bed.in", "templates/drive.in") and shipped campaigns
-// ("templates/campaigns/paper-58.json"). The migrations and the API document are the daemon's
+// ("templates/campaigns/paper-58.json"), and the claims' calibration tables
+// ("templates/calibration/paper-58.smoke.K1.json", core/claim_rates.h). The migrations and the API document are the daemon's
 // (server/schema_files.h).
 //
 // Thread safety: immutable data.

@@ -35,15 +35,25 @@ namespace {
 // smallest change the nightly drift report flags), after at least three whole periods, or at 2 s
 // of physical time (f = 1 Hz still gets its transient and three periods: core/precision.h
 // RunDuration). It is a cost choice for a test scale, not a physics one: a sweep may set its own.
+// The smoke bed-to-bed prior, 0.17: the baseline pair on three replicate smoke beds on the real
+// engine (README "The baseline on three replicate beds", 2026-11): between-bed sd 0.0088 m/s of
+// -0.0530 sinking (17 %), 0.0038 of 0.0973 rising (4 %); the larger is taken for every point, since
+// three beds fix neither well. paper and mini have no replicate measurement: none.
+// Why a prior and not K = 3 beds by default for paper-58 (issue 26 item 6), measured on the truth
+// engine (bench_claims_calibration, 300 campaigns a law): one-bed point intervals covered the true
+// U_z 71 %, 90 % with this prior, 97 % on three beds; but three beds triple the engine time (86.5 ->
+// 258.5 s simulated a campaign, the demo's ~6 h -> ~18 h at smoke) and at smoke lower most rules'
+// power (a point counts only when all its beds are measured; its error then rests on 2 dof):
+// F1 96 -> 74 %, F2 rising grows 67 -> 32 %. A study that wants them sets "replicates": 3.
 const std::vector<Scale> kScales = {
     {"paper", "the paper's geometry (about 7e4 grains), 4-5 s runs: a cluster or a big node", 0.50, 1.00, -0.50, 0.50,
-     std::nullopt},
+     std::nullopt, std::nullopt},
     {"mini", "a smaller periodic box around the SO (about 1.5e4 grains), full durations: one machine overnight", 0.32,
-     0.40, -0.40, 0.40, std::nullopt},
+     0.40, -0.40, 0.40, std::nullopt, std::nullopt},
     {"smoke",
      "about 6.7e3 grains, 0.15 m of travel up and down, runs that end at a precision target (at most 2 s): tests and "
      "demos",
-     0.18, 0.38, -0.35, 0.34, PrecisionTarget{0.2, 0.005, 3, 2.0}},
+     0.18, 0.38, -0.35, 0.34, PrecisionTarget{0.2, 0.005, 3, 2.0}, 0.17},
 };
 
 double NeededYLen(double A) { return 2 * A + kMaterials.d_so + 3 * kMaterials.d_grain; }

@@ -47,6 +47,10 @@ struct Scale {
   double z_bed_top;  // m, target height of the poured bed
   // The target of sweeps that set none (absent: runs last the duration they ask for).
   std::optional<PrecisionTarget> default_precision;
+  // The scatter of U_z from bed to bed, as a fraction of |U_z|, that a point measured on one bed
+  // adds to its run's own error (core/aggregate.h): a prior, measured on replicate beds of this
+  // box (absent: not measured, and a one-bed point's error leaves it out, saying so).
+  std::optional<double> bed_sd_rel;
   // Derived: the largest A this box takes, (y_len - d_so - 3 d_grain) / 2.
   double max_amplitude() const;
 };

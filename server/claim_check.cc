@@ -1,5 +1,6 @@
 #include "server/claim_check.h"
 
+#include <algorithm>
 #include <map>
 #include <set>
 #include <utility>
@@ -10,7 +11,8 @@ namespace sandswim {
 namespace {
 
 // The claims of the campaign a run belongs to, and where they come from.
-Status FindClaims(Store& store, const std::string& campaign, CampaignRunClaims& out, std::vector<Claim>& claims) {
+Status FindClaims(Store& store, const std::string& campaign, CampaignRunClaims& out, std::vector<Claim>& claims,
+                  nlohmann::json& definition) {
   Result<CatalogueEntry> entry = FindCampaign(store, campaign);
   if (!entry.ok()) {
     if (entry.status().code() != StatusCode::kNotFound) return entry.status();
@@ -19,6 +21,7 @@ Status FindClaims(Store& store, const std::string& campaign, CampaignRunClaims& 
     return Status::Ok();
   }
   claims = entry->campaign.claims;
+  definition = entry->definition;
   out.claims_source = entry->stored ? "stored" : "builtin";
   if (entry->stored && !entry->definition.contains("claims")) {
     // A built-in campaign recorded when first submitted, before its file stated claims.
@@ -90,7 +93,8 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   CampaignRunClaims out;
   out.campaign_run = campaign_run;
   std::vector<Claim> claims;
-  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run.campaign, out, claims));
+  nlohmann::json definition;
+  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run.campaign, out, claims, definition));
   if (claims.empty()) return out;
 
   ClaimInput input;
@@ -118,7 +122,24 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
     input.beds.push_back(b);
   }
   out.verdicts = EvaluateClaims(claims, input);
+  out.design = DesignOf(campaign_run.campaign, definition, claims, input);
+  AttachClaimRates(out.verdicts, out.design);
   return out;
+}
+
+DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition, const std::vector<Claim>& claims,
+                   const ClaimInput& input) {
+  DesignKey key;
+  key.campaign = campaign;
+  key.definition_hash = CampaignDefinitionHash(definition, claims);
+  key.scale = input.scale;
+  // K: the beds the campaign run's points ran on (a point runs on every replicate bed).
+  int beds = 1;
+  for (const ClaimSweep& s : input.sweeps)
+    for (const ClaimRun& r : s.runs) beds = std::max(beds, r.replicate + 1);
+  key.beds = beds;
+  key.bed_sd_rel = BedPriorOf(key.scale, beds);
+  return key;
 }
 
 nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
@@ -132,6 +153,8 @@ nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
           {"claims_source", c.claims_source},
           {"note", c.note},
           {"counts", counts},
+          {"design", DesignKeyToJson(c.design)},
+          {"design_text", DescribeDesign(c.design)},
           {"claims", claims}};
 }
 

@@ -9,6 +9,9 @@
 // before its file stated claims (the stored copy has no "claims") takes the built-in file's claims,
 // and says so in `claims_source`. A campaign that is gone states none.
 //
+// Every verdict carries its rule's error rates at the campaign run's design (DesignOf,
+// core/claim_rates.h AttachClaimRates), or says it is not calibrated there.
+//
 // Thread safety: free functions over a thread-safe Store.
 #ifndef SANDSWIM_SERVER_CLAIM_CHECK_H_
 #define SANDSWIM_SERVER_CLAIM_CHECK_H_
@@ -20,6 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/claim_rates.h"
 #include "core/claims.h"
 #include "core/status.h"
 #include "server/report.h"
@@ -32,9 +36,10 @@ struct CampaignRunClaims {
   std::string claims_source;  // "stored" | "builtin" | "none"
   std::string note;           // e.g. why the claims come from the built-in file
   std::vector<ClaimVerdict> verdicts;
+  DesignKey design;  // what the verdicts' error rates are looked up by (core/claim_rates.h)
 };
 // {"campaign_run_id","campaign","scale","claims_source","note","counts":{"holds","differs",
-//  "inconclusive"},"claims":[ClaimVerdictToJson...]}
+//  "inconclusive"},"design":DesignKeyToJson,"design_text","claims":[ClaimVerdictToJson...]}
 nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c);
 
 // NotFound for an unknown campaign run.
@@ -48,6 +53,11 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
 // run of its result rows with its state, result and last error (`failures`: run id -> "kind:
 // message" of its failed runs). The truth engine's calibration (tests/truth/) assembles its
 // ClaimInput with it, as CheckClaims does.
+// The design a campaign run's verdicts were decided at: its campaign's definition (with the
+// claims it was judged by), its scale, and K, the most replicate beds a point of it ran on.
+DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition, const std::vector<Claim>& claims,
+                   const ClaimInput& input);
+
 ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultRow>& rows,
                         const std::map<int64_t, std::string>& failures);
 

@@ -213,6 +213,15 @@ std::string VerdictHtml(Verdict v) {
   return std::string("<span class=\"") + VerdictName(v) + "\">" + VerdictName(v) + "</span>";
 }
 
+// A verdict's error rates at its design (core/claim_rates.h): "false holds <= x %, ..." or "not
+// calibrated at this design", and what would help, marked when its power is low.
+std::string RatesHtml(const std::optional<ClaimRates>& r) {
+  if (!r) return "";
+  const char* cls = !r->calibrated ? "rates uncalibrated" : r->low_power ? "rates low-power" : "rates";
+  return std::string("<br><small class=\"") + cls + "\">" + Escape(r->text) +
+         (r->advice.empty() ? std::string() : " &mdash; " + Escape(r->advice)) + "</small>";
+}
+
 // The first section: every claim, its verdict, the numbers behind it, the paper's, side by side.
 std::string ClaimsHtml(const ReportInput& in) {
   std::string html = "<h2 id=\"claims\">Claims</h2>\n";
@@ -227,13 +236,15 @@ std::string ClaimsHtml(const ReportInput& in) {
           ". Each claim is decided by the rule the campaign file states (core/claims.h): a point counts only over "
           "all its replicate beds; a run cut short at the surface or the floor gives a sign and a lower bound on "
           "|U<sub>z</sub>|, not a rate; fitted laws are tested on their residuals, not on each run's few-period "
-          "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive." +
+          "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive. Beside "
+          "each verdict, its rule's error rates at this design as the truth engine measured them (false holds, "
+          "false differs: upper 95 % bounds; power: estimate and interval)." +
           (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
           "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
   for (const ClaimVerdict& v : in.claims) {
     std::string measured = Escape(v.reason);
     for (const ClaimPart& p : v.parts) {
-      measured += "<br>" + VerdictHtml(p.verdict) + " " + Escape(p.name) + ": " + Escape(p.reason);
+      measured += "<br>" + VerdictHtml(p.verdict) + " " + Escape(p.name) + ": " + Escape(p.reason) + RatesHtml(p.rates);
       if (p.figures.empty()) continue;
       measured += "<details><summary>" + std::to_string(p.figures.size()) + " figure(s)</summary><ul>";
       for (const ClaimFigure& f : p.figures) {
@@ -258,7 +269,7 @@ std::string ClaimsHtml(const ReportInput& in) {
     html += "<tr id=\"claim-" + Escape(v.claim.id) + "\"><td><b>" + Escape(v.claim.id) + "</b> " +
             Escape(v.claim.title) + "<br><small>" + Escape(v.claim.source) + "; rule: " + Escape(v.claim.kind()) +
             "</small></td><td>" + VerdictHtml(v.verdict) + (v.scale.empty() ? "" : " at " + Escape(v.scale)) +
-            "</td><td>" + measured + "</td><td>" +
+            RatesHtml(v.rates) + "</td><td>" + measured + "</td><td>" +
             PaperHtml(v.claim.paper) + "</td></tr>\n";
   }
   return html + "</table>\n";
@@ -296,7 +307,9 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         values.push_back(v);
       }
       if (first_done != nullptr) {  // a point none of whose beds has finished is not a sample yet
-        const ReplicateAggregate agg = AggregateReplicates(values);
+        const Scale* scale = FindScale(info.scale);
+        const ReplicateAggregate agg =
+            AggregateReplicates(values, scale && scale->bed_sd_rel ? *scale->bed_sd_rel : 0.0);
         SweepSample sample;
         sample.point = row.point;
         sample.run_id = first_done->run_id;
@@ -322,6 +335,20 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
     sample.has_uz = r.uz.has_value();
     sample.uz_stderr = r.uz_stderr.value_or(0);
     sample.uz_ci95 = r.uz_ci95.value_or(0);
+    if (const Scale* scale = FindScale(info.scale); scale && scale->bed_sd_rel && sample.conclusive) {
+      // One bed: the point's error adds the scale's bed-to-bed prior (core/aggregate.h), as the
+      // claims' points do; the run's own error stays in its result.
+      ReplicateValue v;
+      v.run_id = row.run_id;
+      v.state = row.state;
+      v.conclusive = true;
+      v.uz = r.uz;
+      v.uz_stderr = r.uz_stderr;
+      v.uz_ci95 = r.uz_ci95;
+      const ReplicateAggregate one = AggregateReplicates({v}, *scale->bed_sd_rel);
+      sample.uz_stderr = one.uz_stderr.value_or(sample.uz_stderr);
+      sample.uz_ci95 = one.uz_ci95.value_or(sample.uz_ci95);
+    }
     sample.inconclusive_reason = r.inconclusive_reason.empty() && !r.conclusive ? DescribeUz(r) : r.inconclusive_reason;
     a.samples.push_back(std::move(sample));
   }

@@ -515,6 +515,18 @@ TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) 
   EXPECT_EQ(reply["claims"][1]["parts"][0]["verdict"], "holds") << reply["claims"][1]["parts"][0]["reason"];
   EXPECT_EQ(reply["claims"][2]["verdict"], "differs") << reply["claims"][2]["reason"];
   EXPECT_EQ(reply["counts"]["holds"], 1);
+  // A campaign of one's own has no calibration: its verdicts say so and how to calibrate, and
+  // quote no other design's rates.
+  EXPECT_EQ(reply["design"]["campaign"], "tiny-claims");
+  for (const json& claim : reply["claims"]) {
+    ASSERT_TRUE(claim.contains("rates")) << claim.dump();
+    EXPECT_EQ(claim["rates"]["calibrated"], false);
+    EXPECT_FALSE(claim["rates"].contains("power"));
+    EXPECT_THAT(claim["rates"]["text"].get<std::string>(), HasSubstr("not calibrated at this design"));
+    EXPECT_THAT(claim["rates"]["advice"].get<std::string>(), HasSubstr("bench_claims_calibration"));
+    EXPECT_TRUE(claim["parts"][0].contains("rates"));
+  }
+  EXPECT_THAT(*html, HasSubstr("not calibrated at this design"));
 
   // The fixture's campaign states none: an empty list.
   auto none = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());

@@ -487,9 +487,14 @@ async function campaignRunPage(id) {
   get(`/api/v1/campaign-runs/${id}/claims`).then(c => {
     $('#claims').classList.remove('muted');
     const n = c.counts || {};
-    $('#claims').innerHTML = `<p>${n.holds || 0} hold · ${n.differs || 0} differ · ${n.inconclusive || 0} inconclusive. ${esc(c.note || '')}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>why</th></tr></thead><tbody>` +
+    // A verdict's error rates at this design (core/claim_rates.h), or "not calibrated at this design".
+    const rates = r => r ? `<div class="rates${r.calibrated ? '' : ' uncalibrated'}${r.low_power ? ' low-power' : ''}">${esc(r.text)}${r.advice ? ` — ${esc(r.advice)}` : ''}</div>` : '';
+    const parts = v => (v.parts || []).length ? `<details class="parts"><summary>${v.parts.length} part(s)</summary><ul>` +
+      v.parts.map(p => `<li><span class="state verdict-${esc(p.verdict)}">${esc(p.verdict)}</span> ${esc(p.name)}: ${esc(p.reason)}${rates(p.rates)}</li>`).join('') + '</ul></details>' : '';
+    $('#claims').innerHTML = `<p>${n.holds || 0} hold · ${n.differs || 0} differ · ${n.inconclusive || 0} inconclusive. ${esc(c.note || '')}` +
+      `${c.design_text ? ` Error rates at this design: ${esc(c.design_text)}, measured on the truth engine.` : ''}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>error rates at this design</th><th>why</th></tr></thead><tbody>` +
       (c.claims || []).map(v => `<tr><td title="${esc(v.paper && v.paper.text)}"><b>${esc(v.id)}</b> ${esc(v.title)}</td>` +
-        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td class="wrap">${esc(v.reason)}</td></tr>`).join('') + '</tbody></table>';
+        `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td class="wrap">${rates(v.rates)}</td><td class="wrap">${esc(v.reason)}${parts(v)}</td></tr>`).join('') + '</tbody></table>';
   }).catch(e => { $('#claims').textContent = `No verdicts: ${e.message}`; });
   const plots = $('#uz-plots'), figures = $('#figures');
   for (const sid of info.sweeps) {

@@ -6,7 +6,7 @@
 // runs' 95 % intervals (all, stopped early at a precision target, not), the simulated time of the
 // design, and the nightly drift report's false alarms (two nights of one law on the same beds).
 //
-//   bench_claims_calibration [--campaigns N] [--beds K] [--duration-multiplier M] [--no-precision] [--no-follow]
+//   bench_claims_calibration [--campaign NAME] [--scale S] [--campaigns N] [--beds K] [--duration-multiplier M] [--no-precision] [--no-follow]
 //                            [--laws a,b,...] [--threads T] [--world W] [--drift-campaigns N]
 //                            [--json FILE] [--show W] [--bed-common S] [--bed-point S] [--no-transient]
 //
@@ -51,7 +51,11 @@ int Main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--campaigns") {
+    if (a == "--campaign") {
+      design.campaign = value();
+    } else if (a == "--scale") {
+      design.scale = value();
+    } else if (a == "--campaigns") {
       campaigns = std::atoll(value());
     } else if (a == "--beds") {
       design.beds = std::atoi(value());
@@ -81,7 +85,7 @@ int Main(int argc, char** argv) {
       json_file = value();
     } else {
       std::fprintf(stderr,
-                   "usage: bench_claims_calibration [--campaigns N] [--beds K] [--duration-multiplier M] "
+                   "usage: bench_claims_calibration [--campaign NAME] [--scale S] [--campaigns N] [--beds K] [--duration-multiplier M] "
                    "[--no-precision] [--no-follow] [--laws a,b] [--threads T] [--world W] [--drift-campaigns N] [--json FILE] "
                    "[--show W] [--bed-common S] [--bed-point S] [--no-transient]\n");
       return 2;
@@ -134,11 +138,11 @@ int Main(int argc, char** argv) {
                  tallies.back().seconds);
   }
   std::printf("%s\n", CalibrationMarkdown(tallies, design).c_str());
-  nlohmann::json j = CalibrationJson(tallies, design);
+  nlohmann::json j = CalibrationJson(tallies, *cal, noise);
   if (drift_campaigns > 0) {
     const DriftAlarms d = MeasureDriftAlarms(*cal, *FindLaw("paper"), noise, drift_campaigns, world + 1000000, threads);
     auto pct = [](int64_t k, int64_t n) { return n ? 100.0 * static_cast<double>(k) / static_cast<double>(n) : 0.0; };
-    auto [lo, hi] = Wilson(d.runs_drifted, d.runs_compared);
+    auto [lo, hi] = WilsonInterval(d.runs_drifted, d.runs_compared);
     std::printf(
         "Drift report, law paper, two nights on the same beds (%lld campaigns): %lld of %lld runs flagged "
         "drifted = %.1f %% [%.1f, %.1f] per run",

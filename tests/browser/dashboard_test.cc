@@ -125,6 +125,14 @@ TEST_F(DashboardTest, CampaignPageListsItsRunsFiltersAndSorts) {
   ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#claims-table tbody tr').length === 6", 20))
       << browser_->Text("#claims");
   EXPECT_THAT(browser_->Text("#claims-table"), HasSubstr("F1"));
+  // Each verdict beside its rule's error rates at this design (paper-58 at smoke, one bed: the
+  // committed calibration's), its parts' behind a disclosure.
+  EXPECT_THAT(browser_->Text("#claims-table"), HasSubstr("false holds <="));
+  EXPECT_THAT(browser_->Text("#claims"), HasSubstr("Error rates at this design: paper-58 at smoke, K = 1 bed"));
+  browser_->Script("document.querySelectorAll('#claims details.parts').forEach(d => d.open = true); return 0;");
+  EXPECT_THAT(browser_->Text("#claims-table"), HasSubstr("at this design"));
+  browser_->Script("document.querySelector('#claims').scrollIntoView(); return 0;");
+  Shot("claims");
   // Filter: the Omega sweep's 16 points (the baseline's two are also the Omega sweep's).
   browser_->Type("#runs .table-filter", "Omega-sweep");
   ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#runs tbody tr').length === 16", 5))

@@ -31,7 +31,7 @@ std::string Pct(int64_t k, int64_t n) {
 
 std::string PctInterval(int64_t k, int64_t n) {
   if (n == 0) return "–";
-  auto [lo, hi] = Wilson(k, n);
+  auto [lo, hi] = WilsonInterval(k, n);
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.1f [%.1f, %.1f]", 100.0 * static_cast<double>(k) / static_cast<double>(n),
                 100 * lo, 100 * hi);
@@ -86,6 +86,17 @@ Result<Calibrator> Calibrator::Make(const Design& design) {
     c.sweep_rows_.emplace_back(s.name, std::move(rows));
   }
   return c;
+}
+
+DesignKey Calibrator::Key() const {
+  DesignKey k;
+  k.campaign = design_.campaign;
+  Result<nlohmann::json> definition = BuiltinCampaignDefinition(design_.campaign);
+  k.definition_hash = definition.ok() ? CampaignDefinitionHash(*definition, campaign_.claims) : std::string();
+  k.scale = design_.scale;
+  k.beds = static_cast<int>(plan_.beds.size());
+  k.bed_sd_rel = BedPriorOf(k.scale, k.beds);
+  return k;
 }
 
 double Calibrator::PlannedSimSeconds() const {
@@ -300,13 +311,6 @@ LawTally RunLaw(const Calibrator& cal, const Law& law, const Noise& noise, int64
   return total;
 }
 
-std::pair<double, double> Wilson(int64_t k, int64_t n) {
-  if (n == 0) return {0, 1};
-  const double z = 1.96, nn = static_cast<double>(n), p = static_cast<double>(k) / nn;
-  const double den = 1 + z * z / nn, mid = (p + z * z / (2 * nn)) / den;
-  const double half = z * std::sqrt(p * (1 - p) / nn + z * z / (4 * nn * nn)) / den;
-  return {std::max(0.0, mid - half), std::min(1.0, mid + half)};
-}
 
 std::string CalibrationMarkdown(const std::vector<LawTally>& tallies, const Design& design) {
   std::string out = "Design: campaign " + design.campaign + " at " + design.scale + ", " +
@@ -347,7 +351,15 @@ std::string CalibrationMarkdown(const std::vector<LawTally>& tallies, const Desi
   return out;
 }
 
-nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Design& design) {
+nlohmann::json NoiseToJson(const Noise& n) {
+  return {{"period_rel", n.period_rel},     {"diffusion", n.diffusion},     {"ma_theta", n.ma_theta},
+          {"bed_common", n.bed_common},     {"bed_point", n.bed_point},     {"bed_offset", n.bed_offset},
+          {"jitter_sd", n.jitter_sd},       {"jitter_phi", n.jitter_phi},   {"transient_v0", n.transient_v0},
+          {"transient_tau", n.transient_tau}, {"x_walk", n.x_walk}};
+}
+
+nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Calibrator& cal, const Noise& noise) {
+  const Design& design = cal.design();
   nlohmann::json laws = nlohmann::json::array();
   for (const LawTally& t : tallies) {
     const Law* law = FindLaw(t.law);
@@ -356,7 +368,7 @@ nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Desig
       const Counts& c = t.cells.at(key);
       std::optional<bool> truth = law ? TruthOf(*law, key.first, key.second) : std::nullopt;
       auto rate = [&](int64_t k) {
-        auto [lo, hi] = Wilson(k, c.n());
+        auto [lo, hi] = WilsonInterval(k, c.n());
         return nlohmann::json{{"count", k},
                               {"rate", c.n() ? static_cast<double>(k) / static_cast<double>(c.n()) : 0.0},
                               {"lo", lo},
@@ -393,7 +405,10 @@ nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Desig
             {"precision", design.precision},
             {"follow", design.follow},
             {"follow_every_s", design.follow_every_s},
-            {"follow_lag_s", design.follow_lag_s}}},
+            {"follow_lag_s", design.follow_lag_s},
+            {"planned_simulated_s", cal.PlannedSimSeconds()},
+            {"noise", NoiseToJson(noise)},
+            {"key", DesignKeyToJson(cal.Key())}}},
           {"laws", laws}};
 }
 

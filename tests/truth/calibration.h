@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/claim_rates.h"
 #include "core/claims.h"
 #include "core/status.h"
 #include "core/sweep.h"
@@ -72,6 +73,9 @@ class Calibrator {
   const Plan& plan() const { return plan_; }
   const std::vector<Claim>& claims() const { return campaign_.claims; }
   double PlannedSimSeconds() const;  // sum of the runs' planned durations
+  // The design's key as the verdicts compute it (core/claim_rates.h): the campaign's definition
+  // hash, the scale, K = the plan's beds, the rules' and the analysis's versions.
+  DesignKey Key() const;
 
  private:
   Design design_;
@@ -113,12 +117,11 @@ struct LawTally {
 LawTally RunLaw(const Calibrator& cal, const Law& law, const Noise& noise, int64_t campaigns, uint64_t first_world,
                 int threads);
 
-// A 95 % Wilson interval of k successes in n.
-std::pair<double, double> Wilson(int64_t k, int64_t n);
-
-// The markdown table of tallies (one row per law, claim and part) and its JSON.
+// The markdown table of tallies (one row per law, claim and part) and its JSON: the table the
+// verdicts quote (core/claim_rates.h), its "design" holding the key and the noise it was made with.
 std::string CalibrationMarkdown(const std::vector<LawTally>& tallies, const Design& design);
-nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Design& design);
+nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Calibrator& cal, const Noise& noise);
+nlohmann::json NoiseToJson(const Noise& noise);
 
 // The drift report's false alarms (server/drift_report.h CompareWithPrevious, derived tolerance):
 // two nights of the same campaign on the same beds, same law, new run noise; per run and per point.

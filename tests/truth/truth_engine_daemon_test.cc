@@ -93,6 +93,9 @@ TEST(TruthEngineDaemonTest, Paper58AtSmokeMatchesTheInProcessCalibration) {
   }
   EXPECT_GT(compared, 0);
 
+  // The daemon finds the design the calibration was made at (paper-58 at smoke, one bed, these
+  // rules and analysis) and quotes its committed rates, those of no other design.
+  EXPECT_EQ(claims["design"], DesignKeyToJson(cal->Key())) << claims["design"].dump();
   // Every claim and part: the same verdict.
   ASSERT_EQ(claims["claims"].size(), sim.verdicts.size()) << claims.dump();
   for (size_t i = 0; i < sim.verdicts.size(); ++i) {
@@ -100,6 +103,9 @@ TEST(TruthEngineDaemonTest, Paper58AtSmokeMatchesTheInProcessCalibration) {
     const ClaimVerdict& want = sim.verdicts[i];
     EXPECT_EQ(got["id"], want.claim.id);
     EXPECT_EQ(got["verdict"], VerdictName(want.verdict)) << want.claim.id << ": " << got["reason"];
+    const ClaimRates rates = RatesFor(want.claim.id, "", cal->Key(), CommittedCalibrations());
+    EXPECT_TRUE(rates.calibrated) << rates.text;
+    EXPECT_EQ(got["rates"]["text"], rates.text) << want.claim.id;
     ASSERT_EQ(got["parts"].size(), want.parts.size()) << want.claim.id;
     for (size_t p = 0; p < want.parts.size(); ++p) {
       EXPECT_EQ(got["parts"][p]["name"], want.parts[p].name);

@@ -3,11 +3,14 @@
 // when there is noise; the bed effect is shared by a bed's points and averages out over beds; a
 // simulated campaign is reproducible from its seed; and on near-noiseless data the harness hands
 // the claims what the law says (the signs of F1 and F5's "vibration alone rises").
+#include <algorithm>
 #include <cmath>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "core/claim_rates.h"
+#include "core/embedded.h"
 #include "core/engine_log.h"
 #include "core/trajectory.h"
 #include "tests/truth/calibration.h"
@@ -230,9 +233,93 @@ TEST(CalibrationTest, TruthTableNamesTheBrokenParts) {
   EXPECT_EQ(TruthOf(*FindLaw("no_peak_f"), "F4", ""), std::optional<bool>(false));
   EXPECT_EQ(TruthOf(*FindLaw("modes_equal"), "F5", "vibration alone rises"), std::optional<bool>(true));
   EXPECT_EQ(TruthOf(paper, "F6", ""), std::nullopt);
-  auto [lo, hi] = Wilson(50, 100);
+  auto [lo, hi] = WilsonInterval(50, 100);
   EXPECT_LT(lo, 0.5);
   EXPECT_GT(hi, 0.5);
+}
+
+}  // namespace
+}  // namespace sandswim::truth
+
+namespace sandswim::truth {
+namespace {
+
+// The committed calibration tables (templates/calibration/, what the verdicts quote) are current:
+// made for the campaign definition, the claims' rules and the run analysis this build has, with
+// the truth engine's noise as it is; and the campaign's default design is among them.
+TEST(CommittedCalibrationTest, IsCurrent) {
+  const std::string regenerate = "regenerate them: tests/truth/regenerate_calibration.sh (then rebuild and commit)";
+  ASSERT_FALSE(CommittedCalibrations().empty()) << "no calibration table is compiled in; " << regenerate;
+  for (const CalibrationTable& t : CommittedCalibrations()) {
+    const nlohmann::json j = nlohmann::json::parse(*EmbeddedFile(t.file), nullptr, false);
+    const nlohmann::json d = j.is_object() ? j.value("design", nlohmann::json::object()) : nlohmann::json::object();
+    Design design;
+    design.campaign = t.key.campaign;
+    design.scale = t.key.scale;
+    design.beds = t.key.beds;
+    Result<Calibrator> cal = Calibrator::Make(design);
+    ASSERT_TRUE(cal.ok()) << t.file << ": " << cal.status().ToString();
+    const DesignKey now = cal->Key();
+    EXPECT_EQ(t.key.definition_hash, now.definition_hash)
+        << t.file << " was made for another definition of " << t.key.campaign << "; " << regenerate;
+    EXPECT_EQ(t.key.rules_version, kClaimRulesVersion) << t.file << " was made with other claims rules; " << regenerate;
+    EXPECT_EQ(t.key.bed_sd_rel, now.bed_sd_rel) << t.file << " was made with another bed prior; " << regenerate;
+    EXPECT_EQ(t.key.analysis_version, api::kAnalysisVersion)
+        << t.file << " was made with another run analysis; " << regenerate;
+    EXPECT_EQ(d.value("noise", nlohmann::json()), NoiseToJson(Noise{}))
+        << t.file << " was made with another truth-engine noise; " << regenerate;
+    EXPECT_EQ(d.value("precision", false), true) << t.file;
+    EXPECT_EQ(d.value("follow", false), true) << t.file;
+    EXPECT_EQ(d.value("duration_multiplier", 0.0), 1.0) << t.file;
+  }
+  // paper-58's own design at smoke (its default K) is calibrated.
+  Result<Calibrator> builtin = Calibrator::Make(Design{});
+  ASSERT_TRUE(builtin.ok());
+  const DesignKey key = builtin->Key();
+  EXPECT_TRUE(std::any_of(CommittedCalibrations().begin(), CommittedCalibrations().end(),
+                          [&](const CalibrationTable& t) { return t.key == key; }))
+      << DescribeDesign(key) << " has no table; " << regenerate;
+}
+
+// A small run of the benchmark (new worlds) agrees with the committed K = 1 table: for every law,
+// claim and part, the rates of holds and of differs differ by no more than their binomial errors
+// allow (4 standard errors of the difference, pooled, plus half a count: some 350 comparisons, all
+// deterministic).
+TEST(CommittedCalibrationTest, SmallRunAgreesWithTheTable) {
+  Design design;
+  design.beds = 1;
+  Result<Calibrator> cal = Calibrator::Make(design);
+  ASSERT_TRUE(cal.ok());
+  const CalibrationTable* table = nullptr;
+  for (const CalibrationTable& t : CommittedCalibrations())
+    if (t.key == cal->Key()) table = &t;
+  ASSERT_NE(table, nullptr) << "no committed table at " << DescribeDesign(cal->Key())
+                            << ": tests/truth/regenerate_calibration.sh";
+  const int64_t n = 24;
+  int compared = 0;
+  for (const nlohmann::json& law : table->laws) {
+    const Law* l = FindLaw(law.value("law", ""));
+    ASSERT_NE(l, nullptr) << law.value("law", "");
+    const LawTally small = RunLaw(*cal, *l, Noise{}, n, 5'000'001, 2);
+    for (const nlohmann::json& cell : law["cells"]) {
+      const auto key = std::make_pair(cell.value("claim", ""), cell.value("part", ""));
+      auto it = small.cells.find(key);
+      ASSERT_NE(it, small.cells.end()) << l->name << " " << key.first << " [" << key.second << "] not in the small run";
+      for (const char* kind : {"holds", "differs"}) {
+        const double nc = cell.value("n", 0.0), kc = cell[kind].value("count", 0.0);
+        const double ks = static_cast<double>(std::string(kind) == "holds" ? it->second.holds : it->second.differs);
+        const double ns = static_cast<double>(it->second.n());
+        const double pooled = (kc + ks) / (nc + ns);
+        const double se = std::sqrt(pooled * (1 - pooled) * (1 / nc + 1 / ns));
+        EXPECT_LE(std::fabs(ks / ns - kc / nc), 4 * se + 0.5 / ns)
+            << l->name << " " << key.first << " [" << key.second << "] " << kind << ": " << ks << " of " << ns
+            << " now, " << kc << " of " << nc << " in " << table->file
+            << ": the table is stale, regenerate it (tests/truth/regenerate_calibration.sh)";
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GT(compared, 100);
 }
 
 }  // namespace
