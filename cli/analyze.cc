@@ -120,7 +120,16 @@ std::string RenderDumpAnalysis(const DumpAnalysis& a) {
       << (r.block_kind.empty() ? "period" : r.block_kind) << (r.uz_blocks == 1 ? "" : "s") << " of "
       << Num(r.block_s, 4) << " s, ended by " << r.window_end << "\n";
   out << "  motion:   dz = " << Num(r.dz, 4) << " m over " << Num(r.sim_time_s, 4) << " s (dz/T " << Num(r.dz_rate, 4)
-      << " m/s), x drift " << Num(r.x_drift, 4) << " m, z oscillation at f " << Num(r.z_osc_amplitude, 4) << " m\n";
+      << " m/s), x drift " << Num(r.x_drift, 4) << " m\n";
+  out << "  at f:     z oscillates " << Num(r.z_osc_amplitude, 4) << " m, x "
+      << (r.x_osc_amplitude ? Num(*r.x_osc_amplitude, 4) + " m" : std::string("not measured")) << "\n";
+  if (r.trend_p) {
+    out << "  trend:    period rate changes by " << Num(*r.trend_slope, 3) << " ± " << Num(*r.trend_slope_se, 3)
+        << " m/s² (p = " << Num(*r.trend_p, 3) << ")"
+        << (r.trending ? ": TRENDING, U_z is the window's mean of a drifting rate" : "") << "\n";
+  } else {
+    out << "  trend:    not tested: " << r.trend_note << "\n";
+  }
   out << "  inputs:   " << a.samples << " samples; f = " << Num(a.inputs.f, 4) << " Hz (" << a.f_from
       << "), dt = " << Num(a.inputs.dt, 4) << " s (" << a.dt_from << ")\n";
   out << "            floor "

@@ -341,9 +341,10 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
       header,
       "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,replicate,bed_id,Uz_text,Uz,Uz_stderr,"
       "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,"
-      "inconclusive_reason,dz,dz_rate,z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,"
+      "inconclusive_reason,trending,trend_p,trend_slope,trend_slope_se,trend_note,dz,dz_rate,z_osc_amplitude,"
+      "x_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,"
       "stop_note,precision_met,sim_time_s,grains,analysis,analysed_from,engine_version");
-  EXPECT_THAT(row1, MatchesRegex("[0-9]+,[0-9a-f]{64},queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,0,[0-9]+(,){26}"));
+  EXPECT_THAT(row1, MatchesRegex("[0-9]+,[0-9a-f]{64},queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,0,[0-9]+(,){32}"));
 
   for (std::vector<std::string> args : {std::vector<std::string>{"--format", "json"}, {"--json"}}) {
     std::vector<std::string> argv = {"results", std::to_string(id)};

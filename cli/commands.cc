@@ -829,8 +829,11 @@ void SetupAnalyze(CLI::App& sub, Args& a) {
       ->check(kFinite);
   sub.add_option("--deck", a.an_deck, "the run's deck (default: drive.in beside the dump)");
   sub.add_option("--log", a.an_log, "the run's engine log (default: log.liggghts beside the dump)");
+  sub.add_option("--transient", a.an_rule.transient_s,
+                 "s skipped at the start (the start-up transient; at least --transient-periods periods)")
+      ->capture_default_str();
   sub.add_option("--transient-periods", a.an_rule.transient_blocks,
-                 "whole periods (blocks, for constant rotation) skipped at the start")
+                 "whole periods (blocks, for constant rotation) skipped at the start at least")
       ->capture_default_str();
   sub.add_option("--clearance", a.an_rule.clearance_m,
                  "m of grains kept between the SO and the surface or floor: the window ends before")
@@ -852,9 +855,11 @@ int RunAnalyze(Context& c) {
   o.deck = c.args.an_deck;
   o.log = c.args.an_log;
   o.rule = c.args.an_rule;
-  if (!(o.rule.transient_blocks >= 0) || !(o.rule.clearance_m >= 0) || o.rule.min_periods < 1) {
+  if (!(o.rule.transient_s >= 0) || !(o.rule.transient_blocks >= 0) || !(o.rule.clearance_m >= 0) ||
+      o.rule.min_periods < 1) {
     return Fail(c,
-                Status::InvalidArgument("--transient-periods/--clearance/--min-periods", "must be >= 0, >= 0 and >= 1"),
+                Status::InvalidArgument("--transient/--transient-periods/--clearance/--min-periods",
+                                        "must be >= 0, >= 0, >= 0 and >= 1"),
                 kExitUsage);
   }
   json all = json::array();

@@ -366,8 +366,18 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
     out << "  window:    " << NumCell(r, "window_t0", 4) << " .. " << NumCell(r, "window_t1", 4) << " s, ended by "
         << Str(r, "window_end", "?") << "\n";
     out << "  motion:    dz = " << NumCell(r, "dz", 4) << " m (dz/T over the whole run " << NumCell(r, "dz_rate", 3)
-        << " m/s), x drift = " << NumCell(r, "x_drift", 4) << " m, z oscillation at f "
-        << NumCell(r, "z_osc_amplitude", 3) << " m\n";
+        << " m/s), x drift = " << NumCell(r, "x_drift", 4) << " m\n";
+    // x's amplitude is absent where it was not measured (no whole period, or an older analysis).
+    out << "  at f:      z oscillates " << NumCell(r, "z_osc_amplitude", 3) << " m, x "
+        << (r.contains("x_osc_amplitude") ? NumCell(r, "x_osc_amplitude", 3) + " m" : std::string("not measured"))
+        << "\n";
+    if (r.contains("trend_p")) {
+      out << "  trend:     period rate changes by " << NumCell(r, "trend_slope", 2) << " ± "
+          << NumCell(r, "trend_slope_se", 2) << " m/s² (p = " << NumCell(r, "trend_p", 2) << ")"
+          << (Bool(r, "trending") ? ": TRENDING, U_z is the window's mean of a drifting rate" : "") << "\n";
+    } else if (!Str(r, "trend_note").empty()) {
+      out << "  trend:     not tested: " << Str(r, "trend_note") << "\n";
+    }
     const std::string stop_note = Str(r, "stop_note");
     out << "  ended:     " << (stop_note.empty() ? Str(r, "stop_reason", "?") : stop_note) << "\n";
     out << "  executed:  " << Str(r, "engine_version", "?") << " on " << Str(r, "host", "?") << ", "
@@ -403,6 +413,8 @@ std::string ResultFlags(const json& row) {
   auto met = row.find("precision_met");
   if (met != row.end() && met->is_boolean())
     flags += (flags.empty() ? "" : ",") + std::string(*met ? "target" : "target-missed");
+  // Its period rates drift with time (core/trajectory.h "Trend"): U_z is their mean over the window.
+  if (Bool(row, "trending")) flags += (flags.empty() ? "" : ",") + std::string("trend");
   return flags;
 }
 

@@ -119,12 +119,13 @@ TEST(FormatTest, ResultsCsvGolden) {
   EXPECT_EQ(
       RenderResultsCsv(TwoResultRows()),
       "run_id,key,state,mode,A,f,Omega,omega,axis,duration_s,run_duration_s,replicate,bed_id,Uz_text,Uz,Uz_stderr,"
-      "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,inconclusive_reason,dz,dz_rate,"
-      "z_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,stop_note,precision_met,sim_time_s,grains,"
-      "analysis,analysed_from,engine_version\n"
+      "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,inconclusive_reason,trending,"
+      "trend_p,trend_slope,trend_slope_se,trend_note,dz,dz_rate,z_osc_amplitude,x_osc_amplitude,x_drift,"
+      "broke_surface,near_floor,stop_reason,stop_note,precision_met,sim_time_s,grains,analysis,analysed_from,"
+      "engine_version\n"
       "1,k1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,,,\"0.0123 ± 0.0001, 4 periods\",0.0123456,0.0001,0.000318,4,"
-      ",,,,surface,true,,0.061728,0.012346,,,true,false,surface,,,,,2,,\n"
-      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,,,\n");
+      ",,,,surface,true,,,,,,,0.061728,0.012346,,,,true,false,surface,,,,,2,,\n"
+      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,\n");
 }
 
 // A point on three beds: its mean ± standard error, K as conclusive/all, each bed's value (an
@@ -253,6 +254,33 @@ TEST(FormatTest, RunDetailShowsDeckResultAndLog) {
   EXPECT_THAT(text, HasSubstr("95 % interval ± 0.00032 m/s (Student t, 4 whole period rates)"));
   EXPECT_THAT(text, HasSubstr("window:    0.333 .. 1.667 s, ended by run_end"));
   EXPECT_THAT(text, HasSubstr("--- deck ---\nrun 1000\n--- log tail ---\nLoop time of 95\n"));
+  // A result without x's amplitude or a trend test (an older analysis) says so.
+  EXPECT_THAT(text, HasSubstr("x not measured"));
+  EXPECT_THAT(text, Not(HasSubstr("trend:")));
+
+  run["result"]["x_osc_amplitude"] = 0.0031;
+  run["result"]["z_osc_amplitude"] = 0.004;
+  run["result"]["trend_slope"] = 0.021;
+  run["result"]["trend_slope_se"] = 0.004;
+  run["result"]["trend_p"] = 0.0003;
+  run["result"]["trending"] = true;
+  text = RenderRunDetail(run, {});
+  EXPECT_THAT(text, HasSubstr("at f:      z oscillates 0.004 m, x 0.0031 m\n"));
+  EXPECT_THAT(text, HasSubstr("trend:     period rate changes by 0.021 ± 0.004 m/s² (p = 0.0003): TRENDING"));
+  run["result"].erase("trend_p");
+  run["result"]["trending"] = false;
+  run["result"]["trend_note"] = "the window holds 3 whole periods; a trend test needs at least 4";
+  text = RenderRunDetail(run, {});
+  EXPECT_THAT(text, HasSubstr("trend:     not tested: the window holds 3 whole periods"));
+}
+
+TEST(FormatTest, ResultsTableFlagsATrendingRun) {
+  json rows = json::parse(R"([{"run_id": 1, "state": "done", "mode": "vibration", "A": 0.03, "f": 3,
+      "duration_s": 4, "Uz_text": "0.0120 ± 0.0001, 9 periods", "dz": 0.05, "dz_rate": 0.0125,
+      "trending": true, "trend_p": 0.001}])");
+  EXPECT_THAT(RenderResultsTable(rows, {}), HasSubstr("trend"));
+  rows[0]["trending"] = false;
+  EXPECT_THAT(RenderResultsTable(rows, {}), Not(HasSubstr("trend")));
 }
 
 }  // namespace

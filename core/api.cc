@@ -35,6 +35,8 @@ void to_json(nlohmann::json& j, const RunResult& r) {
                      {"dz_rate", r.dz_rate},
                      {"z_osc_amplitude", r.z_osc_amplitude},
                      {"x_drift", r.x_drift},
+                     {"trending", r.trending},
+                     {"trend_note", r.trend_note},
                      {"broke_surface", r.broke_surface},
                      {"near_floor", r.near_floor},
                      {"stop_reason", r.stop_reason},
@@ -49,6 +51,10 @@ void to_json(nlohmann::json& j, const RunResult& r) {
   PutOptional(j, "uz_stderr", r.uz_stderr);
   PutOptional(j, "uz_ci95", r.uz_ci95);
   PutOptional(j, "precision_met", r.precision_met);
+  PutOptional(j, "x_osc_amplitude", r.x_osc_amplitude);
+  PutOptional(j, "trend_slope", r.trend_slope);
+  PutOptional(j, "trend_slope_se", r.trend_slope_se);
+  PutOptional(j, "trend_p", r.trend_p);
 }
 
 void from_json(const nlohmann::json& j, RunResult& r) {
@@ -68,6 +74,12 @@ void from_json(const nlohmann::json& j, RunResult& r) {
   r.dz_rate = j.value("dz_rate", 0.0);
   r.z_osc_amplitude = j.value("z_osc_amplitude", 0.0);
   r.x_drift = j.value("x_drift", 0.0);
+  GetOptional(j, "x_osc_amplitude", r.x_osc_amplitude);
+  GetOptional(j, "trend_slope", r.trend_slope);
+  GetOptional(j, "trend_slope_se", r.trend_slope_se);
+  GetOptional(j, "trend_p", r.trend_p);
+  r.trending = j.value("trending", false);
+  r.trend_note = j.value("trend_note", "");
   r.broke_surface = j.value("broke_surface", false);
   r.near_floor = j.value("near_floor", false);
   r.stop_reason = j.value("stop_reason", "");

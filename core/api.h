@@ -113,8 +113,11 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(HeartbeatReply, ttl_s, cancel)
 // re-analysed from their stored trajectories when the daemon upgrades its database. 2 took U_z
 // from whole-period block rates; 3 takes a run ended by its precision target (its rate, error and
 // interval) from the blocks after its two-stage rule's pilot (core/precision.h), instead of from
-// every block with the interval its stop was chosen on, which was too narrow.
-inline constexpr int kAnalysisVersion = 3;
+// every block with the interval its stop was chosen on, which was too narrow. 4 starts the steady
+// window after a transient stated in physical time (at least one period, core/trajectory.h
+// WindowRule), tests the window's period rates for a trend (trend_*) and measures x's amplitude at
+// f (x_osc_amplitude).
+inline constexpr int kAnalysisVersion = 4;
 struct RunResult {
   std::optional<double> uz;         // m/s, mean rate over the window's whole blocks; absent: none
   std::optional<double> uz_stderr;  // m/s, from the scatter of the block rates; absent: too few
@@ -131,7 +134,16 @@ struct RunResult {
   double dz = 0;                    // m, z(end) - z(0)
   double dz_rate = 0;               // m/s, dz over the whole run's duration
   double z_osc_amplitude = 0;       // m, amplitude of z's oscillation at the drive frequency f
+  std::optional<double> x_osc_amplitude;  // m, the same for x; absent: not measured (no whole period)
   double x_drift = 0;               // m, x(end) - x(0)
+  // Whether the window's period rates drift with time (core/trajectory.h "Trend"): the slope of
+  // the period rate on time, its standard error and the two-sided p value of its t test; absent
+  // (trend_note says why) with too few periods. trending: p < kTrendAlpha. U_z stays as measured.
+  std::optional<double> trend_slope;     // m/s^2
+  std::optional<double> trend_slope_se;  // m/s^2
+  std::optional<double> trend_p;
+  bool trending = false;
+  std::string trend_note;  // why there is no trend test ("" when there is one)
   bool broke_surface = false;       // the engine stopped because the SO broke the top surface
   bool near_floor = false;          // the engine stopped because the SO reached the floor
   // Why the run ended: "duration" (all its steps: the duration asked, or a precision target's

@@ -1490,53 +1490,62 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   }
   v.parts.push_back(std::move(near));
 
-  // z oscillates at f with an x component of omega, smoothly without one.
-  ClaimPart osc;
+  // z oscillates at f with an x component of omega, smoothly without one; x oscillates at f with
+  // a z component. Each is the run's amplitude at f as measured (no error): a run with no whole
+  // period, or an x amplitude of an older analysis, was not measured and counts as missing.
   const double ratio = Param(c, "osc_ratio", 2.0);
-  osc.name = "z oscillates strongly at f when omega has an x component";
-  auto amplitudes = [&](const std::vector<std::string>& sweeps, bool with, int* unfinished) {
-    std::vector<double> a;
-    for (const std::string& name : sweeps) {
-      const ClaimSweep* s = FindSweep(in, name);
-      if (s == nullptr) continue;
-      for (const ClaimRun& r : s->runs) {
-        if (r.state != "done" || !r.result) {
-          ++*unfinished;
-          continue;
-        }
-        if (r.result->uz_blocks < 1) {
-          // No whole period in the window: the amplitude at f was not measured (the result's 0 is
-          // not a measurement).
-          ++*unfinished;
+  auto oscillation = [&](char axis, const std::string& with_key, const std::string& without_key,
+                         const std::string& component) {
+    ClaimPart osc;
+    osc.name = std::string(1, axis) + " oscillates strongly at f when omega has " + component + " component";
+    auto amplitudes = [&](const std::vector<std::string>& sweeps, bool with, int* unfinished) {
+      std::vector<double> a;
+      for (const std::string& name : sweeps) {
+        const ClaimSweep* s = FindSweep(in, name);
+        if (s == nullptr) continue;
+        for (const ClaimRun& r : s->runs) {
+          if (r.state != "done" || !r.result) {
+            ++*unfinished;
+            continue;
+          }
           ClaimFigure f;
-          f.name = "z amplitude at f, " + name + " run " + std::to_string(r.run_id) + (with ? " (x component)" : "");
+          f.name = std::string(1, axis) + " amplitude at f, " + name + " run " + std::to_string(r.run_id) +
+                   (with ? " (" + component.substr(component.find(' ') + 1) + " component)" : "");
           f.unit = "m";
-          f.note = "not measured: no whole period in the steady window";
+          std::optional<double> amplitude;
+          if (r.result->uz_blocks < 1) {
+            f.note = "not measured: no whole period in the steady window";
+          } else if (axis == 'z') {
+            amplitude = r.result->z_osc_amplitude;
+          } else if (r.result->x_osc_amplitude) {
+            amplitude = *r.result->x_osc_amplitude;
+          } else {
+            f.note = "not measured (a result of analysis " + std::to_string(r.result->analysis) + ")";
+          }
+          if (!amplitude) {
+            ++*unfinished;
+          } else {
+            a.push_back(*amplitude);
+            f.value = *amplitude;
+          }
           osc.figures.push_back(std::move(f));
-          continue;
         }
-        a.push_back(r.result->z_osc_amplitude);
-        ClaimFigure f;
-        f.name = "z amplitude at f, " + name + " run " + std::to_string(r.run_id) + (with ? " (x component)" : "");
-        f.value = r.result->z_osc_amplitude;
-        f.unit = "m";
-        osc.figures.push_back(std::move(f));
       }
+      return a;
+    };
+    int unfinished = 0;
+    std::vector<double> with = amplitudes(SweepList(c, with_key.c_str()), true, &unfinished);
+    std::vector<double> without = amplitudes(SweepList(c, without_key.c_str()), false, &unfinished);
+    if (with.empty() || without.empty()) {
+      osc.reason = "no run with a measured amplitude on one side";
+      return osc;
     }
-    return a;
-  };
-  int unfinished = 0;
-  std::vector<double> with = amplitudes(SweepList(c, "z_osc_with"), true, &unfinished);
-  std::vector<double> without = amplitudes(SweepList(c, "z_osc_without"), false, &unfinished);
-  if (with.empty() || without.empty()) {
-    osc.reason = "no run with a measured amplitude on one side";
-  } else {
     const double min_with = *std::min_element(with.begin(), with.end());
     const double max_without = *std::max_element(without.begin(), without.end());
-    const std::string numbers = "smallest amplitude with an x component " + Num(min_with, 3) + " m, largest without " +
-                                Num(max_without, 3) + " m";
+    const std::string numbers = "smallest amplitude with " + component + " component " + Num(min_with, 3) +
+                                " m, largest without " + Num(max_without, 3) + " m";
     // The amplitudes have no error: "differs" asks as much margin the other way as "holds" asks
-    // (a with-x amplitude a little below a without-x one may be noise, not a refutation).
+    // (a with amplitude a little below a without one may be noise, not a refutation).
     if (ratio * min_with <= max_without) {
       osc.verdict = Verdict::kDiffers;
       osc.reason = numbers + ": the largest without is at least " + Num(ratio) + " times the smallest with";
@@ -1544,18 +1553,24 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
       osc.verdict = Verdict::kHolds;
       osc.reason = numbers + ": at least " + Num(ratio) + " times";
     } else {
-      osc.reason = numbers + (unfinished > 0 ? "; " + std::to_string(unfinished) + " run(s) not finished or not measured" : "") +
-                   (min_with < ratio * max_without ? ": within a factor " + Num(ratio) + " of each other, not decided" : "");
+      osc.reason = numbers +
+                   (unfinished > 0 ? "; " + std::to_string(unfinished) + " run(s) not finished or not measured" : "") +
+                   (min_with < ratio * max_without ? ": within a factor " + Num(ratio) + " of each other, not decided"
+                                                   : "");
     }
-  }
-  v.parts.push_back(std::move(osc));
-
+    return osc;
+  };
+  v.parts.push_back(oscillation('z', "z_osc_with", "z_osc_without", "an x"));
   if (c.rule.contains("x_osc_with")) {
-    v.parts.push_back({"x oscillates strongly at f when omega has a z component",
-                       Verdict::kInconclusive,
-                       "the run analysis measures x's drift, not its amplitude at f: not decided",
-                       {},
-                       std::nullopt});
+    if (c.rule.contains("x_osc_without")) {
+      v.parts.push_back(oscillation('x', "x_osc_with", "x_osc_without", "a z"));
+    } else {
+      v.parts.push_back({"x oscillates strongly at f when omega has a z component",
+                         Verdict::kInconclusive,
+                         "the rule names no x_osc_without sweeps to compare x's amplitude at f with: not decided",
+                         {},
+                         std::nullopt});
+    }
   }
 }
 

@@ -494,12 +494,41 @@ TEST(ClaimsTest, ModesHoldDifferOrAreInconclusive) {
     if (sweep.name == "rot-xz") sweep.runs[0].result->z_osc_amplitude = 0.0015;
   v = Evaluate(f5, close.input);
   EXPECT_EQ(v.parts[3].verdict, Verdict::kDiffers) << v.parts[3].reason;
-  // x's oscillation at f is not measured: asked for, it stays inconclusive.
+  // x's oscillation at f, by the same rule on x_osc_amplitude: it holds, differs, or stays
+  // inconclusive where an amplitude was not measured (absent: no whole period or an older analysis).
   const Claim with_x = ClaimOf(R"({"id": "F5", "title": "t", "source": "s", "paper": {"text": "p"}, "rule": {)" + rule +
-                               R"(, "x_osc_with": ["rot-z", "rot-xz"]}})");
-  v = Evaluate(with_x, build(0.005).input);
-  EXPECT_EQ(v.verdict, Verdict::kInconclusive);
-  EXPECT_THAT(v.reason, HasSubstr("not decided"));
+                               R"(, "x_osc_with": ["rot-z", "rot-xz"], "x_osc_without": ["vib", "rot-x", "rot-y"]}})");
+  const std::map<std::string, double> x_amplitude = {
+      {"vib", 0.0003}, {"rot-x", 0.0004}, {"rot-y", 0.0002}, {"rot-z", 0.004}, {"rot-xz", 0.0035}};
+  auto with_x_amplitudes = [&](double rot_xz) {
+    Synth s = build(0.005);
+    for (ClaimSweep& sweep : s.input.sweeps) sweep.runs[0].result->x_osc_amplitude = x_amplitude.at(sweep.name);
+    for (ClaimSweep& sweep : s.input.sweeps)
+      if (sweep.name == "rot-xz") sweep.runs[0].result->x_osc_amplitude = rot_xz;
+    return s;
+  };
+  v = Evaluate(with_x, with_x_amplitudes(0.0035).input);
+  ASSERT_EQ(v.parts.size(), 5u);
+  EXPECT_EQ(v.parts[4].name, "x oscillates strongly at f when omega has a z component");
+  EXPECT_EQ(v.parts[4].verdict, Verdict::kHolds) << v.parts[4].reason;
+  EXPECT_EQ(v.verdict, Verdict::kHolds) << v.reason;
+  v = Evaluate(with_x, with_x_amplitudes(0.0002).input);  // rot-xz's x barely oscillates
+  EXPECT_EQ(v.parts[4].verdict, Verdict::kDiffers) << v.parts[4].reason;
+  Synth unmeasured = with_x_amplitudes(0.0035);
+  for (ClaimSweep& sweep : unmeasured.input.sweeps)
+    if (sweep.name == "rot-z") sweep.runs[0].result->x_osc_amplitude.reset();
+  v = Evaluate(with_x, unmeasured.input);
+  EXPECT_EQ(v.parts[4].verdict, Verdict::kInconclusive) << v.parts[4].reason;
+  EXPECT_THAT(v.parts[4].reason, HasSubstr("not measured"));
+  bool figure_says_why = false;
+  for (const ClaimFigure& f : v.parts[4].figures) figure_says_why |= !f.value && f.note.find("not measured") == 0;
+  EXPECT_TRUE(figure_says_why);
+  // Without x_osc_without there is nothing to compare with: inconclusive, saying so.
+  const Claim x_alone = ClaimOf(R"({"id": "F5", "title": "t", "source": "s", "paper": {"text": "p"}, "rule": {)" +
+                                rule + R"(, "x_osc_with": ["rot-z", "rot-xz"]}})");
+  v = Evaluate(x_alone, with_x_amplitudes(0.0035).input);
+  EXPECT_EQ(v.parts[4].verdict, Verdict::kInconclusive);
+  EXPECT_THAT(v.parts[4].reason, HasSubstr("x_osc_without"));
 }
 
 // ---- Points over replicate beds, censored runs, scale ----------------------------------------------

@@ -103,7 +103,7 @@ double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target)
   if (!target) return p.duration_s;
   const WindowRule rule;
   const double block = p.has_vibration() ? 1.0 / p.f : rule.undriven_block_s;
-  const double needed = (rule.transient_blocks + target->min_periods) * block;
+  const double needed = TransientS(rule, block) + target->min_periods * block;
   return std::min(p.duration_s, std::max(target->max_duration_s, needed));
 }
 

@@ -201,7 +201,10 @@ TEST(PrecisionTest, RunDurationHoldsTheTransientAndMinPeriods) {
   rotation.mode = Mode::kRotation;
   rotation.omega = 80;
   rotation.duration_s = 4;
-  EXPECT_DOUBLE_EQ(RunDuration(rotation, PrecisionTarget{0.1, 0, 10, 1}), 11 * WindowRule{}.undriven_block_s);
+  // The transient is the fewest whole blocks that last WindowRule::transient_s (two of 0.25 s).
+  const WindowRule rule;
+  EXPECT_DOUBLE_EQ(RunDuration(rotation, PrecisionTarget{0.1, 0, 10, 1}), 12 * rule.undriven_block_s);
+  EXPECT_DOUBLE_EQ(TransientS(rule, rule.undriven_block_s), 2 * rule.undriven_block_s);
 }
 
 // The merged target must never be met where either one is not: a 0 threshold is the strictest.

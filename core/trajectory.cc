@@ -37,11 +37,12 @@ std::optional<double> LineValue(std::string_view deck, std::string_view prefix) 
   return std::nullopt;
 }
 
-// Least squares of z = c0 + c1 (t - tm) + sum_{h=1..3} a_h sin(2 pi h f t) + b_h cos(2 pi h f t)
+// Least squares of z (or `coord`) = c0 + c1 (t - tm) + sum_{h=1..3} a_h sin(2 pi h f t) + b_h cos(2 pi h f t)
 // over [i0, i1); returns the amplitude at f, sqrt(a_1^2 + b_1^2), or nullopt when the samples
 // cannot resolve the harmonics. The harmonics 2f and 3f are in the model so that they do not leak
 // into the amplitude at f.
-std::optional<double> OscillationAmplitude(const std::vector<SoSample>& s, size_t i0, size_t i1, double f) {
+std::optional<double> OscillationAmplitude(const std::vector<SoSample>& s, size_t i0, size_t i1, double f,
+                                           double SoSample::*coord = &SoSample::z) {
   constexpr int k = 8;
   if (i1 - i0 < 4 * k) return std::nullopt;
   const double n = static_cast<double>(i1 - i0);
@@ -62,7 +63,7 @@ std::optional<double> OscillationAmplitude(const std::vector<SoSample>& s, size_
     double x[k];
     basis(s[i], x);
     for (int a = 0; a < k; ++a) {
-      m[a][k] += x[a] * s[i].z;
+      m[a][k] += x[a] * (s[i].*coord);
       for (int b = 0; b < k; ++b) m[a][b] += x[a] * x[b];
     }
   }
@@ -96,6 +97,9 @@ double ZAt(const std::vector<SoSample>& s, double t) {
   const SoSample& a = *(it - 1);
   return a.z + (b.z - a.z) * (t - a.t) / (b.t - a.t);
 }
+
+// Forward: defined with the public functions below.
+void TestTrend(const std::vector<SoSample>& samples, const WindowRule& rule, api::RunResult* r);
 
 }  // namespace
 
@@ -210,12 +214,17 @@ Result<std::vector<SoSample>> SamplesFromDump(std::string_view text, double dt, 
 
 double StudentT95(int dof) { return gsl_cdf_tdist_Pinv(0.975, std::max(dof, 1)); }
 
-BlockRate MeanBlockRate(const std::vector<SoSample>& samples, double t0, double block_s, int blocks,
-                        int min_blocks_for_error) {
-  BlockRate out;
-  out.blocks = blocks;
-  out.t0 = t0;
-  out.t1 = t0 + blocks * block_s;
+double TransientS(const WindowRule& rule, double block_s) {
+  // Whole blocks, so that the window's z_k are read at the drive's phase at t = 0 (the tolerance
+  // keeps a transient_s that is a whole number of blocks, as 1 / f may not be exact).
+  const double blocks = std::ceil(rule.transient_s / block_s - 1e-9);
+  return std::max(blocks, rule.transient_blocks) * block_s;
+}
+
+namespace {
+
+// The rates of `blocks` whole blocks of block_s from t0: (z(t0 + (k+1) T) - z(t0 + k T)) / T.
+std::vector<double> BlockRates(const std::vector<SoSample>& samples, double t0, double block_s, int blocks) {
   std::vector<double> rates;
   rates.reserve(blocks);
   double z_prev = ZAt(samples, t0);
@@ -224,6 +233,58 @@ BlockRate MeanBlockRate(const std::vector<SoSample>& samples, double t0, double 
     rates.push_back((z - z_prev) / block_s);
     z_prev = z;
   }
+  return rates;
+}
+
+}  // namespace
+
+std::optional<Trend> BlockRateTrend(const std::vector<SoSample>& samples, double t0, double block_s, int blocks) {
+  if (blocks < 3) return std::nullopt;
+  const std::vector<double> r = BlockRates(samples, t0, block_s, blocks);
+  const double n = blocks;
+  // Block k's mid time is t0 + (k + 1/2) T; the slope does not depend on the origin.
+  const double tm = (n - 1) / 2 * block_s;
+  double rm = 0, rmax = 0;
+  for (double v : r) {
+    rm += v;
+    rmax = std::max(rmax, std::fabs(v));
+  }
+  rm /= n;
+  double sxx = 0, sxy = 0;
+  for (int k = 0; k < blocks; ++k) {
+    const double dt = k * block_s - tm;
+    sxx += dt * dt;
+    sxy += dt * (r[k] - rm);
+  }
+  Trend out;
+  out.slope = sxy / sxx;
+  double ss = 0;
+  for (int k = 0; k < blocks; ++k) {
+    const double e = r[k] - rm - out.slope * (k * block_s - tm);
+    ss += e * e;
+  }
+  const double s = std::sqrt(ss / (n - 2));
+  // Rates that agree to rounding (a trajectory with no scatter): no trend unless the slope is
+  // beyond rounding too, else a ratio of two rounding errors would decide.
+  const double rounding = 1e-9 * std::max(rmax, 1e-12);
+  if (s <= rounding) {
+    out.slope_se = 0;
+    out.p = std::fabs(out.slope) * (n - 1) * block_s <= rounding ? 1.0 : 0.0;
+    return out;
+  }
+  out.slope_se = s / std::sqrt(sxx);
+  const double t = std::fabs(out.slope) / out.slope_se;
+  out.p = 2 * gsl_cdf_tdist_Q(t, n - 2);
+  return out;
+}
+
+BlockRate MeanBlockRate(const std::vector<SoSample>& samples, double t0, double block_s, int blocks,
+                        int min_blocks_for_error) {
+  BlockRate out;
+  out.blocks = blocks;
+  out.t0 = t0;
+  out.t1 = t0 + blocks * block_s;
+  const std::vector<double> rates = BlockRates(samples, t0, block_s, blocks);
   double mean = 0;
   for (double r : rates) mean += r;
   mean /= blocks;
@@ -260,7 +321,8 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   api::RunResult r;
   r.block_s = f > 0 ? 1.0 / f : rule.undriven_block_s;
   r.block_kind = f > 0 ? "period" : "block";
-  r.window_t0 = first.t + rule.transient_blocks * r.block_s;
+  const double transient = TransientS(rule, r.block_s);
+  r.window_t0 = first.t + transient;
 
   // The last moment the SO keeps its clearance from the surface and the floor.
   // It ends at the last sample that keeps it (the first sample inside is already under the
@@ -305,7 +367,7 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   }
   r.conclusive = r.uz_blocks >= rule.min_periods;
   if (!r.conclusive) {
-    r.inconclusive_reason = "the steady window after the " + Num(rule.transient_blocks * r.block_s, 3) +
+    r.inconclusive_reason = "the steady window after the " + Num(transient, 3) +
                             " s transient holds " + whole + ", fewer than " + std::to_string(rule.min_periods) + " (" +
                             ended + ")";
   }
@@ -315,7 +377,9 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
     size_t i1 = i0;
     while (i1 < samples.size() && samples[i1].t <= r.window_t1 + 1e-9) ++i1;
     r.z_osc_amplitude = OscillationAmplitude(samples, i0, i1, f).value_or(0.0);
+    r.x_osc_amplitude = OscillationAmplitude(samples, i0, i1, f, &SoSample::x);
   }
+  TestTrend(samples, rule, &r);
 
   r.dz = last.z - first.z;
   r.dz_rate = last.t > first.t ? r.dz / (last.t - first.t) : 0;
@@ -334,6 +398,33 @@ Result<api::RunResult> AnalyzeTrajectory(const std::vector<SoSample>& samples, d
   if (start) r.grains = start->grains;
   return r;
 }
+
+namespace {
+
+// The trend test of the blocks r's U_z rests on, into r's trend_* fields.
+void TestTrend(const std::vector<SoSample>& samples, const WindowRule& rule, api::RunResult* r) {
+  r->trend_slope.reset();
+  r->trend_slope_se.reset();
+  r->trend_p.reset();
+  r->trending = false;
+  r->trend_note.clear();
+  std::optional<Trend> trend;
+  if (r->uz_blocks >= std::max(rule.min_blocks_for_trend, 3))
+    trend = BlockRateTrend(samples, r->window_t0, r->block_s, r->uz_blocks);
+  if (!trend) {
+    const std::string noun = r->block_kind.empty() ? std::string("period") : r->block_kind;
+    r->trend_note = "the window holds " + std::to_string(r->uz_blocks) + " whole " + noun +
+                    (r->uz_blocks == 1 ? "" : "s") + "; a trend test needs at least " +
+                    std::to_string(std::max(rule.min_blocks_for_trend, 3));
+    return;
+  }
+  r->trend_slope = trend->slope;
+  r->trend_slope_se = trend->slope_se;
+  r->trend_p = trend->p;
+  r->trending = trend->p < rule.trend_alpha;
+}
+
+}  // namespace
 
 RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log, const std::optional<PrecisionTarget>& precision) {
   RunInputs in;
@@ -365,6 +456,7 @@ Result<api::RunResult> AnalyzeRun(const std::vector<SoSample>& samples, const Ru
     r->uz_blocks = m;
     r->window_t0 = t0;
     r->precision_met = r->uz_ci95 && *r->uz_ci95 <= plan->half_width;  // the half-width the pilot asked
+    TestTrend(samples, rule, &*r);  // on the blocks U_z now rests on
   } else {
     plan.reset();  // not ended by the rule as it stands: no two-stage numbers to state
     if (in.precision) r->precision_met = TargetMet(*r, *in.precision);
@@ -406,10 +498,17 @@ std::string DescribeUz(const api::RunResult& r, bool with_units) {
   const std::string noun = r.block_kind.empty() ? std::string("period") : r.block_kind;
   const std::string what = std::to_string(r.uz_blocks) + " " + noun + (r.uz_blocks == 1 ? "" : "s");
   std::string out;
-  if (r.analysis < api::kAnalysisVersion) {
+  if (r.analysis < 2) {
     out = "old estimator";
     if (r.uz) out += " (" + Round(*r.uz, 1) + units + ")";
     return out;
+  }
+  // A result of an older analysis whose numbers stand (analysis 2 or 3: a one-period transient) says so.
+  const std::string older = r.analysis < api::kAnalysisVersion ? " (analysis " + std::to_string(r.analysis) + ")" : "";
+  if (!older.empty()) {
+    api::RunResult now = r;
+    now.analysis = api::kAnalysisVersion;
+    return DescribeUz(now, with_units) + older;
   }
   if (!r.conclusive) {
     if (!r.uz) return "inconclusive (no whole " + noun + ")";

@@ -231,11 +231,17 @@ json ResultRowJson(const ResultRow& row) {
     j["window_end"] = r.window_end;
     j["conclusive"] = r.conclusive;
     j["inconclusive_reason"] = r.inconclusive_reason;
+    j["trending"] = r.trending;
+    if (r.trend_p) j["trend_p"] = *r.trend_p;
+    if (r.trend_slope) j["trend_slope"] = *r.trend_slope;
+    if (r.trend_slope_se) j["trend_slope_se"] = *r.trend_slope_se;
+    j["trend_note"] = r.trend_note;
     j["dz"] = r.dz;
     j["dz_rate"] = r.dz_rate;
     j["analysis"] = r.analysis;
     j["analysed_from"] = r.analysed_from;
     j["z_osc_amplitude"] = r.z_osc_amplitude;
+    if (r.x_osc_amplitude) j["x_osc_amplitude"] = *r.x_osc_amplitude;
     j["x_drift"] = r.x_drift;
     j["broke_surface"] = r.broke_surface;
     j["near_floor"] = r.near_floor;

@@ -28,8 +28,9 @@ constexpr const char* kResultColumns =
     "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
     "res.cpu_s, res.key, res.created_at, res.lease_to_start_s, res.uz_ci95, res.uz_stderr_note, "
     "res.uz_blocks, res.block_s, res.window_end, res.conclusive, res.inconclusive_reason, res.dz_rate, "
-    "res.analysis, res.block_kind, res.analysed_from, res.stop_note, res.precision_met";
-constexpr int kResultColumnCount = 36;
+    "res.analysis, res.block_kind, res.analysed_from, res.stop_note, res.precision_met, res.x_osc_amplitude, "
+    "res.trend_slope, res.trend_slope_se, res.trend_p, res.trending, res.trend_note";
+constexpr int kResultColumnCount = 42;
 
 // The snapshots table's rows of one run, by idx (schema/010_snapshots.sql).
 Result<std::vector<api::Snapshot>> SnapshotsIn(Transaction& t, int64_t run_id) {
@@ -137,6 +138,12 @@ std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
   r.analysed_from = st.Text(c + 33);
   r.stop_note = st.Text(c + 34);
   if (!st.IsNull(c + 35)) r.precision_met = st.Int(c + 35) != 0;
+  r.x_osc_amplitude = st.OptDouble(c + 36);
+  r.trend_slope = st.OptDouble(c + 37);
+  r.trend_slope_se = st.OptDouble(c + 38);
+  r.trend_p = st.OptDouble(c + 39);
+  r.trending = st.Int(c + 40) != 0;
+  r.trend_note = st.Text(c + 41);
   return s;
 }
 
@@ -401,6 +408,13 @@ Result<api::RunResult> Reanalyse(const OldResult& o) {
 
 }  // namespace
 
+// Results of an analysis below this are re-analysed at start-up (their numbers or intervals were
+// wrong: analysis 1's error, analysis 2's optional stopping). Analysis 4 (a transient in physical
+// time, the trend test, x's amplitude at f) changed no number of analysis 3 that was wrong: a
+// result of analysis 3 keeps its numbers and its analysis; `sandswim submit --force` runs it anew
+// for analysis 4's.
+constexpr int kReanalysedBelow = 3;
+
 Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
   // Pages of kPage rows by run id, each written in one transaction: memory and the write lock
   // are bounded however many results an old database holds.
@@ -420,7 +434,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
           "LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
           "WHERE res.analysis < ? AND res.analysed_from != 'unreadable' AND res.run_id > ? "
           "ORDER BY res.run_id LIMIT ?");
-      st.Bind(1, api::kAnalysisVersion).Bind(2, after).Bind(3, kPage);
+      st.Bind(1, kReanalysedBelow).Bind(2, after).Bind(3, kPage);
       while (true) {
         Result<bool> row = st.Step();
         if (!row.ok()) return row.status();
@@ -452,7 +466,8 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
           "UPDATE results SET uz = ?, uz_stderr = ?, uz_ci95 = ?, uz_stderr_note = ?, uz_blocks = ?, "
           "block_s = ?, window_t0 = ?, window_t1 = ?, window_end = ?, conclusive = ?, inconclusive_reason = ?, "
           "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ?, analysed_from = ?, stop_note = ?, "
-          "precision_met = ? WHERE run_id = ?");
+          "precision_met = ?, x_osc_amplitude = ?, trend_slope = ?, trend_slope_se = ?, trend_p = ?, trending = ?, "
+          "trend_note = ? WHERE run_id = ?");
       Statement kept = t.Prepare(
           "UPDATE results SET analysed_from = 'unreadable', conclusive = 0, inconclusive_reason = ? "
           "WHERE run_id = ?");
@@ -462,7 +477,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
           // Analysis 3 changed only the runs ended by their precision target: this one's numbers
           // are this analysis's already, from its full dump (a trajectory is downsampled).
           same.Reset();
-          same.Bind(1, api::kAnalysisVersion).Bind(2, o.run_id);
+          same.Bind(1, kReanalysedBelow).Bind(2, o.run_id);
           SANDSWIM_RETURN_IF_ERROR(same.Run());
           ++counts.unchanged;
           continue;
@@ -486,7 +501,9 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
         fresh.Bind(5, r->uz_blocks).Bind(6, r->block_s).Bind(7, r->window_t0).Bind(8, r->window_t1);
         fresh.Bind(9, r->window_end).Bind(10, r->conclusive).Bind(11, r->inconclusive_reason);
         fresh.Bind(12, r->dz_rate).Bind(13, r->z_osc_amplitude).Bind(14, r->analysis).Bind(15, r->block_kind);
-        fresh.Bind(16, r->analysed_from).Bind(17, r->stop_note).Bind(18, r->precision_met).Bind(19, o.run_id);
+        fresh.Bind(16, r->analysed_from).Bind(17, r->stop_note).Bind(18, r->precision_met);
+        fresh.Bind(19, r->x_osc_amplitude).Bind(20, r->trend_slope).Bind(21, r->trend_slope_se);
+        fresh.Bind(22, r->trend_p).Bind(23, r->trending).Bind(24, r->trend_note).Bind(25, o.run_id);
         SANDSWIM_RETURN_IF_ERROR(fresh.Run());
         ++counts.reanalysed;
       }

@@ -227,13 +227,15 @@ class Store : public Database {
   // REQUIRES: limits >= 1.
   Result<LiveBoard> ReadLiveBoard(int sweeps, int campaign_runs, int running);
 
-  // Re-analyses every result made by an older analysis than api::kAnalysisVersion from its stored
+  // Re-analyses every result made by analysis 1 or 2 (their numbers or intervals were wrong) by
+  // api::kAnalysisVersion from its stored
   // trajectory (the run's drive frequency, its bed's surface and its scale's floor, the stop the
   // engine reported), in pages of rows written one transaction each; such a result says
   // analysed_from "trajectory". A result with no trajectory that can be re-analysed keeps its old
   // numbers, stays inconclusive with the reason and is marked "unreadable", never tried again.
   // A result of analysis 2 that its run's precision target did not end keeps its numbers (3 changed
-  // only those) and is marked analysis 3. Idempotent: the daemon calls it at start-up.
+  // only those) and is marked analysis 3. A result of analysis 3 keeps its numbers and its analysis
+  // (store.cc kReanalysedBelow). Idempotent: the daemon calls it at start-up.
   struct Reanalysis {
     int64_t reanalysed = 0;
     int64_t kept_old = 0;   // marked unreadable by this call

@@ -160,7 +160,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), 10);
+  EXPECT_EQ(store->schema_version(), 11);
   EXPECT_EQ(*store->CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());
@@ -260,11 +260,20 @@ TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
   EXPECT_FALSE(fresh.uz_ci95.has_value());
   EXPECT_NE(fresh.uz_stderr_note.find("optional stopping"), std::string::npos) << fresh.uz_stderr_note;
   EXPECT_EQ(fresh.precision_met, false);
+  // Analysis 3 changed none of its numbers: it keeps them and becomes a result of analysis 3, which
+  // analysis 4 (a transient in seconds, the trend test, x's amplitude) leaves as it is: its
+  // numbers stand for its one-period window, it says its analysis, and has no trend test or x
+  // amplitude (a rerun with --force gets them).
   const api::RunResult kept = store->GetRun(whole)->result->result;
-  EXPECT_EQ(kept.analysis, api::kAnalysisVersion);
+  EXPECT_EQ(kept.analysis, 3);
   EXPECT_EQ(kept.analysed_from, "dump");
   EXPECT_EQ(kept.uz, 0.0385);
   EXPECT_EQ(kept.uz_ci95, 0.002);
+  EXPECT_TRUE(kept.conclusive);
+  EXPECT_FALSE(kept.x_osc_amplitude);
+  EXPECT_FALSE(kept.trend_p);
+  EXPECT_FALSE(kept.trending);
+  EXPECT_EQ(DescribeUz(kept), "0.0385 ± 0.0010 m/s, 15 periods (analysis 3)");
   // Idempotent.
   auto again = store->ReanalyzeOldResults();
   EXPECT_EQ(again->reanalysed + again->unchanged + again->kept_old, 0);

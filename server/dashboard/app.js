@@ -334,7 +334,7 @@ function decimate(t, z, max = 800) {
 // ---- Result rows (sweep and campaign-run pages) -------------------------------------------------
 
 const flagText = r => [r.precision_met ? 'target met' : '', r.broke_surface ? 'broke surface' : '', r.near_floor ? 'near floor' : '',
-  r.conclusive === false ? 'inconclusive' : ''].filter(Boolean).join(', ');
+  r.conclusive === false ? 'inconclusive' : '', r.trending ? 'trend' : ''].filter(Boolean).join(', ');
 function resultColumns(withSweeps) {
   const cols = [
     { key: 'run_id', label: 'run', num: true, html: r => `<a href="/runs/${r.run_id}">${r.run_id}</a>` },
@@ -379,7 +379,8 @@ function followRows(table) {
         row.progress = '';
         const res = run.result || {};
         Object.assign(row, { Uz: res.uz ?? null, Uz_text: (res.uz_text || '').replace(' m/s', ''), dz: res.dz ?? null, conclusive: res.conclusive,
-          inconclusive_reason: res.inconclusive_reason || '', precision_met: res.precision_met, broke_surface: res.broke_surface, near_floor: res.near_floor });
+          inconclusive_reason: res.inconclusive_reason || '', precision_met: res.precision_met, broke_surface: res.broke_surface, near_floor: res.near_floor,
+          trending: res.trending });
         changed = true;
       } catch (e) { console.warn('run', id, e); }
     }
@@ -575,6 +576,9 @@ async function runPage(id) {
         <dt>Δz</dt><dd>${num(res.dz, 4)} m over ${num(res.sim_time_s)} s</dd>
         <dt>stopped</dt><dd>${esc(res.stop_reason)}: ${esc(res.stop_note || '')}</dd>
         ${res.conclusive ? '' : `<dt>inconclusive</dt><dd>${esc(res.inconclusive_reason)}</dd>`}
+        <dt>trend</dt><dd id="trend">${res.trend_p == null ? `not tested: ${esc(res.trend_note || 'a result of an older analysis')}`
+          : `period rate changes by ${num(res.trend_slope, 2)} ± ${num(res.trend_slope_se, 2)} m/s² (p = ${num(res.trend_p, 2)})${res.trending ? ' · <b>trending</b>: U_z is the window\'s mean of a drifting rate' : ''}`}</dd>
+        <dt>at f</dt><dd id="osc">z oscillates ${num(res.z_osc_amplitude, 3)} m, x ${res.x_osc_amplitude == null ? 'not measured' : `${num(res.x_osc_amplitude, 3)} m`}</dd>
         <dt>engine</dt><dd>${esc(res.engine_version)} · ${res.ranks} rank(s) · ${esc(res.launcher)} · ${num(res.wall_s)} s wall</dd></dl></section>` : ''}
       ${(run.snapshots_taken || []).length ? `<section class="card"><h2>The bed</h2><div class="grid2">${run.snapshots_taken.map(s =>
         `<figure><img class="figure" loading="lazy" src="${esc(authed(s.links.slice_svg))}" alt="slice"><figcaption>t = ${num(s.t_s)} s · <a href="${esc(authed(s.links.vtk))}">VTK</a> · <a href="${esc(authed(s.links.dump))}">dump</a></figcaption></figure>`).join('')}</div></section>` : ''}

@@ -233,7 +233,10 @@ EngineRun GenerateRun(const Law& law, const Noise& noise, const Bed& bed, const 
   const int64_t last_step = static_cast<int64_t>(std::llround(spec.duration_s / dt));
 
   double w_prev = normal(rng);
-  double block_start_z = 0, block_advance = u * block + block_sd * ma_norm * (normal(rng) + noise.ma_theta * w_prev);
+  // The rate of block k (its mid time (k + 1/2) T): U_bed, plus the drift when one is asked for.
+  auto block_rate = [&](int64_t k) { return u + noise.rate_slope * (k + 0.5) * block; };
+  double block_start_z = 0,
+         block_advance = block_rate(0) * block + block_sd * ma_norm * (normal(rng) + noise.ma_theta * w_prev);
   int64_t block_index = 0;
   double e = noise.jitter_sd * normal(rng), x_walk = 0;
   const double e_sd = noise.jitter_sd * std::sqrt(1 - noise.jitter_phi * noise.jitter_phi);
@@ -246,7 +249,7 @@ EngineRun GenerateRun(const Law& law, const Noise& noise, const Bed& bed, const 
       block_start_z += block_advance;
       ++block_index;
       const double w = normal(rng);
-      block_advance = u * block + block_sd * ma_norm * (w + noise.ma_theta * w_prev);
+      block_advance = block_rate(block_index) * block + block_sd * ma_norm * (w + noise.ma_theta * w_prev);
       w_prev = w;
     }
     double z = bed.z0 + block_start_z + (t - block_index * block) / block * block_advance;

@@ -39,7 +39,8 @@
 //   U_bed  = U_z (1 + b_bed + b_bed,point) + o_bed: the BED EFFECT, shared by every point on a bed
 //          (b_bed ~ N(0, 0.10), o_bed ~ N(0, 0.003 m/s), from the bed's seed) with a part of its
 //          own per point on that bed (b_bed,point ~ N(0, 0.15), from the bed's seed and the
-//          point). The law's U_z is the mean over beds; a run's "true U_z" is U_bed.
+//          point). The law's U_z is the mean over beds; a run's "true U_z" is U_bed (with
+//          Noise::rate_slope, the rate at t = 0: block k advances (U_bed + rate_slope t_k) T).
 //   transient(t) = v0 tau (1 - exp(-t / tau)), v0 = -0.06 m/s, tau = 0.2 s: the start-up settling
 //          (12 mm; 2.3 mm of it is left after the one-period transient at 3 Hz).
 //   a_h    z harmonics at f, 2f, 3f (2f: 3 mm in the oscillatory mode, 2 mm otherwise; 3f 0.8 mm),
@@ -110,6 +111,10 @@ struct Noise {
   double transient_v0 = -0.06;  // m/s
   double transient_tau = 0.2;   // s
   double x_walk = 1e-3;         // m / sqrt(s)
+  // A DRIFT of the rate within a run (0: stationary, every law's default): block k advances
+  // (U_bed + rate_slope t_k) T, t_k its mid time. Not a law of the paper: the input on which the
+  // trend test (core/trajectory.h) is measured for its power.
+  double rate_slope = 0;  // m/s^2
   // Everything off but the law's drift and the oscillation: the analysis must then give the law.
   static Noise None();
 };
