@@ -502,7 +502,8 @@ TEST(ClaimsTest, ModesHoldDifferOrAreInconclusive) {
       {"vib", 0.0003}, {"rot-x", 0.0004}, {"rot-y", 0.0002}, {"rot-z", 0.004}, {"rot-xz", 0.0035}};
   auto with_x_amplitudes = [&](double rot_xz) {
     Synth s = build(0.005);
-    for (ClaimSweep& sweep : s.input.sweeps) sweep.runs[0].result->x_osc_amplitude = x_amplitude.at(sweep.name);
+    for (ClaimSweep& sweep : s.input.sweeps)  // every bed's run (rot-x runs on three)
+      for (ClaimRun& run : sweep.runs) run.result->x_osc_amplitude = x_amplitude.at(sweep.name);
     for (ClaimSweep& sweep : s.input.sweeps)
       if (sweep.name == "rot-xz") sweep.runs[0].result->x_osc_amplitude = rot_xz;
     return s;
