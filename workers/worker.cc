@@ -507,6 +507,13 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
   bool stop_asked = false;  // the control file asks the deck to end the run
   int64_t last_step = -1;   // the furthest step seen, and when it was first seen
   auto moved_at = start;
+  // The engine's CPU when the step last moved, and whether it was seen runnable since: a stand
+  // with the engine runnable but given little CPU is starvation, not a hang.
+  auto engine_cpu = [&]() -> std::optional<GroupCpu> {
+    return options_.engine_cpu ? options_.engine_cpu(proc->pid()) : std::nullopt;
+  };
+  std::optional<GroupCpu> cpu_at_move = engine_cpu();
+  bool runnable_since_move = false;
   while (true) {
     // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
     double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
@@ -524,10 +531,27 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
     }
     if (Clock::now() >= next_beat) {
       const api::Heartbeat beat = progress.Read();
-      if (beat.step > last_step) {
+      std::optional<GroupCpu> cpu_now;
+      const bool moved = beat.step > last_step;
+      if (moved) {
         last_step = beat.step;
         moved_at = Clock::now();
-      } else if (options_.stall_after_s > 0 && Since(moved_at) > options_.stall_after_s) {
+        cpu_at_move = engine_cpu();
+        runnable_since_move = false;
+      } else if (options_.stall_after_s > 0 && (cpu_now = engine_cpu()) && cpu_now->runnable) {
+        runnable_since_move = true;
+      }
+      const double stood_s = Since(moved_at);
+      const bool starved = cpu_now && cpu_at_move && runnable_since_move &&
+                           cpu_now->cpu_s - cpu_at_move->cpu_s < 0.25 * stood_s;
+      if (!moved && options_.stall_after_s > 0 && stood_s > options_.stall_after_s && starved) {
+        spdlog::warn("{}: the engine's simulated time stood still for {:.0f} s while it had {:.1f} CPU-s: the machine "
+                     "is busy with other work, so it is not counted as hung (waiting another {:.0f} s)",
+                     job.name, stood_s, cpu_now->cpu_s - cpu_at_move->cpu_s, options_.stall_after_s);
+        moved_at = Clock::now();
+        cpu_at_move = cpu_now;
+        runnable_since_move = false;
+      } else if (!moved && options_.stall_after_s > 0 && stood_s > options_.stall_after_s) {
         facts.stalled = true;
         facts.stall_note = "its simulated time stood at t = " + FormatNumber(beat.sim_time_s) + " s (step " +
                            std::to_string(std::max<int64_t>(last_step, 0)) + ") for " +

@@ -49,6 +49,7 @@
 #include "core/api.h"
 #include "core/deck.h"
 #include "core/engine_log.h"
+#include "platform/process_cpu.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
 #include "workers/run_dir.h"
@@ -74,8 +75,14 @@ struct WorkerOptions {
   // A hung engine: when its simulated time (a bed's step) has not moved for this long, the engine
   // is stopped and the job fails as "stalled" (0: never). A drive run's dump and a bed's log move
   // every 100 and 1,000 steps: at paper scale on one core (7x10^4 grains, ~25 steps/s) that is
-  // every 4 and 40 s, so 600 s is ample.
+  // every 4 and 40 s, so 600 s is ample. A starved engine is not a hung one: when the engine's
+  // processes are visible here (engine_cpu) and were runnable while standing still, yet had less
+  // than a quarter of a core over that time, the machine is busy with other work; the worker logs
+  // it and waits another stall_after_s (the lease's wall budget still bounds the run). A sleeping
+  // engine (never runnable) or a spinning one (a quarter of a core or more) is hung.
   double stall_after_s = 600;
+  // The CPU of the engine's process group (its pid is its group's id): ReadGroupCpu, or a fake.
+  std::function<std::optional<GroupCpu>(pid_t)> engine_cpu = ReadGroupCpu;
   double stop_settle_s = 2;      // after an engine fails, how long to wait for the worker's own stop
   double idle_poll_s = 2;        // when the queue is empty
   double exit_when_idle_s = 0;   // > 0: a slot returns after this long without work (array jobs)

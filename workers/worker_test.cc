@@ -368,6 +368,55 @@ TEST(WorkerTest, AHungEngineIsStoppedAsStalled) {
       << client.completions[0].failure->message;
 }
 
+// The same stand, told apart by the engine's CPU (here a fake /proc): runnable but given a tenth
+// of a core, it is starved by other work and left to run; sleeping, or spinning at a whole core
+// without moving, it is hung.
+TEST(WorkerTest, AStarvedEngineIsNotStoppedAsStalled) {
+  FakeClient client;
+  FakeLauncher launcher;
+  launcher.runs_for_s = 0.4;  // then exits by itself (without output: it fails, but not as stalled)
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.stall_after_s = 0.05;
+  o.heartbeat_every_s = 0.01;
+  const auto t0 = std::chrono::steady_clock::now();
+  o.engine_cpu = [t0](pid_t) -> std::optional<GroupCpu> {
+    double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return GroupCpu{0.1 * wall, /*runnable=*/true, 1};
+  };
+  Worker worker(o, client, launcher);
+  worker.RunJob(RunGrant());
+  EXPECT_EQ(launcher.stops.load(), 0);
+  ASSERT_EQ(client.completions.size(), 1u);
+  if (client.completions[0].failure) {
+    EXPECT_NE(client.completions[0].failure->kind, "stalled");
+  }
+}
+
+TEST(WorkerTest, ASleepingOrSpinningEngineIsStoppedAsStalled) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto wall = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  const std::function<std::optional<GroupCpu>(pid_t)> sleeping = [](pid_t) {
+    return std::optional<GroupCpu>(GroupCpu{0.01, /*runnable=*/false, 1});
+  };
+  const std::function<std::optional<GroupCpu>(pid_t)> spinning = [wall](pid_t) {
+    return std::optional<GroupCpu>(GroupCpu{wall(), /*runnable=*/true, 1});
+  };
+  for (const auto& probe : {sleeping, spinning}) {
+    FakeClient client;
+    FakeLauncher launcher;
+    launcher.runs_until_stopped = true;
+    WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+    o.stall_after_s = 0.05;
+    o.heartbeat_every_s = 0.01;
+    o.engine_cpu = probe;
+    Worker worker(o, client, launcher);
+    worker.RunJob(RunGrant());
+    ASSERT_EQ(client.completions.size(), 1u);
+    ASSERT_TRUE(client.completions[0].failure.has_value());
+    EXPECT_EQ(client.completions[0].failure->kind, "stalled");
+  }
+}
+
 TEST(WorkerTest, BedChecksumMismatchNeverStartsTheEngine) {
   FakeClient client;
   client.bed_bytes = "tampered bytes";
