@@ -5,17 +5,24 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace sandswim {
 
-std::optional<GroupCpu> ReadGroupCpu(pid_t pgid) {
-  if (pgid <= 0) return std::nullopt;
+std::optional<TreeCpu> ReadProcessTreeCpu(pid_t root) {
+  if (root <= 0) return std::nullopt;
   DIR* proc = opendir("/proc");
   if (proc == nullptr) return std::nullopt;
+  struct Row {
+    long long ppid = 0;
+    bool runnable = false;
+    double cpu_s = 0;
+  };
   const double ticks = static_cast<double>(sysconf(_SC_CLK_TCK));
-  GroupCpu group;
+  std::map<long long, Row> rows;
   while (dirent* entry = readdir(proc)) {
     const char* name = entry->d_name;
     if (name[0] < '0' || name[0] > '9') continue;
@@ -26,22 +33,34 @@ std::optional<GroupCpu> ReadGroupCpu(pid_t pgid) {
     const size_t close = line.rfind(')');
     if (close == std::string::npos) continue;
     std::istringstream fields(line.substr(close + 1));
-    std::string state;
-    long long ppid = 0, pgrp = 0;
-    fields >> state >> ppid >> pgrp;
-    if (!fields || pgrp != pgid) continue;
-    std::string skip;
-    for (int i = 0; i < 8; ++i) fields >> skip;  // session .. cmajflt
+    std::string state, skip;
+    Row row;
+    fields >> state >> row.ppid;
+    for (int i = 0; i < 9; ++i) fields >> skip;  // pgrp .. cmajflt
     unsigned long long utime = 0, stime = 0;
     fields >> utime >> stime;
     if (!fields) continue;
-    ++group.processes;
-    group.cpu_s += static_cast<double>(utime + stime) / ticks;
-    if (state == "R") group.runnable = true;
+    row.runnable = state == "R";
+    row.cpu_s = static_cast<double>(utime + stime) / ticks;
+    rows[std::atoll(name)] = row;
   }
   closedir(proc);
-  if (group.processes == 0) return std::nullopt;
-  return group;
+  if (rows.count(root) == 0) return std::nullopt;
+  std::multimap<long long, long long> children;
+  for (const auto& [pid, row] : rows) children.emplace(row.ppid, pid);
+  TreeCpu tree;
+  std::vector<long long> todo = {root};
+  while (!todo.empty()) {
+    const long long pid = todo.back();
+    todo.pop_back();
+    const Row& row = rows.at(pid);
+    ++tree.processes;
+    tree.cpu_s += row.cpu_s;
+    tree.runnable = tree.runnable || row.runnable;
+    auto [first, last] = children.equal_range(pid);
+    for (auto it = first; it != last; ++it) todo.push_back(it->second);
+  }
+  return tree;
 }
 
 }  // namespace sandswim

@@ -509,10 +509,10 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
   auto moved_at = start;
   // The engine's CPU when the step last moved, and whether it was seen runnable since: a stand
   // with the engine runnable but given little CPU is starvation, not a hang.
-  auto engine_cpu = [&]() -> std::optional<GroupCpu> {
+  auto engine_cpu = [&]() -> std::optional<TreeCpu> {
     return options_.engine_cpu ? options_.engine_cpu(proc->pid()) : std::nullopt;
   };
-  std::optional<GroupCpu> cpu_at_move = engine_cpu();
+  std::optional<TreeCpu> cpu_at_move = engine_cpu();
   bool runnable_since_move = false;
   while (true) {
     // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
@@ -531,7 +531,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
     }
     if (Clock::now() >= next_beat) {
       const api::Heartbeat beat = progress.Read();
-      std::optional<GroupCpu> cpu_now;
+      std::optional<TreeCpu> cpu_now;
       const bool moved = beat.step > last_step;
       if (moved) {
         last_step = beat.step;

@@ -81,8 +81,8 @@ struct WorkerOptions {
   // it and waits another stall_after_s (the lease's wall budget still bounds the run). A sleeping
   // engine (never runnable) or a spinning one (a quarter of a core or more) is hung.
   double stall_after_s = 600;
-  // The CPU of the engine's process group (its pid is its group's id): ReadGroupCpu, or a fake.
-  std::function<std::optional<GroupCpu>(pid_t)> engine_cpu = ReadGroupCpu;
+  // The CPU of the engine's processes, the launcher's pid and its descendants: ReadProcessTreeCpu, or a fake.
+  std::function<std::optional<TreeCpu>(pid_t)> engine_cpu = ReadProcessTreeCpu;
   double stop_settle_s = 2;      // after an engine fails, how long to wait for the worker's own stop
   double idle_poll_s = 2;        // when the queue is empty
   double exit_when_idle_s = 0;   // > 0: a slot returns after this long without work (array jobs)

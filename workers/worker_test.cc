@@ -379,9 +379,9 @@ TEST(WorkerTest, AStarvedEngineIsNotStoppedAsStalled) {
   o.stall_after_s = 0.05;
   o.heartbeat_every_s = 0.01;
   const auto t0 = std::chrono::steady_clock::now();
-  o.engine_cpu = [t0](pid_t) -> std::optional<GroupCpu> {
+  o.engine_cpu = [t0](pid_t) -> std::optional<TreeCpu> {
     double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return GroupCpu{0.1 * wall, /*runnable=*/true, 1};
+    return TreeCpu{0.1 * wall, /*runnable=*/true, 1};
   };
   Worker worker(o, client, launcher);
   worker.RunJob(RunGrant());
@@ -395,11 +395,11 @@ TEST(WorkerTest, AStarvedEngineIsNotStoppedAsStalled) {
 TEST(WorkerTest, ASleepingOrSpinningEngineIsStoppedAsStalled) {
   const auto t0 = std::chrono::steady_clock::now();
   auto wall = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-  const std::function<std::optional<GroupCpu>(pid_t)> sleeping = [](pid_t) {
-    return std::optional<GroupCpu>(GroupCpu{0.01, /*runnable=*/false, 1});
+  const std::function<std::optional<TreeCpu>(pid_t)> sleeping = [](pid_t) {
+    return std::optional<TreeCpu>(TreeCpu{0.01, /*runnable=*/false, 1});
   };
-  const std::function<std::optional<GroupCpu>(pid_t)> spinning = [wall](pid_t) {
-    return std::optional<GroupCpu>(GroupCpu{wall(), /*runnable=*/true, 1});
+  const std::function<std::optional<TreeCpu>(pid_t)> spinning = [wall](pid_t) {
+    return std::optional<TreeCpu>(TreeCpu{wall(), /*runnable=*/true, 1});
   };
   for (const auto& probe : {sleeping, spinning}) {
     FakeClient client;
