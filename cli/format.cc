@@ -195,7 +195,10 @@ double RunInFlight::fraction() const {
 
 std::optional<double> Snapshot::eta_s() const {
   if (counts.finished()) return 0.0;
-  if (!eta || (counts.running == 0 && waiting_bed_state != "running")) return std::nullopt;
+  // Nothing running: a time only while a bed is prepared or a prepared bed's runs wait for a slot
+  // (the workers busy with other beds of the campaign); with the bed unstarted, a worker may lack.
+  if (!eta || (counts.running == 0 && waiting_bed_state != "running" && waiting_bed_state != "done"))
+    return std::nullopt;
   return eta->s;
 }
 
@@ -207,7 +210,9 @@ std::string EtaText(const Snapshot& s) {
   if (eta) {
     std::string text = "ETA " + FormatDuration(*eta);
     if (s.eta->rel_error > 0) text += " ± " + FormatDuration(*eta * s.eta->rel_error);
-    if (s.counts.running == 0) text += " (preparing the granular bed first)";
+    if (s.counts.running == 0)
+      text += s.waiting_bed_state == "done" ? " (none of its runs has started: they wait for a free worker)"
+                                            : " (preparing the granular bed first)";
     return text;
   }
   if (s.counts.running == 0) {

@@ -196,6 +196,9 @@ TEST(FormatTest, EtaNamesTheBedWhileNothingRuns) {
   EXPECT_THAT(RenderWatchLine(s), HasSubstr("the bed waits for a worker"));
   s.waiting_bed_state = "done";
   EXPECT_THAT(RenderWatchLine(s), HasSubstr("no run in flight: is a worker running?"));
+  // The daemon's estimate, while its workers prepare the campaign's other beds.
+  s.eta = Snapshot::DaemonEta{600, 0.2, "test"};
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 10m00s ± 2m00s (none of its runs has started: they wait for a free worker)"));
 }
 
 TEST(FormatTest, WatchLineAndFrame) {
