@@ -44,7 +44,7 @@ class TempFile {
 };
 
 // The last `n` non-empty lines of `text`, joined by " / ".
-std::string LastLines(const std::string& text, size_t n) {
+std::string LastNonEmptyLines(const std::string& text, size_t n) {
   std::vector<std::string> lines;
   std::istringstream in(text);
   for (std::string line; std::getline(in, line);) {
@@ -119,7 +119,7 @@ Result<std::string> SubprocessRenderer::RenderNow(const Plot& plot, ImageFormat 
     return Status::Unavailable("cannot start the figure renderer " + program_ + " (" + run.status().reason() +
                                "): install sandswim-render next to sandswimd (cmake --build build)");
   }
-  const std::string said = LastLines(run->err, 3);
+  const std::string said = LastNonEmptyLines(run->err, 3);
   if (run->timed_out) {
     return Status::Unavailable("the figure renderer took longer than " + Num(timeout_s_, 4) +
                                " s and was stopped; the daemon goes on" + (said.empty() ? "" : ": " + said));

@@ -149,7 +149,8 @@ Daemon* EndToEndTest::daemon_ = nullptr;
 // Precision targets and replicate beds, end to end. Three sweeps at once:
 //   - Omega = -80 at 20 Hz on 2 replicate beds, with a target any interval meets (uz_abs 1 m/s):
 //     each run ends, through the deck's control file, once its window holds the pilot's 3 whole
-//     periods and the 3 after it (0.35 s), before its 0.5 s maximum, saying the target was met; the
+//     periods and the 3 after it, after the 0.3 s transient (0.6 s), before its 0.8 s maximum,
+//     saying the target was met; the
 //     two beds are prepared once
 //     each, lie differently, and the point's results aggregate over both (K = 2);
 //   - Omega = -80 at 20 Hz with a target no interval meets: it runs to its 0.2 s maximum (the least
@@ -159,8 +160,8 @@ Daemon* EndToEndTest::daemon_ = nullptr;
 //     maximum: the floor no longer ends it early -- its window holds the 3 whole periods the
 //     target asks before any boundary (the old smoke box stopped it at dz = -0.059 m, before two).
 TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
-  json met = testing::OmegaSweep("replicated", {-80}, 0.5, 20);
-  met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.5}};
+  json met = testing::OmegaSweep("replicated", {-80}, 0.8, 20);
+  met["precision"] = {{"uz_rel", 0}, {"uz_abs", 1.0}, {"min_periods", 3}, {"max_duration_s", 0.8}};
   met["replicates"] = 2;
   json unreachable = testing::OmegaSweep("unreachable", {-80}, 0.2, 20);
   unreachable["precision"] = {{"uz_rel", 0}, {"uz_abs", 1e-9}, {"min_periods", 3}, {"max_duration_s", 0.2}};
@@ -190,11 +191,12 @@ TEST_F(EndToEndTest, RunsEndAtTheirPrecisionTargetOnReplicateBeds) {
     EXPECT_EQ(res["stop_reason"], "target") << res.dump();
     EXPECT_EQ(res["precision_met"], true) << res.dump();
     EXPECT_THAT(res["stop_note"].get<std::string>(), HasSubstr("precision target met"));
-    // Ended after its transient, the pilot's 3 whole periods and 3 more (0.35 s), at the worker's
-    // next look, before the 0.5 s maximum; U_z from the 3 after the pilot.
+    // Ended after its transient (0.3 s: six periods at 20 Hz), the pilot's 3 whole periods and 3
+    // more (0.6 s), at the worker's next look, before the 0.8 s maximum; U_z from the 3 after the
+    // pilot.
     EXPECT_GE(res["uz_blocks"].get<int>(), 3) << res.dump();
-    EXPECT_GE(res["sim_time_s"].get<double>(), 0.2);
-    EXPECT_LT(res["sim_time_s"].get<double>(), 0.5) << res.dump();
+    EXPECT_GE(res["sim_time_s"].get<double>(), 0.6 - 1e-9) << res.dump();
+    EXPECT_LT(res["sim_time_s"].get<double>(), 0.8) << res.dump();
     EXPECT_EQ(res["conclusive"], true) << res.dump();
     ASSERT_TRUE(res.contains("uz_stderr")) << res.dump();
     EXPECT_GT(res["uz_stderr"].get<double>(), 0.0);
