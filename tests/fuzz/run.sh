@@ -123,7 +123,7 @@ link() {  # link TARGET
   local extra=()
   if [ "$1" = fuzz_request ]; then extra=("${server_objs[@]}"); fi
   "$cxx" "${flags[@]}" -fsanitize=fuzzer "$root/tests/fuzz/$1.cc" "${extra[@]}" "${objs[@]}" \
-    $([ "$1" = fuzz_request ] && printf '%s ' "${request_libs[@]}") -lcrypto -lgsl -lgslcblas -lm -o "$out/$1"
+    $([ "$1" = fuzz_request ] && printf '%s ' "${request_libs[@]}") -lssl -lcrypto -lgsl -lgslcblas -lm -o "$out/$1"
 }
 pids=()
 for target in "${targets[@]}"; do
