@@ -1,8 +1,10 @@
 #include "workers/run_dir.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -98,6 +100,12 @@ Status RunDir::Remove() const {
   return Status::Ok();
 }
 
+std::string BedCache::PartName(const std::string& cached) {
+  // The pid tells processes apart, the counter the caches and threads of one process.
+  static std::atomic<unsigned long long> next{0};
+  return cached + ".part." + std::to_string(getpid()) + "." + std::to_string(next++);
+}
+
 bool BedCache::Stamp(const std::string& path, FileStamp* stamp) {
   struct stat st;
   if (stat(path.c_str(), &st) != 0) return false;
@@ -124,19 +132,33 @@ Status BedCache::Provide(const api::BedRef& bed, const RunDir& run_dir) {
     ok = have.ok() && *have == bed.sha256;
   }
   if (!ok) {
-    // Missing, or damaged since it was stored: fetch it (again).
-    const std::string tmp = cached + ".part";
+    // Missing, or damaged since it was stored: fetch it (again). Other workers on this host may
+    // share the directory and fetch the same bed at the same time, so each download has a name of
+    // its own (process and call) and only a finished, verified file is renamed into place; the
+    // rename replaces the cached file atomically, and every finisher puts the same bytes there.
+    const std::string tmp = PartName(cached);
     fs::remove(tmp, ec);
-    SANDSWIM_RETURN_IF_ERROR(download_(bed, tmp));
+    if (Status s = download_(bed, tmp); !s.ok()) {
+      fs::remove(tmp, ec);
+      return s;
+    }
     auto got = Sha256OfFile(tmp);
-    if (!got.ok()) return got.status();
-    if (*got != bed.sha256) {
+    if (got.ok() && *got != bed.sha256) {
       fs::remove(tmp, ec);
       return Status::Corruption("bed_mismatch: bed " + std::to_string(bed.id) + " downloaded with sha256 " + *got +
                                 ", the lease says " + bed.sha256);
     }
-    fs::rename(tmp, cached, ec);
-    if (ec) return Status::IOError("cannot store the bed in " + cached + ": " + ec.message());
+    if (got.ok()) fs::rename(tmp, cached, ec);
+    if (!got.ok() || ec) {
+      // Our copy is gone or could not be put in place. When another worker has stored the bed
+      // meanwhile, that one serves as well as ours.
+      const std::string why = got.ok() ? ec.message() : got.status().reason();
+      fs::remove(tmp, ec);
+      auto have = Sha256OfFile(cached);
+      if (!have.ok() || *have != bed.sha256) {
+        return Status::IOError("cannot store the bed in " + cached + ": " + why);
+      }
+    }
   }
   if (Stamp(cached, &stamp)) verified_[bed.sha256] = stamp;
   const std::string dest = run_dir.File(kBedRestartFile);

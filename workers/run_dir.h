@@ -11,6 +11,10 @@
 // while, so a file this cache has verified is not hashed again while its inode, size and
 // modification time stay the same (any rewrite changes them).
 //
+// Several workers on one host may share a workdir, each with its own BedCache on the same beds/
+// directory: each downloads to a name of its own (<sha256>.restart.part.<pid>.<n>), and a
+// worker whose copy could not be put in place uses the one another worker stored if it verifies.
+//
 // Thread safety: RunDir is a value. BedCache is thread-safe (one download at a time per cache).
 #ifndef SANDSWIM_WORKERS_RUN_DIR_H_
 #define SANDSWIM_WORKERS_RUN_DIR_H_
@@ -79,6 +83,8 @@ class BedCache {
     bool operator==(const FileStamp& o) const { return ino == o.ino && size == o.size && mtime_ns == o.mtime_ns; }
   };
   static bool Stamp(const std::string& path, FileStamp* stamp);
+  // A name no other download on this host uses, where this one downloads `cached` to before it is verified and renamed.
+  static std::string PartName(const std::string& cached);
 
   std::string dir_;
   Download download_;

@@ -1,6 +1,8 @@
 #include "workers/run_dir.h"
 
 #include <stdlib.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -57,7 +59,7 @@ TEST(BedCacheTest, DownloadsOnceVerifiesEveryUseAndRefusesMismatch) {
     std::ofstream(dest, std::ios::binary) << served;
     return Status::Ok();
   });
-  api::BedRef bed{1, Sha256Hex("bed bytes"), ""};
+  api::BedRef bed{1, Sha256Hex("bed bytes"), "", ""};
   auto r1 = RunDir::Create(work, api::JobKind::kRun, 1, 1);
   auto r2 = RunDir::Create(work, api::JobKind::kRun, 2, 1);
   ASSERT_TRUE(cache.Provide(bed, *r1).ok());
@@ -89,6 +91,103 @@ TEST(BedCacheTest, DownloadFailureIsPassedOn) {
                  [](const api::BedRef&, const std::string&) { return Status::NotFound("GET bed: HTTP 404"); });
   auto r = RunDir::Create(work, api::JobKind::kRun, 1, 1);
   EXPECT_EQ(cache.Provide(api::BedRef{1, std::string(64, 'a'), ""}, *r).code(), StatusCode::kNotFound);
+}
+
+// Two workers sharing one workdir, each with its own cache on the same beds/ directory, fetch the
+// same bed at once: the second one's download runs while the first one's is half written. Before,
+// both wrote <sha>.restart.part, the second removed and rewrote the first's file, and one of them
+// failed the run "cannot store the bed ... No such file or directory" (seen on a real run).
+TEST(BedCacheTest, TwoCachesOnOneDirectoryFetchingTheSameBedBothSucceed) {
+  const std::string work = testing::TempDir("rundir-shared");
+  const std::string bytes(1 << 20, 'b');
+  api::BedRef bed{1, Sha256Hex(bytes), "", ""};
+  int downloads = 0;
+  BedCache second(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
+    ++downloads;
+    std::ofstream(dest, std::ios::binary) << bytes;
+    return Status::Ok();
+  });
+  auto r2 = RunDir::Create(work, api::JobKind::kRun, 2, 1);
+  Status inner = Status::Internal("not called");
+  BedCache first(work + "/beds", [&](const api::BedRef& b, const std::string& dest) {
+    ++downloads;
+    std::ofstream out(dest, std::ios::binary);
+    out << bytes.substr(0, bytes.size() / 2) << std::flush;
+    inner = second.Provide(b, *r2);  // the other worker fetches and stores it meanwhile
+    out << bytes.substr(bytes.size() / 2);
+    return Status::Ok();
+  });
+  auto r1 = RunDir::Create(work, api::JobKind::kRun, 1, 1);
+  Status outer = first.Provide(bed, *r1);
+  EXPECT_TRUE(inner.ok()) << inner.ToString();
+  EXPECT_TRUE(outer.ok()) << outer.ToString();
+  EXPECT_EQ(downloads, 2);
+  EXPECT_EQ(ReadAll(r1->File("bed.restart")), bytes);
+  EXPECT_EQ(ReadAll(r2->File("bed.restart")), bytes);
+  // Nothing half-downloaded is left behind.
+  for (const auto& entry : std::filesystem::directory_iterator(work + "/beds")) {
+    EXPECT_EQ(entry.path().filename().string(), bed.sha256 + ".restart");
+  }
+}
+
+// When this worker's copy vanished before it could be stored (another worker cleaned it away) but
+// the bed is in the cache and verifies, that copy is used; when it is not there, the error says so.
+TEST(BedCacheTest, AVanishedDownloadIsReplacedByAStoredCopyThatVerifies) {
+  const std::string work = testing::TempDir("rundir-vanished");
+  api::BedRef bed{1, Sha256Hex("bed bytes"), "", ""};
+  const std::string cached = work + "/beds/" + bed.sha256 + ".restart";
+  bool store_meanwhile = true;
+  BedCache cache(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
+    if (store_meanwhile) std::ofstream(cached, std::ios::binary) << "bed bytes";
+    std::filesystem::remove(dest);
+    return Status::Ok();
+  });
+  auto r1 = RunDir::Create(work, api::JobKind::kRun, 1, 1);
+  EXPECT_TRUE(cache.Provide(bed, *r1).ok());
+  EXPECT_EQ(ReadAll(r1->File("bed.restart")), "bed bytes");
+
+  std::filesystem::remove(cached);
+  store_meanwhile = false;
+  auto r2 = RunDir::Create(work, api::JobKind::kRun, 2, 1);
+  Status s = cache.Provide(bed, *r2);
+  EXPECT_EQ(s.code(), StatusCode::kIOError);
+  EXPECT_NE(s.reason().find("cannot store the bed in " + cached), std::string::npos) << s.reason();
+}
+
+// The same race between two processes: both are inside their download at once (a pipe each way
+// holds each one half-written until the other has started), then both finish.
+TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
+  const std::string work = testing::TempDir("rundir-procs");
+  const std::string bytes(4 << 20, 'p');
+  api::BedRef bed{1, Sha256Hex(bytes), "", ""};
+  int to_a[2], to_b[2];
+  ASSERT_EQ(pipe(to_a), 0);
+  ASSERT_EQ(pipe(to_b), 0);
+  auto child = [&](int id, int signal_fd, int wait_fd) -> pid_t {
+    const pid_t pid = fork();
+    if (pid != 0) return pid;
+    BedCache cache(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
+      std::ofstream out(dest, std::ios::binary);
+      out << bytes.substr(0, bytes.size() / 2) << std::flush;
+      char c = 'x';
+      if (write(signal_fd, &c, 1) != 1 || read(wait_fd, &c, 1) != 1) return Status::IOError("pipe");
+      out << bytes.substr(bytes.size() / 2);
+      return Status::Ok();
+    });
+    auto dir = RunDir::Create(work, api::JobKind::kRun, id, 1);
+    const bool ok = dir.ok() && cache.Provide(bed, *dir).ok() && ReadAll(dir->File("bed.restart")) == bytes;
+    _exit(ok ? 0 : 1);
+  };
+  const pid_t a = child(1, to_b[1], to_a[0]);
+  const pid_t b = child(2, to_a[1], to_b[0]);
+  ASSERT_GT(a, 0);
+  ASSERT_GT(b, 0);
+  for (pid_t pid : {a, b}) {
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "worker process " << pid << " failed";
+  }
+  for (int fd : {to_a[0], to_a[1], to_b[0], to_b[1]}) close(fd);
 }
 
 }  // namespace
