@@ -209,6 +209,9 @@ TEST_F(CliTest, FindsTheDaemonsTokenByItself) {
   EXPECT_NE(o.code, 0);
   EXPECT_THAT(o.err, HasSubstr("not the daemon's token"));
   EXPECT_THAT(o.err, HasSubstr("--token-file DATA/token"));
+  // The refusal names its field once (it said "Authorization: Authorization: ...").
+  EXPECT_THAT(o.err, StartsWith("sandswim: Authorization: the bearer token is not the daemon's token"));
+  EXPECT_THAT(o.err, Not(HasSubstr("Authorization: Authorization")));
 }
 
 TEST_F(CliTest, SubmitPrintsTheSweepIdAndStatusShowsIt) {

@@ -17,6 +17,12 @@ Status StatusFromHttp(int http_status, const std::string& body, const std::strin
     if (auto d = problem.find("detail"); d != problem.end() && d->is_string()) detail = d->get<std::string>();
     if (auto f = problem.find("field"); f != problem.end() && f->is_string()) field = f->get<std::string>();
   }
+  // The daemon's detail starts with its field ("Authorization: this daemon has a token ..."); the
+  // Status keeps them apart, or a caller that prints field and reason says the field twice.
+  if (!field.empty() && detail.size() > field.size() + 2 && detail.compare(0, field.size(), field) == 0 &&
+      detail.compare(field.size(), 2, ": ") == 0) {
+    detail.erase(0, field.size() + 2);
+  }
   if (detail.empty()) {
     detail = "HTTP " + std::to_string(http_status) + " for " + what;
     if (!body.empty()) detail += ": " + body.substr(0, 300);

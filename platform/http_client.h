@@ -5,8 +5,9 @@
 // client from them (timeouts, TCP_NODELAY, "Authorization: Bearer <token>" when a token is set).
 // StatusFromHttp() reads a non-2xx answer: its code from the problem's type, else its HTTP status
 // (platform/http_status.h holds that one table, both ways), its reason the problem+json "detail"
-// (which already names the field), else "HTTP N for WHAT" and the start of the body; the problem's
-// "field" is kept as the Status field. No answer at all is kUnavailable (nothing listens, or the
+// without the "FIELD: " the daemon starts it with, else "HTTP N for WHAT" and the start of the
+// body; the problem's "field" is kept as the Status field (so Status::ToString() and the CLI name
+// the field once). No answer at all is kUnavailable (nothing listens, or the
 // connection broke).
 // Both kinds of 5xx are the daemon's trouble, not the request's: DaemonTrouble() says so, and the
 // worker retries its completions through them (workers/client.h).

@@ -4,6 +4,7 @@
 #include <string>
 #include <thread>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
 
@@ -79,12 +80,35 @@ TEST(HttpClientTest, EveryStatusMapsAsTheTableSays) {
 TEST(HttpClientTest, AProblemKeepsItsDetailAndField) {
   StatusServer server;
   Status s = Ask(server, 422);
-  EXPECT_EQ(s.reason(), "A: must be > 0");
+  // The detail "A: must be > 0" names its field; the Status holds field and reason apart, so
+  // whatever prints both names the field once.
+  EXPECT_EQ(s.reason(), "must be > 0");
   EXPECT_EQ(s.field(), "A");
+  EXPECT_THAT(s.ToString(), ::testing::EndsWith(": A: must be > 0"));
+  EXPECT_EQ(s.ToString().find("A: A:"), std::string::npos);
   // Without a problem document: the status, the call and the start of the body.
   Status plain = Ask(server, 503);
   EXPECT_EQ(plain.reason(), "HTTP 503 for GET /status/503: upstream trouble");
   EXPECT_EQ(plain.field(), "");
+}
+
+// The CLI printed "Authorization: Authorization: this daemon has a token ..." for a refusal: the
+// detail's leading field is taken off once, and only when it is the problem's field followed by ": ".
+TEST(HttpClientTest, ADetailNamesItsFieldOnce) {
+  auto problem = [](const std::string& detail, const std::string& field) {
+    return R"({"type":"urn:sandswim:problem:unauthenticated","status":401,"detail":")" + detail +
+           R"(","field":")" + field + R"("})";
+  };
+  Status s = StatusFromHttp(401, problem("Authorization: this daemon has a token", "Authorization"), "GET /x");
+  EXPECT_EQ(s.reason(), "this daemon has a token");
+  EXPECT_EQ(s.field(), "Authorization");
+  // A detail that does not start with its field is kept whole.
+  EXPECT_EQ(StatusFromHttp(422, problem("axes[0].values: A: must be > 0", "A"), "GET /x").reason(),
+            "axes[0].values: A: must be > 0");
+  EXPECT_EQ(StatusFromHttp(422, problem("Ab: must be > 0", "A"), "GET /x").reason(), "Ab: must be > 0");
+  // Nothing after the field: the answer's own words stand.
+  EXPECT_EQ(StatusFromHttp(422, problem("A: ", "A"), "GET /x").reason(), "A: ");
+  EXPECT_EQ(StatusFromHttp(422, problem("no field here", ""), "GET /x").reason(), "no field here");
 }
 
 TEST(HttpClientTest, NoDaemonIsNoAnswer) {
