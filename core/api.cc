@@ -131,6 +131,7 @@ void to_json(nlohmann::json& j, const LeaseGrant& g) {
   PutOptional(j, "z_floor_m", g.z_floor_m);
   if (g.precision) j["precision"] = PrecisionToJson(*g.precision);
   if (!g.snapshots.empty()) j["snapshots"] = g.snapshots;
+  if (g.queue_dry) j["queue_dry"] = true;
 }
 
 void from_json(const nlohmann::json& j, LeaseGrant& g) {
@@ -156,6 +157,7 @@ void from_json(const nlohmann::json& j, LeaseGrant& g) {
     g.precision = *t;
   }
   g.snapshots = j.value("snapshots", std::vector<double>{});
+  g.queue_dry = j.value("queue_dry", false);
 }
 
 void to_json(nlohmann::json& j, const Completion& c) {

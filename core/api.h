@@ -89,6 +89,11 @@ struct LeaseGrant {
   // Full-bed snapshots the run's deck takes (core/deck.h SnapshotFractions): the worker hands in
   // the frames nearest these fractions of the run's actual length. Empty: none.
   std::vector<double> snapshots;
+  // No other job was leasable when this one was granted (a bed's runs wait for it; the last runs
+  // of the queue): a worker's slots that are idle now would stay idle while it runs, so the
+  // worker may give this job their cores as extra MPI ranks (workers/worker.h). Ranks enter
+  // neither the deck nor any key: the physics and the key are the same on any number of ranks.
+  bool queue_dry = false;
 };
 void to_json(nlohmann::json& j, const LeaseGrant& g);
 void from_json(const nlohmann::json& j, LeaseGrant& g);

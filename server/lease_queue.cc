@@ -183,11 +183,25 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   if (!token.ok()) return token.status();
   g.token = *token;
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkLeased(t, g.kind, g.id, g.token, now + options_.ttl_s, request.worker, now));
+  // With this job running, is anything else leasable now? When nothing is, the worker's idle
+  // slots may lend this job their cores (core/api.h LeaseGrant::queue_dry). A run whose deck no
+  // longer renders counts as leasable here (it fails when leased): the hint errs towards one rank.
+  Result<std::optional<jobs::QueuedBed>> other_bed = jobs::NextQueuedBed(t);
+  if (!other_bed.ok()) return other_bed.status();
+  if (!*other_bed) {
+    Result<std::optional<jobs::QueuedRun>> other_run = jobs::NextQueuedRun(t);
+    if (!other_run.ok()) return other_run.status();
+    g.queue_dry = !*other_run;
+  }
   SANDSWIM_RETURN_IF_ERROR(jobs::InsertLease(t, g.token, g.kind, g.id, g.attempt, request, now));
   SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
   SANDSWIM_RETURN_IF_ERROR(
       t.Event(now, std::string(Noun(g.kind)) + ".leased", Subject(g.kind, g.id),
-              {{"worker", request.worker}, {"host", request.host}, {"ranks", request.ranks}, {"attempt", g.attempt}}));
+              {{"worker", request.worker},
+               {"host", request.host},
+               {"ranks", request.ranks},
+               {"attempt", g.attempt},
+               {"queue_dry", g.queue_dry}}));
   return Out(std::move(g));
 }
 

@@ -7,7 +7,9 @@
 //   Lease      picks, oldest first, a queued bed that a queued run is waiting for; failing that,
 //              a queued run whose bed is done. The job's attempts count goes up by one; the
 //              grant carries a fresh random 128-bit token (hex) that is the only proof of
-//              ownership, and a TTL. Expired leases are reclaimed first (ExpireLeases).
+//              ownership, and a TTL. Expired leases are reclaimed first (ExpireLeases). The grant
+//              says whether any other job is leasable once it runs (queue_dry: none is), so a
+//              worker may give it the cores of slots that would otherwise idle.
 //   Heartbeat  under the current token: extends the lease by the TTL and records progress; the
 //              reply says cancel=true once every sweep the run belongs to is cancelled.
 //   Complete   under the current token: ok -> done (a run gets its result, trajectory and log

@@ -165,6 +165,38 @@ TEST_F(LeaseQueueTest, BedIsLeasedBeforeRunsAndRunsOnlyOnceTheBedIsDone) {
   EXPECT_FALSE(none2->has_value());
 }
 
+// A grant says whether anything else is leasable once it runs (queue_dry), so that a worker may
+// give it the cores of slots that would otherwise idle: a bed its runs wait for with no other bed
+// queued, the last run of the queue; not a bed while another bed or a run is leasable.
+TEST_F(LeaseQueueTest, GrantsSayWhenNothingElseIsLeasable) {
+  nlohmann::json two_beds = OmegaSignSweep();
+  two_beds["replicates"] = 2;
+  SubmitJson(two_beds);
+  api::LeaseGrant bed1 = MustLease();
+  ASSERT_EQ(bed1.kind, api::JobKind::kBed);
+  EXPECT_FALSE(bed1.queue_dry);  // the other bed is leasable
+  api::LeaseGrant bed2 = MustLease();
+  ASSERT_EQ(bed2.kind, api::JobKind::kBed);
+  EXPECT_TRUE(bed2.queue_dry);  // every run waits for one of the two
+  EXPECT_TRUE(nlohmann::json(bed2).at("queue_dry").get<bool>());
+  EXPECT_FALSE(nlohmann::json(bed1).contains("queue_dry"));  // absent means false
+  EXPECT_TRUE(nlohmann::json(bed2).get<api::LeaseGrant>().queue_dry);
+  for (const api::LeaseGrant& bed : {bed1, bed2}) {
+    const std::string bytes = "restart " + std::to_string(bed.id);
+    ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    api::Completion c;
+    c.ok = true;
+    c.bed_result = api::BedResult{};
+    c.bed_result->grains = 3700;
+    c.bed_result->sha256 = Sha256Hex(bytes);
+    ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  }
+  // Four runs (two Omega on two beds): only the last one is granted with the queue dry.
+  std::vector<bool> dry;
+  for (int i = 0; i < 4; ++i) dry.push_back(MustLease().queue_dry);
+  EXPECT_EQ(dry, (std::vector<bool>{false, false, false, true}));
+}
+
 // With no budget from the operator every grant carries the cost model's: kWallBudgetMultiple times
 // its prediction plus the margin, at the default rates until jobs are measured; an operator's
 // budget is passed as it is.

@@ -80,7 +80,9 @@ void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--allow-host", flags.allow_hosts,
                  "a name clients reach the daemon by, besides its address and localhost (repeatable; e.g. "
                  "the login node's name for Slurm workers, a proxy's name); other Host headers get 421");
-  app.add_option("--local-workers", flags.local_workers, "worker processes to run on this machine")
+  app.add_option("--local-workers", flags.local_workers,
+                 "engines to run at once on this machine (one worker process with that many one-rank slots; a "
+                 "job granted while nothing else is leasable takes the idle slots as extra ranks)")
       ->capture_default_str()
       ->check(CLI::Range(0, 1024));
   app.add_option("--lease-ttl", flags.lease_ttl_s, "seconds a lease lives without a heartbeat")
@@ -488,14 +490,19 @@ int main(int argc, char** argv) {
 
   sandswim::PosixSubprocesses processes;
   sandswim::LocalWorkersOptions worker_options;
-  worker_options.count = flags.local_workers;
+  // One process with N slots, not N processes: its slots know which of them idle, so a bed that
+  // every run waits for is prepared on their cores (sandswim-worker --max-ranks).
+  worker_options.count = flags.local_workers > 0 ? 1 : 0;
+  const std::string slots = std::to_string(flags.local_workers);
   worker_options.argv = {sandswim::ExecutableDir() + "/sandswim-worker",
                          "--server",
                          scheme + "://127.0.0.1:" + std::to_string(*port),
                          "--slots",
-                         "1",
+                         slots,
                          "--ranks",
                          "1",
+                         "--max-ranks",
+                         slots,
                          "--workdir",
                          flags.data + "/worker"};
   // A token from SANDSWIM_TOKEN reaches the workers through the environment; one from a file, as

@@ -34,6 +34,10 @@ int main(int argc, char** argv) {
   app.add_option("--server", server, "daemon URL, e.g. http://127.0.0.1:8080 or https://login1:8640")->required();
   app.add_option("--ranks", ranks, "MPI ranks per job")->check(CLI::Range(1, 4096));
   app.add_option("--slots", slots, "jobs at once (default: cores / ranks)")->check(CLI::Range(1, 4096));
+  app.add_option("--max-ranks", options.max_ranks,
+                 "a job granted while nothing else is leasable (a bed its runs wait for, the queue's last runs) "
+                 "runs on up to this many ranks, taken from this worker's idle slots (default: --ranks, never more)")
+      ->check(CLI::Range(1, 4096));
   app.add_option("--launcher", launcher_name, "mpirun | srun | direct (direct: one rank, no MPI launcher)")
       ->check(CLI::IsMember({"mpirun", "srun", "direct"}));
   app.add_option("--workdir", options.workdir, "run directories and the bed cache")->capture_default_str();
@@ -71,6 +75,11 @@ int main(int argc, char** argv) {
                                                  : LauncherKind::kMpirun;
   if (options.launcher == LauncherKind::kDirect && ranks != 1) {
     spdlog::error("--launcher direct runs one rank: use --ranks 1, or --launcher mpirun for {} ranks", ranks);
+    return 2;
+  }
+  if (options.launcher == LauncherKind::kDirect && options.max_ranks > 1) {
+    spdlog::error("--launcher direct runs one rank: drop --max-ranks, or use --launcher mpirun for up to {} ranks",
+                  options.max_ranks);
     return 2;
   }
   const int cores = std::max(1u, std::thread::hardware_concurrency());
@@ -152,8 +161,12 @@ int main(int argc, char** argv) {
     stopping = true;
     worker.RequestStop();
   });
-  spdlog::info("sandswim-worker {}: server {}, {} slot(s) x {} rank(s), launcher {}, workdir {}", options.name, server,
-               options.once ? 1 : options.slots, options.ranks, launcher_name, options.workdir);
+  spdlog::info("sandswim-worker {}: server {}, {} slot(s) x {} rank(s){}, launcher {}, workdir {}", options.name, server,
+               options.once ? 1 : options.slots, options.ranks,
+               options.max_ranks > options.ranks && !options.once
+                   ? " (up to " + std::to_string(options.max_ranks) + " when the queue runs dry)"
+                   : std::string(),
+               launcher_name, options.workdir);
   worker.Run();
   done = true;
   if (!stopping) pthread_kill(signal_thread.native_handle(), SIGTERM);

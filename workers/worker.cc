@@ -227,10 +227,57 @@ void Worker::Run() {
   for (auto& t : threads) t.join();
 }
 
+int Worker::Slots() const { return options_.once ? 1 : std::max(1, options_.slots); }
+
+bool Worker::WaitForFreeSlot() {
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait(lock, [this] { return stopping_.load() || slots_in_use_ < Slots(); });
+  return !stopping_;
+}
+
+bool Worker::TakeSlot() {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (slots_in_use_ >= Slots()) return false;
+  ++slots_in_use_;
+  return true;
+}
+
+int Worker::TakeIdleSlots(const api::LeaseGrant& grant) {
+  const int ranks = std::max(1, options_.ranks);
+  if (!grant.queue_dry || options_.launcher == LauncherKind::kDirect || options_.max_ranks <= ranks) return 0;
+  std::lock_guard<std::mutex> lock(mu_);
+  const int extra = std::min(Slots() - slots_in_use_, options_.max_ranks / ranks - 1);
+  if (extra <= 0) return 0;
+  slots_in_use_ += extra;
+  ++stats_.widened;
+  return extra;
+}
+
+void Worker::ReturnSlots(int n) {
+  if (n <= 0) return;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    slots_in_use_ -= n;
+  }
+  cv_.notify_all();
+}
+
+void Worker::RunOnSlot(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next) {
+  const int extra = TakeIdleSlots(grant);
+  const int ranks = options_.ranks * (1 + extra);
+  if (extra > 0) {
+    spdlog::info("{}: nothing else is leasable and {} slot(s) of this worker idle: it runs on {} ranks",
+                 JobName(grant), extra, ranks);
+  }
+  RunJob(grant, next, ranks);
+  ReturnSlots(extra + (next != nullptr && next->has_value() ? 0 : 1));
+}
+
 void Worker::SlotLoop() {
   double backoff = 0.5;
   auto idle_since = Clock::now();
-  // A job leased together with the previous completion (one round trip per job).
+  // A job leased together with the previous completion (one round trip per job); its slot is
+  // still held.
   std::optional<api::LeaseGrant> next;
   while (!stopping_) {
     if (next) {
@@ -240,10 +287,12 @@ void Worker::SlotLoop() {
         std::lock_guard<std::mutex> lock(mu_);
         ++stats_.leased;
       }
-      RunJob(grant, &next);
+      RunOnSlot(grant, &next);
       idle_since = Clock::now();
       continue;
     }
+    // A slot whose core is lent to a wider job leases nothing until that job ends.
+    if (!WaitForFreeSlot()) break;
     if (!RunFitsAllocation()) break;
     api::LeaseRequest request{options_.name, options_.host, options_.ranks, options_.slurm_job};
     auto lease = client_.Lease(request);
@@ -275,11 +324,18 @@ void Worker::SlotLoop() {
       }
       continue;
     }
+    if (!TakeSlot()) {
+      // Another slot's job took this core while the lease was on its way: give the job back.
+      auto reply = client_.Release((*lease)->token, "the worker's cores were all in use when the lease arrived");
+      spdlog::info("{}: handed back unstarted, every core of this worker is in use ({})", JobName(**lease),
+                   reply.ok() ? reply->state : reply.status().ToString() + "; its lease will expire");
+      continue;
+    }
     {
       std::lock_guard<std::mutex> lock(mu_);
       ++stats_.leased;
     }
-    RunJob(**lease, &next);
+    RunOnSlot(**lease, &next);
     if (options_.once) break;
     idle_since = Clock::now();
   }
@@ -288,6 +344,7 @@ void Worker::SlotLoop() {
     auto reply = client_.Release(next->token, "the worker stopped before starting it");
     spdlog::info("{}: handed back unstarted ({})", JobName(*next),
                  reply.ok() ? reply->state : reply.status().ToString() + "; its lease will expire");
+    ReturnSlots(1);
   }
 }
 
@@ -297,6 +354,7 @@ struct Worker::Job {
   std::optional<api::LeaseGrant>* next;
   std::string name;
   Clock::time_point leased_at;
+  int ranks = 1;  // MPI ranks the engine runs on
   api::Completion completion;
 };
 
@@ -363,11 +421,12 @@ void Worker::Fail(Job& job, const RunDir* dir, const std::string& kind, const st
   Complete(job, dir);
 }
 
-void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next) {
-  Job job{grant, next, JobName(grant), Clock::now(), {}};
-  spdlog::info("{}: leased ({} steps, wall budget {} s)", job.name, grant.steps, grant.wall_budget_s);
+void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next, int ranks) {
+  Job job{grant, next, JobName(grant), Clock::now(), ranks > 0 ? ranks : options_.ranks, {}};
+  spdlog::info("{}: leased ({} steps, wall budget {} s, {} rank(s))", job.name, grant.steps, grant.wall_budget_s,
+               job.ranks);
   job.completion.execution.host = options_.host;
-  job.completion.execution.ranks = options_.ranks;
+  job.completion.execution.ranks = job.ranks;
   job.completion.execution.launcher = LauncherName(options_.launcher);
 
   auto dir = Prepare(job);
@@ -489,7 +548,7 @@ std::optional<RunDir> Worker::Prepare(Job& job) {
 std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const DriveInfo& drive, JobProgress& progress) {
   const api::LeaseGrant& grant = job.grant;
   const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
-  LaunchSpec spec = EngineCommand(options_.launcher, options_.ranks, options_.engine, deck_file, kLogFile, dir.path(),
+  LaunchSpec spec = EngineCommand(options_.launcher, job.ranks, options_.engine, deck_file, kLogFile, dir.path(),
                                   options_.as_root);
   spec.output_file = kEngineOutputFile;
   ExitFacts facts;

@@ -28,6 +28,13 @@
 // An engine that dies while the worker is stopping (Slurm signals the steps too) is released
 // the same way.
 //
+// No idle cores: each slot stands for `ranks` cores of this host. A job granted with the daemon's
+// queue dry (api::LeaseGrant::queue_dry: a bed its runs wait for, the queue's last runs) takes the
+// slots that are idle at that moment as extra MPI ranks, up to `max_ranks` in all (0 or <= ranks:
+// never; never with the direct launcher); those slots lease nothing until it ends. A slot whose
+// lease arrives while its core is lent hands the job straight back (attempt uncounted). Ranks enter
+// neither the deck nor the key; the completion's execution says how many the job ran on.
+//
 // Inside a Slurm allocation (`allocation_seconds_left` set), a slot leases a job only while
 // slurm::ShouldLease says it would finish before the allocation ends: it expects a run to take
 // as long as the longest run this worker has done, or `end_margin_s` before the first one.
@@ -64,6 +71,9 @@ struct WorkerOptions {
   std::string slurm_job;  // SLURM_JOB_ID inside an allocation (sent with every lease request)
   int ranks = 1;
   int slots = 1;
+  // A job granted with the queue dry may run on up to this many ranks, taken from idle slots
+  // (see the top of this file). 0 or <= ranks: every job runs on `ranks`.
+  int max_ranks = 0;
   LauncherKind launcher = LauncherKind::kMpirun;
   std::string engine = "liggghts";
   std::string workdir = "var/worker";
@@ -99,6 +109,7 @@ struct WorkerStats {
   int64_t abandoned = 0;           // lease lost or worker stopping: not completed
   int64_t released = 0;            // handed back to the daemon unfinished (worker stopping)
   bool allocation_ending = false;  // stopped leasing: the next run would outlast the allocation
+  int64_t widened = 0;             // jobs run on more ranks than `ranks`, with idle slots' cores
 };
 
 class Worker {
@@ -110,16 +121,28 @@ class Worker {
   void RequestStop();
   bool stopping() const { return stopping_.load(); }
 
-  // Runs one leased job to its end (used by the slots; public for tests). With `next`, and when
-  // the slot goes on, the completion also asks for the next job (one round trip per job); a grant
-  // that came with the reply is left in `*next` for the caller to run or hand back.
-  void RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next = nullptr);
+  // Runs one leased job to its end on `ranks` MPI ranks (0: options.ranks) (used by the slots;
+  // public for tests). With `next`, and when the slot goes on, the completion also asks for the
+  // next job (one round trip per job); a grant that came with the reply is left in `*next` for
+  // the caller to run or hand back.
+  void RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next = nullptr, int ranks = 0);
 
   WorkerStats stats() const;
 
  private:
   struct Job;  // one job as it is run (worker.cc)
   void SlotLoop();
+  // The slots' cores (see the top of this file): waits until one is free (false: stopping); takes
+  // one for a leased job (false: none is free, they are lent); takes the idle ones a job granted
+  // with the queue dry may have as extra ranks (how many it took); gives `n` back.
+  int Slots() const;
+  bool WaitForFreeSlot();
+  bool TakeSlot();
+  int TakeIdleSlots(const api::LeaseGrant& grant);
+  void ReturnSlots(int n);
+  // Runs a job on the slot it holds plus the idle slots it may take; gives back what it took
+  // (its own slot too, unless a next job came with its completion).
+  void RunOnSlot(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next);
   // RunJob's steps: the run directory with its deck and bed (nullopt: the job was reported); the
   // engine started and watched, heartbeating (nullopt: the job was abandoned or handed back); a
   // bed's restart uploaded and reported. The outcome between them is workers/job_outcome.h's.
@@ -152,6 +175,7 @@ class Worker {
   std::condition_variable cv_;
   WorkerStats stats_;
   std::optional<double> longest_run_s_;  // wall time of the longest run done ok, for ShouldLease
+  int slots_in_use_ = 0;                 // slots running a job or lent to a wider one (<= Slots())
 };
 
 }  // namespace sandswim::worker

@@ -47,6 +47,9 @@ class FakeClient : public ServerClient {
   int granted_by_lease = 0;           // grants handed out by Lease() (not with a completion)
   std::vector<std::string> released;  // tokens handed back
   std::function<void()> on_complete;  // runs inside Complete (e.g. a stop request arriving then)
+  std::vector<std::chrono::steady_clock::time_point> completed_at;
+  std::vector<api::LeaseGrant> granted;  // by Lease()
+  bool requeue_released = false;         // a released grant is leasable again
 
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest&) override {
     std::lock_guard<std::mutex> l(mu);
@@ -54,6 +57,7 @@ class FakeClient : public ServerClient {
     ++granted_by_lease;
     api::LeaseGrant g = grants.front();
     grants.pop_front();
+    granted.push_back(g);
     return std::optional<api::LeaseGrant>(g);
   }
   Result<api::HeartbeatReply> Heartbeat(const std::string&, const api::Heartbeat& beat) override {
@@ -77,6 +81,7 @@ class FakeClient : public ServerClient {
   Result<api::CompletionReply> Complete(const std::string&, const api::Completion& c) override {
     std::lock_guard<std::mutex> l(mu);
     completions.push_back(c);
+    completed_at.push_back(std::chrono::steady_clock::now());
     if (on_complete) on_complete();
     api::CompletionReply reply{c.ok ? "done" : "failed"};
     if (piggyback && c.next && !grants.empty()) {
@@ -88,6 +93,10 @@ class FakeClient : public ServerClient {
   Result<api::CompletionReply> Release(const std::string& token, const std::string&) override {
     std::lock_guard<std::mutex> l(mu);
     released.push_back(token);
+    if (requeue_released) {  // as the daemon does: queued again, leasable at once
+      for (const api::LeaseGrant& g : granted)
+        if (g.token == token) grants.push_front(g);
+    }
     return api::CompletionReply{"queued"};
   }
 };
@@ -133,12 +142,20 @@ class FakeLauncher : public Launcher {
   bool runs_until_stopped = false;
   double runs_for_s = 0;  // wall time a process takes before it exits by itself
   bool missing = false;
+  std::mutex mu;
   std::vector<LaunchSpec> started;
+  std::vector<std::chrono::steady_clock::time_point> started_at;
   std::atomic<int> stops{0};  // Stop() calls on any process this launcher started
+  size_t Started() {
+    std::lock_guard<std::mutex> l(mu);
+    return started.size();
+  }
 
   Result<std::unique_ptr<EngineProcess>> Start(const LaunchSpec& spec) override {
     if (missing) return Status::Unavailable("'liggghts' not found on PATH or not executable");
+    std::lock_guard<std::mutex> l(mu);
     started.push_back(spec);
+    started_at.push_back(std::chrono::steady_clock::now());
     for (const auto& [name, text] : files) WriteFile(spec.cwd + "/" + name, text);
     return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(runs_until_stopped, &stops, runs_for_s));
   }
@@ -629,6 +646,122 @@ TEST(WorkerTest, ExitWhenIdleReturnsWithNoWork) {
   worker.Run();  // would wait forever without exit_when_idle_s
   EXPECT_EQ(worker.stats().leased, 0);
   EXPECT_TRUE(launcher.started.empty());
+}
+
+
+// A bed job as the daemon grants it (queue_dry: nothing else was leasable then).
+api::LeaseGrant BedGrant(int64_t id, bool queue_dry) {
+  api::LeaseGrant g;
+  g.token = "tok-bed-" + std::to_string(id);
+  g.kind = api::JobKind::kBed;
+  g.id = id;
+  g.deck = "timestep 1e-05\n";
+  g.dt_s = 1e-5;
+  g.queue_dry = queue_dry;
+  return g;
+}
+
+// The ranks an engine was started with: mpirun's -np, or 1 for the direct launcher.
+int RanksOf(const LaunchSpec& spec) {
+  for (size_t i = 0; i + 1 < spec.argv.size(); ++i)
+    if (spec.argv[i] == "-np") return std::stoi(spec.argv[i + 1]);
+  return 1;
+}
+
+bool WaitUntil(const std::function<bool()>& done, double seconds = 10) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                              std::chrono::duration<double>(seconds));
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return true;
+}
+
+// No idle cores: a bed granted with the queue dry runs on the ranks of the worker's idle slot
+// too, and that slot leases nothing until the bed is done (a job queued meanwhile starts after
+// it, on one rank); the completion says how many ranks it ran on.
+TEST(WorkerTest, AJobGrantedWithTheQueueDryTakesTheIdleSlotsAsRanks) {
+  FakeClient client;
+  client.requeue_released = true;
+  client.grants = {BedGrant(1, /*queue_dry=*/true)};
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+  launcher.runs_for_s = 0.3;
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.launcher = LauncherKind::kMpirun;  // the fake launcher starts nothing: only the command is read
+  o.slots = 2;
+  o.max_ranks = 2;
+  Worker worker(o, client, launcher);
+  std::thread run([&] { worker.Run(); });
+  ASSERT_TRUE(WaitUntil([&] { return launcher.Started() == 1; }));
+  {
+    std::lock_guard<std::mutex> l(client.mu);
+    client.grants.push_back(BedGrant(2, /*queue_dry=*/false));
+  }
+  const bool both = WaitUntil([&] {
+    std::lock_guard<std::mutex> l(client.mu);
+    return client.completions.size() == 2;
+  });
+  worker.RequestStop();
+  run.join();
+  ASSERT_TRUE(both);
+  ASSERT_EQ(launcher.started.size(), 2u);
+  EXPECT_EQ(RanksOf(launcher.started[0]), 2);
+  EXPECT_EQ(RanksOf(launcher.started[1]), 1);
+  EXPECT_EQ(client.completions[0].execution.ranks, 2);
+  EXPECT_EQ(client.completions[1].execution.ranks, 1);
+  EXPECT_GE(launcher.started_at[1], client.completed_at[0]);  // the lent slot waited for the bed
+  EXPECT_EQ(worker.stats().widened, 1);
+}
+
+// Without the queue dry, without --max-ranks, or with the direct launcher (one rank by nature), a
+// job runs on the worker's ranks even while the other slot idles.
+TEST(WorkerTest, AJobRunsOnItsOwnRanksUnlessTheQueueIsDryAndMoreAreAllowed) {
+  struct Case {
+    bool queue_dry;
+    int max_ranks;
+    LauncherKind launcher;
+  };
+  for (const Case& c : {Case{false, 2, LauncherKind::kMpirun}, Case{true, 0, LauncherKind::kMpirun},
+                        Case{true, 1, LauncherKind::kMpirun}, Case{true, 2, LauncherKind::kDirect}}) {
+    FakeClient client;
+    client.grants = {BedGrant(1, c.queue_dry)};
+    FakeLauncher launcher;
+    launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+    WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+    o.launcher = c.launcher;
+    o.slots = 2;
+    o.max_ranks = c.max_ranks;
+    o.exit_when_idle_s = 0.05;
+    Worker worker(o, client, launcher);
+    worker.Run();
+    ASSERT_EQ(launcher.started.size(), 1u);
+    EXPECT_EQ(RanksOf(launcher.started[0]), 1) << c.queue_dry << " " << c.max_ranks;
+    ASSERT_EQ(client.completions.size(), 1u);
+    EXPECT_EQ(client.completions[0].execution.ranks, 1);
+    EXPECT_EQ(worker.stats().widened, 0);
+  }
+}
+
+// Every slot busy: a job granted with the queue dry has no idle slot to take.
+TEST(WorkerTest, NoSlotIsTakenFromAJobThatRuns) {
+  FakeClient client;
+  client.grants = {BedGrant(1, /*queue_dry=*/false), BedGrant(2, /*queue_dry=*/true)};
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+  launcher.runs_for_s = 1;  // long enough that both slots have leased before either job ends
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.launcher = LauncherKind::kMpirun;
+  o.slots = 2;
+  o.max_ranks = 2;
+  o.exit_when_idle_s = 0.05;
+  Worker worker(o, client, launcher);
+  worker.Run();
+  ASSERT_EQ(launcher.started.size(), 2u);
+  EXPECT_EQ(RanksOf(launcher.started[0]), 1);
+  EXPECT_EQ(RanksOf(launcher.started[1]), 1);
+  EXPECT_EQ(worker.stats().widened, 0);
 }
 
 }  // namespace
