@@ -95,27 +95,53 @@ PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& 
 }
 
 std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRate& run_rate,
-                               const EngineRate& bed_rate, double expected_fraction, double fraction_rel_error,
-                               int slots) {
+                               const EngineRate& bed_rate, const StepShare& share, int slots) {
   if (left.empty()) return std::nullopt;
   slots = std::max(slots, 1);
-  expected_fraction = std::clamp(std::isfinite(expected_fraction) ? expected_fraction : 1.0, 0.0, 1.0);
+  const bool measured = share.done > 0 && std::isfinite(share.mean) && std::isfinite(share.sd);
+  const double mean = measured ? std::clamp(share.mean, 0.0, 1.0) : 1.0;
+  // A scatter measured on few runs is often too small (with 2 runs, it is below its true value
+  // half the time by a factor of 1.5 or more): widened by Student's t at one sigma for done - 1
+  // degrees of freedom (Cornish-Fisher to 1/dof^3: 1.81 for 1, 1.33 for 2, 1.05 for 10).
+  const double dof = measured ? static_cast<double>(share.done - 1) : 0.0;
+  const double t_one_sigma = dof >= 1 ? 1 + 0.5 / dof + 0.25 / (dof * dof) + 0.0625 / (dof * dof * dof) : 1.0;
+  const double sd = measured ? std::max(0.0, share.sd) * t_one_sigma : 0.0;
   double run_s = 0, bed_s = 0, longest_run = 0, longest_bed = 0;
+  double shared_sigma = 0;  // s: errors every run shares (summed), and each run's own (in quadrature)
+  double own_var = 0;
+  bool ranged = false;  // some run has a precision target
   for (const WorkLeft& w : left) {
-    double s = 0;
     if (w.kind == WorkLeft::Kind::kBed) {
-      s = std::max(0.0, w.particles * bed_rate.s_per_unit - (w.running ? w.elapsed_s : 0.0));
+      const double s = std::max(0.0, w.particles * bed_rate.s_per_unit - (w.running ? w.elapsed_s : 0.0));
       bed_s += s;
       longest_bed = std::max(longest_bed, s);
-    } else {
-      const double expected_steps = std::max(static_cast<double>(w.steps) * expected_fraction,
-                                             static_cast<double>(w.steps_done));
-      const double steps_left = std::max(0.0, std::min(static_cast<double>(w.steps), expected_steps) -
-                                                  static_cast<double>(w.steps_done));
-      s = steps_left * w.particles * run_rate.s_per_unit;
-      run_s += s;
-      longest_run = std::max(longest_run, s);
+      continue;
     }
+    const double steps = static_cast<double>(w.steps), done = static_cast<double>(w.steps_done);
+    const double s_per_step = w.particles * run_rate.s_per_unit;
+    if (done >= steps) continue;
+    ranged = ranged || w.min_steps > 0;
+    // Where it may end: a target's range, or (share measured) anywhere from here on.
+    const double lo = std::max(done, w.min_steps > 0 ? std::min(static_cast<double>(w.min_steps), steps)
+                                                     : (measured ? done : steps));
+    const double half_range = (steps - lo) / 2;
+    double expected = steps, shared = 0, own = 0;
+    if (!measured) {
+      expected = lo + half_range;
+      shared = 2 * half_range / std::sqrt(12.0);
+    } else if (done > 0 && done >= steps * mean) {
+      expected = lo + half_range;  // it outlived the share: somewhere in the rest of its range
+      own = 2 * half_range / std::sqrt(12.0);
+    } else {
+      expected = std::clamp(steps * mean, lo, steps);
+      own = std::min(sd * steps, half_range);
+      shared = std::min(sd * steps / std::sqrt(static_cast<double>(share.done)), half_range);
+    }
+    const double s = (expected - done) * s_per_step;
+    run_s += s;
+    longest_run = std::max(longest_run, s);
+    shared_sigma += shared * s_per_step;
+    own_var += own * s_per_step * own * s_per_step;
   }
   Eta eta;
   // As PlanCost::WallSeconds: the beds first (runs wait for theirs), then the runs over every slot.
@@ -123,12 +149,15 @@ std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRa
   const double total = run_s + bed_s;
   const double rate_error =
       total > 0 ? std::hypot(run_rate.rel_error * run_s, bed_rate.rel_error * bed_s) / total : run_rate.rel_error;
-  eta.rel_error = std::hypot(rate_error, total > 0 ? fraction_rel_error * run_s / total : 0.0);
+  const double length_sigma = std::hypot(shared_sigma, std::sqrt(own_var));  // core-s, of run_s
+  eta.rel_error = std::hypot(rate_error, total > 0 ? length_sigma / total : 0.0);
   eta.basis = run_rate.basis;
   if (bed_s > 0) eta.basis += "; beds: " + bed_rate.basis;
-  if (expected_fraction < 1) {
-    eta.basis += "; queued runs expected to use " + std::to_string(static_cast<int>(std::lround(expected_fraction * 100))) +
+  if (measured) {
+    eta.basis += "; runs left expected to use " + std::to_string(static_cast<int>(std::lround(mean * 100))) +
                  " % of their steps, as the done ones did";
+  } else if (ranged) {
+    eta.basis += "; runs with a precision target expected halfway between their earliest stop and their deck's end";
   } else {
     eta.basis += "; queued runs counted to their deck's end";
   }

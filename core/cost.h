@@ -95,6 +95,17 @@ struct WorkLeft {
   int64_t steps = 0;       // run: the deck's most
   int64_t steps_done = 0;  // run: from its progress (simulated time / dt)
   double elapsed_s = 0;    // running: wall time since it started
+  // Run with a precision target: the earliest step its target can end it at (core/precision.h
+  // EarliestTargetStopS); it ends somewhere between this and `steps`. 0: no target.
+  int64_t min_steps = 0;
+};
+
+// The share of their deck's steps the scope's done runs used (a precision target or a boundary
+// ends runs early): what the runs left are expected to use.
+struct StepShare {
+  int done = 0;      // done runs it rests on; 0: none yet (mean and sd unused)
+  double mean = 1;   // their mean share
+  double sd = 0;     // one run's share's standard deviation about that mean
 };
 
 struct Eta {
@@ -103,15 +114,23 @@ struct Eta {
   std::string basis;     // what the rates rest on, and what the estimate assumes
 };
 
-// Work left over `slots` engines (at least 1). Queued runs are expected to use
-// `expected_fraction` of their steps (the done runs' share, when some are done; 1 otherwise:
-// every run to its deck's end). A running bed's remaining time is its estimate less its elapsed
-// time, at least 0. As PlanCost::WallSeconds: the beds left first (their runs wait for them; beds
-// share the slots), then the runs over every slot, and never less than the longest bed plus the
-// longest run (one engine cannot be shared). nullopt when nothing is left.
+// Work left over `slots` engines (at least 1). What each run left is expected to take:
+//   - before any run of the scope is done: a run with a precision target ends anywhere between
+//     its earliest target stop and its deck's end, so it is expected at the middle of what is left
+//     of that range, with the range's spread (its length / sqrt(12)) as its error, one error for
+//     all of them (one campaign's runs reach their targets alike); a run without a target counts
+//     to its deck's end;
+//   - once some are done: `share` of its steps (inside its range), with two errors: the share's
+//     own scatter, run by run, and its mean's (sd / sqrt(done)), the same for every run (sd
+//     widened by Student's t at one sigma for done - 1 degrees of freedom). A run
+//     that has already outlived the share is expected at the middle of the rest of its range.
+// Either error is never more than half the run's range allows. A running bed's remaining time is
+// its estimate less its elapsed time, at least 0. As PlanCost::WallSeconds: the beds left first
+// (their runs wait for them; beds share the slots), then the runs over every slot, and never less
+// than the longest bed plus the longest run (one engine cannot be shared). The stated error
+// combines the rates' errors and the runs' lengths'. nullopt when nothing is left.
 std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRate& run_rate,
-                               const EngineRate& bed_rate, double expected_fraction, double fraction_rel_error,
-                               int slots);
+                               const EngineRate& bed_rate, const StepShare& share, int slots);
 
 }  // namespace sandswim
 

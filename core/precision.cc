@@ -107,6 +107,13 @@ double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target)
   return std::min(p.duration_s, std::max(target->max_duration_s, needed));
 }
 
+double EarliestTargetStopS(const Point& p, const PrecisionTarget& t) {
+  const WindowRule rule;
+  const double block = p.has_vibration() ? 1.0 / p.f : rule.undriven_block_s;
+  const double earliest = TransientS(rule, block) + (t.min_periods + kMinBlocksAfterPilot) * block;
+  return std::min(earliest, RunDuration(p, t));
+}
+
 bool TargetMet(const api::RunResult& r, const PrecisionTarget& t) {
   if (r.uz_blocks < t.min_periods || !r.uz || !r.uz_ci95) return false;
   const double allowed = std::max(t.uz_rel * std::fabs(*r.uz), t.uz_abs);
@@ -131,7 +138,8 @@ std::optional<StopPlan> PlanStop(const std::vector<SoSample>& samples, const api
   int64_t after = kBeyond;
   if (plan.half_width > 0) {
     const double needed = std::ceil(std::pow(StudentT95(n0 - 1) * plan.pilot_sd / plan.half_width, 2));
-    after = needed >= static_cast<double>(kBeyond) ? kBeyond : std::max<int64_t>(3, static_cast<int64_t>(needed));
+    after = needed >= static_cast<double>(kBeyond) ? kBeyond
+                                                   : std::max<int64_t>(kMinBlocksAfterPilot, static_cast<int64_t>(needed));
   }
   plan.blocks_needed = n0 + after;
   return plan;

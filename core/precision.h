@@ -92,6 +92,13 @@ std::optional<PrecisionTarget> Tightest(const PrecisionTarget& a, const Precisio
 // Unchanged by the two-stage rule, so that no deck or run key changed with it.)
 double RunDuration(const Point& p, const std::optional<PrecisionTarget>& target);
 
+// The earliest physical time a run of `p` can end for its target: the start-up transient, the
+// pilot's min_periods blocks and the three blocks the two-stage rule asks after it at least
+// (kMinBlocksAfterPilot; PlanStop). Never later than RunDuration. A "window" stop at a boundary
+// may come sooner, as it may for a run without a target.
+inline constexpr int kMinBlocksAfterPilot = 3;
+double EarliestTargetStopS(const Point& p, const PrecisionTarget& t);
+
 // Whether the interval of `r` meets the target's half-width at r's own rate (false when r has
 // fewer blocks than min_periods or no interval): what a result reports as precision_met.
 bool TargetMet(const api::RunResult& r, const PrecisionTarget& t);

@@ -207,6 +207,17 @@ TEST(PrecisionTest, RunDurationHoldsTheTransientAndMinPeriods) {
   EXPECT_DOUBLE_EQ(TransientS(rule, rule.undriven_block_s), 2 * rule.undriven_block_s);
 }
 
+// The earliest a target can end a run: the transient, the pilot's min_periods blocks and the three
+// after it; never after the run's own end (core/cost.h's ETA spans a run between the two).
+TEST(PrecisionTest, EarliestTargetStopIsThePilotAndThreeBlocksAfterTheTransient) {
+  const PrecisionTarget t{0.1, 0, 3, 5};
+  // 3 Hz: a transient of one period (1/3 s >= 0.3 s), 3 + 3 periods.
+  EXPECT_NEAR(EarliestTargetStopS(OscillatoryPoint(0.03, 3, 80, 5), t), 7.0 / 3, 1e-12);
+  EXPECT_LE(EarliestTargetStopS(OscillatoryPoint(0.03, 3, 80, 5), t), RunDuration(OscillatoryPoint(0.03, 3, 80, 5), t));
+  // 1 Hz for at most 5 s: 1 + 6 periods do not fit, so the run's end is the earliest.
+  EXPECT_DOUBLE_EQ(EarliestTargetStopS(OscillatoryPoint(0.03, 1, 80, 5), t), 5.0);
+}
+
 // The merged target must never be met where either one is not: a 0 threshold is the strictest.
 TEST(PrecisionTest, TightestMeetsBothTargets) {
   const PrecisionTarget a{0.1, 0.002, 3, 2}, b{0.2, 0.001, 5, 4};

@@ -5,6 +5,9 @@
 #include <functional>
 #include <map>
 
+#include "core/point.h"
+#include "core/precision.h"
+
 namespace sandswim {
 namespace {
 
@@ -24,6 +27,20 @@ Status StepAll(Statement& st, const std::function<void(const Statement&)>& row) 
     if (!*r) return Status::Ok();
     row(st);
   }
+}
+
+// The earliest step a queued or running run's precision target can end it at (core/cost.h
+// WorkLeft::min_steps), from ReadEta's row (columns 9-17); 0 without a target or when the row no
+// longer parses (the run then counts to its deck's end).
+int64_t EarliestTargetStep(const Statement& r, int64_t steps) {
+  Result<std::optional<PrecisionTarget>> target = StoredPrecision(r.OptText(9));
+  if (!target.ok() || !*target) return 0;
+  Result<Point> point = StoredPoint(r.Text(10), r.Text(11), r.Double(12), r.Double(13), r.Double(14), r.Double(15),
+                                    r.Double(16));
+  const double run_s = r.Double(17);
+  if (!point.ok() || !(run_s > 0)) return 0;
+  const double earliest = EarliestTargetStopS(*point, **target);
+  return std::clamp<int64_t>(static_cast<int64_t>(std::ceil(static_cast<double>(steps) * earliest / run_s)), 1, steps);
 }
 
 std::string Plural(int n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? "" : "s"); }
@@ -174,7 +191,8 @@ Result<std::optional<Eta>> ReadEta(Database& db, EtaScope scope, int64_t id, dou
   {
     Statement st = t->Prepare(
         "SELECT r.state, r.steps, COALESCE(r.step, 0), COALESCE(r.heartbeat_at - r.started_at, 0), b.id, b.state, "
-        "b.grains, b.scale, COALESCE(?2 - b.started_at, 0) FROM runs r JOIN beds b ON b.id = r.bed_id "
+        "b.grains, b.scale, COALESCE(?2 - b.started_at, 0), r.precision, r.mode, r.axis, r.A, r.f, r.osc_omega, "
+        "r.rot_omega, r.duration_s, r.run_duration_s FROM runs r JOIN beds b ON b.id = r.bed_id "
         "WHERE r.id IN (" + ScopeRuns(scope) + ") AND r.state IN ('queued', 'running')");
     st.Bind(1, id).Bind(2, now);
     Status s = StepAll(st, [&](const Statement& r) {
@@ -187,6 +205,7 @@ Result<std::optional<Eta>> ReadEta(Database& db, EtaScope scope, int64_t id, dou
       w.steps = r.Int(1);
       w.steps_done = r.Int(2);
       w.elapsed_s = r.Double(3);
+      w.min_steps = EarliestTargetStep(r, w.steps);
       left.push_back(w);
       const std::string bed_state = r.Text(5);
       if (bed_state == "queued" || bed_state == "running") {
@@ -212,21 +231,20 @@ Result<std::optional<Eta>> ReadEta(Database& db, EtaScope scope, int64_t id, dou
     Status s = StepAll(st, [&](const Statement& r) { fractions.push_back(std::clamp(r.Double(0), 0.0, 1.0)); });
     if (!s.ok()) return s;
   }
-  double fraction = 1, fraction_error = 0;
+  StepShare share;
   if (!fractions.empty()) {
     double mean = 0;
     for (double f : fractions) mean += f;
     mean /= static_cast<double>(fractions.size());
     double ss = 0;
     for (double f : fractions) ss += (f - mean) * (f - mean);
-    const double sd = fractions.size() > 1 ? std::sqrt(ss / static_cast<double>(fractions.size() - 1)) : 0.5 * mean;
-    fraction = mean;
-    // The remaining runs' mean share varies as one run's does, over the runs left (at least one).
-    const double n_left = std::max<double>(1, static_cast<double>(left.size()));
-    fraction_error = mean > 0 ? sd / std::sqrt(n_left) / mean : 0;
+    share.done = static_cast<int>(fractions.size());
+    share.mean = mean;
+    // One done run says nothing of the scatter: half its share, as a guess.
+    share.sd = fractions.size() > 1 ? std::sqrt(ss / static_cast<double>(fractions.size() - 1)) : 0.5 * mean;
   }
   const int slots = std::max({model->engines_in_flight, min_slots, 1});
-  std::optional<Eta> eta = EstimateEta(left, model->run_rate, model->bed_rate, fraction, fraction_error, slots);
+  std::optional<Eta> eta = EstimateEta(left, model->run_rate, model->bed_rate, share, slots);
   if (eta) eta->basis += "; " + Plural(slots, "engine");
   return eta;
 }

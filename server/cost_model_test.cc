@@ -2,6 +2,7 @@
 
 #include <stdlib.h>
 
+#include <cmath>
 #include <filesystem>
 
 #include <gtest/gtest.h>
@@ -111,6 +112,25 @@ TEST_F(CostModelTest, RatesComeFromDoneRunsAndRunningProgress) {
   EXPECT_DOUBLE_EQ(j["s"].get<double>(), 75);
   EXPECT_LT(j["low_s"].get<double>(), 75);
   EXPECT_GT(j["high_s"].get<double>(), 75);
+}
+
+// A queued run with a precision target ends between its earliest target stop and its deck's end:
+// before any run is done it is expected halfway, and the error says how wide that range is.
+TEST_F(CostModelTest, ARunWithATargetIsExpectedHalfwayThroughItsRange) {
+  Bed("done");
+  Run(1, "queued", 500000, 0, 0, 0);
+  // 3 Hz, at most 5 s: the earliest target stop is a one-period transient and 3 + 3 periods (7/3 s).
+  Exec("UPDATE runs SET axis = 'x', duration_s = 5, run_duration_s = 5, precision = "
+       "'{\"uz_rel\": 0.1, \"uz_abs\": 0, \"min_periods\": 3, \"max_duration_s\": 5}' WHERE id = 1");
+  auto eta = ReadEta(*store_, EtaScope::kSweep, 1, 0, 2);
+  ASSERT_TRUE(eta.ok()) << eta.status().ToString();
+  ASSERT_TRUE(eta->has_value());
+  const double min_steps = std::ceil(500000 * (7.0 / 3) / 5);
+  const double s_per_step = 1000 * kDefaultSecondsPerParticleStep;
+  EXPECT_NEAR((*eta)->seconds, (min_steps + 500000) / 2 * s_per_step, 1e-6);
+  const double range_sigma = (500000 - min_steps) / std::sqrt(12.0) / ((min_steps + 500000) / 2);
+  EXPECT_NEAR((*eta)->rel_error, std::hypot(kDefaultRateRelError, range_sigma), 1e-9);
+  EXPECT_NE((*eta)->basis.find("halfway"), std::string::npos) << (*eta)->basis;
 }
 
 TEST_F(CostModelTest, AFinishedSweepHasNoEta) {
