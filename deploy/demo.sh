@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs a campaign end to end on this machine, the embedded default: one sandswimd with a SQLite
-# file and local workers (one per core), the campaign submitted and followed with a progress
+# file and a local worker with one engine slot per core (a bed every run waits for is prepared on
+# the idle slots' cores too), the campaign submitted and followed with a progress
 # view, and its U_z table printed at the end. Usage: deploy/demo.sh [CAMPAIGN] [SCALE]
 #   SANDSWIM_VAR   where the database, beds and runs go (default ./var)
 #   SANDSWIM_PORT  port of the daemon (default 8640)
@@ -32,7 +33,7 @@ done
 # ($SANDSWIM_TOKEN, when exported, is the token instead: the daemon, its workers and the CLI all
 # take it from the environment.)
 token_file=$var/data/token
-echo "demo: sandswimd on $SANDSWIM_SERVER with $workers local workers (log: $var/sandswimd.log)" >&2
+echo "demo: sandswimd on $SANDSWIM_SERVER with $workers local engine slots (log: $var/sandswimd.log)" >&2
 if [ -n "${SANDSWIM_TOKEN:-}" ]; then
   echo "demo: dashboard $SANDSWIM_SERVER/?token=\$SANDSWIM_TOKEN" >&2
   "$bin/sandswim" submit "$campaign" --scale "$scale" --wait
