@@ -373,7 +373,9 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
   }
   if (*state == "done") {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
-                                     {{"host", c.execution.host}, {"wall_s", c.execution.wall_s}}));
+                                     {{"host", c.execution.host},
+                                      {"ranks", c.execution.ranks},
+                                      {"wall_s", c.execution.wall_s}}));
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, *state));
   SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));

@@ -189,7 +189,18 @@ TEST_F(LeaseQueueTest, GrantsSayWhenNothingElseIsLeasable) {
     c.bed_result = api::BedResult{};
     c.bed_result->grains = 3700;
     c.bed_result->sha256 = Sha256Hex(bytes);
+    c.execution.ranks = bed.queue_dry ? 2 : 1;  // as a worker with an idle slot ran it
     ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  }
+  {
+    // The event log says on how many ranks each bed was prepared.
+    auto t = store_->Begin();
+    ASSERT_TRUE(t.ok());
+    Statement st = t->Prepare("SELECT detail FROM events WHERE kind = 'bed.done' AND subject = ?1");
+    const std::string subject = "bed/" + std::to_string(bed2.id);
+    st.Bind(1, subject);
+    ASSERT_TRUE(*st.Step());
+    EXPECT_EQ(nlohmann::json::parse(st.Text(0)).at("ranks"), 2);
   }
   // Four runs (two Omega on two beds): only the last one is granted with the queue dry.
   std::vector<bool> dry;
