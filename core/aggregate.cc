@@ -5,9 +5,67 @@
 #include <cstdio>
 #include <map>
 
+#include <gsl/gsl_cdf.h>
+
 #include "core/trajectory.h"
 
 namespace sandswim {
+
+namespace {
+bool MeasuredBed(const ReplicateValue& v) {
+  return v.conclusive && v.uz && std::isfinite(*v.uz) && v.uz_stderr && *v.uz_stderr > 0 && v.uz_ci95 &&
+         *v.uz_ci95 > 0;
+}
+bool CensoredBed(const ReplicateValue& v) { return !MeasuredBed(v) && v.censored != 0 && v.bound > 0; }
+
+// The degrees of freedom a run's own 95 % interval was made with: ci95 / se = t(0.975, dof).
+double DofOf(const ReplicateValue& v) {
+  const double ratio = *v.uz_ci95 / *v.uz_stderr;
+  if (ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return 1e7;
+  double lo = 0.5, hi = 1e7;  // t(0.975, dof) falls as dof grows
+  for (int i = 0; i < 200; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    if (gsl_cdf_tdist_Pinv(0.975, mid) > ratio) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return std::sqrt(lo * hi);
+}
+}  // namespace
+
+int BedsSign(const std::vector<ReplicateValue>& values, double tail) {
+  double sum = 0, var = 0, welch = 0;
+  int sign_of_censored = 0, own = 0;
+  bool any = false;
+  for (const ReplicateValue& v : values) {
+    int s = 0;
+    if (MeasuredBed(v)) {
+      sum += *v.uz;
+      const double se2 = *v.uz_stderr * *v.uz_stderr;
+      var += se2;
+      welch += se2 * se2 / DofOf(v);
+      s = *v.uz - *v.uz_ci95 > 0 ? 1 : *v.uz + *v.uz_ci95 < 0 ? -1 : 0;
+    } else if (CensoredBed(v)) {
+      sum += v.censored * v.bound;
+      s = v.censored;
+      if (sign_of_censored != 0 && s != sign_of_censored) return 0;
+      sign_of_censored = s;
+    } else {
+      return 0;  // an open bed: no evidence
+    }
+    // A bed that shows a sign against another's: the sign is not the drive's.
+    if (s != 0 && own != 0 && s != own) return 0;
+    if (s != 0) own = s;
+    any = true;
+  }
+  if (!any) return 0;
+  if (var <= 0) return sign_of_censored;  // every bed censored, all at one boundary
+  const double half = gsl_cdf_tdist_Pinv(1 - tail, welch > 0 ? var * var / welch : 1e7) * std::sqrt(var);
+  const int sign = sum - half > 0 ? 1 : sum + half < 0 ? -1 : 0;
+  return own != 0 && sign != own ? 0 : sign;
+}
 
 ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values, double bed_sd_rel) {
   std::sort(values.begin(), values.end(),
@@ -72,6 +130,28 @@ ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values, doubl
                 "the beds scatter less than their runs' own errors: the error is theirs, sqrt(sum se^2)/n";
     }
     a.uz_ci95 = StudentT95(n - 1) * *a.uz_stderr;
+  }
+  // As evidence: each bed measured, censored or open, and the point by the rule in the header.
+  double low_sum = 0, bound = 0;
+  for (const ReplicateValue& v : values) {
+    if (MeasuredBed(v)) {
+      low_sum += *v.uz;
+    } else if (CensoredBed(v)) {
+      low_sum += v.censored * v.bound;
+      bound = a.censored_beds == 0 ? v.bound : std::min(bound, v.bound);
+      ++a.censored_beds;
+    } else {
+      ++a.open_beds;
+    }
+  }
+  if (a.replicates > 0 && a.open_beds == 0) {
+    a.evidence = a.censored_beds == 0 ? ReplicateAggregate::Evidence::kMeasured
+                                      : ReplicateAggregate::Evidence::kCensored;
+    a.sign = BedsSign(values, 0.025);
+    if (a.censored_beds > 0) {
+      a.bound = bound;
+      if (a.sign != 0) a.uz_low = low_sum / a.replicates;
+    }
   }
   a.values = std::move(values);
   return a;

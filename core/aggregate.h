@@ -14,8 +14,37 @@
 //   - n == 0: no value; inconclusive, `note` says why.
 // The point is conclusive (`complete`) only when all K of its replicates are: a mean over the
 // conclusive ones alone leans towards the beds that happened to run long enough (the fast ones meet
-// the surface or the floor first), so it is shown, never used as the point's value by fits or
-// claims (core/claims.h states what a claim does with the other beds).
+// the surface or the floor first), so it is never used as the point's value by fits or claims.
+//
+// The point as EVIDENCE over its K beds (the rule the claims use, core/claims.h "Points"). Each bed
+// is one of
+//   measured   conclusive, U_i with its own standard error and 95 % half-width;
+//   censored   cut short at the surface (`censored` = +1) or the floor (-1) before enough whole
+//              periods (the caller decides which runs are: core/claims.cc), with `bound`, a lower
+//              bound on its |U_z| from distance over time;
+//   open       anything else: failed, cancelled, queued, running, or done with neither.
+// and the point is
+//   measured   every bed measured: the value above (mean, between-bed error);
+//   censored   every bed measured or censored, one at least censored. Nothing is dropped: its
+//              `sign` is BedsSign's (below), and
+//              `bound` the smallest of its censored beds' bounds; `uz_low` (with a
+//              sign only) the mean over all K beds of the measured U_i and the censored beds'
+//              sign * bound: each term is at most its bed's |U_z| in expectation, so |uz_low| is a
+//              LOWER estimate of the point's |U_z| (for rules that can use one: a rule it would
+//              favour must not take it);
+//   open       a bed open: no evidence at all, whatever the other beds say (a failed or unfinished
+//              bed keeps the point from deciding).
+// `sign` is given for measured points too, by the same rule:
+//   the SIGN of a point's beds (BedsSign) is +1 / -1 when their summed drift, the measured beds'
+//   U_i plus each censored bed's boundary sign * bound, is clear of 0 by the measured beds' own
+//   errors (sqrt(sum se_i^2), Student's t at the one-sided level with Welch-Satterthwaite's
+//   degrees of freedom from each run's own) -- every censored term is at most its bed's |U_z|, so a
+//   censored bed can only make the sign harder to show -- and no bed shows the other sign (a
+//   measured bed by its own 95 % interval, a censored one by its boundary: beds that disagree
+//   clearly say the sign is not the drive's); every bed censored at one boundary shows that one.
+//   It is a statement about the K beds the point ran on (their own noise), not about beds never
+//   poured: the scatter between beds moves a rate, rarely its sign, and a bed that differs in sign
+//   stops it. With K = 1 it is the run's own 95 % interval.
 //
 // Thread safety: pure functions.
 #ifndef SANDSWIM_CORE_AGGREGATE_H_
@@ -43,6 +72,10 @@ struct ReplicateValue {
   std::optional<double> uz;         // m/s
   std::optional<double> uz_stderr;  // m/s, its own standard error
   std::optional<double> uz_ci95;    // m/s, its own 95 % half-width
+  // Not conclusive: cut short at the surface (+1) or the floor (-1), with `bound` (m/s), a lower
+  // bound on its |U_z|; 0: not censored (the caller decides, see above).
+  int censored = 0;
+  double bound = 0;
 };
 
 struct ReplicateAggregate {
@@ -56,6 +89,14 @@ struct ReplicateAggregate {
   std::string note;                     // what the aggregate rests on, when it is less than K beds
   bool bed_prior = false;               // K = 1: the error includes the scale's bed-to-bed prior
   std::vector<ReplicateValue> values;   // by replicate index
+  // As evidence (the rule above).
+  enum class Evidence { kMeasured, kCensored, kOpen };
+  Evidence evidence = Evidence::kOpen;
+  int censored_beds = 0;         // beds censored
+  int open_beds = 0;             // beds that are neither measured nor censored
+  int sign = 0;                  // +1 / -1: every bed shows it; 0: not every bed, or a bed open
+  std::optional<double> bound;   // m/s, censored points: the smallest censored bed's bound on |U_z|
+  std::optional<double> uz_low;  // m/s, censored points with a sign: the lower estimate of U_z
 };
 
 // `bed_sd_rel` (the scale's Scale::bed_sd_rel, 0: none): a point run on one bed only (K = 1) gets
@@ -64,6 +105,10 @@ struct ReplicateAggregate {
 // to be (on the truth engine such intervals held the true U_z 71 % of the time). With K >= 2 the
 // beds' own scatter is measured and used instead.
 ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values, double bed_sd_rel = 0);
+
+// The sign the beds show at one-sided level `tail` (0.025: the 95 % rule above; the claims widen it
+// to a family-wise level, 0.025 / m): +1, -1 or 0 (not shown, beds that disagree, or a bed open).
+int BedsSign(const std::vector<ReplicateValue>& values, double tail);
 
 // A sweep's runs grouped by point (SameDrive: a point's replicates differ only in their bed),
 // each group aggregated, in the order the points first appear.

@@ -119,6 +119,59 @@ TEST(AggregateTest, TheErrorIsNeverSmallerThanTheRunsOwn) {
   EXPECT_NE(agg.note.find("less than their runs' own errors"), std::string::npos) << agg.note;
 }
 
+// The point as evidence over its K beds: a censored bed is counted (its sign, its bound, its part
+// of a lower estimate), never dropped; an open bed (failed, unfinished, neither) leaves no evidence.
+ReplicateValue Censored(int replicate, int side, double bound) {
+  ReplicateValue v = Value(replicate, std::nullopt, false);
+  v.censored = side;
+  v.bound = bound;
+  return v;
+}
+
+TEST(AggregateTest, CensoredBedsAreEvidenceOfSignAndALowerEstimate) {
+  ReplicateAggregate measured = AggregateReplicates({Value(0, 0.10), Value(1, 0.12), Value(2, 0.14)});
+  EXPECT_EQ(measured.evidence, ReplicateAggregate::Evidence::kMeasured);
+  EXPECT_EQ(measured.sign, 1);
+  EXPECT_FALSE(measured.uz_low.has_value());
+
+  ReplicateAggregate cut = AggregateReplicates({Value(0, 0.10), Censored(1, 1, 0.09), Censored(2, 1, 0.15)});
+  EXPECT_EQ(cut.evidence, ReplicateAggregate::Evidence::kCensored);
+  EXPECT_FALSE(cut.complete);
+  EXPECT_EQ(cut.censored_beds, 2);
+  EXPECT_EQ(cut.sign, 1);
+  ASSERT_TRUE(cut.bound && cut.uz_low);
+  EXPECT_NEAR(*cut.bound, 0.09, 1e-12);                   // the smallest censored bound
+  EXPECT_NEAR(*cut.uz_low, (0.10 + 0.09 + 0.15) / 3, 1e-12);  // every bed, the censored by their bound
+  EXPECT_NEAR(*cut.uz_mean, 0.10, 1e-12);                 // shown, over the conclusive bed only
+
+  // Sinking at the floor: the lower estimate keeps the sign.
+  ReplicateAggregate floor = AggregateReplicates({Value(0, -0.05), Censored(1, -1, 0.08)});
+  EXPECT_EQ(floor.sign, -1);
+  EXPECT_NEAR(*floor.uz_low, (-0.05 - 0.08) / 2, 1e-12);
+
+  // Beds that disagree clearly: no sign, no lower estimate.
+  ReplicateAggregate split = AggregateReplicates({Value(0, -0.05), Censored(1, 1, 0.08)});
+  EXPECT_EQ(split.evidence, ReplicateAggregate::Evidence::kCensored);
+  EXPECT_EQ(split.sign, 0);
+  EXPECT_FALSE(split.uz_low.has_value());
+  // A bed whose own interval holds 0 does not stop the sign the beds show together...
+  ReplicateAggregate near0 = AggregateReplicates({Value(0, 0.002), Censored(1, 1, 0.08)});
+  EXPECT_EQ(near0.sign, 1);
+  // ... but alone it shows none; two such beds may (0.004 against sqrt(2) 0.001 t(0.975, ~9)).
+  EXPECT_EQ(AggregateReplicates({Value(0, 0.002)}).sign, 0);
+  EXPECT_EQ(BedsSign({Value(0, 0.002), Value(1, 0.002)}, 0.025), 1);
+  EXPECT_EQ(BedsSign({Value(0, 0.0005), Value(1, 0.0005)}, 0.025), 0);
+
+  // A failed or unfinished bed: no evidence at all, whatever the others say.
+  ReplicateValue failed = Value(2, std::nullopt, false);
+  failed.state = "failed";
+  ReplicateAggregate open = AggregateReplicates({Value(0, 0.10), Censored(1, 1, 0.09), failed});
+  EXPECT_EQ(open.evidence, ReplicateAggregate::Evidence::kOpen);
+  EXPECT_EQ(open.open_beds, 1);
+  EXPECT_EQ(open.sign, 0);
+  EXPECT_FALSE(open.uz_low.has_value());
+}
+
 TEST(AggregateTest, JsonCarriesEveryReplicate) {
   nlohmann::json j = AggregateToJson(AggregateReplicates({Value(0, 0.1), Value(1, 0.2)}));
   EXPECT_EQ(j["replicates"], 2);

@@ -318,23 +318,25 @@ BedEvidence AssessRun(const ClaimRun& r) {
   return b;
 }
 
-// One point of a sweep over all K of its replicate runs (claims.h, "Points"): measured (every bed
-// measured: the mean over them with their error), censored (every bed measured or censored, one at
-// least censored: a sign and a bound), or without evidence (`why` names each bed that gave none).
+// One point of a sweep over all K of its replicate runs (claims.h, "Points"; the rule over the beds
+// is core/aggregate.h's): measured (every bed measured: the mean over them with their error),
+// censored (every bed measured or censored, one at least censored: a sign, a bound and a lower
+// estimate), or without evidence (`why` names each bed that gave none).
 struct PointView {
   std::string sweep;
   Point point;
   const SweepSample* sample = nullptr;  // only for a point with no runs (an input without them)
   std::vector<const ClaimRun*> runs;
   std::vector<BedEvidence> beds;
+  ReplicateAggregate agg;  // over every bed (runs given)
   bool complete = false;  // measured on every bed
   double uz = 0, se = 0, ci95 = 0;
   std::string note;       // what the value rests on (the aggregate's note)
   int censored = 0;       // beds censored
-  int sign = 0;           // censored points: +1 / -1 when every bed shows it (measured: its interval)
+  int sign = 0;           // +1 / -1 when every bed shows it (core/aggregate.h), measured or censored
   double bound = 0;       // censored points: m/s, the smallest of the censored beds' bounds on |U_z|
+  std::optional<double> uz_low;  // censored points with a sign: m/s, the lower estimate (aggregate.h)
   std::string why;        // not complete: why
-  bool usable() const { return complete; }
   bool has_interval() const { return complete && ci95 > 0; }
   bool is_censored() const { return !complete && censored > 0 && why_open.empty(); }
   std::string why_open;   // the beds that give no evidence at all ("" when every bed gives some)
@@ -348,6 +350,7 @@ void Assess(PointView& p, double bed_sd_rel) {
       p.uz = p.sample->uz;
       p.se = p.sample->uz_stderr;
       p.ci95 = p.sample->uz_ci95;
+      p.sign = p.uz - p.ci95 > 0 ? 1 : p.uz + p.ci95 < 0 ? -1 : 0;
     } else {
       p.why = p.why_open = p.sample != nullptr && !p.sample->inconclusive_reason.empty()
                                ? "inconclusive: " + p.sample->inconclusive_reason
@@ -356,57 +359,42 @@ void Assess(PointView& p, double bed_sd_rel) {
     return;
   }
   std::vector<ReplicateValue> values;
-  int measured = 0;
   for (const ClaimRun* r : p.runs) {
     BedEvidence b = AssessRun(*r);
+    ReplicateValue v;
+    v.run_id = r->run_id;
+    v.replicate = r->replicate;
+    v.state = r->state;
     if (b.state == BedState::kMeasured) {
-      ++measured;
-      ReplicateValue v;
-      v.run_id = r->run_id;
-      v.replicate = r->replicate;
-      v.state = r->state;
       v.conclusive = true;
       v.uz = r->result->uz;
       v.uz_stderr = r->result->uz_stderr;
       v.uz_ci95 = r->result->uz_ci95;
-      values.push_back(v);
     } else if (b.state == BedState::kCensored) {
-      ++p.censored;
+      v.censored = b.sign;
+      v.bound = b.bound;
       p.why += (p.why.empty() ? "" : "; ") + ("censored: " + b.detail);
     } else {
       p.why += (p.why.empty() ? "" : "; ") + b.detail;
       p.why_open += (p.why_open.empty() ? "" : "; ") + b.detail;
     }
+    values.push_back(v);
     p.beds.push_back(std::move(b));
   }
-  const int k = static_cast<int>(p.runs.size());
-  if (measured == k) {
-    const ReplicateAggregate a = AggregateReplicates(values, bed_sd_rel);
+  p.agg = AggregateReplicates(values, bed_sd_rel);
+  const ReplicateAggregate& a = p.agg;
+  p.censored = a.censored_beds;
+  p.sign = a.sign;
+  if (a.evidence == ReplicateAggregate::Evidence::kMeasured) {
     p.complete = a.uz_mean && a.uz_stderr && a.uz_ci95;
     p.uz = a.uz_mean.value_or(0);
     p.se = a.uz_stderr.value_or(0);
     p.ci95 = a.uz_ci95.value_or(0);
     p.note = a.note;
-    return;
-  }
-  if (p.censored > 0 && p.why_open.empty()) {
-    // A sign when every bed shows the same one: a censored bed by its boundary, a measured one by
-    // its own 95 % interval clear of 0.
-    int sign = 0;
-    bool agree = true;
-    p.bound = kInf;
-    for (const BedEvidence& b : p.beds) {
-      int s = b.sign;
-      if (b.state == BedState::kMeasured) {
-        const api::RunResult& r = *b.run->result;
-        s = *r.uz - *r.uz_ci95 > 0 ? 1 : *r.uz + *r.uz_ci95 < 0 ? -1 : 0;
-      } else {
-        p.bound = std::min(p.bound, b.bound);
-      }
-      if (s == 0 || (sign != 0 && s != sign)) agree = false;
-      sign = s;
-    }
-    p.sign = agree ? sign : 0;
+  } else if (a.evidence == ReplicateAggregate::Evidence::kCensored) {
+    p.bound = a.bound.value_or(0);
+    p.uz_low = a.uz_low;
+    if (a.uz_low) p.uz = *a.uz_low;  // for the rules that take a lower estimate (saturation's)
   }
 }
 
@@ -715,53 +703,50 @@ int ExpectedSign(const std::string& expect, const Point& p) {
   return p.Omega < 0 ? 1 : p.Omega > 0 ? -1 : 0;
 }
 
+// The sign a point's beds show at the family-wise level over m points (Bonferroni: BedsSign at
+// the one-sided level 0.025 / m). A point given without runs: its own interval, widened alike.
+int FamilySign(const PointView& p, int m) {
+  if (p.runs.empty()) {
+    if (!p.has_interval()) return 0;
+    const double wide = FamilyHalfWidth(p, m);
+    return p.uz - wide > 0 ? 1 : p.uz + wide < 0 ? -1 : 0;
+  }
+  return BedsSign(p.agg.values, 0.025 / std::max(m, 1));
+}
+
 ClaimPart SignPart(const std::string& name, const std::vector<PointView>& points, const std::string& expect) {
   ClaimPart part;
   part.name = name;
-  // m: the points with an expected sign and some evidence (a U_z on every bed, or censored runs).
-  int m = 0, family = 0;
-  for (const PointView& p : points) {
-    if (ExpectedSign(expect, p.point) == 0) continue;
-    m += p.has_interval() || p.is_censored() ? 1 : 0;
-    family += p.has_interval() ? 1 : 0;
-  }
+  // m: the points with an expected sign and evidence on every bed (a U_z, or a run cut short).
+  int m = 0;
+  for (const PointView& p : points)
+    if (ExpectedSign(expect, p.point) != 0 && (p.has_interval() || p.is_censored())) ++m;
   int holding = 0, open = 0, censored = 0;
   std::string differing, unclear;
   for (const PointView& p : points) {
     ClaimFigure f = UzFigure(p);
     const int sign = ExpectedSign(expect, p.point);
+    const bool evidence = p.has_interval() || p.is_censored();
     if (sign == 0) {
       f.note = "Omega = 0: no expected sign";
-    } else if (p.has_interval()) {
-      const double uz = p.uz, ci = p.ci95;
-      const double wide = FamilyHalfWidth(p, family);
-      if (sign * (uz - sign * ci) > 0) {
-        f.verdict = Verdict::kHolds;
-        ++holding;
-      } else if (sign * (uz + sign * wide) < 0) {
-        f.verdict = Verdict::kDiffers;
-        f.note = "clear of 0 on the other side at the family-wise level (+-" + Num(wide, 3) + " m/s over " +
-                 std::to_string(family) + " points)";
-        differing += (differing.empty() ? "" : "; ") + Label(p.point) + " (" + p.sweep +
-                     "): U_z = " + WithError(uz, p.se) + " m/s";
-      } else {
-        f.verdict = Verdict::kInconclusive;
-        f.note = "its 95 % interval holds 0";
-        ++open;
-        unclear += (unclear.empty() ? "" : "; ") + Label(p.point) + " (" + p.sweep + ")";
-      }
-    } else if (p.is_censored()) {
-      // Censored at a boundary on every bed that has no rate: the boundary it reached is its sign.
-      ++censored;
+    } else if (evidence) {
+      censored += p.is_censored() ? 1 : 0;
       if (p.sign == sign) {
         f.verdict = Verdict::kHolds;
+        if (p.runs.size() > 1) {
+          f.note += std::string(f.note.empty() ? "" : "; ") + "its " + std::to_string(p.runs.size()) +
+                    " beds' summed drift is clear of 0 by their own errors, none the other way";
+        }
         ++holding;
-      } else if (p.sign == -sign) {
+      } else if (FamilySign(p, m) == -sign) {
         f.verdict = Verdict::kDiffers;
-        differing += (differing.empty() ? "" : "; ") + Label(p.point) + " (" + p.sweep + "): " + p.why;
+        f.note += std::string(f.note.empty() ? "" : "; ") + "the other sign at the family-wise level (over " +
+                  std::to_string(m) + " points)";
+        differing += (differing.empty() ? "" : "; ") + Label(p.point) + " (" + p.sweep + "): " +
+                     (p.has_interval() ? "U_z = " + WithError(p.uz, p.se) + " m/s" : p.why);
       } else {
         f.verdict = Verdict::kInconclusive;
-        f.note = "its beds do not agree on a sign: " + p.why;
+        f.note += std::string(f.note.empty() ? "" : "; ") + "its beds show no sign clear of 0";
         ++open;
         unclear += (unclear.empty() ? "" : "; ") + Label(p.point) + " (" + p.sweep + ")";
       }
@@ -778,13 +763,14 @@ ClaimPart SignPart(const std::string& name, const std::vector<PointView>& points
     part.reason = "moves the other way than the paper's: " + differing;
   } else if (m > 0 && holding == m && open == 0) {
     part.verdict = Verdict::kHolds;
-    part.reason = "each of the " + std::to_string(m) + " point(s) " + way + ", its 95 % interval clear of 0" +
-                  of_censored;
+    part.reason = "each of the " + std::to_string(m) + " point(s) " + way +
+                  " on its beds, clear of 0 by their own errors (95 %), no bed the other way" + of_censored;
   } else {
     part.verdict = Verdict::kInconclusive;
     part.reason = m == 0 ? "no point has a U_z with an error on every bed, or a sign from runs cut short"
-                         : std::to_string(holding) + " of " + std::to_string(m) + " point(s) " + way + " clear of 0" +
-                               (unclear.empty() ? "" : "; the interval holds 0 at " + unclear);
+                         : std::to_string(holding) + " of " + std::to_string(m) + " point(s) " + way +
+                               " clear of 0 on its beds" +
+                               (unclear.empty() ? "" : "; not clear of 0 at " + unclear);
   }
   return part;
 }
@@ -864,45 +850,70 @@ void EvaluateSaturation(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
     const int sign = rising ? 1 : -1;
     const std::string grows = std::string(branch) + ": |U_z| grows with |Omega|";
     const std::string saturates = std::string(branch) + ": saturates (the growth flattens within the swept |Omega|)";
-    // The branch's points with a U_z on every bed, by |Omega|; x = log2 |Omega| (the sweep doubles
-    // |Omega|), y = |U_z| the paper's way (sign * U_z).
+    // The branch's points with evidence on every bed, by |Omega|; x = log2 |Omega| (the sweep
+    // doubles |Omega|), y = |U_z| the paper's way (sign * U_z). A censored point enters with its
+    // lower estimate (core/aggregate.h uz_low), which is low where the point is fast: in "grows"
+    // (on a flat law the fast beds fall anywhere alike; on a growing one at large |Omega|, where a
+    // low value works against "grows"), and in "the growth flattens" only at or left of the hinge
+    // (past it a low value would fake the flattening; left of it the fast points of a growing law
+    // are those nearest the hinge, where a low value flattens the first slope, against the verdict).
+    // Neither is a proof for every law: the truth engine's null laws measure it (flat_Omega,
+    // no_saturation). A point whose beds show no common sign stays out, listed as missing.
     std::vector<const PointView*> points;
-    int censored = 0;
+    int censored = 0, low = 0;
     for (const PointView& p : all) {
       if (p.point.Omega == 0 || (p.point.Omega < 0) != rising) continue;
-      if (p.has_interval()) points.push_back(&p);
-      censored += p.is_censored() ? 1 : 0;
+      if (p.has_interval()) {
+        points.push_back(&p);
+      } else if (p.is_censored() && p.uz_low && p.sign == sign) {
+        points.push_back(&p);
+        ++low;
+      } else if (p.is_censored()) {
+        ++censored;
+      }
     }
-    std::sort(points.begin(), points.end(), [](const PointView* a, const PointView* b) {
+    auto by_omega = [](const PointView* a, const PointView* b) {
       return std::fabs(a->point.Omega) < std::fabs(b->point.Omega);
-    });
+    };
+    std::sort(points.begin(), points.end(), by_omega);
     const int n = static_cast<int>(points.size());
-    const std::string counted = std::to_string(n) + " point(s) with a U_z on every bed" +
-                                (censored > 0 ? " (" + std::to_string(censored) + " more censored at a boundary)" : "");
+    const std::string counted =
+        std::to_string(n) + " point(s) with evidence on every bed" +
+        (low > 0 ? " (" + std::to_string(low) + " of them censored at a boundary: a lower estimate)" : "") +
+        (censored > 0 ? " (" + std::to_string(censored) + " more censored, their beds not agreeing on a sign)" : "");
     if (n < std::max(min_points, 3)) {
       const std::string why = counted + ", fewer than " + std::to_string(std::max(min_points, 3));
       v.parts.push_back({grows, Verdict::kInconclusive, why, {}, std::nullopt});
       v.parts.push_back({saturates, Verdict::kInconclusive, why, {}, std::nullopt});
       continue;
     }
-    std::vector<double> x, y, abs_omega, uz, sd;
-    for (size_t i = 0; i < points.size(); ++i) {
-      abs_omega.push_back(std::fabs(points[i]->point.Omega));
-      x.push_back(std::log2(abs_omega.back()));
-      uz.push_back(points[i]->uz);
-      y.push_back(sign * points[i]->uz);
+    // The hinge sits at the middle point of them all; "flattens" keeps the censored points up to it.
+    const double x_mid = std::log2(std::fabs(points[(points.size() - 1) / 2]->point.Omega));
+    std::vector<const PointView*> sat_points;
+    for (const PointView* p : points)
+      if (p->complete || std::log2(std::fabs(p->point.Omega)) <= x_mid + 1e-12) sat_points.push_back(p);
+    const int n_sat = static_cast<int>(sat_points.size());
+    auto rows_of = [&](const std::vector<const PointView*>& pts, std::vector<std::vector<double>>& line_rows,
+                       std::vector<std::vector<double>>& hinge_rows, std::vector<double>& y) {
+      for (const PointView* p : pts) {
+        const double xi = std::log2(std::fabs(p->point.Omega));
+        line_rows.push_back({1.0, xi});
+        hinge_rows.push_back({1.0, xi, std::max(xi - x_mid, 0.0)});
+        y.push_back(sign * p->uz);
+      }
+    };
+    std::vector<std::vector<double>> line_rows, hinge_rows, sat_line_rows, sat_hinge_rows;
+    std::vector<double> y, sat_y;
+    rows_of(points, line_rows, hinge_rows, y);
+    rows_of(sat_points, sat_line_rows, sat_hinge_rows, sat_y);
+    std::vector<double> abs_omega, uz, sd;
+    for (const PointView* p : sat_points) {
+      abs_omega.push_back(std::fabs(p->point.Omega));
+      uz.push_back(p->uz);
     }
     // Grows: the slope of |U_z| against log2 |Omega|, its t interval (n - 2 dof) on the residuals.
-    std::vector<std::vector<double>> line_rows, hinge_rows;
-    const double x_mid = x[(x.size() - 1) / 2];
-    for (double xi : x) {
-      line_rows.push_back({1.0, xi});
-      hinge_rows.push_back({1.0, xi, std::max(xi - x_mid, 0.0)});
-    }
-    // Both models weighted alike, at the larger model's fitted values (nested tests need one set).
     std::string how;
-    const std::vector<double> w = FittedWeights(points, n >= 5 ? hinge_rows : line_rows, y, &how);
-    for (double wi : w) sd.push_back(1 / std::sqrt(wi));
+    const std::vector<double> w = FittedWeights(points, line_rows, y, &how);
     ClaimPart g{grows, Verdict::kInconclusive, "", {}, std::nullopt};
     const std::optional<Wls> line = FitWls(line_rows, y, w);
     if (!line) {
@@ -928,19 +939,32 @@ void EvaluateSaturation(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
     }
     // Flattens: a hinge at the middle point; the change of slope past it, d, must be shown < 0
     // (growth slows: a law with no saturation, e.g. logarithmic, has d = 0; a linear one d > 0).
+    // Both models weighted alike, at the larger model's fitted values (nested tests need one set).
+    std::string sat_how;
+    const bool right_of_hinge = std::any_of(sat_points.begin(), sat_points.end(), [&](const PointView* p) {
+      return std::log2(std::fabs(p->point.Omega)) > x_mid + 1e-12;
+    });
+    const std::vector<double> sat_w =
+        FittedWeights(sat_points, n_sat >= 5 && right_of_hinge ? sat_hinge_rows : sat_line_rows, sat_y, &sat_how);
+    for (double wi : sat_w) sd.push_back(1 / std::sqrt(wi));
+    const std::string sat_counted = std::to_string(n_sat) + " point(s) for the change of slope" +
+                                    (n_sat < n ? " (censored points past the hinge left out)" : "");
     ClaimPart sat{saturates, Verdict::kInconclusive, "", {}, std::nullopt};
-    const std::optional<Wls> hinge = n >= 5 ? FitWls(hinge_rows, y, w) : std::nullopt;
+    const std::optional<Wls> hinge = n_sat >= 5 && right_of_hinge ? FitWls(sat_hinge_rows, sat_y, sat_w) : std::nullopt;
     if (!hinge) {
-      sat.reason = n < 5 ? counted + ": a change of slope needs 5" : "the change of slope could not be fitted";
+      sat.reason = n_sat < 5          ? sat_counted + ": a change of slope needs 5"
+                   : !right_of_hinge ? sat_counted + ": no measured point past the hinge"
+                                     : "the change of slope could not be fitted";
     } else {
       const double d = hinge->beta[2], se = hinge->se(2), t = TQuantile(0.975, hinge->dof());
       ClaimFigure fd = ParamFigure("change of slope past |Omega| = " + Num(std::exp2(x_mid)) + " rad/s (" + branch + ")",
                                    d, se, t, "m/s per doubling");
-      fd.note = "0 for a law that keeps growing as log|Omega|; < 0 when growth slows";
+      fd.note = "0 for a law that keeps growing as log|Omega|; < 0 when growth slows; " + sat_how;
       sat.figures.push_back(fd);
       const std::string text = "past |Omega| = " + Num(std::exp2(x_mid)) + " rad/s the slope per doubling changes by " +
                                WithError(d, se) + " m/s, 95 % interval [" + Num(d - t * se, 3) + ", " +
-                               Num(d + t * se, 3) + "] (t with " + std::to_string(hinge->dof()) + " dof)";
+                               Num(d + t * se, 3) + "] (" + sat_counted + ", t with " + std::to_string(hinge->dof()) +
+                               " dof)";
       if (d + t * se < 0 && g.verdict == Verdict::kHolds) {
         sat.verdict = Verdict::kHolds;
         sat.reason = text + ": growth slows";

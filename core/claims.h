@@ -17,14 +17,18 @@
 //              analysis measured over whole periods or, with no whole period, the drive's A; so
 //              |U_z| >= (|dz| - a) / t. A run that moved less than a is no evidence;
 //   no evidence  failed, cancelled, queued, running, or done with neither a U_z nor a boundary.
-// A point is *measured* when all K runs are: its value is their aggregate (core/aggregate.h: the
-// mean, the between-bed error for K >= 2, the run's own for K = 1). A point is *censored* when
-// every run is measured or censored, one at least censored: a sign when every bed shows the same
-// one (a censored bed by its boundary, a measured one by its 95 % interval), and a bound, the
-// smallest of its censored beds'. Any other point is missing, listed in `missing` with each bed's
-// reason. A rule that needs a sign (sign, modes "rises") takes censored points; a rule that needs a
-// rate (the fits) takes only measured points and lists censored ones as missing ("a sign and a
-// bound, no rate"). A claim never holds while a point it needs is missing.
+// A point over its K runs follows core/aggregate.h's stated rule (AggregateReplicates, "as
+// evidence"): *measured* when all K runs are (its value their aggregate: the mean, the between-bed
+// error for K >= 2, the run's own with the scale's bed prior for K = 1); *censored* when every run
+// is measured or censored, one at least censored: a sign (BedsSign: the beds' summed drift clear
+// of 0 by their own errors, no bed the other way), a bound (the smallest censored bed's) and, with
+// a sign, a lower estimate of U_z (the mean over all K beds, each censored one at its bound); any
+// other point is missing (a failed or unfinished bed keeps it from deciding), listed in `missing`
+// with each bed's reason. Nothing is dropped silently. A rule that needs a sign (sign, modes
+// "rises") takes every point with evidence and decides its sign by BedsSign; F2's saturation takes
+// a censored point's lower estimate where a low value works against the verdict (below); the other
+// fits take only measured points and list censored ones as missing ("a sign and a bound, no
+// rate"). A claim never holds while a point it needs is missing.
 //
 // Errors that do not rest on a few periods. A run's error rests on 2-4 degrees of freedom (3-5
 // periods): a chi^2 of points about a law with such errors refuses a true law 21-43 % of the time.
@@ -36,20 +40,25 @@
 //
 // Kinds and how each decides:
 //   sign              every point of `sweeps` moves the way `expect` says ("rise", "sink", or
-//                     "against_Omega": rises for Omega < 0, sinks for Omega > 0). A measured point
-//                     holds when its U_z interval excludes 0 on that side; a censored one when its
-//                     beds all show that sign. The claim holds when every point of the sweeps
-//                     holds; differs when some measured point's interval excludes 0 on the other
-//                     side at the family-wise level (Bonferroni over the m measured points: the
-//                     interval widened to t(1 - 0.025/m) standard errors), or a censored point's
-//                     beds all reached the other boundary; else inconclusive.
+//                     "against_Omega": rises for Omega < 0, sinks for Omega > 0): a point holds
+//                     when its beds show that sign (core/aggregate.h BedsSign at 95 %: their summed
+//                     drift, censored beds at their bound, clear of 0 by the measured beds' own
+//                     errors, and no bed the other way; K = 1: the run's own interval). The claim
+//                     holds when every point of the sweeps holds; differs when some point's beds
+//                     show the other sign at the family-wise level (Bonferroni over the m points
+//                     with evidence: BedsSign at 0.025 / m); else inconclusive.
 //   saturation        per branch of `sweep` (rising Omega < 0, sinking Omega > 0), on its measured
-//                     points, y = |U_z| the paper's way against x = log2 |Omega| (the sweep doubles
-//                     |Omega|), weighted least squares as above, at least `min_points` (default 4):
+//                     points and its censored points whose beds show the branch's sign (at their
+//                     lower estimate: low where the point is fast, which on a law that grows is at
+//                     large |Omega|, against "grows"), y = |U_z| the paper's way against x = log2
+//                     |Omega| (the sweep doubles |Omega|), weighted least squares as above, at least
+//                     `min_points` (default 4):
 //                     "grows": the slope of y on x, its 95 % t interval (n - 2 dof) above 0 holds,
 //                     below 0 differs (a flat law holds at most 2.5 % of the time);
 //                     "the growth flattens" (needs 5 points): y = a + b x + d (x - x_m)+, a hinge
-//                     at the middle point x_m; d's 95 % interval (n - 3 dof) below 0, with "grows"
+//                     at the middle point x_m of those above, censored points only up to x_m (past
+//                     it a low value would fake the flattening; measured points past it: at least
+//                     one); d's 95 % interval (n - 3 dof) below 0, with "grows"
 //                     holding, holds; above 0 (growth speeding up: e.g. U_z linear in |Omega|)
 //                     differs; a law that keeps growing as log |Omega| has d = 0, so holds at most
 //                     2.5 % of the time. Eq. 8's C1, C2 and the |Omega| at which it reaches
@@ -256,8 +265,10 @@ struct ClaimVerdict {
 // The version of the rules above. Bump it with any change to what a rule decides: the committed
 // calibration tables (templates/calibration/) record it, and a table of another version is not
 // quoted. 1: the rules of issue 26's first redesign; 2: the variance model at the fitted |U_z|,
-// F5's x drift tested with its error over the beds.
-inline constexpr int kClaimRulesVersion = 2;
+// F5's x drift tested with its error over the beds; 3: a point over its K beds by the stated rule
+// of core/aggregate.h (the sign from the beds' summed drift, censored beds counted; censored points'
+// lower estimates in F2's growth and, up to the hinge, its flattening).
+inline constexpr int kClaimRulesVersion = 3;
 
 // One verdict per claim, in the claims' order.
 std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const ClaimInput& input);

@@ -151,7 +151,7 @@ TEST(ClaimsTest, SignHoldsDiffersOrIsInconclusive) {
   SetUz(thin.input.sweeps[1], [](const Point& p) { return p.Omega == 10; }, -1e-4);
   v = Evaluate(f1, thin.input);
   EXPECT_EQ(v.verdict, Verdict::kInconclusive);
-  EXPECT_THAT(v.reason, HasSubstr("interval holds 0"));
+  EXPECT_THAT(v.reason, HasSubstr("not clear of 0 at Omega = 10"));
   Synth failed = holds;
   Fail(failed.input.sweeps[1], Osc(0.03, 3, 640));
   v = Evaluate(f1, failed.input);
@@ -620,6 +620,99 @@ TEST(ClaimsTest, CensoredFastRiserCountsForItsSign) {
   EXPECT_EQ(v.verdict, Verdict::kInconclusive) << v.reason;
   ASSERT_EQ(v.missing.size(), 1u);
   EXPECT_THAT(v.missing[0].why, HasSubstr("not beyond the oscillation"));
+}
+
+// On K beds a point's sign is its beds' summed drift against their own errors, with no bed the
+// other way (core/aggregate.h BedsSign): three beds that each rise but scatter widely (their mean's
+// t interval on 2 dof holds 0) show that it rises, even with one bed's own interval holding 0; one
+// bed clearly the other way leaves it open, not "differs"; every bed the other way differs.
+TEST(ClaimsTest, TheBedsTogetherShowAPointsSign) {
+  const Claim f1 = ClaimOf(kF1);
+  Synth s;
+  ClaimSweep& base = s.Sweep("baseline", {{Osc(0.03, 3, -80), 0.03}, {Osc(0.03, 3, 80), -0.03}}, 5e-4);
+  OnBeds(s, base, 3);
+  auto set = [&](double omega, std::vector<double> per_bed) {
+    for (ClaimRun& r : base.runs)
+      if (r.point.Omega == omega) r.result->uz = per_bed[r.replicate];
+  };
+  set(-80, {0.010, 0.030, 0.050});  // mean 0.030, sd 0.020: t(0.975, 2) 0.020 / sqrt(3) = 0.050
+  ClaimVerdict v = Evaluate(f1, s.input);
+  EXPECT_EQ(v.verdict, Verdict::kHolds) << v.reason;
+  EXPECT_THAT(v.reason, HasSubstr("on its beds, clear of 0 by their own errors"));
+  const ClaimFigure& f = v.parts[0].figures[0];
+  ASSERT_TRUE(f.lo.has_value());
+  EXPECT_LT(*f.lo, 0);  // the mean's own interval holds 0: it is not what decides the sign
+  EXPECT_THAT(f.note, HasSubstr("3 beds' summed drift is clear of 0"));
+
+  set(-80, {0.0005, 0.030, 0.050});  // one bed's own interval (+-0.0011) holds 0; the three do not
+  v = Evaluate(f1, s.input);
+  EXPECT_EQ(v.verdict, Verdict::kHolds) << v.reason;
+
+  set(-80, {-0.010, 0.030, 0.050});  // one bed clearly sinks
+  v = Evaluate(f1, s.input);
+  EXPECT_EQ(v.verdict, Verdict::kInconclusive) << v.reason;
+  EXPECT_THAT(v.reason, HasSubstr("not clear of 0 at Omega = -80"));
+
+  set(-80, {-0.010, -0.030, -0.050});
+  v = Evaluate(f1, s.input);
+  EXPECT_EQ(v.verdict, Verdict::kDiffers) << v.reason;
+}
+
+// The run at `omega` cut short at the surface (rising) or the floor (sinking) after `t` s, with
+// no whole period (the drive's A stands for the oscillation), its bound on |U_z| `bound`.
+void CensorAt(ClaimSweep& sweep, double omega, double bound, double t = 1.0) {
+  for (ClaimRun& r : sweep.runs) {
+    if (r.point.Omega != omega) continue;
+    api::RunResult& res = *r.result;
+    res.uz.reset();
+    res.uz_stderr.reset();
+    res.uz_ci95.reset();
+    res.uz_blocks = 0;
+    res.conclusive = false;
+    res.inconclusive_reason = "no whole period before the boundary's clearance";
+    res.z_osc_amplitude = 0;
+    res.stop_reason = res.window_end = omega < 0 ? "surface" : "floor";
+    res.sim_time_s = t;
+    res.dz = (omega < 0 ? 1 : -1) * (bound * t + r.point.A);
+  }
+}
+
+// A censored point enters "grows" with its lower estimate (before, it was dropped and the branch
+// had too few points), and "the growth flattens" only up to the hinge (past it a low value would
+// fake a flattening); it is still listed as missing a rate.
+TEST(ClaimsTest, CensoredPointsEnterGrowthWithALowerEstimate) {
+  const Claim f2 = ClaimOf(R"({"id": "F2", "title": "t", "source": "s", "paper": {"text": "p"},
+    "rule": {"kind": "saturation", "sweep": "Omega-sweep"}})");
+  Synth s;
+  ClaimSweep& sweep = s.Sweep("Omega-sweep", OmegaSweep(Eq8), 2e-4);
+  for (int n = 2; n < 8; ++n) {  // rising |Omega| = 40 .. 1280: at 0.9 of their rate
+    const double omega = -10.0 * std::pow(2, n);
+    CensorAt(sweep, omega, 0.9 * Eq8(omega));
+  }
+  ClaimVerdict v = Evaluate(f2, s.input);
+  ASSERT_GE(v.parts.size(), 2u);
+  EXPECT_EQ(v.parts[0].verdict, Verdict::kHolds) << v.parts[0].reason;
+  EXPECT_THAT(v.parts[0].reason, HasSubstr("6 of them censored at a boundary: a lower estimate"));
+  EXPECT_EQ(v.parts[1].verdict, Verdict::kInconclusive) << v.parts[1].reason;
+  EXPECT_THAT(v.parts[1].reason, HasSubstr("4 point(s) for the change of slope (censored points past the hinge"));
+  EXPECT_EQ(v.missing.size(), 6u);
+  EXPECT_THAT(v.missing[0].why, HasSubstr("a sign and a bound, no rate"));
+
+  // A failed bed beside a censored one: no evidence, the point stays out.
+  Synth k2;
+  ClaimSweep& two = k2.Sweep("Omega-sweep", OmegaSweep(Eq8), 2e-4);
+  OnBeds(k2, two, 2);
+  for (int n = 2; n < 8; ++n) {
+    const double omega = -10.0 * std::pow(2, n);
+    CensorAt(two, omega, 0.9 * Eq8(omega));
+  }
+  for (ClaimRun& r : two.runs)
+    if (r.point.Omega == -40 && r.replicate == 1) {
+      r.state = "failed";
+      r.result.reset();
+    }
+  v = Evaluate(f2, k2.input);
+  EXPECT_THAT(v.parts[0].reason, HasSubstr("7 point(s) with evidence on every bed (5 of them censored"));
 }
 
 std::vector<std::pair<Point, double>> OmegaLaw(const std::function<double(double)>& abs_uz) {

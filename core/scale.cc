@@ -42,9 +42,11 @@ namespace {
 // Why a prior and not K = 3 beds by default for paper-58 (issue 26 item 6), measured on the truth
 // engine (bench_claims_calibration, 300 campaigns a law): one-bed point intervals covered the true
 // U_z 71 %, 90 % with this prior, 97 % on three beds; but three beds triple the engine time (86.5 ->
-// 258.5 s simulated a campaign, the demo's ~6 h -> ~18 h at smoke) and at smoke lower most rules'
-// power (a point counts only when all its beds are measured; its error then rests on 2 dof):
-// F1 96 -> 74 %, F2 rising grows 67 -> 32 %. A study that wants them sets "replicates": 3.
+// 258.5 s simulated a campaign, the demo's ~6 h -> ~18 h at smoke). Since rules 3 (a point over its
+// beds by core/aggregate.h's stated rule, censored beds counted) three beds no longer cost the sign
+// and growth rules power (F1 96 -> 100 %, F2 rising grows 99.7 -> 100 %, sinking saturates 49 ->
+// 60 %), but the rules that need a rate at fast points still lose it (rising saturates 39 -> 17 %,
+// F4 4 -> 0 %: all three beds must be measured). A study that wants them sets "replicates": 3.
 const std::vector<Scale> kScales = {
     {"paper", "the paper's geometry (about 7e4 grains), 4-5 s runs: a cluster or a big node", 0.50, 1.00, -0.50, 0.50,
      std::nullopt, std::nullopt},

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "core/deck.h"
@@ -275,12 +276,22 @@ void LawTally::Add(const SimCampaign& c, const Law& law_) {
     ++part.n;
     part.covered += in;
   }
-  // Point intervals (a sweep's sample: the run, or its beds' aggregate) against the law's U_z.
+  // Point intervals (a sweep's sample: the run, or its beds' aggregate) against the law's U_z; apart,
+  // the points one of whose runs the precision target stopped (their error rests on the periods
+  // after the pilot: core/precision.h).
+  std::set<DriveId> stopped;
+  for (const SimRun& r : c.runs)
+    if (r.result && r.result->stop_reason == "target") stopped.insert(DriveIdOf(r.point));
   for (const ClaimSweep& s : c.sweeps) {
     for (const SweepSample& x : s.samples) {
       if (!x.has_uz || !x.conclusive || x.uz_ci95 <= 0) continue;
+      const bool in = std::fabs(x.uz - LawUz(law_, x.point)) <= x.uz_ci95;
       ++points_vs_law.n;
-      points_vs_law.covered += std::fabs(x.uz - LawUz(law_, x.point)) <= x.uz_ci95;
+      points_vs_law.covered += in;
+      if (stopped.count(DriveIdOf(x.point))) {
+        ++points_stopped_early.n;
+        points_stopped_early.covered += in;
+      }
     }
   }
 }
@@ -336,15 +347,16 @@ std::string CalibrationMarkdown(const std::vector<LawTally>& tallies, const Desi
   }
   out +=
       "\n| law | campaigns | runs | conclusive % | mean (U_z - true)/|true| % | run 95 % interval coverage: all | "
-      "stopped at target | ran on | point intervals vs law | simulated s per campaign | campaigns/s |\n"
-      "| --- | ---: | ---: | ---: | ---: | --- | --- | --- | --- | ---: | ---: |\n";
+      "stopped at target | ran on | point intervals vs law | points with a run stopped at target | "
+      "simulated s per campaign | campaigns/s |\n"
+      "| --- | ---: | ---: | ---: | ---: | --- | --- | --- | --- | --- | ---: | ---: |\n";
   for (const LawTally& t : tallies) {
     auto cov = [](const Coverage& c) { return PctInterval(c.covered, c.n) + " (n " + std::to_string(c.n) + ")"; };
     out += "| " + t.law + " | " + std::to_string(t.campaigns) + " | " + std::to_string(t.runs) + " | " +
            Pct(t.conclusive, t.runs) + " | " +
            (t.conclusive ? Num(100 * t.sum_rel_error / static_cast<double>(t.conclusive), 3) : std::string("–")) +
            " | " + cov(t.runs_all) + " | " + cov(t.runs_stopped_early) + " | " + cov(t.runs_full) + " | " +
-           cov(t.points_vs_law) + " | " +
+           cov(t.points_vs_law) + " | " + cov(t.points_stopped_early) + " | " +
            (t.campaigns ? Num(t.simulated_s / static_cast<double>(t.campaigns), 4) : std::string("–")) + " | " +
            (t.seconds > 0 ? Num(static_cast<double>(t.campaigns) / t.seconds, 3) : std::string("–")) + " |\n";
   }
@@ -392,7 +404,8 @@ nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Calib
                     {"coverage", {{"runs_all", cov(t.runs_all)},
                                   {"runs_stopped_at_target", cov(t.runs_stopped_early)},
                                   {"runs_not_stopped_at_target", cov(t.runs_full)},
-                                  {"points_vs_law", cov(t.points_vs_law)}}},
+                                  {"points_vs_law", cov(t.points_vs_law)},
+                                  {"points_with_a_run_stopped_at_target", cov(t.points_stopped_early)}}},
                     {"simulated_s_per_campaign", t.campaigns ? t.simulated_s / static_cast<double>(t.campaigns) : 0.0},
                     {"wall_s", t.seconds},
                     {"cells", cells}});

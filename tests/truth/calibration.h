@@ -107,6 +107,7 @@ struct LawTally {
   std::map<std::pair<std::string, std::string>, Counts> cells;  // (claim id, part) -> counts
   std::vector<std::pair<std::string, std::string>> order;       // first-seen order of the cells
   Coverage runs_all, runs_stopped_early, runs_full, points_vs_law;
+  Coverage points_stopped_early;  // points vs law, those with a run stopped at its precision target
   int64_t runs = 0, conclusive = 0;
   double sum_rel_error = 0;  // over conclusive runs: (U_z - true) / |true|
   double simulated_s = 0;    // summed over campaigns
