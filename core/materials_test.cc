@@ -309,3 +309,24 @@ TEST(MaterialsTest, CapsOnGrainsAndStepNameTheFieldAndAScale) {
 
 }  // namespace
 }  // namespace sandswim
+
+namespace sandswim {
+namespace {
+
+TEST(MaterialsTest, TheDensityRatioCampaignIsBuiltInAndPoursOneBed) {
+  auto c = BuiltinCampaign("density-ratio");
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->scale, "smoke");
+  ASSERT_EQ(c->sweeps.size(), 2u);
+  auto plan = PlanSweeps(c->sweeps, *FindScale(c->scale), "e");
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  EXPECT_EQ(plan->runs.size(), 12u);
+  ASSERT_EQ(plan->beds.size(), 1u);
+  EXPECT_EQ(plan->beds[0].deck, RenderBedDeck(*FindScale("smoke")));
+  std::set<double> ratios;
+  for (const PlannedRun& r : plan->runs) ratios.insert(r.point.materials.rho_so / r.point.materials.rho_grain);
+  EXPECT_EQ(ratios, (std::set<double>{0.5, 0.75, 1, 1.5, 2, 3}));
+}
+
+}  // namespace
+}  // namespace sandswim

@@ -654,7 +654,7 @@ Result<Campaign> ParseCampaign(const json& j) {
   return c;
 }
 
-std::vector<std::string> BuiltinCampaignNames() { return {"paper-58"}; }
+std::vector<std::string> BuiltinCampaignNames() { return {"paper-58", "density-ratio"}; }
 
 Result<json> BuiltinCampaignDefinition(const std::string& name) {
   auto names = BuiltinCampaignNames();

@@ -88,7 +88,7 @@ struct Campaign {
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);
-// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58".
+// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58", "density-ratio".
 std::vector<std::string> BuiltinCampaignNames();
 Result<Campaign> BuiltinCampaign(const std::string& name);
 // Its definition, the JSON file as shipped. NotFound for a name that is not built in.
