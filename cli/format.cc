@@ -1,6 +1,7 @@
 #include "cli/format.h"
 
 #include "core/claims.h"
+#include "core/materials.h"
 
 #include <algorithm>
 #include <cmath>
@@ -183,6 +184,11 @@ std::string FormatPoint(const json& p) {
   std::string axis = Str(p, "axis");
   if (!axis.empty()) out += " axis=" + axis;
   if (auto d = Num(p, "duration_s")) out += " T=" + DisplayNumber(*d) + "s";
+  // Materials that are not Table 1's (a point's JSON carries only those: core/materials.h).
+  for (const MaterialField& m : MaterialFields()) {
+    const std::string name(m.name);
+    if (auto v = Num(p, name.c_str())) out += " " + name + "=" + DisplayNumber(*v);
+  }
   return out;
 }
 

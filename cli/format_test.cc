@@ -94,6 +94,9 @@ TEST(FormatTest, CountsAndPoints) {
             "oscillatory A=0.03 f=3 Omega=-80 T=5s");
   EXPECT_EQ(FormatPoint(json::parse(R"({"mode":"rotation","omega":80,"axis":"x","duration_s":4})")),
             "rotation omega=80 axis=x T=4s");
+  EXPECT_EQ(FormatPoint(json::parse(
+                R"({"mode":"oscillatory","A":0.03,"f":3,"Omega":-80,"duration_s":5,"so_density":5000,"grain_youngs":1e8})")),
+            "oscillatory A=0.03 f=3 Omega=-80 T=5s so_density=5000 grain_youngs=1e+08");
 }
 
 TEST(FormatTest, ResultsTableGolden) {

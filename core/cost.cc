@@ -4,15 +4,6 @@
 #include <cmath>
 
 namespace sandswim {
-namespace {
-
-// Smoke's bed as prepared on this project's machine (README): its grains and its volume.
-constexpr double kSmokeGrains = 6682;
-
-double BedVolume(const Scale& s) { return s.x_len * s.y_len * (s.z_bed_top - s.z_floor); }
-
-}  // namespace
-
 EngineRate DefaultRate() {
   return {kDefaultSecondsPerParticleStep, kDefaultRateRelError, 0,
           "default rate (1.5e6 particle-steps/s, one core of a 2-core machine), no run measured yet"};
@@ -51,11 +42,6 @@ EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fal
   return r;
 }
 
-double EstimatedGrains(const Scale& scale) {
-  const Scale* smoke = FindScale("smoke");
-  return std::round(kSmokeGrains * BedVolume(scale) / BedVolume(*smoke));
-}
-
 double PlanCost::WallSeconds(int slots) const {
   slots = std::max(slots, 1);
   // Beds share the slots with each other first; their runs then share every slot.
@@ -66,25 +52,32 @@ double PlanCost::WallSeconds(int slots) const {
 
 PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& known_grains,
                     const EngineRate& run_rate, const EngineRate& bed_rate) {
-  const Scale* scale = FindScale(plan.scale);
-  const double estimate = scale ? EstimatedGrains(*scale) : kSmokeGrains;
+  const Scale& scale = FindScale(plan.scale) ? *FindScale(plan.scale) : *FindScale("smoke");
+  const double estimate = EstimatedGrains(scale);
   std::vector<double> bed_grains;
-  for (size_t i = 0; i < plan.beds.size(); ++i)
-    bed_grains.push_back(i < known_grains.size() && known_grains[i] ? *known_grains[i] : estimate);
+  // A bed's preparation takes as many more steps as its step is shorter than Table 1's (the bed
+  // rate is per grain of a Table 1 bed); its runs' steps are in their step counts already.
+  std::vector<double> bed_step_factor;
+  for (size_t i = 0; i < plan.beds.size(); ++i) {
+    const Materials& m = plan.beds[i].materials;
+    bed_grains.push_back(i < known_grains.size() && known_grains[i] ? *known_grains[i] : EstimatedGrains(scale, m));
+    bed_step_factor.push_back(kMaterials.dt / TimeStep(m));
+  }
   PlanCost c;
   c.runs = static_cast<int64_t>(plan.runs.size());
   c.beds = static_cast<int64_t>(bed_grains.size());
   for (const PlannedRun& r : plan.runs) {
-    const size_t bed = static_cast<size_t>(r.replicate);
+    const size_t bed = static_cast<size_t>(r.bed);
     const double particles = (bed < bed_grains.size() ? bed_grains[bed] : estimate) + 1;
     const double ps = static_cast<double>(r.steps) * particles;
     c.particle_steps += ps;
     c.longest_run_s = std::max(c.longest_run_s, ps * run_rate.s_per_unit);
   }
   c.run_core_s = c.particle_steps * run_rate.s_per_unit;
-  for (double g : bed_grains) {
-    c.bed_core_s += g * bed_rate.s_per_unit;
-    c.longest_bed_s = std::max(c.longest_bed_s, g * bed_rate.s_per_unit);
+  for (size_t i = 0; i < bed_grains.size(); ++i) {
+    const double s = bed_grains[i] * bed_step_factor[i] * bed_rate.s_per_unit;
+    c.bed_core_s += s;
+    c.longest_bed_s = std::max(c.longest_bed_s, s);
   }
   // The two rates' errors weighted by the share of time each accounts for (each is one
   // systematic error over all its items: a host's rate does not average out over runs).

@@ -62,9 +62,6 @@ EngineRate DefaultBedRate();  // bed preparation, per grain
 // half the default's error. Samples with no work or no time are left out; none left: `fallback`.
 EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fallback, const std::string& basis);
 
-// The grains a scale's bed holds before one was prepared: smoke's 6,682, scaled by the bed's volume.
-double EstimatedGrains(const Scale& scale);
-
 // ---- Before work: what a plan costs ------------------------------------------------------------
 
 struct PlanCost {
@@ -79,9 +76,11 @@ struct PlanCost {
   double WallSeconds(int slots) const;
   double longest_bed_s = 0, longest_run_s = 0;
 };
-// A plan's runs (core/sweep.h: each its deck's steps, on plan.beds[replicate]) and beds;
-// bed_grains[i] is plan.beds[i]'s grain count where known (a bed prepared already), else
-// EstimatedGrains(plan's scale) is used. Every run takes grains + 1 (the SO) particles.
+// A plan's runs (core/sweep.h: each its deck's steps at its materials' time step, on
+// plan.beds[bed]) and beds; bed_grains[i] is plan.beds[i]'s grain count where known (a bed
+// prepared already), else EstimatedGrains(plan's scale, the bed's materials) is used, and a bed
+// costs its grains times Table 1's step over its own (core/materials.h TimeStep). Every run takes
+// grains + 1 (the SO) particles.
 PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& bed_grains,
                     const EngineRate& run_rate, const EngineRate& bed_rate);
 

@@ -20,9 +20,9 @@ using Values = std::map<std::string, std::string>;
 // into a region tall enough that, packed at about 0.6 after settling, they fill the layer.
 constexpr double kInsertFraction = 0.25;
 constexpr double kPackedFraction = 0.60;
-constexpr int kSampleSteps = 1000;            // 10 ms: kinetic-energy sampling period
-constexpr double kViscousGamma = 0.2;         // N s/m: damping time m_grain / gamma ~ 50 ms
-constexpr int kViscousSteps = 20000;          // 0.2 s of damping
+constexpr double kSampleS = 0.01;             // kinetic-energy sampling period (1000 steps of 1e-5 s)
+constexpr double kViscousGamma = 0.2;         // N s/m for Table 1's grain: damping time m_grain / gamma ~ 50 ms
+constexpr double kViscousS = 0.2;             // s of damping (20000 steps of 1e-5 s)
 constexpr int kCheckSamples = 100;            // at most 1 s of undamped checking
 constexpr double kKineticEnergyRatio = 1e-4;  // Sec. 2.3
 constexpr double kSkin = 0.01;                // m; fastest measured here
@@ -66,31 +66,59 @@ std::string_view Template(const char* name) {
   return *t;
 }
 
-// Values both decks share: Table 1 and the box.
-Values CommonValues(const Scale& s) {
-  const Materials& m = kMaterials;
+// Values both decks share: the materials (Table 1's unless the point sets others), the step and
+// the floor.
+Values CommonValues(const Box& box, const Materials& m) {
   return {
       {"template_version", Fmt(static_cast<long long>(kTemplateVersion))},
       {"skin", Fmt(kSkin)},
       {"youngs", Fmt(m.youngs)},
       {"poisson", Fmt(m.poisson)},
+      {"youngs_so", Fmt(kMaterials.youngs_so)},
+      {"poisson_so", Fmt(kMaterials.poisson_so)},
       {"e_gg", Fmt(m.e_grain_grain)},
       {"e_gs", Fmt(m.e_so_grain)},
       {"mu_gg", Fmt(m.mu_grain_grain)},
       {"mu_gs", Fmt(m.mu_so_grain)},
-      {"dt", Fmt(m.dt)},  // DriveFacts' dt
-      {"gravity", Fmt(m.gravity)},
-      {"z_floor", Fmt(s.z_floor)},
+      {"dt", Fmt(TimeStep(m))},  // DriveFacts' dt
+      {"gravity", Fmt(kMaterials.gravity)},
+      {"z_floor", Length(box.z_floor)},
   };
 }
 
-// Steps in `seconds`, clamped before the conversion to an integer: Validate() keeps a point's
-// durations in [kMinDurationS, kMaxDurationS] (8.64e9 steps at most), and a value outside that
-// (NaN included) must not reach llround, whose result is undefined past long long.
-long long StepsFor(double seconds) {
-  const double steps = seconds / kMaterials.dt;
+// The lines a deck of other materials than Table 1's carries after its first line: which
+// parameters are not Table 1's (the bed's only, in a bed deck) and the step with its rule. A
+// Table 1 deck has none, so its bytes and key are what they were before materials could be set.
+std::string MaterialsHeader(const Materials& m, MaterialRole only_role, bool all_roles) {
+  std::string set;
+  for (const MaterialField& f : MaterialFields()) {
+    if (!all_roles && f.role != only_role) continue;
+    if (m.*f.member == kTable1.*f.member) continue;
+    set += (set.empty() ? "" : ", ") + std::string(f.name) + " " + FormatNumber(m.*f.member) +
+           (f.unit.empty() ? "" : " " + std::string(f.unit)) + (f.role == MaterialRole::kBed ? " (bed)" : " (drive)");
+  }
+  if (set.empty()) return "";
+  return "# Materials not Table 1's: " + set + ".\n# Time step " + FormatNumber(TimeStep(m)) + " s: " +
+         kTimeStepRule + ".\n";
+}
+
+// Inserts `lines` after the deck's first line (its title).
+std::string AfterTitle(std::string deck, const std::string& lines) {
+  if (lines.empty()) return deck;
+  const size_t eol = deck.find('\n');
+  if (eol == std::string::npos) throw std::logic_error("a deck without a title line");
+  deck.insert(eol + 1, lines);
+  return deck;
+}
+
+// Steps of `dt` in `seconds`, clamped before the conversion to an integer: Validate() keeps a
+// point's durations in [kMinDurationS, kMaxDurationS] (4.32e10 steps at most, at the shortest
+// step), and a value outside that (NaN included) must not reach llround, whose result is undefined
+// past long long.
+long long StepsFor(double seconds, double dt) {
+  const double steps = seconds / dt;
   if (!(steps > 0)) return 0;
-  return std::llround(std::min(steps, kMaxDurationS / kMaterials.dt));
+  return std::llround(std::min(steps, kMaxDurationS / dt));
 }
 
 }  // namespace
@@ -132,11 +160,16 @@ BedSeeds BedSeedsFor(int replicate) {
   return BedSeeds{PrimeAfter(49979693, replicate), PrimeAfter(86028121, replicate)};
 }
 
-std::string RenderBedDeck(const Scale& s, int replicate) {
-  const Materials& m = kMaterials;
+std::string RenderBedDeck(const Scale& scale, int replicate, const Materials& materials) {
+  const Materials m = BedMaterials(materials);
+  const Box s = BoxFor(scale, m);
+  const double dt = TimeStep(m);
+  const long long sample_steps = StepsFor(kSampleS, dt);
   const BedSeeds seeds = BedSeedsFor(replicate);
   const double r = m.d_grain / 2;
-  Values v = CommonValues(s);
+  // The drag keeps its 50 ms damping time for a grain of another mass.
+  const double grain_mass_ratio = m.rho_grain / kTable1.rho_grain * std::pow(m.d_grain / kTable1.d_grain, 3);
+  Values v = CommonValues(s, m);
   const double h1 = 0.0 - s.z_floor;    // first layer: floor to z = 0
   const double h2 = s.z_bed_top - 0.0;  // second layer: z = 0 to the top
   const double stretch = kPackedFraction / kInsertFraction;
@@ -146,11 +179,11 @@ std::string RenderBedDeck(const Scale& s, int replicate) {
   const double pour2_hi = pour2_lo + h2 * stretch;
   // Fall time from the top of a pour region to its layer, plus as long again to settle.
   auto settle_steps = [&](double drop) {
-    long long steps = StepsFor(2 * std::sqrt(2 * drop / m.gravity));
-    return (steps + kSampleSteps - 1) / kSampleSteps * kSampleSteps;
+    long long steps = StepsFor(2 * std::sqrt(2 * drop / kMaterials.gravity), dt);
+    return (steps + sample_steps - 1) / sample_steps * sample_steps;
   };
   v.insert({
-      {"z_bed_top", Fmt(s.z_bed_top)},
+      {"z_bed_top", Length(s.z_bed_top)},
       {"x_lo", Length(-s.x_len / 2)},
       {"x_hi", Length(s.x_len / 2)},
       {"y_lo", Length(-s.y_len / 2)},
@@ -168,12 +201,12 @@ std::string RenderBedDeck(const Scale& s, int replicate) {
       {"rho_so", Fmt(m.rho_so)},
       {"pour2_lo", Length(pour2_lo)},
       {"pour2_hi", Length(pour2_hi)},
-      {"pour2_samples", Fmt(settle_steps(pour2_hi - s.z_floor) / kSampleSteps)},
-      {"sample_steps", Fmt(static_cast<long long>(kSampleSteps))},
-      {"viscous_gamma", Fmt(kViscousGamma)},
-      {"viscous_steps", Fmt(static_cast<long long>(kViscousSteps))},
+      {"pour2_samples", Fmt(settle_steps(pour2_hi - s.z_floor) / sample_steps)},
+      {"sample_steps", Fmt(sample_steps)},
+      {"viscous_gamma", Fmt(kViscousGamma * grain_mass_ratio)},
+      {"viscous_steps", Fmt(StepsFor(kViscousS, dt))},
       {"check_samples", Fmt(static_cast<long long>(kCheckSamples))},
-      {"check_steps", Fmt(static_cast<long long>(kCheckSamples) * kSampleSteps)},
+      {"check_steps", Fmt(static_cast<long long>(kCheckSamples) * sample_steps)},
       {"ke_ratio", Fmt(kKineticEnergyRatio)},
       {"restart_file", kBedRestartFile},
       {"bed_dump_file", kBedDumpFile},
@@ -181,12 +214,12 @@ std::string RenderBedDeck(const Scale& s, int replicate) {
       {"seed_pour1", Fmt(seeds.pour1)},
       {"seed_pour2", Fmt(seeds.pour2)},
   });
-  return Render(Template("templates/bed.in"), v);
+  return AfterTitle(Render(Template("templates/bed.in"), v), MaterialsHeader(m, MaterialRole::kBed, false));
 }
 
 int OmegaUpdateSteps(const Point& p) {
   if (!p.has_vibration()) return kOmegaUpdateSteps;
-  const double period_steps = 1.0 / (p.f * kMaterials.dt);
+  const double period_steps = 1.0 / (p.f * TimeStep(p.materials));
   // Clamped as a double first: a tiny f makes period_steps past long long (or inf), and the cast
   // of such a value is undefined.
   const double most = std::floor(period_steps / kMinOmegaUpdatesPerPeriod);
@@ -196,7 +229,7 @@ int OmegaUpdateSteps(const Point& p) {
 
 long long DriveSteps(const Point& p, const std::optional<PrecisionTarget>& target) {
   const long long chunk = OmegaUpdateSteps(p);
-  const long long steps = std::max(1LL, StepsFor(RunDuration(p, target)));  // never a 0-step deck
+  const long long steps = std::max(1LL, StepsFor(RunDuration(p, target), TimeStep(p.materials)));  // never 0 steps
   return (steps + chunk - 1) / chunk * chunk;
 }
 
@@ -207,10 +240,10 @@ std::string ControlFileText(StopVerdict verdict) {
 
 DriveInfo DriveFacts(const Point& p, const Scale& s) {
   DriveInfo d;
-  d.dt = kMaterials.dt;
+  d.dt = TimeStep(p.materials);
   d.f = p.has_vibration() ? p.f : 0.0;
   d.A = p.has_vibration() ? p.A : 0.0;
-  d.z_floor = s.z_floor;
+  d.z_floor = std::round(BoxFor(s, p.materials).z_floor * 1e9) / 1e9;  // as the deck's Length()
   return d;
 }
 
@@ -258,9 +291,10 @@ long long SnapshotEverySteps(const Point& p, const std::optional<PrecisionTarget
 
 std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<PrecisionTarget>& target,
                             const SnapshotFractions& snapshots) {
-  const Materials& m = kMaterials;
+  const Materials& m = p.materials;
+  const Box box = BoxFor(s, m);
   const DriveInfo drive = DriveFacts(p, s);
-  Values v = CommonValues(s);
+  Values v = CommonValues(box, m);
   // omega(t) = w0 + w1 cos(2 pi f t), along the mode's axis (core/point.h).
   std::array<double, 3> w0{0, 0, 0}, w1{0, 0, 0};
   if (p.has_constant_rotation()) {
@@ -292,11 +326,18 @@ std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<
       {"total_steps", Fmt(steps)},
       {"r_so", Fmt(m.d_so / 2)},
       // The SO's centre when its bottom is one grain diameter above the floor: it is at the floor.
-      {"z_floor_stop", Length(s.z_floor + m.d_so / 2 + m.d_grain)},
+      {"z_floor_stop", Length(box.z_floor + m.d_so / 2 + m.d_grain)},
       {"control_file", kControlFile},
       {"precision", precision},
   });
-  std::string deck = Render(Template("templates/drive.in"), v);
+  std::string deck = AfterTitle(Render(Template("templates/drive.in"), v), MaterialsHeader(m, MaterialRole::kDrive, true));
+  if (m.rho_so != kTable1.rho_so) {
+    // A drive-only parameter: the bed was poured with Table 1's SO, which now takes its density.
+    const std::string anchor = "group so type 2\n";
+    const size_t at = deck.find(anchor);
+    if (at == std::string::npos) throw std::logic_error("templates/drive.in lost its 'group so' line");
+    deck.insert(at + anchor.size(), "set group so density " + Fmt(m.rho_so) + "\n");
+  }
   if (snapshots.empty()) return deck;
   // The frames' dump goes right after the trajectory's, before the first run; the last frame is
   // written where every way of ending meets.

@@ -83,7 +83,10 @@ struct BedSeeds {
 // REQUIRES: 0 <= replicate < kMaxReplicates (else std::logic_error).
 BedSeeds BedSeedsFor(int replicate);
 
-std::string RenderBedDeck(const Scale& scale, int replicate = 0);
+// The bed of `materials` (their BedMaterials: drive-only values do not enter it) at the scale's box
+// for them (BoxFor), at their time step (TimeStep). Table 1's materials render the deck they
+// always did; others add a header of the values that are not Table 1's and the step's rule.
+std::string RenderBedDeck(const Scale& scale, int replicate = 0, const Materials& materials = kTable1);
 
 // REQUIRES: Validate(p).ok() and FitsScale(p, scale).ok(); `snapshots` passed
 // CheckSnapshotFractions. `target` is the run's precision target (absent: the run lasts its whole

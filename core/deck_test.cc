@@ -63,6 +63,39 @@ TEST(DeckTest, VibrationRotationDeckMatchesGolden) {
   ExpectGolden("drive_vibration_rotation_xz_paper.in", RenderDriveDeck(p, *FindScale("paper"), std::nullopt));
 }
 
+// A point of other materials, of each kind (core/materials.h): one that pours a bed of its own
+// (larger, stiffer grains and a larger SO: a grown box, a shorter step, the header saying both),
+// and one that only changes the drive (a denser, slicker SO on Table 1's bed).
+Point BedChangingPoint() {
+  Point p = OscillatoryPoint(0.03, 3, -80, 4);
+  p.materials.d_grain = 0.025;
+  p.materials.youngs = 3e7;
+  p.materials.d_so = 0.15;
+  return p;
+}
+Point DriveOnlyPoint() {
+  Point p = OscillatoryPoint(0.03, 3, -80, 4);
+  p.materials.rho_so = 5000;
+  p.materials.mu_so_grain = 0.3;
+  p.materials.e_so_grain = 0.7;
+  return p;
+}
+
+TEST(DeckTest, BedChangingMaterialsMatchGolden) {
+  const Point p = BedChangingPoint();
+  ASSERT_TRUE(Validate(p).ok());
+  ASSERT_TRUE(FitsScale(p, Smoke()).ok());
+  ExpectGolden("bed_smoke_materials.in", RenderBedDeck(Smoke(), 0, p.materials));
+  ExpectGolden("drive_oscillatory_smoke_materials.in", RenderDriveDeck(p, Smoke(), Smoke().default_precision));
+}
+
+TEST(DeckTest, DriveOnlyMaterialsMatchGoldenOnTable1sBed) {
+  const Point p = DriveOnlyPoint();
+  ASSERT_TRUE(Validate(p).ok());
+  EXPECT_EQ(RenderBedDeck(Smoke(), 0, p.materials), RenderBedDeck(Smoke()));
+  ExpectGolden("drive_oscillatory_smoke_so_density.in", RenderDriveDeck(p, Smoke(), Smoke().default_precision));
+}
+
 // Table 1 of the paper, as the decks must state it, whatever the scale.
 TEST(DeckTest, EveryDeckHoldsTableOne) {
   for (const Scale& s : AllScales()) {

@@ -417,6 +417,26 @@ FitChoice ChooseFit(const std::vector<Point>& points) {
     varies_f |= Differ(p.f, first.f);
   }
   int varied = static_cast<int>(varies_omega) + static_cast<int>(varies_a) + static_cast<int>(varies_f);
+  // A material parameter (core/materials.h): the paper has no law for it, so nothing is fitted,
+  // but it is the x axis U_z is shown against.
+  std::vector<std::string> materials;
+  for (const MaterialField& m : MaterialFields()) {
+    for (const Point& p : points) {
+      if (Differ(p.materials.*m.member, first.materials.*m.member)) {
+        materials.emplace_back(m.name);
+        break;
+      }
+    }
+  }
+  if (!materials.empty()) {
+    if (varied + materials.size() > 1) {
+      choice.reason = "more than one of |Omega|, A, f and the materials varies: one at a time is shown against U_z";
+      return choice;
+    }
+    choice = {FitKind::kNone, materials[0],
+              materials[0] + " varies: the paper has no law for it; U_z is shown against it, not fitted"};
+    return choice;
+  }
   if (varied != 1) {
     choice.reason = varied == 0 ? "only the sign of Omega (or nothing) varies: no law to fit"
                                 : "more than one of |Omega|, A, f varies: the paper's laws vary one at a time";

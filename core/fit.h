@@ -120,7 +120,7 @@ const char* FitKindName(FitKind kind);  // "none", "saturation", "linear", "fast
 // Which law a sweep's points call for, and the parameter on the x axis.
 struct FitChoice {
   FitKind kind = FitKind::kNone;
-  std::string param;   // "Omega", "A", "f" ("" for none)
+  std::string param;   // "Omega", "A", "f", a material ("so_density": no law, an x axis), "" for none
   std::string reason;  // why this law, or why none
 };
 FitChoice ChooseFit(const std::vector<Point>& points);

@@ -226,6 +226,21 @@ TEST(ChooseFitTest, TheLawFollowsWhatTheSweepVaries) {
   Point vib2 = vib;
   vib2.A = 0.05;
   EXPECT_THAT(ChooseFit({vib, vib2}).reason, HasSubstr("oscillatory"));
+  // A material: no law, but the x axis; with a drive parameter beside it, none.
+  std::vector<Point> density;
+  for (double rho : {1250.0, 2500.0, 5000.0}) {
+    for (double om : {-80.0, 80.0}) {
+      density.push_back(OscillatoryPoint(0.03, 3, om, 4));
+      density.back().materials.rho_so = rho;
+    }
+  }
+  FitChoice by_density = ChooseFit(density);
+  EXPECT_EQ(by_density.kind, FitKind::kNone);
+  EXPECT_EQ(by_density.param, "so_density");
+  EXPECT_THAT(by_density.reason, HasSubstr("no law"));
+  density.push_back(OscillatoryPoint(0.05, 3, 80, 4));
+  EXPECT_EQ(ChooseFit(density).param, "");
+  EXPECT_THAT(ChooseFit(density).reason, HasSubstr("more than one"));
 }
 
 TEST(FitSweepTest, FitsEachBranchOfAnOmegaSweepAndChecksTheSigns) {

@@ -124,21 +124,23 @@ Status Validate(const Point& p) {
   }
   SANDSWIM_RETURN_IF_ERROR(CheckAtLeast("duration_s", p.duration_s, kMinDurationS, kMaxDurationS, "s",
                                         "the deck's shortest loop, 100 steps of 1e-5 s"));
-  return Status::Ok();
+  return ValidateMaterials(p.materials);
 }
 
 bool SameDrive(const Point& a, const Point& b) {
   return a.mode == b.mode && a.A == b.A && a.f == b.f && a.Omega == b.Omega && a.omega == b.omega &&
-         (!a.has_constant_rotation() || a.axis == b.axis);
+         (!a.has_constant_rotation() || a.axis == b.axis) && a.materials == b.materials;
 }
 
 DriveId DriveIdOf(const Point& p) {
-  return {
-      static_cast<int>(p.mode), p.A, p.f, p.Omega, p.omega, p.has_constant_rotation() ? static_cast<int>(p.axis) : -1};
+  std::array<double, kMaterialFieldCount> materials{};
+  for (size_t i = 0; i < kMaterialFieldCount; ++i) materials[i] = p.materials.*MaterialFields()[i].member;
+  return {static_cast<int>(p.mode), p.A,   p.f, p.Omega, p.omega, p.has_constant_rotation() ? static_cast<int>(p.axis) : -1,
+          materials};
 }
 
 Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
-                          double duration_s) {
+                          double duration_s, const std::optional<std::string>& materials) {
   std::optional<Mode> m = ParseMode(mode);
   if (!m)
     return Status(StatusCode::kCorruption, "stored mode \"" + std::string(mode) + "\" is not one of ours", "mode");
@@ -153,6 +155,9 @@ Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A
   p.Omega = Omega;
   p.omega = omega;
   p.duration_s = duration_s;
+  Result<Materials> stored = StoredMaterials(materials);
+  if (!stored.ok()) return stored.status();
+  p.materials = *stored;
   return p;
 }
 

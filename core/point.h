@@ -4,6 +4,9 @@
 // Validation is pure and names the offending field; a Point that passed Validate() is the only
 // thing the deck renderer accepts, so user text never reaches a deck.
 //
+// A point also carries its materials (Materials below): Table 1 of the paper unless a sweep sets
+// them. A point whose materials are Table 1's renders the decks, keys and JSON it always did.
+//
 // Modes (SPEC.md, paper Sec. 3):
 //   vibration           y = A sin(2 pi f t); omega = 0.
 //   rotation            constant omega about `axis`; y held at its start.
@@ -21,6 +24,7 @@
 #include <string_view>
 #include <tuple>
 
+#include "core/materials.h"
 #include "core/status.h"
 
 namespace sandswim {
@@ -58,6 +62,7 @@ struct Point {
   double omega = 0.0;                    // rad/s; rotation, vibration+rotation (constant)
   RotationAxis axis = RotationAxis::kX;  // rotation, vibration+rotation
   double duration_s = 0.0;               // physical time the user asks for
+  Materials materials;                   // Table 1 unless a sweep sets them
 
   bool has_vibration() const { return mode != Mode::kRotation; }
   bool has_constant_rotation() const { return mode == Mode::kRotation || mode == Mode::kVibrationRotation; }
@@ -65,20 +70,22 @@ struct Point {
 
 // A point as the database stores it (mode and axis by name): the one decoding the daemon's reads
 // and its lease queue share. Corruption naming the column when a name is not one of ours.
+// `materials` is the runs.materials column (core/materials.h StoredMaterials: NULL is Table 1's).
 Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
-                          double duration_s);
+                          double duration_s, const std::optional<std::string>& materials);
 
 // The paper's Sec. 3.2 drive (eq. 6): y = A sin(2 pi f t), omega_x = Omega cos(2 pi f t).
 Point OscillatoryPoint(double A, double f, double Omega, double duration_s);
 
 // Checks finiteness, signs and caps of the fields the mode uses. Fields the mode does not use
 // must be zero (the parser never sets them). Errors name the field ("A", "f", "Omega", ...).
+// Materials: ValidateMaterials (core/materials.h).
 Status Validate(const Point& p);
 
-// Two points drive the SO the same way (everything but duration equal).
+// Two points drive the SO the same way (everything but duration equal, materials included).
 bool SameDrive(const Point& a, const Point& b);
 // An ordered identity of the drive: equal exactly when SameDrive (axis only where it matters).
-using DriveId = std::tuple<int, double, double, double, double, int>;
+using DriveId = std::tuple<int, double, double, double, double, int, std::array<double, kMaterialFieldCount>>;
 DriveId DriveIdOf(const Point& p);
 
 }  // namespace sandswim

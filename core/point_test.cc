@@ -10,7 +10,7 @@ namespace {
 TEST(StoredPointTest, EveryModeAndAxisReadsBackAndAStrangerIsCorruption) {
   for (Mode mode : {Mode::kVibration, Mode::kRotation, Mode::kVibrationRotation, Mode::kOscillatory}) {
     for (RotationAxis axis : {RotationAxis::kX, RotationAxis::kY, RotationAxis::kZ, RotationAxis::kXZ}) {
-      auto p = StoredPoint(ModeName(mode), AxisName(axis), 0.03, 3, -80, 5, 2);
+      auto p = StoredPoint(ModeName(mode), AxisName(axis), 0.03, 3, -80, 5, 2, std::nullopt);
       ASSERT_TRUE(p.ok()) << p.status().ToString();
       EXPECT_EQ(p->mode, mode);
       EXPECT_EQ(p->axis, axis);
@@ -21,10 +21,10 @@ TEST(StoredPointTest, EveryModeAndAxisReadsBackAndAStrangerIsCorruption) {
       EXPECT_EQ(p->duration_s, 2);
     }
   }
-  auto bad_mode = StoredPoint("wobble", "x", 0, 0, 0, 0, 1);
+  auto bad_mode = StoredPoint("wobble", "x", 0, 0, 0, 0, 1, std::nullopt);
   EXPECT_EQ(bad_mode.status().code(), StatusCode::kCorruption);
   EXPECT_EQ(bad_mode.status().field(), "mode");
-  auto bad_axis = StoredPoint("oscillatory", "w", 0, 0, 0, 0, 1);
+  auto bad_axis = StoredPoint("oscillatory", "w", 0, 0, 0, 0, 1, std::nullopt);
   EXPECT_EQ(bad_axis.status().code(), StatusCode::kCorruption);
   EXPECT_EQ(bad_axis.status().field(), "axis");
 }

@@ -2,6 +2,7 @@
 #include "core/text.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -47,23 +48,65 @@ namespace {
 // and growth rules power (F1 96 -> 100 %, F2 rising grows 99.7 -> 100 %, sinking saturates 49 ->
 // 60 %), but the rules that need a rate at fast points still lose it (rising saturates 39 -> 17 %,
 // F4 4 -> 0 %: all three beds must be measured). A study that wants them sets "replicates": 3.
+// Grain caps (max_grains, what a scale's purpose can run): smoke 2e4, three times its Table 1 bed,
+// a run of it still minutes on one core; mini 5e4, about three times its bed, still one machine
+// overnight; paper 1e6, the paper's own bed (8e5 grains, Sec. 2.3) with room.
 const std::vector<Scale> kScales = {
     {"paper", "the paper's geometry (about 7e4 grains), 4-5 s runs: a cluster or a big node", 0.50, 1.00, -0.50, 0.50,
-     std::nullopt, std::nullopt},
+     std::nullopt, std::nullopt, 1e6},
     {"mini", "a smaller periodic box around the SO (about 1.5e4 grains), full durations: one machine overnight", 0.32,
-     0.40, -0.40, 0.40, std::nullopt, std::nullopt},
+     0.40, -0.40, 0.40, std::nullopt, std::nullopt, 5e4},
     {"smoke",
      "about 6.7e3 grains, 0.15 m of travel up and down, runs that end at a precision target (at most 2 s): tests and "
      "demos",
-     0.18, 0.38, -0.35, 0.34, PrecisionTarget{0.2, 0.005, 3, 2.0}, 0.17},
+     0.18, 0.38, -0.35, 0.34, PrecisionTarget{0.2, 0.005, 3, 2.0}, 0.17, 2e4},
 };
 
-double NeededYLen(double A) { return 2 * A + kMaterials.d_so + 3 * kMaterials.d_grain; }
-double NeededXLen() { return kMaterials.d_so + 3 * kMaterials.d_grain; }
+// Smoke's bed as prepared on this project's machine (README): its grains.
+constexpr double kSmokeGrains = 6682;
+
+double Span(const Materials& m) { return m.d_so + 3 * m.d_grain; }
+double NeededYLen(double A, const Materials& m) { return 2 * A + Span(m); }
+
+double SphereVolume(double d) { return M_PI / 6 * d * d * d; }
+double BedVolume(const Box& b, const Materials& m) {
+  return b.x_len * b.y_len * (b.z_bed_top - b.z_floor) - SphereVolume(m.d_so);
+}
+
+std::string Quoted(std::string_view name) { return "'" + std::string(name) + "'"; }
+
+// The first scale, smallest first, that takes the point, as "; scale 'mini' takes it", or
+// "; no scale runs it".
+template <typename Takes>
+std::string ScaleThatTakes(Takes takes) {
+  for (auto it = kScales.rbegin(); it != kScales.rend(); ++it)
+    if (takes(*it)) return "; scale " + Quoted(it->name) + " takes it";
+  return "; no scale runs it";
+}
 
 }  // namespace
 
-double Scale::max_amplitude() const { return (y_len - kMaterials.d_so - 3 * kMaterials.d_grain) / 2; }
+double Scale::max_amplitude() const { return BoxFor(*this, kTable1).max_amplitude; }
+
+Box BoxFor(const Scale& s, const Materials& m) {
+  // Only growth: a smaller SO or smaller grains keep the scale's box (and so its bed's volume).
+  const double wider = std::max(0.0, Span(m) - Span(kTable1));
+  const double deeper = std::max(0.0, (m.d_so - kTable1.d_so) / 2);
+  Box b;
+  b.x_len = s.x_len + wider;
+  b.y_len = s.y_len + wider;
+  b.z_floor = s.z_floor - deeper;
+  b.z_bed_top = s.z_bed_top + deeper;
+  b.max_amplitude = (b.y_len - Span(m)) / 2;
+  return b;
+}
+
+double EstimatedGrains(const Scale& scale, const Materials& m) {
+  const Scale& smoke = *FindScale("smoke");
+  const double per_volume = kSmokeGrains / BedVolume(BoxFor(smoke, kTable1), kTable1);
+  const double grain_ratio = SphereVolume(kTable1.d_grain) / SphereVolume(m.d_grain);
+  return std::round(per_volume * BedVolume(BoxFor(scale, m), m) * grain_ratio);
+}
 
 const std::vector<Scale>& AllScales() { return kScales; }
 
@@ -74,20 +117,41 @@ const Scale* FindScale(std::string_view name) {
 }
 
 Status FitsScale(const Point& p, const Scale& scale) {
-  if (scale.x_len < NeededXLen())
+  const Materials& m = p.materials;
+  const Box box = BoxFor(scale, m);
+  if (box.x_len < Span(m) - 1e-12)
     return Status::Internal("scale '" + std::string(scale.name) + "' is narrower than d_SO + 3 d_grain");
   // A tiny tolerance so that A = 0.10 fits a box built for exactly 0.10.
-  if (p.has_vibration() && p.A > scale.max_amplitude() + 1e-12) {
-    std::string reason = "A = " + Num(p.A) + " m needs L_y >= " + Num(NeededYLen(p.A)) +
+  if (p.has_vibration() && p.A > box.max_amplitude + 1e-12) {
+    std::string reason = "A = " + Num(p.A) + " m needs L_y >= " + Num(NeededYLen(p.A, m)) +
                          " m (2A + d_SO + 3 d_grain); scale '" + std::string(scale.name) +
-                         "' has L_y = " + Num(scale.y_len) + " m (A <= " + Num(scale.max_amplitude()) + " m)";
-    for (auto it = kScales.rbegin(); it != kScales.rend(); ++it) {
-      if (p.A <= it->max_amplitude() + 1e-12) {
-        reason += "; scale '" + std::string(it->name) + "' takes it";
-        break;
-      }
+                         "' has L_y = " + Num(box.y_len) + " m (A <= " + Num(box.max_amplitude) + " m)";
+    return Status::FailedPrecondition(
+        "A", reason + ScaleThatTakes([&](const Scale& s) { return p.A <= BoxFor(s, m).max_amplitude + 1e-12; }));
+  }
+  const Materials bed = BedMaterials(m);
+  const double grains = EstimatedGrains(scale, bed);
+  if (grains > scale.max_grains) {
+    const char* field = m.d_grain < kTable1.d_grain || m.d_so <= kTable1.d_so ? "grain_diameter" : "so_diameter";
+    return Status::FailedPrecondition(
+        field, "its bed would hold about " + std::to_string(std::llround(grains)) + " grains; scale " +
+                   Quoted(scale.name) + " runs at most " + std::to_string(std::llround(scale.max_grains)) +
+                   ScaleThatTakes([&](const Scale& s) { return EstimatedGrains(s, bed) <= s.max_grains; }));
+  }
+  const double dt = TimeStep(m);
+  if (dt < kMinTimeStepS) {
+    // Name the parameter whose return to Table 1's value lengthens the step most.
+    const MaterialField* worst = nullptr;
+    double best_dt = dt;
+    for (const MaterialField& f : MaterialFields()) {
+      Materials back = m;
+      back.*f.member = kTable1.*f.member;
+      const double t = TimeStep(back);
+      if (t > best_dt) best_dt = t, worst = &f;
     }
-    return Status::FailedPrecondition("A", reason);
+    return Status::FailedPrecondition(worst ? std::string(worst->name) : "grain_youngs",
+                                      "these materials need a time step of " + Num(dt, 3) + " s (" + kTimeStepRule +
+                                          "); no scale runs steps shorter than " + Num(kMinTimeStepS) + " s");
   }
   return Status::Ok();
 }

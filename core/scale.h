@@ -1,9 +1,14 @@
-// Scale: a preset of box size, grain count and duration (SPEC.md "scale"), and the materials of
-// Table 1, which are the same at every scale. This file is the one place both are defined.
+// Scale: a preset of box size, grain count and duration (SPEC.md "scale"). Table 1's materials are
+// in core/materials.h; a point may set others, and the box follows them (BoxFor).
 //
 // A scale sizes its periodic box so that the SO never meets its own periodic image at its full
 // swing (SPEC.md): L_y >= 2 A + d_SO + 3 d_grain and L_x >= d_SO + 3 d_grain. A point whose A
 // needs a bigger box is refused by FitsScale() with the name of a scale that would take it.
+// A point with a larger SO or larger grains gets a box grown by as much as d_SO + 3 d_grain grew
+// (in x and y), and a floor and top moved out by as much as the SO's radius grew, so it keeps the
+// scale's largest A and its travel above and below the SO (BoxFor). A scale runs at most
+// max_grains grains and steps no shorter than kMinTimeStepS: past those, FitsScale() refuses the
+// point naming the field and a scale that would take it (if any).
 // A scale may carry a default precision target (core/precision.h): a sweep that sets none runs to
 // it, so runs last as long as their answer needs, within the target's maximum.
 //
@@ -21,22 +26,6 @@
 
 namespace sandswim {
 
-// Table 1 of the paper and Sec. 2.3. Nothing here is tuned.
-struct Materials {
-  double d_grain = 0.02;       // m
-  double rho_grain = 2500;     // kg/m^3
-  double d_so = 0.12;          // m
-  double rho_so = 2500;        // kg/m^3
-  double youngs = 1e7;         // Pa, grains and SO
-  double poisson = 0.25;       // grains and SO
-  double e_grain_grain = 0.9;  // coefficient of restitution
-  double e_so_grain = 0.5;
-  double mu_grain_grain = 0.45;  // coefficient of friction
-  double mu_so_grain = 0.5;
-  double gravity = 9.81;  // m/s^2, along -z
-  double dt = 1e-5;       // s
-};
-inline constexpr Materials kMaterials{};
 
 struct Scale {
   std::string_view name;
@@ -51,15 +40,35 @@ struct Scale {
   // adds to its run's own error (core/aggregate.h): a prior, measured on replicate beds of this
   // box (absent: not measured, and a one-bed point's error leaves it out, saying so).
   std::optional<double> bed_sd_rel;
-  // Derived: the largest A this box takes, (y_len - d_so - 3 d_grain) / 2.
+  // The most grains its bed may hold (EstimatedGrains): what a run at the scale's purpose can take
+  // (core/scale.cc says why each).
+  double max_grains = 0;
+  // Derived: the largest A this box takes with Table 1's materials, (y_len - d_so - 3 d_grain) / 2.
   double max_amplitude() const;
 };
+
+// The shortest time step any scale runs (core/materials.h TimeStep): a fifth of the paper's, five
+// times the steps of a Table 1 run.
+inline constexpr double kMinTimeStepS = 2e-6;
+
+// A scale's box for a point's materials (the scale's own box for Table 1's).
+struct Box {
+  double x_len = 0, y_len = 0, z_floor = 0, z_bed_top = 0;  // m
+  double max_amplitude = 0;                                  // m: (y_len - d_so - 3 d_grain) / 2
+};
+Box BoxFor(const Scale& scale, const Materials& m);
+
+// The grains a scale's bed holds for these materials before one was prepared: smoke's 6,682 (as
+// prepared here), scaled by the bed's volume less the SO's and by the grain's volume.
+double EstimatedGrains(const Scale& scale, const Materials& m = kTable1);
 
 // paper, mini, smoke, in that order (largest first).
 const std::vector<Scale>& AllScales();
 const Scale* FindScale(std::string_view name);
 
-// Refuses a point the scale's box cannot hold ("A": "needs L_y >= ...; scale 'mini' takes it").
+// Refuses a point the scale's box cannot hold ("A": "needs L_y >= ...; scale 'mini' takes it"),
+// whose bed would pass the scale's max_grains ("grain_diameter" or "so_diameter"), or whose time
+// step would be shorter than kMinTimeStepS (the material field that shortens it most).
 Status FitsScale(const Point& p, const Scale& scale);
 
 }  // namespace sandswim

@@ -141,7 +141,11 @@ const std::vector<std::string>& ModeParams(Mode mode) {
   return kOsc;
 }
 
+// Every mode takes the materials (core/materials.h), each optional: absent is Table 1's.
+bool IsMaterialParam(const std::string& param) { return FindMaterialField(param) != nullptr; }
+
 bool ModeUsesParam(Mode mode, const std::string& param) {
+  if (IsMaterialParam(param)) return true;
   const auto& ps = ModeParams(mode);
   return std::find(ps.begin(), ps.end(), param) != ps.end();
 }
@@ -154,11 +158,16 @@ double* ParamSlot(Point& p, const std::string& param) {
   if (param == "Omega") return &p.Omega;
   if (param == "omega") return &p.omega;
   if (param == "duration_s") return &p.duration_s;
+  if (const MaterialField* m = FindMaterialField(param)) return &(p.materials.*m->member);
   return nullptr;
 }
 
 const std::vector<std::string>& AllParams() {
-  static const std::vector<std::string> kAll = {"A", "f", "Omega", "omega", "duration_s"};
+  static const std::vector<std::string> kAll = [] {
+    std::vector<std::string> all = {"A", "f", "Omega", "omega", "duration_s"};
+    for (const MaterialField& m : MaterialFields()) all.emplace_back(m.name);
+    return all;
+  }();
   return kAll;
 }
 
@@ -201,6 +210,13 @@ Result<Point> ParseBase(const json& j) {
     auto v = ReadNumber(j, param);
     if (!v.ok()) return v.status();
     *ParamSlot(p, param) = *v;
+  }
+  for (const MaterialField& m : MaterialFields()) {
+    const std::string name(m.name);
+    if (!j.count(name)) continue;
+    auto v = ReadNumber(j, name);
+    if (!v.ok()) return v.status();
+    p.materials.*m.member = *v;
   }
   if (ModeUsesAxis(p.mode)) {
     auto axis_name = ReadString(j, "axis");
@@ -638,7 +654,7 @@ Result<Campaign> ParseCampaign(const json& j) {
   return c;
 }
 
-std::vector<std::string> BuiltinCampaignNames() { return {"paper-58"}; }
+std::vector<std::string> BuiltinCampaignNames() { return {"paper-58", "density-ratio"}; }
 
 Result<json> BuiltinCampaignDefinition(const std::string& name) {
   auto names = BuiltinCampaignNames();
@@ -670,20 +686,26 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
                         const PlanOptions& options) {
   Plan plan;
   plan.scale = std::string(scale.name);
-  int replicates = 1;
-  for (const SweepSpec& s : sweeps) replicates = std::max(replicates, s.Replicates());
-  try {
-    for (int r = 0; r < replicates; ++r) {
+  // Beds in first-appearance order, one per (bed materials, replicate): points that differ only in
+  // drive-only parameters share theirs (core/materials.h). With Table 1 only, beds 0..K-1 are the
+  // replicates in order, as before materials could be swept.
+  std::map<std::pair<std::array<double, kMaterialFieldCount>, int>, int> bed_index;
+  auto bed_for = [&](const Materials& materials, int replicate) -> int {
+    const Materials m = BedMaterials(materials);
+    std::array<double, kMaterialFieldCount> id{};
+    for (size_t i = 0; i < kMaterialFieldCount; ++i) id[i] = m.*MaterialFields()[i].member;
+    auto [it, inserted] = bed_index.emplace(std::make_pair(id, replicate), static_cast<int>(plan.beds.size()));
+    if (inserted) {
       PlannedBed bed;
-      bed.replicate = r;
-      bed.seeds = BedSeedsFor(r);
-      bed.deck = RenderBedDeck(scale, r);
+      bed.replicate = replicate;
+      bed.seeds = BedSeedsFor(replicate);
+      bed.materials = m;
+      bed.deck = RenderBedDeck(scale, replicate, m);
       bed.key = BedKey(bed.deck, engine_version);
       plan.beds.push_back(std::move(bed));
     }
-  } catch (const std::exception& e) {
-    return Status::Internal(std::string("rendering the bed deck failed: ") + e.what());
-  }
+    return it->second;
+  };
 
   std::map<std::pair<DriveId, int>, size_t> by_drive;
   size_t expanded = 0;
@@ -714,6 +736,11 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
           PlannedRun r;
           r.point = p;
           r.replicate = replicate;
+          try {
+            r.bed = bed_for(p.materials, replicate);
+          } catch (const std::exception& e) {
+            return Status::Internal(std::string("rendering the bed deck failed: ") + e.what());
+          }
           r.precision = target;
           r.snapshots = s.snapshots.value_or(SnapshotFractions{});
           r.sweeps.push_back(s.name);
@@ -742,7 +769,7 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
         r.run_duration_s = RunDuration(r.point, r.precision);
         r.steps = DriveSteps(r.point, r.precision);
         std::string deck = RenderDriveDeck(r.point, scale, r.precision, r.snapshots);
-        r.key = RunKey(deck, plan.beds[r.replicate].key, engine_version);
+        r.key = RunKey(deck, plan.beds[r.bed].key, engine_version);
         if (options.keep_decks) r.deck = std::move(deck);
       }
     } catch (const std::exception& e) {
@@ -786,6 +813,9 @@ json PointToJson(const Point& p) {
   }
   if (ModeUsesAxis(p.mode)) j["axis"] = std::string(AxisName(p.axis));
   j["duration_s"] = p.duration_s;
+  // Materials only where they are not Table 1's: a Table 1 point's JSON is what it always was.
+  for (const MaterialField& m : MaterialFields())
+    if (p.materials.*m.member != kTable1.*m.member) j[std::string(m.name)] = p.materials.*m.member;
   return j;
 }
 
@@ -794,6 +824,7 @@ json PlannedRunToJson(const PlannedRun& r) {
   j["key"] = r.key;
   j["run_duration_s"] = r.run_duration_s;
   j["steps"] = r.steps;
+  if (const double dt = TimeStep(r.point.materials); dt != kMaterials.dt) j["dt_s"] = dt;
   j["replicate"] = r.replicate;
   if (r.precision) j["precision"] = PrecisionToJson(*r.precision);
   if (!r.snapshots.empty()) j["snapshots"] = r.snapshots;

@@ -41,7 +41,7 @@ inline constexpr size_t kMaxDescriptionLength = 10000;  // "description" of a sw
 enum class Combine { kProduct, kZip };
 
 struct SweepAxis {
-  std::string param;           // "A", "f", "Omega", "omega", "duration_s"
+  std::string param;           // "A", "f", "Omega", "omega", "duration_s", or a material (core/materials.h)
   std::vector<double> values;  // materialized from values | range | geometric
   // Which of "values", "range", "geometric" the user wrote: error paths name it
   // ("axes[0].values[3]", or "axes[0].range" with the value's index in the reason).
@@ -88,7 +88,7 @@ struct Campaign {
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);
-// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58".
+// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58", "density-ratio".
 std::vector<std::string> BuiltinCampaignNames();
 Result<Campaign> BuiltinCampaign(const std::string& name);
 // Its definition, the JSON file as shipped. NotFound for a name that is not built in.
@@ -97,7 +97,8 @@ Result<nlohmann::json> BuiltinCampaignDefinition(const std::string& name);
 // One distinct run of a plan: a point on one replicate bed.
 struct PlannedRun {
   Point point;                      // duration_s is the longest any sweep asked for
-  int replicate = 0;                // the bed it runs on: Plan::beds[replicate]
+  int replicate = 0;                // which replicate of its bed
+  int bed = 0;                      // the bed it runs on: Plan::beds[bed] (its bed materials, its replicate)
   std::vector<std::string> sweeps;  // names of the sweeps it belongs to, in plan order
   double run_duration_s = 0;        // RunDuration() at the plan's scale
   long long steps = 0;              // DriveSteps()
@@ -113,13 +114,16 @@ struct PlannedRun {
 struct PlannedBed {
   int replicate = 0;
   BedSeeds seeds;
-  std::string deck;  // RenderBedDeck(scale, replicate)
+  Materials materials;  // its points' BedMaterials (Table 1's drive-only values)
+  std::string deck;     // RenderBedDeck(scale, replicate, materials)
   std::string key;   // BedKey()
 };
 
 struct Plan {
   std::string scale;
-  std::vector<PlannedBed> beds;  // replicates 0..K-1, K the most any sweep asks for
+  // One per bed materials and replicate, in first-appearance order: with Table 1's materials only,
+  // replicates 0..K-1, K the most any sweep asks for.
+  std::vector<PlannedBed> beds;
   std::vector<PlannedRun> runs;  // distinct, in first-appearance order
 };
 
@@ -157,9 +161,11 @@ Result<std::vector<ScalePlan>> PlanSubmission(const std::vector<SweepSpec>& swee
                                               const PlanOptions& options, bool campaign);
 
 // The JSON object `sandswim expand --json` prints for a run: key, mode, A, f, Omega or omega +
-// axis, duration_s (asked), run_duration_s (at the scale), steps, sweeps.
+// axis, duration_s (asked), the materials that are not Table 1's, run_duration_s (at the scale),
+// steps, dt_s (only when not Table 1's 1e-5 s), sweeps.
 nlohmann::json PlannedRunToJson(const PlannedRun& r);
-// The point alone, as in a sweep's "base" (only the fields its mode uses).
+// The point alone, as in a sweep's "base" (only the fields its mode uses, and the materials that
+// are not Table 1's).
 nlohmann::json PointToJson(const Point& p);
 
 }  // namespace sandswim

@@ -58,11 +58,21 @@ json ValidValue(const std::string& field) {
   if (field == "Omega" || field == "omega") return 80;
   if (field == "axis") return "x";
   if (field == "duration_s") return 1;
+  if (const MaterialField* m = FindMaterialField(field)) return kTable1.*m->member;
   ADD_FAILURE() << "no sample value for " << field;
   return nullptr;
 }
 
-const std::set<std::string> kAllParams = {"A", "f", "Omega", "omega", "duration_s"};
+const std::set<std::string> kMaterialParams = [] {
+  std::set<std::string> names;
+  for (const MaterialField& m : MaterialFields()) names.emplace(m.name);
+  return names;
+}();
+const std::set<std::string> kAllParams = [] {
+  std::set<std::string> all = {"A", "f", "Omega", "omega", "duration_s"};
+  all.insert(kMaterialParams.begin(), kMaterialParams.end());
+  return all;
+}();
 
 // The point schemas, by mode, as the schema lists them.
 std::map<std::string, json> PointSchemas(const json& defs) {
@@ -89,7 +99,11 @@ TEST_F(SweepSchemaTest, EachModeRequiresAndAllowsTheSameFields) {
   for (const auto& [mode, p] : PointSchemas(defs_)) {
     EXPECT_FALSE(p.at("additionalProperties").get<bool>()) << mode;
     std::set<std::string> required = Strings(p.at("required"));
-    EXPECT_EQ(required, Keys(p)) << mode << ": every listed field is required";
+    std::set<std::string> drive_fields;
+    for (const auto& k : Keys(p))
+      if (!kMaterialParams.count(k)) drive_fields.insert(k);
+    EXPECT_EQ(required, drive_fields) << mode << ": every listed drive field is required";
+    for (const auto& m : kMaterialParams) EXPECT_TRUE(Keys(p).count(m)) << mode << " takes " << m;
     json base = {{"mode", mode}};
     for (const auto& f : required)
       if (f != "mode") base[f] = ValidValue(f);
@@ -104,7 +118,7 @@ TEST_F(SweepSchemaTest, EachModeRequiresAndAllowsTheSameFields) {
     std::set<std::string> others = kAllParams;
     others.insert("axis");
     for (const auto& f : others) {
-      if (required.count(f)) continue;
+      if (required.count(f) || kMaterialParams.count(f)) continue;
       json extra = sweep;
       extra["base"][f] = ValidValue(f);
       EXPECT_EQ(ParseSweep(extra).status().field(), "base." + f) << mode << " with " << f;
@@ -175,6 +189,34 @@ TEST_F(SweepSchemaTest, AxisKeysAndCaps) {
   EXPECT_EQ(ParseSweep(s).status().code(), StatusCode::kResourceExhausted);
   s["axes"] = json::array({{{"param", "Omega"}, {"values", std::vector<double>(kMaxRunsPerSubmission, 80)}}});
   EXPECT_TRUE(ParseSweep(s).ok());
+}
+
+TEST_F(SweepSchemaTest, MaterialBoundsAreTheParsersBounds) {
+  for (const MaterialField& m : MaterialFields()) {
+    const std::string name(m.name);
+    ASSERT_TRUE(defs_.contains(name)) << name;
+    const json& d = defs_.at(name);
+    EXPECT_EQ(d.at("x-role"), m.role == MaterialRole::kBed ? "bed" : "drive") << name;
+    EXPECT_EQ(LoadSchema("campaign.schema.json").at("$defs").at(name), d) << name;
+    switch (m.bound) {
+      case MaterialField::Bound::kPositive:
+        EXPECT_EQ(d.at("exclusiveMinimum").get<double>(), 0) << name;
+        EXPECT_EQ(d.at("maximum").get<double>(), m.cap) << name;
+        break;
+      case MaterialField::Bound::kFriction:
+        EXPECT_EQ(d.at("minimum").get<double>(), 0) << name;
+        EXPECT_EQ(d.at("maximum").get<double>(), m.cap) << name;
+        break;
+      case MaterialField::Bound::kRestitution:
+        EXPECT_EQ(d.at("exclusiveMinimum").get<double>(), 0) << name;
+        EXPECT_EQ(d.at("maximum").get<double>(), 1) << name;
+        break;
+      case MaterialField::Bound::kPoisson:
+        EXPECT_EQ(d.at("exclusiveMinimum").get<double>(), 0) << name;
+        EXPECT_EQ(d.at("exclusiveMaximum").get<double>(), 0.5) << name;
+        break;
+    }
+  }
 }
 
 TEST_F(SweepSchemaTest, PointCapsAreThePointCaps) {

@@ -706,6 +706,7 @@ Series BandOutline(const std::string& branch, double from, double to, double sid
 }  // namespace
 
 double SweptValue(const Point& p, const std::string& param) {
+  if (const MaterialField* m = FindMaterialField(param)) return p.materials.*m->member;
   return param == "A" ? p.A : param == "f" ? p.f : p.Omega;
 }
 
@@ -714,7 +715,11 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
   Plot plot;
   plot.title = title;
   plot.y_label = "U#dz#u (m/s), bars: 95 % interval";
-  plot.x_label = param == "A" ? "A (m)" : param == "f" ? "f (Hz)" : "Ω (rad/s)";
+  const MaterialField* material = FindMaterialField(param);
+  plot.x_label = material ? std::string(material->name) + (material->unit.empty() ? "" : " (" + std::string(material->unit) + ")")
+                 : param == "A" ? "A (m)"
+                 : param == "f" ? "f (Hz)"
+                                : "Ω (rad/s)";
   auto x_of = [&](const Point& p) { return SweptValue(p, param); };
   for (const char* branch : {"rising", "sinking"}) {
     Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")",

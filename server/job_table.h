@@ -144,6 +144,7 @@ struct QueuedRun {
   std::optional<std::string> engine_version;  // of the bed
   std::optional<std::string> precision;       // JSON, as stored (core/precision.h StoredPrecision)
   std::optional<std::string> snapshots;       // JSON, as stored (core/deck.h StoredSnapshotFractions)
+  std::optional<std::string> materials;       // JSON, as stored (core/materials.h StoredMaterials)
 };
 Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t);
 

@@ -271,6 +271,37 @@ TEST_F(LeaseQueueTest, GrantsCarryTheDrivesFactsTheirDeckStates) {
   }
 }
 
+TEST_F(LeaseQueueTest, RunsOfOtherMaterialsAreLeasedWithTheirOwnDecks) {
+  // The runs table keeps each run's materials (migration 12): the deck rendered at lease time is
+  // the one its key was made from, with the SO's density set after read_restart and the stiffer
+  // grains' shorter step.
+  nlohmann::json j = OmegaSignSweep();
+  j["base"]["grain_youngs"] = 1e8;
+  j["axes"] = nlohmann::json::array({{{"param", "so_density"}, {"values", {2500, 5000}}}});
+  const int64_t sweep = SubmitJson(j);
+  ASSERT_GT(sweep, 0);
+  EXPECT_EQ(Rows("beds"), 1);  // the SO's density keeps the bed
+  PrepareBed();
+  std::vector<std::string> decks;
+  for (int i = 0; i < 2; ++i) {
+    api::LeaseGrant run = MustLease();
+    ASSERT_EQ(run.kind, api::JobKind::kRun);
+    EXPECT_EQ(run.dt_s, 3.1e-6);
+    EXPECT_NE(run.deck.find("timestep        3.1e-06\n"), std::string::npos);
+    auto stored = store_->GetRun(run.id);
+    ASSERT_TRUE(stored.ok()) << stored.status().ToString();
+    EXPECT_EQ(stored->summary.point.materials.youngs, 1e8);
+    EXPECT_EQ(stored->deck, run.deck);
+    decks.push_back(run.deck);
+  }
+  EXPECT_EQ(decks[0].find("set group so density"), std::string::npos);
+  EXPECT_NE(decks[1].find("set group so density 5000\n"), std::string::npos);
+  auto results = store_->SweepResults(sweep);
+  ASSERT_TRUE(results.ok()) << results.status().ToString();
+  ASSERT_EQ(results->size(), 2u);
+  EXPECT_EQ((*results)[1].point.materials.rho_so, 5000);
+}
+
 TEST_F(LeaseQueueTest, ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

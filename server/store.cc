@@ -19,8 +19,9 @@ constexpr const char* kRunColumns =
     "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
     "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, res.uz, r.last_error_kind, "
     "r.last_error, res.uz_stderr, res.uz_blocks, res.block_kind, res.block_s, res.conclusive, res.analysis, "
-    "res.run_id, r.precision, r.snapshots";
-constexpr int kRunColumnCount = 34;
+    "res.run_id, r.precision, r.snapshots, r.materials";
+constexpr int kRunColumnCount = 35;
+constexpr int kRunMaterialsColumn = 34;
 
 constexpr const char* kResultColumns =
     "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
@@ -48,10 +49,11 @@ Result<std::vector<api::Snapshot>> SnapshotsIn(Transaction& t, int64_t run_id) {
   return out;
 }
 
-// Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s (core/point.h StoredPoint).
-Result<Point> PointFromRow(const Statement& st, int c) {
+// Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s, and column `materials`: the
+// run's materials (core/point.h StoredPoint).
+Result<Point> PointFromRow(const Statement& st, int c, int materials) {
   return StoredPoint(st.Text(c), st.Text(c + 5), st.Double(c + 1), st.Double(c + 2), st.Double(c + 3), st.Double(c + 4),
-                     st.Double(c + 6));
+                     st.Double(c + 6), st.OptText(materials));
 }
 
 Result<RunSummary> RunSummaryFromRow(const Statement& st) {
@@ -59,7 +61,7 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   r.id = st.Int(0);
   r.key = st.Text(1);
   r.state = st.Text(2);
-  Result<Point> point = PointFromRow(st, 3);
+  Result<Point> point = PointFromRow(st, 3, kRunMaterialsColumn);
   if (!point.ok()) return Status(point.status().code(), "run " + std::to_string(r.id) + ": " + point.status().reason());
   r.point = *point;
   r.run_duration_s = st.Double(10);
@@ -739,7 +741,7 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
   Statement st = t->Prepare(std::string("SELECT r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, "
                                         "r.axis, r.duration_s, r.run_duration_s, ") +
                             kResultColumns +
-                            ", r.bed_id, b.replicate"
+                            ", r.bed_id, b.replicate, r.materials"
                             " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id JOIN beds b ON b.id = r.bed_id "
                             "LEFT JOIN results res ON res.run_id = r.id WHERE sr.sweep_id = ? ORDER BY sr.position");
   st.Bind(1, sweep_id);
@@ -752,7 +754,7 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
     r.run_id = st.Int(0);
     r.key = st.Text(1);
     r.state = st.Text(2);
-    Result<Point> point = PointFromRow(st, 3);
+    Result<Point> point = PointFromRow(st, 3, 13 + kResultColumnCount);
     if (!point.ok())
       return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
     r.point = *point;

@@ -124,6 +124,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     auto t = store->Begin();
     ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
                         "ALTER TABLE runs DROP COLUMN precision; ALTER TABLE runs DROP COLUMN snapshots;"
+                        "ALTER TABLE runs DROP COLUMN materials;"
                         "DROP TABLE snapshots;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2;"
@@ -160,7 +161,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), 11);
+  EXPECT_EQ(store->schema_version(), 12);
   EXPECT_EQ(*store->CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());

@@ -328,8 +328,8 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
   // One prepared statement each, reused for every row (100,000 rows in one transaction).
   Statement ins = t.Prepare(
       "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-      "run_duration_s, steps, state, created_at, queued_at, precision, snapshots) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?) "
+      "run_duration_s, steps, state, created_at, queued_at, precision, snapshots, materials) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
       "ON CONFLICT (key) DO NOTHING");
   Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
   Statement sr = t.Prepare(
@@ -338,7 +338,7 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
   for (const PlannedRun& r : g.plan.runs) {
     int64_t run_id = 0;
     ins.Reset();
-    ins.Bind(1, r.key).Bind(2, bed_ids.at(r.replicate)).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
+    ins.Bind(1, r.key).Bind(2, bed_ids.at(r.bed)).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
     ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
     ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
     ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
@@ -352,6 +352,11 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
       ins.Bind(15, *text);
     } else {
       ins.BindNull(15);
+    }
+    if (auto text = MaterialsText(r.point.materials)) {
+      ins.Bind(16, *text);
+    } else {
+      ins.BindNull(16);
     }
     SANDSWIM_RETURN_IF_ERROR(ins.Run());
     if (t.Changes() == 1) {
