@@ -72,7 +72,7 @@ class DaemonClient {
     (void)name, (void)scale, (void)campaign_run_id;
     return Status::Unavailable("this client cannot fetch reports");
   }
-  // GET /api/v1/cost-model: the engine rates the daemon has measured (server/cost_model.h).
+  // GET /api/v1/cost-model: the engine rates the daemon has measured (server/store/cost_model.h).
   virtual Result<nlohmann::json> CostModel() { return Status::Unavailable("this client cannot fetch the cost model"); }
   // POST /api/v1/backup, streamed into the file at `path` (created or truncated): a consistent copy
   // of the daemon's database. Returns the bytes written.

@@ -1,5 +1,5 @@
 // Format: how `sandswim` shows what the daemon answers. Pure functions from JSON values (the
-// REST API's shapes, server/store.h and server/routes.cc) and plain structs to text: tables,
+// REST API's shapes, server/store/store.h and server/routes.cc) and plain structs to text: tables,
 // CSV, progress bars, durations and the ETA. No I/O, no clock, no environment: the caller says
 // whether colour is wanted (RenderOptions) and what time it is.
 //
@@ -102,7 +102,7 @@ struct Snapshot {
   Counts counts;
   std::vector<RunInFlight> running;
   std::vector<RunFailure> failed;
-  // The daemon's ETA (server/cost_model.h: the work left at the measured engine rates), with its
+  // The daemon's ETA (server/store/cost_model.h: the work left at the measured engine rates), with its
   // relative 1-sigma error and what it rests on; absent from a daemon older than the cost model.
   struct DaemonEta {
     double s = 0, rel_error = 0;

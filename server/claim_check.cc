@@ -5,7 +5,7 @@
 #include <set>
 #include <utility>
 
-#include "server/campaigns.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim {
 namespace {

@@ -1,5 +1,5 @@
 // ClaimCheck: the verdicts of a campaign's claims (core/claims.h) for one campaign run, read from the
-// Store: the claims of the campaign as the catalogue has it (server/campaigns.h), each sweep's
+// Store: the claims of the campaign as the catalogue has it (server/store/campaigns.h), each sweep's
 // analysis (AnalyzeSweep: its samples over replicate beds and its fits), every run of each sweep
 // with its state, result and last error, and the beds those runs use. Served by
 // GET /api/v1/campaign-runs/{id}/claims, `sandswim check cr:ID` and the first section of the
@@ -27,7 +27,7 @@
 #include "core/claims.h"
 #include "core/status.h"
 #include "server/report.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 

@@ -9,7 +9,7 @@
 
 #include "core/aggregate.h"
 #include "core/sweep.h"
-#include "server/campaigns.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim {
 namespace {
@@ -108,7 +108,7 @@ Result<std::optional<DriftReport>> ReadOne(Statement& st) {
 
 // The campaign runs without a report whose runs are all terminal, oldest first.
 Result<std::vector<int64_t>> FinishedWithoutReport(Store& store) {
-  auto t = store.BeginRead();
+  auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(
       "SELECT cr.id FROM campaign_runs cr "
@@ -129,7 +129,7 @@ Result<std::vector<int64_t>> FinishedWithoutReport(Store& store) {
 
 Result<std::optional<DriftReport>> PreviousReport(Store& store, const std::string& campaign, const std::string& scale,
                                                   int64_t before_id) {
-  auto t = store.BeginRead();
+  auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(
       "SELECT report FROM drift_reports WHERE campaign = ? AND scale = ? AND campaign_run_id < ? "
@@ -440,7 +440,7 @@ Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double
     if (!previous.ok()) return previous.status();
     CompareWithPrevious(*report, previous->has_value() ? &**previous : nullptr, zone);
 
-    auto t = store.Begin();
+    auto t = store.db().Begin();
     if (!t.ok()) return t.status();
     Statement st = t->Prepare(
         "INSERT INTO drift_reports (campaign_run_id, campaign, scale, previous_campaign_run_id, "
@@ -463,7 +463,7 @@ Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double
 }
 
 Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign_run_id) {
-  auto t = store.BeginRead();
+  auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare("SELECT report FROM drift_reports WHERE campaign_run_id = ?");
   st.Bind(1, campaign_run_id);
@@ -472,7 +472,7 @@ Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign
 
 Result<std::optional<DriftReport>> LatestDriftReport(Store& store, const std::string& campaign,
                                                      const std::string& scale) {
-  auto t = store.BeginRead();
+  auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(
       "SELECT report FROM drift_reports WHERE campaign = ? AND (? = '' OR scale = ?) "

@@ -34,7 +34,7 @@
 
 #include "core/cron.h"
 #include "core/status.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 

@@ -21,7 +21,7 @@
 #include "core/scale.h"
 #include "core/trajectory.h"
 #include "platform/files.h"
-#include "server/cost_model.h"
+#include "server/store/cost_model.h"
 
 namespace sandswim {
 namespace {
@@ -156,7 +156,7 @@ LeaseQueue::LeaseQueue(Store* store, Clock* clock, LeaseQueueOptions options)
 Result<std::optional<api::LeaseGrant>> LeaseQueue::Lease(const api::LeaseRequest& request) {
   using Out = std::optional<api::LeaseGrant>;
   // Group commit (store.h): this change shares its transaction with concurrent ones.
-  return store_->WriteResult<Out>([&](Transaction& t) { return LeaseIn(t, request, clock_->Now()); });
+  return store_->db().WriteResult<Out>([&](Transaction& t) { return LeaseIn(t, request, clock_->Now()); });
 }
 
 Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const api::LeaseRequest& request,
@@ -173,7 +173,7 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
   if (found.ok() && !*found) found = NextRun(t, g, now);
   if (!found.ok()) return found.status();
   if (!*found) return Out();  // committed with the group when it expired leases or failed decks
-  if (!(g.wall_budget_s > 0)) {  // none set by the operator: the cost model's (server/cost_model.h)
+  if (!(g.wall_budget_s > 0)) {  // none set by the operator: the cost model's (server/store/cost_model.h)
     const bool bed = g.kind == api::JobKind::kBed;
     Result<double> budget = WallBudget(t, bed, bed ? g.id : g.bed->id, g.steps);
     if (!budget.ok()) return budget.status();
@@ -278,7 +278,7 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
 
 Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, const api::Heartbeat& beat) {
   std::optional<int64_t> run_id;  // set once the beat is recorded
-  Result<api::HeartbeatReply> reply = store_->WriteResult<api::HeartbeatReply>([&](Transaction& t) -> Result<api::HeartbeatReply> {
+  Result<api::HeartbeatReply> reply = store_->db().WriteResult<api::HeartbeatReply>([&](Transaction& t) -> Result<api::HeartbeatReply> {
     run_id.reset();
     const double now = clock_->Now();
     Result<LeaseRow> lease = jobs::FindLease(t, token);
@@ -306,7 +306,7 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
 }
 
 Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, const api::Completion& c) {
-  return store_->WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
+  return store_->db().WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
     const double now = clock_->Now();
     if (c.next) SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(*c.next, "next.slurm_job"));
     Result<api::CompletionReply> reply = CompleteIn(t, token, c, now);
@@ -423,7 +423,7 @@ Result<std::string> LeaseQueue::CompleteFailure(Transaction& t, api::JobKind kin
 
 Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const std::string& reason) {
   const double now = clock_->Now();
-  Result<Transaction> begun = store_->Begin();
+  Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
   Transaction& t = *begun;
   Result<LeaseRow> lease = jobs::FindLease(t, token);
@@ -466,21 +466,21 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
 }
 
 Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
-  Result<Transaction> t = store_->BeginRead();
+  Result<Transaction> t = store_->db().BeginRead();
   if (!t.ok()) return t.status();
   return jobs::SlurmJobsWithOpenLeases(*t);
 }
 
 Result<int64_t> LeaseQueue::ReclaimSlurmJob(const std::string& slurm_job, double asked_at) {
   if (slurm_job.empty()) return Status::InvalidArgument("slurm_job", "names no Slurm job");
-  return store_->WriteResult<int64_t>([&](Transaction& t) {
+  return store_->db().WriteResult<int64_t>([&](Transaction& t) {
     return ReclaimIn(t, clock_->Now(), options_.max_attempts, slurm_job, asked_at, options_.ttl_s / 2, options_.ttl_s);
   });
 }
 
 Result<int64_t> LeaseQueue::ExpireLeases() {
   const double now = clock_->Now();
-  Result<Transaction> begun = store_->Begin();
+  Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
   Result<int64_t> n = ReclaimIn(*begun, now, options_.max_attempts);
   if (!n.ok()) return n.status();
@@ -490,7 +490,7 @@ Result<int64_t> LeaseQueue::ExpireLeases() {
 
 Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart() {
   const double until = clock_->Now() + options_.ttl_s;
-  Result<Transaction> begun = store_->Begin();
+  Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
   int64_t extended = 0;
   for (const char* table : {"runs", "beds"}) {
@@ -506,7 +506,7 @@ Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart() {
 
 Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
   const double now = clock_->Now();
-  Result<Transaction> begun = store_->Begin();
+  Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
   Transaction& t = *begun;
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkSweepCancelled(t, sweep_id, now));
@@ -540,7 +540,7 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
   };
   std::string key;
   {
-    Result<Transaction> t = store_->BeginRead();
+    Result<Transaction> t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
     auto found = check(*t);
     if (!found.ok()) return found.status();
@@ -549,7 +549,7 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
   const std::string path = (std::filesystem::path(data_dir) / "beds" / (key + ".restart")).string();
   SANDSWIM_RETURN_IF_ERROR(WriteFileAtomically(path, bytes));
   const double now = clock_->Now();
-  Result<Transaction> t = store_->Begin();
+  Result<Transaction> t = store_->db().Begin();
   if (!t.ok()) return t.status();
   auto found = check(*t);
   if (!found.ok()) return found.status();
@@ -560,7 +560,7 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
 }
 
 Status LeaseQueue::CheckUploadLease(const std::string& token, api::JobKind kind, std::optional<int64_t> job_id) {
-  Result<Transaction> t = store_->BeginRead();
+  Result<Transaction> t = store_->db().BeginRead();
   if (!t.ok()) return t.status();
   Result<LeaseRow> lease = CurrentUploadLease(*t, token, kind, options_.max_attempts);
   if (!lease.ok()) return lease.status();
@@ -583,7 +583,7 @@ Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string
   if (!snapshot.ok()) return Status::InvalidArgument("body", "not a full-bed snapshot: " + snapshot.status().reason());
   int64_t run_id = 0;
   {
-    Result<Transaction> t = store_->BeginRead();
+    Result<Transaction> t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
     Result<LeaseRow> lease = CurrentUploadLease(*t, token, api::JobKind::kRun, options_.max_attempts);
     if (!lease.ok()) return lease.status();
@@ -612,7 +612,7 @@ Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
   std::map<int64_t, std::vector<int>> recorded;
   std::set<int64_t> running;  // their workers may still complete them, listing what they uploaded
   {
-    Result<Transaction> t = store_->BeginRead();
+    Result<Transaction> t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
     Statement st = t->Prepare("SELECT run_id, idx FROM snapshots");
     while (true) {
@@ -680,7 +680,7 @@ int RemoveSnapshotFiles(const std::string& data_dir, int64_t run_id, const std::
 }
 
 Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {
-  Result<Transaction> t = store_->BeginRead();
+  Result<Transaction> t = store_->db().BeginRead();
   if (!t.ok()) return t.status();
   Result<jobs::BedRow> bed = jobs::LoadBed(*t, bed_id);
   if (!bed.ok()) return bed.status();

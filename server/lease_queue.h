@@ -61,15 +61,15 @@
 #include "core/snapshot.h"
 #include "core/status.h"
 #include "platform/clock.h"
-#include "server/job_table.h"
-#include "server/store.h"
+#include "server/store/job_table.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 
 struct LeaseQueueOptions {
   double ttl_s = 60;         // lease lifetime; each heartbeat extends it by this much
   int max_attempts = 3;      // leases a job gets before a failure or expiry is final
-  double wall_budget_s = 0;  // passed to workers in every grant (0: the cost model's, server/cost_model.h WallBudget)
+  double wall_budget_s = 0;  // passed to workers in every grant (0: the cost model's, server/store/cost_model.h WallBudget)
   // Where runs' snapshots are kept (SnapshotPath); empty: snapshot uploads are refused.
   std::string data_dir;
 };

@@ -10,15 +10,15 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "server/cost_model.h"
+#include "server/store/cost_model.h"
 
 #include "core/keys.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
 #include "platform/clock.h"
-#include "server/cost_model.h"
-#include "server/store.h"
+#include "server/store/cost_model.h"
+#include "server/store/store.h"
 #include "server/submission.h"
 #include "tests/fixture_file.h"
 
@@ -109,7 +109,7 @@ class LeaseQueueTest : public ::testing::Test {
     auto r = store_->GetRun(id);
     return r.ok() ? r->summary.state : r.status().ToString();
   }
-  int64_t Rows(const std::string& table) { return store_->CountRows(table).value(); }
+  int64_t Rows(const std::string& table) { return store_->db().CountRows(table).value(); }
 
   fs::path dir_;
   FakeClock clock_;
@@ -719,7 +719,7 @@ TEST_F(LeaseQueueTest, RunWhoseDeckNoLongerMatchesItsKeyFails) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();
   {
-    auto t = store_->Begin();
+    auto t = store_->db().Begin();
     ASSERT_TRUE(t.ok());
     ASSERT_TRUE(t->Exec("UPDATE runs SET key = 'stale-' || id WHERE id = 1").ok());
     ASSERT_TRUE(t->Commit().ok());

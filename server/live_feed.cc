@@ -9,7 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/api.h"
-#include "server/cost_model.h"
+#include "server/store/cost_model.h"
 
 namespace sandswim {
 

@@ -37,8 +37,8 @@
 #include <nlohmann/json.hpp>
 
 #include "platform/clock.h"
-#include "server/cost_model.h"
-#include "server/store.h"
+#include "server/store/cost_model.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 
@@ -81,7 +81,7 @@ class LiveFeed {
   // The run's trail so far (empty when it is not running or no beat came since the daemon started).
   Trail TrailOf(int64_t run_id) const;
 
-  // Engines the ETAs of unfinished sweeps and campaign runs spread work over, at least (server/cost_model.h).
+  // Engines the ETAs of unfinished sweeps and campaign runs spread work over, at least (server/store/cost_model.h).
   void set_engine_slots(int slots) { engine_slots_.store(slots); }
 
   uint64_t builds() const { return builds_.load(); }  // snapshots built (for tests and benchmarks)

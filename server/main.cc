@@ -26,7 +26,7 @@
 #include "server/plot_renderer.h"
 #include "server/routes.h"
 #include "server/scheduler.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace {
 

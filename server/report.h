@@ -30,7 +30,7 @@
 #include "core/status.h"
 #include "server/drift_report.h"
 #include "server/figures.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 

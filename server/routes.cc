@@ -32,8 +32,8 @@
 #include "core/text.h"
 #include "core/trajectory.h"
 #include "platform/http_status.h"
-#include "server/campaigns.h"
-#include "server/cost_model.h"
+#include "server/store/campaigns.h"
+#include "server/store/cost_model.h"
 #include "server/claim_check.h"
 #include "server/drift_report.h"
 #include "server/dashboard_files.h"
@@ -41,7 +41,7 @@
 #include "server/guarded_http_server.h"
 #include "server/live_feed.h"
 #include "server/report.h"
-#include "server/schema_files.h"
+#include "server/store/schema_files.h"
 #include "server/submission.h"
 
 namespace sandswim {
@@ -494,7 +494,7 @@ void GetCampaignRun(Call& c) {
   SendJson(c, 200, reply);
 }
 
-// The engine rates measured so far (server/cost_model.h): what `sandswim expand --cost` uses.
+// The engine rates measured so far (server/store/cost_model.h): what `sandswim expand --cost` uses.
 void GetCostModel(Call& c) {
   auto model = ReadCostModel(*c.deps.store, c.deps.clock->Now());
   if (!model.ok()) return Fail(c, model.status());
@@ -954,13 +954,13 @@ void PostBackup(Call& c) {
   static std::atomic<int64_t> serial{0};
   const std::string path = dir + "/backup-" + std::to_string(static_cast<int64_t>(c.deps.clock->Now())) + "-" +
                            std::to_string(++serial) + ".db";
-  Result<int64_t> bytes = c.deps.store->BackupTo(path);
+  Result<int64_t> bytes = c.deps.store->db().BackupTo(path);
   if (!bytes.ok()) return Fail(c, bytes.status());
   auto file = std::make_shared<std::ifstream>(path, std::ios::binary);
   if (!*file) return Fail(c, Status::IOError("the backup " + path + " vanished before it was sent"));
   std::filesystem::remove(path, ec);  // the open stream keeps the data until it is sent
   c.res.status = 200;
-  c.res.set_header("X-Schema-Version", std::to_string(c.deps.store->schema_version()));
+  c.res.set_header("X-Schema-Version", std::to_string(c.deps.store->db().schema_version()));
   c.res.set_header("Content-Disposition", "attachment; filename=\"sandswim-backup.db\"");
   SendFile(c, file, static_cast<size_t>(*bytes), "application/vnd.sqlite3");
 }
@@ -1081,12 +1081,12 @@ void OpenApi(Call& c) {
 }
 
 void Healthz(Call& c) {
-  Status s = c.deps.store->HealthCheck();
+  Status s = c.deps.store->db().HealthCheck();
   if (!s.ok()) return Fail(c, Status::Unavailable("store: " + s.ToString()));
   SendJson(c, 200,
            {{"status", "ok"},
             {"engine_version", c.deps.engine_version},
-            {"schema_version", c.deps.store->schema_version()}});
+            {"schema_version", c.deps.store->db().schema_version()}});
 }
 
 std::string MetricsText(const Metrics& m, HttpCounters& http) {

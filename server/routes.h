@@ -46,7 +46,7 @@
 #include "server/connection_limits.h"
 #include "server/lease_queue.h"
 #include "server/request_policy.h"
-#include "server/store.h"
+#include "server/store/store.h"
 #include "server/submission.h"
 
 namespace httplib {
@@ -81,7 +81,7 @@ struct Deps {
   // The dashboard's live snapshots and trails (server/live_feed.h); nullptr: /api/v1/live* answer 503.
   LiveFeed* live = nullptr;
   // Engines this daemon knows will work (its local workers): the ETA spreads work over at least
-  // this many (server/cost_model.h ReadEta), more when more are in flight.
+  // this many (server/store/cost_model.h ReadEta), more when more are in flight.
   int engine_slots = 0;
 };
 

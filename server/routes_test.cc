@@ -84,7 +84,7 @@ class RoutesTest : public ::testing::Test {
   json Body(const httplib::Result& r) { return json::parse(r->body); }
 
   int64_t Rows(const std::string& table) {
-    auto n = store_->CountRows(table);
+    auto n = store_->db().CountRows(table);
     EXPECT_TRUE(n.ok()) << n.status().ToString();
     return n.ok() ? *n : -1;
   }

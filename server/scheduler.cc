@@ -10,7 +10,7 @@
 
 #include "core/scale.h"
 #include "core/sweep.h"
-#include "server/campaigns.h"
+#include "server/store/campaigns.h"
 #include "server/submission.h"
 
 namespace sandswim {
@@ -24,7 +24,7 @@ struct CampaignSchedule {
   std::optional<std::string> schedule;
 };
 
-// A registered campaign's default scale and schedule (server/campaigns.h).
+// A registered campaign's default scale and schedule (server/store/campaigns.h).
 Result<CampaignSchedule> LookUpCampaign(Store& store, const std::string& name, const std::string& field) {
   Result<CatalogueEntry> found = FindCampaign(store, name, field);
   if (!found.ok()) return found.status();
@@ -32,7 +32,7 @@ Result<CampaignSchedule> LookUpCampaign(Store& store, const std::string& name, c
 }
 
 Result<std::optional<double>> LastScheduledDue(Store& store, const std::string& campaign) {
-  auto t = store.BeginRead();
+  auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare("SELECT MAX(due_time) FROM campaign_runs WHERE campaign = ? AND trigger = 'schedule'");
   st.Bind(1, campaign);
@@ -115,7 +115,7 @@ Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool ex
   }
 
   const double now = clock_->Now();
-  auto t = store_->Begin();
+  auto t = store_->db().Begin();
   if (!t.ok()) return t.status();
   if (exclusive) {
     Statement all = t->Prepare("SELECT campaign FROM campaign_schedules WHERE enabled = 1");
@@ -151,7 +151,7 @@ Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool ex
 Result<std::vector<ScheduledCampaign>> Scheduler::List() {
   std::vector<ScheduledCampaign> out;
   {
-    auto t = store_->BeginRead();
+    auto t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
     Statement st = t->Prepare(
         "SELECT s.campaign, s.scale, s.cron, s.enabled, s.first_seen_at, "

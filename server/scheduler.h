@@ -38,7 +38,7 @@
 #include "core/cron.h"
 #include "core/status.h"
 #include "platform/clock.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 

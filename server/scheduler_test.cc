@@ -14,7 +14,7 @@
 #include "platform/clock.h"
 #include "server/drift_report.h"
 #include "server/lease_queue.h"
-#include "server/store.h"
+#include "server/store/store.h"
 #include "server/submission.h"
 #include "tests/fixture_file.h"
 
@@ -90,7 +90,7 @@ class SchedulerTest : public ::testing::Test {
     for (const auto& [name, status] : r->errors) ADD_FAILURE() << name << ": " << status.ToString();
     return r->submitted;
   }
-  int64_t CampaignRuns() { return store_->CountRows("campaign_runs").value(); }
+  int64_t CampaignRuns() { return store_->db().CountRows("campaign_runs").value(); }
 
   // Works off the queue: the bed (if any), then every run, with U_z chosen by the run's Omega.
   void CompleteAll(double uz_minus, double uz_plus) {
@@ -266,7 +266,7 @@ TEST_F(SchedulerTest, RegistrationErrorsNameTheFlag) {
   s = scheduler_->Register({{"manual-only", std::nullopt}});
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(s.reason().find("no \"schedule\""), std::string::npos) << s.reason();
-  EXPECT_EQ(store_->CountRows("campaign_schedules").value(), 0);  // nothing half-written
+  EXPECT_EQ(store_->db().CountRows("campaign_schedules").value(), 0);  // nothing half-written
 
   // The builtin campaign registers by name.
   EXPECT_TRUE(scheduler_->Register({{"paper-58", std::string("smoke")}}).ok());

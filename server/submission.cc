@@ -6,8 +6,8 @@
 
 #include "core/keys.h"
 #include "core/scale.h"
-#include "server/campaigns.h"
-#include "server/job_table.h"
+#include "server/store/campaigns.h"
+#include "server/store/job_table.h"
 
 namespace sandswim {
 namespace {
@@ -449,7 +449,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
   const std::string fingerprint = Fingerprint(req, sweeps, campaign_scale);
 
   // ---- One transaction: all rows or none. ----
-  Result<Transaction> begun = store.Begin();
+  Result<Transaction> begun = store.db().Begin();
   if (!begun.ok()) return begun.status();
   Transaction& t = *begun;
   Result<std::optional<SubmitResult>> replayed = Replayed(t, req, fingerprint);

@@ -40,7 +40,7 @@
 
 #include "core/status.h"
 #include "core/sweep.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 

@@ -13,7 +13,7 @@
 #include "core/keys.h"
 #include "platform/clock.h"
 #include "server/lease_queue.h"
-#include "server/store.h"
+#include "server/store/store.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim {
@@ -56,10 +56,10 @@ class SubmissionTest : public ::testing::Test {
   }
   std::map<std::string, int64_t> AllRows() {
     std::map<std::string, int64_t> out;
-    for (const char* t : kTables) out[t] = store_->CountRows(t).value();
+    for (const char* t : kTables) out[t] = store_->db().CountRows(t).value();
     return out;
   }
-  int64_t Rows(const std::string& t) { return store_->CountRows(t).value(); }
+  int64_t Rows(const std::string& t) { return store_->db().CountRows(t).value(); }
 
   fs::path dir_;
   FakeClock clock_;

@@ -38,7 +38,7 @@
 #include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
-#include "server/store.h"
+#include "server/store/store.h"
 #include "server/submission.h"
 #include "tests/bench/in_process_daemon.h"
 

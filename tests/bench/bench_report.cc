@@ -24,7 +24,7 @@
 #include "server/lease_queue.h"
 #include "server/plot_renderer.h"
 #include "server/report.h"
-#include "server/store.h"
+#include "server/store/store.h"
 #include "server/submission.h"
 
 namespace {

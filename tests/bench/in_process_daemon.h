@@ -18,7 +18,7 @@
 #include "platform/clock.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim::bench {
 

@@ -9,7 +9,7 @@
 
 #include "core/keys.h"
 #include "server/lease_queue.h"
-#include "server/store.h"
+#include "server/store/store.h"
 #include "server/submission.h"
 
 namespace sandswim::bench {

@@ -29,7 +29,7 @@
 #include "server/guarded_http_server.h"
 #include "server/lease_queue.h"
 #include "server/routes.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace {
 

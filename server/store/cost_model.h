@@ -9,9 +9,9 @@
 // machine's load as it is now and exists from a run's first heartbeats. ReadEta adds up what is
 // left of a sweep's or a campaign run's runs and beds (core/cost.h EstimateEta).
 //
-// Thread safety: as Database (each call is one read transaction).
-#ifndef SANDSWIM_SERVER_COST_MODEL_H_
-#define SANDSWIM_SERVER_COST_MODEL_H_
+// Thread safety: as Store (each call is one read transaction).
+#ifndef SANDSWIM_SERVER_STORE_COST_MODEL_H_
+#define SANDSWIM_SERVER_STORE_COST_MODEL_H_
 
 #include <optional>
 #include <string>
@@ -21,7 +21,7 @@
 
 #include "core/cost.h"
 #include "core/status.h"
-#include "server/database.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 
@@ -47,7 +47,7 @@ struct CostModelView {
 void to_json(nlohmann::json& j, const CostModelView& v);
 void to_json(nlohmann::json& j, const EngineRate& r);
 
-Result<CostModelView> ReadCostModel(Database& db, double now);
+Result<CostModelView> ReadCostModel(Store& store, double now);
 
 // Inside a transaction: the pooled run rate (per particle-step) and the beds' (per grain).
 Result<EngineRate> PooledRunRate(Transaction& t);
@@ -66,11 +66,11 @@ Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t step
 enum class EtaScope { kSweep, kCampaignRun };
 // The ETA of what is left of a sweep or a campaign run, over max(engines in flight, min_slots)
 // engines (sandswimd passes its local workers). nullopt when nothing is left.
-Result<std::optional<Eta>> ReadEta(Database& db, EtaScope scope, int64_t id, double now, int min_slots);
+Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, double now, int min_slots);
 
 // {"s","rel_error","low_s","high_s","basis"} (a 1-sigma band), or null.
 nlohmann::json EtaJson(const std::optional<Eta>& eta);
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_COST_MODEL_H_
+#endif  // SANDSWIM_SERVER_STORE_COST_MODEL_H_

@@ -1,4 +1,4 @@
-#include "server/cost_model.h"
+#include "server/store/cost_model.h"
 
 #include <algorithm>
 #include <cmath>
@@ -157,14 +157,14 @@ void to_json(json& j, const CostModelView& v) {
   j = {{"run_rate", v.run_rate}, {"bed_rate", v.bed_rate}, {"hosts", hosts}, {"engines_in_flight", v.engines_in_flight}};
 }
 
-Result<CostModelView> ReadCostModel(Database& db, double now) {
-  Result<Transaction> t = db.BeginRead();
+Result<CostModelView> ReadCostModel(Store& store, double now) {
+  Result<Transaction> t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   return ReadIn(*t, now);
 }
 
-Result<std::optional<Eta>> ReadEta(Database& db, EtaScope scope, int64_t id, double now, int min_slots) {
-  Result<Transaction> t = db.BeginRead();
+Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, double now, int min_slots) {
+  Result<Transaction> t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   Result<CostModelView> model = ReadIn(*t, now);
   if (!model.ok()) return model.status();

@@ -1,4 +1,4 @@
-#include "server/store.h"
+#include "server/store/store.h"
 
 #include <chrono>
 #include <filesystem>
@@ -338,9 +338,9 @@ void to_json(nlohmann::json& j, const Metrics& m) {
 // ---- Store --------------------------------------------------------------------------------------
 
 Result<std::unique_ptr<Store>> Store::Open(const std::string& path) {
-  std::unique_ptr<Store> store(new Store());
-  SANDSWIM_RETURN_IF_ERROR(store->OpenFile(path));
-  return store;
+  Result<std::unique_ptr<Database>> db = Database::Open(path);
+  if (!db.ok()) return db.status();
+  return std::unique_ptr<Store>(new Store(std::move(db).value()));
 }
 
 namespace {
@@ -424,7 +424,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
   while (true) {
     std::vector<OldResult> page;
     {
-      Result<Transaction> t = BeginRead();
+      Result<Transaction> t = db_->BeginRead();
       if (!t.ok()) return t.status();
       Statement st = t->Prepare(
           "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), "
@@ -460,7 +460,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
     if (page.empty()) return out;
     after = page.back().run_id;
     Reanalysis counts;
-    Status s = Write([&](Transaction& t) {
+    Status s = db_->Write([&](Transaction& t) {
       counts = {};
       Statement fresh = t.Prepare(
           "UPDATE results SET uz = ?, uz_stderr = ?, uz_ci95 = ?, uz_stderr_note = ?, uz_blocks = ?, "
@@ -518,7 +518,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
 
 Result<SweepPage> Store::ListSweeps(int64_t after_id, int limit) {
   limit = std::clamp(limit, 1, 1000);
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   SweepPage page;
   {
@@ -544,7 +544,7 @@ Result<SweepPage> Store::ListSweeps(int64_t after_id, int limit) {
 }
 
 Result<SweepInfo> Store::GetSweep(int64_t id) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   SweepInfo s;
   {
@@ -567,7 +567,7 @@ Result<RunPage> Store::ListRuns(const RunFilter& f) {
                                    "'" + *f.state + "' is not one of queued, running, done, failed, cancelled");
   }
   int limit = std::clamp(f.limit, 1, 1000);
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   std::string sql = std::string("SELECT ") + kRunColumns + " FROM ";
   sql += f.sweep_id ? "sweep_runs sr JOIN runs r ON r.id = sr.run_id " : "runs r ";
@@ -596,7 +596,7 @@ Result<RunPage> Store::ListRuns(const RunFilter& f) {
 }
 
 Result<RunDetail> Store::GetRun(int64_t id) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   RunDetail d;
   {
@@ -700,7 +700,7 @@ void to_json(nlohmann::json& j, const BedView& b) {
 }
 
 Result<BedView> Store::GetBed(int64_t id) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(std::string("SELECT ") + kBedColumns + " FROM beds b WHERE b.id = ?");
   st.Bind(1, id);
@@ -711,7 +711,7 @@ Result<BedView> Store::GetBed(int64_t id) {
 }
 
 Result<std::vector<BedView>> Store::ListBeds() {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(std::string("SELECT ") + kBedColumns + " FROM beds b ORDER BY b.id");
   std::vector<BedView> out;
@@ -727,7 +727,7 @@ Result<std::vector<BedView>> Store::ListBeds() {
 }
 
 Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   {
     Statement st = t->Prepare("SELECT 1 FROM sweeps WHERE id = ?");
@@ -807,7 +807,7 @@ constexpr const char* kCampaignRunColumns = "id, campaign, scale, trigger, due_t
 }  // namespace
 
 Result<CampaignRunInfo> Store::GetCampaignRun(int64_t id) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns + " FROM campaign_runs WHERE id = ?");
   st.Bind(1, id);
@@ -819,7 +819,7 @@ Result<CampaignRunInfo> Store::GetCampaignRun(int64_t id) {
 
 Result<std::vector<CampaignRunInfo>> Store::ListCampaignRuns(const std::string& campaign, int limit) {
   limit = std::clamp(limit, 1, 1000);
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(std::string("SELECT ") + kCampaignRunColumns +
                             " FROM campaign_runs WHERE (?1 = '' OR campaign = ?1) "
@@ -842,7 +842,7 @@ StoredCampaign CampaignFromRow(const Statement& st) {
 }  // namespace
 
 Result<std::optional<StoredCampaign>> Store::GetCampaign(const std::string& name) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns WHERE name = ?");
   st.Bind(1, name);
@@ -853,7 +853,7 @@ Result<std::optional<StoredCampaign>> Store::GetCampaign(const std::string& name
 }
 
 Result<std::vector<StoredCampaign>> Store::ListCampaigns() {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(std::string("SELECT ") + kCampaignColumns + " FROM campaigns ORDER BY name");
   std::vector<StoredCampaign> out;
@@ -867,7 +867,7 @@ Result<std::vector<StoredCampaign>> Store::ListCampaigns() {
 }
 
 Status Store::PutCampaign(const StoredCampaign& c) {
-  Result<Transaction> t = Begin();
+  Result<Transaction> t = db_->Begin();
   if (!t.ok()) return t.status();
   {
     Statement st = t->Prepare(
@@ -884,7 +884,7 @@ Status Store::PutCampaign(const StoredCampaign& c) {
 }
 
 Result<Metrics> Store::GetMetrics() {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   Metrics m;
   for (const char* table : {"runs", "beds"}) {
@@ -923,7 +923,7 @@ Result<Metrics> Store::GetMetrics() {
 }
 
 Result<LiveBoard> Store::ReadLiveBoard(int sweeps, int campaign_runs, int running) {
-  Result<Transaction> t = BeginRead();
+  Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   LiveBoard board;
   auto earliest_start = [&](const char* sql, int64_t id) -> Result<std::optional<double>> {

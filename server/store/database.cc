@@ -1,4 +1,4 @@
-#include "server/database.h"
+#include "server/store/database.h"
 
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
@@ -12,7 +12,7 @@
 #include <utility>
 
 #include "core/api.h"
-#include "server/schema_files.h"
+#include "server/store/schema_files.h"
 
 namespace sandswim {
 
@@ -308,6 +308,12 @@ Status Database::OpenFile(const std::string& path) {
   }
   SANDSWIM_RETURN_IF_ERROR(Migrate());
   return OpenReaders(kReadConnections);
+}
+
+Result<std::unique_ptr<Database>> Database::Open(const std::string& path) {
+  std::unique_ptr<Database> db(new Database());
+  SANDSWIM_RETURN_IF_ERROR(db->OpenFile(path));
+  return db;
 }
 
 Database::Database() = default;

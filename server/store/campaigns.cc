@@ -1,4 +1,4 @@
-#include "server/campaigns.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim {
 

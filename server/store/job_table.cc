@@ -1,4 +1,4 @@
-#include "server/job_table.h"
+#include "server/store/job_table.h"
 
 #include <utility>
 

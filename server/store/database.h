@@ -1,10 +1,10 @@
 // Database: the daemon's one SQLite file (sweeps, runs, beds, results, trajectories, events) as
 // an adapter: statements, transactions, group commit and migrations. Its .cc is the only file that
 // includes sqlite3.h. What the rows mean lives elsewhere: the read views of the REST API in
-// server/store.h (Store is a Database with those reads), the writes in the modules that own them
+// server/store/store.h (a Store holds the Database and reads through it), the writes in the modules that own them
 // (submission.h, lease_queue.h, scheduler.h, drift_report.h) through Transaction/Statement.
 //
-// Opening it (Store::Open) creates the file and its parent directory if needed, turns on WAL, foreign keys,
+// Opening it (Database::Open, through Store::Open) creates the file and its parent directory if needed, turns on WAL, foreign keys,
 // synchronous=NORMAL, temp_store=MEMORY (statement journals in memory: a file one cost 3 of every 4
 // write calls of the lease queue) and a busy timeout, and applies the numbered migrations of schema/*.sql
 // (compiled in) that the file has not seen yet, each in one transaction, recorded in
@@ -15,7 +15,7 @@
 // transaction, so a crash at any instant leaves a consistent file. A Transaction that is
 // destroyed without Commit() rolls back. Submission (submission.h) and the lease queue
 // (lease_queue.h) write their SQL through Transaction/Statement; the read queries are methods of
-// Store (server/store.h).
+// Store (server/store/store.h).
 //
 // Group commit: Write() runs a change in a write transaction that it shares with the changes other
 // threads hand to Write() at the same time. One of the callers (the leader) runs the queued
@@ -36,8 +36,8 @@
 // (httplib's pool); writes are serialised, reads run beside them and each other (up to the pool's
 // size). Do not open a write Transaction on a thread that holds one already (self-deadlock).
 // Statements are only valid inside the Transaction that prepared them.
-#ifndef SANDSWIM_SERVER_DATABASE_H_
-#define SANDSWIM_SERVER_DATABASE_H_
+#ifndef SANDSWIM_SERVER_STORE_DATABASE_H_
+#define SANDSWIM_SERVER_STORE_DATABASE_H_
 
 #include <atomic>
 #include <condition_variable>
@@ -155,7 +155,10 @@ std::vector<Migration> Migrations();
 
 class Database {
  public:
-  virtual ~Database();
+  // Opens (creating if needed) the SQLite file at `path` (":memory:" for an in-memory one) and
+  // migrates it (see the top of this file).
+  static Result<std::unique_ptr<Database>> Open(const std::string& path);
+  ~Database();
   Database(const Database&) = delete;
   Database& operator=(const Database&) = delete;
 
@@ -201,13 +204,10 @@ class Database {
   // into place; a failed backup leaves `path` as it was. Returns its size in bytes.
   Result<int64_t> BackupTo(const std::string& path);
 
- protected:
-  Database();
-  // Opens (creating if needed) the SQLite file at `path` and migrates it (see the top of this file).
-  Status OpenFile(const std::string& path);
-
  private:
   friend class Transaction;
+  Database();
+  Status OpenFile(const std::string& path);
   friend class Statement;
   Status Migrate();
   Status OpenReaders(int n);
@@ -232,4 +232,4 @@ class Database {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_DATABASE_H_
+#endif  // SANDSWIM_SERVER_STORE_DATABASE_H_

@@ -1,4 +1,4 @@
-#include "server/store.h"
+#include "server/store/store.h"
 
 #include <algorithm>
 #include <atomic>
@@ -53,14 +53,14 @@ TEST_F(StoreTest, OpenCreatesTheDirectoryAndMigratesOnce) {
     auto store = MustOpen();
     ASSERT_TRUE(store);
     // Every migration of schema/ (001, 002, 003, ...) applied once.
-    EXPECT_GE(store->schema_version(), 3);
-    EXPECT_EQ(*store->CountRows("schema_migrations"), store->schema_version());
-    EXPECT_TRUE(store->HealthCheck().ok());
+    EXPECT_GE(store->db().schema_version(), 3);
+    EXPECT_EQ(*store->db().CountRows("schema_migrations"), store->db().schema_version());
+    EXPECT_TRUE(store->db().HealthCheck().ok());
   }
   auto again = MustOpen();
   ASSERT_TRUE(again);
-  EXPECT_EQ(*again->CountRows("schema_migrations"), again->schema_version());
-  auto t = again->BeginRead();
+  EXPECT_EQ(*again->db().CountRows("schema_migrations"), again->db().schema_version());
+  auto t = again->db().BeginRead();
   ASSERT_TRUE(t.ok());
   Statement st = t->Prepare("PRAGMA journal_mode");
   ASSERT_TRUE(*st.Step());
@@ -73,7 +73,7 @@ TEST_F(StoreTest, OpenCreatesTheDirectoryAndMigratesOnce) {
 TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
   {
     auto store = MustOpen();
-    auto t = store->Begin();
+    auto t = store->db().Begin();
     ASSERT_TRUE(t->Exec("PRAGMA user_version = 99").ok());
     ASSERT_TRUE(t->Commit().ok());
   }
@@ -121,7 +121,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     with_trajectory = runs->runs[0].id;
     without = runs->runs[1].id;
     // Back to schema 6: its results table, two results of analysis 1, one with a trajectory.
-    auto t = store->Begin();
+    auto t = store->db().Begin();
     ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
                         "ALTER TABLE runs DROP COLUMN precision; ALTER TABLE runs DROP COLUMN snapshots;"
                         "DROP TABLE snapshots;"
@@ -160,8 +160,8 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), 11);
-  EXPECT_EQ(*store->CountRows("results"), kOld);
+  EXPECT_EQ(store->db().schema_version(), 11);
+  EXPECT_EQ(*store->db().CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());
   EXPECT_EQ(before->result->result.analysis, 1);
@@ -223,7 +223,7 @@ TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
     tr.z.push_back(z);
   }
   {
-    auto t = store->Begin();
+    auto t = store->db().Begin();
     ASSERT_TRUE(t->Exec("UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}'; UPDATE runs SET state = "
                         "'done'; UPDATE runs SET precision = '{\"uz_rel\": 0.5, \"uz_abs\": 0, \"min_periods\": 3, "
                         "\"max_duration_s\": 10}' WHERE id = " +
@@ -282,17 +282,17 @@ TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
 TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
   auto store = MustOpen();
   {
-    auto t = store->Begin();
+    auto t = store->db().Begin();
     ASSERT_TRUE(t->Event(1, "test", "x/1").ok());
   }
-  EXPECT_EQ(*store->CountRows("events"), 0);
+  EXPECT_EQ(*store->db().CountRows("events"), 0);
   {
-    auto t = store->Begin();
+    auto t = store->db().Begin();
     ASSERT_TRUE(t->Event(1, "test", "x/1").ok());
     ASSERT_TRUE(t->Commit().ok());
   }
-  EXPECT_EQ(*store->CountRows("events"), 1);
-  auto t = store->Begin();
+  EXPECT_EQ(*store->db().CountRows("events"), 1);
+  auto t = store->db().Begin();
   Statement bad = t->Prepare("SELECT nope FROM nowhere");
   EXPECT_FALSE(bad.Step().ok());
 }
@@ -304,7 +304,7 @@ TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
 TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
   auto store = MustOpen();
   {  // about 4 MB: the copy takes several steps of 256 pages
-    auto t = store->Begin();
+    auto t = store->db().Begin();
     for (int i = 0; i < 4000; ++i) {
       ASSERT_TRUE(t->Event(i, "seed", "x/" + std::to_string(i), {{"pad", std::string(1000, 'x')}}).ok());
     }
@@ -314,12 +314,12 @@ TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
   std::atomic<int> written{0};
   std::thread writer([&] {
     for (int i = 0; !stop; ++i) {
-      Status s = store->Write([&](Transaction& t) { return t.Event(i, "during", "y/" + std::to_string(i)); });
+      Status s = store->db().Write([&](Transaction& t) { return t.Event(i, "during", "y/" + std::to_string(i)); });
       if (s.ok()) ++written;
     }
   });
   const std::string copy = (dir_ / "copy.db").string();
-  Result<int64_t> bytes = store->BackupTo(copy);
+  Result<int64_t> bytes = store->db().BackupTo(copy);
   const int during_backup = written.load();
   stop = true;
   writer.join();
@@ -329,7 +329,7 @@ TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
   auto restored = Store::Open(copy);
   ASSERT_TRUE(restored.ok()) << restored.status().ToString();
   {
-    auto t = (*restored)->BeginRead();
+    auto t = (*restored)->db().BeginRead();
     ASSERT_TRUE(t.ok());
     Statement check = t->Prepare("PRAGMA integrity_check");
     ASSERT_TRUE(*check.Step());
@@ -342,9 +342,9 @@ TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
     EXPECT_EQ(during.Int(1), during.Int(0) - 1);
     EXPECT_LE(during.Int(0), during_backup + 1);
   }
-  EXPECT_GE(*(*restored)->CountRows("events"), 4000);
+  EXPECT_GE(*(*restored)->db().CountRows("events"), 4000);
 
-  Result<int64_t> bad = store->BackupTo((dir_ / "no-such-dir" / "copy.db").string());
+  Result<int64_t> bad = store->db().BackupTo((dir_ / "no-such-dir" / "copy.db").string());
   EXPECT_FALSE(bad.ok());
   EXPECT_NE(bad.status().ToString().find("check that the directory exists"), std::string::npos)
       << bad.status().ToString();
@@ -408,7 +408,7 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   EXPECT_EQ(store->GetRun(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->GetSweep(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->SweepResults(12345).status().code(), StatusCode::kNotFound);
-  EXPECT_EQ(store->CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store->db().CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST_F(StoreTest, CampaignsRoundTrip) {
@@ -437,7 +437,7 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
     threads.emplace_back([&, i] {
       for (int k = 0; k < kEach; ++k) {
         const int n = i * kEach + k;
-        Status s = store->Write([&](Transaction& t) -> Status {
+        Status s = store->db().Write([&](Transaction& t) -> Status {
           // Every change writes first, so a failing one has something to roll back.
           SANDSWIM_RETURN_IF_ERROR(t.Count("grouped"));
           if (n % 7 == 3) return Status::Conflict("refused on purpose");
@@ -447,7 +447,7 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
         if (s.ok()) {
           ++ok;
           // Durable and visible as soon as Write returned.
-          Result<int64_t> rows = store->CountRows("counters");
+          Result<int64_t> rows = store->db().CountRows("counters");
           EXPECT_TRUE(rows.ok() && *rows >= 1);
         } else if (s.code() == StatusCode::kConflict) {
           ++refused;
@@ -475,7 +475,7 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
   ASSERT_NE(again, nullptr);
   Result<Metrics> m = again->GetMetrics();
   ASSERT_TRUE(m.ok());
-  auto t = again->BeginRead();
+  auto t = again->db().BeginRead();
   ASSERT_TRUE(t.ok());
   Statement st = t->Prepare("SELECT value FROM counters WHERE name = 'grouped'");
   Result<bool> row = st.Step();
@@ -488,8 +488,8 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
 TEST_F(StoreTest, AnOpenReadDoesNotHoldUpWrites) {
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_GT(store->read_connections(), 0);
-  auto read = store->BeginRead();
+  EXPECT_GT(store->db().read_connections(), 0);
+  auto read = store->db().BeginRead();
   ASSERT_TRUE(read.ok());
   Statement before = read->Prepare("SELECT count(*) FROM events");
   ASSERT_TRUE(*before.Step());
@@ -497,7 +497,7 @@ TEST_F(StoreTest, AnOpenReadDoesNotHoldUpWrites) {
   before.Reset();
   std::atomic<bool> written{false};
   std::thread writer([&] {
-    Status s = store->Write([&](Transaction& t) { return t.Event(1, "during-read", "x/1"); });
+    Status s = store->db().Write([&](Transaction& t) { return t.Event(1, "during-read", "x/1"); });
     EXPECT_TRUE(s.ok()) << s.ToString();
     written = true;
   });

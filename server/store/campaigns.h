@@ -5,8 +5,8 @@
 // drift reports and the REST routes all look campaigns up here.
 //
 // Thread safety: a free function over a thread-safe Store.
-#ifndef SANDSWIM_SERVER_CAMPAIGNS_H_
-#define SANDSWIM_SERVER_CAMPAIGNS_H_
+#ifndef SANDSWIM_SERVER_STORE_CAMPAIGNS_H_
+#define SANDSWIM_SERVER_STORE_CAMPAIGNS_H_
 
 #include <optional>
 #include <string>
@@ -15,7 +15,7 @@
 
 #include "core/status.h"
 #include "core/sweep.h"
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 
@@ -33,4 +33,4 @@ Result<CatalogueEntry> FindCampaign(Store& store, const std::string& name, const
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_CAMPAIGNS_H_
+#endif  // SANDSWIM_SERVER_STORE_CAMPAIGNS_H_

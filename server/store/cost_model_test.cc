@@ -1,4 +1,4 @@
-#include "server/cost_model.h"
+#include "server/store/cost_model.h"
 
 #include <stdlib.h>
 
@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "server/store.h"
+#include "server/store/store.h"
 
 namespace sandswim {
 namespace {
@@ -27,7 +27,7 @@ class CostModelTest : public ::testing::Test {
     std::filesystem::remove_all(dir_);
   }
   void Exec(const std::string& sql) {
-    auto t = store_->Begin();
+    auto t = store_->db().Begin();
     ASSERT_TRUE(t.ok());
     Status s = t->Exec(sql);
     ASSERT_TRUE(s.ok()) << s.ToString() << "\n" << sql;

@@ -1,11 +1,11 @@
-// Store: the daemon's data as the REST API reads it. A Store is the daemon's Database
-// (server/database.h: the SQLite adapter, transactions, group commit, migrations) with the read
-// views of the API: values whose JSON shapes are those of the REST API, each read in one read
+// Store: the daemon's data as the REST API reads it. A Store holds the daemon's Database
+// (server/store/database.h: the SQLite adapter, transactions, group commit, migrations, db()) and
+// gives the read views of the API: values whose JSON shapes are those of the REST API, each read in one read
 // transaction. Writes belong to the modules that own them (submission.h, lease_queue.h, ...).
 //
 // Thread safety: as Database: every read takes the connection's lock for its duration.
-#ifndef SANDSWIM_SERVER_STORE_H_
-#define SANDSWIM_SERVER_STORE_H_
+#ifndef SANDSWIM_SERVER_STORE_STORE_H_
+#define SANDSWIM_SERVER_STORE_STORE_H_
 
 #include <cstdint>
 #include <memory>
@@ -20,7 +20,7 @@
 #include "core/deck.h"
 #include "core/point.h"
 #include "core/status.h"
-#include "server/database.h"
+#include "server/store/database.h"
 
 namespace sandswim {
 
@@ -202,10 +202,18 @@ struct LiveBoard {
   RunCounts runs;                                     // every run, by state
 };
 
-class Store : public Database {
+class Store {
  public:
   // Opens (creating if needed) the SQLite file at `path` and migrates it.
   static Result<std::unique_ptr<Store>> Open(const std::string& path);
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  // The database the reads go through, for the store-side tables (job_table.h, cost_model.h) and
+  // the writes of the modules that own them (transactions, group commit, backups, health).
+  Database& db() { return *db_; }
+  const std::string& path() const { return db_->path(); }
+
   // ---- Reads for the REST API. NotFound when the id does not exist. ----
   Result<SweepPage> ListSweeps(int64_t after_id = 0, int limit = 100);
   Result<SweepInfo> GetSweep(int64_t id);
@@ -244,9 +252,10 @@ class Store : public Database {
   Result<Reanalysis> ReanalyzeOldResults();
 
  private:
-  Store() = default;
+  explicit Store(std::unique_ptr<Database> db) : db_(std::move(db)) {}
+  std::unique_ptr<Database> db_;
 };
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_STORE_H_
+#endif  // SANDSWIM_SERVER_STORE_STORE_H_

@@ -7,8 +7,8 @@
 // and its audit event stay one atomic change.
 //
 // Thread safety: free functions over a Transaction, which holds the database's lock.
-#ifndef SANDSWIM_SERVER_JOB_TABLE_H_
-#define SANDSWIM_SERVER_JOB_TABLE_H_
+#ifndef SANDSWIM_SERVER_STORE_JOB_TABLE_H_
+#define SANDSWIM_SERVER_STORE_JOB_TABLE_H_
 
 #include <cstdint>
 #include <optional>
@@ -17,7 +17,7 @@
 
 #include "core/api.h"
 #include "core/status.h"
-#include "server/database.h"
+#include "server/store/database.h"
 
 namespace sandswim::jobs {
 
@@ -171,4 +171,4 @@ Result<std::pair<int64_t, int64_t>> CancelOrphanedRuns(Transaction& t, int64_t s
 
 }  // namespace sandswim::jobs
 
-#endif  // SANDSWIM_SERVER_JOB_TABLE_H_
+#endif  // SANDSWIM_SERVER_STORE_JOB_TABLE_H_
