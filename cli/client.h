@@ -65,7 +65,7 @@ class DaemonClient {
     (void)scale;
     return Status::NotFound("no drift report for campaign '" + name + "'");
   }
-  // The HTML report (server/report.h) of campaign run `campaign_run_id` when it is > 0, else of
+  // The HTML report (server/analysis/report.h) of campaign run `campaign_run_id` when it is > 0, else of
   // the latest run of campaign `name` (at `scale`, or any scale when empty).
   virtual Result<std::string> CampaignReport(const std::string& name, const std::string& scale,
                                              int64_t campaign_run_id) {

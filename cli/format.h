@@ -151,7 +151,7 @@ std::string RenderResults(const nlohmann::json& reply, const RenderOptions& opti
 // "sweeps" when any row has them).
 std::string RenderResultsCsv(const nlohmann::json& rows);
 
-// GET /campaign-runs/{id}/claims (server/claim_check.h) as text: a summary line, then each claim
+// GET /campaign-runs/{id}/claims (server/analysis/claim_check.h) as text: a summary line, then each claim
 // as a block: its id, verdict (coloured: holds green, differs red, inconclusive yellow), title and
 // source; what was measured here, part by part; what the paper reports; the points it needed
 // that have no conclusive U_z, and why.

@@ -62,6 +62,7 @@
 #include "core/status.h"
 #include "platform/clock.h"
 #include "server/store/job_table.h"
+#include "server/store/snapshot_files.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -73,18 +74,6 @@ struct LeaseQueueOptions {
   // Where runs' snapshots are kept (SnapshotPath); empty: snapshot uploads are refused.
   std::string data_dir;
 };
-
-// Where a run's snapshot `idx` is kept: <data_dir>/snapshots/run-<run_id>/<idx>.dump. Its
-// directory is SnapshotDir.
-std::string SnapshotDir(const std::string& data_dir, int64_t run_id);
-std::string SnapshotPath(const std::string& data_dir, int64_t run_id, int idx);
-// A stored snapshot, read and parsed: IOError saying what to do when its file is missing,
-// Corruption when it no longer parses.
-Result<BedSnapshot> ReadStoredSnapshot(const std::string& data_dir, int64_t run_id, int idx);
-// Removes the snapshot files of `run_id` whose idx is not in `keep` (the directory too when
-// nothing is kept). What a completion did not list, a failed attempt left, or a run that never
-// completed holds. Returns how many files it removed.
-int RemoveSnapshotFiles(const std::string& data_dir, int64_t run_id, const std::vector<int>& keep);
 
 struct CancelSummary {
   int64_t cancelled = 0;  // queued runs now cancelled

@@ -17,13 +17,13 @@
 #include "platform/engine_probe.h"
 #include "platform/tls.h"
 #include "platform/token.h"
-#include "server/drift_report.h"
+#include "server/analysis/drift_report.h"
 #include "server/lease_queue.h"
 #include "server/live_feed.h"
 #include "server/local_workers.h"
 #include "server/periodic.h"
 #include "server/pilot_watch.h"
-#include "server/plot_renderer.h"
+#include "server/analysis/plot_renderer.h"
 #include "server/routes.h"
 #include "server/scheduler.h"
 #include "server/store/store.h"
@@ -425,7 +425,7 @@ int main(int argc, char** argv) {
   if (Status s = RegisterSchedules(scheduler, flags.schedules, clock); !s.ok()) {
     return Die(s, "use --schedule NAME[:SCALE] (e.g. paper-58:smoke) with a campaign that exists, or drop it");
   }
-  // Figures are drawn by sandswim-render in processes of their own (server/plot_renderer.h).
+  // Figures are drawn by sandswim-render in processes of their own (server/analysis/plot_renderer.h).
   sandswim::PosixSubprocesses renderer_processes;
   const std::string renderer_path = sandswim::ExecutableDir() + "/sandswim-render";
   if (access(renderer_path.c_str(), X_OK) != 0) {

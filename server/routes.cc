@@ -34,13 +34,13 @@
 #include "platform/http_status.h"
 #include "server/store/campaigns.h"
 #include "server/store/cost_model.h"
-#include "server/claim_check.h"
-#include "server/drift_report.h"
+#include "server/analysis/claim_check.h"
+#include "server/analysis/drift_report.h"
 #include "server/dashboard_files.h"
-#include "server/figures.h"
+#include "server/analysis/figures.h"
 #include "server/guarded_http_server.h"
 #include "server/live_feed.h"
-#include "server/report.h"
+#include "server/analysis/report.h"
 #include "server/store/schema_files.h"
 #include "server/submission.h"
 
@@ -532,7 +532,7 @@ void GetCampaignRunResults(Call& c) {
   SendRows(c, *id, *rows, distinct, /*with_sweeps=*/true);
 }
 
-// The verdict of each of the campaign's claims for this run (server/claim_check.h).
+// The verdict of each of the campaign's claims for this run (server/analysis/claim_check.h).
 void GetCampaignRunClaims(Call& c) {
   auto id = PathId(c);
   if (!id.ok()) return Fail(c, id.status());
@@ -541,7 +541,7 @@ void GetCampaignRunClaims(Call& c) {
   SendJson(c, 200, CampaignRunClaimsToJson(*claims));
 }
 
-// ---- Figures, fits and reports (server/figures.h, server/report.h) ----------------------------
+// ---- Figures, fits and reports (server/analysis/figures.h, server/analysis/report.h) ----------------------------
 
 // Figures live next to the results, keyed by their data (FigureCache): never stale.
 FigureCache FiguresOf(const Deps& deps) {
@@ -931,7 +931,7 @@ void GetSnapshotVtk(Call& c) {
   c.res.set_content(BedSnapshotVtk(*snapshot, title), "application/octet-stream");
 }
 
-// The y-z slice through the SO (server/figures.h SnapshotSlicePlot).
+// The y-z slice through the SO (server/analysis/figures.h SnapshotSlicePlot).
 template <ImageFormat kFormat>
 void GetSnapshotSlice(Call& c) {
   auto found = FindSnapshot(c);
@@ -1167,7 +1167,7 @@ const Route kRoutes[] = {
   {"GET",  "/api/v1/campaign-runs/{id}",            Access::kRead,   BodyKind::kNone,    GetCampaignRun},
   {"GET",  "/api/v1/campaign-runs/{id}/results",    Access::kRead,   BodyKind::kNone,    GetCampaignRunResults},
   {"GET",  "/api/v1/campaign-runs/{id}/claims",     Access::kRead,   BodyKind::kNone,    GetCampaignRunClaims},
-  // Figures (SVG or PNG by extension), fits and reports (server/report.h).
+  // Figures (SVG or PNG by extension), fits and reports (server/analysis/report.h).
   {"GET",  "/api/v1/runs/{id}/snapshots/{n}.dump",  Access::kRead,   BodyKind::kNone,    GetSnapshotDump},
   {"GET",  "/api/v1/runs/{id}/snapshots/{n}.vtk",   Access::kRead,   BodyKind::kNone,    GetSnapshotVtk},
   {"GET",  "/api/v1/runs/{id}/snapshots/{n}/slice.svg", Access::kRead, BodyKind::kNone,  GetSnapshotSlice<ImageFormat::kSvg>},

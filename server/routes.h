@@ -75,7 +75,7 @@ struct Deps {
   size_t max_json_body = kMaxJsonBodyBytes;
   size_t max_restart_body = kMaxRestartBodyBytes;
   int64_t max_queued_runs = kMaxQueuedRuns;  // submissions past it: 503 (server/submission.h)
-  // Draws figures not drawn before (server/plot_renderer.h): sandswimd's runs sandswim-render, a
+  // Draws figures not drawn before (server/analysis/plot_renderer.h): sandswimd's runs sandswim-render, a
   // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
   PlotRenderer* renderer = nullptr;
   // The dashboard's live snapshots and trails (server/live_feed.h); nullptr: /api/v1/live* answer 503.

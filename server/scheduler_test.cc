@@ -12,7 +12,7 @@
 
 #include "core/keys.h"
 #include "platform/clock.h"
-#include "server/drift_report.h"
+#include "server/analysis/drift_report.h"
 #include "server/lease_queue.h"
 #include "server/store/store.h"
 #include "server/submission.h"

@@ -1,4 +1,4 @@
-#include "server/drift_report.h"
+#include "server/analysis/drift_report.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // The figure renderer in a process of its own: the real sandswim-render draws what RenderPlot
 // draws in-process; a renderer that fails, dies or hangs costs one figure with a clear error.
-#include "server/plot_renderer.h"
+#include "server/analysis/plot_renderer.h"
 
 #include <stdlib.h>
 #include <sys/stat.h>

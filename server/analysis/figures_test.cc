@@ -1,7 +1,7 @@
 // Figures: each kind is drawn with the right number of series (read back from the SVG by the
 // series' colours), a bed slice with every grain and its colour bar, PNGs are PNGs, and the cache
 // never serves a figure of older data.
-#include "server/figures.h"
+#include "server/analysis/figures.h"
 
 #include <stdlib.h>
 
@@ -16,6 +16,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "server/analysis/figure_cache.h"
 
 namespace sandswim {
 namespace {

@@ -13,8 +13,8 @@
 // core/claim_rates.h AttachClaimRates), or says it is not calibrated there.
 //
 // Thread safety: free functions over a thread-safe Store.
-#ifndef SANDSWIM_SERVER_CLAIM_CHECK_H_
-#define SANDSWIM_SERVER_CLAIM_CHECK_H_
+#ifndef SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_
+#define SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_
 
 #include <cstdint>
 #include <map>
@@ -26,7 +26,7 @@
 #include "core/claim_rates.h"
 #include "core/claims.h"
 #include "core/status.h"
-#include "server/report.h"
+#include "server/analysis/sweep_analysis.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -63,4 +63,4 @@ ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultR
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_CLAIM_CHECK_H_
+#endif  // SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_

@@ -1,4 +1,4 @@
-#include "server/claim_check.h"
+#include "server/analysis/claim_check.h"
 
 #include <algorithm>
 #include <map>

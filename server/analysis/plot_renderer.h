@@ -1,4 +1,4 @@
-// PlotRenderer: who draws a Plot (server/figures.h) into SVG or PNG bytes.
+// PlotRenderer: who draws a Plot (server/analysis/figures.h) into SVG or PNG bytes.
 //
 // PLplot ends its process on an internal error (plexit() prints "*** PLPLOT ERROR, IMMEDIATE
 // EXIT ***" and calls exit(1)) and keeps global state; a daemon that draws in its own process can
@@ -17,12 +17,12 @@
 // Concurrency: SubprocessRenderer runs at most `max_running` renderers at once (46 parallel figure
 // requests once started 43); a figure past them waits up to `wait_s` for one to finish, then is
 // Unavailable ("retry shortly"; the route answers 503 with Retry-After). A figure drawn before is
-// served from the cache (server/figures.h) without a renderer.
+// served from the cache (server/analysis/figures.h) without a renderer.
 //
 // Thread safety: both are safe from any thread; SubprocessRenderer draws several figures at once
 // in separate processes.
-#ifndef SANDSWIM_SERVER_PLOT_RENDERER_H_
-#define SANDSWIM_SERVER_PLOT_RENDERER_H_
+#ifndef SANDSWIM_SERVER_ANALYSIS_PLOT_RENDERER_H_
+#define SANDSWIM_SERVER_ANALYSIS_PLOT_RENDERER_H_
 
 #include <condition_variable>
 #include <mutex>
@@ -30,7 +30,7 @@
 
 #include "core/status.h"
 #include "platform/subprocess.h"
-#include "server/figures.h"
+#include "server/analysis/figures.h"
 
 namespace sandswim {
 
@@ -76,4 +76,4 @@ int RenderMain(int argc, const char* const* argv);
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_PLOT_RENDERER_H_
+#endif  // SANDSWIM_SERVER_ANALYSIS_PLOT_RENDERER_H_

@@ -13,19 +13,12 @@
 // (paper Fig. 5), grains coloured by their speed, the SO's outline a series drawn over them. Such a
 // plot usually wants equal_aspect (a metre as long across as up) and limits (the whole box).
 //
-// FigureCache keeps rendered figures next to the results, under DATA_DIR/figures, named
-// NAME-HASH.EXT where HASH is the SHA-256 of the plot's data, its format and the style version:
-// new results make a new plot, hence a new name, so a stale figure is never served. Writing a new
-// figure removes the older ones of the same NAME. Files are written to a temporary name and
-// renamed, so a reader never sees half a figure.
-//
 // Thread safety: PLplot keeps global state and is not thread-safe; RenderPlot() serialises every
-// drawing behind one process-wide mutex. FigureCache is thread-safe (two threads may render the
-// same figure at once; both write the same bytes). PLplot ends the process on an internal error
+// drawing behind one process-wide mutex. PLplot ends the process on an internal error
 // (plexit), so RenderPlot() checks what it can first (finite data, a writable temporary file), and
-// sandswimd draws through sandswim-render, a process of its own (server/plot_renderer.h).
-#ifndef SANDSWIM_SERVER_FIGURES_H_
-#define SANDSWIM_SERVER_FIGURES_H_
+// sandswimd draws through sandswim-render, a process of its own (server/analysis/plot_renderer.h).
+#ifndef SANDSWIM_SERVER_ANALYSIS_FIGURES_H_
+#define SANDSWIM_SERVER_ANALYSIS_FIGURES_H_
 
 #include <array>
 #include <cstdint>
@@ -43,6 +36,9 @@
 namespace sandswim {
 
 enum class ImageFormat { kSvg, kPng };
+// What a cached figure's name hashes with besides its data (server/analysis/figure_cache.h):
+// changed whenever the drawing changes, so files drawn the old way are not served.
+const char* FigureStyleVersion();
 const char* ImageExtension(ImageFormat format);    // "svg", "png"
 const char* ImageContentType(ImageFormat format);  // "image/svg+xml", "image/png"
 
@@ -90,7 +86,7 @@ Status CheckPlot(const Plot& plot);
 
 // Draws the plot in this process (CheckPlot first); IOError when the temporary file cannot be
 // made. PLplot may end the process on an error of its own: the daemon draws through a
-// PlotRenderer (server/plot_renderer.h) in a process of its own instead.
+// PlotRenderer (server/analysis/plot_renderer.h) in a process of its own instead.
 Result<std::string> RenderPlot(const Plot& plot, ImageFormat format);
 // The same, drawn into the file at `path` (created or replaced): what sandswim-render does, so
 // that a renderer PLplot ends leaves no file of its own behind.
@@ -132,28 +128,6 @@ double SweptValue(const Point& point, const std::string& param);
 // 8, the line of eq. 9 over its range, or a vertical line at f_c).
 Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& samples, const SweepFits& fits);
 
-// ---- Figures kept next to the results ----------------------------------------------------------
-
-class PlotRenderer;
-
-class FigureCache {
- public:
-  // `dir`: where figures live (created on first write), e.g. DATA_DIR/figures. `renderer` draws
-  // what is not there yet (must outlive this); nullptr: RenderPlot in this process (tests).
-  explicit FigureCache(std::string dir, PlotRenderer* renderer = nullptr);
-
-  // The figure `name` (e.g. "run-12-trajectory") of `plot`: read from the file when one for this
-  // exact plot exists, else rendered and written.
-  Result<std::string> Get(const std::string& name, const Plot& plot, ImageFormat format);
-
-  // The file Get() reads or writes for this plot.
-  std::string PathFor(const std::string& name, const Plot& plot, ImageFormat format) const;
-
- private:
-  std::string dir_;
-  PlotRenderer* renderer_;
-};
-
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_FIGURES_H_
+#endif  // SANDSWIM_SERVER_ANALYSIS_FIGURES_H_

@@ -1,4 +1,4 @@
-#include "server/plot_renderer.h"
+#include "server/analysis/plot_renderer.h"
 
 #include <stdlib.h>
 #include <unistd.h>

@@ -2,7 +2,7 @@
 // "run" through the real lease queue with synthetic results; then the analysis, the HTML report
 // (every internal link resolves, nothing is fetched from outside) and the REST routes of
 // figures, fits and reports (real httplib server on an ephemeral port).
-#include "server/report.h"
+#include "server/analysis/report.h"
 
 #include <stdlib.h>
 
@@ -18,10 +18,10 @@
 
 #include "core/keys.h"
 #include "platform/clock.h"
-#include "server/claim_check.h"
+#include "server/analysis/claim_check.h"
 #include "server/lease_queue.h"
 #include "server/loopback_server_test_util.h"
-#include "server/plot_renderer.h"
+#include "server/analysis/plot_renderer.h"
 #include "server/routes.h"
 #include "server/submission.h"
 
