@@ -36,13 +36,13 @@
 #include "server/store/cost_model.h"
 #include "server/analysis/claim_check.h"
 #include "server/analysis/drift_report.h"
-#include "server/dashboard_files.h"
+#include "server/dashboard/dashboard_files.h"
 #include "server/analysis/figures.h"
 #include "server/guarded_http_server.h"
-#include "server/live_feed.h"
+#include "server/dashboard/live_feed.h"
 #include "server/analysis/report.h"
 #include "server/store/schema_files.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 namespace sandswim {
 namespace {
@@ -988,7 +988,7 @@ Result<int> ClearScratchDirs(const std::string& data_dir) {
 
 namespace {
 
-// ---- Handlers: the dashboard's live feed (server/live_feed.h) -------------------------------
+// ---- Handlers: the dashboard's live feed (server/dashboard/live_feed.h) -------------------------------
 
 // A stream says it is alive at least this often: proxies close silent connections, and a write is
 // how the server learns that the page went away, so a closed stream frees its slot within ~2 s.

@@ -44,10 +44,10 @@
 #include "platform/clock.h"
 #include "platform/token.h"
 #include "server/connection_limits.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/request_policy.h"
 #include "server/store/store.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 namespace httplib {
 class Server;
@@ -74,11 +74,11 @@ struct Deps {
   HostPolicy host_policy;
   size_t max_json_body = kMaxJsonBodyBytes;
   size_t max_restart_body = kMaxRestartBodyBytes;
-  int64_t max_queued_runs = kMaxQueuedRuns;  // submissions past it: 503 (server/submission.h)
+  int64_t max_queued_runs = kMaxQueuedRuns;  // submissions past it: 503 (server/jobs/submission.h)
   // Draws figures not drawn before (server/analysis/plot_renderer.h): sandswimd's runs sandswim-render, a
   // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
   PlotRenderer* renderer = nullptr;
-  // The dashboard's live snapshots and trails (server/live_feed.h); nullptr: /api/v1/live* answer 503.
+  // The dashboard's live snapshots and trails (server/dashboard/live_feed.h); nullptr: /api/v1/live* answer 503.
   LiveFeed* live = nullptr;
   // Engines this daemon knows will work (its local workers): the ETA spreads work over at least
   // this many (server/store/cost_model.h ReadEta), more when more are in flight.

@@ -26,7 +26,7 @@
 #include "core/sweep.h"
 #include "platform/http_status.h"
 #include "server/loopback_server_test_util.h"
-#include "server/live_feed.h"
+#include "server/dashboard/live_feed.h"
 
 namespace sandswim {
 namespace {

@@ -19,11 +19,11 @@
 #include "core/keys.h"
 #include "platform/clock.h"
 #include "server/analysis/claim_check.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/loopback_server_test_util.h"
 #include "server/analysis/plot_renderer.h"
 #include "server/routes.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 namespace sandswim {
 namespace {

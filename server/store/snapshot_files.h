@@ -1,6 +1,6 @@
 // Snapshot files: where the full-bed snapshots that runs hand in (core/snapshot.h) are kept under
 // the daemon's data directory, and how they are read back and cleaned up. The lease queue
-// (server/lease_queue.h PutRunSnapshot) writes them; the report (server/analysis/report.h) and the
+// (server/jobs/lease_queue.h PutRunSnapshot) writes them; the report (server/analysis/report.h) and the
 // REST routes read them; the rows that record them are the store's (table snapshots).
 //
 // Thread safety: free functions over the file system; a file is written by renaming a complete

@@ -185,12 +185,12 @@ struct Metrics {
   int64_t leases_granted = 0;
   int64_t completions = 0;  // accepted completions (not duplicates)
   int64_t expirations = 0;  // leases that ran out
-  int64_t pilots_gone = 0;  // leases reclaimed early: their Slurm job was gone (server/pilot_watch.h)
+  int64_t pilots_gone = 0;  // leases reclaimed early: their Slurm job was gone (server/jobs/pilot_watch.h)
   int64_t duplicates = 0;   // repeated completions answered "duplicate"
 };
 void to_json(nlohmann::json& j, const Metrics& m);
 
-// What the dashboard's live feed shows (server/live_feed.h), read in one transaction: the newest
+// What the dashboard's live feed shows (server/dashboard/live_feed.h), read in one transaction: the newest
 // sweeps and campaign runs with their counts (specs left out), every running run with its
 // progress, and, for each sweep or campaign run with runs still to do, when its first run started.
 struct LiveBoard {

@@ -15,7 +15,7 @@
 
 #include "core/trajectory.h"
 #include "platform/clock.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 namespace sandswim {
 namespace {

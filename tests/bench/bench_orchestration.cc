@@ -29,7 +29,7 @@
 #include <nlohmann/json.hpp>
 
 #include "platform/clock.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/routes.h"
 #include "server/store/store.h"
 #include "tests/bench/in_process_daemon.h"

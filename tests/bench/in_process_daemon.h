@@ -16,7 +16,7 @@
 #include <thread>
 
 #include "platform/clock.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/routes.h"
 #include "server/store/store.h"
 

@@ -27,7 +27,7 @@
 
 #include "platform/clock.h"
 #include "server/guarded_http_server.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/routes.h"
 #include "server/store/store.h"
 

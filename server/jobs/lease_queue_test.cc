@@ -1,4 +1,4 @@
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 
 #include <cmath>
 #include <filesystem>
@@ -19,7 +19,7 @@
 #include "platform/clock.h"
 #include "server/store/cost_model.h"
 #include "server/store/store.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim {

@@ -1,4 +1,4 @@
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 #include <algorithm>
 #include <map>

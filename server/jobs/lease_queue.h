@@ -46,8 +46,8 @@
 //
 // Thread safety: safe from any thread (all state is in the Store, which serialises).
 // REQUIRES: `store` and `clock` outlive the queue.
-#ifndef SANDSWIM_SERVER_LEASE_QUEUE_H_
-#define SANDSWIM_SERVER_LEASE_QUEUE_H_
+#ifndef SANDSWIM_SERVER_JOBS_LEASE_QUEUE_H_
+#define SANDSWIM_SERVER_JOBS_LEASE_QUEUE_H_
 
 #include <cstdint>
 #include <functional>
@@ -101,7 +101,7 @@ class LeaseQueue {
   // kConflict when `token` is not the current lease of a running job.
   Result<api::HeartbeatReply> Heartbeat(const std::string& token, const api::Heartbeat& beat);
   // Called with every run heartbeat once it is recorded (the dashboard's trails,
-  // server/live_feed.h). Set it before serving; it must be cheap and thread-safe.
+  // server/dashboard/live_feed.h). Set it before serving; it must be cheap and thread-safe.
   using ProgressObserver = std::function<void(int64_t run_id, const api::Heartbeat& beat)>;
   void SetProgressObserver(ProgressObserver observer) { progress_observer_ = std::move(observer); }
 
@@ -131,7 +131,7 @@ class LeaseQueue {
   // The Slurm jobs (LeaseRequest::slurm_job) that hold a lease on a running job now, sorted.
   Result<std::vector<std::string>> RunningSlurmJobs();
   // Reclaims, as if they had expired now, the leases of running jobs granted to `slurm_job` at or
-  // before `asked_at` (when Slurm said it no longer runs that job: see server/pilot_watch.h) whose
+  // before `asked_at` (when Slurm said it no longer runs that job: see server/jobs/pilot_watch.h) whose
   // worker has not heartbeated for half the TTL -- a worker that still heartbeats is alive,
   // whatever Slurm said. The failure kind is "pilot_gone". Returns how many jobs went back to
   // the queue or failed.
@@ -199,4 +199,4 @@ class LeaseQueue {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_LEASE_QUEUE_H_
+#endif  // SANDSWIM_SERVER_JOBS_LEASE_QUEUE_H_

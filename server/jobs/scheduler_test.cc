@@ -1,4 +1,4 @@
-#include "server/scheduler.h"
+#include "server/jobs/scheduler.h"
 
 #include <time.h>
 
@@ -13,9 +13,9 @@
 #include "core/keys.h"
 #include "platform/clock.h"
 #include "server/analysis/drift_report.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/store/store.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim {

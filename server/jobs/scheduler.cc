@@ -1,4 +1,4 @@
-#include "server/scheduler.h"
+#include "server/jobs/scheduler.h"
 
 #include <time.h>
 
@@ -11,7 +11,7 @@
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "server/store/campaigns.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 namespace sandswim {
 namespace {

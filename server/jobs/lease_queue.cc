@@ -1,4 +1,4 @@
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 
 #include <openssl/rand.h>
 
@@ -48,7 +48,7 @@ using jobs::LeaseRow;
 using jobs::Noun;
 using jobs::Subject;
 
-// The job id goes to squeue (server/pilot_watch.h): digits only, so that it can name no other.
+// The job id goes to squeue (server/jobs/pilot_watch.h): digits only, so that it can name no other.
 Status CheckLeaseRequest(const api::LeaseRequest& request, const std::string& field) {
   const std::string& job = request.slurm_job;
   if (job.size() > 20 || job.find_first_not_of("0123456789") != std::string::npos) {

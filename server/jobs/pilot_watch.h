@@ -13,8 +13,8 @@
 // GoneSlurmJobs is the pure part: which of the asked jobs squeue's output says are gone.
 //
 // Thread safety: CheckOnce() from one thread at a time (the daemon's watch thread).
-#ifndef SANDSWIM_SERVER_PILOT_WATCH_H_
-#define SANDSWIM_SERVER_PILOT_WATCH_H_
+#ifndef SANDSWIM_SERVER_JOBS_PILOT_WATCH_H_
+#define SANDSWIM_SERVER_JOBS_PILOT_WATCH_H_
 
 #include <cstdint>
 #include <string>
@@ -23,7 +23,7 @@
 #include "core/status.h"
 #include "platform/clock.h"
 #include "platform/slurm.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 
 namespace sandswim {
 
@@ -56,4 +56,4 @@ class PilotWatch {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_PILOT_WATCH_H_
+#endif  // SANDSWIM_SERVER_JOBS_PILOT_WATCH_H_

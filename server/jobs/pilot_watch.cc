@@ -1,4 +1,4 @@
-#include "server/pilot_watch.h"
+#include "server/jobs/pilot_watch.h"
 
 #include <set>
 #include <sstream>

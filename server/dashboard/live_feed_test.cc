@@ -1,4 +1,4 @@
-#include "server/live_feed.h"
+#include "server/dashboard/live_feed.h"
 
 #include <stdlib.h>
 

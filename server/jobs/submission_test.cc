@@ -1,4 +1,4 @@
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 #include <filesystem>
 #include <map>
@@ -12,7 +12,7 @@
 #include "core/deck.h"
 #include "core/keys.h"
 #include "platform/clock.h"
-#include "server/lease_queue.h"
+#include "server/jobs/lease_queue.h"
 #include "server/store/store.h"
 #include "tests/fixture_file.h"
 

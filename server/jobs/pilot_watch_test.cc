@@ -1,4 +1,4 @@
-#include "server/pilot_watch.h"
+#include "server/jobs/pilot_watch.h"
 
 #include <filesystem>
 #include <memory>
@@ -10,7 +10,7 @@
 #include "core/keys.h"
 #include "platform/clock.h"
 #include "server/store/store.h"
-#include "server/submission.h"
+#include "server/jobs/submission.h"
 
 namespace sandswim {
 namespace {
