@@ -1,5 +1,5 @@
 // Format: how `sandswim` shows what the daemon answers. Pure functions from JSON values (the
-// REST API's shapes, server/store/store.h and server/routes.cc) and plain structs to text: tables,
+// REST API's shapes, server/store/store.h and server/http/routes.cc) and plain structs to text: tables,
 // CSV, progress bars, durations and the ETA. No I/O, no clock, no environment: the caller says
 // whether colour is wanted (RenderOptions) and what time it is.
 //

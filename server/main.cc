@@ -24,7 +24,7 @@
 #include "server/periodic.h"
 #include "server/jobs/pilot_watch.h"
 #include "server/analysis/plot_renderer.h"
-#include "server/routes.h"
+#include "server/http/routes.h"
 #include "server/jobs/scheduler.h"
 #include "server/store/store.h"
 

@@ -20,9 +20,9 @@
 #include "platform/clock.h"
 #include "server/analysis/claim_check.h"
 #include "server/jobs/lease_queue.h"
-#include "server/loopback_server_test_util.h"
+#include "server/http/loopback_server_test_util.h"
 #include "server/analysis/plot_renderer.h"
-#include "server/routes.h"
+#include "server/http/routes.h"
 #include "server/jobs/submission.h"
 
 namespace sandswim {

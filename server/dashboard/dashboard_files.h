@@ -1,6 +1,6 @@
 // The web dashboard's files compiled into the daemon (server/CMakeLists.txt): server/dashboard/'s
 // index.html, app.js and app.css, and uPlot's script and style sheet from its pinned npm package.
-// Served by server/routes.cc: the page at /, /campaign-runs/ID, /sweeps/ID, /runs/ID, /beds[/ID]
+// Served by server/http/routes.cc: the page at /, /campaign-runs/ID, /sweeps/ID, /runs/ID, /beds[/ID]
 // and /submit; the rest under /ui/NAME.
 //
 // Thread safety: immutable data.

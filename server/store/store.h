@@ -135,7 +135,7 @@ struct ResultRow {
   int replicate = 0;  // its bed's replicate index (core/aggregate.h)
   std::optional<StoredResult> result;
 };
-// The API's JSON of a result row is core/result_table.h's (server/routes.cc ResultRowJson).
+// The API's JSON of a result row is core/result_table.h's (server/http/routes.cc ResultRowJson).
 
 struct CampaignRunInfo {
   int64_t id = 0;

@@ -30,7 +30,7 @@
 
 #include "platform/clock.h"
 #include "server/jobs/lease_queue.h"
-#include "server/routes.h"
+#include "server/http/routes.h"
 #include "server/store/store.h"
 #include "tests/bench/in_process_daemon.h"
 #include "workers/client.h"

@@ -17,7 +17,7 @@
 
 #include "platform/clock.h"
 #include "server/jobs/lease_queue.h"
-#include "server/routes.h"
+#include "server/http/routes.h"
 #include "server/store/store.h"
 
 namespace sandswim::bench {

@@ -18,7 +18,7 @@
 //    many and however slow their handlers -- cannot take the last thread from a worker. A request
 //    that is not reserved while `threads` such requests are in flight is answered 503 with
 //    Retry-After at once, and its connection closed.
-//  - Per client (ClientKey of the peer address, server/request_policy.h: an IPv4 address, an IPv6
+//  - Per client (ClientKey of the peer address, server/http/request_policy.h: an IPv4 address, an IPv6
 //    /64): past `max_connections_per_client` open connections, a new
 //    connection is served only for reserved requests (one request, then closed); any other request
 //    on it is answered 429 with Retry-After and the connection closed. Workers on the same host as
@@ -35,8 +35,8 @@
 // when the server reads); a response's writes have `write_timeout_s` each.
 //
 // Thread safety: as httplib::Server. SetReserved() before listening.
-#ifndef SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
-#define SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
+#ifndef SANDSWIM_SERVER_HTTP_GUARDED_HTTP_SERVER_H_
+#define SANDSWIM_SERVER_HTTP_GUARDED_HTTP_SERVER_H_
 
 #include <algorithm>
 #include <atomic>
@@ -55,7 +55,7 @@
 
 #include <httplib.h>
 
-#include "server/connection_limits.h"
+#include "server/http/connection_limits.h"
 
 namespace sandswim {
 
@@ -130,7 +130,7 @@ class GuardedHttpServer : public httplib::Server {
   int wake_fd_ = -1;  // an eventfd that ends the poller's wait
   std::map<int, std::unique_ptr<Connection>> parked_;
   std::deque<std::unique_ptr<Connection>> ready_;
-  std::map<std::string, int> per_client_;  // by ClientKey (server/request_policy.h)
+  std::map<std::string, int> per_client_;  // by ClientKey (server/http/request_policy.h)
   std::map<std::string, int> in_reserve_;  // connections in the reserved slots, by client
   // The last open-connection slots, admitted only for reserved requests, at most kReservePerClient each.
   int ReserveSlots() const { return std::max(4, std::min(64, max_open_ / 8)); }
@@ -143,4 +143,4 @@ class GuardedHttpServer : public httplib::Server {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_GUARDED_HTTP_SERVER_H_
+#endif  // SANDSWIM_SERVER_HTTP_GUARDED_HTTP_SERVER_H_

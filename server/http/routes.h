@@ -1,9 +1,11 @@
-// Routes: the REST API of sandswimd (/api/v1, /healthz, /metrics) over cpp-httplib. This is the
-// only server file, with the server it runs on (guarded_http_server.h), that includes httplib.h;
-// everything else speaks Status and values.
+// Routes: the REST API of sandswimd (/api/v1, /healthz, /metrics) over cpp-httplib. Only the http
+// room (server/http/) includes httplib.h, and this header does not: main.cc and the other rooms
+// speak Status and values.
 //
-// Every route stands in one table (RouteTable(), in routes.cc, read top to bottom): method, path
-// in OpenAPI form ("/api/v1/sweeps/{id}"), who may call it, what body it takes, and its handler.
+// Every route stands in one table, a part per resource (sweep_routes.cc, campaign_routes.cc,
+// figure_routes.cc, live_routes.cc, worker_routes.cc, operations_routes.cc; RouteTable() lists them
+// all): method, path in OpenAPI form ("/api/v1/sweeps/{id}"), who may call it, what body it takes,
+// and its handler (server/http/call.h Route).
 // schema/openapi.json describes exactly these routes (a test keeps the two equal). Handlers parse
 // the request, call Store / LeaseQueue / Submit, and render; they hold no business logic.
 //
@@ -11,7 +13,7 @@
 // the HTTP status from one table (HttpStatusFor, platform/http_status.h). An exception handler and an error handler are
 // the backstop, so nothing a client sends produces anything but a problem document.
 //
-// Before a route runs (server/request_policy.h): a Host header that does not name this daemon is
+// Before a route runs (server/http/request_policy.h): a Host header that does not name this daemon is
 // refused (421, every path); a request that changes state (POST, PUT) from a web page of another
 // site is refused (403), and one whose route takes JSON must say Content-Type: application/json
 // (415). No GET changes state. OPTIONS answers 204 with Allow and no CORS approval. Every response
@@ -29,8 +31,8 @@
 //
 // Ownership: Deps points at objects the caller owns; they must outlive the server.
 // Thread safety: handlers run on httplib's thread pool; Store and LeaseQueue are thread-safe.
-#ifndef SANDSWIM_SERVER_ROUTES_H_
-#define SANDSWIM_SERVER_ROUTES_H_
+#ifndef SANDSWIM_SERVER_HTTP_ROUTES_H_
+#define SANDSWIM_SERVER_HTTP_ROUTES_H_
 
 #include <cstddef>
 #include <cstdint>
@@ -43,9 +45,10 @@
 #include "core/status.h"
 #include "platform/clock.h"
 #include "platform/token.h"
-#include "server/connection_limits.h"
+#include "server/http/connection_limits.h"
+#include "server/http/deps.h"
 #include "server/jobs/lease_queue.h"
-#include "server/request_policy.h"
+#include "server/http/request_policy.h"
 #include "server/store/store.h"
 #include "server/jobs/submission.h"
 
@@ -54,47 +57,6 @@ class Server;
 }
 
 namespace sandswim {
-
-inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;     // 1 MiB
-inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;  // 2 GiB
-inline constexpr int kDefaultPort = 8640;
-
-class LiveFeed;
-class PlotRenderer;
-
-struct Deps {
-  Store* store = nullptr;
-  LeaseQueue* leases = nullptr;
-  Clock* clock = nullptr;
-  std::string data_dir;        // beds' restart files and upload temp files live under it
-  std::string engine_version;  // enters every content key (Submit)
-  std::string token;           // bearer token; empty: no auth
-  bool public_reads = false;   // reads need no token (--public-reads)
-  // Which Host headers name this daemon; ApiServer::Bind fills in the address and port it got.
-  HostPolicy host_policy;
-  size_t max_json_body = kMaxJsonBodyBytes;
-  size_t max_restart_body = kMaxRestartBodyBytes;
-  int64_t max_queued_runs = kMaxQueuedRuns;  // submissions past it: 503 (server/jobs/submission.h)
-  // Draws figures not drawn before (server/analysis/plot_renderer.h): sandswimd's runs sandswim-render, a
-  // process of its own, so that a plotting error cannot end the daemon. nullptr: in this process.
-  PlotRenderer* renderer = nullptr;
-  // The dashboard's live snapshots and trails (server/dashboard/live_feed.h); nullptr: /api/v1/live* answer 503.
-  LiveFeed* live = nullptr;
-  // Engines this daemon knows will work (its local workers): the ETA spreads work over at least
-  // this many (server/store/cost_model.h ReadEta), more when more are in flight.
-  int engine_slots = 0;
-};
-
-// Who may call a route when a token is configured.
-enum class Access {
-  kPublic,  // always open (/healthz, /api/v1/openapi.json)
-  kRead,    // needs the token, unless Deps::public_reads
-  kWrite,   // needs the token
-  kWorker,  // needs the token (the worker protocol)
-};
-
-// What a route reads from the request body.
-enum class BodyKind { kNone, kJson, kRestart };
 
 struct RouteInfo {
   std::string method;  // "GET", "POST", "PUT"
@@ -117,8 +79,6 @@ std::string BackupDir(const std::string& data_dir);
 std::string UploadDir(const std::string& data_dir);
 Result<int> ClearScratchDirs(const std::string& data_dir);
 
-// The RFC 9457 body for a Status: {"type","title","status","detail","field"}.
-nlohmann::json ProblemFor(const Status& status, int http_status);
 
 // "HOST:PORT" (or "[v6]:PORT", or ":PORT" for 127.0.0.1). Port 0 asks for an ephemeral port.
 struct ListenAddress {
@@ -131,10 +91,10 @@ Result<ListenAddress> ParseListenAddress(const std::string& text);
 // platform/token.h's.
 Status CheckListenPolicy(const ListenAddress& address, bool have_token, bool tls = false, bool plain_http_ok = false);
 
-class GuardedHttpServer;  // server/guarded_http_server.h
+class GuardedHttpServer;  // server/http/guarded_http_server.h
 
 // The daemon's HTTP server: owns the httplib::Server so main.cc never sees httplib. Clients are
-// held to `limits` (server/guarded_http_server.h); the worker protocol and /healthz are the
+// held to `limits` (server/http/guarded_http_server.h); the worker protocol and /healthz are the
 // requests its reserved threads serve.
 class ApiServer {
  public:
@@ -143,7 +103,7 @@ class ApiServer {
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;
 
-  // Serves HTTPS with these PEM files (server/guarded_http_server.h SetTls). Before Bind().
+  // Serves HTTPS with these PEM files (server/http/guarded_http_server.h SetTls). Before Bind().
   Status UseTls(const std::string& cert_file, const std::string& key_file);
   // Binds and listens; returns the bound port (the real one when address.port is 0).
   Result<int> Bind(const ListenAddress& address);
@@ -159,4 +119,4 @@ class ApiServer {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_ROUTES_H_
+#endif  // SANDSWIM_SERVER_HTTP_ROUTES_H_

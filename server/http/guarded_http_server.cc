@@ -1,4 +1,4 @@
-#include "server/guarded_http_server.h"
+#include "server/http/guarded_http_server.h"
 
 #include <arpa/inet.h>
 #include <netdb.h>
@@ -23,7 +23,7 @@
 #include <openssl/ssl.h>
 #include <spdlog/spdlog.h>
 
-#include "server/request_policy.h"
+#include "server/http/request_policy.h"
 
 namespace sandswim {
 

@@ -1,6 +1,6 @@
 // The REST API end to end in one process: a real httplib::Server on 127.0.0.1 (ephemeral port),
 // a real SQLite file in a temp directory, and httplib::Client as the caller.
-#include "server/routes.h"
+#include "server/http/routes.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -25,7 +25,7 @@
 #include "core/result_table.h"
 #include "core/sweep.h"
 #include "platform/http_status.h"
-#include "server/loopback_server_test_util.h"
+#include "server/http/loopback_server_test_util.h"
 #include "server/dashboard/live_feed.h"
 
 namespace sandswim {

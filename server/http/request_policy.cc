@@ -1,4 +1,4 @@
-#include "server/request_policy.h"
+#include "server/http/request_policy.h"
 
 #include <arpa/inet.h>
 

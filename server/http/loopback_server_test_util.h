@@ -4,8 +4,8 @@
 // The destructor stops the server and joins its thread.
 //
 // Ownership: keeps a copy of `deps`; what its pointers name (store, queue, clock) must outlive it.
-#ifndef SANDSWIM_SERVER_LOOPBACK_SERVER_TEST_UTIL_H_
-#define SANDSWIM_SERVER_LOOPBACK_SERVER_TEST_UTIL_H_
+#ifndef SANDSWIM_SERVER_HTTP_LOOPBACK_SERVER_TEST_UTIL_H_
+#define SANDSWIM_SERVER_HTTP_LOOPBACK_SERVER_TEST_UTIL_H_
 
 #include <httplib.h>
 
@@ -14,8 +14,8 @@
 #include <stdexcept>
 #include <thread>
 
-#include "server/guarded_http_server.h"
-#include "server/routes.h"
+#include "server/http/guarded_http_server.h"
+#include "server/http/routes.h"
 
 namespace sandswim {
 
@@ -52,4 +52,4 @@ class LoopbackServer {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_LOOPBACK_SERVER_TEST_UTIL_H_
+#endif  // SANDSWIM_SERVER_HTTP_LOOPBACK_SERVER_TEST_UTIL_H_

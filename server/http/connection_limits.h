@@ -1,8 +1,8 @@
 // ConnectionLimits: what one HTTP client may hold of the daemon -- its deadlines, threads and
-// connections -- as GuardedHttpServer (server/guarded_http_server.h) enforces them. A header of its
+// connections -- as GuardedHttpServer (server/http/guarded_http_server.h) enforces them. A header of its
 // own so that sandswimd's flags can set them without including the HTTP library.
-#ifndef SANDSWIM_SERVER_CONNECTION_LIMITS_H_
-#define SANDSWIM_SERVER_CONNECTION_LIMITS_H_
+#ifndef SANDSWIM_SERVER_HTTP_CONNECTION_LIMITS_H_
+#define SANDSWIM_SERVER_HTTP_CONNECTION_LIMITS_H_
 
 namespace sandswim {
 
@@ -22,4 +22,4 @@ struct ConnectionLimits {
 
 }  // namespace sandswim
 
-#endif  // SANDSWIM_SERVER_CONNECTION_LIMITS_H_
+#endif  // SANDSWIM_SERVER_HTTP_CONNECTION_LIMITS_H_
