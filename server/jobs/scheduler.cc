@@ -11,6 +11,7 @@
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "server/store/campaigns.h"
+#include "server/store/schedule_table.h"
 #include "server/jobs/submission.h"
 
 namespace sandswim {
@@ -34,11 +35,7 @@ Result<CampaignSchedule> LookUpCampaign(Store& store, const std::string& name, c
 Result<std::optional<double>> LastScheduledDue(Store& store, const std::string& campaign) {
   auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare("SELECT MAX(due_time) FROM campaign_runs WHERE campaign = ? AND trigger = 'schedule'");
-  st.Bind(1, campaign);
-  Result<bool> row = st.Step();
-  if (!row.ok()) return row.status();
-  return *row ? st.OptDouble(0) : std::optional<double>();
+  return schedules::LastScheduledDue(*t, campaign);
 }
 
 int CountDueIn(const CronSchedule& cron, double after, double until, CronZone zone, int cap) {
@@ -118,30 +115,17 @@ Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool ex
   auto t = store_->db().Begin();
   if (!t.ok()) return t.status();
   if (exclusive) {
-    Statement all = t->Prepare("SELECT campaign FROM campaign_schedules WHERE enabled = 1");
-    std::vector<std::string> disable;
-    while (true) {
-      Result<bool> row = all.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      if (!names.count(all.Text(0))) disable.push_back(all.Text(0));
-    }
-    for (const std::string& name : disable) {
-      Statement st = t->Prepare("UPDATE campaign_schedules SET enabled = 0, updated_at = ? WHERE campaign = ?");
-      st.Bind(1, now).Bind(2, name);
-      SANDSWIM_RETURN_IF_ERROR(st.Run());
+    Result<std::vector<std::string>> enabled = schedules::EnabledCampaigns(*t);
+    if (!enabled.ok()) return enabled.status();
+    for (const std::string& name : *enabled) {
+      if (names.count(name)) continue;
+      SANDSWIM_RETURN_IF_ERROR(schedules::DisableSchedule(*t, name, now));
       SANDSWIM_RETURN_IF_ERROR(t->Event(now, "schedule.disabled", "campaign/" + name));
     }
   }
   for (const Row& r : rows) {
     // A new or re-enabled registration starts now; an enabled one keeps its first_seen_at.
-    Statement st = t->Prepare(
-        "INSERT INTO campaign_schedules (campaign, scale, cron, enabled, first_seen_at, updated_at) "
-        "VALUES (?, ?, ?, 1, ?, ?) ON CONFLICT (campaign) DO UPDATE SET scale = excluded.scale, "
-        "cron = excluded.cron, first_seen_at = CASE WHEN enabled = 1 THEN first_seen_at "
-        "ELSE excluded.first_seen_at END, enabled = 1, updated_at = excluded.updated_at");
-    st.Bind(1, r.campaign).Bind(2, r.scale).Bind(3, r.cron).Bind(4, now).Bind(5, now);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    SANDSWIM_RETURN_IF_ERROR(schedules::RegisterSchedule(*t, r.campaign, r.scale, r.cron, now));
     SANDSWIM_RETURN_IF_ERROR(
         t->Event(now, "schedule.registered", "campaign/" + r.campaign, {{"scale", r.scale}, {"cron", r.cron}}));
   }
@@ -153,21 +137,16 @@ Result<std::vector<ScheduledCampaign>> Scheduler::List() {
   {
     auto t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
-    Statement st = t->Prepare(
-        "SELECT s.campaign, s.scale, s.cron, s.enabled, s.first_seen_at, "
-        "(SELECT MAX(due_time) FROM campaign_runs cr WHERE cr.campaign = s.campaign AND cr.trigger = 'schedule') "
-        "FROM campaign_schedules s ORDER BY s.campaign");
-    while (true) {
-      Result<bool> row = st.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
+    Result<std::vector<schedules::ScheduleRow>> rows = schedules::ListSchedules(*t);
+    if (!rows.ok()) return rows.status();
+    for (schedules::ScheduleRow& row : *rows) {
       ScheduledCampaign s;
-      s.campaign = st.Text(0);
-      s.scale = st.Text(1);
-      s.cron = st.Text(2);
-      s.enabled = st.Int(3) != 0;
-      s.first_seen_at = st.Double(4);
-      s.last_due = st.OptDouble(5);
+      s.campaign = std::move(row.campaign);
+      s.scale = std::move(row.scale);
+      s.cron = std::move(row.cron);
+      s.enabled = row.enabled;
+      s.first_seen_at = row.first_seen_at;
+      s.last_due = row.last_due;
       out.push_back(std::move(s));
     }
   }

@@ -36,7 +36,6 @@ MAY_SEE = {
 SQL_NOT_YET_IN_STORE = {
     "server/analysis/drift_report.cc",
     "server/jobs/lease_queue.cc",
-    "server/jobs/scheduler.cc",
     "server/jobs/submission.cc",
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]', re.M)
