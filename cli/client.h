@@ -65,14 +65,14 @@ class DaemonClient {
     (void)scale;
     return Status::NotFound("no drift report for campaign '" + name + "'");
   }
-  // The HTML report (server/report.h) of campaign run `campaign_run_id` when it is > 0, else of
+  // The HTML report (server/analysis/report.h) of campaign run `campaign_run_id` when it is > 0, else of
   // the latest run of campaign `name` (at `scale`, or any scale when empty).
   virtual Result<std::string> CampaignReport(const std::string& name, const std::string& scale,
                                              int64_t campaign_run_id) {
     (void)name, (void)scale, (void)campaign_run_id;
     return Status::Unavailable("this client cannot fetch reports");
   }
-  // GET /api/v1/cost-model: the engine rates the daemon has measured (server/cost_model.h).
+  // GET /api/v1/cost-model: the engine rates the daemon has measured (server/store/cost_model.h).
   virtual Result<nlohmann::json> CostModel() { return Status::Unavailable("this client cannot fetch the cost model"); }
   // POST /api/v1/backup, streamed into the file at `path` (created or truncated): a consistent copy
   // of the daemon's database. Returns the bytes written.

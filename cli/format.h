@@ -1,5 +1,5 @@
 // Format: how `sandswim` shows what the daemon answers. Pure functions from JSON values (the
-// REST API's shapes, server/store.h and server/routes.cc) and plain structs to text: tables,
+// REST API's shapes, server/store/store.h and server/http/routes.cc) and plain structs to text: tables,
 // CSV, progress bars, durations and the ETA. No I/O, no clock, no environment: the caller says
 // whether colour is wanted (RenderOptions) and what time it is.
 //
@@ -102,7 +102,7 @@ struct Snapshot {
   Counts counts;
   std::vector<RunInFlight> running;
   std::vector<RunFailure> failed;
-  // The daemon's ETA (server/cost_model.h: the work left at the measured engine rates), with its
+  // The daemon's ETA (server/store/cost_model.h: the work left at the measured engine rates), with its
   // relative 1-sigma error and what it rests on; absent from a daemon older than the cost model.
   struct DaemonEta {
     double s = 0, rel_error = 0;
@@ -151,7 +151,7 @@ std::string RenderResults(const nlohmann::json& reply, const RenderOptions& opti
 // "sweeps" when any row has them).
 std::string RenderResultsCsv(const nlohmann::json& rows);
 
-// GET /campaign-runs/{id}/claims (server/claim_check.h) as text: a summary line, then each claim
+// GET /campaign-runs/{id}/claims (server/analysis/claim_check.h) as text: a summary line, then each claim
 // as a block: its id, verdict (coloured: holds green, differs red, inconclusive yellow), title and
 // source; what was measured here, part by part; what the paper reports; the points it needed
 // that have no conclusive U_z, and why.

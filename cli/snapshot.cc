@@ -23,7 +23,7 @@ std::string FailureReason(const json& run) {
   return message.empty() ? kind : kind + ": " + message;
 }
 
-// The daemon's "eta" object (server/cost_model.h EtaJson), absent or null: none.
+// The daemon's "eta" object (server/store/cost_model.h EtaJson), absent or null: none.
 std::optional<Snapshot::DaemonEta> EtaFrom(const json& j) {
   auto it = j.find("eta");
   if (it == j.end() || !it->is_object() || !(*it)["s"].is_number()) return std::nullopt;

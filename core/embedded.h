@@ -2,7 +2,7 @@
 // ("templates/bed.in", "templates/drive.in") and shipped campaigns
 // ("templates/campaigns/paper-58.json"), and the claims' calibration tables
 // ("templates/calibration/paper-58.smoke.K1.json", core/claim_rates.h). The migrations and the API document are the daemon's
-// (server/schema_files.h).
+// (server/store/schema_files.h).
 //
 // Thread safety: immutable data.
 #ifndef SANDSWIM_CORE_EMBEDDED_H_

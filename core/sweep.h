@@ -148,7 +148,7 @@ Result<Plan> PlanSweeps(const std::vector<SweepSpec>& sweeps, const Scale& scale
 
 // A submission's plan: its sweeps grouped by scale (in first-appearance order), each group
 // planned together by PlanSweeps (a point shared by sweeps of one scale runs once), the run limit
-// (options.max_runs) shared by the groups. The daemon's submission (server/submission.h) and
+// (options.max_runs) shared by the groups. The daemon's submission (server/jobs/submission.h) and
 // `sandswim expand` both plan with this, so expand shows exactly the runs the daemon would make.
 // InvalidArgument when two sweeps share a name or a scale is unknown. Field paths name the
 // campaign ("campaign", "scale") when `campaign`, else "sweeps[i]" when there are several sweeps.

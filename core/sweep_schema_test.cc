@@ -341,7 +341,7 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
     EXPECT_EQ(ParseCampaign(missing).status().field(), f);
   }
 
-  // The two other submission forms are parsed by the daemon (server/submission.cc); here, only
+  // The two other submission forms are parsed by the daemon (server/jobs/submission.cc); here, only
   // that they are built from the same pieces.
   const json& sub = defs_.at("campaign_submission");
   EXPECT_EQ(Keys(sub), (std::set<std::string>{"campaign", "scale", "force"}));

@@ -9,7 +9,7 @@ packages=(
   libssl-dev zlib1g-dev libbrotli-dev   # cpp-httplib's pkg-config asks for these
   libcli11-dev                          # the CLI's argument parsing
   libgsl-dev                            # the paper's fits, eqs. 8 and 9 and f_c (core/fit.h)
-  libplplot-dev plplot-driver-cairo     # figures as SVG and PNG (server/figures.h; cairo draws the PNGs)
+  libplplot-dev plplot-driver-cairo     # figures as SVG and PNG (server/analysis/figures.h; cairo draws the PNGs)
   libgtest-dev libgmock-dev curl procps
   clang-14 libclang-rt-14-dev           # the fuzz targets (tests/fuzz): libFuzzer and the sanitizers' runtimes
   chromium chromium-driver              # the dashboard's browser tests (tests/browser), headless

@@ -6,7 +6,7 @@
 //                together, so a command that fills one pipe never blocks), `env` added to this
 //                process's environment; killed (SIGKILL) and reaped once `timeout_s` passes, with
 //                what it printed so far. Users: the engine probe, the Slurm client commands, the figure
-//                renderer (server/plot_renderer.h).
+//                renderer (server/analysis/plot_renderer.h).
 //   Spawn        a long-lived child (argv[0] a path) leading a new process group, with default
 //                signal handling (the daemon blocks SIGTERM/SIGINT in its threads to sigwait for
 //                them; a child must not inherit that), then Reap / SignalGroup / Pause to

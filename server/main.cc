@@ -17,16 +17,16 @@
 #include "platform/engine_probe.h"
 #include "platform/tls.h"
 #include "platform/token.h"
-#include "server/drift_report.h"
-#include "server/lease_queue.h"
-#include "server/live_feed.h"
+#include "server/analysis/drift_report.h"
+#include "server/jobs/lease_queue.h"
+#include "server/dashboard/live_feed.h"
 #include "server/local_workers.h"
 #include "server/periodic.h"
-#include "server/pilot_watch.h"
-#include "server/plot_renderer.h"
-#include "server/routes.h"
-#include "server/scheduler.h"
-#include "server/store.h"
+#include "server/jobs/pilot_watch.h"
+#include "server/analysis/plot_renderer.h"
+#include "server/http/routes.h"
+#include "server/jobs/scheduler.h"
+#include "server/store/store.h"
 
 namespace {
 
@@ -427,7 +427,7 @@ int main(int argc, char** argv) {
   if (Status s = RegisterSchedules(scheduler, flags.schedules, clock); !s.ok()) {
     return Die(s, "use --schedule NAME[:SCALE] (e.g. paper-58:smoke) with a campaign that exists, or drop it");
   }
-  // Figures are drawn by sandswim-render in processes of their own (server/plot_renderer.h).
+  // Figures are drawn by sandswim-render in processes of their own (server/analysis/plot_renderer.h).
   sandswim::PosixSubprocesses renderer_processes;
   const std::string renderer_path = sandswim::ExecutableDir() + "/sandswim-render";
   if (access(renderer_path.c_str(), X_OK) != 0) {
@@ -448,7 +448,7 @@ int main(int argc, char** argv) {
   deps.public_reads = flags.public_reads;
   deps.host_policy.allowed_names = flags.allow_hosts;
   deps.max_queued_runs = flags.max_queued_runs;
-  // The dashboard's live view: one snapshot a second however many pages are open (server/live_feed.h).
+  // The dashboard's live view: one snapshot a second however many pages are open (server/dashboard/live_feed.h).
   sandswim::LiveFeed live(store->get(), &clock, /*tick_s=*/1.0, /*max_streams=*/128, /*sweeps=*/50,
                           /*campaign_runs=*/20, flags.live_streams_per_client);
   leases.SetProgressObserver(

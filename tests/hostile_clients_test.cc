@@ -6,7 +6,7 @@
 // other clients and the worker's heartbeats (no lease lost, every run done once), and none of it
 // may reach the database.
 //
-// The daemon's limits (server/guarded_http_server.h): a request head within --http-head-timeout
+// The daemon's limits (server/http/guarded_http_server.h): a request head within --http-head-timeout
 // (10 s; 3 s here, to keep the test short) of its first byte, silence 5 s, a body at 256 KiB/s
 // after 30 s; 192 request threads and 16 more for the worker protocol; idle connections (and
 // heads still arriving) wait in one poller and hold no thread.

@@ -5,7 +5,7 @@
 // lease, a fresh client must be answered, and another client's reads must be served. A closed
 // event stream must give its slot back within seconds.
 //
-// The limits under test (server/guarded_http_server.h, sandswimd --help): idle connections hold
+// The limits under test (server/http/guarded_http_server.h, sandswimd --help): idle connections hold
 // no thread; 64 connections per client, past which only the worker protocol and /healthz are
 // served; threads reserved for those; 8 event streams per client, each writing every 2 s.
 #include <poll.h>

@@ -64,7 +64,7 @@ function pointText(p) {
   return parts.join(' ');
 }
 
-// Counts -> a bar and a line of text with the daemon's ETA (server/cost_model.h: what is left at
+// Counts -> a bar and a line of text with the daemon's ETA (server/store/cost_model.h: what is left at
 // the engine rates it measured, from the first heartbeats; ± its 1-sigma error; its basis on hover).
 function progressHtml(counts, eta) {
   const c = Object.assign({ done: 0, running: 0, queued: 0, failed: 0, cancelled: 0 }, counts || {});

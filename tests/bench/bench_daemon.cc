@@ -36,10 +36,10 @@
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "platform/clock.h"
-#include "server/lease_queue.h"
-#include "server/routes.h"
-#include "server/store.h"
-#include "server/submission.h"
+#include "server/jobs/lease_queue.h"
+#include "server/http/routes.h"
+#include "server/store/store.h"
+#include "server/jobs/submission.h"
 #include "tests/bench/in_process_daemon.h"
 
 namespace {

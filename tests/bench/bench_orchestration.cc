@@ -29,9 +29,9 @@
 #include <nlohmann/json.hpp>
 
 #include "platform/clock.h"
-#include "server/lease_queue.h"
-#include "server/routes.h"
-#include "server/store.h"
+#include "server/jobs/lease_queue.h"
+#include "server/http/routes.h"
+#include "server/store/store.h"
 #include "tests/bench/in_process_daemon.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
@@ -126,7 +126,7 @@ Figures Measure(const fs::path& dir, const std::string& engine, int runs, int sl
   f.runs_per_s = runs / (t1 - t0);
   f.cpu_ms_per_run = (c1 - c0) / runs * 1e3;
 
-  auto t = d.store->BeginRead();
+  auto t = d.store->db().BeginRead();
   if (!t.ok()) Die(t.status().ToString());
   sandswim::Statement st = t->Prepare(
       "SELECT AVG(r.lease_to_start_s), AVG(r.wall_s), AVG(l.completed_at - l.granted_at) "

@@ -20,12 +20,12 @@
 #include "core/sweep.h"
 #include "platform/clock.h"
 #include "platform/subprocess.h"
-#include "server/claim_check.h"
-#include "server/lease_queue.h"
-#include "server/plot_renderer.h"
-#include "server/report.h"
-#include "server/store.h"
-#include "server/submission.h"
+#include "server/analysis/claim_check.h"
+#include "server/jobs/lease_queue.h"
+#include "server/analysis/plot_renderer.h"
+#include "server/analysis/report.h"
+#include "server/store/store.h"
+#include "server/jobs/submission.h"
 
 namespace {
 

@@ -16,9 +16,9 @@
 #include <thread>
 
 #include "platform/clock.h"
-#include "server/lease_queue.h"
-#include "server/routes.h"
-#include "server/store.h"
+#include "server/jobs/lease_queue.h"
+#include "server/http/routes.h"
+#include "server/store/store.h"
 
 namespace sandswim::bench {
 

@@ -8,9 +8,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/keys.h"
-#include "server/lease_queue.h"
-#include "server/store.h"
-#include "server/submission.h"
+#include "server/jobs/lease_queue.h"
+#include "server/store/store.h"
+#include "server/jobs/submission.h"
 
 namespace sandswim::bench {
 

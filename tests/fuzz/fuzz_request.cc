@@ -1,9 +1,9 @@
 // Fuzz target: the REST request path. The input is what a client sends on one connection --
 // request lines, headers, bodies, one request after another -- written into one end of a
 // socketpair, whose other end sandswimd's own server serves as it serves an accepted connection
-// (server/guarded_http_server.h: its deadlines, its keep-alive loop), with the HTTP library's
+// (server/http/guarded_http_server.h: its deadlines, its keep-alive loop), with the HTTP library's
 // parser (as Debian packages it: not instrumented, so coverage is sandswimd's own code) and
-// sandswimd's routes, pre-routing checks, auth and handlers (server/routes.h) on a real SQLite file
+// sandswimd's routes, pre-routing checks, auth and handlers (server/http/routes.h) on a real SQLite file
 // that holds a small sweep, so that ids 1 and 2 name a sweep, its runs and its bed. What the daemon
 // answers is read and discarded; a crash, a sanitizer report or an exception that escapes is a
 // finding. A 5xx is not: it is a problem document, and the store's own faults are 5xx by design.
@@ -26,10 +26,10 @@
 #include <spdlog/spdlog.h>
 
 #include "platform/clock.h"
-#include "server/guarded_http_server.h"
-#include "server/lease_queue.h"
-#include "server/routes.h"
-#include "server/store.h"
+#include "server/http/guarded_http_server.h"
+#include "server/jobs/lease_queue.h"
+#include "server/http/routes.h"
+#include "server/store/store.h"
 
 namespace {
 

@@ -54,11 +54,11 @@ batches() {  # batches NAME SOURCES...: appends each batch's (unity source, obje
     jobs+=("$unity" "$obj")
   done
 }
-library_sources() {  # library_sources DIR: its .cc files but tests and programs' mains
+library_sources() {  # library_sources DIR...: their .cc files but tests and programs' mains
   local f
-  for f in "$1"/*.cc; do
-    case "$f" in *_test.cc | */main.cc | */render_main.cc) continue ;; esac
-    printf '%s\n' "$f"
+  for f in $(printf '%s/*.cc\n' "${@%/}"); do
+    case "$f" in *_test.cc | */main.cc | */render_main.cc | */room_link_check.cc) continue ;; esac
+    [ -f "$f" ] && printf '%s\n' "$f"
   done
 }
 targets=(${SANDSWIM_FUZZ_TARGETS:-fuzz_sweep fuzz_dump fuzz_engine_log fuzz_request})
@@ -68,7 +68,7 @@ jobs=("$build/templates/sandswim_templates_embedded.cc" "$out/obj/templates_embe
 mapfile -t core_sources < <(library_sources "$root/core")
 batches core objs "${core_sources[@]}"
 if [[ " ${targets[*]} " == *" fuzz_request "* ]]; then
-  mapfile -t server_sources < <(library_sources "$root/platform"; library_sources "$root/server")
+  mapfile -t server_sources < <(library_sources "$root/platform"; library_sources "$root/server" "$root"/server/*/)
   batches server server_objs "${server_sources[@]}"
   jobs+=("$build/templates/sandswim_schema_embedded.cc" "$out/obj/schema_embedded.o"
          "$build/server/sandswim_dashboard_embedded.cc" "$out/obj/dashboard_embedded.o")

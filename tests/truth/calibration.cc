@@ -13,9 +13,9 @@
 #include "core/engine_log.h"
 #include "core/text.h"
 #include "core/trajectory.h"
-#include "server/claim_check.h"
-#include "server/drift_report.h"
-#include "server/report.h"
+#include "server/analysis/claim_check.h"
+#include "server/analysis/drift_report.h"
+#include "server/analysis/report.h"
 #include "workers/job_outcome.h"
 
 namespace sandswim::truth {

@@ -10,7 +10,7 @@
 // FollowRun, on the samples so far, every `follow_every_s` of simulated time and at each whole
 // block) and asked to stop, which takes effect `follow_lag_s` later; the result is
 // AnalyzeRun(samples, RunInputsFrom(drive, log, target)) as in JudgeJob; the rows of each sweep go
-// through the daemon's own pure path (server/report.h AnalyzeSweepResults, server/claim_check.h
+// through the daemon's own pure path (server/analysis/report.h AnalyzeSweepResults, server/analysis/claim_check.h
 // ClaimSweepOf) into a ClaimInput, then EvaluateClaims.
 //
 // Thread safety: a Calibrator is immutable after construction; Simulate may run on many threads.
@@ -124,7 +124,7 @@ std::string CalibrationMarkdown(const std::vector<LawTally>& tallies, const Desi
 nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Calibrator& cal, const Noise& noise);
 nlohmann::json NoiseToJson(const Noise& noise);
 
-// The drift report's false alarms (server/drift_report.h CompareWithPrevious, derived tolerance):
+// The drift report's false alarms (server/analysis/drift_report.h CompareWithPrevious, derived tolerance):
 // two nights of the same campaign on the same beds, same law, new run noise; per run and per point.
 struct DriftAlarms {
   int64_t runs_compared = 0, runs_drifted = 0, points_compared = 0, points_drifted = 0;

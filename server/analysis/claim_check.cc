@@ -1,0 +1,161 @@
+#include "server/analysis/claim_check.h"
+
+#include <algorithm>
+#include <map>
+#include <set>
+#include <utility>
+
+#include "server/store/campaigns.h"
+
+namespace sandswim {
+namespace {
+
+// The claims of the campaign a run belongs to, and where they come from.
+Status FindClaims(Store& store, const std::string& campaign, CampaignRunClaims& out, std::vector<Claim>& claims,
+                  nlohmann::json& definition) {
+  Result<CatalogueEntry> entry = FindCampaign(store, campaign);
+  if (!entry.ok()) {
+    if (entry.status().code() != StatusCode::kNotFound) return entry.status();
+    out.claims_source = "none";
+    out.note = "the campaign '" + campaign + "' is no longer known: it states no claims";
+    return Status::Ok();
+  }
+  claims = entry->campaign.claims;
+  definition = entry->definition;
+  out.claims_source = entry->stored ? "stored" : "builtin";
+  if (entry->stored && !entry->definition.contains("claims")) {
+    // A built-in campaign recorded when first submitted, before its file stated claims.
+    Result<Campaign> builtin = BuiltinCampaign(campaign);
+    if (builtin.ok() && !builtin->claims.empty()) {
+      claims = builtin->claims;
+      out.claims_source = "builtin";
+      out.note = "the stored definition of '" + campaign +
+                 "' predates claims: they are the built-in campaign file's, whose sweeps bear the same names";
+    }
+  }
+  if (claims.empty()) {
+    out.claims_source = "none";
+    if (out.note.empty()) out.note = "the campaign '" + campaign + "' states no claims";
+  }
+  return Status::Ok();
+}
+
+// The last error of each failed run of a sweep, "kind: message".
+Result<std::map<int64_t, std::string>> FailuresOf(Store& store, int64_t sweep_id) {
+  std::map<int64_t, std::string> out;
+  RunFilter filter;
+  filter.sweep_id = sweep_id;
+  filter.state = "failed";
+  filter.limit = 1000;
+  while (true) {
+    Result<RunPage> page = store.ListRuns(filter);
+    if (!page.ok()) return page.status();
+    for (const RunSummary& r : page->runs)
+      out[r.id] = r.last_error ? r.last_error->kind + ": " + r.last_error->message : std::string();
+    if (!page->next_cursor) break;
+    filter.after_id = *page->next_cursor;
+  }
+  return out;
+}
+
+}  // namespace
+
+ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultRow>& rows,
+                        const std::map<int64_t, std::string>& failures) {
+  ClaimSweep sweep;
+  sweep.name = analysis.info.name;
+  sweep.samples = analysis.samples;
+  sweep.fits = analysis.fits;
+  for (const ResultRow& row : rows) {
+    ClaimRun run;
+    run.run_id = row.run_id;
+    run.point = row.point;
+    run.replicate = row.replicate;
+    run.state = row.state;
+    // A requeued run's old result is not its result.
+    if (row.state == "done" && row.result) run.result = row.result->result;
+    if (auto f = failures.find(row.run_id); f != failures.end()) run.failure = f->second;
+    sweep.runs.push_back(std::move(run));
+  }
+  return sweep;
+}
+
+Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id) {
+  Result<CampaignRunInfo> info = store.GetCampaignRun(campaign_run_id);
+  if (!info.ok()) return info.status();
+  Result<std::vector<SweepAnalysis>> analyses = AnalyzeCampaignRun(store, *info);
+  if (!analyses.ok()) return analyses.status();
+  return CheckClaims(store, *info, *analyses);
+}
+
+Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
+                                      const std::vector<SweepAnalysis>& analyses) {
+  CampaignRunClaims out;
+  out.campaign_run = campaign_run;
+  std::vector<Claim> claims;
+  nlohmann::json definition;
+  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run.campaign, out, claims, definition));
+  if (claims.empty()) return out;
+
+  ClaimInput input;
+  input.scale = campaign_run.scale;
+  std::set<int64_t> bed_ids;
+  for (const SweepAnalysis& a : analyses) {
+    Result<std::vector<ResultRow>> rows = store.SweepResults(a.info.id);
+    if (!rows.ok()) return rows.status();
+    Result<std::map<int64_t, std::string>> failures = FailuresOf(store, a.info.id);
+    if (!failures.ok()) return failures.status();
+    for (const ResultRow& row : *rows) bed_ids.insert(row.bed_id);
+    input.sweeps.push_back(ClaimSweepOf(a, *rows, *failures));
+  }
+  for (int64_t id : bed_ids) {
+    Result<BedView> bed = store.GetBed(id);
+    if (!bed.ok()) return bed.status();
+    ClaimBed b;
+    b.id = bed->id;
+    b.replicate = bed->replicate;
+    b.state = bed->state;
+    if (bed->state == "done" && bed->result) {
+      b.grains = bed->result->grains;
+      b.bed_height = bed->result->bed_height;
+    }
+    input.beds.push_back(b);
+  }
+  out.verdicts = EvaluateClaims(claims, input);
+  out.design = DesignOf(campaign_run.campaign, definition, claims, input);
+  AttachClaimRates(out.verdicts, out.design);
+  return out;
+}
+
+DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition, const std::vector<Claim>& claims,
+                   const ClaimInput& input) {
+  DesignKey key;
+  key.campaign = campaign;
+  key.definition_hash = CampaignDefinitionHash(definition, claims);
+  key.scale = input.scale;
+  // K: the beds the campaign run's points ran on (a point runs on every replicate bed).
+  int beds = 1;
+  for (const ClaimSweep& s : input.sweeps)
+    for (const ClaimRun& r : s.runs) beds = std::max(beds, r.replicate + 1);
+  key.beds = beds;
+  key.bed_sd_rel = BedPriorOf(key.scale, beds);
+  return key;
+}
+
+nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
+  nlohmann::json claims = nlohmann::json::array();
+  for (const ClaimVerdict& v : c.verdicts) claims.push_back(ClaimVerdictToJson(v));
+  const VerdictCounts n = CountVerdicts(c.verdicts);
+  const nlohmann::json counts = {{"holds", n.holds}, {"differs", n.differs}, {"inconclusive", n.inconclusive}};
+  return {{"campaign_run_id", c.campaign_run.id},
+          {"campaign", c.campaign_run.campaign},
+          {"scale", c.campaign_run.scale},
+          {"claims_source", c.claims_source},
+          {"note", c.note},
+          {"counts", counts},
+          {"design", DesignKeyToJson(c.design)},
+          {"design_text", DescribeDesign(c.design)},
+          {"claims", claims}};
+}
+
+}  // namespace sandswim

@@ -1,0 +1,66 @@
+// ClaimCheck: the verdicts of a campaign's claims (core/claims.h) for one campaign run, read from the
+// Store: the claims of the campaign as the catalogue has it (server/store/campaigns.h), each sweep's
+// analysis (AnalyzeSweep: its samples over replicate beds and its fits), every run of each sweep
+// with its state, result and last error, and the beds those runs use. Served by
+// GET /api/v1/campaign-runs/{id}/claims, `sandswim check cr:ID` and the first section of the
+// report.
+//
+// Where the claims come from: the campaign's stored definition; a built-in campaign recorded
+// before its file stated claims (the stored copy has no "claims") takes the built-in file's claims,
+// and says so in `claims_source`. A campaign that is gone states none.
+//
+// Every verdict carries its rule's error rates at the campaign run's design (DesignOf,
+// core/claim_rates.h AttachClaimRates), or says it is not calibrated there.
+//
+// Thread safety: free functions over a thread-safe Store.
+#ifndef SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_
+#define SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/claim_rates.h"
+#include "core/claims.h"
+#include "core/status.h"
+#include "server/analysis/sweep_analysis.h"
+#include "server/store/store.h"
+
+namespace sandswim {
+
+struct CampaignRunClaims {
+  CampaignRunInfo campaign_run;
+  std::string claims_source;  // "stored" | "builtin" | "none"
+  std::string note;           // e.g. why the claims come from the built-in file
+  std::vector<ClaimVerdict> verdicts;
+  DesignKey design;  // what the verdicts' error rates are looked up by (core/claim_rates.h)
+};
+// {"campaign_run_id","campaign","scale","claims_source","note","counts":{"holds","differs",
+//  "inconclusive"},"design":DesignKeyToJson,"design_text","claims":[ClaimVerdictToJson...]}
+nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c);
+
+// NotFound for an unknown campaign run.
+Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id);
+// The same with the run's sweeps already analysed (`analyses`, one per sweep of the campaign run,
+// as AnalyzeSweep made them): the report has them at hand.
+Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
+                                      const std::vector<SweepAnalysis>& analyses);
+
+// The pure part: what the claims see of one sweep -- its analysis's samples and fits, and every
+// run of its result rows with its state, result and last error (`failures`: run id -> "kind:
+// message" of its failed runs). The truth engine's calibration (tests/truth/) assembles its
+// ClaimInput with it, as CheckClaims does.
+// The design a campaign run's verdicts were decided at: its campaign's definition (with the
+// claims it was judged by), its scale, and K, the most replicate beds a point of it ran on.
+DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition, const std::vector<Claim>& claims,
+                   const ClaimInput& input);
+
+ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultRow>& rows,
+                        const std::map<int64_t, std::string>& failures);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_

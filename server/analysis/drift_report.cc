@@ -1,0 +1,490 @@
+#include "server/analysis/drift_report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <utility>
+
+#include "core/aggregate.h"
+#include "core/sweep.h"
+#include "server/store/campaigns.h"
+
+namespace sandswim {
+namespace {
+
+using json = nlohmann::json;
+
+template <typename T>
+json OrNull(const std::optional<T>& v) {
+  return v ? json(*v) : json(nullptr);
+}
+
+template <typename T>
+std::optional<T> OptField(const json& j, const char* name) {
+  auto it = j.find(name);
+  if (it == j.end() || it->is_null()) return std::nullopt;
+  return it->get<T>();
+}
+
+std::string PointIdentity(const json& point) { return point.dump(); }
+// A run's identity across reruns: its drive and its replicate bed (replicate 0 reads as reports
+// made before replicates did).
+std::string RunIdentity(const DriftPoint& p) {
+  return PointIdentity(p.point) + (p.replicate == 0 ? "" : "#" + std::to_string(p.replicate));
+}
+
+// The 95 % two-sided bound on the difference of two independent estimates.
+std::optional<double> DerivedTolerance(const std::optional<double>& se, const std::optional<double>& se_previous) {
+  if (!se || !se_previous) return std::nullopt;
+  return 1.96 * std::sqrt(*se * *se + *se_previous * *se_previous);
+}
+
+// A report's rows grouped by point and aggregated over their replicate beds (comparable rates
+// only: conclusive, with a value).
+std::map<std::string, std::pair<json, ReplicateAggregate>> AggregatesOf(const std::vector<DriftPoint>& rows) {
+  std::map<std::string, std::pair<json, std::vector<ReplicateValue>>> groups;
+  for (const DriftPoint& p : rows) {
+    auto& g = groups[PointIdentity(p.point)];
+    g.first = p.point;
+    ReplicateValue v;
+    v.run_id = p.run_id;
+    v.replicate = p.replicate;
+    v.state = p.state;
+    v.conclusive = !p.inconclusive && p.uz.has_value();
+    v.uz = p.uz;
+    v.uz_stderr = p.uz_stderr;
+    g.second.push_back(v);
+  }
+  std::map<std::string, std::pair<json, ReplicateAggregate>> out;
+  for (auto& [id, g] : groups) out[id] = {g.first, AggregateReplicates(std::move(g.second))};
+  return out;
+}
+
+// The U_z analysis version of each point's conclusive rates, by replicate bed.
+using BedAnalyses = std::map<int, int>;
+std::map<std::string, BedAnalyses> AnalysesOf(const std::vector<DriftPoint>& rows) {
+  std::map<std::string, BedAnalyses> out;
+  for (const DriftPoint& p : rows)
+    if (p.uz && !p.inconclusive) out[PointIdentity(p.point)][p.replicate] = p.analysis;
+  return out;
+}
+
+// Two means over a point's beds measure the same thing when one U_z analysis made every rate in
+// both, or when both hold the same beds, each made by the same analysis in both (a bed re-analysed
+// in one and not the other changes its mean by the estimator, not by the runs).
+bool SameEstimator(const BedAnalyses& now, const BedAnalyses& before) {
+  std::set<int> all;
+  for (const auto& [bed, analysis] : now) all.insert(analysis);
+  for (const auto& [bed, analysis] : before) all.insert(analysis);
+  return all.size() == 1 || now == before;
+}
+
+std::string Tolerance(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// The campaign's drift tolerance: a stored definition's column, else the builtin campaign's.
+Result<double> ToleranceOf(Store& store, const std::string& campaign) {
+  Result<CatalogueEntry> found = FindCampaign(store, campaign);
+  if (found.ok()) return found->drift_tolerance_mps;
+  if (found.status().code() == StatusCode::kNotFound) return 0.0;  // the campaign is gone: flag every change
+  return found.status();
+}
+
+Result<std::optional<DriftReport>> ReadOne(Statement& st) {
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return std::optional<DriftReport>();
+  try {
+    return std::optional<DriftReport>(json::parse(st.Text(0)).get<DriftReport>());
+  } catch (const json::exception& e) {
+    return Status::Corruption(std::string("a stored drift report does not parse: ") + e.what());
+  }
+}
+
+// The campaign runs without a report whose runs are all terminal, oldest first.
+Result<std::vector<int64_t>> FinishedWithoutReport(Store& store) {
+  auto t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT cr.id FROM campaign_runs cr "
+      "WHERE NOT EXISTS (SELECT 1 FROM drift_reports d WHERE d.campaign_run_id = cr.id) "
+      "  AND NOT EXISTS (SELECT 1 FROM sweeps s JOIN sweep_runs sr ON sr.sweep_id = s.id "
+      "                  JOIN runs r ON r.id = sr.run_id "
+      "                  WHERE s.campaign_run_id = cr.id AND r.state IN ('queued', 'running')) "
+      "ORDER BY cr.id");
+  std::vector<int64_t> ids;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    ids.push_back(st.Int(0));
+  }
+  return ids;
+}
+
+Result<std::optional<DriftReport>> PreviousReport(Store& store, const std::string& campaign, const std::string& scale,
+                                                  int64_t before_id) {
+  auto t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT report FROM drift_reports WHERE campaign = ? AND scale = ? AND campaign_run_id < ? "
+      "ORDER BY campaign_run_id DESC LIMIT 1");
+  st.Bind(1, campaign).Bind(2, scale).Bind(3, before_id);
+  return ReadOne(st);
+}
+
+// The campaign run's distinct runs as they stand now.
+Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, double now) {
+  DriftReport report;
+  report.campaign_run_id = info.id;
+  report.campaign = info.campaign;
+  report.scale = info.scale;
+  report.trigger = info.trigger;
+  report.due_time = info.due_time;
+  report.campaign_run_created_at = info.created_at;
+  report.created_at = now;
+  auto tolerance = ToleranceOf(store, info.campaign);
+  if (!tolerance.ok()) return tolerance.status();
+  report.tolerance_mps = *tolerance;
+  std::map<int64_t, bool> seen;
+  for (int64_t sweep_id : info.sweep_ids) {
+    auto rows = store.SweepResults(sweep_id);
+    if (!rows.ok()) return rows.status();
+    for (const ResultRow& row : *rows) {
+      if (!seen.emplace(row.run_id, true).second) continue;
+      DriftPoint p;
+      p.point = PointToJson(row.point);
+      p.replicate = row.replicate;
+      p.run_id = row.run_id;
+      p.key = row.key;
+      p.state = row.state;
+      if (row.state == "done" && row.result) {
+        p.uz = row.result->result.uz;
+        p.uz_stderr = row.result->result.uz_stderr;
+        // Only conclusive rates are compared: an inconclusive one is too short to judge a change by.
+        p.inconclusive = !row.result->result.conclusive || !p.uz;
+        p.analysis = row.result->result.analysis;
+        p.reused = row.result->created_at < info.created_at;
+      }
+      report.rows.push_back(std::move(p));
+    }
+  }
+  return report;
+}
+
+}  // namespace
+
+void to_json(json& j, const DriftPoint& p) {
+  j = {{"point", p.point},
+       {"replicate", p.replicate},
+       {"run_id", p.run_id},
+       {"key", p.key},
+       {"state", p.state},
+       {"uz", OrNull(p.uz)},
+       {"uz_previous", OrNull(p.uz_previous)},
+       {"difference", OrNull(p.difference)},
+       {"drifted", p.drifted},
+       {"reused", p.reused},
+       {"inconclusive", p.inconclusive},
+       {"analysis", p.analysis},
+       {"estimator_changed", p.estimator_changed},
+       {"uz_stderr", OrNull(p.uz_stderr)},
+       {"uz_stderr_previous", OrNull(p.uz_stderr_previous)},
+       {"tolerance", OrNull(p.tolerance)},
+       {"no_error", p.no_error}};
+}
+
+void from_json(const json& j, DriftPoint& p) {
+  p.point = j.at("point");
+  p.run_id = j.at("run_id").get<int64_t>();
+  p.key = j.value("key", "");
+  p.state = j.value("state", "");
+  p.uz = OptField<double>(j, "uz");
+  p.uz_previous = OptField<double>(j, "uz_previous");
+  p.difference = OptField<double>(j, "difference");
+  p.drifted = j.value("drifted", false);
+  p.reused = j.value("reused", false);
+  p.inconclusive = j.value("inconclusive", false);
+  // Reports stored before the field existed were all made by the first analysis.
+  p.analysis = j.value("analysis", p.uz ? 1 : 0);
+  p.estimator_changed = j.value("estimator_changed", false);
+  p.replicate = j.value("replicate", 0);
+  p.uz_stderr = OptField<double>(j, "uz_stderr");
+  p.uz_stderr_previous = OptField<double>(j, "uz_stderr_previous");
+  p.tolerance = OptField<double>(j, "tolerance");
+  p.no_error = j.value("no_error", false);
+}
+
+void to_json(json& j, const DriftAggregate& a) {
+  j = {{"point", a.point},
+       {"replicates", a.replicates},
+       {"conclusive", a.conclusive},
+       {"replicates_previous", a.replicates_previous},
+       {"conclusive_previous", a.conclusive_previous},
+       {"uz_mean", OrNull(a.uz_mean)},
+       {"uz_stderr", OrNull(a.uz_stderr)},
+       {"uz_mean_previous", OrNull(a.uz_mean_previous)},
+       {"uz_stderr_previous", OrNull(a.uz_stderr_previous)},
+       {"difference", OrNull(a.difference)},
+       {"tolerance", OrNull(a.tolerance)},
+       {"drifted", a.drifted},
+       {"estimator_changed", a.estimator_changed}};
+}
+
+void from_json(const json& j, DriftAggregate& a) {
+  a.point = j.at("point");
+  a.replicates = j.value("replicates", 0);
+  a.conclusive = j.value("conclusive", 0);
+  a.replicates_previous = j.value("replicates_previous", 0);
+  a.conclusive_previous = j.value("conclusive_previous", 0);
+  a.uz_mean = OptField<double>(j, "uz_mean");
+  a.uz_stderr = OptField<double>(j, "uz_stderr");
+  a.uz_mean_previous = OptField<double>(j, "uz_mean_previous");
+  a.uz_stderr_previous = OptField<double>(j, "uz_stderr_previous");
+  a.difference = OptField<double>(j, "difference");
+  a.tolerance = OptField<double>(j, "tolerance");
+  a.drifted = j.value("drifted", false);
+  a.estimator_changed = j.value("estimator_changed", false);
+}
+
+void to_json(json& j, const DriftReport& r) {
+  j = {{"campaign_run_id", r.campaign_run_id},
+       {"campaign", r.campaign},
+       {"scale", r.scale},
+       {"trigger", r.trigger},
+       {"due_time", OrNull(r.due_time)},
+       {"campaign_run_created_at", r.campaign_run_created_at},
+       {"previous_campaign_run_id", OrNull(r.previous_campaign_run_id)},
+       {"tolerance_mps", r.tolerance_mps},
+       {"created_at", r.created_at},
+       {"points", r.points},
+       {"reused", r.reused},
+       {"ran", r.ran},
+       {"missing", r.missing},
+       {"inconclusive", r.inconclusive},
+       {"estimator_changed", r.estimator_changed},
+       {"compared", r.compared},
+       {"drifted", r.drifted},
+       {"no_error", r.no_error},
+       {"summary", r.summary},
+       {"rows", r.rows},
+       {"aggregates", r.aggregates},
+       {"points_compared", r.points_compared},
+       {"points_drifted", r.points_drifted}};
+}
+
+void from_json(const json& j, DriftReport& r) {
+  r.campaign_run_id = j.at("campaign_run_id").get<int64_t>();
+  r.campaign = j.at("campaign").get<std::string>();
+  r.scale = j.at("scale").get<std::string>();
+  r.trigger = j.value("trigger", "manual");
+  r.due_time = OptField<double>(j, "due_time");
+  r.campaign_run_created_at = j.value("campaign_run_created_at", 0.0);
+  r.previous_campaign_run_id = OptField<int64_t>(j, "previous_campaign_run_id");
+  r.tolerance_mps = j.value("tolerance_mps", 0.0);
+  r.created_at = j.value("created_at", 0.0);
+  r.points = j.value("points", int64_t{0});
+  r.reused = j.value("reused", int64_t{0});
+  r.ran = j.value("ran", int64_t{0});
+  r.missing = j.value("missing", int64_t{0});
+  r.inconclusive = j.value("inconclusive", int64_t{0});
+  r.estimator_changed = j.value("estimator_changed", int64_t{0});
+  r.compared = j.value("compared", int64_t{0});
+  r.drifted = j.value("drifted", int64_t{0});
+  r.summary = j.value("summary", "");
+  r.rows = j.value("rows", std::vector<DriftPoint>{});
+  r.no_error = j.value("no_error", int64_t{0});
+  r.aggregates = j.value("aggregates", std::vector<DriftAggregate>{});
+  r.points_compared = j.value("points_compared", int64_t{0});
+  r.points_drifted = j.value("points_drifted", int64_t{0});
+}
+
+void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone) {
+  const bool fixed = report.tolerance_mps > 0;
+  // The tolerance a difference is held to: the campaign's, else its 95 % bound (none: no error).
+  auto tolerance_for = [&](const std::optional<double>& se, const std::optional<double>& se_previous) {
+    return fixed ? std::optional<double>(report.tolerance_mps) : DerivedTolerance(se, se_previous);
+  };
+  std::map<std::string, const DriftPoint*> before;
+  if (previous != nullptr) {
+    report.previous_campaign_run_id = previous->campaign_run_id;
+    for (const DriftPoint& p : previous->rows) before[RunIdentity(p)] = &p;
+  }
+  report.points = static_cast<int64_t>(report.rows.size());
+  report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
+  report.estimator_changed = report.no_error = 0;
+  for (DriftPoint& p : report.rows) {
+    p.uz_previous.reset();
+    p.uz_stderr_previous.reset();
+    p.difference.reset();
+    p.tolerance.reset();
+    p.drifted = false;
+    p.estimator_changed = false;
+    p.no_error = false;
+    if (!p.uz && !p.inconclusive) {
+      ++report.missing;
+      continue;
+    }
+    ++(p.reused ? report.reused : report.ran);
+    if (p.inconclusive) {
+      ++report.inconclusive;
+      continue;
+    }
+    auto it = before.find(RunIdentity(p));
+    if (it == before.end() || !it->second->uz || it->second->inconclusive) continue;
+    if (it->second->analysis != p.analysis) {
+      p.estimator_changed = true;
+      ++report.estimator_changed;
+      continue;
+    }
+    p.uz_previous = it->second->uz;
+    p.uz_stderr_previous = it->second->uz_stderr;
+    p.difference = *p.uz - *p.uz_previous;
+    p.tolerance = tolerance_for(p.uz_stderr, p.uz_stderr_previous);
+    if (!p.tolerance) {
+      p.no_error = true;
+      ++report.no_error;
+      continue;
+    }
+    p.drifted = std::fabs(*p.difference) > *p.tolerance;
+    ++report.compared;
+    if (p.drifted) ++report.drifted;
+  }
+
+  // Points over their replicate beds. Two means are compared only when they share their
+  // estimator (SameEstimator).
+  report.aggregates.clear();
+  report.points_compared = report.points_drifted = 0;
+  bool replicated = false;
+  std::map<std::string, std::pair<json, ReplicateAggregate>> earlier;
+  std::map<std::string, BedAnalyses> analyses_now = AnalysesOf(report.rows), analyses_before;
+  if (previous != nullptr) {
+    earlier = AggregatesOf(previous->rows);
+    analyses_before = AnalysesOf(previous->rows);
+  }
+  std::vector<std::string> order;
+  for (const DriftPoint& p : report.rows) {
+    const std::string id = PointIdentity(p.point);
+    if (std::find(order.begin(), order.end(), id) == order.end()) order.push_back(id);
+  }
+  auto now = AggregatesOf(report.rows);
+  for (const std::string& id : order) {
+    const auto& [point, agg] = now.at(id);
+    DriftAggregate a;
+    a.point = point;
+    a.replicates = agg.replicates;
+    a.conclusive = agg.conclusive;
+    a.uz_mean = agg.uz_mean;
+    a.uz_stderr = agg.uz_stderr;
+    replicated = replicated || agg.replicates > 1;
+    if (auto it = earlier.find(id); it != earlier.end()) {
+      const ReplicateAggregate& b = it->second.second;
+      a.replicates_previous = b.replicates;
+      a.conclusive_previous = b.conclusive;
+      a.uz_mean_previous = b.uz_mean;
+      a.uz_stderr_previous = b.uz_stderr;
+      a.estimator_changed = a.uz_mean && a.uz_mean_previous && !SameEstimator(analyses_now[id], analyses_before[id]);
+      if (a.uz_mean && a.uz_mean_previous && !a.estimator_changed) {
+        a.difference = *a.uz_mean - *a.uz_mean_previous;
+        a.tolerance = tolerance_for(a.uz_stderr, a.uz_stderr_previous);
+        if (a.tolerance) {
+          a.drifted = std::fabs(*a.difference) > *a.tolerance;
+          ++report.points_compared;
+          if (a.drifted) ++report.points_drifted;
+        }
+      }
+    }
+    report.aggregates.push_back(std::move(a));
+  }
+
+  std::string head = report.campaign + "@" + report.scale + " ";
+  if (report.trigger == "schedule" && report.due_time) {
+    head += "night " + FormatWallMinute(*report.due_time, zone);
+  } else {
+    head += "rerun cr:" + std::to_string(report.campaign_run_id) + " (" + report.trigger + ", " +
+            FormatWallMinute(report.campaign_run_created_at, zone) + ")";
+  }
+  std::string line =
+      head + ": " + std::to_string(report.points) + " points, " + std::to_string(report.reused) + " reused, " +
+      std::to_string(report.ran) + " run, " + std::to_string(report.drifted) +
+      (fixed ? " drifted beyond " + Tolerance(report.tolerance_mps) + " m/s" : " drifted beyond its 95 % bound");
+  if (report.inconclusive > 0) line += ", " + std::to_string(report.inconclusive) + " inconclusive (not compared)";
+  if (report.estimator_changed > 0) {
+    line += ", " + std::to_string(report.estimator_changed) + " not compared (U_z analysis changed)";
+  }
+  if (report.no_error > 0) line += ", " + std::to_string(report.no_error) + " not compared (no error)";
+  if (report.missing > 0) line += ", " + std::to_string(report.missing) + " failed or cancelled";
+  if (replicated) {
+    line += "; " + std::to_string(report.points_drifted) + " of " + std::to_string(report.points_compared) +
+            " points' means over their beds drifted";
+  }
+  if (previous == nullptr) line += "; first report, nothing to compare";
+  report.summary = line;
+}
+
+Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now, CronZone zone) {
+  auto ids = FinishedWithoutReport(store);
+  if (!ids.ok()) return ids.status();
+  std::vector<DriftReport> made;
+  for (int64_t id : *ids) {
+    auto info = store.GetCampaignRun(id);
+    if (!info.ok()) return info.status();
+    auto report = CurrentState(store, *info, now);
+    if (!report.ok()) return report.status();
+    auto previous = PreviousReport(store, info->campaign, info->scale, id);
+    if (!previous.ok()) return previous.status();
+    CompareWithPrevious(*report, previous->has_value() ? &**previous : nullptr, zone);
+
+    auto t = store.db().Begin();
+    if (!t.ok()) return t.status();
+    Statement st = t->Prepare(
+        "INSERT INTO drift_reports (campaign_run_id, campaign, scale, previous_campaign_run_id, "
+        "tolerance_mps, points, reused, ran, missing, drifted, report, created_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (campaign_run_id) DO NOTHING");
+    st.Bind(1, report->campaign_run_id).Bind(2, report->campaign).Bind(3, report->scale);
+    st.Bind(4, report->previous_campaign_run_id).Bind(5, report->tolerance_mps);
+    st.Bind(6, report->points).Bind(7, report->reused).Bind(8, report->ran);
+    st.Bind(9, report->missing).Bind(10, report->drifted);
+    st.Bind(11, json(*report).dump()).Bind(12, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    if (t->Changes() > 0) {
+      SANDSWIM_RETURN_IF_ERROR(t->Event(now, "campaign_run.drift_report", "campaign_run/" + std::to_string(id),
+                                        {{"drifted", report->drifted}, {"summary", report->summary}}));
+    }
+    SANDSWIM_RETURN_IF_ERROR(t->Commit());
+    made.push_back(std::move(report).value());
+  }
+  return made;
+}
+
+Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign_run_id) {
+  auto t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare("SELECT report FROM drift_reports WHERE campaign_run_id = ?");
+  st.Bind(1, campaign_run_id);
+  return ReadOne(st);
+}
+
+Result<std::optional<DriftReport>> LatestDriftReport(Store& store, const std::string& campaign,
+                                                     const std::string& scale) {
+  auto t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT report FROM drift_reports WHERE campaign = ? AND (? = '' OR scale = ?) "
+      "ORDER BY campaign_run_id DESC LIMIT 1");
+  st.Bind(1, campaign).Bind(2, scale).Bind(3, scale);
+  return ReadOne(st);
+}
+
+Result<std::optional<DriftReport>> LastDriftFor(Store& store, const CampaignRunInfo& run) {
+  auto own = DriftReportFor(store, run.id);
+  if (!own.ok() || own->has_value()) return own;
+  return PreviousReport(store, run.campaign, run.scale, run.id);
+}
+
+}  // namespace sandswim

@@ -1,0 +1,456 @@
+// Figures: each kind is drawn with the right number of series (read back from the SVG by the
+// series' colours), a bed slice with every grain and its colour bar, PNGs are PNGs, and the cache
+// never serves a figure of older data.
+#include "server/analysis/figures.h"
+
+#include <stdlib.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "server/analysis/figure_cache.h"
+
+namespace sandswim {
+namespace {
+
+using ::testing::HasSubstr;
+
+// The series colours an SVG uses (every colour but the black ink and the white background).
+std::set<std::string> SeriesColorsIn(const std::string& svg) {
+  static const std::regex kColor(R"re((?:stroke|fill)="(#[0-9A-Fa-f]{6})")re");
+  std::set<std::string> colors;
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), kColor); it != std::sregex_iterator(); ++it) {
+    std::string c = (*it)[1].str();
+    for (char& ch : c) ch = static_cast<char>(std::toupper(ch));
+    if (c != "#000000" && c != "#FFFFFF") colors.insert(c);
+  }
+  return colors;
+}
+
+std::set<std::string> FirstColors(size_t n) {
+  std::set<std::string> colors;
+  for (size_t i = 0; i < n; ++i) colors.insert(SeriesColor(i));
+  return colors;
+}
+
+api::Trajectory Wiggle(double rate, double phase) {
+  api::Trajectory t;
+  for (int i = 0; i <= 60; ++i) {
+    double time = i * 0.01;
+    t.t.push_back(time);
+    t.x.push_back(0.001 * std::sin(6 * time + phase));
+    t.y.push_back(0);
+    t.z.push_back(0.02 + rate * time + 0.002 * std::sin(2 * M_PI * 3 * time + phase));
+  }
+  return t;
+}
+
+TEST(FiguresTest, SeriesColoursAreDistinctAndNeverInk) {
+  std::set<std::string> colors = FirstColors(64);
+  EXPECT_EQ(colors.size(), 64u);
+  EXPECT_FALSE(colors.count("#000000"));
+  EXPECT_FALSE(colors.count("#FFFFFF"));
+}
+
+TEST(FiguresTest, PlplotLiteralDoublesTheEscape) {
+  EXPECT_EQ(PlplotLiteral("omega #1 #u"), "omega ##1 ##u");
+  EXPECT_EQ(PlplotLiteral("plain"), "plain");
+}
+
+TEST(FiguresTest, ARunPlotHasZAndXWithUnits) {
+  Plot plot = RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), Wiggle(0.01, 0));
+  ASSERT_EQ(plot.series.size(), 2u);
+  EXPECT_EQ(plot.x_label, "t (s)");
+  EXPECT_THAT(plot.y_label, HasSubstr("(m)"));
+  EXPECT_NEAR(plot.series[0].y.front(), 0, 1e-15);  // Δz starts at 0
+  auto svg = RenderPlot(plot, ImageFormat::kSvg);
+  ASSERT_TRUE(svg.ok()) << svg.status().ToString();
+  EXPECT_THAT(*svg, HasSubstr("<svg"));
+  EXPECT_EQ(SeriesColorsIn(*svg), FirstColors(2));
+  auto png = RenderPlot(plot, ImageFormat::kPng);
+  ASSERT_TRUE(png.ok()) << png.status().ToString();
+  EXPECT_EQ(png->substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+}
+
+// With its result, a run's plot shows what U_z is made of: Δz at the window's period boundaries and
+// the line of slope U_z through the first of them, and says U_z in that line's legend entry.
+TEST(FiguresTest, ARunPlotWithItsResultShowsTheBlocksOfUz) {
+  api::Trajectory t = Wiggle(0.01, 0);  // 0.6 s at 3 Hz
+  api::RunResult r;
+  r.uz = 0.01;
+  r.uz_blocks = 0;
+  EXPECT_EQ(RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), t, &r).series.size(), 2u);
+  r.uz_blocks = 1;
+  r.block_s = 1.0 / 3;
+  r.window_t0 = 0.2;
+  r.window_t1 = 0.2 + 1.0 / 3;
+  r.conclusive = false;
+  Plot plot = RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), t, &r);
+  ASSERT_EQ(plot.series.size(), 4u);
+  EXPECT_EQ(plot.series[2].x.size(), 2u);  // the window's two period boundaries
+  EXPECT_TRUE(plot.series[2].markers);
+  EXPECT_NEAR(plot.series[3].y[1] - plot.series[3].y[0], 0.01 / 3, 1e-12);
+  EXPECT_THAT(plot.series[3].label, HasSubstr("inconclusive"));
+  EXPECT_TRUE(RenderPlot(plot, ImageFormat::kSvg).ok());
+}
+
+TEST(FiguresTest, ASweepTrajectoryPlotHasOneSeriesPerRun) {
+  std::vector<RunTrajectory> runs;
+  for (int n = 0; n < 5; ++n) {
+    for (int sign : {-1, 1}) {
+      double omega = sign * 10 * std::pow(2.0, n);
+      runs.push_back({n * 2 + (sign > 0), OscillatoryPoint(0.03, 3, omega, 0.6), Wiggle(-sign * 0.002 * (n + 1), n)});
+    }
+  }
+  Plot plot = SweepTrajectoriesPlot("omega sweep", runs, "Omega");
+  ASSERT_EQ(plot.series.size(), 10u);
+  EXPECT_EQ(plot.series[0].label, "Ω = -10 rad/s");
+  auto svg = RenderPlot(plot, ImageFormat::kSvg);
+  ASSERT_TRUE(svg.ok()) << svg.status().ToString();
+  EXPECT_EQ(SeriesColorsIn(*svg), FirstColors(10));
+}
+
+TEST(FiguresTest, AUzPlotHasTheBranchesAndTheirFittedCurves) {
+  std::vector<SweepSample> samples;
+  for (int n = 0; n < 6; ++n) {
+    double w = 10 * std::pow(2.0, n);
+    samples.push_back({OscillatoryPoint(0.03, 3, -w, 4), 0.02 * (1 - std::exp(-0.02 * w)) + 1e-4 * (n % 2), 2e-4});
+    samples.push_back({OscillatoryPoint(0.03, 3, w, 4), -0.01 * (1 - std::exp(-0.03 * w)) - 1e-4 * (n % 3), 2e-4});
+  }
+  SweepFits fits = FitSweep(samples);
+  ASSERT_EQ(fits.branches.size(), 2u);
+  ASSERT_TRUE(fits.branches[0].saturation && fits.branches[1].saturation);
+  Plot plot = SweepUzPlot("omega sweep: U_z", samples, fits);
+  ASSERT_EQ(plot.series.size(), 6u);  // rising, sinking, and a curve and its 95 % band for each
+  EXPECT_EQ(plot.x_label, "Ω (rad/s)");
+  EXPECT_THAT(plot.y_label, HasSubstr("(m/s)"));
+  EXPECT_LT(plot.series[2].x.back(), 0);  // the rising curve lies at Ω < 0
+  EXPECT_GT(plot.series[4].x.back(), 0);
+  // Each band runs out along its upper edge and back along its lower one, around its curve.
+  for (size_t curve : {2u, 4u}) {
+    const Series& c = plot.series[curve];
+    const Series& band = plot.series[curve + 1];
+    EXPECT_THAT(band.label, HasSubstr("95 % band"));
+    EXPECT_TRUE(band.dashed);
+    const size_t half = band.x.size() / 2;
+    ASSERT_EQ(band.x.size(), 2 * half);
+    for (size_t i = 1; i < half; ++i) {
+      const size_t back = band.x.size() - 1 - i;  // the lower edge at the same x
+      ASSERT_DOUBLE_EQ(band.x[i], band.x[back]);
+      EXPECT_GT(band.y[i], band.y[back]);
+    }
+    // The curve at the band's far end lies between its edges.
+    EXPECT_DOUBLE_EQ(band.x[half - 1], c.x.back());
+    EXPECT_LT(band.y[half], c.y.back());
+    EXPECT_GT(band.y[half - 1], c.y.back());
+  }
+  auto svg = RenderPlot(plot, ImageFormat::kSvg);
+  ASSERT_TRUE(svg.ok()) << svg.status().ToString();
+  EXPECT_EQ(SeriesColorsIn(*svg), FirstColors(6));
+
+  // A sweep with no fit: just the points. Points with no error (too few periods for one) are a
+  // series of their own, never drawn as if they were precise.
+  std::vector<SweepSample> two = {{OscillatoryPoint(0.03, 3, -80, 4), 0.01, 2e-3},
+                                  {OscillatoryPoint(0.03, 3, 80, 4), -0.01, 0}};
+  Plot baseline = SweepUzPlot("baseline", two, FitSweep(two));
+  ASSERT_EQ(baseline.series.size(), 2u);
+  EXPECT_EQ(baseline.series[0].label, "rising (Ω < 0)");
+  EXPECT_EQ(baseline.series[1].label, "conclusive, no error (< 3 periods)");
+  EXPECT_EQ(baseline.series[1].x, std::vector<double>{80});
+}
+
+TEST(FiguresTest, BadPlotsAreRefused) {
+  EXPECT_EQ(RenderPlot(Plot{}, ImageFormat::kSvg).status().field(), "plot");
+  Plot bad;
+  bad.series.push_back({"nan", {0, 1}, {0, NAN}, {}, false, false});
+  EXPECT_EQ(RenderPlot(bad, ImageFormat::kPng).status().field(), "plot");
+  Plot ragged;
+  ragged.series.push_back({"ragged", {0, 1}, {0}, {}, false, false});
+  EXPECT_FALSE(RenderPlot(ragged, ImageFormat::kSvg).ok());
+}
+
+// Runs of one point on several replicate beds are told apart in the legend; runs on one bed are not
+// labelled by it.
+TEST(FiguresTest, TrajectoriesOnSeveralBedsNameTheirBed) {
+  const Point p = OscillatoryPoint(0.03, 3, 80, 0.6);
+  std::vector<RunTrajectory> runs = {{1, p, Wiggle(-0.05, 0), 0}, {2, p, Wiggle(-0.06, 1), 1}};
+  Plot plot = SweepTrajectoriesPlot("replicates", runs, "Omega");
+  ASSERT_EQ(plot.series.size(), 2u);
+  EXPECT_NE(plot.series[0].label, plot.series[1].label);
+  EXPECT_THAT(plot.series[1].label, HasSubstr("replicate bed 1"));
+  Plot one = SweepTrajectoriesPlot("one bed", {runs[0]}, "Omega");
+  EXPECT_THAT(one.series[0].label, ::testing::Not(HasSubstr("replicate")));
+  // Δx(t) on request, from x(0).
+  Plot x = SweepTrajectoriesPlot("x", {runs[0]}, "Omega", Coordinate::kX);
+  EXPECT_THAT(x.y_label, HasSubstr("Δx"));
+  EXPECT_EQ(x.series[0].y.front(), 0);
+  EXPECT_NEAR(x.series[0].y.back(), runs[0].trajectory.x.back() - runs[0].trajectory.x.front(), 1e-15);
+}
+
+// ---- Bed slices: discs coloured by a value ----------------------------------------------------
+
+// A slice through a bed 0.18 m wide and 0.7 m tall: `grains` discs of radius 0.01 m on a lattice,
+// their speeds running evenly from 0 to 0.5 m/s, and the SO's outline (radius 0.06 m at 0, 0).
+Plot BedSlicePlot(int grains, bool equal_aspect) {
+  Plot plot;
+  plot.title = "y–z slice through the SO, t = 0.67 s";
+  plot.x_label = "y (m)";
+  plot.y_label = "z (m)";
+  Discs discs;
+  discs.value_label = "|v| (m/s)";
+  for (int i = 0; i < grains; ++i) {
+    discs.x.push_back(-0.08 + 0.04 * (i % 5));
+    discs.y.push_back(-0.37 + 0.06 * (i / 5));
+    discs.r.push_back(0.01);
+    discs.value.push_back(grains > 1 ? 0.5 * i / (grains - 1) : 0.2);
+  }
+  plot.discs = discs;
+  Series so{"SO", {}, {}, {}, false, false};
+  for (int k = 0; k <= 48; ++k) {
+    so.x.push_back(0.06 * std::cos(2 * M_PI * k / 48));
+    so.y.push_back(0.06 * std::sin(2 * M_PI * k / 48));
+  }
+  plot.series.push_back(so);
+  plot.equal_aspect = equal_aspect;
+  plot.limits = std::array<double, 4>{-0.09, 0.09, -0.4, 0.3};
+  return plot;
+}
+
+// The SVG's text with its character references ("&#x7c;") decoded: PLplot's svg device writes
+// every character of a label as one.
+std::string SvgText(const std::string& svg) {
+  static const std::regex kRef("&#x([0-9A-Fa-f]+);");
+  std::string out;
+  auto last = svg.cbegin();
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), kRef); it != std::sregex_iterator(); ++it) {
+    out.append(last, svg.cbegin() + it->position());
+    const unsigned long c = std::stoul((*it)[1].str(), nullptr, 16);
+    if (c < 0x80) {
+      out += static_cast<char>(c);
+    } else if (c < 0x800) {
+      out += static_cast<char>(0xC0 | (c >> 6));
+      out += static_cast<char>(0x80 | (c & 0x3F));
+    } else {
+      out += static_cast<char>(0xE0 | (c >> 12));
+      out += static_cast<char>(0x80 | ((c >> 6) & 0x3F));
+      out += static_cast<char>(0x80 | (c & 0x3F));
+    }
+    last = svg.cbegin() + it->position() + it->length();
+  }
+  out.append(last, svg.cend());
+  return out;
+}
+
+// PLplot's svg device writes a filled polygon (plfill) as a <polyline> with a fill-rule; a line
+// has none.
+int FilledShapesIn(const std::string& svg) {
+  int n = 0;
+  for (size_t at = svg.find("fill-rule="); at != std::string::npos; at = svg.find("fill-rule=", at + 1)) ++n;
+  return n;
+}
+
+// Width over height, on the page, of the first filled shape (the first disc: discs are drawn first).
+double FirstFilledShapeAspect(const std::string& svg) {
+  static const std::regex kPoints(R"re(fill-rule="[a-z]+"\s*points="([^"]*)")re");
+  std::smatch m;
+  if (!std::regex_search(svg, m, kPoints)) return NAN;
+  std::string points = m[1].str();
+  std::replace(points.begin(), points.end(), ',', ' ');
+  std::istringstream in(points);
+  double x = 0, y = 0, x_lo = INFINITY, x_hi = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
+  while (in >> x >> y) {
+    x_lo = std::min(x_lo, x), x_hi = std::max(x_hi, x);
+    y_lo = std::min(y_lo, y), y_hi = std::max(y_hi, y);
+  }
+  return (x_hi - x_lo) / (y_hi - y_lo);
+}
+
+TEST(FiguresTest, ASliceRoundTripsThroughJson) {
+  const Plot plot = BedSlicePlot(50, true);
+  const nlohmann::json j = plot;
+  auto back = PlotFromJson(j);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_TRUE(back->discs.has_value());
+  EXPECT_EQ(back->discs->x, plot.discs->x);
+  EXPECT_EQ(back->discs->y, plot.discs->y);
+  EXPECT_EQ(back->discs->r, plot.discs->r);
+  EXPECT_EQ(back->discs->value, plot.discs->value);
+  EXPECT_EQ(back->discs->value_label, "|v| (m/s)");
+  EXPECT_TRUE(back->equal_aspect);
+  EXPECT_EQ(back->limits, plot.limits);
+  ASSERT_EQ(back->series.size(), 1u);
+  EXPECT_EQ(back->series[0].label, "SO");
+  EXPECT_EQ(nlohmann::json(*back).dump(), j.dump());
+}
+
+// A plot without discs, equal aspect or limits writes none of them: its JSON, and so its figure's
+// cache name, is what it was before they existed.
+TEST(FiguresTest, APlotWithoutDiscsKeepsItsJson) {
+  Plot plot;
+  plot.title = "t";
+  plot.x_label = "x";
+  plot.y_label = "y";
+  plot.series.push_back({"a", {0, 1}, {2, 3}, {}, false, true});
+  EXPECT_EQ(nlohmann::json(plot).dump(),
+            R"({"series":[{"dashed":true,"label":"a","markers":false,"x":[0.0,1.0],"y":[2.0,3.0],"y_err":[]}],)"
+            R"("title":"t","x_label":"x","y_label":"y"})");
+  auto back = PlotFromJson(nlohmann::json(plot));
+  ASSERT_TRUE(back.ok());
+  EXPECT_FALSE(back->discs.has_value());
+  EXPECT_FALSE(back->equal_aspect);
+  EXPECT_FALSE(back->limits.has_value());
+}
+
+TEST(FiguresTest, PlotFromJsonRefusesAMistypedSlice) {
+  const nlohmann::json good = BedSlicePlot(3, true);
+  ASSERT_TRUE(PlotFromJson(good).ok());
+  auto refused = [&](auto edit) {
+    nlohmann::json j = good;
+    edit(j);
+    auto plot = PlotFromJson(j);
+    return !plot.ok() && plot.status().code() == StatusCode::kInvalidArgument && plot.status().field() == "plot";
+  };
+  using json = nlohmann::json;
+  EXPECT_TRUE(refused([](json& j) { j["discs"] = json::array(); }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"].erase("x"); }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"]["r"] = 0.01; }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"]["value"][1] = "fast"; }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"].erase("value_label"); }));
+  EXPECT_TRUE(refused([](json& j) { j["discs"]["value_label"] = 3; }));
+  EXPECT_TRUE(refused([](json& j) { j["equal_aspect"] = "yes"; }));
+  EXPECT_TRUE(refused([](json& j) { j["limits"] = "the box"; }));
+  EXPECT_TRUE(refused([](json& j) { j["limits"] = {0, 1, 2}; }));
+  EXPECT_TRUE(refused([](json& j) { j["limits"][2] = nullptr; }));
+}
+
+TEST(FiguresTest, BadSlicesAreRefused) {
+  Plot grains_only = BedSlicePlot(3, true);
+  grains_only.series.clear();
+  EXPECT_TRUE(CheckPlot(grains_only).ok());  // discs alone are something to draw
+  Plot nothing = grains_only;
+  nothing.discs.reset();
+  EXPECT_EQ(CheckPlot(nothing).field(), "plot");
+  auto refused = [](auto edit) {
+    Plot plot = BedSlicePlot(3, true);
+    edit(plot);
+    Status s = CheckPlot(plot);
+    return s.code() == StatusCode::kInvalidArgument && s.field() == "plot";
+  };
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->r.pop_back(); }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->value.push_back(1); }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->value[1] = NAN; }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->x[0] = INFINITY; }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->r[2] = 0; }));
+  EXPECT_TRUE(refused([](Plot& p) { p.discs->r[2] = -0.01; }));
+  EXPECT_TRUE(refused([](Plot& p) { (*p.limits)[0] = (*p.limits)[1]; }));
+  EXPECT_TRUE(refused([](Plot& p) { (*p.limits)[2] = 1; }));  // above y_hi
+  EXPECT_TRUE(refused([](Plot& p) { (*p.limits)[3] = NAN; }));
+  Plot ragged = BedSlicePlot(3, true);
+  ragged.discs->y.pop_back();
+  EXPECT_EQ(RenderPlot(ragged, ImageFormat::kSvg).status().field(), "plot");
+}
+
+// Every grain is a filled shape in its speed's colour, the slowest at the colour map's dark end and
+// the fastest at its yellow one; the colour bar says what the colour is; the SO is drawn over them.
+TEST(FiguresTest, ASliceDrawsEveryDiscAndAColourBar) {
+  constexpr int kGrains = 50;
+  auto svg = RenderPlot(BedSlicePlot(kGrains, true), ImageFormat::kSvg);
+  ASSERT_TRUE(svg.ok()) << svg.status().ToString();
+  EXPECT_GE(FilledShapesIn(*svg), kGrains);
+  EXPECT_THAT(*svg, HasSubstr("fill=\"#440154\""));  // 0 m/s
+  EXPECT_THAT(*svg, HasSubstr("fill=\"#FDE725\""));  // 0.5 m/s
+  EXPECT_THAT(*svg, HasSubstr("stroke=\"" + SeriesColor(0) + "\""));
+  const std::string text = SvgText(*svg);
+  EXPECT_THAT(text, HasSubstr(">|v| (m/s)<"));
+  EXPECT_THAT(text, HasSubstr(">0.5<"));  // the colour bar's top tick
+  EXPECT_THAT(text, HasSubstr(">SO<"));   // the legend
+  // Under a box 0.18 m wide, three short labels that keep apart (PLplot's own "-0.05 0.00 0.05"
+  // run into each other there).
+  EXPECT_THAT(text, HasSubstr(">-0.05<"));
+  EXPECT_THAT(text, HasSubstr(">0<"));
+  EXPECT_THAT(text, HasSubstr(">0.05<"));
+  EXPECT_THAT(text, ::testing::Not(HasSubstr(">0.00<")));
+
+  // No series: the discs and the colour bar alone, and no legend.
+  Plot grains_only = BedSlicePlot(kGrains, true);
+  grains_only.series.clear();
+  auto bare = RenderPlot(grains_only, ImageFormat::kSvg);
+  ASSERT_TRUE(bare.ok()) << bare.status().ToString();
+  EXPECT_GE(FilledShapesIn(*bare), kGrains);
+  EXPECT_THAT(SvgText(*bare), ::testing::Not(HasSubstr(">SO<")));
+}
+
+// With equal_aspect a disc is round on the page; without it, a tall box is stretched across.
+TEST(FiguresTest, DiscsAreRoundWithEqualAspect) {
+  auto round = RenderPlot(BedSlicePlot(10, true), ImageFormat::kSvg);
+  ASSERT_TRUE(round.ok()) << round.status().ToString();
+  EXPECT_NEAR(FirstFilledShapeAspect(*round), 1.0, 0.1);
+  auto stretched = RenderPlot(BedSlicePlot(10, false), ImageFormat::kSvg);
+  ASSERT_TRUE(stretched.ok());
+  EXPECT_GT(FirstFilledShapeAspect(*stretched), 2.0);
+}
+
+TEST(FiguresTest, AnEqualAspectSliceRendersToPng) {
+  auto png = RenderPlot(BedSlicePlot(50, true), ImageFormat::kPng);
+  ASSERT_TRUE(png.ok()) << png.status().ToString();
+  ASSERT_GT(png->size(), 24u);
+  EXPECT_EQ(png->substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  // One speed for every grain: the colour map still has a range to span.
+  Plot flat = BedSlicePlot(50, true);
+  std::fill(flat.discs->value.begin(), flat.discs->value.end(), 0.0);
+  EXPECT_TRUE(RenderPlot(flat, ImageFormat::kPng).ok());
+}
+
+class FigureCacheTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/sandswim-figures-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::string dir_;
+};
+
+TEST_F(FigureCacheTest, NewDataMakesANewFileAndTheOldOneGoes) {
+  FigureCache cache(dir_ + "/figures");
+  Plot before = RunTrajectoryPlot(3, OscillatoryPoint(0.03, 3, -80, 0.6), Wiggle(0.01, 0));
+  auto first = cache.Get("run-3-trajectory", before, ImageFormat::kSvg);
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
+  const std::string old_path = cache.PathFor("run-3-trajectory", before, ImageFormat::kSvg);
+  ASSERT_TRUE(std::filesystem::exists(old_path));
+
+  // The same plot is read back from its file (marked here to prove it).
+  { std::ofstream(old_path, std::ios::trunc) << "<svg>from the file</svg>"; }
+  auto again = cache.Get("run-3-trajectory", before, ImageFormat::kSvg);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(*again, "<svg>from the file</svg>");
+
+  // A new result for the run: a new file, never the old one.
+  Plot after = RunTrajectoryPlot(3, OscillatoryPoint(0.03, 3, -80, 0.6), Wiggle(0.02, 0));
+  auto fresh = cache.Get("run-3-trajectory", after, ImageFormat::kSvg);
+  ASSERT_TRUE(fresh.ok());
+  EXPECT_NE(*fresh, "<svg>from the file</svg>");
+  EXPECT_NE(cache.PathFor("run-3-trajectory", after, ImageFormat::kSvg), old_path);
+  EXPECT_FALSE(std::filesystem::exists(old_path));
+  // The PNG of the same plot is a file of its own.
+  ASSERT_TRUE(cache.Get("run-3-trajectory", after, ImageFormat::kPng).ok());
+  int files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_ + "/figures")) {
+    (void)entry;
+    ++files;
+  }
+  EXPECT_EQ(files, 2);
+}
+
+}  // namespace
+}  // namespace sandswim

@@ -1,0 +1,121 @@
+// LiveFeed: what the dashboard shows as it changes -- every recent sweep's and campaign run's
+// counts (done / running / queued / failed / cancelled) with when their first run started (the
+// page's ETA), and every running run's simulated time and z -- as one JSON snapshot that every
+// open page shares.
+//
+// Cost: a snapshot is built at most once per tick however many pages watch, and only while
+// someone asks (nothing runs when no page is open). Pages either wait for the next version
+// (WaitNewer: GET /api/v1/live/events, server-sent events, one HTTP thread each, at most
+// max_streams at once and max_streams_per_client from one peer address) or poll (Current: GET /api/v1/live, with an ETag). A snapshot whose
+// content equals the last keeps its version, so a page hears only of changes.
+//
+// Trails: a running run's z(t) as its heartbeats reported it (one point per heartbeat), kept in
+// memory for the run's page while it runs (ended when a snapshot shows the run not running, or
+// after kTrailIdle without a beat); its stored trajectory replaces it at completion. A restarted
+// daemon starts trails afresh (each run's latest progress is in the database anyway). Versions
+// start from the clock in ms, so they never repeat across restarts.
+//
+// Snapshot JSON: {"version", "time" (the daemon's clock, s), "runs": counts,
+//   "sweeps": [{id, name, scale, campaign_run_id?, cancelled, counts, runs, created_at, started_at?}],
+//   "campaign_runs": [{id, campaign, scale, trigger, created_at, sweeps, counts, started_at?}],
+//   "running": [{id, state, point, run_duration_s, progress, worker, attempts, started_at?, trail_points}]}
+//
+// Thread safety: every member is safe from any thread.
+#ifndef SANDSWIM_SERVER_LIVE_FEED_H_
+#define SANDSWIM_SERVER_LIVE_FEED_H_
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "platform/clock.h"
+#include "server/store/cost_model.h"
+#include "server/store/store.h"
+
+namespace sandswim {
+
+class LiveFeed {
+ public:
+  struct Snapshot {
+    uint64_t version = 0;
+    std::string json;  // the whole snapshot, as sent
+  };
+  struct Trail {
+    std::vector<double> t, z;  // simulated time (s) and the SO's z (m), one point per heartbeat
+    std::chrono::steady_clock::time_point last_beat;
+  };
+
+  // Shown: the newest `sweeps` sweeps and `campaign_runs` campaign runs, and up to 1,000 running
+  // runs. REQUIRES: store and clock outlive the feed; tick_s > 0.
+  LiveFeed(Store* store, Clock* clock, double tick_s = 1.0, int max_streams = 128, int sweeps = 50,
+           int campaign_runs = 20, int max_streams_per_client = 8);
+
+  // The snapshot, rebuilt first when the last is a tick old (one caller builds; the others wait
+  // for it and share it). A build that fails keeps the last snapshot (logged).
+  std::shared_ptr<const Snapshot> Current();
+  // The first snapshot whose version is past `version`, or the current one after `wait_s` or
+  // once Stop() was called.
+  std::shared_ptr<const Snapshot> WaitNewer(uint64_t version, double wait_s);
+  // Ends every wait; streams then close. Idempotent.
+  void Stop();
+  bool stopped() const { return stopped_.load(); }
+
+  // A stream holds an HTTP thread: OpenStream says false once max_streams are open, or
+  // max_streams_per_client from `client` (a peer address) (the page then polls). Every true is
+  // paired with one CloseStream of the same client.
+  bool OpenStream(const std::string& client = "");
+  void CloseStream(const std::string& client = "");
+  int open_streams() const { return streams_.load(); }
+
+  // From a heartbeat the lease queue accepted. A beat earlier than the trail's last starts the
+  // trail again (the run's next attempt); a trail no beat reached for kTrailIdle ends.
+  void RecordBeat(int64_t run_id, double sim_time_s, double so_z);
+  // The run's trail so far (empty when it is not running or no beat came since the daemon started).
+  Trail TrailOf(int64_t run_id) const;
+
+  // Engines the ETAs of unfinished sweeps and campaign runs spread work over, at least (server/store/cost_model.h).
+  void set_engine_slots(int slots) { engine_slots_.store(slots); }
+
+  uint64_t builds() const { return builds_.load(); }  // snapshots built (for tests and benchmarks)
+  static constexpr size_t kMaxTrailPoints = 4096;     // past it, every other point is dropped
+  static constexpr std::chrono::minutes kTrailIdle{10};
+
+ private:
+  std::string BuildContent();  // the snapshot without version and time; "" when it cannot
+  std::string BuildContentOrThrow();
+  nlohmann::json EtaOf(EtaScope scope, int64_t id);  // EtaJson, null when it cannot be read
+
+  Store* store_;
+  Clock* clock_;
+  const std::chrono::duration<double> tick_;
+  const int max_streams_, sweeps_, campaign_runs_, max_streams_per_client_;
+
+  std::mutex build_mu_;  // one builder at a time
+  mutable std::mutex mu_;
+  std::condition_variable changed_;
+  std::shared_ptr<const Snapshot> current_;
+  std::chrono::steady_clock::time_point built_at_;
+  std::string last_content_;
+  std::atomic<int> engine_slots_{0};
+  uint64_t version_ = 0;
+  std::map<int64_t, Trail> trails_;
+  std::chrono::steady_clock::time_point last_idle_sweep_;
+
+  std::atomic<bool> stopped_{false};
+  std::atomic<int> streams_{0};
+  std::mutex clients_mu_;
+  std::map<std::string, int> streams_by_client_;
+  std::atomic<uint64_t> builds_{0};
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_LIVE_FEED_H_

@@ -1,0 +1,114 @@
+#include "server/dashboard/live_feed.h"
+
+#include <stdlib.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace sandswim {
+namespace {
+
+class LiveFeedTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/sandswim-live-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+    auto store = Store::Open(dir_ + "/test.db");
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    store_ = std::move(*store);
+  }
+  void TearDown() override {
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  std::string dir_;
+  FakeClock clock_;
+  std::unique_ptr<Store> store_;
+};
+
+// However many pages ask at once, one snapshot is built per tick, and all get the same one.
+TEST_F(LiveFeedTest, ManyReadersShareOneBuildPerTick) {
+  LiveFeed feed(store_.get(), &clock_, /*tick_s=*/60);
+  std::vector<std::thread> pages;
+  std::atomic<uint64_t> versions{0};
+  for (int i = 0; i < 50; ++i) {
+    pages.emplace_back([&] { versions.fetch_add(feed.Current()->version); });
+  }
+  for (std::thread& t : pages) t.join();
+  EXPECT_EQ(feed.builds(), 1u);
+  EXPECT_EQ(versions.load(), 50 * feed.Current()->version) << "all on the one version";
+}
+
+// A build that finds what the last found keeps its version: waiters hear only of changes.
+TEST_F(LiveFeedTest, AnUnchangedBoardKeepsItsVersion) {
+  LiveFeed feed(store_.get(), &clock_, /*tick_s=*/0.01);
+  const uint64_t v = feed.Current()->version;
+  auto later = feed.WaitNewer(v, /*wait_s=*/0.1);  // several ticks, nothing changes
+  EXPECT_EQ(later->version, v);
+  EXPECT_GE(feed.builds(), 2u);
+  feed.Stop();
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(feed.WaitNewer(v, 60)->version, v);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(1)) << "a stopped feed does not wait";
+}
+
+// A trail keeps one point per newer beat; past kMaxTrailPoints it halves its resolution, keeping
+// the whole run.
+TEST_F(LiveFeedTest, TrailsKeepNewerBeatsAndThinOut) {
+  LiveFeed feed(store_.get(), &clock_);
+  feed.RecordBeat(7, 0.1, -0.01);
+  feed.RecordBeat(7, 0.1, -0.02);  // the same beat again (a retried request)
+  EXPECT_EQ(feed.TrailOf(7).t, std::vector<double>({0.1}));
+  EXPECT_EQ(feed.TrailOf(7).z, std::vector<double>({-0.01}));
+  feed.RecordBeat(7, 0.02, -0.03);  // earlier: the run's next attempt starts a trail of its own
+  EXPECT_EQ(feed.TrailOf(7).t, std::vector<double>({0.02}));
+  EXPECT_TRUE(feed.TrailOf(8).t.empty());
+  for (size_t i = 1; i < LiveFeed::kMaxTrailPoints + 10; ++i) feed.RecordBeat(9, 0.001 * i, 0);
+  const LiveFeed::Trail trail = feed.TrailOf(9);
+  EXPECT_LT(trail.t.size(), LiveFeed::kMaxTrailPoints);
+  EXPECT_GT(trail.t.size(), LiveFeed::kMaxTrailPoints / 2 - 1);
+  EXPECT_DOUBLE_EQ(trail.t.front(), 0.001);
+  EXPECT_DOUBLE_EQ(trail.t.back(), 0.001 * (LiveFeed::kMaxTrailPoints + 9)) << "the latest point is kept";
+  for (size_t i = 1; i < trail.t.size(); ++i) EXPECT_GT(trail.t[i], trail.t[i - 1]);
+  // No such run is running: the next snapshot drops its trail.
+  feed.Current();
+  EXPECT_TRUE(feed.TrailOf(9).t.empty());
+}
+
+TEST_F(LiveFeedTest, StreamsAreCapped) {
+  LiveFeed feed(store_.get(), &clock_, 1.0, /*max_streams=*/2);
+  EXPECT_TRUE(feed.OpenStream());
+  EXPECT_TRUE(feed.OpenStream());
+  EXPECT_FALSE(feed.OpenStream());
+  EXPECT_EQ(feed.open_streams(), 2);
+  feed.CloseStream();
+  EXPECT_TRUE(feed.OpenStream());
+  feed.CloseStream();
+  feed.CloseStream();
+  feed.Stop();
+  EXPECT_FALSE(feed.OpenStream()) << "a stopped feed opens no stream";
+  EXPECT_EQ(feed.open_streams(), 0);
+}
+
+TEST_F(LiveFeedTest, StreamsAreCappedPerClient) {
+  LiveFeed feed(store_.get(), &clock_, 1.0, /*max_streams=*/10, /*sweeps=*/50, /*campaign_runs=*/20,
+                /*max_streams_per_client=*/2);
+  EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
+  EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
+  EXPECT_FALSE(feed.OpenStream("127.0.0.1")) << "a third from one client";
+  EXPECT_TRUE(feed.OpenStream("127.0.0.2")) << "another client has its own";
+  EXPECT_EQ(feed.open_streams(), 3);
+  feed.CloseStream("127.0.0.1");
+  EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
+  for (const char* client : {"127.0.0.1", "127.0.0.1", "127.0.0.2"}) feed.CloseStream(client);
+  EXPECT_EQ(feed.open_streams(), 0);
+}
+
+}  // namespace
+}  // namespace sandswim

@@ -1,0 +1,926 @@
+#include "server/jobs/lease_queue.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "server/store/cost_model.h"
+
+#include "core/keys.h"
+#include "core/scale.h"
+#include "core/sweep.h"
+#include "core/trajectory.h"
+#include "platform/clock.h"
+#include "server/store/cost_model.h"
+#include "server/store/store.h"
+#include "server/jobs/submission.h"
+#include "tests/fixture_file.h"
+
+namespace sandswim {
+namespace {
+
+namespace fs = std::filesystem;
+
+nlohmann::json OmegaSignSweep(const std::string& name = "omega-sign") {
+  nlohmann::json j = nlohmann::json::parse(R"({"scale": "smoke",
+    "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+    "axes": [{"param": "Omega", "values": [-80, 80]}], "combine": "product"})");
+  j["name"] = name;
+  return j;
+}
+
+api::Completion OkRun(double uz = -0.01) {
+  api::Completion c;
+  c.ok = true;
+  c.result = api::RunResult{};
+  c.result->uz = uz;
+  c.result->stop_reason = "duration";
+  c.trajectory = api::Trajectory{{0, 0.1}, {0, 0}, {0, 0}, {0, -0.001}};
+  c.execution.host = "test-host";
+  c.execution.engine_version = kTestEngine;
+  c.log_tail = "Total wall time: 0:00:01";
+  return c;
+}
+
+api::Completion Failed(const std::string& kind, const std::string& message = "it broke") {
+  api::Completion c;
+  c.ok = false;
+  c.failure = api::Failure{kind, message};
+  return c;
+}
+
+class LeaseQueueTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir_ = fs::temp_directory_path() / ("sandswim-lq-" + std::to_string(rd()));
+    fs::create_directories(dir_);
+    OpenStore();
+  }
+  void TearDown() override {
+    queue_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+  void OpenStore() {
+    queue_.reset();
+    store_.reset();
+    auto s = Store::Open((dir_ / "db" / "sandswim.db").string());
+    ASSERT_TRUE(s.ok()) << s.status().ToString();
+    store_ = std::move(s).value();
+    queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, options_);
+  }
+  int64_t SubmitJson(const nlohmann::json& body, bool force = false) {
+    auto req = ParseSubmitRequest(body);
+    EXPECT_TRUE(req.ok()) << req.status().ToString();
+    req->force = force;
+    auto r = Submit(*store_, *req, kTestEngine, clock_.Now());
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    return r.ok() ? r->sweep_ids.at(0) : 0;
+  }
+  api::LeaseGrant MustLease(const std::string& worker = "w1") {
+    auto g = queue_->Lease({worker, "host", 1});
+    EXPECT_TRUE(g.ok()) << g.status().ToString();
+    EXPECT_TRUE(g.ok() && g->has_value());
+    return g.ok() && g->has_value() ? **g : api::LeaseGrant{};
+  }
+  // Leases the bed, uploads its restart and completes it.
+  void PrepareBed() {
+    api::LeaseGrant g = MustLease("bed-worker");
+    ASSERT_EQ(g.kind, api::JobKind::kBed);
+    const std::string bytes = "restart bytes";
+    ASSERT_TRUE(queue_->PutBedRestart(g.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    api::Completion c;
+    c.ok = true;
+    c.bed_result = api::BedResult{};
+    c.bed_result->grains = 3700;
+    c.bed_result->sha256 = Sha256Hex(bytes);
+    auto r = queue_->Complete(g.token, c);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_EQ(r->state, "done");
+  }
+  std::string RunState(int64_t id) {
+    auto r = store_->GetRun(id);
+    return r.ok() ? r->summary.state : r.status().ToString();
+  }
+  int64_t Rows(const std::string& table) { return store_->db().CountRows(table).value(); }
+
+  fs::path dir_;
+  FakeClock clock_;
+  LeaseQueueOptions options_{/*ttl_s=*/60, /*max_attempts=*/3, /*wall_budget_s=*/0};
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<LeaseQueue> queue_;
+};
+
+TEST_F(LeaseQueueTest, NothingToLeaseOnAnEmptyQueue) {
+  auto g = queue_->Lease({"w", "h", 1});
+  ASSERT_TRUE(g.ok());
+  EXPECT_FALSE(g->has_value());
+}
+
+TEST_F(LeaseQueueTest, BedIsLeasedBeforeRunsAndRunsOnlyOnceTheBedIsDone) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease();
+  EXPECT_EQ(bed.kind, api::JobKind::kBed);
+  EXPECT_EQ(bed.token.size(), 32u);
+  EXPECT_FALSE(bed.deck.empty());
+  // The bed is running: the runs wait for it, so nothing else is leasable.
+  auto none = queue_->Lease({"w2", "h", 1});
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->has_value());
+  // Completing without an upload is refused and changes nothing.
+  api::Completion c;
+  c.ok = true;
+  c.bed_result = api::BedResult{};
+  EXPECT_EQ(queue_->Complete(bed.token, c).status().code(), StatusCode::kFailedPrecondition);
+  const std::string bytes = "restart";
+  EXPECT_EQ(queue_->PutBedRestart(bed.token, bytes, Sha256Hex("other"), dir_.string()).code(),
+            StatusCode::kInvalidArgument);
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  auto file = queue_->GetBedRestart(bed.id);
+  ASSERT_TRUE(file.ok()) << file.status().ToString();
+  std::ifstream in(file->path, std::ios::binary);
+  std::string read((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(read, bytes);
+  EXPECT_EQ(file->sha256, Sha256Hex(bytes));
+
+  api::LeaseGrant r1 = MustLease();
+  api::LeaseGrant r2 = MustLease();
+  EXPECT_EQ(r1.kind, api::JobKind::kRun);
+  EXPECT_EQ(r2.kind, api::JobKind::kRun);
+  EXPECT_LT(r1.id, r2.id);  // oldest first
+  ASSERT_TRUE(r1.bed.has_value());
+  EXPECT_EQ(r1.bed->id, bed.id);
+  EXPECT_EQ(r1.bed->sha256, Sha256Hex(bytes));
+  EXPECT_GT(r1.steps, 0);
+  EXPECT_GT(r1.duration_s, 0);
+  auto none2 = queue_->Lease({"w3", "h", 1});
+  EXPECT_FALSE(none2->has_value());
+}
+
+// A grant says whether anything else is leasable once it runs (queue_dry), so that a worker may
+// give it the cores of slots that would otherwise idle: a bed its runs wait for with no other bed
+// queued, the last run of the queue; not a bed while another bed or a run is leasable.
+TEST_F(LeaseQueueTest, GrantsSayWhenNothingElseIsLeasable) {
+  nlohmann::json two_beds = OmegaSignSweep();
+  two_beds["replicates"] = 2;
+  SubmitJson(two_beds);
+  api::LeaseGrant bed1 = MustLease();
+  ASSERT_EQ(bed1.kind, api::JobKind::kBed);
+  EXPECT_FALSE(bed1.queue_dry);  // the other bed is leasable
+  api::LeaseGrant bed2 = MustLease();
+  ASSERT_EQ(bed2.kind, api::JobKind::kBed);
+  EXPECT_TRUE(bed2.queue_dry);  // every run waits for one of the two
+  EXPECT_TRUE(nlohmann::json(bed2).at("queue_dry").get<bool>());
+  EXPECT_FALSE(nlohmann::json(bed1).contains("queue_dry"));  // absent means false
+  EXPECT_TRUE(nlohmann::json(bed2).get<api::LeaseGrant>().queue_dry);
+  for (const api::LeaseGrant& bed : {bed1, bed2}) {
+    const std::string bytes = "restart " + std::to_string(bed.id);
+    ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    api::Completion c;
+    c.ok = true;
+    c.bed_result = api::BedResult{};
+    c.bed_result->grains = 3700;
+    c.bed_result->sha256 = Sha256Hex(bytes);
+    c.execution.ranks = bed.queue_dry ? 2 : 1;  // as a worker with an idle slot ran it
+    ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  }
+  {
+    // The event log says on how many ranks each bed was prepared.
+    auto t = store_->Begin();
+    ASSERT_TRUE(t.ok());
+    Statement st = t->Prepare("SELECT detail FROM events WHERE kind = 'bed.done' AND subject = ?1");
+    const std::string subject = "bed/" + std::to_string(bed2.id);
+    st.Bind(1, subject);
+    ASSERT_TRUE(*st.Step());
+    EXPECT_EQ(nlohmann::json::parse(st.Text(0)).at("ranks"), 2);
+  }
+  // Four runs (two Omega on two beds): only the last one is granted with the queue dry.
+  std::vector<bool> dry;
+  for (int i = 0; i < 4; ++i) dry.push_back(MustLease().queue_dry);
+  EXPECT_EQ(dry, (std::vector<bool>{false, false, false, true}));
+}
+
+// With no budget from the operator every grant carries the cost model's: kWallBudgetMultiple times
+// its prediction plus the margin, at the default rates until jobs are measured; an operator's
+// budget is passed as it is.
+TEST_F(LeaseQueueTest, GrantsCarryAWallBudgetFromTheCostModel) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  const double smoke_grains = EstimatedGrains(*FindScale("smoke"));
+  EXPECT_DOUBLE_EQ(bed.wall_budget_s,
+                   std::ceil(kWallBudgetMultiple * smoke_grains * kDefaultBedSecondsPerGrain + kWallBudgetMarginS));
+  const std::string bytes = "restart";
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion c;
+  c.ok = true;
+  c.bed_result = api::BedResult{};
+  c.bed_result->grains = 3700;
+  c.bed_result->sha256 = Sha256Hex(bytes);
+  ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  api::LeaseGrant run = MustLease();
+  ASSERT_EQ(run.kind, api::JobKind::kRun);
+  EXPECT_DOUBLE_EQ(run.wall_budget_s, std::ceil(kWallBudgetMultiple * static_cast<double>(run.steps) * 3701 *
+                                                        kDefaultSecondsPerParticleStep +
+                                                    kWallBudgetMarginS));
+  LeaseQueue fixed(store_.get(), &clock_, LeaseQueueOptions{60, 3, /*wall_budget_s=*/1234});
+  auto other = fixed.Lease({"w2", "h", 1});
+  ASSERT_TRUE(other.ok() && other->has_value());
+  EXPECT_DOUBLE_EQ((*other)->wall_budget_s, 1234);
+}
+
+// A grant carries, typed, the numbers its deck states (core/deck.h DriveFacts): the worker reads
+// its dump with them and never parses the deck.
+TEST_F(LeaseQueueTest, GrantsCarryTheDrivesFactsTheirDeckStates) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  EXPECT_GT(bed.dt_s, 0.0);
+  EXPECT_NE(bed.deck.find("timestep        " + FormatNumber(bed.dt_s) + "\n"), std::string::npos) << bed.deck;
+  const std::string bytes = "restart bytes";
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion done;
+  done.ok = true;
+  done.bed_result = api::BedResult{};
+  done.bed_result->sha256 = Sha256Hex(bytes);
+  ASSERT_TRUE(queue_->Complete(bed.token, done).ok());
+  for (int i = 0; i < 2; ++i) {
+    api::LeaseGrant run = MustLease();
+    ASSERT_EQ(run.kind, api::JobKind::kRun);
+    Result<DriveInfo> stated = ReadDriveInfo(run.deck);
+    ASSERT_TRUE(stated.ok()) << stated.status().ToString();
+    EXPECT_EQ(run.dt_s, stated->dt);
+    EXPECT_EQ(run.f_hz, stated->f);
+    EXPECT_EQ(run.A_m, stated->A);
+    ASSERT_TRUE(run.z_floor_m.has_value());
+    EXPECT_EQ(run.z_floor_m, stated->z_floor);
+    EXPECT_GT(run.f_hz, 0.0);
+    // The same on the wire.
+    api::LeaseGrant back = nlohmann::json(run).get<api::LeaseGrant>();
+    EXPECT_EQ(back.dt_s, run.dt_s);
+    EXPECT_EQ(back.f_hz, run.f_hz);
+    EXPECT_EQ(back.z_floor_m, run.z_floor_m);
+  }
+}
+
+TEST_F(LeaseQueueTest, RunsOfOtherMaterialsAreLeasedWithTheirOwnDecks) {
+  // The runs table keeps each run's materials (migration 12): the deck rendered at lease time is
+  // the one its key was made from, with the SO's density set after read_restart and the stiffer
+  // grains' shorter step.
+  nlohmann::json j = OmegaSignSweep();
+  j["base"]["grain_youngs"] = 1e8;
+  j["axes"] = nlohmann::json::array({{{"param", "so_density"}, {"values", {2500, 5000}}}});
+  const int64_t sweep = SubmitJson(j);
+  ASSERT_GT(sweep, 0);
+  EXPECT_EQ(Rows("beds"), 1);  // the SO's density keeps the bed
+  PrepareBed();
+  std::vector<std::string> decks;
+  for (int i = 0; i < 2; ++i) {
+    api::LeaseGrant run = MustLease();
+    ASSERT_EQ(run.kind, api::JobKind::kRun);
+    EXPECT_EQ(run.dt_s, 3.1e-6);
+    EXPECT_NE(run.deck.find("timestep        3.1e-06\n"), std::string::npos);
+    auto stored = store_->GetRun(run.id);
+    ASSERT_TRUE(stored.ok()) << stored.status().ToString();
+    EXPECT_EQ(stored->summary.point.materials.youngs, 1e8);
+    EXPECT_EQ(stored->deck, run.deck);
+    decks.push_back(run.deck);
+  }
+  EXPECT_EQ(decks[0].find("set group so density"), std::string::npos);
+  EXPECT_NE(decks[1].find("set group so density 5000\n"), std::string::npos);
+  auto results = store_->SweepResults(sweep);
+  ASSERT_TRUE(results.ok()) << results.status().ToString();
+  ASSERT_EQ(results->size(), 2u);
+  EXPECT_EQ((*results)[1].point.materials.rho_so, 5000);
+}
+
+TEST_F(LeaseQueueTest, ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(g.attempt, 1);
+  clock_.Advance(30);
+  ASSERT_TRUE(queue_->Heartbeat(g.token, {0.1, -0.01, 10000}).ok());
+  clock_.Advance(59);  // the heartbeat extended the lease: still held
+  EXPECT_EQ(*queue_->ExpireLeases(), 0);
+  clock_.Advance(2);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(RunState(g.id), "queued");
+  EXPECT_EQ(queue_->Heartbeat(g.token, {}).status().code(), StatusCode::kConflict);
+
+  api::LeaseGrant g2 = MustLease();
+  EXPECT_EQ(g2.id, g.id);
+  EXPECT_EQ(g2.attempt, 2);
+  clock_.Advance(61);
+  api::LeaseGrant g3 = MustLease();  // Lease() reclaims the expired one itself
+  EXPECT_EQ(g3.id, g.id);
+  EXPECT_EQ(g3.attempt, 3);
+  clock_.Advance(61);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  auto run = store_->GetRun(g.id);
+  EXPECT_EQ(run->summary.state, "failed");
+  EXPECT_EQ(run->summary.attempts, 3);
+  ASSERT_TRUE(run->summary.last_error.has_value());
+  EXPECT_EQ(run->summary.last_error->kind, "lease_expired");
+  EXPECT_EQ(store_->GetMetrics()->expirations, 3);
+}
+
+TEST_F(LeaseQueueTest, FailuresRetryUntilMaxAttemptsAndKeepTheLastReason) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  int64_t id = 0;
+  for (int i = 1; i <= 3; ++i) {
+    api::LeaseGrant g = MustLease();
+    if (id == 0) id = g.id;
+    ASSERT_EQ(g.id, id);
+    auto r = queue_->Complete(g.token, Failed("signal", "attempt " + std::to_string(i)));
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->state, i < 3 ? "queued" : "failed");
+  }
+  auto run = store_->GetRun(id);
+  EXPECT_EQ(run->summary.state, "failed");
+  EXPECT_EQ(run->summary.last_error->kind, "signal");
+  EXPECT_EQ(run->summary.last_error->message, "attempt 3");
+}
+
+// The same deck on the same bed fails the same way again: these are not retried.
+TEST_F(LeaseQueueTest, FailuresThatRepeatByNatureAreNotRetried) {
+  for (const char* kind : {"deck_error", "lost_atoms", "bad_output", "not_equilibrated", "bad_lease"}) {
+    SCOPED_TRACE(kind);
+    TearDown();  // a fresh store and queue for each kind
+    SetUp();
+    SubmitJson(OmegaSignSweep());
+    PrepareBed();
+    api::LeaseGrant g = MustLease();
+    EXPECT_EQ(queue_->Complete(g.token, Failed(kind, "x"))->state, "failed");
+  }
+}
+
+// A hung engine may be the host's: it gets one more attempt, not all of them.
+TEST_F(LeaseQueueTest, AStalledRunIsRetriedOnce) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant first = MustLease();
+  EXPECT_EQ(queue_->Complete(first.token, Failed("stalled", "no step past 0 for 600 s"))->state, "queued");
+  api::LeaseGrant second = MustLease();
+  ASSERT_EQ(second.id, first.id);
+  EXPECT_EQ(queue_->Complete(second.token, Failed("stalled", "no step past 0 for 600 s"))->state, "failed");
+}
+
+TEST_F(LeaseQueueTest, CompletionIsIdempotentPerToken) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "done");
+  int64_t events = Rows("events");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun(0.5))->state, "duplicate");
+  EXPECT_EQ(queue_->Complete(g.token, Failed("signal"))->state, "duplicate");
+  EXPECT_EQ(Rows("results"), 1);
+  EXPECT_EQ(Rows("events"), events);
+  auto run = store_->GetRun(g.id);
+  EXPECT_EQ(run->summary.state, "done");
+  EXPECT_EQ(run->result->result.uz, -0.01);
+  ASSERT_TRUE(run->trajectory.has_value());
+  EXPECT_EQ(run->trajectory->z.size(), 2u);
+  EXPECT_EQ(run->log_tail, "Total wall time: 0:00:01");
+  EXPECT_EQ(queue_->Heartbeat(g.token, {}).status().code(), StatusCode::kConflict);
+}
+
+TEST_F(LeaseQueueTest, LateCompletionFromAnExpiredLeaseAfterReleaseConflicts) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant old = MustLease("slow");
+  clock_.Advance(61);
+  api::LeaseGrant fresh = MustLease("fast");
+  ASSERT_EQ(fresh.id, old.id);
+  auto late = queue_->Complete(old.token, OkRun(0.9));
+  EXPECT_EQ(late.status().code(), StatusCode::kConflict);
+  EXPECT_EQ(Rows("results"), 0);
+  EXPECT_EQ(RunState(old.id), "running");
+  EXPECT_EQ(queue_->Complete(fresh.token, OkRun(-0.02))->state, "done");
+  EXPECT_EQ(queue_->Complete(old.token, OkRun(0.9)).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(Rows("results"), 1);
+  EXPECT_EQ(store_->GetRun(old.id)->result->result.uz, -0.02);
+}
+
+// The worker's lease -> engine start time is kept with the result and read back with the run.
+TEST_F(LeaseQueueTest, ResultKeepsLeaseToStartTime) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  api::Completion c = OkRun();
+  c.execution.lease_to_start_s = 0.125;
+  ASSERT_EQ(queue_->Complete(g.token, c)->state, "done");
+  auto run = store_->GetRun(g.id);
+  ASSERT_TRUE(run.ok() && run->result.has_value());
+  EXPECT_DOUBLE_EQ(run->result->execution.lease_to_start_s, 0.125);
+  EXPECT_DOUBLE_EQ(nlohmann::json(*run->result).at("lease_to_start_s").get<double>(), 0.125);
+}
+
+// A completion that asks for the next job gets it in the same transaction: the bed's completion
+// makes its runs leasable at once, a run's completion leases the following run, and at the end
+// the reply simply has no next job.
+TEST_F(LeaseQueueTest, CompletionCanLeaseTheNextJob) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant bed = MustLease("w");
+  const std::string bytes = "restart bytes";
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion bed_done;
+  bed_done.ok = true;
+  bed_done.bed_result = api::BedResult{};
+  bed_done.bed_result->sha256 = Sha256Hex(bytes);
+  bed_done.next = api::LeaseRequest{"w", "host", 1};
+  auto r = queue_->Complete(bed.token, bed_done);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->state, "done");
+  ASSERT_TRUE(r->next.has_value());
+  const api::LeaseGrant first = *r->next;
+  EXPECT_EQ(first.kind, api::JobKind::kRun);
+  EXPECT_EQ(RunState(first.id), "running");
+
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w", "host", 1};
+  r = queue_->Complete(first.token, c);
+  ASSERT_TRUE(r.ok() && r->next.has_value());
+  const api::LeaseGrant second = *r->next;
+  EXPECT_NE(second.id, first.id);
+  EXPECT_EQ(RunState(first.id), "done");
+  EXPECT_EQ(RunState(second.id), "running");
+
+  r = queue_->Complete(second.token, c);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->state, "done");
+  EXPECT_FALSE(r->next.has_value());  // nothing left
+  EXPECT_EQ(Rows("results"), 2);
+  // Serialised, an absent next job is an absent field.
+  EXPECT_FALSE(nlohmann::json(*r).contains("next"));
+}
+
+// The reply to a completion with `next` is lost and the worker sends it again: the job the first
+// one leased (never received) is taken back unstarted, attempt uncounted, and a job is leased
+// afresh -- no job waits out a lease nobody holds.
+TEST_F(LeaseQueueTest, RepeatedCompletionTakesBackTheGrantItsLostReplyCarried) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant first = MustLease();
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w1", "host", 1};
+  auto lost = queue_->Complete(first.token, c);
+  ASSERT_TRUE(lost.ok() && lost->next.has_value());
+  const api::LeaseGrant unreceived = *lost->next;
+  auto again = queue_->Complete(first.token, c);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->state, "duplicate");
+  ASSERT_TRUE(again->next.has_value());
+  EXPECT_EQ(again->next->id, unreceived.id);  // the only queued run: the same one, a new grant
+  EXPECT_NE(again->next->token, unreceived.token);
+  EXPECT_EQ(again->next->attempt, 1);  // the unreceived grant did not count
+  EXPECT_EQ(queue_->Heartbeat(unreceived.token, {}).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(Rows("results"), 1);
+  auto run = store_->GetRun(unreceived.id);
+  EXPECT_EQ(run->summary.state, "running");
+  EXPECT_EQ(run->summary.attempts, 1);
+  ASSERT_EQ(queue_->Complete(again->next->token, OkRun())->state, "done");
+  // A plain repeated completion (no next) still changes nothing.
+  EXPECT_EQ(queue_->Complete(first.token, OkRun())->state, "duplicate");
+  EXPECT_EQ(RunState(unreceived.id), "done");
+}
+
+// A completion that is refused leases nothing: the next job stays queued for someone else.
+TEST_F(LeaseQueueTest, RefusedCompletionLeasesNoNextJob) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w", "host", 1};
+  EXPECT_EQ(queue_->Complete("not-a-token", c).status().code(), StatusCode::kConflict);
+  api::Completion bad = c;
+  bad.result.reset();  // an ok run without its result
+  EXPECT_EQ(queue_->Complete(g.token, bad).status().code(), StatusCode::kInvalidArgument);
+  api::Completion bad_next = c;
+  bad_next.next->slurm_job = "12,13";
+  auto refused = queue_->Complete(g.token, bad_next);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(refused.status().field(), "next.slurm_job");
+  EXPECT_EQ(Rows("results"), 0);
+  EXPECT_EQ(Rows("leases"), 2);  // the bed's and g's: no other lease was granted
+  EXPECT_EQ(RunState(g.id), "running");
+  api::LeaseGrant other = MustLease("other");
+  EXPECT_NE(other.id, g.id);
+}
+
+// The leases of a Slurm job that is gone are reclaimed before they expire, like an expiry (the
+// attempt counts) -- but only once the worker has been silent for half the TTL, and only leases
+// granted before Slurm was asked. Other jobs' leases and leases outside Slurm stay; the old token
+// can no longer complete.
+TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedBeforeTheyExpire) {
+  nlohmann::json sweep = OmegaSignSweep();
+  sweep["axes"][0]["values"] = {-80, -40, 40, 80};
+  SubmitJson(sweep);
+  PrepareBed();
+  auto a = queue_->Lease({"pilot-a", "node1", 1, "4242"});
+  auto b = queue_->Lease({"pilot-b", "node2", 1, "4243"});
+  auto c = queue_->Lease({"laptop", "here", 1});
+  ASSERT_TRUE(a.ok() && a->has_value() && b.ok() && b->has_value() && c.ok() && c->has_value());
+  EXPECT_EQ(queue_->RunningSlurmJobs().value(), (std::vector<std::string>{"4242", "4243"}));
+
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4242", clock_.Now()).value(), 0);  // silent for 0 s only
+  clock_.Advance(31);                                                   // half the 60 s TTL
+  // A lease granted after Slurm was asked is not judged by that answer.
+  const double asked_at = clock_.Now() - 1;
+  auto d = queue_->Lease({"pilot-a2", "node1", 1, "4242"});
+  ASSERT_TRUE(d.ok() && d->has_value());
+  clock_.Advance(31);
+  ASSERT_TRUE(queue_->Heartbeat((*b)->token, {}).ok());  // b's worker is alive, whatever Slurm says
+  auto n = queue_->ReclaimSlurmJob("4242", asked_at);
+  ASSERT_TRUE(n.ok()) << n.status().ToString();
+  EXPECT_EQ(*n, 1);
+  auto run = store_->GetRun((*a)->id);
+  EXPECT_EQ(run->summary.state, "queued");
+  ASSERT_TRUE(run->summary.last_error.has_value());
+  EXPECT_EQ(run->summary.last_error->kind, "pilot_gone");
+  EXPECT_THAT(run->summary.last_error->message, ::testing::HasSubstr("4242"));
+  EXPECT_EQ(run->summary.attempts, 1);
+  EXPECT_EQ(RunState((*d)->id), "running");
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4243", clock_.Now()).value(), 0);  // it just heartbeated
+  EXPECT_EQ(RunState((*b)->id), "running");
+  EXPECT_EQ(RunState((*c)->id), "running");
+  EXPECT_EQ(queue_->Complete((*a)->token, OkRun()).status().code(), StatusCode::kConflict);
+  // A completed run of a job that is gone later is not touched.
+  ASSERT_EQ(queue_->Complete((*b)->token, OkRun())->state, "done");
+  clock_.Advance(31);
+  EXPECT_EQ(queue_->ReclaimSlurmJob("4243", clock_.Now()).value(), 0);
+  EXPECT_EQ(RunState((*b)->id), "done");
+}
+
+// A job id is only digits: anything else never reaches squeue.
+TEST_F(LeaseQueueTest, SlurmJobMustBeAJobId) {
+  SubmitJson(OmegaSignSweep());
+  for (const char* bad : {"12,13", "-j", "12 13", "abc", "123456789012345678901"}) {
+    auto g = queue_->Lease({"w", "h", 1, bad});
+    ASSERT_FALSE(g.ok()) << bad;
+    EXPECT_EQ(g.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(g.status().field(), "slurm_job");
+  }
+  EXPECT_EQ(Rows("leases"), 0);
+}
+
+TEST_F(LeaseQueueTest, UnknownTokenConflicts) {
+  EXPECT_EQ(queue_->Complete("nope", OkRun()).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(queue_->Heartbeat("nope", {}).status().code(), StatusCode::kConflict);
+}
+
+// A worker that stops (Slurm's end-of-allocation signal) hands its run back: queued at once, the
+// attempt not counted, and the released token can neither heartbeat nor complete.
+TEST_F(LeaseQueueTest, ReleasedRunIsQueuedAgainWithoutCountingTheAttempt) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease("pilot-1");
+  EXPECT_EQ(g.attempt, 1);
+  auto r = queue_->Release(g.token, "slurm allocation ends");
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->state, "queued");
+  EXPECT_EQ(RunState(g.id), "queued");
+  EXPECT_EQ(store_->GetRun(g.id)->summary.attempts, 0);
+  EXPECT_EQ(queue_->Release(g.token, "again")->state, "duplicate");
+  EXPECT_EQ(queue_->Heartbeat(g.token, {}).status().code(), StatusCode::kConflict);
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "duplicate");
+  EXPECT_EQ(Rows("results"), 0);
+  api::LeaseGrant again = MustLease("pilot-2");
+  EXPECT_EQ(again.id, g.id);
+  EXPECT_EQ(again.attempt, 1);
+  EXPECT_EQ(queue_->Complete(again.token, OkRun())->state, "done");
+  EXPECT_EQ(Rows("results"), 1);
+  EXPECT_EQ(queue_->Release("nope", "x").status().code(), StatusCode::kConflict);
+}
+
+// A run handed back more than max_attempts times (say it is longer than any allocation it is
+// leased in) stops going round: from then on a hand-back counts, and it ends failed.
+TEST_F(LeaseQueueTest, RunHandedBackTooOftenEndsFailed) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  int64_t id = 0;
+  std::vector<std::string> states;
+  for (int i = 0; i < 10 && (states.empty() || states.back() == "queued"); ++i) {
+    api::LeaseGrant g = MustLease("pilot");
+    if (id == 0) id = g.id;
+    ASSERT_EQ(g.id, id);
+    states.push_back(queue_->Release(g.token, "allocation ends")->state);
+  }
+  // 3 free hand-backs (max_attempts = 3), then 3 counted ones: queued, queued, failed.
+  ASSERT_EQ(states.size(), 6u);
+  EXPECT_EQ(states.back(), "failed");
+  EXPECT_EQ(RunState(id), "failed");
+  auto run = store_->GetRun(id);
+  EXPECT_EQ(run->summary.attempts, 3);
+  EXPECT_EQ(Rows("results"), 0);
+}
+
+// A run whose sweep was cancelled while it ran, handed back, is cancelled, not queued again.
+TEST_F(LeaseQueueTest, ReleasedRunOfACancelledSweepIsCancelled) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  EXPECT_EQ(queue_->Release(g.token, "worker stopping")->state, "cancelled");
+  EXPECT_EQ(RunState(g.id), "cancelled");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
+TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant old = MustLease("slow");
+  clock_.Advance(61);
+  api::LeaseGrant fresh = MustLease("fast");
+  ASSERT_EQ(fresh.id, old.id);
+  EXPECT_EQ(queue_->Release(old.token, "late").status().code(), StatusCode::kConflict);
+  EXPECT_EQ(RunState(fresh.id), "running");
+  EXPECT_EQ(store_->GetRun(fresh.id)->summary.attempts, 2);
+}
+
+TEST_F(LeaseQueueTest, MalformedCompletionChangesNothing) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  api::Completion c;
+  c.ok = true;  // no result
+  EXPECT_EQ(queue_->Complete(g.token, c).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunState(g.id), "running");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "done");
+}
+
+TEST_F(LeaseQueueTest, CancelDropsQueuedRunsAndStopsRunningOnesAtHeartbeat) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant running = MustLease();
+  auto hb = queue_->Heartbeat(running.token, {});
+  EXPECT_FALSE(hb->cancel);
+  auto summary = queue_->Cancel(sweep);
+  ASSERT_TRUE(summary.ok());
+  EXPECT_EQ(summary->cancelled, 1);
+  EXPECT_EQ(summary->stopping, 1);
+  EXPECT_TRUE(queue_->Heartbeat(running.token, {})->cancel);
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+  EXPECT_EQ(queue_->Complete(running.token, Failed("cancelled", "stopped"))->state, "cancelled");
+  auto info = store_->GetSweep(sweep);
+  EXPECT_EQ(info->counts.cancelled, 2);
+  EXPECT_TRUE(info->cancelled_at.has_value());
+  EXPECT_EQ(queue_->Cancel(9999).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(LeaseQueueTest, CancelKeepsRunsAnotherLiveSweepShares) {
+  int64_t a = SubmitJson(OmegaSignSweep("a"));
+  int64_t b = SubmitJson(OmegaSignSweep("b"));  // same points: shared runs
+  EXPECT_EQ(Rows("runs"), 2);
+  auto s = queue_->Cancel(a);
+  EXPECT_EQ(s->cancelled, 0);
+  EXPECT_EQ(store_->GetSweep(b)->counts.queued, 2);
+  EXPECT_EQ(queue_->Cancel(b)->cancelled, 2);
+}
+
+TEST_F(LeaseQueueTest, BedFailingForGoodFailsItsRuns) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  for (int i = 0; i < 3; ++i) {
+    api::LeaseGrant g = MustLease();
+    ASSERT_EQ(g.kind, api::JobKind::kBed);
+    ASSERT_TRUE(queue_->Complete(g.token, Failed("signal", "killed")).ok());
+  }
+  auto info = store_->GetSweep(sweep);
+  EXPECT_EQ(info->counts.failed, 2);
+  auto runs = store_->ListRuns({sweep, std::nullopt, 0, 10});
+  EXPECT_EQ(runs->runs[0].last_error->kind, "bed_failed");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
+// A bed that missed the kinetic-energy criterion comes out the same from the same deck: a later
+// submission does not prepare it again; the runs it brings fail at once, saying why, rather than
+// wait for ever. A bed that failed otherwise (killed) is prepared again.
+TEST_F(LeaseQueueTest, BedNotEquilibratedFailsForGoodAcrossSubmissions) {
+  SubmitJson(OmegaSignSweep());
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kBed);
+  ASSERT_EQ(queue_->Complete(g.token, Failed("not_equilibrated", "the bed missed the criterion."))->state, "failed");
+
+  nlohmann::json body = OmegaSignSweep("again");
+  body["axes"][0]["values"] = {-40, 80};
+  auto req = ParseSubmitRequest(body);
+  ASSERT_TRUE(req.ok());
+  auto again = Submit(*store_, *req, kTestEngine, clock_.Now());
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->runs_new, 1);         // -40
+  EXPECT_EQ(again->runs_requeued, 1);    // +80 had failed with the bed
+  EXPECT_EQ(again->runs_failed_bed, 2);  // both fail at once
+  auto info = store_->GetSweep(again->sweep_ids.at(0));
+  EXPECT_EQ(info->counts.failed, 2);
+  EXPECT_EQ(info->counts.queued, 0);
+  auto runs = store_->ListRuns({again->sweep_ids.at(0), std::nullopt, 0, 10});
+  for (const auto& r : runs->runs) {
+    ASSERT_TRUE(r.last_error.has_value());
+    EXPECT_EQ(r.last_error->kind, "bed_failed");
+    EXPECT_NE(r.last_error->message.find("failed for good"), std::string::npos) << r.last_error->message;
+    EXPECT_NE(r.last_error->message.find("the bed missed the criterion."), std::string::npos);
+  }
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());  // nothing to prepare, nothing to run
+}
+
+TEST_F(LeaseQueueTest, BedFailedOtherwiseIsPreparedAgainByALaterSubmission) {
+  SubmitJson(OmegaSignSweep());
+  for (int i = 0; i < 3; ++i) {
+    api::LeaseGrant g = MustLease();
+    ASSERT_EQ(g.kind, api::JobKind::kBed);
+    ASSERT_TRUE(queue_->Complete(g.token, Failed("signal", "killed")).ok());
+  }
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  EXPECT_EQ(store_->GetSweep(sweep)->counts.queued, 2);
+  EXPECT_EQ(MustLease().kind, api::JobKind::kBed);
+}
+
+TEST_F(LeaseQueueTest, ReopeningTheFileKeepsLeasesAndRuns) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  OpenStore();  // a daemon restart
+  ASSERT_TRUE(queue_->Heartbeat(g.token, {0.2, 0, 1}).ok());
+  EXPECT_EQ(RunState(g.id), "running");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "done");
+  EXPECT_EQ(queue_->Complete(g.token, OkRun())->state, "duplicate");
+  auto m = store_->GetMetrics();
+  EXPECT_EQ(m->runs.done, 1);
+  EXPECT_EQ(m->runs.queued, 1);
+  EXPECT_EQ(m->leases_granted, 2);
+}
+
+// Decks are not stored at submission (schema/003_perf.sql): the deck a run is leased with, and
+// the one GET /api/v1/runs/{id} shows, are rendered again and must be byte for byte the deck its
+// key was computed from.
+TEST_F(LeaseQueueTest, LeasedDeckIsTheDeckTheKeyWasComputedFrom) {
+  const nlohmann::json body = OmegaSignSweep();
+  auto req = ParseSubmitRequest(body);
+  ASSERT_TRUE(req.ok());
+  auto plan = PlanSweeps(req->sweeps, *FindScale(req->sweeps[0].scale), kTestEngine);  // keeps decks
+  ASSERT_TRUE(plan.ok());
+  SubmitJson(body);
+  EXPECT_EQ(Rows("run_decks"), 0);
+  PrepareBed();
+  for (size_t i = 0; i < plan->runs.size(); ++i) {
+    api::LeaseGrant g = MustLease();
+    ASSERT_EQ(g.kind, api::JobKind::kRun);
+    const PlannedRun* planned = nullptr;
+    for (const PlannedRun& r : plan->runs) {
+      if (r.key == g.key) planned = &r;
+    }
+    ASSERT_NE(planned, nullptr) << g.key;
+    EXPECT_EQ(g.deck, planned->deck);
+    EXPECT_EQ(RunKey(g.deck, plan->beds.at(0).key, kTestEngine), g.key);
+    auto detail = store_->GetRun(g.id);
+    ASSERT_TRUE(detail.ok());
+    EXPECT_EQ(detail->deck, planned->deck);
+  }
+}
+
+// A run whose deck no longer renders to its key (templates changed after it was submitted) is
+// never handed out with a deck that differs from its key: it fails as a deck_error.
+TEST_F(LeaseQueueTest, RunWhoseDeckNoLongerMatchesItsKeyFails) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  {
+    auto t = store_->db().Begin();
+    ASSERT_TRUE(t.ok());
+    ASSERT_TRUE(t->Exec("UPDATE runs SET key = 'stale-' || id WHERE id = 1").ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  api::LeaseGrant g = MustLease();
+  EXPECT_NE(g.id, 1);
+  auto r1 = store_->GetRun(1);
+  ASSERT_TRUE(r1.ok());
+  EXPECT_EQ(r1->summary.state, "failed");
+  ASSERT_TRUE(r1->summary.last_error.has_value());
+  EXPECT_EQ(r1->summary.last_error->kind, "deck_error");
+}
+
+// sweep_counts follow every state change in the transaction that makes it.
+TEST_F(LeaseQueueTest, SweepCountsFollowStateChanges) {
+  const int64_t sweep = SubmitJson(OmegaSignSweep());
+  auto counts = [&] { return store_->GetSweep(sweep).value().counts; };
+  const int64_t total = counts().total();
+  EXPECT_GT(total, 1);
+  EXPECT_EQ(counts().queued, total);
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  EXPECT_EQ(counts().running, 1);
+  EXPECT_EQ(counts().queued, total - 1);
+  ASSERT_TRUE(queue_->Complete(g.token, OkRun()).ok());
+  EXPECT_EQ(counts().done, 1);
+  EXPECT_EQ(counts().running, 0);
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  EXPECT_EQ(counts().cancelled, total - 1);
+  EXPECT_EQ(counts().total(), total);
+}
+
+}  // namespace
+
+// A snapshot dump as the engine writes it: two grains and the SO.
+std::string SnapshotDump(int64_t step) {
+  return "ITEM: TIMESTEP\n" + std::to_string(step) +
+         "\nITEM: NUMBER OF ATOMS\n3\nITEM: BOX BOUNDS pp pp ff\n-0.09 0.09\n-0.09 0.09\n-0.35 0.4\n"
+         "ITEM: ATOMS id type x y z vx vy vz radius\n"
+         "1 1 0.001 0.02 0.1 0 0 0.1 0.01\n2 1 0.05 -0.03 -0.2 0.2 0 0 0.01\n3 2 0 0 0 0 0.1 0 0.06\n";
+}
+
+// Snapshots: uploaded under the run's lease, checked, stored, recorded by the completion that
+// lists them; a completion listing one not uploaded (or with other bytes) is refused; what no
+// completion recorded is removed.
+TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
+  options_.data_dir = (dir_ / "data").string();
+  OpenStore();
+  nlohmann::json sweep = OmegaSignSweep();
+  sweep["axes"][0]["values"] = {-80};
+  sweep["snapshots"] = {0, 1};
+  SubmitJson(sweep);
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kRun);
+  EXPECT_EQ(g.snapshots, (std::vector<double>{0, 1}));
+  EXPECT_THAT(g.deck, ::testing::HasSubstr("frame.last.dump"));
+  const std::string first = SnapshotDump(0), last = SnapshotDump(30000);
+  // Refused: other bytes than the checksum says, not a snapshot, an index the run did not ask for,
+  // a token that is not the run's lease.
+  EXPECT_EQ(queue_->PutRunSnapshot(g.token, 0, first, Sha256Hex(last)).field(), "X-Sha256");
+  EXPECT_EQ(queue_->PutRunSnapshot(g.token, 0, "not a dump", Sha256Hex("not a dump")).field(), "body");
+  EXPECT_EQ(queue_->PutRunSnapshot(g.token, 2, first, Sha256Hex(first)).field(), "n");
+  EXPECT_FALSE(queue_->PutRunSnapshot("nope", 0, first, Sha256Hex(first)).ok());
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 0, first, Sha256Hex(first)).ok());
+  // The daemon starting again meanwhile leaves a running run's uploads for its completion.
+  EXPECT_EQ(*queue_->RemoveUnrecordedSnapshots(), 0);
+  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 0)));
+  api::Completion c = OkRun();
+  c.snapshots = {api::Snapshot{0, 0, 0, 0, 2, static_cast<int64_t>(first.size()), Sha256Hex(first)},
+                 api::Snapshot{1, 1, 0.3, 30000, 2, static_cast<int64_t>(last.size()), Sha256Hex(last)}};
+  // Snapshot 1 was never uploaded: refused, nothing recorded.
+  auto refused = queue_->Complete(g.token, c);
+  ASSERT_FALSE(refused.ok()) << refused->state;
+  EXPECT_EQ(refused.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(refused.status().field(), "snapshots[1]");
+  EXPECT_TRUE(store_->GetRun(g.id)->snapshots.empty());
+  // Uploaded with other bytes than the completion says: refused.
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 1, first, Sha256Hex(first)).ok());
+  auto mismatched = queue_->Complete(g.token, c);
+  ASSERT_FALSE(mismatched.ok()) << mismatched->state;
+  EXPECT_EQ(mismatched.status().field(), "snapshots[1].sha256");
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 1, last, Sha256Hex(last)).ok());
+  auto done = queue_->Complete(g.token, c);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->state, "done");
+  auto run = store_->GetRun(g.id);
+  ASSERT_TRUE(run.ok());
+  ASSERT_EQ(run->snapshots.size(), 2u);
+  EXPECT_EQ(run->snapshots[1].t_s, 0.3);
+  EXPECT_EQ(run->snapshots[1].sha256, Sha256Hex(last));
+  auto read = ReadStoredSnapshot(options_.data_dir, g.id, 1);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  EXPECT_EQ(read->step, 30000);
+  // A stray upload (a run whose attempt never completed) goes at the daemon's next start; the
+  // recorded ones stay, and so do a running run's (its worker may still complete it).
+  const std::string stray = SnapshotPath(options_.data_dir, g.id + 100, 0);
+  fs::create_directories(fs::path(stray).parent_path());
+  std::ofstream(stray) << first;
+  auto removed = queue_->RemoveUnrecordedSnapshots();
+  ASSERT_TRUE(removed.ok());
+  EXPECT_EQ(*removed, 1);
+  EXPECT_FALSE(fs::exists(stray));
+  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 0)));
+  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 1)));
+}
+
+
+// A daemon that was down longer than a lease TTL: at start-up the running jobs' leases run one TTL
+// from now, so their workers' next heartbeats land instead of the runs being leased again.
+TEST_F(LeaseQueueTest, LeasesRunOneTtlAfterARestart) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kRun);
+  clock_.Advance(options_.ttl_s * 5);  // the outage
+  OpenStore();                          // the daemon starts again on the same file
+  auto extended = queue_->ExtendLeasesAfterRestart();
+  ASSERT_TRUE(extended.ok());
+  EXPECT_EQ(*extended, 1);
+  EXPECT_EQ(*queue_->ExpireLeases(), 0);
+  EXPECT_EQ(RunState(g.id), "running");
+  EXPECT_TRUE(queue_->Heartbeat(g.token, api::Heartbeat{}).ok());
+  // A worker that died meanwhile is reclaimed one TTL after the start.
+  clock_.Advance(options_.ttl_s + 1);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(RunState(g.id), "queued");
+}
+
+}  // namespace sandswim

@@ -1,0 +1,508 @@
+#include "server/jobs/submission.h"
+
+#include <algorithm>
+#include <map>
+#include <utility>
+
+#include "core/keys.h"
+#include "core/scale.h"
+#include "server/store/campaigns.h"
+#include "server/store/job_table.h"
+
+namespace sandswim {
+namespace {
+
+nlohmann::json SweepToJson(const SweepSpec& s) {
+  nlohmann::json axes = nlohmann::json::array();
+  for (const SweepAxis& a : s.axes) axes.push_back({{"param", a.param}, {"values", a.values}});
+  nlohmann::json j{{"name", s.name},
+                   {"scale", s.scale},
+                   {"base", PointToJson(s.base)},
+                   {"axes", axes},
+                   {"combine", s.combine == Combine::kZip ? "zip" : "product"}};
+  if (s.precision) j["precision"] = PrecisionToJson(*s.precision);
+  if (s.replicates) j["replicates"] = *s.replicates;
+  if (s.snapshots) j["snapshots"] = *s.snapshots;
+  return j;
+}
+
+Status CheckIdempotencyKey(const std::string& key) {
+  if (key.empty() || key.size() > 200) {
+    return Status::InvalidArgument("Idempotency-Key", "must be 1 to 200 characters");
+  }
+  for (char c : key) {
+    if (c < 0x21 || c > 0x7e) {
+      return Status::InvalidArgument("Idempotency-Key", "must be printable ASCII without spaces");
+    }
+  }
+  return Status::Ok();
+}
+
+Result<SubmitResult> ResultFromJson(const std::string& text) {
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (!j.is_object()) return Status::Corruption("stored submission response does not parse");
+  SubmitResult r;
+  try {
+    r.sweep_ids = j.at("ids").get<std::vector<int64_t>>();
+    if (j.contains("campaign_run_id")) r.campaign_run_id = j.at("campaign_run_id").get<int64_t>();
+    r.runs = j.value("runs", int64_t{0});
+    r.runs_new = j.value("runs_new", int64_t{0});
+    r.runs_reused = j.value("runs_reused", int64_t{0});
+    r.runs_requeued = j.value("runs_requeued", int64_t{0});
+    r.runs_shared = j.value("runs_shared", int64_t{0});
+    r.runs_failed_bed = j.value("runs_failed_bed", int64_t{0});
+  } catch (const nlohmann::json::exception& e) {
+    return Status::Corruption(std::string("stored submission response: ") + e.what());
+  }
+  return r;
+}
+
+}  // namespace
+
+void to_json(nlohmann::json& j, const SubmitResult& r) {
+  j = nlohmann::json{{"ids", r.sweep_ids},
+                     {"replayed", r.replayed},
+                     {"runs", r.runs},
+                     {"runs_new", r.runs_new},
+                     {"runs_reused", r.runs_reused},
+                     {"runs_requeued", r.runs_requeued},
+                     {"runs_shared", r.runs_shared},
+                     {"runs_failed_bed", r.runs_failed_bed}};
+  if (!r.sweep_ids.empty()) j["id"] = r.sweep_ids.front();
+  if (r.campaign_run_id) j["campaign_run_id"] = *r.campaign_run_id;
+}
+
+Result<SubmitRequest> ParseSubmitRequest(const nlohmann::json& body) {
+  if (!body.is_object()) return Status::InvalidArgument("", "the body must be a JSON object");
+  SubmitRequest req;
+  nlohmann::json rest = body;
+  if (auto it = rest.find("force"); it != rest.end()) {
+    if (!it->is_boolean()) return Status::InvalidArgument("force", "must be true or false");
+    req.force = it->get<bool>();
+    rest.erase(it);
+  }
+  if (rest.contains("campaign")) {
+    for (const auto& [k, v] : rest.items()) {
+      if (k != "campaign" && k != "scale") {
+        return Status::InvalidArgument(k,
+                                       "unknown field in a campaign submission "
+                                       "(allowed: campaign, scale, force)");
+      }
+    }
+    if (!rest["campaign"].is_string() || rest["campaign"].get<std::string>().empty()) {
+      return Status::InvalidArgument("campaign", "must be a campaign name");
+    }
+    req.campaign = rest["campaign"].get<std::string>();
+    if (rest.contains("scale")) {
+      if (!rest["scale"].is_string() || FindScale(rest["scale"].get<std::string>()) == nullptr) {
+        return Status::InvalidArgument("scale", "must be one of paper, mini, smoke");
+      }
+      req.scale = rest["scale"].get<std::string>();
+    }
+    return req;
+  }
+  if (rest.contains("sweeps")) {
+    if (rest.size() != 1) {
+      for (const auto& [k, v] : rest.items()) {
+        if (k != "sweeps") {
+          return Status::InvalidArgument(k, "unknown field (allowed: sweeps, force)");
+        }
+      }
+    }
+    const nlohmann::json& arr = rest["sweeps"];
+    if (!arr.is_array() || arr.empty()) {
+      return Status::InvalidArgument("sweeps", "must be a non-empty array of sweeps");
+    }
+    for (size_t i = 0; i < arr.size(); ++i) {
+      Result<SweepSpec> s = ParseSweep(arr[i]);
+      if (!s.ok()) return s.status().WithFieldPrefix("sweeps[" + std::to_string(i) + "]");
+      req.sweeps.push_back(std::move(s).value());
+    }
+    return req;
+  }
+  Result<SweepSpec> s = ParseSweep(rest);
+  if (!s.ok()) return s.status();
+  req.sweeps.push_back(std::move(s).value());
+  return req;
+}
+
+namespace {
+
+// What can be refused before anything is planned: the request's shape.
+Status CheckRequest(const SubmitRequest& req) {
+  if (req.sweeps.empty() == !req.campaign.has_value()) {
+    return Status::InvalidArgument("sweeps", "give either sweeps or a campaign, not both or none");
+  }
+  if (req.trigger != "manual" && req.trigger != "schedule") {
+    return Status::InvalidArgument("trigger", "must be manual or schedule");
+  }
+  if (req.trigger == "schedule" && (!req.campaign || !req.due_time)) {
+    return Status::InvalidArgument("due_time", "a scheduled submission is a campaign with a due time");
+  }
+  if (req.idempotency_key) SANDSWIM_RETURN_IF_ERROR(CheckIdempotencyKey(*req.idempotency_key));
+  return Status::Ok();
+}
+
+// The request, normalised and hashed: one idempotency key must always come with one request.
+std::string Fingerprint(const SubmitRequest& req, const std::vector<SweepSpec>& sweeps,
+                        const std::string& campaign_scale) {
+  nlohmann::json fingerprint_json{{"force", req.force}, {"trigger", req.trigger}};
+  if (req.campaign) {
+    fingerprint_json["campaign"] = *req.campaign;
+    fingerprint_json["scale"] = campaign_scale;
+  } else {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const SweepSpec& s : sweeps) arr.push_back(SweepToJson(s));
+    fingerprint_json["sweeps"] = arr;
+  }
+  if (req.due_time) fingerprint_json["due_time"] = *req.due_time;
+  return Sha256Hex(fingerprint_json.dump());
+}
+
+// The answer an earlier submission gave when this one repeats it (the same idempotency key, or
+// the same scheduled slot); kConflict for a key used before with a different request.
+Result<std::optional<SubmitResult>> Replayed(Transaction& t, const SubmitRequest& req, const std::string& fingerprint) {
+  using Out = std::optional<SubmitResult>;
+  if (req.idempotency_key) {
+    Statement st = t.Prepare("SELECT fingerprint, response FROM submissions WHERE idempotency_key = ?");
+    st.Bind(1, *req.idempotency_key);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      if (st.Text(0) != fingerprint) {
+        return Status(StatusCode::kConflict, "this Idempotency-Key was used with a different request",
+                      "Idempotency-Key");
+      }
+      Result<SubmitResult> prior = ResultFromJson(st.Text(1));
+      if (!prior.ok()) return prior.status();
+      prior->replayed = true;
+      return Out(std::move(prior).value());
+    }
+  }
+  if (req.trigger == "schedule") {
+    Statement st = t.Prepare("SELECT id FROM campaign_runs WHERE campaign = ? AND due_time = ?");
+    st.Bind(1, *req.campaign).Bind(2, *req.due_time);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (*row) {
+      int64_t id = st.Int(0);
+      Statement s2 = t.Prepare(
+          "SELECT sub.response FROM sweeps s JOIN submissions sub ON sub.id = s.submission_id "
+          "WHERE s.campaign_run_id = ? LIMIT 1");
+      s2.Bind(1, id);
+      Result<bool> r2 = s2.Step();
+      if (!r2.ok()) return r2.status();
+      if (!*r2) return Status::Corruption("campaign run " + std::to_string(id) + " has no sweeps");
+      Result<SubmitResult> prior = ResultFromJson(s2.Text(0));
+      if (!prior.ok()) return prior.status();
+      prior->replayed = true;
+      return Out(std::move(prior).value());
+    }
+  }
+  return Out();
+}
+
+Result<int64_t> InsertSubmission(Transaction& t, const SubmitRequest& req, const std::string& fingerprint, double now) {
+  Statement st = t.Prepare(
+      "INSERT INTO submissions (idempotency_key, fingerprint, response, created_at) "
+      "VALUES (?, ?, '{}', ?)");
+  st.Bind(1, req.idempotency_key).Bind(2, fingerprint).Bind(3, now);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  return t.LastInsertId();
+}
+
+// The campaign run's row; a built-in campaign's definition is recorded when first submitted.
+Result<int64_t> InsertCampaignRun(Transaction& t, const SubmitRequest& req, const CatalogueEntry& campaign,
+                                  const std::string& campaign_scale, double now) {
+  if (!campaign.stored) {
+    Statement st = t.Prepare(
+        "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
+        "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO NOTHING");
+    st.Bind(1, *req.campaign).Bind(2, campaign.definition.dump()).Bind(3, campaign.schedule);
+    st.Bind(4, campaign.drift_tolerance_mps).Bind(5, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  Statement st = t.Prepare(
+      "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at) "
+      "VALUES (?, ?, ?, ?, ?)");
+  st.Bind(1, *req.campaign).Bind(2, campaign_scale).Bind(3, req.trigger);
+  st.Bind(4, req.due_time).Bind(5, now);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  const int64_t id = t.LastInsertId();
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.created", "campaign_run/" + std::to_string(id),
+                                   {{"campaign", *req.campaign}, {"trigger", req.trigger}}));
+  return id;
+}
+
+// The sweeps' rows, in request order.
+Result<std::vector<int64_t>> InsertSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps,
+                                          std::optional<int64_t> campaign_run_id, int64_t submission_id, bool force,
+                                          double now) {
+  std::vector<int64_t> ids(sweeps.size());
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    nlohmann::json spec = SweepToJson(sweeps[i]);
+    Statement st = t.Prepare(
+        "INSERT INTO sweeps (name, scale, spec, campaign_run_id, submission_id, force, created_at)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?)");
+    st.Bind(1, sweeps[i].name).Bind(2, sweeps[i].scale).Bind(3, spec.dump());
+    st.Bind(4, campaign_run_id).Bind(5, submission_id).Bind(6, force).Bind(7, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    ids[i] = t.LastInsertId();
+  }
+  return ids;
+}
+
+// A bed row as a submission finds it: its id, and why it failed for good (its runs fail at once).
+struct SubmittedBed {
+  int64_t id = 0;
+  std::optional<std::string> failed_for_good;
+};
+
+// A scale's replicate bed: one per key. A failed one is given another chance, unless it failed
+// for a reason preparing it again cannot change: a bed that missed the kinetic-energy criterion
+// (not_equilibrated) comes out the same from the same deck and engine (both in its key).
+Result<SubmittedBed> UpsertBed(Transaction& t, const std::string& scale, const PlannedBed& bed,
+                               const std::string& engine_version, double now) {
+  // engine_version: what the run keys on this bed were made with, so a deck rendered again
+  // at lease time can be checked against its run's key (the bed key covers it too).
+  Statement ins = t.Prepare(
+      "INSERT INTO beds (key, scale, deck, state, created_at, engine_version, replicate, seed_pour1, seed_pour2) "
+      "VALUES (?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
+      "ON CONFLICT (key) DO UPDATE SET engine_version = excluded.engine_version "
+      "WHERE engine_version IS NULL");
+  ins.Bind(1, bed.key).Bind(2, scale).Bind(3, bed.deck).Bind(4, now);
+  ins.Bind(5, engine_version).Bind(6, static_cast<int64_t>(bed.replicate));
+  ins.Bind(7, static_cast<int64_t>(bed.seeds.pour1)).Bind(8, static_cast<int64_t>(bed.seeds.pour2));
+  SANDSWIM_RETURN_IF_ERROR(ins.Run());
+  Statement sel = t.Prepare("SELECT id, state, last_error_kind, last_error FROM beds WHERE key = ?");
+  sel.Bind(1, bed.key);
+  Result<bool> row = sel.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Internal("bed row vanished");
+  const int64_t bed_id = sel.Int(0);
+  if (sel.Text(1) == "failed" && sel.Text(2) == "not_equilibrated") {
+    return SubmittedBed{bed_id, "bed " + std::to_string(bed_id) + " (" + scale + ", replicate " +
+                                    std::to_string(bed.replicate) + ") failed for good: " + sel.Text(3) +
+                                    " Preparing it again would give the same bed, so it is not retried. "
+                                    "Other replicates (\"replicates\") pour beds from other seeds."};
+  }
+  if (sel.Text(1) == "failed") {
+    Statement up = t.Prepare(
+        "UPDATE beds SET state = 'queued', attempts = 0, lease_token = NULL, "
+        "lease_expires_at = NULL, last_error_kind = NULL, last_error = NULL WHERE id = ?");
+    up.Bind(1, bed_id);
+    SANDSWIM_RETURN_IF_ERROR(up.Run());
+    SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
+  }
+  return SubmittedBed{bed_id, std::nullopt};
+}
+
+// A run whose key exists already: re-queued when it failed, was cancelled or is forced again;
+// else reused (done) or shared (queued, running). Counted in `out`.
+Status ReuseRun(Transaction& t, int64_t run_id, const std::string& state, bool force, double now, SubmitResult& out) {
+  const bool requeue = state == "failed" || state == "cancelled" || (state == "done" && force);
+  if (!requeue) {
+    ++(state == "done" ? out.runs_reused : out.runs_shared);
+    return Status::Ok();
+  }
+  // The old result row (if any) stays until the new completion replaces it.
+  Statement up = t.Prepare(
+      "UPDATE runs SET state = 'queued', attempts = 0, lease_token = NULL, "
+      "lease_expires_at = NULL, worker = NULL, sim_time_s = NULL, so_z = NULL, "
+      "step = NULL, heartbeat_at = NULL, cancel_requested = 0, queued_at = ?, "
+      "started_at = NULL, finished_at = NULL, last_error_kind = NULL, last_error = NULL "
+      "WHERE id = ?");
+  up.Bind(1, now).Bind(2, run_id);
+  SANDSWIM_RETURN_IF_ERROR(up.Run());
+  SANDSWIM_RETURN_IF_ERROR(
+      t.Event(now, "run.requeued", "run/" + std::to_string(run_id), {{"from", state}, {"force", force}}));
+  ++out.runs_requeued;
+  return Status::Ok();
+}
+
+// A scale's runs (inserted, or reused by key) and their sweeps' membership, in plan order.
+// `next_position` is each sweep's next membership position.
+Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>& bed_ids,
+                 const std::map<std::string, int64_t>& id_by_name, bool force, double now,
+                 std::map<int64_t, int64_t>& next_position, SubmitResult& out) {
+  // One prepared statement each, reused for every row (100,000 rows in one transaction).
+  Statement ins = t.Prepare(
+      "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
+      "run_duration_s, steps, state, created_at, queued_at, precision, snapshots, materials) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
+      "ON CONFLICT (key) DO NOTHING");
+  Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
+  Statement sr = t.Prepare(
+      "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
+      "ON CONFLICT DO NOTHING");
+  for (const PlannedRun& r : g.plan.runs) {
+    int64_t run_id = 0;
+    ins.Reset();
+    ins.Bind(1, r.key).Bind(2, bed_ids.at(r.bed)).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
+    ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
+    ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
+    ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
+    ins.Bind(12, now).Bind(13, now);
+    if (r.precision) {
+      ins.Bind(14, PrecisionToJson(*r.precision).dump());
+    } else {
+      ins.BindNull(14);
+    }
+    if (auto text = SnapshotFractionsText(r.snapshots)) {
+      ins.Bind(15, *text);
+    } else {
+      ins.BindNull(15);
+    }
+    if (auto text = MaterialsText(r.point.materials)) {
+      ins.Bind(16, *text);
+    } else {
+      ins.BindNull(16);
+    }
+    SANDSWIM_RETURN_IF_ERROR(ins.Run());
+    if (t.Changes() == 1) {
+      run_id = t.LastInsertId();
+      ++out.runs_new;
+    } else {
+      sel.Reset();
+      sel.Bind(1, r.key);
+      Result<bool> row = sel.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) return Status::Internal("run row vanished");
+      run_id = sel.Int(0);
+      const std::string state = sel.Text(1);
+      sel.Reset();
+      SANDSWIM_RETURN_IF_ERROR(ReuseRun(t, run_id, state, force, now, out));
+    }
+    ++out.runs;
+    for (const std::string& name : r.sweeps) {
+      auto it = id_by_name.find(name);
+      if (it == id_by_name.end()) return Status::Internal("plan names unknown sweep " + name);
+      sr.Reset();
+      sr.Bind(1, it->second).Bind(2, run_id).Bind(3, next_position[it->second]++);
+      SANDSWIM_RETURN_IF_ERROR(sr.Run());
+    }
+  }
+  return Status::Ok();
+}
+
+// Each new sweep's counts by state (sweep_counts, schema/003_perf.sql), from its membership rows,
+// in this transaction (one aggregate per sweep instead of a trigger per row), and its event.
+Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const std::vector<int64_t>& sweep_ids,
+                    std::map<int64_t, int64_t>& runs_of, double now) {
+  Statement recount = t.Prepare(
+      "UPDATE sweep_counts SET (queued, running, done, failed, cancelled) = ("
+      "SELECT COALESCE(SUM(r.state = 'queued'), 0), COALESCE(SUM(r.state = 'running'), 0), "
+      "COALESCE(SUM(r.state = 'done'), 0), COALESCE(SUM(r.state = 'failed'), 0), "
+      "COALESCE(SUM(r.state = 'cancelled'), 0) "
+      "FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE sr.sweep_id = ?1) "
+      "WHERE sweep_id = ?1");
+  for (int64_t id : sweep_ids) {
+    recount.Reset();
+    recount.Bind(1, id);
+    SANDSWIM_RETURN_IF_ERROR(recount.Run());
+  }
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    SANDSWIM_RETURN_IF_ERROR(
+        t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
+                {{"name", sweeps[i].name}, {"scale", sweeps[i].scale}, {"runs", runs_of[sweep_ids[i]]}}));
+  }
+  return Status::Ok();
+}
+
+// The queue cap, counted after this submission's rows are written (in its transaction, so the
+// count is exact and a refusal rolls everything back). A submission that queues nothing new
+// (every run reused or shared) passes whatever the count.
+Status CheckQueueCap(Transaction& t, int64_t cap, const SubmitResult& out) {
+  const int64_t added = out.runs_new + out.runs_requeued - out.runs_failed_bed;
+  if (added <= 0) return Status::Ok();
+  Statement st = t.Prepare("SELECT COUNT(*) FROM runs WHERE state IN ('queued', 'running')");
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  const int64_t queued = st.Int(0);
+  if (queued <= cap) return Status::Ok();
+  return Status(StatusCode::kUnavailable,
+                std::to_string(queued - added) + " runs are queued or running and this submission would add " +
+                    std::to_string(added) + ", past the daemon's cap of " + std::to_string(cap) +
+                    " (sandswimd --max-queued-runs): nothing was stored; submit again once runs finish, or cancel a sweep",
+                "queue");
+}
+
+}  // namespace
+
+Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::string& engine_version, double now) {
+  // ---- Everything that can be refused is decided before the transaction opens. ----
+  SANDSWIM_RETURN_IF_ERROR(CheckRequest(req));
+  std::vector<SweepSpec> sweeps = req.sweeps;
+  std::optional<CatalogueEntry> campaign;
+  std::string campaign_scale;
+  if (req.campaign) {
+    Result<CatalogueEntry> found = FindCampaign(store, *req.campaign);
+    if (!found.ok()) return found.status();
+    campaign = std::move(found).value();
+    campaign_scale = req.scale.value_or(campaign->campaign.scale);
+    sweeps = campaign->campaign.sweeps;
+    for (SweepSpec& s : sweeps) s.scale = campaign_scale;
+  }
+  // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
+  // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
+  PlanOptions options;
+  options.max_runs = req.max_runs;
+  options.keep_decks = false;
+  options.threads = 2;
+  Result<std::vector<ScalePlan>> planned = PlanSubmission(sweeps, engine_version, options, req.campaign.has_value());
+  if (!planned.ok()) return planned.status();
+  const std::string fingerprint = Fingerprint(req, sweeps, campaign_scale);
+
+  // ---- One transaction: all rows or none. ----
+  Result<Transaction> begun = store.db().Begin();
+  if (!begun.ok()) return begun.status();
+  Transaction& t = *begun;
+  Result<std::optional<SubmitResult>> replayed = Replayed(t, req, fingerprint);
+  if (!replayed.ok()) return replayed.status();
+  if (*replayed) return std::move(**replayed);
+
+  SubmitResult out;
+  Result<int64_t> submission_id = InsertSubmission(t, req, fingerprint, now);
+  if (!submission_id.ok()) return submission_id.status();
+  if (campaign) {
+    Result<int64_t> id = InsertCampaignRun(t, req, *campaign, campaign_scale, now);
+    if (!id.ok()) return id.status();
+    out.campaign_run_id = *id;
+  }
+  Result<std::vector<int64_t>> sweep_ids = InsertSweeps(t, sweeps, out.campaign_run_id, *submission_id, req.force, now);
+  if (!sweep_ids.ok()) return sweep_ids.status();
+  out.sweep_ids = *sweep_ids;
+  std::map<std::string, int64_t> id_by_name;
+  for (size_t i = 0; i < sweeps.size(); ++i) id_by_name[sweeps[i].name] = out.sweep_ids[i];
+
+  std::map<int64_t, int64_t> next_position;
+  for (const ScalePlan& g : *planned) {
+    std::vector<int64_t> bed_ids;
+    std::vector<SubmittedBed> failed_beds;
+    for (const PlannedBed& bed : g.plan.beds) {
+      Result<SubmittedBed> b = UpsertBed(t, g.scale, bed, engine_version, now);
+      if (!b.ok()) return b.status();
+      bed_ids.push_back(b->id);
+      if (b->failed_for_good) failed_beds.push_back(*b);
+    }
+    SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, id_by_name, req.force, now, next_position, out));
+    // Runs on a bed that failed for good fail now, saying why, rather than wait for it for ever.
+    for (const SubmittedBed& b : failed_beds) {
+      Result<int64_t> n = jobs::FailRunsOfBed(t, b.id, *b.failed_for_good, now);
+      if (!n.ok()) return n.status();
+      out.runs_failed_bed += *n;
+    }
+  }
+  SANDSWIM_RETURN_IF_ERROR(CheckQueueCap(t, req.max_queued_runs, out));
+  SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
+  nlohmann::json response = out;
+  {
+    Statement st = t.Prepare("UPDATE submissions SET response = ? WHERE id = ?");
+    st.Bind(1, response.dump()).Bind(2, *submission_id);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  SANDSWIM_RETURN_IF_ERROR(t.Commit());
+  return out;
+}
+
+}  // namespace sandswim

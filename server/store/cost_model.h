@@ -1,0 +1,76 @@
+// The cost model's readings (core/cost.h) from the daemon's database: the engine rates measured so
+// far and the ETA of a sweep or a campaign run.
+//
+// Rates are measured, never configured: a done run's result holds its steps, grains, wall time,
+// host and rank count; a running run's row holds the step it reached at its last heartbeat; a done
+// bed holds its grains and its start and end. ReadCostModel groups the runs' rates by host and rank
+// count (what `GET /api/v1/cost-model` and `sandswim expand --cost` show) and pools the newest
+// kRateWindow results with the running runs' progress for the ETA, so the estimate follows the
+// machine's load as it is now and exists from a run's first heartbeats. ReadEta adds up what is
+// left of a sweep's or a campaign run's runs and beds (core/cost.h EstimateEta).
+//
+// Thread safety: as Store (each call is one read transaction).
+#ifndef SANDSWIM_SERVER_STORE_COST_MODEL_H_
+#define SANDSWIM_SERVER_STORE_COST_MODEL_H_
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/cost.h"
+#include "core/status.h"
+#include "server/store/store.h"
+
+namespace sandswim {
+
+// Results pooled for the ETA's rate: the newest this many (older ones may be another load).
+inline constexpr int kRateWindow = 50;
+// A running run counts once it has run this long (before, its wall time is mostly the engine's start).
+inline constexpr double kMinProgressSampleS = 20;
+
+struct HostRate {
+  std::string host;
+  int ranks = 1;
+  EngineRate rate;  // per particle-step
+};
+
+struct CostModelView {
+  std::vector<HostRate> hosts;  // done runs, per host and rank count, by host then ranks
+  EngineRate run_rate;          // pooled for the ETA (see above), per particle-step
+  EngineRate bed_rate;          // done beds, per grain
+  int engines_in_flight = 0;    // runs and beds running now
+};
+// {"run_rate":{...},"bed_rate":{...},"hosts":[{"host","ranks",...rate}],"engines_in_flight"};
+// a rate: {"s_per_unit","rel_error","samples","basis"}.
+void to_json(nlohmann::json& j, const CostModelView& v);
+void to_json(nlohmann::json& j, const EngineRate& r);
+
+Result<CostModelView> ReadCostModel(Store& store, double now);
+
+// Inside a transaction: the pooled run rate (per particle-step) and the beds' (per grain).
+Result<EngineRate> PooledRunRate(Transaction& t);
+Result<EngineRate> BedRate(Transaction& t);
+
+// A lease's wall budget when the operator sets none (sandswimd --wall-budget 0): this multiple of
+// the cost model's prediction, plus a margin for the engine's start and a slow first rate. At the
+// default rate a smoke run of 2 s (200,000 steps of 6,683 particles) is predicted 869 s: its
+// budget is 4 x 869 + 600 = 4,076 s; a smoke bed 768 s: 3,673 s. A host 4x slower than its
+// measured rate still finishes; a hung engine is stopped sooner by the worker's --stall-after.
+inline constexpr double kWallBudgetMultiple = 4;
+inline constexpr double kWallBudgetMarginS = 600;
+// The budget of a lease on bed `bed_id` (bed = true) or of a run of `steps` steps on it.
+Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t steps);
+
+enum class EtaScope { kSweep, kCampaignRun };
+// The ETA of what is left of a sweep or a campaign run, over max(engines in flight, min_slots)
+// engines (sandswimd passes its local workers). nullopt when nothing is left.
+Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, double now, int min_slots);
+
+// {"s","rel_error","low_s","high_s","basis"} (a 1-sigma band), or null.
+nlohmann::json EtaJson(const std::optional<Eta>& eta);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_STORE_COST_MODEL_H_

@@ -1,0 +1,516 @@
+#include "server/store/store.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/trajectory.h"
+#include "platform/clock.h"
+#include "server/jobs/submission.h"
+
+namespace sandswim {
+namespace {
+
+namespace fs = std::filesystem;
+
+class StoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir_ = fs::temp_directory_path() / ("sandswim-store-" + std::to_string(rd()));
+    path_ = (dir_ / "nested" / "sandswim.db").string();
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::unique_ptr<Store> MustOpen() {
+    auto s = Store::Open(path_);
+    EXPECT_TRUE(s.ok()) << s.status().ToString();
+    return s.ok() ? std::move(s).value() : nullptr;
+  }
+  fs::path dir_;
+  std::string path_;
+};
+
+nlohmann::json Sweep(const std::string& name, int points) {
+  std::vector<double> omegas;
+  for (int i = 0; i < points; ++i) omegas.push_back(10 + 10 * i);
+  return {{"name", name},
+          {"scale", "smoke"},
+          {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", 10}, {"duration_s", 0.3}}},
+          {"axes", {{{"param", "Omega"}, {"values", omegas}}}}};
+}
+
+TEST_F(StoreTest, OpenCreatesTheDirectoryAndMigratesOnce) {
+  {
+    auto store = MustOpen();
+    ASSERT_TRUE(store);
+    // Every migration of schema/ (001, 002, 003, ...) applied once.
+    EXPECT_GE(store->db().schema_version(), 3);
+    EXPECT_EQ(*store->db().CountRows("schema_migrations"), store->db().schema_version());
+    EXPECT_TRUE(store->db().HealthCheck().ok());
+  }
+  auto again = MustOpen();
+  ASSERT_TRUE(again);
+  EXPECT_EQ(*again->db().CountRows("schema_migrations"), again->db().schema_version());
+  auto t = again->db().BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("PRAGMA journal_mode");
+  ASSERT_TRUE(*st.Step());
+  EXPECT_EQ(st.Text(0), "wal");
+  Statement fk = t->Prepare("PRAGMA foreign_keys");
+  ASSERT_TRUE(*fk.Step());
+  EXPECT_EQ(fk.Int(0), 1);
+}
+
+TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
+  {
+    auto store = MustOpen();
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Exec("PRAGMA user_version = 99").ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto s = Store::Open(path_);
+  EXPECT_EQ(s.status().code(), StatusCode::kFailedPrecondition);
+}
+
+// A database from before migration 7 (results of the old estimator, analysis 1): the upgrade keeps
+// every row and marks it; the daemon's start-up re-analysis recomputes each result that has a
+// stored trajectory, and leaves one without a trajectory visibly inconclusive.
+// One result with a trajectory, and more without one than a page of the re-analysis holds.
+// Every schema/NNN_*.sql in the source tree is compiled in, numbered 1, 2, ... without gaps: adding
+// a migration is adding its file.
+TEST(MigrationsTest, EveryMigrationFileIsCompiledInAndNumberedInOrder) {
+  std::vector<std::string> on_disk;
+  for (const auto& e : fs::directory_iterator(std::string(SANDSWIM_SOURCE_DIR) + "/schema")) {
+    const std::string name = e.path().filename().string();
+    if (name.size() > 8 && std::isdigit(static_cast<unsigned char>(name[0])) && e.path().extension() == ".sql") {
+      on_disk.push_back("schema/" + name);
+    }
+  }
+  std::sort(on_disk.begin(), on_disk.end());
+  std::vector<Migration> migrations = Migrations();
+  ASSERT_EQ(migrations.size(), on_disk.size());
+  for (size_t i = 0; i < migrations.size(); ++i) {
+    EXPECT_EQ(migrations[i].file, on_disk[i]);
+    EXPECT_EQ(migrations[i].version, static_cast<int>(i) + 1);
+  }
+}
+
+TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
+  constexpr int kOld = 450;
+  int64_t with_trajectory = 0, without = 0;
+  std::vector<int64_t> ids;
+  {
+    auto store = MustOpen();
+    auto req = ParseSubmitRequest(Sweep("old", kOld));
+    auto sub = Submit(*store, *req, "engine", 1.7e9);
+    ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+    RunFilter all;
+    all.limit = kOld;
+    auto runs = store->ListRuns(all);
+    ASSERT_EQ(runs->runs.size(), static_cast<size_t>(kOld));
+    for (const auto& r : runs->runs) ids.push_back(r.id);
+    with_trajectory = runs->runs[0].id;
+    without = runs->runs[1].id;
+    // Back to schema 6: its results table, two results of analysis 1, one with a trajectory.
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
+                        "ALTER TABLE runs DROP COLUMN precision; ALTER TABLE runs DROP COLUMN snapshots;"
+                        "ALTER TABLE runs DROP COLUMN materials;"
+                        "DROP TABLE snapshots;"
+                        "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
+                        "ALTER TABLE beds DROP COLUMN seed_pour2;"
+                        "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
+                        "uz_stderr REAL NOT NULL, window_t0 REAL NOT NULL, window_t1 REAL NOT NULL, dz REAL NOT NULL, "
+                        "z_osc_amplitude REAL NOT NULL, x_drift REAL NOT NULL, broke_surface INTEGER NOT NULL, "
+                        "near_floor INTEGER NOT NULL, stop_reason TEXT NOT NULL, sim_time_s REAL NOT NULL, steps "
+                        "INTEGER NOT NULL, "
+                        "grains INTEGER NOT NULL, z0 REAL NOT NULL, engine_version TEXT NOT NULL, host TEXT NOT NULL, "
+                        "ranks INTEGER NOT NULL, launcher TEXT NOT NULL, wall_s REAL NOT NULL, cpu_s REAL NOT NULL, "
+                        "key TEXT NOT NULL, created_at REAL NOT NULL, lease_to_start_s REAL);"
+                        "UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}';"
+                        "UPDATE runs SET state = 'done';")
+                    .ok());
+    for (int64_t id : ids) {
+      ASSERT_TRUE(t->Exec("INSERT INTO results VALUES (" + std::to_string(id) +
+                          ", -0.0066, 0.0002, 0.3333, 0.6667, 0.001, 0.004, 0, 0, 0, 'duration', 1.0, 100000, "
+                          "5000, 0, 'engine', 'h', 1, 'mpirun', 60, 60, 'k', 1.7e9, 0.1)")
+                      .ok());
+    }
+    // z = 0.03 t + 0.004 sin(4 pi f t) at 3 Hz over 1 s, every 1 ms: 2 whole periods after one.
+    api::Trajectory tr;
+    for (int i = 0; i <= 1000; ++i) {
+      double time = i * 1e-3;
+      tr.t.push_back(time);
+      tr.x.push_back(0);
+      tr.y.push_back(0);
+      tr.z.push_back(0.03 * time + 0.004 * std::sin(2 * 3.14159265358979 * 6 * time));
+    }
+    Statement st = t->Prepare("INSERT INTO trajectories (run_id, data) VALUES (?, ?)");
+    st.Bind(1, with_trajectory).Bind(2, nlohmann::json(tr).dump());
+    ASSERT_TRUE(st.Run().ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto store = MustOpen();
+  ASSERT_TRUE(store);
+  EXPECT_EQ(store->db().schema_version(), 12);
+  EXPECT_EQ(*store->db().CountRows("results"), kOld);
+  auto before = store->GetRun(without);
+  ASSERT_TRUE(before->result.has_value());
+  EXPECT_EQ(before->result->result.analysis, 1);
+  EXPECT_FALSE(before->result->result.conclusive);
+  EXPECT_EQ(before->result->result.uz, -0.0066);  // kept, never shown as a result of this analysis
+
+  auto re = store->ReanalyzeOldResults();
+  ASSERT_TRUE(re.ok()) << re.status().ToString();
+  EXPECT_EQ(re->reanalysed, 1);
+  EXPECT_EQ(re->kept_old, kOld - 1);
+  const api::RunResult fresh = store->GetRun(with_trajectory)->result->result;
+  EXPECT_EQ(fresh.analysis, api::kAnalysisVersion);
+  EXPECT_TRUE(fresh.conclusive);
+  EXPECT_EQ(fresh.uz_blocks, 2);
+  ASSERT_TRUE(fresh.uz.has_value());
+  EXPECT_NEAR(*fresh.uz, 0.03, 1e-4);
+  EXPECT_EQ(fresh.grains, 5000);
+  EXPECT_EQ(fresh.analysed_from, "trajectory");
+  const api::RunResult kept = store->GetRun(without)->result->result;
+  EXPECT_EQ(kept.analysis, 1);
+  EXPECT_NE(kept.inconclusive_reason.find("old estimator"), std::string::npos);
+  EXPECT_NE(kept.inconclusive_reason.find("cannot be re-analysed: no stored trajectory"), std::string::npos)
+      << kept.inconclusive_reason;
+  EXPECT_EQ(kept.analysed_from, "unreadable");
+  EXPECT_EQ(DescribeUz(kept), "old estimator (-0.007 m/s)");
+  // Idempotent, and a result that cannot be re-analysed is not tried again at the next start.
+  auto again = store->ReanalyzeOldResults();
+  EXPECT_EQ(again->reanalysed, 0);
+  EXPECT_EQ(again->kept_old, 0);
+}
+
+// Analysis 3 changed only the runs ended by their precision target: such a result of analysis 2
+// keeps its rate but loses its interval (its stop was chosen on it: optional stopping); any other
+// keeps its numbers, marked as this analysis's.
+TEST_F(StoreTest, ResultsOfAnalysis2AreReanalysedOnlyWhereATargetEndedThem) {
+  auto store = MustOpen();
+  ASSERT_TRUE(store);
+  auto req = ParseSubmitRequest(Sweep("v2", 2));
+  ASSERT_TRUE(req.ok()) << req.status().ToString();
+  ASSERT_TRUE(Submit(*store, *req, "engine", 1.7e9).ok());
+  RunFilter all;
+  auto runs = store->ListRuns(all);
+  ASSERT_EQ(runs->runs.size(), 2u);
+  const int64_t stopped = runs->runs[0].id, whole = runs->runs[1].id;
+  // At 3 Hz: a still transient period, a pilot of 3 periods (rates 0.012, 0.060, 0.054 m/s), then
+  // 12 periods at 0.036 m/s; every 1 ms.
+  const std::vector<double> advances = {0.004, 0.020, 0.018, 0.012, 0.012, 0.012, 0.012, 0.012,
+                                        0.012, 0.012, 0.012, 0.012, 0.012, 0.012, 0.012};
+  api::Trajectory tr;
+  for (int i = 0; i <= 5340; ++i) {
+    const double time = i * 1e-3, periods = time * 3;
+    const int k = static_cast<int>(std::floor(periods)) - 1;  // the period after the transient
+    double z = 0;
+    for (int j = 0; j < k && j < static_cast<int>(advances.size()); ++j) z += advances[j];
+    if (k >= 0 && k < static_cast<int>(advances.size())) z += advances[k] * (periods - std::floor(periods));
+    tr.t.push_back(time);
+    tr.x.push_back(0);
+    tr.y.push_back(0);
+    tr.z.push_back(z);
+  }
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Exec("UPDATE beds SET state = 'done', result = '{\"grain_top\": 0.9}'; UPDATE runs SET state = "
+                        "'done'; UPDATE runs SET precision = '{\"uz_rel\": 0.5, \"uz_abs\": 0, \"min_periods\": 3, "
+                        "\"max_duration_s\": 10}' WHERE id = " +
+                        std::to_string(stopped))
+                    .ok());
+    for (int64_t id : {stopped, whole}) {
+      ASSERT_TRUE(t->Exec("INSERT INTO results (run_id, uz, uz_stderr, uz_ci95, uz_blocks, block_s, block_kind, "
+                          "window_t0, window_t1, window_end, conclusive, dz, dz_rate, z_osc_amplitude, x_drift, "
+                          "broke_surface, near_floor, stop_reason, sim_time_s, steps, grains, z0, analysis, "
+                          "engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at) VALUES (" +
+                          std::to_string(id) + ", 0.0385, 0.001, 0.002, 15, 0.3333, 'period', 0.3333, 5.3333, "
+                          "'run_end', 1, 0.2, 0.0375, 0.001, 0, 0, 0, '" +
+                          (id == stopped ? "target" : "duration") +
+                          "', 5.34, 534000, 5000, 0, 2, 'engine', 'h', 1, 'mpirun', 60, 60, 'k', 1.7e9)")
+                      .ok());
+    }
+    Statement st = t->Prepare("INSERT INTO trajectories (run_id, data) VALUES (?, ?)");
+    st.Bind(1, stopped).Bind(2, nlohmann::json(tr).dump());
+    ASSERT_TRUE(st.Run().ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto re = store->ReanalyzeOldResults();
+  ASSERT_TRUE(re.ok()) << re.status().ToString();
+  EXPECT_EQ(re->reanalysed, 1);
+  EXPECT_EQ(re->unchanged, 1);
+  EXPECT_EQ(re->kept_old, 0);
+  const api::RunResult fresh = store->GetRun(stopped)->result->result;
+  EXPECT_EQ(fresh.analysis, api::kAnalysisVersion);
+  EXPECT_EQ(fresh.analysed_from, "trajectory");
+  EXPECT_EQ(fresh.uz_blocks, 15);  // every block: no two-stage pilot to leave out
+  ASSERT_TRUE(fresh.uz.has_value());
+  EXPECT_NEAR(*fresh.uz, (0.004 + 0.020 + 0.018 + 12 * 0.012) / 5, 1e-4);
+  EXPECT_FALSE(fresh.uz_stderr.has_value());
+  EXPECT_FALSE(fresh.uz_ci95.has_value());
+  EXPECT_NE(fresh.uz_stderr_note.find("optional stopping"), std::string::npos) << fresh.uz_stderr_note;
+  EXPECT_EQ(fresh.precision_met, false);
+  // Analysis 3 changed none of its numbers: it keeps them and becomes a result of analysis 3, which
+  // analysis 4 (a transient in seconds, the trend test, x's amplitude) leaves as it is: its
+  // numbers stand for its one-period window, it says its analysis, and has no trend test or x
+  // amplitude (a rerun with --force gets them).
+  const api::RunResult kept = store->GetRun(whole)->result->result;
+  EXPECT_EQ(kept.analysis, 3);
+  EXPECT_EQ(kept.analysed_from, "dump");
+  EXPECT_EQ(kept.uz, 0.0385);
+  EXPECT_EQ(kept.uz_ci95, 0.002);
+  EXPECT_TRUE(kept.conclusive);
+  EXPECT_FALSE(kept.x_osc_amplitude);
+  EXPECT_FALSE(kept.trend_p);
+  EXPECT_FALSE(kept.trending);
+  EXPECT_EQ(DescribeUz(kept), "0.0385 ± 0.0010 m/s, 15 periods (analysis 3)");
+  // Idempotent.
+  auto again = store->ReanalyzeOldResults();
+  EXPECT_EQ(again->reanalysed + again->unchanged + again->kept_old, 0);
+}
+
+TEST_F(StoreTest, TransactionRollsBackUnlessCommitted) {
+  auto store = MustOpen();
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Event(1, "test", "x/1").ok());
+  }
+  EXPECT_EQ(*store->db().CountRows("events"), 0);
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Event(1, "test", "x/1").ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  EXPECT_EQ(*store->db().CountRows("events"), 1);
+  auto t = store->db().Begin();
+  Statement bad = t->Prepare("SELECT nope FROM nowhere");
+  EXPECT_FALSE(bad.Step().ok());
+}
+
+// A backup taken while another thread keeps committing: the copy opens, passes integrity_check,
+// and holds a prefix of the writes (every committed event up to some point, none half-written).
+// Whether the writer gets in between the copy's steps is up to the scheduler: not asserted. A backup to a directory
+// that does not exist fails and leaves nothing.
+TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
+  auto store = MustOpen();
+  {  // about 4 MB: the copy takes several steps of 256 pages
+    auto t = store->db().Begin();
+    for (int i = 0; i < 4000; ++i) {
+      ASSERT_TRUE(t->Event(i, "seed", "x/" + std::to_string(i), {{"pad", std::string(1000, 'x')}}).ok());
+    }
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  std::atomic<bool> stop{false};
+  std::atomic<int> written{0};
+  std::thread writer([&] {
+    for (int i = 0; !stop; ++i) {
+      Status s = store->db().Write([&](Transaction& t) { return t.Event(i, "during", "y/" + std::to_string(i)); });
+      if (s.ok()) ++written;
+    }
+  });
+  const std::string copy = (dir_ / "copy.db").string();
+  Result<int64_t> bytes = store->db().BackupTo(copy);
+  const int during_backup = written.load();
+  stop = true;
+  writer.join();
+  ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+  EXPECT_EQ(*bytes, static_cast<int64_t>(fs::file_size(copy)));
+  EXPECT_FALSE(fs::exists(copy + ".partial"));
+  auto restored = Store::Open(copy);
+  ASSERT_TRUE(restored.ok()) << restored.status().ToString();
+  {
+    auto t = (*restored)->db().BeginRead();
+    ASSERT_TRUE(t.ok());
+    Statement check = t->Prepare("PRAGMA integrity_check");
+    ASSERT_TRUE(*check.Step());
+    EXPECT_EQ(check.Text(0), "ok");
+    Statement during = t->Prepare(
+        "SELECT count(*), COALESCE(max(CAST(substr(subject, 3) AS INTEGER)), -1) "
+        "FROM events WHERE kind = 'during'");
+    ASSERT_TRUE(*during.Step());
+    // A prefix: the events written during the backup are 0..n-1 with no gap.
+    EXPECT_EQ(during.Int(1), during.Int(0) - 1);
+    EXPECT_LE(during.Int(0), during_backup + 1);
+  }
+  EXPECT_GE(*(*restored)->db().CountRows("events"), 4000);
+
+  Result<int64_t> bad = store->db().BackupTo((dir_ / "no-such-dir" / "copy.db").string());
+  EXPECT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().ToString().find("check that the directory exists"), std::string::npos)
+      << bad.status().ToString();
+  EXPECT_FALSE(fs::exists(dir_ / "no-such-dir"));
+}
+
+TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
+  auto store = MustOpen();
+  auto req = ParseSubmitRequest(Sweep("five", 5));
+  auto sub = Submit(*store, *req, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+  auto req2 = ParseSubmitRequest(Sweep("two", 2));
+  ASSERT_TRUE(Submit(*store, *req2, "engine", 1.7e9).ok());
+
+  RunFilter f;
+  f.sweep_id = sub->sweep_ids[0];
+  f.limit = 2;
+  std::vector<int64_t> seen;
+  for (int page = 0; page < 5; ++page) {
+    auto p = store->ListRuns(f);
+    ASSERT_TRUE(p.ok());
+    for (const RunSummary& r : p->runs) seen.push_back(r.id);
+    if (!p->next_cursor) break;
+    f.after_id = *p->next_cursor;
+  }
+  EXPECT_EQ(seen.size(), 5u);
+  EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
+
+  RunFilter all;
+  all.state = "queued";
+  EXPECT_EQ(store->ListRuns(all)->runs.size(), 5u);  // the two are shared with "five"
+  all.state = "done";
+  EXPECT_TRUE(store->ListRuns(all)->runs.empty());
+  all.state = "bogus";
+  EXPECT_EQ(store->ListRuns(all).status().field(), "state");
+
+  auto page = store->ListSweeps(0, 1);
+  ASSERT_EQ(page->sweeps.size(), 1u);
+  ASSERT_TRUE(page->next_cursor.has_value());
+  EXPECT_EQ(store->ListSweeps(*page->next_cursor, 1)->sweeps[0].name, "two");
+  nlohmann::json j = *page;
+  EXPECT_EQ(j["sweeps"][0]["counts"]["queued"], 5);
+  EXPECT_EQ(j["sweeps"][0]["runs"], 5);
+}
+
+TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
+  auto store = MustOpen();
+  auto req = ParseSubmitRequest(Sweep("one", 1));
+  auto sub = Submit(*store, *req, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok());
+  auto runs = store->ListRuns({});
+  auto run = store->GetRun(runs->runs[0].id);
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EXPECT_FALSE(run->deck.empty());
+  EXPECT_EQ(run->sweep_ids, sub->sweep_ids);
+  EXPECT_EQ(run->bed_state, "queued");
+  nlohmann::json j = *run;
+  EXPECT_EQ(j["state"], "queued");
+  EXPECT_EQ(j["point"]["mode"], "oscillatory");
+  EXPECT_TRUE(j.contains("deck"));
+  EXPECT_EQ(store->GetRun(12345).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->GetSweep(12345).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->SweepResults(12345).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->db().CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST_F(StoreTest, CampaignsRoundTrip) {
+  auto store = MustOpen();
+  StoredCampaign c{"mine", {{"name", "mine"}}, "0 3 * * *", 0.01, 5};
+  ASSERT_TRUE(store->PutCampaign(c).ok());
+  c.schedule.reset();
+  ASSERT_TRUE(store->PutCampaign(c).ok());
+  auto got = store->GetCampaign("mine");
+  ASSERT_TRUE(got.ok() && got->has_value());
+  EXPECT_FALSE((*got)->schedule.has_value());
+  EXPECT_EQ(store->ListCampaigns()->size(), 1u);
+  EXPECT_FALSE(store->GetCampaign("other")->has_value());
+}
+
+// Group commit: many threads hand changes to Write() at once. Every change that succeeds is in
+// the file once Write returns; one that fails or throws is rolled back alone, and its caller
+// (only its caller) gets the error.
+TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
+  auto store = MustOpen();
+  ASSERT_NE(store, nullptr);
+  constexpr int kThreads = 16, kEach = 50;
+  std::atomic<int> ok{0}, refused{0}, thrown{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kThreads; ++i) {
+    threads.emplace_back([&, i] {
+      for (int k = 0; k < kEach; ++k) {
+        const int n = i * kEach + k;
+        Status s = store->db().Write([&](Transaction& t) -> Status {
+          // Every change writes first, so a failing one has something to roll back.
+          SANDSWIM_RETURN_IF_ERROR(t.Count("grouped"));
+          if (n % 7 == 3) return Status::Conflict("refused on purpose");
+          if (n % 11 == 5) throw std::runtime_error("thrown on purpose");
+          return Status::Ok();
+        });
+        if (s.ok()) {
+          ++ok;
+          // Durable and visible as soon as Write returned.
+          Result<int64_t> rows = store->db().CountRows("counters");
+          EXPECT_TRUE(rows.ok() && *rows >= 1);
+        } else if (s.code() == StatusCode::kConflict) {
+          ++refused;
+        } else {
+          EXPECT_NE(s.reason().find("thrown on purpose"), std::string::npos) << s.ToString();
+          ++thrown;
+        }
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  int want_refused = 0, want_thrown = 0;
+  for (int n = 0; n < kThreads * kEach; ++n) {
+    if (n % 7 == 3)
+      ++want_refused;
+    else if (n % 11 == 5)
+      ++want_thrown;
+  }
+  EXPECT_EQ(refused.load(), want_refused);
+  EXPECT_EQ(thrown.load(), want_thrown);
+  EXPECT_EQ(ok.load(), kThreads * kEach - want_refused - want_thrown);
+  store.reset();
+  // Reopened: exactly the successful changes were committed.
+  auto again = MustOpen();
+  ASSERT_NE(again, nullptr);
+  Result<Metrics> m = again->GetMetrics();
+  ASSERT_TRUE(m.ok());
+  auto t = again->db().BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("SELECT value FROM counters WHERE name = 'grouped'");
+  Result<bool> row = st.Step();
+  ASSERT_TRUE(row.ok() && *row);
+  EXPECT_EQ(st.Int(0), ok.load());
+}
+
+// Reads run on read-only connections beside the writer's: a read transaction held open (a long
+// results read) does not hold up a write, and sees the file as it was when it began.
+TEST_F(StoreTest, AnOpenReadDoesNotHoldUpWrites) {
+  auto store = MustOpen();
+  ASSERT_TRUE(store);
+  EXPECT_GT(store->db().read_connections(), 0);
+  auto read = store->db().BeginRead();
+  ASSERT_TRUE(read.ok());
+  Statement before = read->Prepare("SELECT count(*) FROM events");
+  ASSERT_TRUE(*before.Step());
+  const int64_t seen = before.Int(0);
+  before.Reset();
+  std::atomic<bool> written{false};
+  std::thread writer([&] {
+    Status s = store->db().Write([&](Transaction& t) { return t.Event(1, "during-read", "x/1"); });
+    EXPECT_TRUE(s.ok()) << s.ToString();
+    written = true;
+  });
+  for (int i = 0; i < 500 && !written; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(written.load()) << "a write waited for an open read";
+  Statement again = read->Prepare("SELECT count(*) FROM events");
+  ASSERT_TRUE(*again.Step());
+  EXPECT_EQ(again.Int(0), seen) << "the read's snapshot changed under it";
+  writer.join();
+  // A write slipped into a read transaction fails at once.
+  EXPECT_FALSE(read->Exec("INSERT INTO events (time, kind, subject, detail) VALUES (1, 'x', 'y', '{}')").ok());
+}
+
+}  // namespace
+}  // namespace sandswim
