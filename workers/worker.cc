@@ -229,23 +229,32 @@ void Worker::Run() {
 
 int Worker::Slots() const { return options_.once ? 1 : std::max(1, options_.slots); }
 
-bool Worker::WaitForFreeSlot() {
+bool Worker::TakeFreeSlot() {
   std::unique_lock<std::mutex> lock(mu_);
   cv_.wait(lock, [this] { return stopping_.load() || slots_in_use_ < Slots(); });
-  return !stopping_;
+  if (stopping_) return false;
+  ++slots_in_use_;
+  ++leasing_;
+  return true;
 }
 
-bool Worker::TakeSlot() {
-  std::lock_guard<std::mutex> lock(mu_);
-  if (slots_in_use_ >= Slots()) return false;
-  ++slots_in_use_;
-  return true;
+void Worker::LeaseArrived(bool got_job) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    --leasing_;
+    if (!got_job) --slots_in_use_;
+  }
+  cv_.notify_all();
 }
 
 int Worker::TakeIdleSlots(const api::LeaseGrant& grant) {
   const int ranks = std::max(1, options_.ranks);
   if (!grant.queue_dry || options_.launcher == LauncherKind::kDirect || options_.max_ranks <= ranks) return 0;
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::mutex> lock(mu_);
+  // A slot whose lease is on its way holds its core: wait for that lease (one round trip) to
+  // say whether it brought a job, or the core would idle through this one for nothing.
+  cv_.wait_for(lock, std::chrono::duration<double>(kLeaseInFlightWaitS),
+               [this] { return stopping_.load() || leasing_ == 0; });
   const int extra = std::min(Slots() - slots_in_use_, options_.max_ranks / ranks - 1);
   if (extra <= 0) return 0;
   slots_in_use_ += extra;
@@ -291,11 +300,17 @@ void Worker::SlotLoop() {
       idle_since = Clock::now();
       continue;
     }
-    // A slot whose core is lent to a wider job leases nothing until that job ends.
-    if (!WaitForFreeSlot()) break;
-    if (!RunFitsAllocation()) break;
+    // A slot whose core is lent to a wider job leases nothing until that job ends. The core is
+    // taken before the lease is asked for, so no other slot's job can take it while the lease is
+    // on its way; it is given back when no job comes.
+    if (!TakeFreeSlot()) break;
+    if (!RunFitsAllocation()) {
+      LeaseArrived(false);
+      break;
+    }
     api::LeaseRequest request{options_.name, options_.host, options_.ranks, options_.slurm_job};
     auto lease = client_.Lease(request);
+    LeaseArrived(lease.ok() && lease->has_value());
     if (!lease.ok()) {
       if (lease.status().code() == StatusCode::kUnauthenticated ||
           lease.status().code() == StatusCode::kPermissionDenied) {
@@ -322,13 +337,6 @@ void Worker::SlotLoop() {
                                               : options_.idle_poll_s)) {
         break;
       }
-      continue;
-    }
-    if (!TakeSlot()) {
-      // Another slot's job took this core while the lease was on its way: give the job back.
-      auto reply = client_.Release((*lease)->token, "the worker's cores were all in use when the lease arrived");
-      spdlog::info("{}: handed back unstarted, every core of this worker is in use ({})", JobName(**lease),
-                   reply.ok() ? reply->state : reply.status().ToString() + "; its lease will expire");
       continue;
     }
     {

@@ -50,8 +50,14 @@ class FakeClient : public ServerClient {
   std::vector<std::chrono::steady_clock::time_point> completed_at;
   std::vector<api::LeaseGrant> granted;  // by Lease()
   bool requeue_released = false;         // a released grant is leasable again
+  // Runs at the start of the n-th Lease() call (from 0), before it looks at `grants`: holds a
+  // lease on its way while the test arranges what happens meanwhile.
+  std::function<void(int n)> before_lease;
+  std::atomic<int> lease_calls{0};
 
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest&) override {
+    const int n = lease_calls++;
+    if (before_lease) before_lease(n);
     std::lock_guard<std::mutex> l(mu);
     if (grants.empty()) return std::optional<api::LeaseGrant>();
     ++granted_by_lease;
@@ -762,6 +768,36 @@ TEST(WorkerTest, NoSlotIsTakenFromAJobThatRuns) {
   EXPECT_EQ(RanksOf(launcher.started[0]), 1);
   EXPECT_EQ(RanksOf(launcher.started[1]), 1);
   EXPECT_EQ(worker.stats().widened, 0);
+}
+
+// A slot's lease on its way holds its core: slot A's lease is slow to come back and slot B gets
+// a bed with the queue dry meanwhile; B runs it on its own core only, and A's job, when its
+// lease arrives, runs at once on A's core (it was handed back, to wait for all of B's bed, when
+// the core was taken only once the lease had come: B started its bed on both cores at once).
+TEST(WorkerTest, ALeaseOnItsWayKeepsItsSlotsCore) {
+  FakeClient client;
+  FakeLauncher launcher;
+  client.grants = {BedGrant(2, /*queue_dry=*/true), BedGrant(1, /*queue_dry=*/false)};
+  client.before_lease = [&](int n) {
+    // A's lease comes back once B's bed started, or after 0.5 s (B now waits for A's lease).
+    if (n == 0) WaitUntil([&] { return launcher.Started() >= 1; }, 0.5);
+  };
+  launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+  launcher.runs_for_s = 0.5;
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.launcher = LauncherKind::kMpirun;
+  o.slots = 2;
+  o.max_ranks = 2;
+  o.exit_when_idle_s = 0.05;
+  Worker worker(o, client, launcher);
+  worker.Run();
+  EXPECT_TRUE(client.released.empty());
+  ASSERT_EQ(launcher.started.size(), 2u);
+  EXPECT_EQ(RanksOf(launcher.started[0]), 1);
+  EXPECT_EQ(RanksOf(launcher.started[1]), 1);
+  EXPECT_EQ(worker.stats().widened, 0);
+  ASSERT_EQ(client.completed_at.size(), 2u);
+  EXPECT_LT(launcher.started_at[1], client.completed_at[0]);  // side by side, not one after the other
 }
 
 }  // namespace
