@@ -34,7 +34,9 @@
 // never; never with the direct launcher); those slots lease nothing until it ends. A slot takes its
 // core before it asks for a lease (and gives it back when no job comes), so no job a slot gets
 // ever finds its core lent; a job granted with the queue dry waits for the leases on their way
-// (a round trip) and takes the cores of those that came back empty. Ranks enter
+// (a round trip) and takes the cores of those that came back empty. A widened engine that does
+// not start (its MPI launcher refuses the ranks) runs on `ranks` within the same lease, attempt
+// uncounted, and the worker widens no job after that. Ranks enter
 // neither the deck nor the key; the completion's execution says how many the job ran on.
 //
 // Inside a Slurm allocation (`allocation_seconds_left` set), a slot leases a job only while
@@ -148,6 +150,10 @@ class Worker {
   // Runs a job on the slot it holds plus the idle slots it may take; gives back what it took
   // (its own slot too, unless a next job came with its completion).
   void RunOnSlot(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next);
+  // RunJob for a slot: `*lent` extra slots' cores are held for the job; an engine that will not
+  // start on them is run on options.ranks, and they are given back at once (*lent becomes 0).
+  void RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next, int ranks, int* lent);
+  bool EngineNeverRan(const ExitFacts& facts, const RunDir& dir) const;
   // RunJob's steps: the run directory with its deck and bed (nullopt: the job was reported); the
   // engine started and watched, heartbeating (nullopt: the job was abandoned or handed back); a
   // bed's restart uploaded and reported. The outcome between them is workers/job_outcome.h's.
@@ -181,6 +187,7 @@ class Worker {
   WorkerStats stats_;
   std::optional<double> longest_run_s_;  // wall time of the longest run done ok, for ShouldLease
   int slots_in_use_ = 0;                 // slots leasing, running a job, or lent to a wider one (<= Slots())
+  bool widen_refused_ = false;           // a widened engine did not start: no job is widened again
   int leasing_ = 0;                      // slots whose lease is on its way (their cores are in slots_in_use_)
 };
 
