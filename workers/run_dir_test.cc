@@ -1,12 +1,16 @@
 #include "workers/run_dir.h"
 
+#include <signal.h>
 #include <stdlib.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -154,18 +158,22 @@ TEST(BedCacheTest, AVanishedDownloadIsReplacedByAStoredCopyThatVerifies) {
   EXPECT_NE(s.reason().find("cannot store the bed in " + cached), std::string::npos) << s.reason();
 }
 
-// The same race between two processes: both are inside their download at once (a pipe each way
-// holds each one half-written until the other has started), then both finish.
-TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
-  const std::string work = testing::TempDir("rundir-procs");
-  const std::string bytes(4 << 20, 'p');
-  api::BedRef bed{1, Sha256Hex(bytes), "", ""};
+// Two processes fetching one bed into one directory, each held half-written inside its download
+// until the other has started its own (a pipe each way); `second_dies` makes the second exit
+// before it starts. Each process closes the pipe ends it does not use, and so does the test, so a
+// process whose twin died reads end-of-file instead of waiting for ever. Their exit statuses
+// (waitpid's), or -1 for one still running after 30 s (then killed).
+std::vector<int> TwoProcessesFetch(const std::string& work, const std::string& bytes, bool second_dies) {
+  const api::BedRef bed{1, Sha256Hex(bytes), "", ""};
   int to_a[2], to_b[2];
-  ASSERT_EQ(pipe(to_a), 0);
-  ASSERT_EQ(pipe(to_b), 0);
-  auto child = [&](int id, int signal_fd, int wait_fd) -> pid_t {
+  if (pipe(to_a) != 0 || pipe(to_b) != 0) return {};
+  auto child = [&](int id, int signal_fd, int wait_fd, bool dies) -> pid_t {
     const pid_t pid = fork();
     if (pid != 0) return pid;
+    signal(SIGPIPE, SIG_IGN);  // a write to a dead twin fails instead of killing this process
+    for (int fd : {to_a[0], to_a[1], to_b[0], to_b[1]})
+      if (fd != signal_fd && fd != wait_fd) close(fd);
+    if (dies) _exit(3);
     BedCache cache(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
       std::ofstream out(dest, std::ios::binary);
       out << bytes.substr(0, bytes.size() / 2) << std::flush;
@@ -178,16 +186,48 @@ TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
     const bool ok = dir.ok() && cache.Provide(bed, *dir).ok() && ReadAll(dir->File("bed.restart")) == bytes;
     _exit(ok ? 0 : 1);
   };
-  const pid_t a = child(1, to_b[1], to_a[0]);
-  const pid_t b = child(2, to_a[1], to_b[0]);
-  ASSERT_GT(a, 0);
-  ASSERT_GT(b, 0);
-  for (pid_t pid : {a, b}) {
-    int status = 0;
-    ASSERT_EQ(waitpid(pid, &status, 0), pid);
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "worker process " << pid << " failed";
-  }
+  const pid_t a = child(1, to_b[1], to_a[0], false);
+  const pid_t b = child(2, to_a[1], to_b[0], second_dies);
   for (int fd : {to_a[0], to_a[1], to_b[0], to_b[1]}) close(fd);
+  std::vector<int> statuses;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  for (pid_t pid : {a, b}) {
+    int status = -1;
+    if (pid <= 0) {
+      statuses.push_back(-1);
+      continue;
+    }
+    while (waitpid(pid, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        kill(pid, SIGKILL);
+        waitpid(pid, nullptr, 0);
+        status = -1;
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    statuses.push_back(status);
+  }
+  return statuses;
+}
+
+bool ExitedWith(int status, int code) { return status != -1 && WIFEXITED(status) && WEXITSTATUS(status) == code; }
+
+// The same race between two processes: both are inside their download at once, then both finish.
+TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
+  const std::vector<int> s = TwoProcessesFetch(testing::TempDir("rundir-procs"), std::string(4 << 20, 'p'), false);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_TRUE(ExitedWith(s[0], 0)) << "first worker process: status " << s[0];
+  EXPECT_TRUE(ExitedWith(s[1], 0)) << "second worker process: status " << s[1];
+}
+
+// A process whose twin dies before it signals fails its download at once (it waited for ever
+// while the test and its twin held the pipe's write end open).
+TEST(BedCacheTest, AProcessWhoseTwinDiesFailsItsDownloadInsteadOfHanging) {
+  const std::vector<int> s = TwoProcessesFetch(testing::TempDir("rundir-procs-dies"), std::string(1 << 10, 'p'), true);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_TRUE(ExitedWith(s[0], 1)) << "first worker process: status " << s[0] << " (-1: hung, killed)";
+  EXPECT_TRUE(ExitedWith(s[1], 3)) << "second worker process: status " << s[1];
 }
 
 }  // namespace
