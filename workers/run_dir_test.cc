@@ -158,6 +158,45 @@ TEST(BedCacheTest, AVanishedDownloadIsReplacedByAStoredCopyThatVerifies) {
   EXPECT_NE(s.reason().find("cannot store the bed in " + cached), std::string::npos) << s.reason();
 }
 
+// A download's part is named for its host, process and a random 64-bit value (pids repeat
+// across containers and hosts sharing a workdir); parts untouched for a day (a crash cut them
+// short) are removed when the cache first provides a bed, younger ones (maybe live) are kept.
+TEST(BedCacheTest, APartNamesItsHostAndStalePartsAreRemoved) {
+  const std::string work = testing::TempDir("rundir-parts");
+  const std::string beds = work + "/beds";
+  std::filesystem::create_directories(beds);
+  const std::string stale = beds + "/" + std::string(64, 'c') + ".restart.part.otherhost.77.0123456789abcdef";
+  const std::string young = beds + "/" + std::string(64, 'd') + ".restart.part.otherhost.78.fedcba9876543210";
+  const std::string other = beds + "/notes.txt";
+  for (const std::string& f : {stale, young, other}) std::ofstream(f) << "x";
+  std::filesystem::last_write_time(stale, std::filesystem::file_time_type::clock::now() - std::chrono::hours(25));
+  std::filesystem::last_write_time(other, std::filesystem::file_time_type::clock::now() - std::chrono::hours(25));
+  std::vector<std::string> parts;
+  BedCache cache(beds, [&](const api::BedRef&, const std::string& dest) {
+    parts.push_back(dest);
+    std::ofstream(dest, std::ios::binary) << "bed bytes";
+    return Status::Ok();
+  });
+  const api::BedRef bed{1, Sha256Hex("bed bytes"), "", ""};
+  auto r1 = RunDir::Create(work, api::JobKind::kRun, 1, 1);
+  ASSERT_TRUE(cache.Provide(bed, *r1).ok());
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  EXPECT_TRUE(std::filesystem::exists(young));
+  EXPECT_TRUE(std::filesystem::exists(other));
+  char host[256] = {};
+  ASSERT_EQ(gethostname(host, sizeof(host) - 1), 0);
+  std::filesystem::remove(beds + "/" + bed.sha256 + ".restart");
+  auto r2 = RunDir::Create(work, api::JobKind::kRun, 2, 1);
+  ASSERT_TRUE(cache.Provide(bed, *r2).ok());
+  ASSERT_EQ(parts.size(), 2u);
+  const std::string prefix = beds + "/" + bed.sha256 + ".restart.part." + host + "." + std::to_string(getpid()) + ".";
+  for (const std::string& p : parts) {
+    ASSERT_EQ(p.rfind(prefix, 0), 0u) << p;
+    EXPECT_EQ(p.size() - prefix.size(), 16u) << p;  // 64 bits in hex
+  }
+  EXPECT_NE(parts[0], parts[1]);
+}
+
 // Two processes fetching one bed into one directory, each held half-written inside its download
 // until the other has started its own (a pipe each way); `second_dies` makes the second exit
 // before it starts. Each process closes the pipe ends it does not use, and so does the test, so a
