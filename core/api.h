@@ -92,7 +92,10 @@ struct LeaseGrant {
   // No other job was leasable when this one was granted (a bed's runs wait for it; the last runs
   // of the queue): a worker's slots that are idle now would stay idle while it runs, so the
   // worker may give this job their cores as extra MPI ranks (workers/worker.h). Ranks enter
-  // neither the deck nor any key: the physics and the key are the same on any number of ranks.
+  // neither the deck nor any key: a job on more ranks is statistically equivalent, not identical
+  // (fix insert/pack places grains by the domain decomposition, and sums over ranks run in another
+  // order): two runs of one key on different ranks follow different trajectories, and their
+  // results agree within their errors.
   bool queue_dry = false;
 };
 void to_json(nlohmann::json& j, const LeaseGrant& g);

@@ -322,7 +322,7 @@ const char* LauncherName(LauncherKind kind) {
 }
 
 LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine, const std::string& deck_file,
-                         const std::string& log_file, const std::string& cwd, bool as_root) {
+                         const std::string& log_file, const std::string& cwd, bool as_root, bool widened) {
   LaunchSpec spec;
   spec.cwd = cwd;
   spec.output_file = "engine.out";
@@ -330,6 +330,7 @@ LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine
   switch (kind) {
     case LauncherKind::kMpirun:
       spec.argv = {"mpirun", "-np", r, "--bind-to", "none"};
+      if (widened) spec.argv.push_back("--oversubscribe");
       if (as_root) {
         spec.env = {{"OMPI_ALLOW_RUN_AS_ROOT", "1"}, {"OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1"}};
       }

@@ -50,8 +50,11 @@ struct LaunchSpec {
 // -log LOG -screen /dev/null` (with OMPI_ALLOW_RUN_AS_ROOT[_CONFIRM]=1 in env when running as root); srun (inside an
 // allocation): `srun --mpi=pmix -n R --exclusive ENGINE ...`; direct: `ENGINE ...` (R must be 1).
 // (`-screen none` segfaults with fix insert/pack, so the screen goes to /dev/null.)
+// `widened` (a job on idle slots' cores, workers/worker.h): mpirun gets `--oversubscribe`, since
+// Open MPI counts physical cores as its slots and refuses more ranks than that ("not enough
+// slots"), while the worker's slots may count logical CPUs (--local-workers $(nproc)).
 LaunchSpec EngineCommand(LauncherKind kind, int ranks, const std::string& engine, const std::string& deck_file,
-                         const std::string& log_file, const std::string& cwd, bool as_root);
+                         const std::string& log_file, const std::string& cwd, bool as_root, bool widened = false);
 
 struct ExitStatus {
   int exit_code = 0;  // when it exited

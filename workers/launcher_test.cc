@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
@@ -142,6 +143,12 @@ TEST(LauncherTest, EngineCommands) {
   EXPECT_EQ(m.env.size(), 2u);
   EXPECT_EQ(m.cwd, "/d");
   EXPECT_TRUE(EngineCommand(LauncherKind::kMpirun, 1, "liggghts", "a", "b", "/d", false).env.empty());
+  // A job widened onto idle slots' cores may ask for more ranks than Open MPI's slots (physical cores).
+  const std::vector<std::string> widened =
+      EngineCommand(LauncherKind::kMpirun, 4, "liggghts", "a", "b", "/d", false, /*widened=*/true).argv;
+  EXPECT_EQ(std::vector<std::string>(widened.begin(), widened.begin() + 6),
+            (std::vector<std::string>{"mpirun", "-np", "4", "--bind-to", "none", "--oversubscribe"}));
+  EXPECT_EQ(std::count(m.argv.begin(), m.argv.end(), "--oversubscribe"), 0);
   LaunchSpec s = EngineCommand(LauncherKind::kSrun, 4, "liggghts", "bed.in", "log.liggghts", "/d", false);
   EXPECT_EQ(s.argv, (std::vector<std::string>{"srun", "--mpi=pmix", "-n", "4", "--exclusive", "liggghts", "-in",
                                               "bed.in", "-log", "log.liggghts", "-screen", "/dev/null"}));

@@ -4,13 +4,19 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <random>
 #include <sstream>
 #include <system_error>
 #include <vector>
+
+#include <spdlog/spdlog.h>
 
 #include "core/deck.h"
 #include "core/snapshot.h"
@@ -101,9 +107,36 @@ Status RunDir::Remove() const {
 }
 
 std::string BedCache::PartName(const std::string& cached) {
-  // The pid tells processes apart, the counter the caches and threads of one process.
-  static std::atomic<unsigned long long> next{0};
-  return cached + ".part." + std::to_string(getpid()) + "." + std::to_string(next++);
+  // The host and pid tell processes apart where hosts or containers share the workdir (pids
+  // repeat across them); a random 64-bit value makes the name unique even where both repeat.
+  char host[256] = {};
+  if (gethostname(host, sizeof(host) - 1) != 0 || host[0] == '\0') std::snprintf(host, sizeof(host), "host");
+  static std::mutex mu;
+  static std::mt19937_64 random{(static_cast<uint64_t>(std::random_device{}()) << 32) ^ std::random_device{}()};
+  uint64_t r;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    r = random();
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof(hex), "%016llx", static_cast<unsigned long long>(r));
+  return cached + ".part." + host + "." + std::to_string(getpid()) + "." + hex;
+}
+
+void BedCache::RemoveStaleParts() {
+  // A download cut short by a crash leaves its part behind under a name nobody will use again.
+  // One untouched for a day is no live download's (a bed downloads in minutes).
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (const fs::directory_entry& e : fs::directory_iterator(dir_, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.find(".restart.part.") == std::string::npos) continue;
+    std::error_code time_ec;
+    const auto written = fs::last_write_time(e.path(), time_ec);
+    if (time_ec || now - written < std::chrono::hours(24)) continue;
+    std::error_code rm_ec;
+    if (fs::remove(e.path(), rm_ec)) spdlog::info("removed {}, a bed download left unfinished over a day ago", name);
+  }
 }
 
 bool BedCache::Stamp(const std::string& path, FileStamp* stamp) {
@@ -123,6 +156,10 @@ Status BedCache::Provide(const api::BedRef& bed, const RunDir& run_dir) {
   std::error_code ec;
   fs::create_directories(dir_, ec);
   if (ec) return Status::IOError("cannot create the bed cache " + dir_ + ": " + ec.message());
+  if (!swept_) {
+    swept_ = true;
+    RemoveStaleParts();
+  }
   const std::string cached = dir_ + "/" + bed.sha256 + ".restart";
   FileStamp stamp;
   auto known = verified_.find(bed.sha256);

@@ -12,8 +12,10 @@
 // modification time stay the same (any rewrite changes them).
 //
 // Several workers on one host may share a workdir, each with its own BedCache on the same beds/
-// directory: each downloads to a name of its own (<sha256>.restart.part.<pid>.<n>), and a
-// worker whose copy could not be put in place uses the one another worker stored if it verifies.
+// directory (hosts or containers may share it too): each downloads to a name of its own
+// (<sha256>.restart.part.<host>.<pid>.<random 64 bits>), and a worker whose copy could not be put
+// in place uses the one another worker stored if it verifies. A cache's first Provide removes the
+// parts untouched for a day (downloads a crash cut short).
 //
 // Thread safety: RunDir is a value. BedCache is thread-safe (one download at a time per cache).
 #ifndef SANDSWIM_WORKERS_RUN_DIR_H_
@@ -85,10 +87,12 @@ class BedCache {
   static bool Stamp(const std::string& path, FileStamp* stamp);
   // A name no other download on this host uses, where this one downloads `cached` to before it is verified and renamed.
   static std::string PartName(const std::string& cached);
+  void RemoveStaleParts();  // REQUIRES: mu_ held
 
   std::string dir_;
   Download download_;
   std::mutex mu_;
+  bool swept_ = false;  // the stale parts were removed (first Provide)
   std::map<std::string, FileStamp> verified_;  // sha256 -> stamp of the cached file when verified
 };
 

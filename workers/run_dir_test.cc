@@ -1,12 +1,16 @@
 #include "workers/run_dir.h"
 
+#include <signal.h>
 #include <stdlib.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -154,18 +158,61 @@ TEST(BedCacheTest, AVanishedDownloadIsReplacedByAStoredCopyThatVerifies) {
   EXPECT_NE(s.reason().find("cannot store the bed in " + cached), std::string::npos) << s.reason();
 }
 
-// The same race between two processes: both are inside their download at once (a pipe each way
-// holds each one half-written until the other has started), then both finish.
-TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
-  const std::string work = testing::TempDir("rundir-procs");
-  const std::string bytes(4 << 20, 'p');
-  api::BedRef bed{1, Sha256Hex(bytes), "", ""};
+// A download's part is named for its host, process and a random 64-bit value (pids repeat
+// across containers and hosts sharing a workdir); parts untouched for a day (a crash cut them
+// short) are removed when the cache first provides a bed, younger ones (maybe live) are kept.
+TEST(BedCacheTest, APartNamesItsHostAndStalePartsAreRemoved) {
+  const std::string work = testing::TempDir("rundir-parts");
+  const std::string beds = work + "/beds";
+  std::filesystem::create_directories(beds);
+  const std::string stale = beds + "/" + std::string(64, 'c') + ".restart.part.otherhost.77.0123456789abcdef";
+  const std::string young = beds + "/" + std::string(64, 'd') + ".restart.part.otherhost.78.fedcba9876543210";
+  const std::string other = beds + "/notes.txt";
+  for (const std::string& f : {stale, young, other}) std::ofstream(f) << "x";
+  std::filesystem::last_write_time(stale, std::filesystem::file_time_type::clock::now() - std::chrono::hours(25));
+  std::filesystem::last_write_time(other, std::filesystem::file_time_type::clock::now() - std::chrono::hours(25));
+  std::vector<std::string> parts;
+  BedCache cache(beds, [&](const api::BedRef&, const std::string& dest) {
+    parts.push_back(dest);
+    std::ofstream(dest, std::ios::binary) << "bed bytes";
+    return Status::Ok();
+  });
+  const api::BedRef bed{1, Sha256Hex("bed bytes"), "", ""};
+  auto r1 = RunDir::Create(work, api::JobKind::kRun, 1, 1);
+  ASSERT_TRUE(cache.Provide(bed, *r1).ok());
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  EXPECT_TRUE(std::filesystem::exists(young));
+  EXPECT_TRUE(std::filesystem::exists(other));
+  char host[256] = {};
+  ASSERT_EQ(gethostname(host, sizeof(host) - 1), 0);
+  std::filesystem::remove(beds + "/" + bed.sha256 + ".restart");
+  auto r2 = RunDir::Create(work, api::JobKind::kRun, 2, 1);
+  ASSERT_TRUE(cache.Provide(bed, *r2).ok());
+  ASSERT_EQ(parts.size(), 2u);
+  const std::string prefix = beds + "/" + bed.sha256 + ".restart.part." + host + "." + std::to_string(getpid()) + ".";
+  for (const std::string& p : parts) {
+    ASSERT_EQ(p.rfind(prefix, 0), 0u) << p;
+    EXPECT_EQ(p.size() - prefix.size(), 16u) << p;  // 64 bits in hex
+  }
+  EXPECT_NE(parts[0], parts[1]);
+}
+
+// Two processes fetching one bed into one directory, each held half-written inside its download
+// until the other has started its own (a pipe each way); `second_dies` makes the second exit
+// before it starts. Each process closes the pipe ends it does not use, and so does the test, so a
+// process whose twin died reads end-of-file instead of waiting for ever. Their exit statuses
+// (waitpid's), or -1 for one still running after 30 s (then killed).
+std::vector<int> TwoProcessesFetch(const std::string& work, const std::string& bytes, bool second_dies) {
+  const api::BedRef bed{1, Sha256Hex(bytes), "", ""};
   int to_a[2], to_b[2];
-  ASSERT_EQ(pipe(to_a), 0);
-  ASSERT_EQ(pipe(to_b), 0);
-  auto child = [&](int id, int signal_fd, int wait_fd) -> pid_t {
+  if (pipe(to_a) != 0 || pipe(to_b) != 0) return {};
+  auto child = [&](int id, int signal_fd, int wait_fd, bool dies) -> pid_t {
     const pid_t pid = fork();
     if (pid != 0) return pid;
+    signal(SIGPIPE, SIG_IGN);  // a write to a dead twin fails instead of killing this process
+    for (int fd : {to_a[0], to_a[1], to_b[0], to_b[1]})
+      if (fd != signal_fd && fd != wait_fd) close(fd);
+    if (dies) _exit(3);
     BedCache cache(work + "/beds", [&](const api::BedRef&, const std::string& dest) {
       std::ofstream out(dest, std::ios::binary);
       out << bytes.substr(0, bytes.size() / 2) << std::flush;
@@ -178,16 +225,48 @@ TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
     const bool ok = dir.ok() && cache.Provide(bed, *dir).ok() && ReadAll(dir->File("bed.restart")) == bytes;
     _exit(ok ? 0 : 1);
   };
-  const pid_t a = child(1, to_b[1], to_a[0]);
-  const pid_t b = child(2, to_a[1], to_b[0]);
-  ASSERT_GT(a, 0);
-  ASSERT_GT(b, 0);
-  for (pid_t pid : {a, b}) {
-    int status = 0;
-    ASSERT_EQ(waitpid(pid, &status, 0), pid);
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "worker process " << pid << " failed";
-  }
+  const pid_t a = child(1, to_b[1], to_a[0], false);
+  const pid_t b = child(2, to_a[1], to_b[0], second_dies);
   for (int fd : {to_a[0], to_a[1], to_b[0], to_b[1]}) close(fd);
+  std::vector<int> statuses;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  for (pid_t pid : {a, b}) {
+    int status = -1;
+    if (pid <= 0) {
+      statuses.push_back(-1);
+      continue;
+    }
+    while (waitpid(pid, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        kill(pid, SIGKILL);
+        waitpid(pid, nullptr, 0);
+        status = -1;
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    statuses.push_back(status);
+  }
+  return statuses;
+}
+
+bool ExitedWith(int status, int code) { return status != -1 && WIFEXITED(status) && WEXITSTATUS(status) == code; }
+
+// The same race between two processes: both are inside their download at once, then both finish.
+TEST(BedCacheTest, TwoProcessesFetchingTheSameBedBothSucceed) {
+  const std::vector<int> s = TwoProcessesFetch(testing::TempDir("rundir-procs"), std::string(4 << 20, 'p'), false);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_TRUE(ExitedWith(s[0], 0)) << "first worker process: status " << s[0];
+  EXPECT_TRUE(ExitedWith(s[1], 0)) << "second worker process: status " << s[1];
+}
+
+// A process whose twin dies before it signals fails its download at once (it waited for ever
+// while the test and its twin held the pipe's write end open).
+TEST(BedCacheTest, AProcessWhoseTwinDiesFailsItsDownloadInsteadOfHanging) {
+  const std::vector<int> s = TwoProcessesFetch(testing::TempDir("rundir-procs-dies"), std::string(1 << 10, 'p'), true);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_TRUE(ExitedWith(s[0], 1)) << "first worker process: status " << s[0] << " (-1: hung, killed)";
+  EXPECT_TRUE(ExitedWith(s[1], 3)) << "second worker process: status " << s[1];
 }
 
 }  // namespace

@@ -229,23 +229,33 @@ void Worker::Run() {
 
 int Worker::Slots() const { return options_.once ? 1 : std::max(1, options_.slots); }
 
-bool Worker::WaitForFreeSlot() {
+bool Worker::TakeFreeSlot() {
   std::unique_lock<std::mutex> lock(mu_);
   cv_.wait(lock, [this] { return stopping_.load() || slots_in_use_ < Slots(); });
-  return !stopping_;
+  if (stopping_) return false;
+  ++slots_in_use_;
+  ++leasing_;
+  return true;
 }
 
-bool Worker::TakeSlot() {
-  std::lock_guard<std::mutex> lock(mu_);
-  if (slots_in_use_ >= Slots()) return false;
-  ++slots_in_use_;
-  return true;
+void Worker::LeaseArrived(bool got_job) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    --leasing_;
+    if (!got_job) --slots_in_use_;
+  }
+  cv_.notify_all();
 }
 
 int Worker::TakeIdleSlots(const api::LeaseGrant& grant) {
   const int ranks = std::max(1, options_.ranks);
   if (!grant.queue_dry || options_.launcher == LauncherKind::kDirect || options_.max_ranks <= ranks) return 0;
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::mutex> lock(mu_);
+  if (widen_refused_) return 0;
+  // A slot whose lease is on its way holds its core: wait for that lease (one round trip) to
+  // say whether it brought a job, or the core would idle through this one for nothing.
+  cv_.wait_for(lock, std::chrono::duration<double>(kLeaseInFlightWaitS),
+               [this] { return stopping_.load() || leasing_ == 0; });
   const int extra = std::min(Slots() - slots_in_use_, options_.max_ranks / ranks - 1);
   if (extra <= 0) return 0;
   slots_in_use_ += extra;
@@ -269,8 +279,9 @@ void Worker::RunOnSlot(const api::LeaseGrant& grant, std::optional<api::LeaseGra
     spdlog::info("{}: nothing else is leasable and {} slot(s) of this worker idle: it runs on {} ranks",
                  JobName(grant), extra, ranks);
   }
-  RunJob(grant, next, ranks);
-  ReturnSlots(extra + (next != nullptr && next->has_value() ? 0 : 1));
+  int lent = extra;  // RunJob gives them back early when the engine will not start on them
+  RunJob(grant, next, ranks, &lent);
+  ReturnSlots(lent + (next != nullptr && next->has_value() ? 0 : 1));
 }
 
 void Worker::SlotLoop() {
@@ -291,11 +302,17 @@ void Worker::SlotLoop() {
       idle_since = Clock::now();
       continue;
     }
-    // A slot whose core is lent to a wider job leases nothing until that job ends.
-    if (!WaitForFreeSlot()) break;
-    if (!RunFitsAllocation()) break;
+    // A slot whose core is lent to a wider job leases nothing until that job ends. The core is
+    // taken before the lease is asked for, so no other slot's job can take it while the lease is
+    // on its way; it is given back when no job comes.
+    if (!TakeFreeSlot()) break;
+    if (!RunFitsAllocation()) {
+      LeaseArrived(false);
+      break;
+    }
     api::LeaseRequest request{options_.name, options_.host, options_.ranks, options_.slurm_job};
     auto lease = client_.Lease(request);
+    LeaseArrived(lease.ok() && lease->has_value());
     if (!lease.ok()) {
       if (lease.status().code() == StatusCode::kUnauthenticated ||
           lease.status().code() == StatusCode::kPermissionDenied) {
@@ -322,13 +339,6 @@ void Worker::SlotLoop() {
                                               : options_.idle_poll_s)) {
         break;
       }
-      continue;
-    }
-    if (!TakeSlot()) {
-      // Another slot's job took this core while the lease was on its way: give the job back.
-      auto reply = client_.Release((*lease)->token, "the worker's cores were all in use when the lease arrived");
-      spdlog::info("{}: handed back unstarted, every core of this worker is in use ({})", JobName(**lease),
-                   reply.ok() ? reply->state : reply.status().ToString() + "; its lease will expire");
       continue;
     }
     {
@@ -421,7 +431,19 @@ void Worker::Fail(Job& job, const RunDir* dir, const std::string& kind, const st
   Complete(job, dir);
 }
 
+// An engine that exited at once without writing its log: its launcher refused to start it (or it
+// was not there at all). Not an engine stopped by the worker or the daemon.
+bool Worker::EngineNeverRan(const ExitFacts& facts, const RunDir& dir) const {
+  if (facts.cancelled || facts.timed_out || facts.stalled || stopping_) return false;
+  if (facts.started && facts.exit_code == 0 && facts.signal == 0) return false;
+  return ReadFileOr(dir.File(kLogFile), "").empty();
+}
+
 void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next, int ranks) {
+  RunJob(grant, next, ranks, nullptr);
+}
+
+void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next, int ranks, int* lent) {
   Job job{grant, next, JobName(grant), Clock::now(), ranks > 0 ? ranks : options_.ranks, {}};
   spdlog::info("{}: leased ({} steps, wall budget {} s, {} rank(s))", job.name, grant.steps, grant.wall_budget_s,
                job.ranks);
@@ -437,9 +459,32 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
                 "the lease carries no timestep (dt_s): the daemon is older than this worker; upgrade sandswimd");
   }
   const DriveInfo drive{grant.dt_s, grant.f_hz, grant.A_m, grant.z_floor_m};
-  JobProgress progress(*dir, grant.kind, drive.dt);
-  std::optional<ExitFacts> facts = Supervise(job, *dir, drive, progress);
+  auto progress = std::make_unique<JobProgress>(*dir, grant.kind, drive.dt);
+  std::optional<ExitFacts> facts = Supervise(job, *dir, drive, *progress);
   if (!facts) return;  // abandoned or handed back
+  if (job.ranks > options_.ranks && EngineNeverRan(*facts, *dir)) {
+    // The launcher refused the extra ranks (an MPI without --oversubscribe, a host that will not
+    // have them): no fault of the job's, so it is not failed (that would count an attempt, and
+    // every retry would be widened again) but run at once on the worker's own ranks, and this
+    // worker widens no job again.
+    spdlog::warn("{}: the engine did not start on {} ranks ({}); it runs on {} rank(s), and this worker gives no "
+                 "job idle slots' cores from now on (check the MPI launcher's output to widen again)",
+                 job.name, job.ranks, LastLines(ReadFileOr(dir->File(kEngineOutputFile), facts->start_error), 3),
+                 options_.ranks);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      widen_refused_ = true;
+    }
+    if (lent != nullptr) {
+      ReturnSlots(*lent);
+      *lent = 0;
+    }
+    job.ranks = options_.ranks;
+    job.completion.execution.ranks = job.ranks;
+    progress = std::make_unique<JobProgress>(*dir, grant.kind, drive.dt);
+    facts = Supervise(job, *dir, drive, *progress);
+    if (!facts) return;
+  }
 
   const std::string log_text = ReadFileOr(dir->File(kLogFile), "");
   const EngineLog log = ParseEngineLog(log_text);
@@ -448,7 +493,7 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
       LastLines(log_text.empty() ? ReadFileOr(dir->File(kEngineOutputFile), "") : log_text, kLogTailLines);
   const bool is_run = grant.kind == api::JobKind::kRun;
   Result<std::vector<SoSample>> samples =
-      is_run && facts->started ? progress.Finish() : Result<std::vector<SoSample>>(std::vector<SoSample>());
+      is_run && facts->started ? progress->Finish() : Result<std::vector<SoSample>>(std::vector<SoSample>());
   std::optional<std::string> bed_dump;
   if (!is_run && std::filesystem::exists(dir->File(kBedDumpFile))) bed_dump = ReadFileOr(dir->File(kBedDumpFile), "");
   JobOutcome outcome = JudgeJob(grant.kind, grant.steps, *facts, log, drive, samples, grant.precision, bed_dump);
@@ -549,7 +594,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
   const api::LeaseGrant& grant = job.grant;
   const std::string deck_file = grant.kind == api::JobKind::kBed ? "bed.in" : "drive.in";
   LaunchSpec spec = EngineCommand(options_.launcher, job.ranks, options_.engine, deck_file, kLogFile, dir.path(),
-                                  options_.as_root);
+                                  options_.as_root, /*widened=*/job.ranks > options_.ranks);
   spec.output_file = kEngineOutputFile;
   ExitFacts facts;
   auto started = launcher_.Start(spec);

@@ -31,8 +31,12 @@
 // No idle cores: each slot stands for `ranks` cores of this host. A job granted with the daemon's
 // queue dry (api::LeaseGrant::queue_dry: a bed its runs wait for, the queue's last runs) takes the
 // slots that are idle at that moment as extra MPI ranks, up to `max_ranks` in all (0 or <= ranks:
-// never; never with the direct launcher); those slots lease nothing until it ends. A slot whose
-// lease arrives while its core is lent hands the job straight back (attempt uncounted). Ranks enter
+// never; never with the direct launcher); those slots lease nothing until it ends. A slot takes its
+// core before it asks for a lease (and gives it back when no job comes), so no job a slot gets
+// ever finds its core lent; a job granted with the queue dry waits for the leases on their way
+// (a round trip) and takes the cores of those that came back empty. A widened engine that does
+// not start (its MPI launcher refuses the ranks) runs on `ranks` within the same lease, attempt
+// uncounted, and the worker widens no job after that. Ranks enter
 // neither the deck nor the key; the completion's execution says how many the job ran on.
 //
 // Inside a Slurm allocation (`allocation_seconds_left` set), a slot leases a job only while
@@ -132,17 +136,24 @@ class Worker {
  private:
   struct Job;  // one job as it is run (worker.cc)
   void SlotLoop();
-  // The slots' cores (see the top of this file): waits until one is free (false: stopping); takes
-  // one for a leased job (false: none is free, they are lent); takes the idle ones a job granted
-  // with the queue dry may have as extra ranks (how many it took); gives `n` back.
+  // The slots' cores (see the top of this file): waits until one is free and takes it, before its
+  // slot asks for a lease (false: stopping); the lease came back, with a job (the core stays
+  // taken) or without; takes the idle ones a job granted with the queue dry may have as extra
+  // ranks, once the leases on their way have come back (at most kLeaseInFlightWaitS) (how many it
+  // took); gives `n` back.
+  static constexpr double kLeaseInFlightWaitS = 5;
   int Slots() const;
-  bool WaitForFreeSlot();
-  bool TakeSlot();
+  bool TakeFreeSlot();
+  void LeaseArrived(bool got_job);
   int TakeIdleSlots(const api::LeaseGrant& grant);
   void ReturnSlots(int n);
   // Runs a job on the slot it holds plus the idle slots it may take; gives back what it took
   // (its own slot too, unless a next job came with its completion).
   void RunOnSlot(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next);
+  // RunJob for a slot: `*lent` extra slots' cores are held for the job; an engine that will not
+  // start on them is run on options.ranks, and they are given back at once (*lent becomes 0).
+  void RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next, int ranks, int* lent);
+  bool EngineNeverRan(const ExitFacts& facts, const RunDir& dir) const;
   // RunJob's steps: the run directory with its deck and bed (nullopt: the job was reported); the
   // engine started and watched, heartbeating (nullopt: the job was abandoned or handed back); a
   // bed's restart uploaded and reported. The outcome between them is workers/job_outcome.h's.
@@ -175,7 +186,9 @@ class Worker {
   std::condition_variable cv_;
   WorkerStats stats_;
   std::optional<double> longest_run_s_;  // wall time of the longest run done ok, for ShouldLease
-  int slots_in_use_ = 0;                 // slots running a job or lent to a wider one (<= Slots())
+  int slots_in_use_ = 0;                 // slots leasing, running a job, or lent to a wider one (<= Slots())
+  bool widen_refused_ = false;           // a widened engine did not start: no job is widened again
+  int leasing_ = 0;                      // slots whose lease is on its way (their cores are in slots_in_use_)
 };
 
 }  // namespace sandswim::worker

@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <stdlib.h>
 
+#include <algorithm>
 #include <atomic>
 #include <deque>
 #include <fstream>
@@ -50,8 +51,14 @@ class FakeClient : public ServerClient {
   std::vector<std::chrono::steady_clock::time_point> completed_at;
   std::vector<api::LeaseGrant> granted;  // by Lease()
   bool requeue_released = false;         // a released grant is leasable again
+  // Runs at the start of the n-th Lease() call (from 0), before it looks at `grants`: holds a
+  // lease on its way while the test arranges what happens meanwhile.
+  std::function<void(int n)> before_lease;
+  std::atomic<int> lease_calls{0};
 
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest&) override {
+    const int n = lease_calls++;
+    if (before_lease) before_lease(n);
     std::lock_guard<std::mutex> l(mu);
     if (grants.empty()) return std::optional<api::LeaseGrant>();
     ++granted_by_lease;
@@ -106,11 +113,13 @@ class FakeClient : public ServerClient {
 class FakeProcess : public EngineProcess {
  public:
   // `stops` outlives the process (the worker destroys it when the job ends): tests read it.
-  FakeProcess(bool runs_until_stopped, std::atomic<int>* stops, double runs_for_s = 0)
+  FakeProcess(bool runs_until_stopped, std::atomic<int>* stops, double runs_for_s = 0, int exit_code = 0)
       : running_(runs_until_stopped),
         stops_(stops),
         until_(std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                      std::chrono::duration<double>(runs_for_s))) {}
+                                                      std::chrono::duration<double>(runs_for_s))) {
+    status_.exit_code = exit_code;
+  }
   pid_t pid() const override { return 0; }
   bool WaitFor(double seconds) override {
     if (!running_) {
@@ -142,6 +151,9 @@ class FakeLauncher : public Launcher {
   bool runs_until_stopped = false;
   double runs_for_s = 0;  // wall time a process takes before it exits by itself
   bool missing = false;
+  // mpirun with more ranks than this (0: any) exits at once with Open MPI's refusal, as it does
+  // when the host has fewer slots and --oversubscribe is missing or not understood.
+  int refuses_above_ranks = 0;
   std::mutex mu;
   std::vector<LaunchSpec> started;
   std::vector<std::chrono::steady_clock::time_point> started_at;
@@ -156,6 +168,15 @@ class FakeLauncher : public Launcher {
     std::lock_guard<std::mutex> l(mu);
     started.push_back(spec);
     started_at.push_back(std::chrono::steady_clock::now());
+    int np = 1;
+    for (size_t i = 0; i + 1 < spec.argv.size(); ++i)
+      if (spec.argv[i] == "-np") np = std::stoi(spec.argv[i + 1]);
+    if (refuses_above_ranks > 0 && np > refuses_above_ranks) {
+      WriteFile(spec.cwd + "/" + spec.output_file,
+                "There are not enough slots available in the system to satisfy the " + std::to_string(np) +
+                    "\nslots that were requested by the application:\n");
+      return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(false, &stops, 0, 1));
+    }
     for (const auto& [name, text] : files) WriteFile(spec.cwd + "/" + name, text);
     return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(runs_until_stopped, &stops, runs_for_s));
   }
@@ -709,6 +730,12 @@ TEST(WorkerTest, AJobGrantedWithTheQueueDryTakesTheIdleSlotsAsRanks) {
   ASSERT_EQ(launcher.started.size(), 2u);
   EXPECT_EQ(RanksOf(launcher.started[0]), 2);
   EXPECT_EQ(RanksOf(launcher.started[1]), 1);
+  // Open MPI's slots are physical cores; the slots' count may be logical CPUs.
+  auto has = [](const LaunchSpec& spec, const std::string& arg) {
+    return std::find(spec.argv.begin(), spec.argv.end(), arg) != spec.argv.end();
+  };
+  EXPECT_TRUE(has(launcher.started[0], "--oversubscribe"));
+  EXPECT_FALSE(has(launcher.started[1], "--oversubscribe"));
   EXPECT_EQ(client.completions[0].execution.ranks, 2);
   EXPECT_EQ(client.completions[1].execution.ranks, 1);
   EXPECT_GE(launcher.started_at[1], client.completed_at[0]);  // the lent slot waited for the bed
@@ -762,6 +789,84 @@ TEST(WorkerTest, NoSlotIsTakenFromAJobThatRuns) {
   EXPECT_EQ(RanksOf(launcher.started[0]), 1);
   EXPECT_EQ(RanksOf(launcher.started[1]), 1);
   EXPECT_EQ(worker.stats().widened, 0);
+}
+
+// A slot's lease on its way holds its core: slot A's lease is slow to come back and slot B gets
+// a bed with the queue dry meanwhile; B runs it on its own core only, and A's job, when its
+// lease arrives, runs at once on A's core (it was handed back, to wait for all of B's bed, when
+// the core was taken only once the lease had come: B started its bed on both cores at once).
+TEST(WorkerTest, ALeaseOnItsWayKeepsItsSlotsCore) {
+  FakeClient client;
+  FakeLauncher launcher;
+  client.grants = {BedGrant(2, /*queue_dry=*/true), BedGrant(1, /*queue_dry=*/false)};
+  client.before_lease = [&](int n) {
+    // A's lease comes back once B's bed started, or after 0.5 s (B now waits for A's lease).
+    if (n == 0) WaitUntil([&] { return launcher.Started() >= 1; }, 0.5);
+  };
+  launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+  launcher.runs_for_s = 0.5;
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.launcher = LauncherKind::kMpirun;
+  o.slots = 2;
+  o.max_ranks = 2;
+  o.exit_when_idle_s = 0.05;
+  Worker worker(o, client, launcher);
+  worker.Run();
+  EXPECT_TRUE(client.released.empty());
+  ASSERT_EQ(launcher.started.size(), 2u);
+  EXPECT_EQ(RanksOf(launcher.started[0]), 1);
+  EXPECT_EQ(RanksOf(launcher.started[1]), 1);
+  EXPECT_EQ(worker.stats().widened, 0);
+  ASSERT_EQ(client.completed_at.size(), 2u);
+  EXPECT_LT(launcher.started_at[1], client.completed_at[0]);  // side by side, not one after the other
+}
+
+// mpirun refuses the widened job's ranks: the job runs on the worker's own ranks within its
+// lease (no failed completion, so no attempt counted; before, it failed, and each retry was
+// widened and refused again), the lent slot is free at once, and no later job is widened.
+TEST(WorkerTest, AWidenedEngineThatWillNotStartRunsOnTheWorkersOwnRanks) {
+  FakeClient client;
+  client.grants = {BedGrant(1, /*queue_dry=*/true)};
+  FakeLauncher launcher;
+  launcher.files = {{"log.liggghts", Fixture("bed.log")}, {"bed.restart", "new bed bytes"}};
+  launcher.refuses_above_ranks = 1;
+  launcher.runs_for_s = 0.3;
+  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  o.launcher = LauncherKind::kMpirun;
+  o.slots = 2;
+  o.max_ranks = 2;
+  Worker worker(o, client, launcher);
+  std::thread run([&] { worker.Run(); });
+  ASSERT_TRUE(WaitUntil([&] { return launcher.Started() == 2; }));
+  {
+    std::lock_guard<std::mutex> l(client.mu);
+    client.grants.push_back(BedGrant(2, /*queue_dry=*/false));  // the other slot's core is free again
+  }
+  ASSERT_TRUE(WaitUntil([&] {
+    std::lock_guard<std::mutex> l(client.mu);
+    return client.completions.size() == 2;
+  }));
+  {
+    std::lock_guard<std::mutex> l(client.mu);
+    client.grants.push_back(BedGrant(3, /*queue_dry=*/true));  // both slots idle: widened, but for the refusal
+  }
+  const bool all = WaitUntil([&] {
+    std::lock_guard<std::mutex> l(client.mu);
+    return client.completions.size() == 3;
+  });
+  worker.RequestStop();
+  run.join();
+  ASSERT_TRUE(all);
+  ASSERT_EQ(launcher.started.size(), 4u);
+  EXPECT_EQ(RanksOf(launcher.started[0]), 2);
+  EXPECT_EQ(RanksOf(launcher.started[1]), 1);
+  EXPECT_LT(launcher.started_at[2], client.completed_at[0]);  // bed 2 beside bed 1, not after it
+  EXPECT_EQ(RanksOf(launcher.started[3]), 1);
+  for (const api::Completion& c : client.completions) {
+    EXPECT_TRUE(c.ok) << (c.failure ? c.failure->message : "");
+    EXPECT_EQ(c.execution.ranks, 1);
+  }
+  EXPECT_TRUE(client.released.empty());
 }
 
 }  // namespace
