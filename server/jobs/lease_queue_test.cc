@@ -194,7 +194,7 @@ TEST_F(LeaseQueueTest, GrantsSayWhenNothingElseIsLeasable) {
   }
   {
     // The event log says on how many ranks each bed was prepared.
-    auto t = store_->Begin();
+    auto t = store_->db().Begin();
     ASSERT_TRUE(t.ok());
     Statement st = t->Prepare("SELECT detail FROM events WHERE kind = 'bed.done' AND subject = ?1");
     const std::string subject = "bed/" + std::to_string(bed2.id);
