@@ -18,21 +18,8 @@ bool MeasuredBed(const ReplicateValue& v) {
 }
 bool CensoredBed(const ReplicateValue& v) { return !MeasuredBed(v) && v.censored != 0 && v.bound > 0; }
 
-// The degrees of freedom a run's own 95 % interval was made with: ci95 / se = t(0.975, dof).
-double DofOf(const ReplicateValue& v) {
-  const double ratio = *v.uz_ci95 / *v.uz_stderr;
-  if (ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return 1e7;
-  double lo = 0.5, hi = 1e7;  // t(0.975, dof) falls as dof grows
-  for (int i = 0; i < 200; ++i) {
-    const double mid = std::sqrt(lo * hi);
-    if (gsl_cdf_tdist_Pinv(0.975, mid) > ratio) {
-      lo = mid;
-    } else {
-      hi = mid;
-    }
-  }
-  return std::sqrt(lo * hi);
-}
+// The degrees of freedom a run's own 95 % interval was made with.
+double DofOf(const ReplicateValue& v) { return DofOfInterval(*v.uz_stderr, *v.uz_ci95); }
 }  // namespace
 
 int BedsSign(const std::vector<ReplicateValue>& values, double tail) {
@@ -65,6 +52,21 @@ int BedsSign(const std::vector<ReplicateValue>& values, double tail) {
   const double half = gsl_cdf_tdist_Pinv(1 - tail, welch > 0 ? var * var / welch : 1e7) * std::sqrt(var);
   const int sign = sum - half > 0 ? 1 : sum + half < 0 ? -1 : 0;
   return own != 0 && sign != own ? 0 : sign;
+}
+
+double DofOfInterval(double se, double ci95) {
+  const double ratio = ci95 / se;
+  if (ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return 1e7;
+  double lo = 0.5, hi = 1e7;  // t(0.975, dof) falls as dof grows
+  for (int i = 0; i < 200; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    if (gsl_cdf_tdist_Pinv(0.975, mid) > ratio) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return std::sqrt(lo * hi);
 }
 
 ReplicateAggregate AggregateReplicates(std::vector<ReplicateValue> values, double bed_sd_rel) {

@@ -99,6 +99,11 @@ struct ReplicateAggregate {
   std::optional<double> uz_low;  // m/s, censored points with a sign: the lower estimate of U_z
 };
 
+// The degrees of freedom a 95 % interval of half-width `ci95` around a value of standard error `se`
+// was made with: ci95 / se = t(0.975, dof); 1e7 (normal) when the ratio is a normal quantile's.
+// REQUIRES: se > 0, ci95 > 0.
+double DofOfInterval(double se, double ci95);
+
 // `bed_sd_rel` (the scale's Scale::bed_sd_rel, 0: none): a point run on one bed only (K = 1) gets
 // the bed-to-bed scatter added to its run's own error, se^2 + (bed_sd_rel U)^2, and to its 95 %
 // half-width, ci^2 + (1.96 bed_sd_rel U)^2: one bed's interval says nothing of the bed it happened

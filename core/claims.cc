@@ -475,19 +475,10 @@ void AddMissing(const std::vector<PointView>& points, std::vector<ClaimMissing>&
 // interval was made with (recovered from ci95 / stderr = t(0.975, dof)).
 double FamilyHalfWidth(double se, double ci95, int m) {
   if (m <= 1 || se <= 0 || ci95 <= 0) return ci95;
-  const double ratio = ci95 / se;
   const double q = 1.0 - 0.025 / m;
-  if (ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return se * gsl_cdf_ugaussian_Pinv(q);
-  double lo = 0.5, hi = 1e7;  // t(0.975, dof) falls as dof grows
-  for (int i = 0; i < 200; ++i) {
-    const double mid = std::sqrt(lo * hi);
-    if (gsl_cdf_tdist_Pinv(0.975, mid) > ratio) {
-      lo = mid;
-    } else {
-      hi = mid;
-    }
-  }
-  return se * gsl_cdf_tdist_Pinv(q, std::sqrt(lo * hi));
+  const double dof = DofOfInterval(se, ci95);
+  if (dof >= 1e7) return se * gsl_cdf_ugaussian_Pinv(q);
+  return se * gsl_cdf_tdist_Pinv(q, dof);
 }
 double FamilyHalfWidth(const PointView& p, int m) { return FamilyHalfWidth(p.se, p.ci95, m); }
 
