@@ -78,7 +78,7 @@ class HttpDaemonClient : public DaemonClient {
 
   Result<json> GetSweep(int64_t id) override { return Get("/api/v1/sweeps/" + std::to_string(id)); }
 
-  Result<json> SweepResults(int64_t id) override { return Get("/api/v1/sweeps/" + std::to_string(id) + "/results"); }
+  Result<json> SweepResults(int64_t id) override { return AllResults("/api/v1/sweeps/" + std::to_string(id) + "/results"); }
 
   Result<json> CancelSweep(int64_t id) override {
     return Post("/api/v1/sweeps/" + std::to_string(id) + "/cancel", json::object(), {});
@@ -96,7 +96,7 @@ class HttpDaemonClient : public DaemonClient {
   Result<json> GetCampaignRun(int64_t id) override { return Get("/api/v1/campaign-runs/" + std::to_string(id)); }
 
   Result<json> CampaignRunResults(int64_t id) override {
-    return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
+    return AllResults("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
   }
 
   Result<json> CampaignRunClaims(int64_t id) override {
@@ -204,6 +204,33 @@ class HttpDaemonClient : public DaemonClient {
       if (next_cursor == cursor || items->empty()) break;  // a daemon that repeats itself
       cursor = next_cursor;
     }
+    return all;
+  }
+
+  // A results read whole: the first page's answer (with its "aggregates") holding the "results" of
+  // every page, followed by their "next" paths, the largest pages the daemon gives.
+  Result<json> AllResults(const std::string& path) {
+    auto all = Get(path + "?limit=10000");
+    if (!all.ok()) return all.status();
+    for (;;) {
+      if (!all->contains("results") || !(*all)["results"].is_array()) {
+        return Status(StatusCode::kCorruption, "the daemon's answer to GET " + path + " has no \"results\" array");
+      }
+      auto next = all->find("next");
+      if (next == all->end() || !next->is_string()) break;
+      const std::string next_path = next->get<std::string>();
+      all->erase("next");
+      all->erase("next_cursor");
+      auto page = Get(next_path);
+      if (!page.ok()) return page.status();
+      auto rows = page->find("results");
+      if (rows == page->end() || !rows->is_array() || rows->empty()) {
+        return Status(StatusCode::kCorruption, "the daemon's answer to GET " + next_path + " has no rows");
+      }
+      for (auto& row : *rows) (*all)["results"].push_back(std::move(row));
+      if (page->contains("next")) (*all)["next"] = (*page)["next"];
+    }
+    all->erase("next_cursor");
     return all;
   }
 

@@ -48,13 +48,14 @@ class DaemonClient {
   // Every sweep (all pages): the concatenated "sweeps" arrays.
   virtual Result<nlohmann::json> ListSweeps() = 0;
   virtual Result<nlohmann::json> GetSweep(int64_t id) = 0;
-  virtual Result<nlohmann::json> SweepResults(int64_t id) = 0;  // {"id","results":[...]}
+  // Every page of GET .../results followed: {"id","results":[every row],"aggregates":[...]}.
+  virtual Result<nlohmann::json> SweepResults(int64_t id) = 0;
   virtual Result<nlohmann::json> CancelSweep(int64_t id) = 0;
   // The runs matching `query` (pages followed up to query.limit): the concatenated "runs".
   virtual Result<nlohmann::json> ListRuns(const RunQuery& query) = 0;
   virtual Result<nlohmann::json> GetRun(int64_t id) = 0;
   virtual Result<nlohmann::json> GetCampaignRun(int64_t id) = 0;
-  virtual Result<nlohmann::json> CampaignRunResults(int64_t id) = 0;  // {"id","results":[...]}
+  virtual Result<nlohmann::json> CampaignRunResults(int64_t id) = 0;  // as SweepResults
   // GET /api/v1/campaign-runs/{id}/claims: the verdict of each claim the campaign states.
   virtual Result<nlohmann::json> CampaignRunClaims(int64_t id) {
     (void)id;

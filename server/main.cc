@@ -111,10 +111,14 @@ void AddFlags(CLI::App& app, Flags& flags) {
       ->capture_default_str()
       ->check(CLI::Range(1, 1024));
   app.add_option("--http-connections-per-client", flags.http.max_connections_per_client,
-                 "connections one peer address may open; past them its new connections are served only for the "
+                 "connections one client (a peer address; every loopback address together) may open; past them its new connections are served only for the "
                  "worker protocol and /healthz, anything else answered 429 with Retry-After")
       ->capture_default_str()
       ->check(CLI::Range(1, 100000));
+  app.add_flag("--http-loopback-clients-apart", flags.http.loopback_clients_apart,
+               "count each loopback address (127.0.0.0/8, ::1) as a client of its own for "
+               "--http-connections-per-client (default: all of them are one client, the local host, since a local "
+               "user can connect from any of them)");
   app.add_option("--http-max-connections", flags.http.max_connections,
                  "connections open in all (at most the file limit allows); past them a new one is closed at once")
       ->capture_default_str()

@@ -76,7 +76,9 @@ class HostileClientsTest : public ::testing::Test {
     setenv("SANDSWIM_STAND_IN_STARTS", starts_log_.c_str(), 1);
     setenv("SANDSWIM_STAND_IN_SECONDS", "1", 1);
     daemon_ = std::make_unique<testing::Daemon>(
-        dir_ + "/daemon", std::vector<std::string>{"--lease-ttl", "30", "--http-head-timeout", std::to_string(kHeadS)});
+        dir_ + "/daemon", std::vector<std::string>{"--lease-ttl", "30", "--http-head-timeout", std::to_string(kHeadS),
+                                                   // 127.0.0.2 (the hostile client) stands for another host
+                                                   "--http-loopback-clients-apart"});
     int status = 0;
     std::vector<double> omegas;
     for (int i = 0; i < kRuns; ++i) omegas.push_back(-10.0 - i);

@@ -87,6 +87,7 @@ class LoadLimitsTest : public ::testing::Test {
     dir_ = testing::CacheDir() + "/load-limits";
     fs::remove_all(dir_);
     fs::create_directories(dir_);
+    extra.push_back("--http-loopback-clients-apart");  // 127.0.0.2 (the other reader) stands for another host
     daemon_ = std::make_unique<testing::Daemon>(dir_ + "/daemon", extra);
   }
   void TearDown() override {

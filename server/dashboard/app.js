@@ -112,6 +112,19 @@ async function api(path, options = {}) {
   return { body, res };
 }
 const get = async path => (await api(path)).body;
+// A results read whole (GET .../results is paged): the first page, with its aggregates, holding
+// the rows of every page, their `next` paths followed.
+async function getResults(path) {
+  const all = await get(`${path}?limit=10000`);
+  for (let next = all.next; next; ) {
+    const page = await get(next);
+    all.results.push(...page.results);
+    next = page.results.length ? page.next : null;
+  }
+  delete all.next;
+  delete all.next_cursor;
+  return all;
+}
 async function post(path, body) {
   return api(path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: typeof body === 'string' ? body : JSON.stringify(body) });
 }
@@ -398,7 +411,7 @@ async function sweepUzPlot(el, sweep) {
   const param = axes.length === 1 ? axes[0].param : null;
   if (!param) { el.innerHTML = '<p class="muted">No single swept parameter: no U_z curve.</p>'; return false; }
   const generation = nav.generation;
-  const [results, fits] = await Promise.all([get(`/api/v1/sweeps/${sweep.id}/results`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
+  const [results, fits] = await Promise.all([get(`/api/v1/sweeps/${sweep.id}/results?limit=1`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
   if (!current(generation)) return false;
   const pts = (results.aggregates || []).filter(a => a.uz_mean !== undefined && a.conclusive > 0);
   if (!pts.length) { el.innerHTML = `<p class="muted">${esc(sweep.name)}: no conclusive U_z yet.</p>`; return false; }
@@ -467,7 +480,7 @@ async function rerunCampaign(name) {
 async function campaignRunPage(id) {
   document.title = `campaign run ${id} · sandswim`;
   const generation = nav.generation;
-  const [info, results] = await Promise.all([get(`/api/v1/campaign-runs/${id}`), get(`/api/v1/campaign-runs/${id}/results`)]);
+  const [info, results] = await Promise.all([get(`/api/v1/campaign-runs/${id}`), getResults(`/api/v1/campaign-runs/${id}/results`)]);
   if (!current(generation)) return;
   main().innerHTML = `<h1>Campaign run ${id}: ${esc(info.campaign)} at ${esc(info.scale)}</h1>
     <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
@@ -517,7 +530,7 @@ async function campaignRunPage(id) {
 async function sweepPage(id) {
   document.title = `sweep ${id} · sandswim`;
   const generation = nav.generation;
-  const [sweep, results] = await Promise.all([get(`/api/v1/sweeps/${id}`), get(`/api/v1/sweeps/${id}/results`)]);
+  const [sweep, results] = await Promise.all([get(`/api/v1/sweeps/${id}`), getResults(`/api/v1/sweeps/${id}/results`)]);
   if (!current(generation)) return;
   main().innerHTML = `<h1>Sweep ${id}: ${esc(sweep.name)} <span class="muted">(${esc(sweep.scale)})</span></h1>
     <section class="card"><dl class="facts"><dt>submitted</dt><dd>${esc(when(sweep.created_at))}${sweep.campaign_run_id ? ` in <a href="/campaign-runs/${sweep.campaign_run_id}">campaign run ${sweep.campaign_run_id}</a>` : ''}</dd>

@@ -127,16 +127,7 @@ void GetCampaignDrift(Call& c) {
   SendJson(c, 200, **report);
 }
 
-void GetCampaignRunResults(Call& c) {
-  auto id = PathId(c);
-  if (!id.ok()) return Fail(c, id.status());
-  auto info = c.deps.store->GetCampaignRun(*id);
-  if (!info.ok()) return Fail(c, info.status());
-  std::vector<ResultRow> distinct;
-  auto rows = CampaignRunRows(*c.deps.store, *info, &distinct);
-  if (!rows.ok()) return Fail(c, rows.status());
-  SendRows(c, *id, *rows, distinct, /*with_sweeps=*/true);
-}
+void GetCampaignRunResults(Call& c) { SendResults(c, ResultsOf::kCampaignRun); }
 
 // The verdict of each of the campaign's claims for this run (server/analysis/claim_check.h).
 void GetCampaignRunClaims(Call& c) {

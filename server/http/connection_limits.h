@@ -15,7 +15,8 @@ struct ConnectionLimits {
   double write_timeout_s = 5;                // one write the client does not take (the library's default)
   int threads = 192;                         // requests of any kind in flight at once
   int reserved_threads = 16;                 // more, for reserved requests only
-  int max_connections_per_client = 64;       // open connections per peer address before it is restricted
+  int max_connections_per_client = 64;       // open connections per client before it is restricted
+  bool loopback_clients_apart = false;       // each loopback address its own client (else all one: ClientKey)
   int max_connections = 4096;                // open connections in all (and at most the fd limit allows)
   int max_requests_per_connection = 1000;
 };

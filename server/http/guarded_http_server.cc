@@ -435,7 +435,7 @@ void GuardedHttpServer::Admit(socket_t sock) {
     c->stream.set_ssl(ssl);
     c->handshaking = true;
   }
-  c->client = ClientKey(c->peer);
+  c->client = ClientKey(c->peer, limits_.loopback_clients_apart);
   {
     std::lock_guard<std::mutex> lock(mu_);
     // The last slots are kept for the worker protocol and /healthz, a few per client, so that

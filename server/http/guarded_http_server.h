@@ -19,7 +19,8 @@
 //    that is not reserved while `threads` such requests are in flight is answered 503 with
 //    Retry-After at once, and its connection closed.
 //  - Per client (ClientKey of the peer address, server/http/request_policy.h: an IPv4 address, an IPv6
-//    /64): past `max_connections_per_client` open connections, a new
+//    /64, every loopback address together unless `loopback_clients_apart`): past
+//    `max_connections_per_client` open connections, a new
 //    connection is served only for reserved requests (one request, then closed); any other request
 //    on it is answered 429 with Retry-After and the connection closed. Workers on the same host as
 //    a greedy client keep their heartbeats that way. Past `max_connections` in all, a new connection

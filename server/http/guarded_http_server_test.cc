@@ -118,6 +118,20 @@ class GuardedHttpServerTest : public ::testing::Test {
     EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
     return fd;
   }
+  // A connection from another loopback address than Connect()'s 127.0.0.1.
+  int ConnectFrom(const char* address) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, address, &from.sin_addr);
+    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from), 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(port_));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    return fd;
+  }
   static void Send(int fd, const std::string& bytes) { send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL); }
   // Reads until the server closes the connection; the seconds that took, or -1 past `limit_s`.
   // `dribble`: a byte sent every 0.1 s meanwhile, as a slow client does.
@@ -337,6 +351,47 @@ TEST_F(GuardedHttpServerClientCapTest, AClientPastItsConnectionsIsServedOnlyRese
   EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200")) << "the client's connections were closed";
 }
 
+// A local user is one client whichever loopback addresses it connects from, unless the operator
+// sets them apart.
+TEST_F(GuardedHttpServerClientCapTest, EveryLoopbackAddressCountsAsOneClient) {
+  std::vector<int> held;
+  for (const char* from : {"127.0.0.1", "127.0.0.2", "127.9.8.7"}) held.push_back(ConnectFrom(from));
+  for (int i = 0; i < 500 && server_->open_connections() < 3; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const int fd = ConnectFrom("127.0.0.3");
+  Send(fd, "GET /hello HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+  std::string got;
+  char buf[4096];
+  ssize_t n;
+  while ((n = recv(fd, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+  close(fd);
+  EXPECT_THAT(got, ::testing::StartsWith("HTTP/1.1 429")) << got;
+  for (int held_fd : held) close(held_fd);
+}
+
+class GuardedHttpServerLoopbackApartTest : public GuardedHttpServerClientCapTest {
+ protected:
+  void Adjust(ConnectionLimits& limits) override {
+    GuardedHttpServerClientCapTest::Adjust(limits);
+    limits.loopback_clients_apart = true;
+  }
+};
+
+TEST_F(GuardedHttpServerLoopbackApartTest, EachLoopbackAddressIsItsOwnClientWhenTheOperatorSaysSo) {
+  std::vector<int> held;
+  for (int i = 0; i < 3; ++i) held.push_back(ConnectFrom("127.0.0.2"));
+  for (int i = 0; i < 500 && server_->open_connections() < 3; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200")) << "127.0.0.1 was counted with 127.0.0.2";
+  const int fd = ConnectFrom("127.0.0.2");
+  Send(fd, "GET /hello HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+  std::string got;
+  char buf[4096];
+  ssize_t n;
+  while ((n = recv(fd, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+  close(fd);
+  EXPECT_THAT(got, ::testing::StartsWith("HTTP/1.1 429")) << got;
+  for (int held_fd : held) close(held_fd);
+}
+
 // 48 connections in all, the last 6 kept for reserved requests; no per-client cap in the way.
 class GuardedHttpServerReserveTest : public GuardedHttpServerTest {
  protected:
@@ -344,19 +399,7 @@ class GuardedHttpServerReserveTest : public GuardedHttpServerTest {
     limits.idle_s = 30;
     limits.max_connections = 48;
     limits.max_connections_per_client = 1000;
-  }
-  int ConnectFrom(const char* address) {
-    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in from{};
-    from.sin_family = AF_INET;
-    inet_pton(AF_INET, address, &from.sin_addr);
-    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from), 0);
-    sockaddr_in to{};
-    to.sin_family = AF_INET;
-    to.sin_port = htons(static_cast<uint16_t>(port_));
-    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
-    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
-    return fd;
+    limits.loopback_clients_apart = true;  // 127.0.0.2 below stands for another host
   }
   void WaitOpen(int n) {
     for (int i = 0; i < 500 && server_->open_connections() < n; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));

@@ -150,14 +150,19 @@ std::string RedactPaths(std::string_view text) {
   return out;
 }
 
-std::string ClientKey(const std::string& address) {
-  in6_addr v6{};
-  if (inet_pton(AF_INET6, address.c_str(), &v6) != 1) return address;  // IPv4 (a /32), or not an address
-  if (IN6_IS_ADDR_V4MAPPED(&v6)) {
-    char v4[INET_ADDRSTRLEN];
-    if (inet_ntop(AF_INET, &v6.s6_addr[12], v4, sizeof v4) != nullptr) return v4;
+std::string ClientKey(const std::string& address, bool loopback_apart) {
+  in_addr v4{};
+  if (inet_pton(AF_INET, address.c_str(), &v4) == 1) {  // IPv4: a /32
+    const bool loopback = (ntohl(v4.s_addr) >> 24) == 127;
+    return loopback && !loopback_apart ? kLoopbackClient : address;
   }
-  if (IN6_IS_ADDR_LOOPBACK(&v6)) return "::1";
+  in6_addr v6{};
+  if (inet_pton(AF_INET6, address.c_str(), &v6) != 1) return address;  // not an address
+  if (IN6_IS_ADDR_V4MAPPED(&v6)) {
+    char text[INET_ADDRSTRLEN];
+    if (inet_ntop(AF_INET, &v6.s6_addr[12], text, sizeof text) != nullptr) return ClientKey(text, loopback_apart);
+  }
+  if (IN6_IS_ADDR_LOOPBACK(&v6)) return loopback_apart ? "::1" : kLoopbackClient;
   for (int i = 8; i < 16; ++i) v6.s6_addr[i] = 0;
   char text[INET6_ADDRSTRLEN];
   if (inet_ntop(AF_INET6, &v6, text, sizeof text) == nullptr) return address;

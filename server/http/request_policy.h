@@ -58,7 +58,12 @@ std::optional<Status> CrossSiteRefusal(const HostPolicy& policy, std::string_vie
 // The client a peer address counts as, for per-client limits: an IPv4 address itself (/32; an
 // IPv4-mapped IPv6 address as IPv4), an IPv6 address's /64 ("2001:db8:1:2::/64": one host or
 // one site is usually given a /64 whole, and picks addresses in it at will). Anything else as it is.
-std::string ClientKey(const std::string& address);
+// Every loopback address (127.0.0.0/8, ::1, ::ffff:127.x.y.z) is one client, "loopback": a local
+// user may connect from any of 16 million of them; with `loopback_apart` (sandswimd
+// --http-loopback-clients-apart: local clients that stand for other hosts, such as a proxy that
+// binds its client's address) each counts by itself.
+inline constexpr const char* kLoopbackClient = "loopback";
+std::string ClientKey(const std::string& address, bool loopback_apart = false);
 
 // "application/json", with or without parameters (charset=utf-8), in any case.
 bool IsJsonMediaType(std::string_view content_type);

@@ -69,14 +69,26 @@ TEST(CrossSiteRefusalTest, PagesOfOtherOriginsMayNot) {
 }
 
 // Per-client limits count an IPv4 address, or an IPv6 /64, as one client.
+TEST(ClientKeyTest, EveryLoopbackAddressIsOneClientUnlessTheOperatorSetsThemApart) {
+  for (const char* local : {"127.0.0.1", "127.0.0.2", "127.255.255.254", "127.1.2.3", "::1", "::ffff:127.0.0.9"}) {
+    EXPECT_EQ(ClientKey(local), kLoopbackClient) << local;
+  }
+  EXPECT_EQ(ClientKey("127.0.0.2", /*loopback_apart=*/true), "127.0.0.2");
+  EXPECT_EQ(ClientKey("::ffff:127.0.0.9", true), "127.0.0.9");
+  EXPECT_EQ(ClientKey("::1", true), "::1");
+  EXPECT_NE(ClientKey("127.0.0.1", true), ClientKey("127.0.0.2", true));
+  for (const char* other : {"128.0.0.1", "126.255.255.255", "10.0.0.127", "::2", "::ffff:10.0.0.1"}) {
+    EXPECT_NE(ClientKey(other), kLoopbackClient) << other;
+  }
+}
+
 TEST(ClientKeyTest, IPv4ByAddressIPv6ByItsSlash64) {
-  EXPECT_EQ(ClientKey("127.0.0.1"), "127.0.0.1");
+  EXPECT_EQ(ClientKey("127.0.0.1", true), "127.0.0.1");
   EXPECT_EQ(ClientKey("10.1.2.3"), "10.1.2.3");
   EXPECT_EQ(ClientKey("::ffff:10.1.2.3"), "10.1.2.3");
   EXPECT_EQ(ClientKey("2001:db8:1:2:aaaa:bbbb:cccc:dddd"), "2001:db8:1:2::/64");
   EXPECT_EQ(ClientKey("2001:db8:1:2::99"), ClientKey("2001:db8:1:2:ffff::1"));
   EXPECT_NE(ClientKey("2001:db8:1:2::1"), ClientKey("2001:db8:1:3::1"));
-  EXPECT_EQ(ClientKey("::1"), "::1");
   EXPECT_EQ(ClientKey("?"), "?");
 }
 

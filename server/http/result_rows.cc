@@ -48,7 +48,7 @@ namespace routes {
 
 // ---- Result rows (JSON objects and CSV rows share the columns) ---------------------------------
 
-json ResultRowJson(const ResultRow& row) {
+json ResultRowJson(const ResultRow& row, ResultsOf of) {
   json j = json::object();
   for (const auto& col : ResultColumns()) j[col] = nullptr;
   j["run_id"] = row.run_id;
@@ -94,74 +94,183 @@ json ResultRowJson(const ResultRow& row) {
     j["grains"] = r.grains;
     j["engine_version"] = row.result->execution.engine_version;
   }
+  if (of == ResultsOf::kCampaignRun) j["sweeps"] = row.sweeps;
   return j;
 }
 
-// The per-point aggregates over replicate beds (core/aggregate.h) of these runs, each with its
-// point's fields.
-json AggregatesJson(const std::vector<ResultRow>& rows) {
-  std::vector<std::pair<Point, ReplicateValue>> runs;
-  runs.reserve(rows.size());
-  for (const ResultRow& row : rows) {
-    ReplicateValue v;
-    v.run_id = row.run_id;
-    v.replicate = row.replicate;
-    v.bed_id = row.bed_id;
-    v.state = row.state;
-    if (row.state == "done" && row.result) {  // a requeued run's old result is not averaged
-      const api::RunResult& r = row.result->result;
-      v.conclusive = r.conclusive;
-      v.uz = r.uz;
-      v.uz_stderr = r.uz_stderr;
-      v.uz_ci95 = r.uz_ci95;
-    }
-    runs.emplace_back(row.point, v);
+namespace {
+
+// A row as one replicate of its point (core/aggregate.h).
+ReplicateValue ReplicateOf(const ResultRow& row) {
+  ReplicateValue v;
+  v.run_id = row.run_id;
+  v.replicate = row.replicate;
+  v.bed_id = row.bed_id;
+  v.state = row.state;
+  if (row.state == "done" && row.result) {  // a requeued run's old result is not averaged
+    const api::RunResult& r = row.result->result;
+    v.conclusive = r.conclusive;
+    v.uz = r.uz;
+    v.uz_stderr = r.uz_stderr;
+    v.uz_ci95 = r.uz_ci95;
   }
-  json out = json::array();
+  return v;
+}
+
+// The per-point aggregates of every run of `of` `id`, each with its point's fields, as JSON text
+// (an array, written an aggregate at a time: 100,000 of them as one JSON tree took some 200 MB),
+// read kMaxResultsPage rows at a time (only each row's point and replicate value are kept).
+Result<std::string> AggregatesText(Store& store, ResultsOf of, int64_t id) {
+  std::vector<std::pair<Point, ReplicateValue>> runs;
+  ResultCursor after;
+  for (;;) {
+    auto page = store.ResultsPage(of, id, after, kMaxResultsPage);
+    if (!page.ok()) return page.status();
+    for (const ResultRow& row : page->rows) runs.emplace_back(row.point, ReplicateOf(row));
+    if (!page->next) break;
+    after = *page->next;
+  }
+  std::string text = "[";
+  bool first = true;
   for (const PointAggregate& a : AggregateByPoint(runs)) {
     json j = PointToJson(a.point);
     j.erase("duration_s");
     j.update(AggregateToJson(a.aggregate));
-    out.push_back(std::move(j));
+    if (!first) text += ',';
+    first = false;
+    text += api::ToJsonText(j);
   }
-  return out;
+  return text + "]";
 }
 
-// `?format=csv`: the runs, one a line (core/result_table.h); JSON: {"id", "results", "aggregates"}.
-void SendRows(Call& c, int64_t id, const std::vector<json>& rows, const std::vector<ResultRow>& distinct,
-              bool with_sweeps) {
-  if (WantsCsv(c)) {
-    std::vector<std::string> columns = ResultColumns();
-    if (with_sweeps) columns.push_back("sweeps");
-    c.res.status = 200;
-    c.res.set_content(RowsToCsv(rows, columns), "text/csv; charset=utf-8");
-    return;
-  }
-  SendJson(c, 200, {{"id", id}, {"results", rows}, {"aggregates", AggregatesJson(distinct)}});
+// A cursor as clients see it (opaque to them): a sweep's "POSITION", a campaign run's
+// "SWEEP.POSITION".
+std::string CursorText(ResultsOf of, const ResultCursor& cursor) {
+  if (of == ResultsOf::kSweep) return std::to_string(cursor.position);
+  return std::to_string(cursor.sweep_id) + "." + std::to_string(cursor.position);
 }
 
-// A campaign run's distinct runs, each naming the sweeps it belongs to (`distinct`: the same runs,
-// as read).
-Result<std::vector<json>> CampaignRunRows(Store& store, const CampaignRunInfo& info,
-                                          std::vector<ResultRow>* distinct) {
-  std::vector<json> rows;
-  std::map<int64_t, size_t> index_of_run;
-  for (int64_t sweep_id : info.sweep_ids) {
-    auto sweep = store.GetSweep(sweep_id);
-    if (!sweep.ok()) return sweep.status();
-    auto results = store.SweepResults(sweep_id);
-    if (!results.ok()) return results.status();
-    for (const ResultRow& row : *results) {
-      auto [it, inserted] = index_of_run.emplace(row.run_id, rows.size());
-      if (inserted) {
-        rows.push_back(ResultRowJson(row));
-        rows.back()["sweeps"] = json::array();
-        if (distinct) distinct->push_back(row);
-      }
-      rows[it->second]["sweeps"].push_back(sweep->name);
+Result<ResultCursor> ParseCursor(ResultsOf of, const std::string& text) {
+  const char* kWhat = "must be the next_cursor of the page before";
+  ResultCursor cursor;
+  const size_t dot = text.find('.');
+  if ((of == ResultsOf::kSweep) != (dot == std::string::npos)) {
+    return Status::InvalidArgument("cursor", std::string(kWhat) + ", got \"" + text + "\"");
+  }
+  if (dot != std::string::npos) {
+    auto sweep = ParseInt(text.substr(0, dot), "cursor", 0, INT64_MAX);
+    if (!sweep.ok()) return Status::InvalidArgument("cursor", std::string(kWhat) + ", got \"" + text + "\"");
+    cursor.sweep_id = *sweep;
+  }
+  auto position = ParseInt(dot == std::string::npos ? text : text.substr(dot + 1), "cursor", 0, INT64_MAX);
+  if (!position.ok()) return Status::InvalidArgument("cursor", std::string(kWhat) + ", got \"" + text + "\"");
+  cursor.position = *position;
+  return cursor;
+}
+
+std::string ResultsPath(ResultsOf of, int64_t id) {
+  return std::string(of == ResultsOf::kSweep ? "/api/v1/sweeps/" : "/api/v1/campaign-runs/") + std::to_string(id) +
+         "/results";
+}
+
+std::vector<std::string> CsvColumns(ResultsOf of) {
+  std::vector<std::string> columns = ResultColumns();
+  if (of == ResultsOf::kCampaignRun) columns.push_back("sweeps");
+  return columns;
+}
+
+// The CSV lines of a page's rows; the header line only with `header`.
+std::string CsvLines(const std::vector<ResultRow>& rows, ResultsOf of, bool header) {
+  std::vector<json> objects;
+  objects.reserve(rows.size());
+  for (const ResultRow& row : rows) objects.push_back(ResultRowJson(row, of));
+  std::string text = RowsToCsv(objects, CsvColumns(of));
+  if (!header) text.erase(0, text.find('\n') + 1);
+  return text;
+}
+
+// Rows of a CSV stream's page: small enough that a stream holds little, large enough that its
+// read transactions cost little.
+constexpr int kCsvPageRows = 1000;
+
+void StreamCsv(Call& c, ResultsOf of, int64_t id) {
+  auto first = c.deps.store->ResultsPage(of, id, ResultCursor{}, kCsvPageRows);
+  if (!first.ok()) return Fail(c, first.status());
+  struct Stream {
+    Store* store;
+    ResultsOf of;
+    int64_t id;
+    std::string pending;               // the first page's lines, read before the answer began
+    std::optional<ResultCursor> next;  // where the next page starts; none: the last was sent
+  };
+  auto stream = std::make_shared<Stream>(Stream{c.deps.store, of, id, CsvLines(first->rows, of, true), first->next});
+  c.res.status = 200;
+  c.res.set_chunked_content_provider("text/csv; charset=utf-8", [stream](size_t, httplib::DataSink& sink) {
+    if (!stream->pending.empty()) {
+      std::string text = std::move(stream->pending);
+      stream->pending.clear();
+      if (!sink.write(text.data(), text.size())) return false;
     }
+    if (!stream->next) {
+      sink.done();
+      return true;
+    }
+    auto page = stream->store->ResultsPage(stream->of, stream->id, *stream->next, kCsvPageRows);
+    if (!page.ok()) {
+      spdlog::error("results of {} as CSV: stopped mid-stream: {}", ResultsPath(stream->of, stream->id),
+                    page.status().ToString());
+      return false;  // the connection closes without the stream's last chunk
+    }
+    stream->pending = CsvLines(page->rows, stream->of, false);
+    stream->next = page->next;
+    return true;
+  });
+}
+
+}  // namespace
+
+void SendResults(Call& c, ResultsOf of) {
+  auto id = PathId(c);
+  if (!id.ok()) return Fail(c, id.status());
+  if (WantsCsv(c)) return StreamCsv(c, of, *id);
+  auto limit = QueryInt(c, "limit", 1, kMaxResultsPage);
+  if (!limit.ok()) return Fail(c, limit.status());
+  const int rows = static_cast<int>(limit->value_or(kDefaultResultsPage));
+  ResultCursor after;
+  const bool first = !c.req.has_param("cursor");
+  if (!first) {
+    auto cursor = ParseCursor(of, c.req.get_param_value("cursor"));
+    if (!cursor.ok()) return Fail(c, cursor.status());
+    after = *cursor;
   }
-  return rows;
+  auto page = c.deps.store->ResultsPage(of, *id, after, rows);
+  if (!page.ok()) return Fail(c, page.status());
+  json reply = {{"id", *id}, {"next_cursor", nullptr}};
+  if (page->next) {
+    const std::string cursor = CursorText(of, *page->next);
+    const std::string next = ResultsPath(of, *id) + "?cursor=" + cursor + "&limit=" + std::to_string(rows);
+    reply["next_cursor"] = cursor;
+    reply["next"] = next;
+    c.res.set_header("Link", "<" + next + ">; rel=\"next\"");
+  }
+  // The rows (and aggregates) are written as text one at a time: a page of 10,000 rows as one
+  // JSON tree took ten times its 11 MB of text.
+  std::string text = api::ToJsonText(reply);
+  text.pop_back();  // its closing brace
+  if (first) {
+    auto aggregates = AggregatesText(*c.deps.store, of, *id);
+    if (!aggregates.ok()) return Fail(c, aggregates.status());
+    text += ",\"aggregates\":" + *aggregates;
+  }
+  text += ",\"results\":[";
+  for (size_t i = 0; i < page->rows.size(); ++i) {
+    if (i > 0) text += ',';
+    text += api::ToJsonText(ResultRowJson(page->rows[i], of));
+  }
+  text += "]}";
+  c.res.status = 200;
+  c.res.set_content("", 0, "application/json");
+  c.res.body = std::move(text);  // not copied: the library's set_content takes a copy
 }
 
 }  // namespace routes

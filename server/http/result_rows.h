@@ -1,8 +1,9 @@
 // Result rows as the API sends them: a run's result row as a JSON object and a CSV line
 // (core/result_table.h: the two share their columns), the per-point aggregates over replicate
-// beds, and a campaign run's distinct runs. Used by the routes of sweeps and of campaign runs.
+// beds, and the results of a sweep or a campaign run, paged (JSON) or streamed (CSV). Used by the
+// routes of sweeps and of campaign runs.
 //
-// Thread safety: free functions; CampaignRunRows reads a thread-safe Store.
+// Thread safety: free functions; they read a thread-safe Store.
 #ifndef SANDSWIM_SERVER_HTTP_RESULT_ROWS_H_
 #define SANDSWIM_SERVER_HTTP_RESULT_ROWS_H_
 
@@ -18,17 +19,25 @@
 namespace sandswim {
 namespace routes {
 
-nlohmann::json ResultRowJson(const ResultRow& row);
-// The per-point aggregates over replicate beds (core/aggregate.h) of these runs, each with its
-// point's fields.
-nlohmann::json AggregatesJson(const std::vector<ResultRow>& rows);
-// `?format=csv`: the runs, one a line (core/result_table.h); JSON: {"id", "results", "aggregates"}.
-void SendRows(Call& c, int64_t id, const std::vector<nlohmann::json>& rows, const std::vector<ResultRow>& distinct,
-              bool with_sweeps);
-// A campaign run's distinct runs, each naming the sweeps it belongs to (`distinct`: the same runs,
-// as read).
-Result<std::vector<nlohmann::json>> CampaignRunRows(Store& store, const CampaignRunInfo& info,
-                                                    std::vector<ResultRow>* distinct = nullptr);
+// Rows of a results page when the request names no `limit` (at most kMaxResultsPage, store.h).
+inline constexpr int kDefaultResultsPage = 1000;
+
+// A run's result row (core/result_table.h's columns; a campaign run's row adds "sweeps").
+nlohmann::json ResultRowJson(const ResultRow& row, ResultsOf of = ResultsOf::kSweep);
+
+// The answer of GET /api/v1/sweeps/{id}/results (ResultsOf::kSweep) and of
+// /api/v1/campaign-runs/{id}/results (kCampaignRun), {id} the path's:
+//  - JSON: a page of at most `?limit=` rows (kDefaultResultsPage; 1..kMaxResultsPage) after
+//    `?cursor=` (the previous page's next_cursor): {"id", "results": [rows], "next_cursor": text
+//    or null, "next": the next page's path (absent on the last page)}, and a `Link: <path>;
+//    rel="next"` header. The first page (no cursor) adds "aggregates": the per-point aggregates
+//    over replicate beds (core/aggregate.h) of every run, each with its point's fields, read a
+//    page at a time.
+//  - `?format=csv` (or Accept: text/csv): every row, one a line under one header line, streamed
+//    a page at a time from the read connections: a daemon holds one page per reader, however
+//    large the set. A read that fails after the first page closes the connection before the
+//    stream's end (a client sees the transfer cut, never a short file that looks whole).
+void SendResults(Call& c, ResultsOf of);
 
 }  // namespace routes
 }  // namespace sandswim

@@ -296,6 +296,75 @@ TEST_F(RoutesTest, CampaignSubmissionCreatesACampaignRun) {
   EXPECT_TRUE(found) << campaigns->body;
 }
 
+// GET .../results: pages of `limit` rows after a cursor, linked by "next" and a Link header, the
+// aggregates of every run on the first page only; CSV streamed whole. Bad paging is a 400 naming
+// its parameter.
+TEST_F(RoutesTest, ResultsArePagedByACursorAndStreamedAsCsv) {
+  auto r = Post("/api/v1/sweeps", R"({"campaign": "paper-58", "scale": "smoke"})");
+  ASSERT_EQ(r->status, 201) << r->body;
+  const std::string path = "/api/v1/campaign-runs/" + std::to_string(Body(r)["id"].get<int64_t>()) + "/results";
+  const json whole = Body(client_->Get(path.c_str()));  // the default page holds all 58
+  ASSERT_EQ(whole["results"].size(), 58u);
+  EXPECT_TRUE(whole["next_cursor"].is_null());
+  EXPECT_FALSE(whole.contains("next"));
+  ASSERT_FALSE(whole["aggregates"].empty());
+
+  std::vector<json> rows;
+  std::string next = path + "?limit=7";
+  int pages = 0;
+  while (!next.empty() && ++pages <= 20) {
+    auto page = client_->Get(next.c_str());
+    ASSERT_EQ(page->status, 200) << page->body;
+    const json body = Body(page);
+    EXPECT_LE(body["results"].size(), 7u);
+    EXPECT_EQ(body.contains("aggregates"), pages == 1) << "the aggregates come once, on the first page";
+    if (pages == 1) {
+      EXPECT_EQ(body["aggregates"], whole["aggregates"]);
+    }
+    for (const json& row : body["results"]) rows.push_back(row);
+    next = body.value("next", "");
+    if (!next.empty()) {
+      EXPECT_EQ(page->get_header_value("Link"), "<" + next + ">; rel=\"next\"");
+      EXPECT_EQ(next, path + "?cursor=" + body["next_cursor"].get<std::string>() + "&limit=7");
+    } else {
+      EXPECT_TRUE(body["next_cursor"].is_null());
+      EXPECT_FALSE(page->has_header("Link"));
+    }
+  }
+  EXPECT_EQ(pages, 9);  // 58 rows, 7 a page
+  EXPECT_EQ(json(rows), whole["results"]) << "the pages hold the same rows in the same order";
+  for (const json& row : rows) EXPECT_FALSE(row["sweeps"].empty());
+
+  auto csv = client_->Get((path + "?format=csv").c_str());
+  ASSERT_EQ(csv->status, 200);
+  EXPECT_EQ(csv->get_header_value("Transfer-Encoding"), "chunked");
+  EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 59);
+  EXPECT_THAT(csv->body, HasSubstr(",sweeps\n"));
+
+  const int64_t sweep = SubmitExample();  // 2 runs
+  const std::string sweep_path = "/api/v1/sweeps/" + std::to_string(sweep) + "/results";
+  const json first = Body(client_->Get((sweep_path + "?limit=1").c_str()));
+  ASSERT_EQ(first["results"].size(), 1u);
+  EXPECT_EQ(first["aggregates"].size(), 2u) << "aggregates over every run, not the page's";
+  const json second = Body(client_->Get(first["next"].get<std::string>().c_str()));
+  ASSERT_EQ(second["results"].size(), 1u);
+  EXPECT_NE(second["results"][0]["run_id"], first["results"][0]["run_id"]);
+  EXPECT_TRUE(second["next_cursor"].is_null());
+
+  for (const auto& [query, field] : std::vector<std::pair<std::string, std::string>>{
+           {"?limit=0", "limit"}, {"?limit=10001", "limit"}, {"?limit=x", "limit"}, {"?cursor=", "cursor"},
+           {"?cursor=abc", "cursor"}, {"?cursor=-1", "cursor"}, {"?cursor=3.4", "cursor"}}) {
+    auto bad = client_->Get((sweep_path + query).c_str());
+    EXPECT_EQ(bad->status, 400) << query;
+    EXPECT_EQ(Body(bad)["field"], field) << query;
+  }
+  auto bad = client_->Get((path + "?cursor=12").c_str());  // a sweep's cursor on a campaign run
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_EQ(Body(bad)["field"], "cursor");
+  EXPECT_EQ(client_->Get("/api/v1/sweeps/999/results?format=csv")->status, 404);
+  EXPECT_EQ(client_->Get("/api/v1/campaign-runs/999/results")->status, 404);
+}
+
 class TokenRoutesTest : public RoutesTest {
  protected:
   void SetUp() override { Start("s3cret"); }

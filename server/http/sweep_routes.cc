@@ -98,16 +98,7 @@ void GetSweep(Call& c) {
   SendJson(c, 200, reply);
 }
 
-void GetSweepResults(Call& c) {
-  auto id = PathId(c);
-  if (!id.ok()) return Fail(c, id.status());
-  auto results = c.deps.store->SweepResults(*id);
-  if (!results.ok()) return Fail(c, results.status());
-  std::vector<json> rows;
-  rows.reserve(results->size());
-  for (const ResultRow& row : *results) rows.push_back(ResultRowJson(row));
-  SendRows(c, *id, rows, *results, /*with_sweeps=*/false);
-}
+void GetSweepResults(Call& c) { SendResults(c, ResultsOf::kSweep); }
 
 void CancelSweep(Call& c) {
   auto id = PathId(c);

@@ -1,6 +1,8 @@
 #include "server/store/store.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <utility>
 
@@ -728,20 +730,50 @@ Result<std::vector<BedView>> Store::ListBeds() {
   return out;
 }
 
+namespace {
+
+// The columns of a result row (ResultRowFromRow), then whatever a query adds after them.
+const std::string& ResultRowColumns() {
+  static const std::string kColumns =
+      std::string("r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
+                  "r.run_duration_s, ") +
+      kResultColumns + ", r.bed_id, b.replicate, r.materials";
+  return kColumns;
+}
+constexpr int kResultRowColumnCount = 14 + kResultColumnCount;
+
+Result<ResultRow> ResultRowFromRow(const Statement& st) {
+  ResultRow r;
+  r.run_id = st.Int(0);
+  r.key = st.Text(1);
+  r.state = st.Text(2);
+  Result<Point> point = PointFromRow(st, 3, 13 + kResultColumnCount);
+  if (!point.ok())
+    return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
+  r.point = *point;
+  r.run_duration_s = st.Double(10);
+  r.result = ResultFromRow(st, 11);
+  r.bed_id = st.Int(11 + kResultColumnCount);
+  r.replicate = static_cast<int>(st.Int(12 + kResultColumnCount));
+  return r;
+}
+
+Status MustExist(Transaction& t, const char* table, const char* what, int64_t id) {
+  Statement st = t.Prepare(std::string("SELECT 1 FROM ") + table + " WHERE id = ?");
+  st.Bind(1, id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::NotFound(std::string("no ") + what + " " + std::to_string(id));
+  return Status::Ok();
+}
+
+}  // namespace
+
 Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
   Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
-  {
-    Statement st = t->Prepare("SELECT 1 FROM sweeps WHERE id = ?");
-    st.Bind(1, sweep_id);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) return Status::NotFound("no sweep " + std::to_string(sweep_id));
-  }
-  Statement st = t->Prepare(std::string("SELECT r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, "
-                                        "r.axis, r.duration_s, r.run_duration_s, ") +
-                            kResultColumns +
-                            ", r.bed_id, b.replicate, r.materials"
+  if (Status s = MustExist(*t, "sweeps", "sweep", sweep_id); !s.ok()) return s;
+  Statement st = t->Prepare("SELECT " + ResultRowColumns() +
                             " FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id JOIN beds b ON b.id = r.bed_id "
                             "LEFT JOIN results res ON res.run_id = r.id WHERE sr.sweep_id = ? ORDER BY sr.position");
   st.Bind(1, sweep_id);
@@ -750,21 +782,78 @@ Result<std::vector<ResultRow>> Store::SweepResults(int64_t sweep_id) {
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
     if (!*row) break;
-    ResultRow r;
-    r.run_id = st.Int(0);
-    r.key = st.Text(1);
-    r.state = st.Text(2);
-    Result<Point> point = PointFromRow(st, 3, 13 + kResultColumnCount);
-    if (!point.ok())
-      return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
-    r.point = *point;
-    r.run_duration_s = st.Double(10);
-    r.result = ResultFromRow(st, 11);
-    r.bed_id = st.Int(11 + kResultColumnCount);
-    r.replicate = static_cast<int>(st.Int(12 + kResultColumnCount));
-    rows.push_back(std::move(r));
+    Result<ResultRow> r = ResultRowFromRow(st);
+    if (!r.ok()) return r.status();
+    rows.push_back(std::move(r).value());
   }
   return rows;
+}
+
+Result<ResultPage> Store::ResultsPage(ResultsOf of, int64_t id, const ResultCursor& after, int limit) {
+  limit = std::clamp(limit, 1, kMaxResultsPage);
+  Result<Transaction> t = db_->BeginRead();
+  if (!t.ok()) return t.status();
+  const bool campaign = of == ResultsOf::kCampaignRun;
+  if (Status s = campaign ? MustExist(*t, "campaign_runs", "campaign run", id) : MustExist(*t, "sweeps", "sweep", id);
+      !s.ok())
+    return s;
+  std::map<int64_t, std::string> sweep_names;  // a campaign run's sweeps
+  if (campaign) {
+    Statement st = t->Prepare("SELECT id, name FROM sweeps WHERE campaign_run_id = ?");
+    st.Bind(1, id);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      sweep_names[st.Int(0)] = st.Text(1);
+    }
+  }
+  // Both walk (sweep, position) in order on sweep_runs_by_position. A campaign run's run that an
+  // earlier sweep of the same campaign run holds too is left where it first appeared.
+  const std::string joins =
+      " JOIN runs r ON r.id = sr.run_id JOIN beds b ON b.id = r.bed_id LEFT JOIN results res ON res.run_id = r.id ";
+  const std::string sql =
+      campaign ? "SELECT " + ResultRowColumns() +
+                     ", sr.sweep_id, sr.position, (SELECT group_concat(sr2.sweep_id) FROM sweep_runs sr2 JOIN sweeps "
+                     "s2 ON s2.id = sr2.sweep_id WHERE sr2.run_id = r.id AND s2.campaign_run_id = ?1)"
+                     " FROM sweeps s JOIN sweep_runs sr ON sr.sweep_id = s.id" +
+                     joins +
+                     "WHERE s.campaign_run_id = ?1 AND (sr.sweep_id > ?2 OR (sr.sweep_id = ?2 AND sr.position > ?3)) "
+                     "AND NOT EXISTS (SELECT 1 FROM sweep_runs sr3 JOIN sweeps s3 ON s3.id = sr3.sweep_id "
+                     "WHERE sr3.run_id = r.id AND s3.campaign_run_id = ?1 AND s3.id < s.id) "
+                     "ORDER BY sr.sweep_id, sr.position LIMIT ?4"
+               : "SELECT " + ResultRowColumns() + ", sr.sweep_id, sr.position FROM sweep_runs sr" + joins +
+                     "WHERE sr.sweep_id = ?1 AND sr.position > ?3 ORDER BY sr.position LIMIT ?4";
+  Statement st = t->Prepare(sql);
+  st.Bind(1, id).Bind(2, after.sweep_id).Bind(3, after.position).Bind(4, limit + 1);
+  ResultPage page;
+  ResultCursor last = after;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    if (static_cast<int>(page.rows.size()) == limit) {
+      page.next = last;
+      break;
+    }
+    Result<ResultRow> r = ResultRowFromRow(st);
+    if (!r.ok()) return r.status();
+    last = ResultCursor{st.Int(kResultRowColumnCount), st.Int(kResultRowColumnCount + 1)};
+    if (campaign) {
+      std::vector<int64_t> ids;  // "12,14": group_concat's order is not defined
+      const std::string list = st.Text(kResultRowColumnCount + 2);
+      for (size_t at = 0; at < list.size();) {
+        size_t end = list.find(',', at);
+        if (end == std::string::npos) end = list.size();
+        ids.push_back(std::strtoll(list.c_str() + at, nullptr, 10));
+        at = end + 1;
+      }
+      std::sort(ids.begin(), ids.end());
+      for (int64_t sweep : ids) r->sweeps.push_back(sweep_names[sweep]);
+    }
+    page.rows.push_back(std::move(r).value());
+  }
+  return page;
 }
 
 namespace {

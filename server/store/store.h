@@ -134,8 +134,28 @@ struct ResultRow {
   int64_t bed_id = 0;
   int replicate = 0;  // its bed's replicate index (core/aggregate.h)
   std::optional<StoredResult> result;
+  std::vector<std::string> sweeps;  // a campaign run's page: the names of its sweeps holding the run, by id
 };
-// The API's JSON of a result row is core/result_table.h's (server/http/routes.cc ResultRowJson).
+// The API's JSON of a result row is core/result_table.h's (server/http/result_rows.h ResultRowJson).
+
+// Whose results a page (Store::ResultsPage) is of.
+enum class ResultsOf {
+  kSweep,        // a sweep's runs in its expansion order (sweep_runs.position)
+  kCampaignRun,  // a campaign run's distinct runs: sweep by sweep (by id), each in its expansion
+                 // order, a run once, where it first appears; each row names its sweeps
+};
+// Where a page of results starts: after this row of the order above. The default is before the
+// first row. A cursor stays valid while the rows change (new results, states), since sweeps never
+// gain or lose runs once submitted.
+struct ResultCursor {
+  int64_t sweep_id = 0;
+  int64_t position = -1;
+};
+struct ResultPage {
+  std::vector<ResultRow> rows;
+  std::optional<ResultCursor> next;  // set when more rows may follow: pass it as `after`
+};
+inline constexpr int kMaxResultsPage = 10000;  // rows of a results page at most
 
 struct CampaignRunInfo {
   int64_t id = 0;
@@ -224,6 +244,10 @@ class Store {
   Result<std::vector<BedView>> ListBeds();
   // Every run of the sweep in its expansion order (sweep_runs.position).
   Result<std::vector<ResultRow>> SweepResults(int64_t sweep_id);
+  // At most `limit` (clamped to [1, kMaxResultsPage]) rows of a sweep's or a campaign run's
+  // results after `after`, in one read transaction: what a page of GET .../results shows and what
+  // a results stream reads at a time, so that no read holds a whole 100,000-run set in memory.
+  Result<ResultPage> ResultsPage(ResultsOf of, int64_t id, const ResultCursor& after, int limit);
   Result<CampaignRunInfo> GetCampaignRun(int64_t id);
   // Newest first; `campaign` empty for all campaigns.
   Result<std::vector<CampaignRunInfo>> ListCampaignRuns(const std::string& campaign, int limit = 20);

@@ -391,6 +391,91 @@ TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
   EXPECT_EQ(j["sweeps"][0]["runs"], 5);
 }
 
+// Every row of `of` `id`, read `limit` rows a page; fails the test on an error.
+std::vector<ResultRow> AllPages(Store& store, ResultsOf of, int64_t id, int limit, int* pages) {
+  std::vector<ResultRow> out;
+  ResultCursor after;
+  *pages = 0;
+  for (;;) {
+    auto page = store.ResultsPage(of, id, after, limit);
+    EXPECT_TRUE(page.ok()) << page.status().ToString();
+    if (!page.ok() || ++*pages > 100) break;
+    EXPECT_LE(static_cast<int>(page->rows.size()), limit);
+    for (ResultRow& r : page->rows) out.push_back(std::move(r));
+    if (!page->next) break;
+    after = *page->next;
+  }
+  return out;
+}
+
+std::vector<int64_t> RunIds(const std::vector<ResultRow>& rows) {
+  std::vector<int64_t> ids;
+  for (const ResultRow& r : rows) ids.push_back(r.run_id);
+  return ids;
+}
+
+TEST_F(StoreTest, ResultsPagesOfASweepFollowItsExpansionOrder) {
+  auto store = MustOpen();
+  auto req = ParseSubmitRequest(Sweep("two", 2));  // Omega 10, 20: runs made first
+  ASSERT_TRUE(Submit(*store, *req, "engine", 1.7e9).ok());
+  req = ParseSubmitRequest(Sweep("five", 5));  // Omega 10..50: its first two runs are older than the rest
+  auto sub = Submit(*store, *req, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+  const int64_t sweep = sub->sweep_ids[0];
+  auto whole = store->SweepResults(sweep);
+  ASSERT_TRUE(whole.ok());
+  ASSERT_EQ(whole->size(), 5u);
+  for (int limit : {1, 2, 5, 6}) {
+    int pages = 0;
+    EXPECT_EQ(RunIds(AllPages(*store, ResultsOf::kSweep, sweep, limit, &pages)), RunIds(*whole)) << limit;
+    EXPECT_EQ(pages, (5 + limit - 1) / limit) << limit;  // the last page says there is no next
+  }
+  auto first = store->ResultsPage(ResultsOf::kSweep, sweep, {}, 2);
+  ASSERT_TRUE(first.ok() && first->next.has_value());
+  EXPECT_EQ(first->rows[0].point.Omega, 10);
+  EXPECT_EQ(first->rows[1].point.Omega, 20);
+  EXPECT_TRUE(first->rows[0].sweeps.empty());
+  EXPECT_EQ(store->ResultsPage(ResultsOf::kSweep, 12345, {}, 10).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store->ResultsPage(ResultsOf::kCampaignRun, 12345, {}, 10).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(StoreTest, ResultsPagesOfACampaignRunShowEachRunOnceWithItsSweeps) {
+  auto store = MustOpen();
+  auto sweep = [](const std::string& name, std::vector<double> omegas) {
+    nlohmann::json s = Sweep(name, 1);
+    s.erase("scale");
+    s["axes"][0]["values"] = omegas;
+    return s;
+  };
+  StoredCampaign c;
+  c.name = "overlap";
+  c.definition = {{"name", "overlap"},
+                  {"description", "two sweeps that share two runs"},
+                  {"scale", "smoke"},
+                  {"sweeps", {sweep("early", {10, 20, 30, 40}), sweep("late", {40, 30, 60, 70})}}};
+  ASSERT_TRUE(store->PutCampaign(c).ok());
+  SubmitRequest request;
+  request.campaign = "overlap";
+  auto sub = Submit(*store, request, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+  ASSERT_TRUE(sub->campaign_run_id.has_value());
+  int pages = 0;
+  const std::vector<ResultRow> all = AllPages(*store, ResultsOf::kCampaignRun, *sub->campaign_run_id, 100, &pages);
+  ASSERT_EQ(all.size(), 6u);
+  std::vector<double> omegas;
+  for (const ResultRow& r : all) omegas.push_back(r.point.Omega);
+  EXPECT_EQ(omegas, (std::vector<double>{10, 20, 30, 40, 60, 70}));
+  EXPECT_EQ(all[0].sweeps, (std::vector<std::string>{"early"}));
+  EXPECT_EQ(all[2].sweeps, (std::vector<std::string>{"early", "late"}));
+  EXPECT_EQ(all[3].sweeps, (std::vector<std::string>{"early", "late"}));
+  EXPECT_EQ(all[4].sweeps, (std::vector<std::string>{"late"}));
+  for (int limit : {1, 3, 4}) {
+    EXPECT_EQ(RunIds(AllPages(*store, ResultsOf::kCampaignRun, *sub->campaign_run_id, limit, &pages)), RunIds(all))
+        << limit;
+    EXPECT_EQ(pages, (6 + limit - 1) / limit) << limit;
+  }
+}
+
 TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   auto store = MustOpen();
   auto req = ParseSubmitRequest(Sweep("one", 1));

@@ -6,11 +6,17 @@
 //    (as after any pause longer than the daemon's keep-alive), with a 6 s lease TTL (latency, and
 //    whether the lease was lost: a heartbeat answered 409);
 //  - `--readers` threads (default 4), another client (127.0.0.2), read a large sweep's results over
-//    and over (GET /api/v1/sweeps/{id}/results of a `--read-runs`-run sweep, default 20,000).
-// It prints one line of figures. SANDSWIMD_UNDER_TEST=PATH measures another build's daemon (the
+//    and over (GET /api/v1/sweeps/{id}/results of a `--read-runs`-run sweep, default 100,000,
+//    following its pages (`Link: <...>; rel="next"`) to the end when the daemon pages, asking
+//    `limit=--page` rows a page): the time and bytes of each whole read.
+// The big sweep is written into the daemon's store before the daemon starts (Submit, as a POST
+// would; a 100,000-value POST body is past the daemon's body limit), its runs queued. The daemon's
+// resident memory is sampled every 0.1 s (peak, and at the start of the reads).
+// It prints its figures. SANDSWIMD_UNDER_TEST=PATH measures another build's daemon (the
 // same benchmark before and after a change).
 //
-//   bench_hostile [--connections 250] [--seconds 30] [--readers 4] [--read-runs 20000]
+//   bench_hostile [--connections 250] [--seconds 30] [--readers 4] [--read-runs 100000] [--page 10000]
+//                 [--loopback-apart 1]
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -21,6 +27,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <strings.h>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -29,6 +37,9 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "platform/clock.h"
+#include "server/jobs/submission.h"
+#include "server/store/store.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
 
@@ -64,11 +75,14 @@ bool Drain(int fd) {
 }
 
 // GET `path` on a new connection from `from`; the bytes of the answer when it is a 200, else -1.
-int64_t ReadFrom(const std::string& listen, const std::string& from, const std::string& path) {
+// `next`: the path of its Link rel="next" header, "" without one.
+int64_t ReadFrom(const std::string& listen, const std::string& from, const std::string& path, std::string* next) {
+  next->clear();
   const int fd = sandswim::testing::ConnectTo(listen, from);
   if (fd < 0) return -1;
   Send(fd, "GET " + path + " HTTP/1.1\r\nHost: " + listen + "\r\nConnection: close\r\n\r\n");
   std::string head;
+  bool head_done = false;
   int64_t bytes = 0;
   char buf[65536];
   for (;;) {
@@ -76,11 +90,49 @@ int64_t ReadFrom(const std::string& listen, const std::string& from, const std::
     if (poll(&p, 1, 300 * 1000) <= 0) break;
     const ssize_t n = recv(fd, buf, sizeof buf, 0);
     if (n <= 0) break;
-    if (head.size() < 12) head.append(buf, static_cast<size_t>(std::min<ssize_t>(n, 12)));
+    if (!head_done) {
+      head.append(buf, static_cast<size_t>(n));
+      const size_t end = head.find("\r\n\r\n");
+      if (end != std::string::npos) {
+        head.resize(end);
+        head_done = true;
+      }
+    }
     bytes += n;
   }
   close(fd);
+  // Link: </api/v1/...>; rel="next"
+  for (size_t at = head.find("\r\n"); at != std::string::npos; at = head.find("\r\n", at + 2)) {
+    const size_t eol = head.find("\r\n", at + 2);
+    const std::string line = head.substr(at + 2, eol == std::string::npos ? std::string::npos : eol - at - 2);
+    if (strncasecmp(line.c_str(), "Link:", 5) != 0 || line.find("rel=\"next\"") == std::string::npos) continue;
+    const size_t open = line.find('<'), close_at = line.find('>');
+    if (open != std::string::npos && close_at != std::string::npos) *next = line.substr(open + 1, close_at - open - 1);
+  }
   return head.rfind("HTTP/1.1 200", 0) == 0 ? bytes : -1;
+}
+
+// The daemon's resident memory, in MB (VmRSS of /proc/PID/status); -1 when unreadable.
+double ResidentMb(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
+  return -1;
+}
+
+// Writes a sweep of `runs` points into a new store at `db`, as POST /api/v1/sweeps would.
+int SeedBigSweep(const std::string& db, int runs) {
+  std::vector<double> omegas;
+  for (int i = 0; i < runs; ++i) omegas.push_back(-1.0 - 0.001 * i);
+  auto request = sandswim::ParseSubmitRequest(sandswim::testing::OmegaSweep("big", omegas, 0.05, 20));
+  if (!request.ok()) return std::fprintf(stderr, "bench_hostile: %s\n", request.status().ToString().c_str()), 1;
+  auto store = sandswim::Store::Open(db);
+  if (!store.ok()) return std::fprintf(stderr, "bench_hostile: %s\n", store.status().ToString().c_str()), 1;
+  sandswim::SystemClock clock;
+  auto submitted = sandswim::Submit(**store, *request, "LIGGGHTS (bench_hostile)", clock.Now());
+  if (!submitted.ok()) return std::fprintf(stderr, "bench_hostile: %s\n", submitted.status().ToString().c_str()), 1;
+  return 0;
 }
 
 int Flag(int argc, char** argv, const std::string& name, int fallback) {
@@ -95,27 +147,35 @@ int main(int argc, char** argv) {
   const int connections = Flag(argc, argv, "--connections", 250);
   const int seconds = Flag(argc, argv, "--seconds", 30);
   const int readers = Flag(argc, argv, "--readers", 4);
-  const int read_runs = Flag(argc, argv, "--read-runs", 20000);
+  const int read_runs = Flag(argc, argv, "--read-runs", 100000);
+  const int page = Flag(argc, argv, "--page", 10000);
   const std::string dir = sandswim::testing::CacheDir() + "/bench-hostile";
   std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  sandswim::testing::Daemon daemon(dir + "/daemon", {"--lease-ttl", "6"});
+  std::filesystem::create_directories(dir + "/daemon");
+  const int64_t big = 1;  // the first sweep of the new store
+  if (readers > 0) {
+    const auto t = Steady::now();
+    if (int failed = SeedBigSweep(dir + "/daemon/sandswim.db", read_runs)) return failed;
+    std::printf("stored a %d-run sweep in %.1f s\n", read_runs, SecondsSince(t));
+  }
+  // The readers (127.0.0.2) stand for another host than the crowd's (127.0.0.1); a daemon from
+  // before --http-loopback-clients-apart counted each loopback address apart anyway (--loopback-apart 0).
+  std::vector<std::string> flags = {"--lease-ttl", "6"};
+  if (Flag(argc, argv, "--loopback-apart", 1) != 0) flags.push_back("--http-loopback-clients-apart");
+  sandswim::testing::Daemon daemon(dir + "/daemon", flags);
   const std::string listen = daemon.listen();
+  // The process started is the engine guard; its one child is sandswimd.
+  pid_t daemon_pid = 0;
+  {
+    const pid_t guard = daemon.process().pid();
+    std::ifstream in("/proc/" + std::to_string(guard) + "/task/" + std::to_string(guard) + "/children");
+    if (!(in >> daemon_pid)) return std::fprintf(stderr, "bench_hostile: sandswimd's pid is not known\n"), 1;
+  }
 
-  // A bed to lease (the worker below holds it), and a large sweep to read.
+  // A bed to lease (the worker below holds it).
   int status = 0;
   daemon.Post("/api/v1/sweeps", sandswim::testing::OmegaSweep("leased", {-10}, 0.05, 20), &status);
   if (status != 201) return std::fprintf(stderr, "bench_hostile: cannot submit (%d)\n", status), 1;
-  int64_t big = 0;
-  if (readers > 0) {
-    std::vector<double> omegas;
-    for (int i = 0; i < read_runs; ++i) omegas.push_back(-1.0 - 0.1 * i);
-    const auto t = Steady::now();
-    json s = daemon.Post("/api/v1/sweeps", sandswim::testing::OmegaSweep("big", omegas, 0.05, 20), &status);
-    if (status != 201) return std::fprintf(stderr, "bench_hostile: cannot submit the big sweep (%d)\n", status), 1;
-    big = s["id"].get<int64_t>();
-    std::printf("submitted a %d-run sweep in %.1f s\n", read_runs, SecondsSince(t));
-  }
   httplib::Client lessor(daemon.url());
   auto leased = lessor.Post("/api/v1/leases", R"({"worker": "bench:1", "host": "bench", "ranks": 1})",
                             "application/json");
@@ -149,18 +209,44 @@ int main(int argc, char** argv) {
   std::this_thread::sleep_for(std::chrono::seconds(4));  // every crowd connection open and asking
 
   std::mutex mu;
-  std::vector<double> healthz, beats;
+  std::vector<double> healthz, beats, read_seconds;
   int healthz_errors = 0, beat_errors = 0, beats_409 = 0;
-  std::atomic<int64_t> reads{0}, read_bytes{0}, read_errors{0};
+  std::atomic<int64_t> reads{0}, read_bytes{0}, read_errors{0}, pages{0};
+  const double rss_before = ResidentMb(daemon_pid);
+  std::atomic<double> rss_peak{rss_before};
   std::vector<std::thread> threads;
+  threads.emplace_back([&] {
+    while (!stop.load()) {
+      const double mb = ResidentMb(daemon_pid);
+      if (mb > rss_peak.load()) rss_peak.store(mb);
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  });
   for (int r = 0; r < readers; ++r) {
     threads.emplace_back([&] {
       while (!stop.load()) {
-        const int64_t got = ReadFrom(listen, "127.0.0.2", "/api/v1/sweeps/" + std::to_string(big) + "/results");
-        if (got >= 0) {
+        // One whole read: the first page and every page after it.
+        const auto t = Steady::now();
+        std::string path = "/api/v1/sweeps/" + std::to_string(big) + "/results?limit=" + std::to_string(page);
+        int64_t bytes = 0;
+        std::string next;
+        for (;;) {
+          const int64_t got = ReadFrom(listen, "127.0.0.2", path, &next);
+          if (got < 0) {
+            bytes = -1;
+            break;
+          }
+          bytes += got;
+          pages.fetch_add(1);
+          if (next.empty() || stop.load()) break;
+          path = next;
+        }
+        if (bytes >= 0 && next.empty()) {
           reads.fetch_add(1);
-          read_bytes.fetch_add(got);
-        } else {
+          read_bytes.fetch_add(bytes);
+          std::lock_guard<std::mutex> lock(mu);
+          read_seconds.push_back(SecondsSince(t));
+        } else if (bytes < 0) {
           read_errors.fetch_add(1);
           std::this_thread::sleep_for(std::chrono::milliseconds(200));
         }
@@ -204,11 +290,13 @@ int main(int argc, char** argv) {
       "  fresh /healthz: %zu answered, %d failed; p50 %.3f s, p99 %.3f s, max %.3f s\n"
       "  heartbeat (new connection, TTL 6 s): %zu answered, %d lost lease (409), %d failed; p50 %.3f s, "
       "p99 %.3f s, max %.3f s\n"
-      "  large reads: %lld of %.1f MB each, %lld failed\n",
+      "  whole %d-run reads: %lld of %.1f MB each (%lld pages in all), %lld failed; p50 %.1f s, max %.1f s\n"
+      "  daemon resident memory: %.0f MB at the start of the reads, %.0f MB at its peak\n",
       connections, static_cast<long long>(crowd_reconnects.load()), readers, seconds, healthz.size(), healthz_errors,
       Pct(healthz, 0.5), Pct(healthz, 0.99), Pct(healthz, 1.0), beats.size(), beats_409, beat_errors, Pct(beats, 0.5),
-      Pct(beats, 0.99), Pct(beats, 1.0), static_cast<long long>(reads.load()),
+      Pct(beats, 0.99), Pct(beats, 1.0), read_runs, static_cast<long long>(reads.load()),
       reads.load() > 0 ? static_cast<double>(read_bytes.load()) / reads.load() / 1e6 : 0.0,
-      static_cast<long long>(read_errors.load()));
+      static_cast<long long>(pages.load()), static_cast<long long>(read_errors.load()), Pct(read_seconds, 0.5),
+      Pct(read_seconds, 1.0), rss_before, rss_peak.load());
   return 0;
 }

@@ -49,7 +49,7 @@ def main() -> int:
     with Service(args.dir, worker=False) as service:
         client = Client(service.url, token_file=service.token_file)
         campaign_run = client.get("/api/v1/campaign-runs")["campaign_runs"][0]["id"]
-        path = f"/api/v1/campaign-runs/{campaign_run}/results"
+        path = f"/api/v1/campaign-runs/{campaign_run}/results?limit=10000"  # one page, as Client.results asks
         session = requests.Session()
         session.headers["Authorization"] = "Bearer " + service.token
         schemas = frames.Schemas(client.api())

@@ -325,7 +325,21 @@ class Client:
     # ---- tables ----------------------------------------------------------------------------------
 
     def _results_json(self, target: Target) -> list[dict[str, Any]]:
-        return [self._json("GET", f"/api/v1/{kind}/{ident}/results") for kind, ident in _targets(target)]
+        return [self._all_results(f"/api/v1/{kind}/{ident}/results") for kind, ident in _targets(target)]
+
+    def _all_results(self, path: str) -> dict[str, Any]:
+        """A results read whole: the first page (with its "aggregates") holding the "results" of
+        every page, their "next" paths followed, the largest pages the daemon gives."""
+        reply = self._object(f"{path}?limit=10000")
+        next_path = reply.pop("next", None)
+        while next_path:
+            page = self._json("GET", next_path)
+            if not page.get("results"):
+                raise SandswimError(f"the daemon's answer to GET {next_path} has no rows", field="results")
+            reply["results"].extend(page["results"])
+            next_path = page.get("next")
+        reply.pop("next_cursor", None)
+        return reply
 
     def results(self, target: Target) -> pd.DataFrame:
         """One row per run of a sweep, campaign run or submission (GET .../results): its point, U_z
