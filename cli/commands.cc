@@ -295,6 +295,9 @@ int RunCampaignStatus(Context& c, DaemonClient& client) {
     return kExitOk;
   }
   c.out() << report->value("summary", "") << "\n";
+  // What a flag is worth: the rule's false alarms at this design (core/drift.h).
+  if (const std::string alarms = report->value("false_alarms", ""); !alarms.empty())
+    c.out() << "drift rule " << report->value("rule", 1) << ": " << alarms << "\n";
   Table t;
   t.header = {"run", "point", "state", "Uz m/s", "before", "diff", ""};
   t.align = {Align::kRight, Align::kLeft, Align::kLeft, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};

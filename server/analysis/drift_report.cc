@@ -8,6 +8,8 @@
 #include <utility>
 
 #include "core/aggregate.h"
+#include "core/drift.h"
+#include "core/scale.h"
 #include "core/sweep.h"
 #include "server/store/campaigns.h"
 
@@ -35,10 +37,21 @@ std::string RunIdentity(const DriftPoint& p) {
   return PointIdentity(p.point) + (p.replicate == 0 ? "" : "#" + std::to_string(p.replicate));
 }
 
-// The 95 % two-sided bound on the difference of two independent estimates.
-std::optional<double> DerivedTolerance(const std::optional<double>& se, const std::optional<double>& se_previous) {
-  if (!se || !se_previous) return std::nullopt;
-  return 1.96 * std::sqrt(*se * *se + *se_previous * *se_previous);
+// A run's rate on both nights as core/drift.h takes it (its error's dof from its 95 % interval;
+// a report stored before intervals were kept: normal). REQUIRES: uz and uz_previous.
+DriftBedPair PairOf(const DriftPoint& p) {
+  auto dof = [](const std::optional<double>& se, const std::optional<double>& ci) {
+    return se && ci && *se > 0 && *ci > 0 ? DofOfInterval(*se, *ci) : kNormalDof;
+  };
+  DriftBedPair b;
+  b.uz = *p.uz;
+  b.uz_previous = *p.uz_previous;
+  b.uz_stderr = p.uz_stderr.value_or(0);
+  b.uz_stderr_previous = p.uz_stderr_previous.value_or(0);
+  b.dof = dof(p.uz_stderr, p.uz_ci95);
+  b.dof_previous = dof(p.uz_stderr_previous, p.uz_ci95_previous);
+  b.same_bed = p.bed_id == 0 || p.bed_id_previous == 0 || p.bed_id == p.bed_id_previous;
+  return b;
 }
 
 // A report's rows grouped by point and aggregated over their replicate beds (comparable rates
@@ -160,12 +173,14 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
       DriftPoint p;
       p.point = PointToJson(row.point);
       p.replicate = row.replicate;
+      p.bed_id = row.bed_id;
       p.run_id = row.run_id;
       p.key = row.key;
       p.state = row.state;
       if (row.state == "done" && row.result) {
         p.uz = row.result->result.uz;
         p.uz_stderr = row.result->result.uz_stderr;
+        p.uz_ci95 = row.result->result.uz_ci95;
         // Only conclusive rates are compared: an inconclusive one is too short to judge a change by.
         p.inconclusive = !row.result->result.conclusive || !p.uz;
         p.analysis = row.result->result.analysis;
@@ -196,7 +211,13 @@ void to_json(json& j, const DriftPoint& p) {
        {"uz_stderr", OrNull(p.uz_stderr)},
        {"uz_stderr_previous", OrNull(p.uz_stderr_previous)},
        {"tolerance", OrNull(p.tolerance)},
-       {"no_error", p.no_error}};
+       {"no_error", p.no_error},
+       {"uz_ci95", OrNull(p.uz_ci95)},
+       {"uz_ci95_previous", OrNull(p.uz_ci95_previous)},
+       {"bed_id", p.bed_id},
+       {"bed_id_previous", p.bed_id_previous},
+       {"p_value", OrNull(p.p_value)},
+       {"not_compared", p.not_compared}};
 }
 
 void from_json(const json& j, DriftPoint& p) {
@@ -218,6 +239,12 @@ void from_json(const json& j, DriftPoint& p) {
   p.uz_stderr_previous = OptField<double>(j, "uz_stderr_previous");
   p.tolerance = OptField<double>(j, "tolerance");
   p.no_error = j.value("no_error", false);
+  p.uz_ci95 = OptField<double>(j, "uz_ci95");
+  p.uz_ci95_previous = OptField<double>(j, "uz_ci95_previous");
+  p.bed_id = j.value("bed_id", int64_t{0});
+  p.bed_id_previous = j.value("bed_id_previous", int64_t{0});
+  p.p_value = OptField<double>(j, "p_value");
+  p.not_compared = j.value("not_compared", "");
 }
 
 void to_json(json& j, const DriftAggregate& a) {
@@ -233,7 +260,10 @@ void to_json(json& j, const DriftAggregate& a) {
        {"difference", OrNull(a.difference)},
        {"tolerance", OrNull(a.tolerance)},
        {"drifted", a.drifted},
-       {"estimator_changed", a.estimator_changed}};
+       {"estimator_changed", a.estimator_changed},
+       {"beds_compared", a.beds_compared},
+       {"p_value", OrNull(a.p_value)},
+       {"drifted_familywise", a.drifted_familywise}};
 }
 
 void from_json(const json& j, DriftAggregate& a) {
@@ -250,6 +280,9 @@ void from_json(const json& j, DriftAggregate& a) {
   a.tolerance = OptField<double>(j, "tolerance");
   a.drifted = j.value("drifted", false);
   a.estimator_changed = j.value("estimator_changed", false);
+  a.beds_compared = j.value("beds_compared", 0);
+  a.p_value = OptField<double>(j, "p_value");
+  a.drifted_familywise = j.value("drifted_familywise", false);
 }
 
 void to_json(json& j, const DriftReport& r) {
@@ -275,7 +308,11 @@ void to_json(json& j, const DriftReport& r) {
        {"rows", r.rows},
        {"aggregates", r.aggregates},
        {"points_compared", r.points_compared},
-       {"points_drifted", r.points_drifted}};
+       {"points_drifted", r.points_drifted},
+       {"rule", r.rule},
+       {"points_drifted_familywise", r.points_drifted_familywise},
+       {"campaign_drifted", r.campaign_drifted},
+       {"false_alarms", r.false_alarms}};
 }
 
 void from_json(const json& j, DriftReport& r) {
@@ -302,13 +339,23 @@ void from_json(const json& j, DriftReport& r) {
   r.aggregates = j.value("aggregates", std::vector<DriftAggregate>{});
   r.points_compared = j.value("points_compared", int64_t{0});
   r.points_drifted = j.value("points_drifted", int64_t{0});
+  r.rule = j.value("rule", 1);  // reports made before rules were numbered: rule 1
+  r.points_drifted_familywise = j.value("points_drifted_familywise", int64_t{0});
+  r.campaign_drifted = j.value("campaign_drifted", false);
+  r.false_alarms = j.value("false_alarms", "");
 }
 
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone) {
   const bool fixed = report.tolerance_mps > 0;
-  // The tolerance a difference is held to: the campaign's, else its 95 % bound (none: no error).
-  auto tolerance_for = [&](const std::optional<double>& se, const std::optional<double>& se_previous) {
-    return fixed ? std::optional<double>(report.tolerance_mps) : DerivedTolerance(se, se_previous);
+  report.rule = kDriftRuleVersion;
+  const Scale* scale = FindScale(report.scale);
+  // The decision over a point's beds (core/drift.h): each pair a run with itself the night before.
+  auto decide = [&](std::vector<DriftBedPair> beds) {
+    DriftTest test;
+    test.beds = std::move(beds);
+    test.tolerance_mps = report.tolerance_mps;
+    test.bed_sd_rel = scale != nullptr ? scale->bed_sd_rel.value_or(0) : 0;
+    return DecideDrift(test);
   };
   std::map<std::string, const DriftPoint*> before;
   if (previous != nullptr) {
@@ -318,14 +365,19 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
   report.points = static_cast<int64_t>(report.rows.size());
   report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
   report.estimator_changed = report.no_error = 0;
+  int64_t other_beds = 0;  // runs on a re-poured bed at a scale with no bed-to-bed prior
   for (DriftPoint& p : report.rows) {
     p.uz_previous.reset();
     p.uz_stderr_previous.reset();
+    p.uz_ci95_previous.reset();
+    p.bed_id_previous = 0;
     p.difference.reset();
     p.tolerance.reset();
+    p.p_value.reset();
     p.drifted = false;
     p.estimator_changed = false;
     p.no_error = false;
+    p.not_compared.clear();
     if (!p.uz && !p.inconclusive) {
       ++report.missing;
       continue;
@@ -344,22 +396,28 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     }
     p.uz_previous = it->second->uz;
     p.uz_stderr_previous = it->second->uz_stderr;
+    p.uz_ci95_previous = it->second->uz_ci95;
+    p.bed_id_previous = it->second->bed_id;
     p.difference = *p.uz - *p.uz_previous;
-    p.tolerance = tolerance_for(p.uz_stderr, p.uz_stderr_previous);
-    if (!p.tolerance) {
-      p.no_error = true;
-      ++report.no_error;
+    const DriftDecision d = decide({PairOf(p)});
+    if (!d.compared) {
+      p.not_compared = d.not_compared;
+      p.no_error = d.not_compared == "no error";
+      ++(p.no_error ? report.no_error : other_beds);
       continue;
     }
-    p.drifted = std::fabs(*p.difference) > *p.tolerance;
+    p.tolerance = d.tolerance;
+    if (d.tested) p.p_value = d.p_value;
+    p.drifted = d.drifted;
     ++report.compared;
     if (p.drifted) ++report.drifted;
   }
 
-  // Points over their replicate beds. Two means are compared only when they share their
-  // estimator (SameEstimator).
+  // Points over their replicate beds: the beds compared above, each with itself. Two means are
+  // compared only when they share their estimator (SameEstimator).
   report.aggregates.clear();
-  report.points_compared = report.points_drifted = 0;
+  report.points_compared = report.points_drifted = report.points_drifted_familywise = 0;
+  report.campaign_drifted = false;
   bool replicated = false;
   std::map<std::string, std::pair<json, ReplicateAggregate>> earlier;
   std::map<std::string, BedAnalyses> analyses_now = AnalysesOf(report.rows), analyses_before;
@@ -368,11 +426,15 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     analyses_before = AnalysesOf(previous->rows);
   }
   std::vector<std::string> order;
+  std::map<std::string, std::vector<DriftBedPair>> pairs;
   for (const DriftPoint& p : report.rows) {
     const std::string id = PointIdentity(p.point);
     if (std::find(order.begin(), order.end(), id) == order.end()) order.push_back(id);
+    if (p.tolerance) pairs[id].push_back(PairOf(p));
   }
   auto now = AggregatesOf(report.rows);
+  std::vector<double> p_values;
+  std::vector<size_t> tested;  // aggregates with a p-value, in p_values' order
   for (const std::string& id : order) {
     const auto& [point, agg] = now.at(id);
     DriftAggregate a;
@@ -389,18 +451,36 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
       a.uz_mean_previous = b.uz_mean;
       a.uz_stderr_previous = b.uz_stderr;
       a.estimator_changed = a.uz_mean && a.uz_mean_previous && !SameEstimator(analyses_now[id], analyses_before[id]);
-      if (a.uz_mean && a.uz_mean_previous && !a.estimator_changed) {
-        a.difference = *a.uz_mean - *a.uz_mean_previous;
-        a.tolerance = tolerance_for(a.uz_stderr, a.uz_stderr_previous);
-        if (a.tolerance) {
-          a.drifted = std::fabs(*a.difference) > *a.tolerance;
+      if (a.uz_mean && a.uz_mean_previous && !a.estimator_changed && !pairs[id].empty()) {
+        const DriftDecision d = decide(pairs[id]);
+        a.beds_compared = d.beds;
+        if (d.compared) {
+          a.difference = d.difference;
+          a.tolerance = d.tolerance;
+          a.drifted = d.drifted;
           ++report.points_compared;
           if (a.drifted) ++report.points_drifted;
+          if (d.tested) {
+            a.p_value = d.p_value;
+            p_values.push_back(d.p_value);
+            tested.push_back(report.aggregates.size());
+          }
         }
       }
     }
     report.aggregates.push_back(std::move(a));
   }
+  // The campaign: did any point drift, at family-wise 5 % across the points tested (Holm)?
+  const std::vector<bool> holm = HolmFlags(p_values);
+  for (size_t i = 0; i < tested.size(); ++i) {
+    DriftAggregate& a = report.aggregates[tested[i]];
+    a.drifted_familywise = holm[i] && a.drifted;
+    if (a.drifted_familywise) ++report.points_drifted_familywise;
+  }
+  report.campaign_drifted = report.points_drifted_familywise > 0;
+  int beds = 1;
+  for (const DriftAggregate& a : report.aggregates) beds = std::max(beds, a.replicates);
+  report.false_alarms = DriftAlarmText(report.campaign, report.scale, beds);
 
   std::string head = report.campaign + "@" + report.scale + " ";
   if (report.trigger == "schedule" && report.due_time) {
@@ -418,10 +498,18 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     line += ", " + std::to_string(report.estimator_changed) + " not compared (U_z analysis changed)";
   }
   if (report.no_error > 0) line += ", " + std::to_string(report.no_error) + " not compared (no error)";
+  if (other_beds > 0) {
+    line += ", " + std::to_string(other_beds) + " not compared (another bed, the scatter between beds not known)";
+  }
   if (report.missing > 0) line += ", " + std::to_string(report.missing) + " failed or cancelled";
   if (replicated) {
     line += "; " + std::to_string(report.points_drifted) + " of " + std::to_string(report.points_compared) +
             " points' means over their beds drifted";
+  }
+  if (!tested.empty()) {
+    line += report.campaign_drifted ? "; the campaign drifted: " + std::to_string(report.points_drifted_familywise) +
+                                          " point(s) at family-wise 5 % (Holm)"
+                                    : "; the campaign: no change beyond chance (Holm, family-wise 5 %)";
   }
   if (previous == nullptr) line += "; first report, nothing to compare";
   report.summary = line;

@@ -1,20 +1,23 @@
 // DriftReport: after a campaign run finishes (every run of its sweeps is done, failed or
 // cancelled), per run and per point, U_z now vs the previous report of the same campaign and
-// scale, flagged where the change exceeds the tolerance:
-//   - the campaign's drift_tolerance_mps when it sets one (> 0);
-//   - else one derived from the measured scatter: 1.96 sqrt(se_now^2 + se_before^2), the 95 %
-//     two-sided bound of a difference of two independent estimates, with each run's own standard
-//     error (rows) or each point's standard error over its replicate beds (aggregates,
-//     core/aggregate.h). A rate without an error is then not compared ("no error").
+// scale, flagged where it changed. The decision is core/drift.h's (DecideDrift, drift rule
+// `rule`): rule 2 holds a run's change to the 95 % bound of the difference from both runs' own
+// errors with Welch's degrees of freedom (Student t), a point's to that of its beds' mean paired
+// difference (each bed against itself: the bed's effect cancels), and, when the campaign sets
+// drift_tolerance_mps (> 0), also to that tolerance. A rate without an error is not compared
+// ("no error"). Across the campaign's points, Holm's procedure at family-wise 5 % says whether the
+// campaign as a whole drifted (`campaign_drifted`); `false_alarms` quotes the rule's false-alarm
+// rates measured on the truth engine at the design (core/drift.h DriftAlarmText).
 //
 // Reports are stored (table drift_reports, schema/002_nightly.sql), one per campaign run, and
 // keep the U_z values they saw: a forced rerun replaces the result row of a run it shares with
 // earlier campaign runs, so "before" must come from the earlier report, not from `results`.
 // Runs are matched across reruns by their drive (PointToJson of the point, duration included)
 // and replicate bed, not by run key, so a new engine version or template is compared with the
-// old one; points by their drive alone. "previous" is the latest report of the same campaign and
+// old one (a re-poured bed, another bed id, adds the scale's bed-to-bed scatter); points by their
+// drive alone. "previous" is the latest report of the same campaign and
 // scale with a smaller campaign run id; the first report of a campaign+scale compares with
-// nothing (every point "new").
+// nothing (every point "new"). A report stored before `rule` existed reads as rule 1.
 //
 // A run counts as "reused" when its result row predates the campaign run, "run" when it was
 // computed for it, "missing" when the run failed or was cancelled (no U_z this time).
@@ -58,11 +61,18 @@ struct DriftPoint {
   std::optional<double> uz_stderr;           // m/s, the run's own standard error now
   std::optional<double> uz_stderr_previous;  // and in the previous report
   std::optional<double> tolerance;           // m/s, what |difference| was held to
-  bool no_error = false;                     // derived tolerance, but a rate has no error: not compared
+  bool no_error = false;                     // a rate has no error: not compared
+  std::optional<double> uz_ci95;             // m/s, the run's own 95 % half-width now (its dof)
+  std::optional<double> uz_ci95_previous;    // and in the previous report
+  int64_t bed_id = 0;                        // the bed it ran on (0: not known)
+  int64_t bed_id_previous = 0;
+  std::optional<double> p_value;             // of the difference against no change (compared rows)
+  std::string not_compared;                  // why a run with a rate on both nights was not compared
 };
 // {"point":{...},"replicate","run_id","key","state","uz","uz_previous","difference","drifted",
 //  "reused","inconclusive","analysis","estimator_changed","uz_stderr","uz_stderr_previous",
-//  "tolerance","no_error"}
+//  "tolerance","no_error","uz_ci95","uz_ci95_previous","bed_id","bed_id_previous","p_value",
+//  "not_compared"}
 // (absent values are null).
 void to_json(nlohmann::json& j, const DriftPoint& p);
 void from_json(const nlohmann::json& j, DriftPoint& p);
@@ -78,6 +88,9 @@ struct DriftAggregate {
   bool drifted = false;
   // Not compared: the point's rates now and before were not all made by one U_z analysis.
   bool estimator_changed = false;
+  int beds_compared = 0;           // the beds conclusive on both nights that `difference` is over
+  std::optional<double> p_value;   // of the difference against no change
+  bool drifted_familywise = false; // drifted at family-wise 5 % across the campaign's points (Holm)
 };
 void to_json(nlohmann::json& j, const DriftAggregate& a);
 void from_json(const nlohmann::json& j, DriftAggregate& a);
@@ -98,12 +111,17 @@ struct DriftReport {
   std::vector<DriftPoint> rows;            // the campaign run's distinct runs, in sweep order
   std::vector<DriftAggregate> aggregates;  // its points, over their replicate beds
   int64_t points_compared = 0, points_drifted = 0;
+  int rule = 1;                   // the drift rule (core/drift.h kDriftRuleVersion) that made it
+  int64_t points_drifted_familywise = 0;
+  bool campaign_drifted = false;  // some point drifted at family-wise 5 % (Holm)
+  std::string false_alarms;       // the rule's measured false-alarm rates at this design (DriftAlarmText)
   std::string summary;  // the one-line summary the daemon logs
 };
 // {"campaign_run_id","campaign","scale","trigger","due_time","campaign_run_created_at",
 //  "previous_campaign_run_id","tolerance_mps","created_at","points","reused","ran","missing",
 //  "compared","drifted","inconclusive","estimator_changed","no_error","summary","rows":[DriftPoint...],
-//  "aggregates":[DriftAggregate...],"points_compared","points_drifted"}
+//  "aggregates":[DriftAggregate...],"points_compared","points_drifted","rule","points_drifted_familywise",
+//  "campaign_drifted","false_alarms"}
 void to_json(nlohmann::json& j, const DriftReport& r);
 void from_json(const nlohmann::json& j, DriftReport& r);
 
@@ -115,7 +133,8 @@ void from_json(const nlohmann::json& j, DriftReport& r);
 // plus ", N inconclusive (not compared)", ", N not compared (U_z analysis changed)",
 // ", N failed or cancelled", ", N not compared (no error)", "; P of Q points' means over their
 // beds drifted" (when some point ran on more than one bed) and "; first report, nothing to
-// compare" when they apply. ("points" in the line counts runs, as it always has.) A rate is
+// compare" when they apply, and, when points were compared, "; the campaign: no change beyond
+// chance (Holm, family-wise 5 %)" or "; the campaign drifted: N point(s) at family-wise 5 % (Holm)". ("points" in the line counts runs, as it always has.) A rate is
 // compared only with one made by the same analysis (api::kAnalysisVersion): after an upgrade the
 // first report compares nothing it cannot.
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone);

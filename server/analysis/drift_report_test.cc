@@ -9,12 +9,14 @@
 #include <nlohmann/json.hpp>
 
 #include "core/api.h"
+#include "core/drift.h"
 
 namespace sandswim {
 namespace {
 
 // Without a campaign tolerance, a change is held to the 95 % bound of the difference of two
-// estimates (1.96 sqrt(se^2 + se_before^2)); each point is compared over its replicate beds too.
+// estimates (t sqrt(se^2 + se_before^2), core/drift.h); each point is compared over its replicate
+// beds too, each bed with itself.
 TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheirBeds) {
   const nlohmann::json point = {{"mode", "oscillatory"}, {"Omega", -80}};
   auto run = [&](int replicate, double uz, std::optional<double> se) {
@@ -42,7 +44,7 @@ TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheir
   now.rows = {run(0, 0.105, 0.003), run(1, 0.130, 0.003), run(2, 0.140, std::nullopt)};
   CompareWithPrevious(now, &previous, CronZone::kUtc);
   ASSERT_TRUE(now.rows[0].tolerance.has_value());
-  EXPECT_NEAR(*now.rows[0].tolerance, 1.96 * std::sqrt(2.0) * 0.003, 1e-12);
+  EXPECT_NEAR(*now.rows[0].tolerance, 1.96 * std::sqrt(2.0) * 0.003, 1e-6);  // no dof stated: normal
   EXPECT_FALSE(now.rows[0].drifted);
   EXPECT_TRUE(now.rows[1].drifted);
   EXPECT_TRUE(now.rows[2].no_error);
@@ -51,20 +53,34 @@ TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheir
   EXPECT_EQ(now.no_error, 1);
   EXPECT_NE(now.summary.find("1 drifted beyond its 95 % bound"), std::string::npos) << now.summary;
   EXPECT_NE(now.summary.find(", 1 not compared (no error)"), std::string::npos) << now.summary;
-  // The point over its 3 beds: mean 0.125 (sd 0.0180, se 0.0104) against 0.110 (sd 0.010, se
-  // 0.00577): a difference of 0.015 within 1.96 sqrt(0.0104^2 + 0.00577^2) = 0.0233.
+  // The point over its beds (core/drift.h rule 2): beds 0 and 1 have errors on both nights, each
+  // compared with itself: a mean change of 0.0075 against sqrt(4 0.003^2) / 2 = 0.003, beyond
+  // 1.96 0.003 (the runs state no dof: normal). The means over the beds are shown beside it.
   ASSERT_EQ(now.aggregates.size(), 1u);
   const DriftAggregate& a = now.aggregates[0];
   EXPECT_EQ(a.replicates, 3);
   EXPECT_EQ(a.replicates_previous, 3);
   EXPECT_NEAR(*a.uz_mean, 0.125, 1e-12);
   EXPECT_NEAR(*a.uz_mean_previous, 0.110, 1e-12);
-  EXPECT_NEAR(*a.difference, 0.015, 1e-12);
-  EXPECT_NEAR(*a.tolerance, 1.96 * std::sqrt(*a.uz_stderr * *a.uz_stderr + 0.01 * 0.01 / 3), 1e-12);
-  EXPECT_FALSE(a.drifted);
+  EXPECT_EQ(a.beds_compared, 2);
+  EXPECT_NEAR(*a.difference, 0.0075, 1e-12);
+  EXPECT_NEAR(*a.tolerance, 1.96 * 0.003, 1e-4);
+  EXPECT_TRUE(a.drifted);
+  ASSERT_TRUE(a.p_value.has_value());
+  EXPECT_NEAR(*a.p_value, 0.0124, 1e-4);
+  EXPECT_TRUE(a.drifted_familywise);  // the campaign's one point: Holm at 0.05
+  EXPECT_TRUE(now.campaign_drifted);
+  EXPECT_EQ(now.rule, kDriftRuleVersion);
   EXPECT_EQ(now.points_compared, 1);
-  EXPECT_NE(now.summary.find("; 0 of 1 points' means over their beds drifted"), std::string::npos) << now.summary;
-  // A campaign tolerance replaces the derived one, for runs and points alike.
+  EXPECT_NE(now.summary.find("; 1 of 1 points' means over their beds drifted; the campaign drifted: 1 point(s) at "
+                             "family-wise 5 % (Holm)"),
+            std::string::npos)
+      << now.summary;
+  EXPECT_EQ(now.false_alarms.rfind("false alarms: not measured at this design (tiny at smoke, K = 3 beds)", 0), 0u)
+      << now.false_alarms;
+  // A campaign tolerance is a size a change must also reach, for runs and points alike; a rate
+  // without an error is held to it alone (bed 2: 0.030; the point: the mean change over its three
+  // beds, 0.015).
   now.tolerance_mps = 0.012;
   CompareWithPrevious(now, &previous, CronZone::kUtc);
   EXPECT_EQ(now.drifted, 1);  // bed 2's 0.030; bed 1's 0.010 is within
@@ -75,6 +91,12 @@ TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheir
   ASSERT_EQ(back.aggregates.size(), 1u);
   EXPECT_EQ(back.aggregates[0].difference, now.aggregates[0].difference);
   EXPECT_EQ(back.rows[1].replicate, 1);
+  EXPECT_EQ(back.rule, kDriftRuleVersion);
+  EXPECT_EQ(back.aggregates[0].beds_compared, 3);
+  // A report stored before rules were numbered reads as rule 1.
+  nlohmann::json old = now;
+  old.erase("rule");
+  EXPECT_EQ(old.get<DriftReport>().rule, 1);
 }
 
 // After an upgrade of the U_z analysis, the first report compares no rate with one the old

@@ -134,10 +134,23 @@ std::string FitRows(const ReportSweep& s) {
   return rows;
 }
 
+// What "drifted" means in a report, and how often it is said when nothing changed.
+std::string DriftRuleHtml(const DriftReport& drift) {
+  std::string text = "Drift rule " + std::to_string(drift.rule) + ": ";
+  text += drift.rule >= 2 ? "a run's change is held to the 95 % bound of the difference of its two rates (Student t, "
+                            "Welch's degrees of freedom), a point's to that of its beds' mean change, and the campaign "
+                            "drifted when a point did at family-wise 5 % (Holm)"
+                          : "a change is held to 1.96 times the error of the difference";
+  if (drift.tolerance_mps > 0) text += ", and to the campaign's tolerance";
+  text += ".";
+  if (!drift.false_alarms.empty()) text += " " + drift.false_alarms + ".";
+  return "<p class=\"rule\">" + Escape(text) + "</p>\n";
+}
+
 std::string DriftHtml(const std::optional<DriftReport>& drift) {
   if (!drift) return "<p class=\"none\">No drift report yet: one is made when a campaign run finishes.</p>\n";
-  std::string html = "<p>" + Escape(drift->summary) +
-                     "</p>\n<table><tr><th>run</th><th>point</th><th>state</th>"
+  std::string html = "<p>" + Escape(drift->summary) + "</p>\n" + DriftRuleHtml(*drift) +
+                     "<table><tr><th>run</th><th>point</th><th>state</th>"
                      "<th>U<sub>z</sub> (m/s)</th><th>before (m/s)</th><th>difference (m/s)</th><th></th></tr>\n";
   auto cell = [](const std::optional<double>& v) { return v ? Num(*v, 4) : std::string("–"); };
   for (const DriftPoint& p : drift->rows) {
@@ -158,7 +171,8 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
   for (const DriftAggregate& a : drift->aggregates) replicated = replicated || a.replicates > 1;
   if (!replicated) return html;
   html +=
-      "<p>Each point over its replicate beds (mean ± standard error; compared within the tolerance shown):</p>\n"
+      "<p>Each point over its replicate beds (mean ± standard error; the difference is its beds' mean change, each "
+      "bed against itself, held to the tolerance shown):</p>\n"
       "<table><tr><th>point</th><th>beds</th><th>mean U<sub>z</sub> (m/s)</th><th>before (m/s)</th>"
       "<th>difference (m/s)</th><th>tolerance (m/s)</th><th></th></tr>\n";
   auto mean = [&](const std::optional<double>& m, const std::optional<double>& se, int conclusive, int beds) {

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "core/deck.h"
+#include "core/drift.h"
 #include "core/engine_log.h"
 #include "core/text.h"
 #include "core/trajectory.h"
@@ -426,16 +427,17 @@ nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Calib
 }
 
 namespace {
-DriftReport NightReport(const SimCampaign& c, int64_t id) {
+DriftReport NightReport(const SimCampaign& c, int64_t id, const Design& design) {
   DriftReport r;
   r.campaign_run_id = id;
-  r.campaign = "paper-58";
-  r.scale = "smoke";
+  r.campaign = design.campaign;
+  r.scale = design.scale;
   for (size_t i = 0; i < c.runs.size(); ++i) {
     const SimRun& run = c.runs[i];
     DriftPoint p;
     p.point = PointToJson(run.point);
     p.replicate = run.replicate;
+    p.bed_id = run.replicate + 1;  // the same beds both nights
     p.run_id = static_cast<int64_t>(i) + 1;
     p.state = run.result ? "done" : "failed";
     if (run.result) {
@@ -444,6 +446,7 @@ DriftReport NightReport(const SimCampaign& c, int64_t id) {
       if (run.result->conclusive) {
         p.uz = run.result->uz;
         p.uz_stderr = run.result->uz_stderr;
+        p.uz_ci95 = run.result->uz_ci95;
       }
     }
     r.rows.push_back(std::move(p));
@@ -453,7 +456,9 @@ DriftReport NightReport(const SimCampaign& c, int64_t id) {
 }  // namespace
 
 DriftAlarms MeasureDriftAlarms(const Calibrator& cal, const Law& law, const Noise& noise, int64_t campaigns,
-                               uint64_t first_world, int threads) {
+                               uint64_t first_world, int threads, double change) {
+  Law changed = law;
+  changed.uz_factor *= change;
   std::atomic<int64_t> next{0};
   std::mutex mu;
   DriftAlarms total;
@@ -461,20 +466,39 @@ DriftAlarms MeasureDriftAlarms(const Calibrator& cal, const Law& law, const Nois
     DriftAlarms mine;
     for (int64_t i; (i = next++) < campaigns;) {
       const uint64_t world = first_world + static_cast<uint64_t>(i);
-      DriftReport before = NightReport(cal.Simulate(law, noise, world, 1), 1);
-      DriftReport now = NightReport(cal.Simulate(law, noise, world, 2), 2);
+      DriftReport before = NightReport(cal.Simulate(law, noise, world, 1), 1, cal.design());
+      DriftReport now = NightReport(cal.Simulate(changed, noise, world, 2), 2, cal.design());
       CompareWithPrevious(before, nullptr, CronZone::kUtc);
       CompareWithPrevious(now, &before, CronZone::kUtc);
+      ++mine.campaigns;
       mine.runs_compared += now.compared;
       mine.runs_drifted += now.drifted;
       mine.points_compared += now.points_compared;
       mine.points_drifted += now.points_drifted;
+      if (now.points_drifted > 0) ++mine.campaigns_any_point;
+      if (now.campaign_drifted) ++mine.campaigns_drifted;
+      // Rule 1 on the same pairs of runs.
+      int64_t rule1 = 0;
+      for (const DriftPoint& p : now.rows) {
+        if (!p.tolerance || !p.uz_stderr || !p.uz_stderr_previous) continue;
+        DriftTest test;
+        test.rule = 1;
+        test.beds.push_back({*p.uz, *p.uz_stderr, kNormalDof, *p.uz_previous, *p.uz_stderr_previous, kNormalDof, true});
+        if (DecideDrift(test).drifted) ++rule1;
+      }
+      mine.runs_drifted_rule1 += rule1;
+      if (rule1 > 0) ++mine.campaigns_any_run_rule1;
     }
     std::lock_guard<std::mutex> lock(mu);
+    total.campaigns += mine.campaigns;
     total.runs_compared += mine.runs_compared;
     total.runs_drifted += mine.runs_drifted;
     total.points_compared += mine.points_compared;
     total.points_drifted += mine.points_drifted;
+    total.campaigns_any_point += mine.campaigns_any_point;
+    total.campaigns_drifted += mine.campaigns_drifted;
+    total.runs_drifted_rule1 += mine.runs_drifted_rule1;
+    total.campaigns_any_run_rule1 += mine.campaigns_any_run_rule1;
   };
   std::vector<std::thread> pool;
   for (int t = 1; t < std::max(1, threads); ++t) pool.emplace_back(work);

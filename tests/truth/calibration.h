@@ -124,13 +124,22 @@ std::string CalibrationMarkdown(const std::vector<LawTally>& tallies, const Desi
 nlohmann::json CalibrationJson(const std::vector<LawTally>& tallies, const Calibrator& cal, const Noise& noise);
 nlohmann::json NoiseToJson(const Noise& noise);
 
-// The drift report's false alarms (server/analysis/drift_report.h CompareWithPrevious, derived tolerance):
-// two nights of the same campaign on the same beds, same law, new run noise; per run and per point.
+// The drift report (server/analysis/drift_report.h CompareWithPrevious, core/drift.h, the campaign's
+// derived tolerance): two nights of the same campaign on the same beds with new run noise, the
+// second under `law` with every U_z times `change` (1: nothing changed, so every flag is a false
+// alarm; else the flags are the power to see that change). Per run, per point (over its beds), and
+// per campaign: some point drifted at 5 % per point, and the campaign drifted (Holm, family-wise
+// 5 %). Rule 1 (a normal quantile per run, core/drift.h) on the same runs, beside it.
 struct DriftAlarms {
-  int64_t runs_compared = 0, runs_drifted = 0, points_compared = 0, points_drifted = 0;
+  int64_t campaigns = 0;
+  int64_t runs_compared = 0, runs_drifted = 0, points_compared = 0, points_drifted = 0;  // the current rule
+  int64_t campaigns_any_point = 0;  // at least one point drifted (5 % per point)
+  int64_t campaigns_drifted = 0;    // the campaign drifted (Holm)
+  int64_t runs_drifted_rule1 = 0;   // of runs_compared
+  int64_t campaigns_any_run_rule1 = 0;
 };
 DriftAlarms MeasureDriftAlarms(const Calibrator& cal, const Law& law, const Noise& noise, int64_t campaigns,
-                               uint64_t first_world, int threads);
+                               uint64_t first_world, int threads, double change = 1);
 
 }  // namespace sandswim::truth
 

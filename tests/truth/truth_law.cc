@@ -98,7 +98,8 @@ const Law* FindLaw(const std::string& name) {
   return nullptr;
 }
 
-double LawUz(const Law& law, const Point& p) {
+namespace {
+double UnchangedUz(const Law& law, const Point& p) {
   if (p.mode != Mode::kOscillatory) {
     double u = 0.005;  // rotation only
     if (p.has_vibration()) {
@@ -140,6 +141,9 @@ double LawUz(const Law& law, const Point& p) {
   if (abs_omega <= law.sign_wrong_below) u = -u;
   return u;
 }
+}  // namespace
+
+double LawUz(const Law& law, const Point& p) { return law.uz_factor * UnchangedUz(law, p); }
 
 double LawZAmplitude(const Law& law, const Point& p) {
   if (!p.has_vibration()) return 0;

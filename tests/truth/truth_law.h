@@ -86,6 +86,9 @@ struct Law {
   double f_peak = 5, f_mono = 4;  // Hz
   bool modes_equal = false;
   double sign_wrong_below = 0;  // rad/s: |Omega| <= this moves the wrong way (0: none)
+  // A CHANGE of every U_z by this factor (1 in every law): the input on which the drift report's
+  // power is measured (a second night under the changed law), not a law of the paper.
+  double uz_factor = 1;
 };
 
 // paper, flat_Omega, no_saturation, affine_A, no_peak_f, modes_equal, sign_wrong.
