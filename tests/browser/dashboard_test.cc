@@ -235,15 +235,15 @@ TEST_F(DashboardTest, BadSweepShowsTheFieldErrorNextToTheField) {
   for (size_t i = 0; i < at; ++i) line += text[i] == '\n';
   EXPECT_EQ(browser_->Attribute(".field-error", "data-line"), std::to_string(line));
   EXPECT_THAT(browser_->Text(".field-error"), HasSubstr("base.A"));
-  EXPECT_THAT(browser_->Text("#gutter .bad"), HasSubstr(std::to_string(line)));
+  EXPECT_THAT(browser_->Text("#sweep-editor .gutter .bad"), HasSubstr(std::to_string(line)));
   Shot("submit-error");
   // Text that is not JSON (a '}' closing an array): the daemon's reason, and the page stays alive.
   browser_->Script("const a = document.querySelector('#sweep-json'); a.value = arguments[0];"
                    "a.dispatchEvent(new Event('input'));",
                    json::array({"{\"name\": \"x\", \"axes\": [1}"}));
   browser_->Click("#submit");
-  ASSERT_TRUE(browser_->WaitUntil("/malformed JSON/.test(document.querySelector('#submit-errors').textContent)", 10))
-      << browser_->Text("#submit-errors");
+  ASSERT_TRUE(browser_->WaitUntil("/malformed JSON/.test(document.querySelector('#sweep-editor .editor-errors').textContent)", 10))
+      << browser_->Text("#sweep-editor .editor-errors");
   EXPECT_EQ(browser_->Script("return 6 * 7;").get<int>(), 42) << "the page answers";
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM sweeps"), before) << "nothing stored";
   EXPECT_THAT(UnexpectedErrors(*browser_, {"400"}), ::testing::IsEmpty());
