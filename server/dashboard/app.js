@@ -475,6 +475,7 @@ async function campaignRunPage(id) {
     <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
       <dt>progress</dt><dd id="progress">${progressHtml(info.counts, info.eta)}</dd>
       <dt>sweeps</dt><dd>${info.sweeps.map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
+      ${info.last_drift && info.last_drift.summary ? `<dt>drift</dt><dd class="wrap" id="drift">${esc(info.last_drift.summary)}</dd>` : ''}
       <dt>report</dt><dd><a href="${esc(authed(`/api/v1/campaign-runs/${id}/report`))}">the HTML report</a> · <a href="${esc(authed(`/api/v1/campaign-runs/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
@@ -823,7 +824,8 @@ const scaleSelect = (id, chosen = 'smoke') => `<select id="${esc(id)}">${scales.
 const campaignPath = name => `/api/v1/campaigns/${encodeURIComponent(name)}`;
 const send = (method, path, body) => api(path, Object.assign({ method },
   body === undefined ? {} : { headers: { 'Content-Type': 'application/json' }, body: typeof body === 'string' ? body : JSON.stringify(body) }));
-const scheduleText = s => (s ? `${s.cron} at ${s.scale || 'its scale'}${s.next_due ? `, next ${when(s.next_due)}` : ''}` : '');
+const scheduleText = s => (s ? `${s.cron} at ${s.scale || 'its scale'}${s.next_due ? `, next ${when(s.next_due)}` : ''}` +
+  `${s.source === 'flag' ? ' (sandswimd --schedule)' : ''}` : '');
 // A built-in campaign's description tells to edit it "in your own copy": that phrase opens the
 // editor with the copy (the "Make my own copy" of its page).
 function describe(c) {
@@ -853,7 +855,8 @@ async function campaignsPage() {
     { key: 'builtin', label: 'built-in', value: c => (c.builtin ? 'built-in' : 'own'), html: c => (c.builtin ? 'yes (read-only)' : 'no') },
     { key: 'extends', label: 'extends', html: c => (c.extends ? `<a href="/campaigns/${encodeURIComponent(c.extends)}">${esc(c.extends)}</a>` : '') },
     { key: 'scale', label: 'scale' },
-    { key: 'schedule', label: 'schedule', value: c => scheduleText(c.schedule), html: c => esc(scheduleText(c.schedule) || 'none') },
+    { key: 'schedule', label: 'schedule', value: c => scheduleText(c.schedule),
+      html: c => esc(scheduleText(c.schedule) || 'none') + (!c.schedule && c.definition_schedule ? ` <span class="muted">(its definition suggests ${esc(c.definition_schedule)})</span>` : '') },
     { key: 'last', label: 'last run', value: c => (c.last ? c.last.created_at : null),
       html: c => (c.last === null ? '<span class="muted">…</span>' : c.last ? `<a href="/campaign-runs/${c.last.id}">${c.last.id}</a> ${esc(when(c.last.created_at))} (${esc(c.last.scale)})` : '<span class="muted">never run</span>') },
   ], rows, { filterPlaceholder: 'filter campaigns', rowId: c => c.name });
@@ -871,7 +874,7 @@ async function campaignPage(name) {
   const version = new URLSearchParams(location.search).get('version');
   const c = await get(`${campaignPath(name)}${version ? `?version=${encodeURIComponent(version)}` : ''}`);
   if (!current(generation)) return;
-  const newest = Math.max(c.version, ...(c.versions || []).map(v => v.version));
+  const newest = c.current_version ?? Math.max(c.version, ...(c.versions || []).map(v => v.version));
   const plan = c.planned_runs || {};
   main().innerHTML = `<h1>Campaign ${esc(c.name)} <span class="muted">${c.builtin ? 'built-in (read-only)' : `version ${esc(c.version)}`}</span></h1>
     ${!c.builtin && c.version < newest ? `<p class="action-message">This is version ${esc(c.version)}; the current one is version ${newest}: <a href="/campaigns/${encodeURIComponent(name)}">see it</a>.</p>` : ''}
@@ -887,8 +890,8 @@ async function campaignPage(name) {
         · Run now at ${scaleSelect('run-scale', (c.resolved || {}).scale === 'paper' ? 'smoke' : (c.resolved || {}).scale)} <button id="run-now">Run now</button>
         ${c.builtin ? '' : ' · <button id="delete" class="danger">Delete</button>'}</dd>
     </dl></section>
-    <section class="card"><h2>Schedule</h2><p id="schedule-now">${c.schedule ? `Runs at <code>${esc(c.schedule.cron)}</code> (cron, the daemon's time) at ${esc(c.schedule.scale)}; next ${esc(when(c.schedule.next_due))}.` : 'Not scheduled: set a cron line (minute hour day month weekday) to rerun it.'}</p>
-      <p><label>cron <input id="cron" value="${esc(c.schedule ? c.schedule.cron : '0 2 * * *')}" size="16"></label>
+    <section class="card"><h2>Schedule</h2><p id="schedule-now">${c.schedule ? `Runs at <code>${esc(c.schedule.cron)}</code> (cron, in the daemon's local time) at ${esc(c.schedule.scale)}${c.schedule.next_due ? `; next ${esc(when(c.schedule.next_due))}` : ''}${c.schedule.source === 'flag' ? ' (set by sandswimd --schedule when it started)' : ''}.` : 'Not scheduled: set a cron line (minute hour day-of-month month day-of-week) to rerun it.'}</p>
+      <p><label>cron <input id="cron" value="${esc(c.schedule ? c.schedule.cron : (c.resolved || {}).schedule || '0 2 * * *')}" size="16"></label>
         <label>scale ${scaleSelect('schedule-scale', c.schedule ? c.schedule.scale : 'smoke')}</label>
         <button id="schedule-set">${c.schedule ? 'Change the schedule' : 'Schedule'}</button>
         ${c.schedule ? '<button id="schedule-remove" class="danger">Remove the schedule</button>' : ''}
@@ -903,7 +906,9 @@ async function campaignPage(name) {
       { key: 'id', label: 'campaign run', num: true, html: r => `<a href="/campaign-runs/${r.id}">${r.id}</a>` },
       { key: 'campaign_version', label: 'version', num: true, html: r => (r.campaign_version ? esc(r.campaign_version) : 'built-in') },
       { key: 'scale', label: 'scale' },
+      { key: 'trigger', label: 'trigger' },
       { key: 'status', label: 'state', html: r => stateBadge(r.status) },
+      { key: 'progress', label: 'progress', value: r => (r.counts ? r.counts.done : null), html: r => (r.counts ? progressHtml(r.counts, null) : '') },
       { key: 'created_at', label: 'started', html: r => esc(when(r.created_at)) },
     ], runs.slice().sort((a, b) => b.id - a.id), { filterPlaceholder: 'filter runs', rowId: r => r.id });
   } else {
