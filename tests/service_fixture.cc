@@ -136,6 +136,12 @@ nlohmann::json Daemon::Post(const std::string& path, const nlohmann::json& body,
   return Parse(c.Post(path, TokenHeaders(), body.dump(), "application/json"), "POST " + path, status);
 }
 
+nlohmann::json Daemon::Put(const std::string& path, const nlohmann::json& body, int* status) {
+  httplib::Client c(url_);
+  ConfigureTls(c, TlsTrust{"", tls_fingerprint_});
+  return Parse(c.Put(path, TokenHeaders(), body.dump(), "application/json"), "PUT " + path, status);
+}
+
 nlohmann::json Daemon::WaitForSweep(int64_t sweep_id, double timeout_s) {
   auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   nlohmann::json s;

@@ -65,6 +65,7 @@ class Daemon {
   // REST calls; they fail the test on transport errors. `status` receives the HTTP status.
   nlohmann::json Get(const std::string& path, int* status = nullptr);
   nlohmann::json Post(const std::string& path, const nlohmann::json& body, int* status = nullptr);
+  nlohmann::json Put(const std::string& path, const nlohmann::json& body, int* status = nullptr);
   // The body as it is (figures, files); throws on a transport error, as Get does.
   std::string GetText(const std::string& path, int* status = nullptr);
 

@@ -116,5 +116,69 @@ TEST(TruthEngineDaemonTest, Paper58AtSmokeMatchesTheInProcessCalibration) {
   }
 }
 
+// A campaign of one's own through the real daemon and worker (issue 29): put -> run -> results ->
+// edit -> run again -> the drift report of the second run says the definition changed, and
+// compares nothing with a run of the other definition.
+TEST(TruthEngineDaemonTest, AnOwnCampaignEditedSaysItsDefinitionChanged) {
+  const std::string dir = testing::CacheDir() + "/truth-engine/own-campaign";
+  fs::remove_all(dir);
+  setenv("SANDSWIM_TRUTH_LAW", "paper", 1);
+  setenv("SANDSWIM_TRUTH_SEED", "5", 1);
+  unsetenv("SANDSWIM_TRUTH_PACE");
+  auto definition = [](double amplitude) {
+    return json{{"description", "the sign of U_z at +-80 rad/s"},
+                {"scale", "smoke"},
+                {"sweeps",
+                 {{{"name", "signs"},
+                   {"base", {{"mode", "oscillatory"}, {"A", amplitude}, {"f", 3}, {"Omega", -80}, {"duration_s", 1}}},
+                   {"axes", {{{"param", "Omega"}, {"values", {-80, 80}}}}}}}}};
+  };
+  testing::Daemon daemon(dir + "/daemon", {"--scheduler-tick", "1"});
+  auto worker = testing::StartWorker(daemon, dir + "/worker", 2,
+                                     {"--launcher", "direct", "--engine", SANDSWIM_TRUTH_ENGINE_PATH});
+  // Runs the campaign and waits for its drift report.
+  auto run_and_report = [&](int expect_version) {
+    int status = 0;
+    const json submitted = daemon.Post("/api/v1/campaigns/mine/runs", json::object(), &status);
+    EXPECT_EQ(status, 201) << submitted.dump();
+    const int64_t id = submitted.value("id", int64_t{0});
+    for (const json& sweep : submitted["sweeps"]) {
+      const json s = daemon.WaitForSweep(sweep.get<int64_t>(), 300);
+      EXPECT_EQ(s["counts"].value("failed", 0), 0) << s.dump() << "\n" << worker->Output();
+    }
+    const json results = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
+    EXPECT_EQ(results["results"].size(), 2u) << results.dump();
+    json info;
+    for (int i = 0; i < 120; ++i) {
+      info = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id));
+      if (info["last_drift"].is_object() && info["last_drift"]["campaign_run_id"] == id) break;
+      usleep(250 * 1000);
+    }
+    EXPECT_EQ(info["campaign_version"], expect_version) << info.dump();
+    EXPECT_EQ(info["last_drift"]["campaign_run_id"], id) << info.dump();
+    return info["last_drift"];
+  };
+
+  int status = 0;
+  json put = daemon.Put("/api/v1/campaigns/mine", definition(0.03), &status);
+  ASSERT_EQ(status, 201) << put.dump();
+  const json first = run_and_report(1);
+  EXPECT_EQ(first["definition_changed"], nullptr) << first.dump();
+
+  put = daemon.Put("/api/v1/campaigns/mine", definition(0.02), &status);
+  ASSERT_EQ(status, 200) << put.dump();
+  EXPECT_EQ(put["version"], 2);
+  const json second = run_and_report(2);
+  worker->Stop();
+  EXPECT_EQ(second["definition_changed"]["from_version"], 1) << second.dump();
+  EXPECT_EQ(second["definition_changed"]["to_version"], 2) << second.dump();
+  EXPECT_EQ(second["previous_campaign_run_id"], nullptr) << second.dump();
+  EXPECT_NE(second["summary"].get<std::string>().find("definition changed (version 1 -> 2)"), std::string::npos)
+      << second["summary"];
+  const json campaign = daemon.Get("/api/v1/campaigns/mine");
+  EXPECT_EQ(campaign["versions"].size(), 2u) << campaign.dump();
+  EXPECT_EQ(campaign["runs"].size(), 2u) << campaign.dump();
+}
+
 }  // namespace
 }  // namespace sandswim::truth
