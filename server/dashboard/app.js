@@ -1,6 +1,7 @@
 // sandswim's dashboard: one page that reads the daemon's REST API (/api/v1) and its live feed.
 // Paths are the links a user pastes into a notebook: /, /campaign-runs/ID, /sweeps/ID, /runs/ID,
-// /beds, /beds/ID, /submit. Plots are uPlot (the one npm package, pinned, served by the daemon).
+// /beds, /beds/ID, /submit, /campaigns, /campaigns/NAME[?version=N], /campaigns/NAME/edit and
+// /new-campaign[?from=BASE]. Plots are uPlot (the one npm package, pinned, served by the daemon).
 //
 // Live: GET /api/v1/live/events (server-sent events, read with fetch so that a token can be sent)
 // pushes one shared snapshot per change; past the daemon's stream limit, or when the stream fails,
@@ -447,14 +448,15 @@ async function overviewPage() {
     <section class="card"><h2>Run a campaign again</h2><div id="campaigns" class="muted">Loading…</div></section>`;
   get('/api/v1/campaigns').then(r => {
     const list = r.campaigns || [];
-    $('#campaigns').innerHTML = list.length ? list.map(c => `<p><b>${esc(c.name)}</b> (${esc(c.scale || '')}) ` +
-      `<button class="rerun" data-campaign="${esc(c.name)}">Run ${esc(c.name)} now</button> <span class="muted">${esc(c.description || '')}</span></p>`).join('')
-      : 'No campaigns.';
+    $('#campaigns').innerHTML = (list.length ? list.map(c => `<p><a href="/campaigns/${encodeURIComponent(c.name)}"><b>${esc(c.name)}</b></a> (${esc(c.scale || '')}${c.builtin ? ', built-in' : `, version ${esc(c.version)}`}) ` +
+      `<button class="rerun" data-campaign="${esc(c.name)}">Run ${esc(c.name)} now</button> <span class="muted">${describe(c)}</span></p>`).join('')
+      : '<p>No campaigns.</p>') + '<p><a href="/campaigns">All campaigns</a>: their versions, runs and schedules; make your own copy of one, or <a href="/new-campaign">write a new one</a>.</p>';
     for (const b of document.querySelectorAll('button.rerun')) b.addEventListener('click', () => rerunCampaign(b.dataset.campaign));
   }).catch(e => { $('#campaigns').textContent = e.message; });
   const crTable = dataTable($('#campaign-runs'), [
     { key: 'id', label: 'id', num: true, html: r => `<a href="/campaign-runs/${r.id}">${r.id}</a>` },
-    { key: 'campaign', label: 'campaign' }, { key: 'scale', label: 'scale' }, { key: 'trigger', label: 'trigger' },
+    { key: 'campaign', label: 'campaign', html: r => `<a href="/campaigns/${encodeURIComponent(r.campaign)}">${esc(r.campaign)}</a>` },
+    { key: 'scale', label: 'scale' }, { key: 'trigger', label: 'trigger' },
     { key: 'created_at', label: 'started', html: r => esc(when(r.created_at)) },
     { key: 'progress', label: 'progress', value: r => r.counts.done, html: r => progressHtml(r.counts, r.eta) },
   ], [], { rowId: r => r.id });
@@ -482,10 +484,11 @@ async function campaignRunPage(id) {
   const generation = nav.generation;
   const [info, results] = await Promise.all([get(`/api/v1/campaign-runs/${id}`), getResults(`/api/v1/campaign-runs/${id}/results`)]);
   if (!current(generation)) return;
-  main().innerHTML = `<h1>Campaign run ${id}: ${esc(info.campaign)} at ${esc(info.scale)}</h1>
+  main().innerHTML = `<h1>Campaign run ${id}: <a href="/campaigns/${encodeURIComponent(info.campaign)}">${esc(info.campaign)}</a>${info.campaign_version ? ` version ${esc(info.campaign_version)}` : ''} at ${esc(info.scale)}</h1>
     <section class="card"><dl class="facts"><dt>started</dt><dd>${esc(when(info.created_at))} (${esc(info.trigger)})</dd>
       <dt>progress</dt><dd id="progress">${progressHtml(info.counts, info.eta)}</dd>
       <dt>sweeps</dt><dd>${info.sweeps.map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
+      ${info.last_drift && info.last_drift.summary ? `<dt>drift</dt><dd class="wrap" id="drift">${esc(info.last_drift.summary)}</dd>` : ''}
       <dt>report</dt><dd><a href="${esc(authed(`/api/v1/campaign-runs/${id}/report`))}">the HTML report</a> · <a href="${esc(authed(`/api/v1/campaign-runs/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
@@ -736,45 +739,85 @@ function jsonPathOffsets(text) {
   try { value(''); } catch (e) { /* a partial map is still useful */ }
   return out;
 }
-// The line of the deepest known prefix of `field` (the daemon may name "sweeps[0].axes[1]").
+// The line of `field` in `text`: of its deepest prefix the text holds. The daemon names a sweep's
+// fields in the request it made of it ("sweeps[0].base.A" for the sweep sent alone), so a field
+// whose "sweeps[0]." the text has not is also read without it; the reading that reaches deeper wins.
 function fieldLine(text, field) {
   const offsets = jsonPathOffsets(text);
-  let path = field.replace(/^sweeps\[0\]\.?/, '');
-  while (path) {
-    if (offsets.has(path)) return text.slice(0, offsets.get(path)).split('\n').length;
-    const cut = Math.max(path.lastIndexOf('.'), path.lastIndexOf('['));
-    path = cut > 0 ? path.slice(0, cut) : '';
-  }
-  return 1;
+  const deepest = path => {
+    while (path) {
+      if (offsets.has(path)) return { depth: path.length, offset: offsets.get(path) };
+      const cut = Math.max(path.lastIndexOf('.'), path.lastIndexOf('['));
+      path = cut > 0 ? path.slice(0, cut) : '';
+    }
+    return { depth: 0, offset: 0 };
+  };
+  const whole = deepest(field), bare = deepest(field.replace(/^sweeps\[0\]\.?/, ''));
+  const best = bare.depth > whole.depth ? bare : whole;
+  return best.depth ? text.slice(0, best.offset).split('\n').length : 1;
+}
+
+// A JSON text editor with line numbers that shows a refusal's field beside its line (the /submit
+// page's and the campaign editor's). `draftKey`: the tab keeps the text being typed under it.
+// Returns {text(), setText(t), clear(), refused(err)}: refused() shows an ApiError's problem (its
+// `field` beside the field's line, its detail under the editor) and returns the line (0: none).
+function jsonEditor(container, { initial, draftKey = null, id = 'json-text' }) {
+  container.innerHTML = `<div class="editor"><div class="gutter"></div><textarea id="${esc(id)}" spellcheck="false"></textarea></div>
+    <div class="editor-errors"></div>`;
+  const area = $('textarea', container), gutter = $('.gutter', container), box = $('.editor', container), errors = $('.editor-errors', container);
+  area.value = (draftKey && sessionStorage.getItem(draftKey)) || initial;
+  let badLine = 0;
+  const paint = () => {
+    const n = area.value.split('\n').length;
+    gutter.innerHTML = Array.from({ length: n }, (_, k) => (k + 1 === badLine ? `<span class="bad">${k + 1}</span>` : String(k + 1))).join('\n');
+    gutter.scrollTop = area.scrollTop;
+    const marker = $('.field-error', box);
+    if (marker) marker.style.top = `${6 + (badLine - 1) * 18 - area.scrollTop}px`;
+  };
+  const clear = () => {
+    for (const m of box.querySelectorAll('.field-error')) m.remove();
+    errors.innerHTML = '';
+    badLine = 0;
+    paint();
+  };
+  area.addEventListener('input', () => { if (draftKey) sessionStorage.setItem(draftKey, area.value); paint(); });
+  area.addEventListener('scroll', paint);
+  paint();
+  return {
+    text: () => area.value,
+    setText(t) { area.value = t; if (draftKey) sessionStorage.setItem(draftKey, t); clear(); },
+    forget() { if (draftKey) sessionStorage.removeItem(draftKey); },
+    clear,
+    refused(e) {
+      clear();
+      const p = e.problem || {};
+      const field = p.field || '';
+      badLine = field ? fieldLine(area.value, field) : 0;
+      const reason = p.detail || e.message;
+      errors.innerHTML = `<p class="error">Refused (${esc(e.status || 'network')}): ${esc(reason)}</p>`;
+      if (e.status === 401) errors.insertAdjacentHTML('beforeend', '<p>Paste the daemon\'s token in the token box above.</p>');
+      if (field) {
+        box.insertAdjacentHTML('beforeend', `<div class="field-error" data-field="${esc(field)}" data-line="${badLine}">line ${badLine} · ${esc(field)}: ${esc(reason.replace(`${field}: `, ''))}</div>`);
+      }
+      paint();
+      return badLine;
+    },
+  };
 }
 
 async function submitPage() {
   document.title = 'submit · sandswim';
   main().innerHTML = `<h1>Submit a sweep</h1>
-    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api/v1/openapi.json">the API document</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.</p>
-    <div class="editor"><div class="gutter" id="gutter"></div><textarea id="sweep-json" spellcheck="false"></textarea></div>
-    <p><button id="submit">Submit</button> <span id="submit-result"></span></p>
-    <div id="submit-errors"></div>`;
-  const area = $('#sweep-json'), gutter = $('#gutter');
-  area.value = sessionStorage.getItem('sandswim-draft') || JSON.stringify(exampleSweep, null, 2);
-  let badLine = 0;
-  const paintGutter = () => {
-    const n = area.value.split('\n').length;
-    gutter.innerHTML = Array.from({ length: n }, (_, k) => (k + 1 === badLine ? `<span class="bad">${k + 1}</span>` : String(k + 1))).join('\n');
-    gutter.scrollTop = area.scrollTop;
-    const marker = $('.field-error', $('.editor'));
-    if (marker) marker.style.top = `${6 + (badLine - 1) * 18 - area.scrollTop}px`;
-  };
-  area.addEventListener('input', () => { sessionStorage.setItem('sandswim-draft', area.value); paintGutter(); });
-  area.addEventListener('scroll', paintGutter);
-  paintGutter();
+    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api/v1/openapi.json">the API document</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.
+    A study to rerun, edit and schedule is a <a href="/campaigns">campaign</a>.</p>
+    <div id="sweep-editor"></div>
+    <p><button id="submit">Submit</button> <span id="submit-result"></span></p>`;
+  const editor = jsonEditor($('#sweep-editor'), { initial: JSON.stringify(exampleSweep, null, 2), draftKey: 'sandswim-draft', id: 'sweep-json' });
   $('#submit').addEventListener('click', async () => {
-    for (const m of document.querySelectorAll('.field-error')) m.remove();
-    $('#submit-errors').innerHTML = '';
+    editor.clear();
     $('#submit-result').textContent = 'submitting…';
-    badLine = 0;
     try {
-      const { body, res } = await post('/api/v1/sweeps', area.value);
+      const { body, res } = await post('/api/v1/sweeps', editor.text());
       $('#submit-result').textContent = '';
       say(`Submitted: ${body.runs} runs (${body.runs_new} new, ${body.runs_reused} reused).`, true);
       const location = (res.headers.get('Location') || '').replace('/api/v1', '');
@@ -782,16 +825,231 @@ async function submitPage() {
       route();
     } catch (e) {
       $('#submit-result').textContent = '';
-      const p = e.problem || {};
-      const field = p.field || '';
-      badLine = field ? fieldLine(area.value, field) : 0;
-      const reason = p.detail || e.message;
-      $('#submit-errors').innerHTML = `<p class="error">Refused (${e.status}): ${esc(reason)}</p>`;
-      if (e.status === 401) $('#submit-errors').insertAdjacentHTML('beforeend', '<p>Paste the daemon\'s token in the token box above.</p>');
-      if (field) {
-        $('.editor').insertAdjacentHTML('beforeend', `<div class="field-error" data-field="${esc(field)}" data-line="${badLine}">line ${badLine} · ${esc(field)}: ${esc(reason.replace(`${field}: `, ''))}</div>`);
+      editor.refused(e);
+    }
+  });
+}
+
+// ---- Campaigns: the catalogue, one campaign, its editor --------------------------------------------
+
+const scales = ['smoke', 'mini', 'paper'];
+const scaleSelect = (id, chosen = 'smoke') => `<select id="${esc(id)}">${scales.map(s => `<option${s === chosen ? ' selected' : ''}>${s}</option>`).join('')}</select>`;
+const campaignPath = name => `/api/v1/campaigns/${encodeURIComponent(name)}`;
+const send = (method, path, body) => api(path, Object.assign({ method },
+  body === undefined ? {} : { headers: { 'Content-Type': 'application/json' }, body: typeof body === 'string' ? body : JSON.stringify(body) }));
+const scheduleText = s => (s ? `${s.cron} at ${s.scale || 'its scale'}${s.next_due ? `, next ${when(s.next_due)}` : ''}` +
+  `${s.source === 'flag' ? ' (sandswimd --schedule)' : ''}` : '');
+// A built-in campaign's description tells to edit it "in your own copy": that phrase opens the
+// editor with the copy (the "Make my own copy" of its page).
+function describe(c) {
+  const text = esc(c.description || '');
+  if (!c.builtin) return text;
+  return text.replace('your own copy of this campaign',
+    `<a class="own-copy" href="/new-campaign?from=${encodeURIComponent(c.name)}">your own copy of this campaign</a>`);
+}
+
+async function campaignsPage() {
+  document.title = 'campaigns · sandswim';
+  const generation = nav.generation;
+  const { campaigns } = await get('/api/v1/campaigns');
+  if (!current(generation)) return;
+  main().innerHTML = `<h1>Campaigns</h1>
+    <p class="muted">A campaign is a study to rerun: its sweeps, claims, precision, replicate beds, snapshots and drift tolerance.
+    Built-in campaigns are read-only: open one and make your own copy, or <a href="/new-campaign">write a new campaign</a>.</p>
+    <section class="card"><div id="campaign-list"></div></section>`;
+  if (!campaigns.length) {
+    $('#campaign-list').innerHTML = '<p>No campaigns on this daemon. <a href="/new-campaign">Write one</a>.</p>';
+    return;
+  }
+  const rows = campaigns.map(c => Object.assign({}, c, { last: null }));
+  const table = dataTable($('#campaign-list'), [
+    { key: 'name', label: 'name', html: c => `<a href="/campaigns/${encodeURIComponent(c.name)}">${esc(c.name)}</a>` },
+    { key: 'version', label: 'version', num: true, html: c => (c.builtin ? '<span class="muted">built-in</span>' : esc(c.version)) },
+    { key: 'builtin', label: 'built-in', value: c => (c.builtin ? 'built-in' : 'own'), html: c => (c.builtin ? 'yes (read-only)' : 'no') },
+    { key: 'extends', label: 'extends', html: c => (c.extends ? `<a href="/campaigns/${encodeURIComponent(c.extends)}">${esc(c.extends)}</a>` : '') },
+    { key: 'scale', label: 'scale' },
+    { key: 'schedule', label: 'schedule', value: c => scheduleText(c.schedule),
+      html: c => esc(scheduleText(c.schedule) || 'none') + (!c.schedule && c.definition_schedule ? ` <span class="muted">(its definition suggests ${esc(c.definition_schedule)})</span>` : '') },
+    { key: 'last', label: 'last run', value: c => (c.last ? c.last.created_at : null),
+      html: c => (c.last === null ? '<span class="muted">…</span>' : c.last ? `<a href="/campaign-runs/${c.last.id}">${c.last.id}</a> ${esc(when(c.last.created_at))} (${esc(c.last.scale)})` : '<span class="muted">never run</span>') },
+  ], rows, { filterPlaceholder: 'filter campaigns', rowId: c => c.name });
+  // The last run of each: one small read per campaign (a catalogue holds a few).
+  await Promise.all(rows.map(async c => {
+    const r = await get(`/api/v1/campaign-runs?campaign=${encodeURIComponent(c.name)}&limit=1`).catch(() => ({ campaign_runs: [] }));
+    c.last = (r.campaign_runs || [])[0] || false;
+  }));
+  if (current(generation)) table.render();
+}
+
+async function campaignPage(name) {
+  document.title = `${name} · campaigns · sandswim`;
+  const generation = nav.generation;
+  const version = new URLSearchParams(location.search).get('version');
+  const c = await get(`${campaignPath(name)}${version ? `?version=${encodeURIComponent(version)}` : ''}`);
+  if (!current(generation)) return;
+  const newest = c.current_version ?? Math.max(c.version, ...(c.versions || []).map(v => v.version));
+  const plan = c.planned_runs || {};
+  main().innerHTML = `<h1>Campaign ${esc(c.name)} <span class="muted">${c.builtin ? 'built-in (read-only)' : `version ${esc(c.version)}`}</span></h1>
+    ${!c.builtin && c.version < newest ? `<p class="action-message">This is version ${esc(c.version)}; the current one is version ${newest}: <a href="/campaigns/${encodeURIComponent(name)}">see it</a>.</p>` : ''}
+    <section class="card"><dl class="facts">
+      <dt>about</dt><dd class="wrap">${describe(Object.assign({}, c.resolved, { name: c.name, builtin: c.builtin })) || '<span class="muted">no description</span>'}</dd>
+      ${c.extends ? `<dt>extends</dt><dd><a href="/campaigns/${encodeURIComponent(c.extends)}">${esc(c.extends)}</a> ${c.extends_version ? `version ${esc(c.extends_version)}` : '(built-in)'}, as it was when this version was saved</dd>` : ''}
+      <dt>scale</dt><dd>${esc((c.resolved || {}).scale || '')}</dd>
+      <dt>plans</dt><dd id="planned">${scales.filter(s => plan[s] !== undefined).map(s => `${esc(plan[s])} runs at ${s}`).join(' · ') || '<span class="muted">unknown</span>'}</dd>
+      ${(c.notes || []).length ? `<dt>notes</dt><dd class="wrap"><ul id="notes">${c.notes.map(n => `<li>${esc(n)}</li>`).join('')}</ul></dd>` : ''}
+      <dt></dt><dd id="campaign-actions">${c.builtin
+        ? `<a class="button" id="make-copy" href="/new-campaign?from=${encodeURIComponent(name)}">Make my own copy</a>`
+        : `<a class="button" id="edit" href="/campaigns/${encodeURIComponent(name)}/edit">Edit</a>`}
+        · Run now at ${scaleSelect('run-scale', (c.resolved || {}).scale === 'paper' ? 'smoke' : (c.resolved || {}).scale)} <button id="run-now">Run now</button>
+        ${c.builtin ? '' : ' · <button id="delete" class="danger">Delete</button>'}</dd>
+    </dl></section>
+    <section class="card"><h2>Schedule</h2><p id="schedule-now">${c.schedule ? `Runs at <code>${esc(c.schedule.cron)}</code> (cron, in the daemon's local time) at ${esc(c.schedule.scale)}${c.schedule.next_due ? `; next ${esc(when(c.schedule.next_due))}` : ''}${c.schedule.source === 'flag' ? ' (set by sandswimd --schedule when it started)' : ''}.` : 'Not scheduled: set a cron line (minute hour day-of-month month day-of-week) to rerun it.'}</p>
+      <p><label>cron <input id="cron" value="${esc(c.schedule ? c.schedule.cron : (c.resolved || {}).schedule || '0 2 * * *')}" size="16"></label>
+        <label>scale ${scaleSelect('schedule-scale', c.schedule ? c.schedule.scale : 'smoke')}</label>
+        <button id="schedule-set">${c.schedule ? 'Change the schedule' : 'Schedule'}</button>
+        ${c.schedule ? '<button id="schedule-remove" class="danger">Remove the schedule</button>' : ''}
+        <span id="schedule-error" class="error"></span></p></section>
+    <section class="card"><h2>Runs of this campaign</h2><div id="campaign-runs-of"></div></section>
+    ${c.builtin ? '' : '<section class="card"><h2>Versions</h2><div id="versions"></div></section>'}
+    <section class="card"><h2>Definition${c.builtin ? '' : ` (version ${esc(c.version)}, as written)`}</h2><pre id="definition">${esc(JSON.stringify(c.definition, null, 2))}</pre>
+      ${c.extends ? `<details><summary>What runs (resolved against ${esc(c.extends)})</summary><pre id="resolved">${esc(JSON.stringify(c.resolved, null, 2))}</pre></details>` : ''}</section>`;
+  const runs = c.runs || [];
+  if (runs.length) {
+    dataTable($('#campaign-runs-of'), [
+      { key: 'id', label: 'campaign run', num: true, html: r => `<a href="/campaign-runs/${r.id}">${r.id}</a>` },
+      { key: 'campaign_version', label: 'version', num: true, html: r => (r.campaign_version ? esc(r.campaign_version) : 'built-in') },
+      { key: 'scale', label: 'scale' },
+      { key: 'trigger', label: 'trigger' },
+      { key: 'status', label: 'state', html: r => stateBadge(r.status) },
+      { key: 'progress', label: 'progress', value: r => (r.counts ? r.counts.done : null), html: r => (r.counts ? progressHtml(r.counts, null) : '') },
+      { key: 'created_at', label: 'started', html: r => esc(when(r.created_at)) },
+    ], runs.slice().sort((a, b) => b.id - a.id), { filterPlaceholder: 'filter runs', rowId: r => r.id });
+  } else {
+    $('#campaign-runs-of').innerHTML = '<p class="muted">Not run yet: “Run now” above, or schedule it.</p>';
+  }
+  if (!c.builtin) {
+    dataTable($('#versions'), [
+      { key: 'version', label: 'version', num: true, html: v => `<a href="/campaigns/${encodeURIComponent(name)}?version=${v.version}">${v.version}</a>${v.version === c.version ? ' (shown)' : ''}` },
+      { key: 'created_at', label: 'saved', html: v => esc(when(v.created_at)) },
+      { key: 'extends', label: 'extends', value: v => (v.extends ? `${v.extends} ${v.extends_version || 'built-in'}` : ''),
+        html: v => (v.extends ? `${esc(v.extends)} ${v.extends_version ? `version ${esc(v.extends_version)}` : '(built-in)'}` : '') },
+      { key: 'definition_sha256', label: 'definition (SHA-256)', html: v => `<code title="${esc(v.definition_sha256)}">${esc((v.definition_sha256 || '').slice(0, 12))}</code>` },
+    ], (c.versions || []).slice().sort((a, b) => b.version - a.version), { filterPlaceholder: 'filter versions', rowId: v => v.version });
+  }
+  $('#run-now').addEventListener('click', async () => {
+    const scale = $('#run-scale').value;
+    try {
+      const { body } = await post(`${campaignPath(name)}/runs`, { scale });
+      say(`Campaign ${name} submitted at ${scale}: campaign run ${body.id} (${body.runs} runs, ${body.runs_new} new).`, true);
+      history.pushState(null, '', `/campaign-runs/${body.id}`);
+      route();
+    } catch (e) { say(refusal(e)); }
+  });
+  const del = $('#delete');
+  if (del) {
+    del.addEventListener('click', async () => {
+      if (!del.dataset.armed) {  // two clicks: a dialog box would stop the page's scripts
+        del.dataset.armed = '1';
+        del.textContent = `Really delete ${name}? (its past runs stay readable)`;
+        return;
       }
-      paintGutter();
+      try {
+        await send('DELETE', campaignPath(name));
+        say(`Campaign ${name} deleted; its past campaign runs stay readable.`, true);
+        history.pushState(null, '', '/campaigns');
+        route();
+      } catch (e) { say(refusal(e)); delete del.dataset.armed; del.textContent = 'Delete'; }
+    });
+  }
+  $('#schedule-set').addEventListener('click', async () => {
+    $('#schedule-error').textContent = '';
+    try {
+      const { body } = await send('PUT', `${campaignPath(name)}/schedule`, { cron: $('#cron').value.trim(), scale: $('#schedule-scale').value });
+      say(`Campaign ${name} scheduled: ${scheduleText(body)}.`, true);
+      route();
+    } catch (e) {
+      $('#schedule-error').textContent = `Refused (${e.status || 'network'}): ${e.message}`;
+      if ((e.problem || {}).field === 'cron') $('#cron').classList.add('bad-input');
+      if (e.status === 401) say(refusal(e));
+    }
+  });
+  const remove = $('#schedule-remove');
+  if (remove) {
+    remove.addEventListener('click', async () => {
+      try {
+        await send('DELETE', `${campaignPath(name)}/schedule`);
+        say(`Campaign ${name} is no longer scheduled.`, true);
+        route();
+      } catch (e) { say(refusal(e)); }
+    });
+  }
+}
+
+// The campaign editor: a new campaign (/new-campaign, ?from=BASE for a copy of BASE) or a new
+// version of one (/campaigns/NAME/edit). Saved with PUT; a refusal's field is shown beside its
+// line and nothing is stored.
+async function campaignEditorPage(name, from) {
+  document.title = `${name ? `edit ${name}` : 'new campaign'} · sandswim`;
+  const generation = nav.generation;
+  let initial, base = null, heading;
+  if (name) {
+    const c = await get(campaignPath(name)).catch(e => { if (e.status === 404) return null; throw e; });
+    if (!current(generation)) return;
+    if (c && c.builtin) {
+      main().innerHTML = `<h1>${esc(name)} is built-in</h1><p>A built-in campaign is read-only. <a id="make-copy" class="button" href="/new-campaign?from=${encodeURIComponent(name)}">Make my own copy</a> and edit that.</p>`;
+      return;
+    }
+    initial = c ? JSON.stringify(c.definition, null, 2) : JSON.stringify({ name, extends: 'paper-58' }, null, 2);
+    heading = c ? `Edit campaign ${esc(name)} <span class="muted">(version ${esc(c.version)}; saving makes version ${esc(c.version + 1)})</span>` : `New campaign ${esc(name)}`;
+    if (c && c.extends) from = c.extends;
+  } else {
+    initial = JSON.stringify(from ? { name: `my-${from}`, extends: from } : { name: 'my-campaign', extends: 'paper-58' }, null, 2);
+    heading = from ? `My own copy of ${esc(from)}` : 'New campaign';
+  }
+  if (from) base = await get(campaignPath(from)).catch(() => null);
+  if (!current(generation)) return;
+  const baseSweeps = base ? ((base.resolved || {}).sweeps || []).map(s => s.name) : [];
+  const baseClaims = base ? ((base.resolved || {}).claims || []).map(c => c.id) : [];
+  main().innerHTML = `<h1>${heading}</h1>
+    <p class="muted">The campaign as JSON (<a href="/api/v1/openapi.json">the API document</a>; schema/campaign.schema.json). The daemon checks every field when you save;
+    an error is shown beside its line and nothing is stored. Each save of a change makes a new version; its past runs keep the definition they ran.</p>
+    <div id="campaign-editor"></div>
+    <p><button id="save">Save</button> <span id="save-result"></span></p>
+    ${base ? `<section class="card" id="base-help"><h2>Starting from ${esc(from)}</h2>
+      <p>With <code>"extends": ${esc(JSON.stringify(from))}</code> every field you leave out is ${esc(from)}'s (as it is when you save); every field you write replaces its.
+      To keep only some of its sweeps, list them by name (an object in the list is a sweep of your own); its claims that name only the sweeps you keep stay, and you may list your own.</p>
+      <p>Its sweeps: <code id="base-sweeps">${esc(JSON.stringify(baseSweeps))}</code></p>
+      <p>Its claims: <code>${esc(JSON.stringify(baseClaims))}</code> · e.g. <code>"replicates": 3</code> runs each point on three beds.</p></section>` : ''}`;
+  const draftKey = `sandswim-campaign-draft:${name || `new:${from || ''}`}`;
+  const editor = jsonEditor($('#campaign-editor'), { initial, draftKey, id: 'campaign-json' });
+  $('#save').addEventListener('click', async () => {
+    editor.clear();
+    const text = editor.text();
+    // The name the text gives (the path's when it gives none); text that is not JSON goes to the
+    // daemon as it is, so that its reason says where.
+    let target = name;
+    try { const d = JSON.parse(text); if (d && typeof d.name === 'string') target = d.name; } catch (err) {
+      const m = text.match(/"name"\s*:\s*"([^"\\]*)"/);
+      if (m) target = m[1];
+    }
+    if (!target) {
+      editor.refused({ status: 'not sent', problem: { field: 'name', detail: 'name: give the campaign a "name" (1 to 64 of A-Z a-z 0-9 . _ -): it is stored under it' } });
+      return;
+    }
+    $('#save-result').textContent = 'saving…';
+    try {
+      const { body, res } = await send('PUT', campaignPath(target), text);
+      $('#save-result').textContent = '';
+      editor.forget();
+      const plan = body.planned_runs || {};
+      say(`${res.status === 201 ? 'Created' : 'Saved'} campaign ${body.name}, version ${body.version}${body.unchanged ? ' (unchanged: the same as the current version)' : ''}; ` +
+        `it plans ${scales.filter(s => plan[s] !== undefined).map(s => `${plan[s]} runs at ${s}`).join(', ') || 'an unknown number of runs'}.` +
+        `${(body.notes || []).length ? ` Notes: ${body.notes.join(' ')}` : ''}`, true);
+      history.pushState(null, '', `/campaigns/${encodeURIComponent(body.name)}`);
+      route();
+    } catch (e) {
+      $('#save-result').textContent = '';
+      editor.refused(e);
     }
   });
 }
@@ -809,11 +1067,15 @@ async function route() {
     else if ((m = path.match(/^\/beds\/(\d+)$/))) await bedPage(Number(m[1]));
     else if (path === '/beds') await bedsPage();
     else if (path === '/submit') await submitPage();
+    else if (path === '/campaigns') await campaignsPage();
+    else if ((m = path.match(/^\/campaigns\/([A-Za-z0-9._-]{1,64})$/))) await campaignPage(m[1]);
+    else if ((m = path.match(/^\/campaigns\/([A-Za-z0-9._-]{1,64})\/edit$/))) await campaignEditorPage(m[1], null);
+    else if (path === '/new-campaign') await campaignEditorPage(null, new URLSearchParams(location.search).get('from'));
     else main().innerHTML = `<h1>Not found</h1><p>No page at ${esc(path)}. <a href="/">The overview</a>.</p>`;
   } catch (e) {
     main().innerHTML = `<h1>Cannot show this page</h1><p class="error">${esc(e.message)}</p>` +
       (e.status === 401 ? '<p class="needs-token">This daemon needs its token: open the link sandswimd printed when it started (…/?token=…), or paste the token (the file <code>token</code> in its --data directory) in the token box above.</p>' : '') +
-      (e.status === 404 ? '<p>It does not exist on this daemon. <a href="/">The overview</a>.</p>' : '');
+      (e.status === 404 ? `<p>It does not exist on this daemon. ${path.startsWith('/campaigns') ? '<a href="/campaigns">The campaigns</a> · ' : ''}<a href="/">The overview</a>.</p>` : '');
   }
 }
 
@@ -828,7 +1090,7 @@ function start() {
     const a = e.target.closest('a');
     if (!a || a.target || e.ctrlKey || e.metaKey || e.shiftKey || a.origin !== location.origin || a.pathname.startsWith('/api/')) return;
     e.preventDefault();
-    history.pushState(null, '', a.pathname);
+    history.pushState(null, '', a.pathname + a.search);
     $('#action-message').hidden = true;
     route();
   });

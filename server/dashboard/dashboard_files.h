@@ -1,7 +1,7 @@
 // The web dashboard's files compiled into the daemon (server/CMakeLists.txt): server/dashboard/'s
 // index.html, app.js and app.css, and uPlot's script and style sheet from its pinned npm package.
-// Served by server/http/routes.cc: the page at /, /campaign-runs/ID, /sweeps/ID, /runs/ID, /beds[/ID]
-// and /submit; the rest under /ui/NAME.
+// Served by server/http/routes.cc: the page at /, /campaign-runs/ID, /sweeps/ID, /runs/ID, /beds[/ID],
+// /submit, /campaigns[/NAME[/edit]] and /new-campaign; the rest under /ui/NAME.
 //
 // Thread safety: immutable data.
 #ifndef SANDSWIM_SERVER_DASHBOARD_FILES_H_

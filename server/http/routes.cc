@@ -301,6 +301,8 @@ void RegisterDashboard(httplib::Server& server, const Counters& counters) {
     counters->Count(204);
   });
   server.Get("/submit", page);
+  server.Get("/new-campaign", page);
+  server.Get(R"(/campaigns(/[A-Za-z0-9._-]{1,64}(/edit)?)?)", page);
   server.Get(R"(/(campaign-runs|sweeps|runs|beds)(/[0-9]+)?)", page);
   server.Get(R"(/ui/([A-Za-z0-9_-][A-Za-z0-9._-]*))",
              [dashboard_file](const httplib::Request& req, httplib::Response& res) {

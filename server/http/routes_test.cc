@@ -787,7 +787,8 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
 
 // The dashboard: one page at every dashboard path, its files under /ui/, nothing else.
 TEST_F(RoutesTest, DashboardPagesAndFiles) {
-  for (const char* path : {"/", "/campaign-runs/3", "/sweeps/1", "/runs/12", "/beds", "/beds/2", "/submit"}) {
+  for (const char* path : {"/", "/campaign-runs/3", "/sweeps/1", "/runs/12", "/beds", "/beds/2", "/submit", "/campaigns",
+                           "/campaigns/paper-58", "/campaigns/my.own_copy-2/edit", "/new-campaign"}) {
     auto r = client_->Get(path);
     ASSERT_EQ(r->status, 200) << path;
     EXPECT_EQ(r->get_header_value("Content-Type"), "text/html; charset=utf-8") << path;
@@ -801,7 +802,7 @@ TEST_F(RoutesTest, DashboardPagesAndFiles) {
   ASSERT_EQ(uplot->status, 200);
   EXPECT_GT(uplot->body.size(), 10000u);
   EXPECT_EQ(client_->Get("/ui/uPlot.min.css")->get_header_value("Content-Type"), "text/css; charset=utf-8");
-  for (const char* path : {"/ui/nope.js", "/runs/abc", "/sweeps/1/x", "/ui/..%2Fapp.js"}) {
+  for (const char* path : {"/ui/nope.js", "/runs/abc", "/sweeps/1/x", "/ui/..%2Fapp.js", "/campaigns/a/b", "/campaigns/a b"}) {
     auto r = client_->Get(path);
     EXPECT_EQ(r->status, 404) << path;
     EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json") << path;

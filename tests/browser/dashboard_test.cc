@@ -75,6 +75,13 @@ class DashboardTest : public ::testing::Test {
     delete out_;
     unsetenv("SANDSWIM_TOKEN");
   }
+  // The 1-based line of `text` where `needle` is, searched from where `after` is.
+  static int LineOf(const std::string& text, const std::string& needle, const std::string& after = "") {
+    const size_t at = text.find(needle, after.empty() ? 0 : text.find(after));
+    int line = 1;
+    for (size_t i = 0; i < at && i < text.size(); ++i) line += text[i] == '\n';
+    return line;
+  }
   void SetUp() override {
     std::string why;
     if (!BrowserAvailable(&why)) GTEST_SKIP() << why;
@@ -98,6 +105,12 @@ class DashboardTest : public ::testing::Test {
         << "the live stream did not connect: " << browser_->Text("#live-status");
   }
   void Shot(const std::string& name) { browser_->Screenshot(*out_ + "/dashboard-" + name + ".png"); }
+  // Puts `text` in the editor's text area as typing would (the page keeps its draft on input).
+  void SetEditorText(const std::string& css, const std::string& text) {
+    browser_->Script("const a = document.querySelector(arguments[0]); a.value = arguments[1];"
+                     "a.dispatchEvent(new Event('input'));",
+                     json::array({css, text}));
+  }
 
   size_t errors_before_ = 0;
   static std::string* out_;
@@ -235,15 +248,15 @@ TEST_F(DashboardTest, BadSweepShowsTheFieldErrorNextToTheField) {
   for (size_t i = 0; i < at; ++i) line += text[i] == '\n';
   EXPECT_EQ(browser_->Attribute(".field-error", "data-line"), std::to_string(line));
   EXPECT_THAT(browser_->Text(".field-error"), HasSubstr("base.A"));
-  EXPECT_THAT(browser_->Text("#gutter .bad"), HasSubstr(std::to_string(line)));
+  EXPECT_THAT(browser_->Text("#sweep-editor .gutter .bad"), HasSubstr(std::to_string(line)));
   Shot("submit-error");
   // Text that is not JSON (a '}' closing an array): the daemon's reason, and the page stays alive.
   browser_->Script("const a = document.querySelector('#sweep-json'); a.value = arguments[0];"
                    "a.dispatchEvent(new Event('input'));",
                    json::array({"{\"name\": \"x\", \"axes\": [1}"}));
   browser_->Click("#submit");
-  ASSERT_TRUE(browser_->WaitUntil("/malformed JSON/.test(document.querySelector('#submit-errors').textContent)", 10))
-      << browser_->Text("#submit-errors");
+  ASSERT_TRUE(browser_->WaitUntil("/malformed JSON/.test(document.querySelector('#sweep-editor .editor-errors').textContent)", 10))
+      << browser_->Text("#sweep-editor .editor-errors");
   EXPECT_EQ(browser_->Script("return 6 * 7;").get<int>(), 42) << "the page answers";
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM sweeps"), before) << "nothing stored";
   EXPECT_THAT(UnexpectedErrors(*browser_, {"400"}), ::testing::IsEmpty());
@@ -276,6 +289,131 @@ TEST_F(DashboardTest, OverviewShowsProgress) {
   EXPECT_THAT(browser_->Text("#sweeps"), HasSubstr("4 done · 0 running · 0 queued")) << "dash-omega has finished";
   Shot("overview");
   EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
+}
+
+// Issue 29: a campaign of one's own, written in the editor. The daemon's refusal names a field of
+// the definition (sweeps[1].axes[0].values), shown beside that line, and nothing is stored; fixed,
+// it is saved as version 1, its page shows it, a bad cron is refused beside the schedule, and
+// "Run now" starts a campaign run of that version.
+TEST_F(DashboardTest, CampaignEditorShowsTheFieldErrorBesideItsLineThenSavesAndRuns) {
+  const size_t campaigns_before = daemon_->Get("/api/v1/campaigns")["campaigns"].size();
+  Open("/new-campaign");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-json')", 20)) << browser_->Text("#main");
+  json mine = {{"name", "dash-mine"},
+               {"extends", "paper-58"},
+               {"sweeps", json::array({"baseline",
+                                       {{"name", "slow-Omega"},
+                                        {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", -40}, {"duration_s", 1.5}}},
+                                        {"axes", json::array({{{"param", "Omega"}, {"values", json::array()}}})}}})}};
+  std::string text = mine.dump(2);
+  SetEditorText("#campaign-json", text);
+  browser_->Click("#save");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-editor .field-error')", 10))
+      << browser_->Text("#main");
+  EXPECT_EQ(browser_->Attribute(".field-error", "data-field"), "sweeps[1].axes[0].values");
+  // dump() sorts the keys: sweeps[1]'s "axes" (and its "values") come first after "baseline".
+  const int line = LineOf(text, "\"values\"", "\"baseline\"");
+  EXPECT_EQ(browser_->Attribute(".field-error", "data-line"), std::to_string(line));
+  EXPECT_THAT(browser_->Text("#campaign-editor .gutter .bad"), HasSubstr(std::to_string(line)));
+  EXPECT_THAT(browser_->Text(".field-error"), HasSubstr("at least one"));
+  Shot("campaign-editor-error");
+  int status = 0;
+  daemon_->Get("/api/v1/campaigns/dash-mine", &status);
+  EXPECT_EQ(status, 404) << "a refused campaign is not stored";
+  EXPECT_EQ(daemon_->Get("/api/v1/campaigns")["campaigns"].size(), campaigns_before) << "nothing stored";
+
+  // Fixed: saved, and the page goes to the campaign's own page.
+  mine["sweeps"][1]["axes"][0]["values"] = {-40, 40};
+  text = mine.dump(2);
+  SetEditorText("#campaign-json", text);
+  browser_->Click("#save");
+  ASSERT_TRUE(browser_->WaitUntil("location.pathname === '/campaigns/dash-mine' && !!document.querySelector('#definition')", 20))
+      << browser_->Text("#main") << browser_->Text("#action-message");
+  EXPECT_THAT(browser_->Text("#action-message"), HasSubstr("Created campaign dash-mine, version 1"));
+  EXPECT_THAT(browser_->Text("h1"), HasSubstr("version 1"));
+  EXPECT_THAT(browser_->Text("#definition"), HasSubstr("slow-Omega"));
+  EXPECT_TRUE(browser_->Exists("#edit"));
+  EXPECT_FALSE(browser_->Exists("#make-copy")) << "one's own campaign is edited, not copied";
+
+  // The schedule: a cron that is not one is refused beside it; a good one is stored and shown.
+  SetEditorText("#cron", "61 2 * * *");
+  browser_->Click("#schedule-set");
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelector('#schedule-error').textContent.length > 0", 10));
+  EXPECT_THAT(browser_->Text("#schedule-error"), HasSubstr("422"));
+  EXPECT_TRUE(browser_->Exists("#cron.bad-input"));
+  EXPECT_EQ(daemon_->Get("/api/v1/campaigns/dash-mine")["schedule"], nullptr) << "a refused schedule is not stored";
+  SetEditorText("#cron", "0 3 * * *");
+  browser_->Click("#schedule-set");
+  ASSERT_TRUE(browser_->WaitUntil("/0 3 \\* \\* \\*/.test(document.querySelector('#schedule-now').textContent)", 10))
+      << browser_->Text("#schedule-error");
+  EXPECT_EQ(daemon_->Get("/api/v1/campaigns/dash-mine")["schedule"]["cron"], "0 3 * * *");
+  Shot("campaign-page");
+
+  // Run now, at smoke: a campaign run of version 1, whose page opens.
+  browser_->Script("document.querySelector('#run-scale').value = 'smoke'; return 0;");
+  browser_->Click("#run-now");
+  ASSERT_TRUE(browser_->WaitUntil("/^\\/campaign-runs\\/\\d+$/.test(location.pathname)", 20)) << browser_->Text("#action-message");
+  const std::string path = browser_->Script("return location.pathname;").get<std::string>();
+  const json run = daemon_->Get("/api/v1" + path);
+  EXPECT_EQ(run["campaign"], "dash-mine") << run.dump();
+  EXPECT_EQ(run["campaign_version"], 1) << run.dump();
+  EXPECT_EQ(run["scale"], "smoke") << run.dump();
+  // The campaign's page lists it, linked to its page.
+  Open("/campaigns/dash-mine");
+  const std::string id = path.substr(path.rfind('/') + 1);
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-runs-of a[href=\"" + path + "\"]')", 20))
+      << browser_->Text("#campaign-runs-of");
+  // The list of campaigns shows it beside paper-58, with its version, base and schedule.
+  Open("/campaigns");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-list tr[data-id=\"dash-mine\"] a[href^=\"/campaign-runs/\"]')", 20))
+      << browser_->Text("#campaign-list");
+  const std::string row = browser_->Text("#campaign-list tr[data-id='dash-mine']");
+  EXPECT_THAT(row, HasSubstr("paper-58"));
+  EXPECT_THAT(row, HasSubstr("0 3 * * *"));
+  EXPECT_THAT(row, HasSubstr(id));
+  EXPECT_THAT(browser_->Text("#campaign-list tr[data-id='paper-58']"), HasSubstr("built-in"));
+  Shot("campaigns");
+  EXPECT_THAT(UnexpectedErrors(*browser_, {"404", "422"}), ::testing::IsEmpty());
+}
+
+// A built-in campaign is read-only: its page and the overview's text ("edit or remove it in your
+// own copy of this campaign") open the editor with a copy, {"name": ..., "extends": "paper-58"},
+// which saves as a campaign of one's own.
+TEST_F(DashboardTest, BuiltInCampaignOffersMakeMyOwnCopy) {
+  Open("/");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaigns a.own-copy')", 20)) << browser_->Text("#campaigns");
+  browser_->Click("#campaigns a.own-copy");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-json')", 20)) << browser_->Text("#main");
+  EXPECT_EQ(browser_->Script("return location.pathname + location.search;").get<std::string>(), "/new-campaign?from=paper-58");
+  Open("/campaigns/paper-58");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#make-copy')", 20)) << browser_->Text("#main");
+  EXPECT_FALSE(browser_->Exists("#edit"));
+  EXPECT_FALSE(browser_->Exists("#delete"));
+  EXPECT_THAT(browser_->Text("h1"), HasSubstr("built-in"));
+  Shot("campaign-builtin");
+  browser_->Click("#make-copy");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-json')", 20)) << browser_->Text("#main");
+  const json prefilled = json::parse(browser_->Property("#campaign-json", "value").get<std::string>());
+  EXPECT_EQ(prefilled, (json{{"name", "my-paper-58"}, {"extends", "paper-58"}}));
+  EXPECT_THAT(browser_->Text("#base-sweeps"), HasSubstr("Omega-sweep")) << "the base's sweeps, to pick from";
+  Shot("campaign-copy");
+  // Saved under the built-in's own name: refused (409), the name's line marked, nothing changed.
+  SetEditorText("#campaign-json", json({{"name", "paper-58"}, {"extends", "paper-58"}, {"replicates", 3}}).dump(2));
+  browser_->Click("#save");
+  ASSERT_TRUE(browser_->WaitUntil("!!document.querySelector('#campaign-editor .field-error')", 10)) << browser_->Text("#main");
+  EXPECT_EQ(browser_->Attribute(".field-error", "data-field"), "name");
+  EXPECT_THAT(browser_->Text("#campaign-editor .editor-errors"), HasSubstr("409"));
+  EXPECT_EQ(daemon_->Get("/api/v1/campaigns/paper-58")["builtin"], true);
+  SetEditorText("#campaign-json", prefilled.dump(2));
+  browser_->Click("#save");
+  ASSERT_TRUE(browser_->WaitUntil("location.pathname === '/campaigns/my-paper-58' && !!document.querySelector('#definition')", 20))
+      << browser_->Text("#main") << browser_->Text("#action-message");
+  const json copy = daemon_->Get("/api/v1/campaigns/my-paper-58");
+  EXPECT_EQ(copy["builtin"], false);
+  EXPECT_EQ(copy["extends"], "paper-58");
+  EXPECT_EQ(copy["version"], 1);
+  EXPECT_EQ(copy["resolved"]["sweeps"].size(), daemon_->Get("/api/v1/campaigns/paper-58")["resolved"]["sweeps"].size());
+  EXPECT_THAT(UnexpectedErrors(*browser_, {"409"}), ::testing::IsEmpty());
 }
 
 }  // namespace
