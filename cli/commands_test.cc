@@ -270,7 +270,7 @@ json StoredMine() {
       {"extends_version", 0},
       {"notes", {"claim F4 left out: it needs sweep omega"}},
       {"planned_runs", {{"smoke", 174}, {"mini", 174}, {"paper", 174}}},
-      {"schedule", {{"cron", "0 2 * * *"}, {"scale", "smoke"}, {"next_due", 1795658400}}},
+      {"schedule", {{"cron", "0 2 * * *"}, {"scale", "smoke"}, {"next_due", 1795658400}, {"source", "flag"}}},
       {"versions",
        {{{"version", 1},
          {"created_at", 1795600000},
@@ -302,10 +302,10 @@ TEST(CampaignCommandsTest, ListShowsVersionBuiltInExtendsScheduleAndLastRun) {
   h.fill = Campaigns;
   ASSERT_EQ(h.Run({"campaign", "list"}, false), kExitOk) << h.err.str();
   EXPECT_EQ(h.out.str(),
-            "NAME      VERSION  BUILT-IN  EXTENDS   SCHEDULE                                           LAST RUN\n"
-            "mine            2  no        paper-58  0 2 * * * at smoke, next due 2026-11-26 02:00 UTC  cr:12 smoke, "
-            "2026-11-25 15:20 UTC, 173/174 done, 1 failed\n"
-            "paper-58        -  yes       -         -                                                  -\n");
+            "NAME      VERSION  BUILT-IN  EXTENDS   SCHEDULE            LAST RUN\n"
+            "mine            2  no        paper-58  0 2 * * * at smoke  cr:12 smoke, 2026-11-25 15:20 UTC, 173/174 "
+            "done, 1 failed\n"
+            "paper-58        -  yes       -         -                   -\n");
   Harness j;
   j.fill = Campaigns;
   ASSERT_EQ(j.Run({"campaign", "list", "--json"}, false), kExitOk) << j.err.str();
@@ -320,11 +320,12 @@ TEST(CampaignCommandsTest, ShowPrintsPlanScheduleNotesDefinitionVersionsAndRuns)
   h.fill = Campaigns;
   ASSERT_EQ(h.Run({"campaign", "show", "mine"}, false), kExitOk) << h.err.str();
   const std::string out = h.out.str();
-  EXPECT_THAT(out, StartsWith("campaign mine, version 2\n"
-                              "  extends:   paper-58\n"
-                              "  plans:     174 runs at smoke, 174 at mini, 174 at paper\n"
-                              "  schedule:  0 2 * * * at smoke, next due 2026-11-26 02:00 UTC\n"
-                              "  note:      claim F4 left out: it needs sweep omega\n"));
+  EXPECT_THAT(out,
+              StartsWith("campaign mine, version 2\n"
+                         "  extends:   paper-58\n"
+                         "  plans:     174 runs at smoke, 174 at mini, 174 at paper\n"
+                         "  schedule:  0 2 * * * at smoke, next due 2026-11-26 02:00 UTC (from sandswimd --schedule)\n"
+                         "  note:      claim F4 left out: it needs sweep omega\n"));
   EXPECT_THAT(out, HasSubstr("definition (as written; --resolved shows what runs):\n{\n  \"extends\": \"paper-58\""));
   EXPECT_THAT(out, HasSubstr("VERSION  CREATED               EXTENDS   SHA-256\n"
                              "      1  2026-11-25 09:46 UTC  paper-58  aaaabbbbcccc\n"));
@@ -451,8 +452,8 @@ TEST(CampaignCommandsTest, ScheduleSetsListsAndRemoves) {
   list.fill = Campaigns;
   ASSERT_EQ(list.Run({"schedule"}, false), kExitOk) << list.err.str();
   EXPECT_EQ(list.out.str(),
-            "CAMPAIGN  CRON       SCALE  NEXT DUE\n"
-            "mine      0 2 * * *  smoke  2026-11-26 02:00 UTC\n");
+            "CAMPAIGN  CRON       SCALE  NEXT DUE              SET BY\n"
+            "mine      0 2 * * *  smoke  2026-11-26 02:00 UTC  sandswimd --schedule\n");
   Harness list_json;
   list_json.fill = Campaigns;
   ASSERT_EQ(list_json.Run({"schedule", "--json"}, false), kExitOk);

@@ -599,6 +599,7 @@ std::string FormatSchedule(const json& schedule) {
   if (schedule.contains("next_due") && !schedule["next_due"].is_null()) {
     out += ", next due " + FormatTimestamp(schedule["next_due"]);
   }
+  if (Str(schedule, "source") == "flag") out += " (from sandswimd --schedule)";
   return out;
 }
 
@@ -631,6 +632,14 @@ std::string CampaignRunCell(const json& run) {
   return out;
 }
 
+// A schedule in a list's cell: "0 2 * * * at smoke" (when it is next due: `sandswim schedule`).
+std::string ScheduleCell(const json& schedule) {
+  if (schedule.is_string()) return schedule.get<std::string>();
+  if (!schedule.is_object()) return "-";
+  const std::string scale = Str(schedule, "scale");
+  return Str(schedule, "cron", "?") + (scale.empty() ? "" : " at " + scale);
+}
+
 // "paper-58" or "paper-58 (version 2)": a built-in base has no version worth saying.
 std::string ExtendsCell(const json& j) {
   const std::string base = Str(j, "extends");
@@ -650,7 +659,7 @@ std::string RenderCampaignsTable(const json& campaigns) {
       const bool builtin = Bool(c, "builtin");
       const int64_t version = Int(c, "version");
       t.rows.push_back({Str(c, "name", "?"), version > 0 ? std::to_string(version) : "-", builtin ? "yes" : "no",
-                        ExtendsCell(c), FormatSchedule(c.value("schedule", json())),
+                        ExtendsCell(c), ScheduleCell(c.value("schedule", json())),
                         CampaignRunCell(c.value("last_run", json()))});
     }
   }
@@ -733,7 +742,7 @@ std::string RenderCampaignStored(const json& reply) {
 
 std::string RenderSchedulesTable(const json& campaigns) {
   Table t;
-  t.header = {"CAMPAIGN", "CRON", "SCALE", "NEXT DUE"};
+  t.header = {"CAMPAIGN", "CRON", "SCALE", "NEXT DUE", "SET BY"};
   if (campaigns.is_array()) {
     for (const auto& c : campaigns) {
       const json s = c.value("schedule", json());
@@ -742,8 +751,12 @@ std::string RenderSchedulesTable(const json& campaigns) {
         t.rows.push_back({Str(c, "name", "?"), s.get<std::string>(), "-", "-"});
         continue;
       }
+      const std::string source = Str(s, "source");
       t.rows.push_back({Str(c, "name", "?"), Str(s, "cron", "?"), Str(s, "scale", "-"),
-                        FormatTimestamp(s.value("next_due", json()))});
+                        FormatTimestamp(s.value("next_due", json())),
+                        source == "flag"  ? "sandswimd --schedule"
+                        : source == "api" ? "sandswim schedule"
+                                          : "-"});
     }
   }
   return RenderTable(t);

@@ -167,8 +167,8 @@ std::string ResultFlags(const nlohmann::json& row);
 
 // Seconds since the Unix epoch as "2026-11-26 19:42 UTC"; a string is shown as it is; else "-".
 std::string FormatTimestamp(const nlohmann::json& epoch_s);
-// A schedule {cron, scale, next_due} (or a bare cron string) as "0 2 * * * at smoke, next due
-// 2026-11-27 02:00 UTC"; null: "-".
+// A schedule {cron, scale, next_due, source} (or a bare cron string) as "0 2 * * * at smoke, next
+// due 2026-11-27 02:00 UTC", plus " (from sandswimd --schedule)" for a flag's; null: "-".
 std::string FormatSchedule(const nlohmann::json& schedule);
 // planned_runs {smoke, mini, paper} as "58 runs at smoke, 58 at mini, 58 at paper"; none: "".
 std::string FormatPlannedRuns(const nlohmann::json& planned);
@@ -180,7 +180,8 @@ std::string RenderCampaignsTable(const nlohmann::json& campaigns);
 std::string RenderCampaignDetail(const nlohmann::json& reply, bool resolved, const RenderOptions& options);
 // PUT /api/v1/campaigns/{name}'s answer: the version stored (or "unchanged"), the plan, the notes.
 std::string RenderCampaignStored(const nlohmann::json& reply);
-// The scheduled campaigns of GET /api/v1/campaigns -> CAMPAIGN CRON SCALE NEXT DUE.
+// The scheduled campaigns of GET /api/v1/campaigns -> CAMPAIGN CRON SCALE NEXT DUE SET BY (its
+// "source": "flag" is sandswimd --schedule, "api" is sandswim schedule or the dashboard).
 std::string RenderSchedulesTable(const nlohmann::json& campaigns);
 
 }  // namespace sandswim::cli
