@@ -345,6 +345,18 @@ TEST(CampaignCommandsTest, ShowPrintsPlanScheduleNotesDefinitionVersionsAndRuns)
                                             "starts your own copy)\n"));
   EXPECT_THAT(builtin.out.str(), HasSubstr("runs: none yet (sandswim campaign run paper-58 --scale smoke)\n"));
 
+  // A past version says which one is current.
+  Harness past;
+  past.fill = [](FakeClient& c) {
+    Campaigns(c);
+    json v1 = StoredMine();
+    v1["version"] = 1;
+    v1["current_version"] = 2;
+    c.versions[{"mine", 1}] = v1;
+  };
+  ASSERT_EQ(past.Run({"campaign", "show", "mine", "--version", "1"}, false), kExitOk) << past.err.str();
+  EXPECT_THAT(past.out.str(), StartsWith("campaign mine, version 1 (the current one is 2)\n"));
+
   // Refusals: an unknown version names the field; a name that cannot be one never reaches the daemon.
   Harness version;
   version.fill = Campaigns;
@@ -467,7 +479,7 @@ TEST(CampaignCommandsTest, ScheduleSetsListsAndRemoves) {
   Harness none;
   none.fill = Campaigns;
   EXPECT_EQ(none.Run({"schedule", "paper-58", "--off"}, false), kExitError);
-  EXPECT_EQ(none.err.str(), "sandswim: name: 'paper-58' has no schedule\n");
+  EXPECT_EQ(none.err.str(), "sandswim: schedule: 'paper-58' has no schedule\n");
 
   Harness bad_cron;
   bad_cron.fill = [](FakeClient& c) {

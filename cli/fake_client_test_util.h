@@ -24,10 +24,11 @@ class FakeClient : public DaemonClient {
   // Campaigns: each as GET /api/v1/campaigns/{name} answers it ({name, version, builtin, definition,
   // resolved, extends, schedule, versions, runs}); PutCampaign stores into it as the daemon would.
   std::map<std::string, nlohmann::json> campaigns;
-  std::map<std::string, nlohmann::json> campaign_run_lists;  // GET /campaign-runs?campaign=NAME
-  std::vector<Status> put_refusals;                          // PutCampaign answers these first, one a call
-  std::vector<std::pair<std::string, nlohmann::json>> puts;  // every PutCampaign: name, definition
-  Status delete_refusal;                                     // DeleteCampaign answers it when set
+  std::map<std::pair<std::string, int64_t>, nlohmann::json> versions;  // GET ?version=N of a past version
+  std::map<std::string, nlohmann::json> campaign_run_lists;            // GET /campaign-runs?campaign=NAME
+  std::vector<Status> put_refusals;                                    // PutCampaign answers these first, one a call
+  std::vector<std::pair<std::string, nlohmann::json>> puts;            // every PutCampaign: name, definition
+  Status delete_refusal;                                               // DeleteCampaign answers it when set
   std::vector<std::string> deleted;
   std::vector<std::pair<std::string, nlohmann::json>> run_requests;  // every RunCampaign: name, body
   nlohmann::json run_reply = {{"campaign_run_id", 7}, {"ids", {3, 4}}, {"runs", 2}, {"runs_new", 2}};
@@ -117,7 +118,11 @@ class FakeClient : public DaemonClient {
     auto it = campaigns.find(name);
     if (it == campaigns.end()) return Status(StatusCode::kNotFound, "no campaign '" + name + "'", "name");
     if (version > 0 && it->second.value("version", 0) != version) {
-      return Status(StatusCode::kNotFound, "no version " + std::to_string(version), "version");
+      auto old = versions.find({name, version});
+      if (old == versions.end()) {
+        return Status(StatusCode::kNotFound, "no version " + std::to_string(version), "version");
+      }
+      return old->second;
     }
     return it->second;
   }
@@ -143,6 +148,7 @@ class FakeClient : public DaemonClient {
     }
     return nlohmann::json{{"name", name},
                           {"version", c["version"]},
+                          {"created", c["version"] == 1 && !unchanged},
                           {"unchanged", unchanged},
                           {"notes", nlohmann::json::array()},
                           {"planned_runs", {{"smoke", 2}, {"mini", 2}, {"paper", 2}}}};
@@ -170,7 +176,7 @@ class FakeClient : public DaemonClient {
   Status DeleteSchedule(const std::string& name) override {
     auto it = campaigns.find(name);
     if (it == campaigns.end() || it->second.value("schedule", nlohmann::json()).is_null()) {
-      return Status(StatusCode::kNotFound, "'" + name + "' has no schedule", "name");
+      return Status(StatusCode::kNotFound, "'" + name + "' has no schedule", "schedule");
     }
     it->second["schedule"] = nullptr;
     return Status::Ok();

@@ -674,7 +674,10 @@ std::string RenderCampaignDetail(const json& reply, bool resolved, const RenderO
   if (builtin) {
     out << " (built-in, read-only: `sandswim campaign edit " << name << "` starts your own copy)\n";
   } else {
-    out << ", version " << Str(reply, "version", "?") << "\n";
+    out << ", version " << Str(reply, "version", "?");
+    const int64_t current = Int(reply, "current_version");
+    if (current > 0 && current != Int(reply, "version")) out << " (the current one is " << current << ")";
+    out << "\n";
   }
   if (!Str(reply, "extends").empty()) out << "  extends:   " << ExtendsCell(reply) << "\n";
   const std::string planned = FormatPlannedRuns(reply.value("planned_runs", json()));
@@ -729,8 +732,8 @@ std::string RenderCampaignStored(const json& reply) {
   if (Bool(reply, "unchanged")) {
     out << name << ": unchanged, still version " << Str(reply, "version", "?") << "\n";
   } else {
-    out << name << ": stored as version " << Str(reply, "version", "?")
-        << (Int(reply, "version") == 1 ? " (a new campaign)" : "") << "\n";
+    const bool created = reply.contains("created") ? Bool(reply, "created") : Int(reply, "version") == 1;
+    out << name << ": stored as version " << Str(reply, "version", "?") << (created ? " (a new campaign)" : "") << "\n";
   }
   const std::string planned = FormatPlannedRuns(reply.value("planned_runs", json()));
   if (!planned.empty()) out << "  plans " << planned << "\n";
