@@ -152,7 +152,10 @@ Status CheckRule(const json& rule, const std::vector<std::string>& sweeps) {
   const KindSpec* spec = nullptr;
   for (const KindSpec& k : Kinds())
     if (kind->is_string() && *kind == k.kind) spec = &k;
-  if (spec == nullptr) return Status::InvalidArgument("rule.kind", "must be one of " + JoinNames(kinds));
+  if (spec == nullptr) {
+    return Status::InvalidArgument("rule.kind", kind->dump().substr(0, 66) + " is not a rule kind: must be one of " +
+                                                    JoinNames(kinds));
+  }
   for (const auto& [key, value] : rule.items()) {
     if (key == "kind") continue;
     const std::string& name = key;  // a structured binding is not captured before C++20

@@ -10,6 +10,7 @@
 #include "core/aggregate.h"
 #include "core/sweep.h"
 #include "server/store/campaigns.h"
+#include "server/store/drift_table.h"
 
 namespace sandswim {
 namespace {
@@ -95,47 +96,52 @@ Result<double> ToleranceOf(Store& store, const std::string& campaign) {
   return found.status();
 }
 
-Result<std::optional<DriftReport>> ReadOne(Statement& st) {
-  Result<bool> row = st.Step();
-  if (!row.ok()) return row.status();
-  if (!*row) return std::optional<DriftReport>();
+Result<std::optional<DriftReport>> Decode(const Result<std::optional<drift_table::StoredReport>>& stored) {
+  if (!stored.ok()) return stored.status();
+  if (!stored->has_value()) return std::optional<DriftReport>();
   try {
-    return std::optional<DriftReport>(json::parse(st.Text(0)).get<DriftReport>());
+    return std::optional<DriftReport>(json::parse((*stored)->report).get<DriftReport>());
   } catch (const json::exception& e) {
     return Status::Corruption(std::string("a stored drift report does not parse: ") + e.what());
   }
-}
-
-// The campaign runs without a report whose runs are all terminal, oldest first.
-Result<std::vector<int64_t>> FinishedWithoutReport(Store& store) {
-  auto t = store.db().BeginRead();
-  if (!t.ok()) return t.status();
-  Statement st = t->Prepare(
-      "SELECT cr.id FROM campaign_runs cr "
-      "WHERE NOT EXISTS (SELECT 1 FROM drift_reports d WHERE d.campaign_run_id = cr.id) "
-      "  AND NOT EXISTS (SELECT 1 FROM sweeps s JOIN sweep_runs sr ON sr.sweep_id = s.id "
-      "                  JOIN runs r ON r.id = sr.run_id "
-      "                  WHERE s.campaign_run_id = cr.id AND r.state IN ('queued', 'running')) "
-      "ORDER BY cr.id");
-  std::vector<int64_t> ids;
-  while (true) {
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    ids.push_back(st.Int(0));
-  }
-  return ids;
 }
 
 Result<std::optional<DriftReport>> PreviousReport(Store& store, const std::string& campaign, const std::string& scale,
                                                   int64_t before_id) {
   auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare(
-      "SELECT report FROM drift_reports WHERE campaign = ? AND scale = ? AND campaign_run_id < ? "
-      "ORDER BY campaign_run_id DESC LIMIT 1");
-  st.Bind(1, campaign).Bind(2, scale).Bind(3, before_id);
-  return ReadOne(st);
+  return Decode(drift_table::Previous(*t, campaign, scale, before_id));
+}
+
+// The report a campaign run is compared with: the latest earlier report of its campaign and
+// scale when that one ran the same definition (or either ran one not recorded, before
+// schema/013_campaign_versions.sql), else the latest earlier one that ran the same definition,
+// if any; `changed` then holds the versions the definition went between.
+struct Baseline {
+  std::optional<DriftReport> report;
+  std::optional<DefinitionChange> changed;
+};
+Result<Baseline> BaselineFor(Store& store, const CampaignRunInfo& info) {
+  auto t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  auto latest = drift_table::Previous(*t, info.campaign, info.scale, info.id);
+  if (!latest.ok()) return latest.status();
+  Baseline out;
+  if (!latest->has_value()) return out;
+  const drift_table::StoredReport& before = **latest;
+  const bool unknown = before.definition_sha256.empty() || info.definition_sha256.empty();
+  if (unknown || before.definition_sha256 == info.definition_sha256) {
+    auto report = Decode(latest);
+    if (!report.ok()) return report.status();
+    out.report = std::move(*report);
+    return out;
+  }
+  out.changed = DefinitionChange{before.campaign_version.value_or(0), info.campaign_version.value_or(0),
+                                 before.campaign_run_id};
+  auto same = Decode(drift_table::Previous(*t, info.campaign, info.scale, info.id, info.definition_sha256));
+  if (!same.ok()) return same.status();
+  out.report = std::move(*same);
+  return out;
 }
 
 // The campaign run's distinct runs as they stand now.
@@ -276,6 +282,11 @@ void to_json(json& j, const DriftReport& r) {
        {"aggregates", r.aggregates},
        {"points_compared", r.points_compared},
        {"points_drifted", r.points_drifted}};
+  j["definition_changed"] = r.definition_changed ? json{{"from_version", r.definition_changed->from_version},
+                                                        {"to_version", r.definition_changed->to_version},
+                                                        {"since_campaign_run_id",
+                                                         r.definition_changed->since_campaign_run_id}}
+                                                  : json(nullptr);
 }
 
 void from_json(const json& j, DriftReport& r) {
@@ -302,6 +313,10 @@ void from_json(const json& j, DriftReport& r) {
   r.aggregates = j.value("aggregates", std::vector<DriftAggregate>{});
   r.points_compared = j.value("points_compared", int64_t{0});
   r.points_drifted = j.value("points_drifted", int64_t{0});
+  if (auto it = j.find("definition_changed"); it != j.end() && it->is_object()) {
+    r.definition_changed = DefinitionChange{it->value("from_version", 0), it->value("to_version", 0),
+                                            it->value("since_campaign_run_id", int64_t{0})};
+  }
 }
 
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone) {
@@ -427,32 +442,62 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
   report.summary = line;
 }
 
+void SayDefinitionChanged(DriftReport& report, const DefinitionChange& change, bool compared) {
+  report.definition_changed = change;
+  const std::string what = "definition changed (version " + std::to_string(change.from_version) + " -> " +
+                           std::to_string(change.to_version) + ")";
+  const std::string first = "; first report, nothing to compare";
+  if (!compared) {
+    if (report.summary.size() >= first.size() &&
+        report.summary.compare(report.summary.size() - first.size(), first.size(), first) == 0) {
+      report.summary.erase(report.summary.size() - first.size());
+    }
+    report.summary += "; " + what + ", no earlier run of this definition to compare with";
+  } else {
+    report.summary += "; " + what + " since cr:" + std::to_string(change.since_campaign_run_id) +
+                      ", compared with cr:" + std::to_string(report.previous_campaign_run_id.value_or(0)) +
+                      " of the same definition";
+  }
+}
+
 Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now, CronZone zone) {
-  auto ids = FinishedWithoutReport(store);
-  if (!ids.ok()) return ids.status();
+  std::vector<int64_t> ids;
+  {
+    auto t = store.db().BeginRead();
+    if (!t.ok()) return t.status();
+    auto finished = drift_table::FinishedWithoutReport(*t);
+    if (!finished.ok()) return finished.status();
+    ids = std::move(finished).value();
+  }
   std::vector<DriftReport> made;
-  for (int64_t id : *ids) {
+  for (int64_t id : ids) {
     auto info = store.GetCampaignRun(id);
     if (!info.ok()) return info.status();
     auto report = CurrentState(store, *info, now);
     if (!report.ok()) return report.status();
-    auto previous = PreviousReport(store, info->campaign, info->scale, id);
-    if (!previous.ok()) return previous.status();
-    CompareWithPrevious(*report, previous->has_value() ? &**previous : nullptr, zone);
+    auto baseline = BaselineFor(store, *info);
+    if (!baseline.ok()) return baseline.status();
+    CompareWithPrevious(*report, baseline->report ? &*baseline->report : nullptr, zone);
+    if (baseline->changed) SayDefinitionChanged(*report, *baseline->changed, baseline->report.has_value());
 
     auto t = store.db().Begin();
     if (!t.ok()) return t.status();
-    Statement st = t->Prepare(
-        "INSERT INTO drift_reports (campaign_run_id, campaign, scale, previous_campaign_run_id, "
-        "tolerance_mps, points, reused, ran, missing, drifted, report, created_at) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (campaign_run_id) DO NOTHING");
-    st.Bind(1, report->campaign_run_id).Bind(2, report->campaign).Bind(3, report->scale);
-    st.Bind(4, report->previous_campaign_run_id).Bind(5, report->tolerance_mps);
-    st.Bind(6, report->points).Bind(7, report->reused).Bind(8, report->ran);
-    st.Bind(9, report->missing).Bind(10, report->drifted);
-    st.Bind(11, json(*report).dump()).Bind(12, now);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    if (t->Changes() > 0) {
+    drift_table::NewReport row;
+    row.campaign_run_id = report->campaign_run_id;
+    row.campaign = report->campaign;
+    row.scale = report->scale;
+    row.previous_campaign_run_id = report->previous_campaign_run_id;
+    row.tolerance_mps = report->tolerance_mps;
+    row.points = report->points;
+    row.reused = report->reused;
+    row.ran = report->ran;
+    row.missing = report->missing;
+    row.drifted = report->drifted;
+    row.report = json(*report).dump();
+    row.created_at = now;
+    auto inserted = drift_table::Insert(*t, row);
+    if (!inserted.ok()) return inserted.status();
+    if (*inserted) {
       SANDSWIM_RETURN_IF_ERROR(t->Event(now, "campaign_run.drift_report", "campaign_run/" + std::to_string(id),
                                         {{"drifted", report->drifted}, {"summary", report->summary}}));
     }
@@ -465,20 +510,14 @@ Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double
 Result<std::optional<DriftReport>> DriftReportFor(Store& store, int64_t campaign_run_id) {
   auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare("SELECT report FROM drift_reports WHERE campaign_run_id = ?");
-  st.Bind(1, campaign_run_id);
-  return ReadOne(st);
+  return Decode(drift_table::ReportOf(*t, campaign_run_id));
 }
 
 Result<std::optional<DriftReport>> LatestDriftReport(Store& store, const std::string& campaign,
                                                      const std::string& scale) {
   auto t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  Statement st = t->Prepare(
-      "SELECT report FROM drift_reports WHERE campaign = ? AND (? = '' OR scale = ?) "
-      "ORDER BY campaign_run_id DESC LIMIT 1");
-  st.Bind(1, campaign).Bind(2, scale).Bind(3, scale);
-  return ReadOne(st);
+  return Decode(drift_table::Latest(*t, campaign, scale));
 }
 
 Result<std::optional<DriftReport>> LastDriftFor(Store& store, const CampaignRunInfo& run) {

@@ -82,6 +82,14 @@ struct DriftAggregate {
 void to_json(nlohmann::json& j, const DriftAggregate& a);
 void from_json(const nlohmann::json& j, DriftAggregate& a);
 
+// The campaign's definition changed between the run a report would have been compared with and
+// this one (schema/013_campaign_versions.sql): its versions, and the campaign run of the old one.
+struct DefinitionChange {
+  int from_version = 0;
+  int to_version = 0;
+  int64_t since_campaign_run_id = 0;
+};
+
 struct DriftReport {
   int64_t campaign_run_id = 0;
   std::string campaign;
@@ -99,6 +107,10 @@ struct DriftReport {
   std::vector<DriftAggregate> aggregates;  // its points, over their replicate beds
   int64_t points_compared = 0, points_drifted = 0;
   std::string summary;  // the one-line summary the daemon logs
+  // Set when the latest earlier report ran another definition: then "previous" is the latest
+  // earlier report of the SAME definition (none: nothing compared) and the summary says
+  // "definition changed (version a -> b)".
+  std::optional<DefinitionChange> definition_changed;
 };
 // {"campaign_run_id","campaign","scale","trigger","due_time","campaign_run_created_at",
 //  "previous_campaign_run_id","tolerance_mps","created_at","points","reused","ran","missing",
@@ -120,8 +132,16 @@ void from_json(const nlohmann::json& j, DriftReport& r);
 // first report compares nothing it cannot.
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone);
 
+// Records `change` in `report` and says it in the summary: "; definition changed (version 2 -> 3)
+// since cr:7, compared with cr:5 of the same definition" when `compared`, else (replacing "first
+// report, nothing to compare") "; definition changed (version 2 -> 3), no earlier run of this
+// definition to compare with".
+void SayDefinitionChanged(DriftReport& report, const DefinitionChange& change, bool compared);
+
 // Makes, stores and returns a report for every campaign run that has none yet and whose runs
-// are all terminal, oldest first. `now` stamps created_at.
+// are all terminal, oldest first, each compared with the latest earlier report of its campaign
+// and scale that ran the same definition (see DriftReport::definition_changed). `now` stamps
+// created_at.
 Result<std::vector<DriftReport>> ReportFinishedCampaignRuns(Store& store, double now, CronZone zone = CronZone::kLocal);
 
 // The report of one campaign run (nullopt: none yet).

@@ -24,6 +24,7 @@
 #include "server/analysis/plot_renderer.h"
 #include "server/http/routes.h"
 #include "server/jobs/submission.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim {
 namespace {
@@ -63,7 +64,7 @@ class ReportTest : public ::testing::Test {
     campaign.name = "tiny";
     campaign.definition = json::parse(kCampaign);
     campaign.drift_tolerance_mps = 0.001;
-    ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+    ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
     SubmitRequest request;
     request.campaign = "tiny";
     auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
@@ -289,7 +290,7 @@ TEST_F(ReportTest, AReplicatedCampaignsDriftSectionListsEachPointsMeanOverItsBed
     "scale": "smoke", "replicates": 2,
     "sweeps": [{"name": "pair", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
                 "axes": [{"param": "Omega", "values": [-80, 80]}]}]})");
-  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
   SubmitRequest request;
   request.campaign = "tiny-replicated";
   auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
@@ -469,7 +470,7 @@ TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) 
     {"id": "F6", "title": "8e5 grains", "source": "Sec. 2.3", "paper": {"text": "a bed of 8*10^5 particles"},
      "rule": {"kind": "grain_count", "paper_grains": 800000, "paper_bed_m3": 0.5}}])");
   campaign.definition = definition;
-  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
   SubmitRequest request;
   request.campaign = "tiny-claims";
   auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
@@ -544,7 +545,7 @@ TEST_F(ReportTest, AStoredBuiltinCampaignWithoutClaimsTakesTheBuiltinOnes) {
   campaign.name = "paper-58";
   campaign.definition = *builtin;
   campaign.definition.erase("claims");
-  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
   SubmitRequest request;
   request.campaign = "paper-58";
   request.scale = "smoke";
@@ -569,7 +570,7 @@ TEST_F(ReportTest, ModesAreDrawnSideBySideAndAOnePointSweepHasNoUzFigure) {
     {"name": "modes.rotation-x", "base": {"mode": "rotation", "omega": 80, "axis": "x", "duration_s": 0.3}},
     {"name": "baseline", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
      "axes": [{"param": "Omega", "values": [-80, 80]}]}]})");
-  ASSERT_TRUE(store_->PutCampaign(campaign).ok());
+  ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
   SubmitRequest request;
   request.campaign = "modes";
   auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());

@@ -201,6 +201,11 @@ inline void SendFile(Call& c, std::shared_ptr<std::ifstream> file, size_t size, 
   });
 }
 
+// Submits a POST /api/v1/sweeps body (server/jobs/submission.h ParseSubmitRequest, with the
+// Idempotency-Key header) and answers 201 with the submission and its Location, or the problem.
+// POST /api/v1/campaigns/{name}/runs answers through it too (server/http/sweep_routes.cc).
+void AnswerSubmission(Call& c, const json& body);
+
 // ---- A row of the route table ------------------------------------------------------------------
 
 using Handler = void (*)(Call&);

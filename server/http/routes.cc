@@ -265,6 +265,8 @@ void RegisterTable(httplib::Server& server, Deps* d, const Counters& counters) {
       server.Post(pattern, with_body);
     else if (method == "PUT")
       server.Put(pattern, with_body);
+    else if (method == "DELETE")
+      server.Delete(pattern, plain);
   }
 }
 

@@ -46,14 +46,9 @@
 
 namespace sandswim {
 namespace routes {
-namespace {
 
-// ---- Handlers: parse -> call -> render ---------------------------------------------------------
-
-void SubmitSweeps(Call& c) {
-  auto body = ParseJsonBody(c.body, /*allow_empty=*/false);
-  if (!body.ok()) return Fail(c, body.status());
-  auto request = ParseSubmitRequest(*body);
+void AnswerSubmission(Call& c, const json& body) {
+  auto request = ParseSubmitRequest(body);
   if (!request.ok()) return Fail(c, request.status());
   if (c.req.has_header("Idempotency-Key")) request->idempotency_key = c.req.get_header_value("Idempotency-Key");
   request->max_queued_runs = c.deps.max_queued_runs;
@@ -74,6 +69,16 @@ void SubmitSweeps(Call& c) {
   }
   c.res.set_header("Location", location);
   SendJson(c, 201, reply);
+}
+
+namespace {
+
+// ---- Handlers: parse -> call -> render ---------------------------------------------------------
+
+void SubmitSweeps(Call& c) {
+  auto body = ParseJsonBody(c.body, /*allow_empty=*/false);
+  if (!body.ok()) return Fail(c, body.status());
+  AnswerSubmission(c, *body);
 }
 
 void ListSweeps(Call& c) {

@@ -79,7 +79,8 @@ void to_json(json& j, const ScheduledCampaign& s) {
        {"enabled", s.enabled},
        {"first_seen_at", s.first_seen_at},
        {"last_due", s.last_due ? json(*s.last_due) : json(nullptr)},
-       {"next_due", s.next_due ? json(*s.next_due) : json(nullptr)}};
+       {"next_due", s.next_due ? json(*s.next_due) : json(nullptr)},
+       {"source", s.source}};
 }
 
 Scheduler::Scheduler(Store* store, Clock* clock, std::string engine_version, CronZone zone)
@@ -100,6 +101,12 @@ Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool ex
     auto campaign = LookUpCampaign(*store_, r.campaign, field);
     if (!campaign.ok()) return campaign.status();
     if (!campaign->schedule) {
+      // A campaign whose definition has no schedule runs by the one the API gave it.
+      auto registered = Find(r.campaign);
+      if (!registered.ok()) return registered.status();
+      if (registered->has_value()) campaign->schedule = (*registered)->cron;
+    }
+    if (!campaign->schedule) {
       return Status::InvalidArgument(field, "campaign '" + r.campaign +
                                                 "' has no \"schedule\"; give it one, "
                                                 "e.g. \"schedule\": \"0 2 * * *\"");
@@ -115,7 +122,7 @@ Status Scheduler::Register(const std::vector<ScheduleRequest>& requests, bool ex
   auto t = store_->db().Begin();
   if (!t.ok()) return t.status();
   if (exclusive) {
-    Result<std::vector<std::string>> enabled = schedules::EnabledCampaigns(*t);
+    Result<std::vector<std::string>> enabled = schedules::EnabledFlagCampaigns(*t);
     if (!enabled.ok()) return enabled.status();
     for (const std::string& name : *enabled) {
       if (names.count(name)) continue;
@@ -147,6 +154,7 @@ Result<std::vector<ScheduledCampaign>> Scheduler::List() {
       s.enabled = row.enabled;
       s.first_seen_at = row.first_seen_at;
       s.last_due = row.last_due;
+      s.source = std::move(row.source);
       out.push_back(std::move(s));
     }
   }
@@ -159,6 +167,49 @@ Result<std::vector<ScheduledCampaign>> Scheduler::List() {
     if (next.ok()) s.next_due = *next;
   }
   return out;
+}
+
+Result<std::optional<ScheduledCampaign>> Scheduler::Find(const std::string& campaign) {
+  auto all = List();
+  if (!all.ok()) return all.status();
+  for (ScheduledCampaign& s : *all) {
+    if (s.campaign == campaign && s.enabled) return std::optional<ScheduledCampaign>(std::move(s));
+  }
+  return std::optional<ScheduledCampaign>();
+}
+
+Result<ScheduledCampaign> Scheduler::Put(const std::string& campaign, const std::string& cron,
+                                         const std::optional<std::string>& scale) {
+  auto found = LookUpCampaign(*store_, campaign, "name");
+  if (!found.ok()) return found.status();
+  auto parsed = ParseCron(cron, "cron");
+  if (!parsed.ok()) return Status(StatusCode::kFailedPrecondition, parsed.status().reason(), "cron");
+  if (scale && FindScale(*scale) == nullptr) {
+    return Status(StatusCode::kFailedPrecondition, "unknown scale \"" + *scale + "\" (paper, mini, smoke)", "scale");
+  }
+  const std::string at = scale.value_or(found->default_scale);
+  const double now = clock_->Now();
+  auto t = store_->db().Begin();
+  if (!t.ok()) return t.status();
+  SANDSWIM_RETURN_IF_ERROR(schedules::RegisterSchedule(*t, campaign, at, parsed->text, now, "api"));
+  SANDSWIM_RETURN_IF_ERROR(t->Event(now, "schedule.registered", "campaign/" + campaign,
+                                    {{"scale", at}, {"cron", parsed->text}, {"source", "api"}}));
+  SANDSWIM_RETURN_IF_ERROR(t->Commit());
+  auto put = Find(campaign);
+  if (!put.ok()) return put.status();
+  if (!put->has_value()) return Status::Internal("the schedule of '" + campaign + "' was stored but is not there");
+  return std::move(**put);
+}
+
+Status Scheduler::Remove(const std::string& campaign) {
+  const double now = clock_->Now();
+  auto t = store_->db().Begin();
+  if (!t.ok()) return t.status();
+  Result<bool> removed = schedules::RemoveSchedule(*t, campaign);
+  if (!removed.ok()) return removed.status();
+  if (!*removed) return Status(StatusCode::kNotFound, "campaign '" + campaign + "' has no schedule", "schedule");
+  SANDSWIM_RETURN_IF_ERROR(t->Event(now, "schedule.removed", "campaign/" + campaign));
+  return t->Commit();
 }
 
 Result<TickResult> Scheduler::Tick() {

@@ -21,7 +21,10 @@
 //
 // Registration: Register() upserts the given campaigns (first_seen_at is kept for an enabled
 // row, reset to now for a new or re-enabled one, so re-enabling after a pause does not run a
-// stale night) and, with `exclusive`, disables every other row.
+// stale night) and, with `exclusive`, disables every other row a flag registered. Put() is the
+// REST API's (PUT /api/v1/campaigns/{name}/schedule): a cron of the user's, for a built-in or a
+// stored campaign, kept across restarts whatever the flags until Remove() or the campaign's
+// deletion (server/store/campaigns.h DeleteCampaign) removes it.
 //
 // Thread safety: Tick() and Register() may be called from any thread; they serialise on the
 // Store. REQUIRES: store and clock outlive the scheduler.
@@ -59,6 +62,7 @@ struct ScheduledCampaign {
   double first_seen_at = 0;
   std::optional<double> last_due;  // latest scheduled campaign run's due time
   std::optional<double> next_due;  // after max(last_due, first_seen_at, now)
+  std::string source;              // "flag" | "api"
 };
 void to_json(nlohmann::json& j, const ScheduledCampaign& s);
 
@@ -91,6 +95,16 @@ class Scheduler {
                   const std::string& field = "--schedule");
 
   Result<std::vector<ScheduledCampaign>> List();
+  // The enabled schedule of `campaign`; nullopt: none.
+  Result<std::optional<ScheduledCampaign>> Find(const std::string& campaign);
+
+  // Schedules `campaign` (kNotFound, field "name", when there is no such campaign) by `cron`
+  // (kFailedPrecondition naming "cron" when it does not parse) at `scale` (default: the
+  // campaign's; kFailedPrecondition naming "scale" when unknown), as the API's (see above).
+  Result<ScheduledCampaign> Put(const std::string& campaign, const std::string& cron,
+                                const std::optional<std::string>& scale);
+  // Removes the schedule of `campaign`; kNotFound (field "schedule") when it has none.
+  Status Remove(const std::string& campaign);
 
   // Submits every due rerun (see the header comment).
   Result<TickResult> Tick();

@@ -17,6 +17,7 @@
 #include "server/store/store.h"
 #include "server/jobs/submission.h"
 #include "tests/fixture_file.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim {
 namespace {
@@ -60,7 +61,7 @@ class SchedulerTest : public ::testing::Test {
     c.schedule = "0 2 * * *";
     c.drift_tolerance_mps = 0.005;
     c.updated_at = clock_.Now();
-    ASSERT_TRUE(store_->PutCampaign(c).ok());
+    ASSERT_TRUE(PutCampaign(*store_, c).ok());
   }
   void TearDown() override {
     scheduler_.reset();
@@ -262,7 +263,7 @@ TEST_F(SchedulerTest, RegistrationErrorsNameTheFlag) {
   manual.definition = TinyCampaign();
   manual.definition.erase("schedule");
   manual.definition["name"] = "manual-only";
-  ASSERT_TRUE(store_->PutCampaign(manual).ok());
+  ASSERT_TRUE(PutCampaign(*store_, manual).ok());
   s = scheduler_->Register({{"manual-only", std::nullopt}});
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(s.reason().find("no \"schedule\""), std::string::npos) << s.reason();
@@ -390,6 +391,102 @@ TEST_F(SchedulerTest, DriftReportCountsFailedRunsAsMissing) {
   EXPECT_EQ(reports[0].trigger, "manual");
   EXPECT_NE(reports[0].summary.find("tiny@smoke rerun cr:"), std::string::npos) << reports[0].summary;
   EXPECT_NE(reports[0].summary.find("2 failed or cancelled"), std::string::npos) << reports[0].summary;
+}
+
+// A schedule given through the API (PUT /api/v1/campaigns/{name}/schedule) for a campaign of
+// one's own whose definition states none: it reruns on the fake clock's nights, and restarts
+// with no --schedule flag (which disable every flag's schedule) keep it.
+TEST_F(SchedulerTest, AnApiScheduleOfAStoredCampaignRerunsAndSurvivesRestarts) {
+  nlohmann::json mine = TinyCampaign();
+  mine.erase("schedule");
+  mine["name"] = "mine";
+  StoredCampaign c;
+  c.name = "mine";
+  c.definition = mine;
+  c.updated_at = clock_.Now();
+  ASSERT_TRUE(PutCampaign(*store_, c).ok());
+  // The definition states no schedule: a flag alone is refused, as before.
+  EXPECT_FALSE(scheduler_->Register({{"mine", std::nullopt}}).ok());
+  auto put = scheduler_->Put("mine", "0 3 * * *", std::nullopt);
+  ASSERT_TRUE(put.ok()) << put.status().ToString();
+  EXPECT_EQ(put->scale, "smoke");
+  EXPECT_EQ(put->source, "api");
+  EXPECT_EQ(put->next_due, Utc(2026, 11, 23, 3, 0));
+
+  Restart();
+  ASSERT_TRUE(scheduler_->Register({}).ok());  // sandswimd started without --schedule
+  clock_.Set(Utc(2026, 11, 23, 3, 0, 10));
+  auto fired = Tick();
+  ASSERT_EQ(fired.size(), 1u);
+  EXPECT_EQ(fired[0].campaign, "mine");
+  EXPECT_EQ(fired[0].due_time, Utc(2026, 11, 23, 3, 0));
+
+  // Down over the next night and back the morning after: that night runs once at start.
+  clock_.Set(Utc(2026, 11, 24, 9, 0));
+  Restart();
+  ASSERT_TRUE(scheduler_->Register({}).ok());
+  fired = Tick();
+  ASSERT_EQ(fired.size(), 1u);
+  EXPECT_EQ(fired[0].due_time, Utc(2026, 11, 24, 3, 0));
+  EXPECT_EQ(CampaignRuns(), 2);
+  // A --schedule flag for it now takes the API's cron, and a start without it keeps the schedule.
+  ASSERT_TRUE(scheduler_->Register({{"mine", std::nullopt}}).ok());
+  Restart();
+  ASSERT_TRUE(scheduler_->Register({}).ok());
+  auto kept = scheduler_->Find("mine");
+  ASSERT_TRUE(kept.ok() && kept->has_value());
+  EXPECT_EQ((*kept)->cron, "0 3 * * *");
+
+  ASSERT_TRUE(scheduler_->Remove("mine").ok());
+  EXPECT_EQ(scheduler_->Remove("mine").code(), StatusCode::kNotFound);
+  clock_.Set(Utc(2026, 11, 25, 3, 0, 10));
+  EXPECT_TRUE(Tick().empty());
+}
+
+// Drift compares a run only with one of the same definition: after an edit the report says the
+// definition changed and compares nothing; the next night of the new definition compares again.
+TEST_F(SchedulerTest, DriftSaysWhenTheDefinitionChanged) {
+  Register();
+  clock_.Set(Utc(2026, 11, 23, 2, 0, 10));
+  ASSERT_EQ(Tick().size(), 1u);
+  CompleteAll(-0.010, 0.020);
+  ASSERT_EQ(Reports().size(), 1u);
+
+  nlohmann::json edited = TinyCampaign();
+  edited["description"] = "two points, edited";
+  StoredCampaign c;
+  c.name = "tiny";
+  c.definition = edited;
+  c.schedule = "0 2 * * *";
+  c.drift_tolerance_mps = 0.005;
+  c.updated_at = clock_.Now();
+  ASSERT_TRUE(PutCampaign(*store_, c).ok());
+
+  clock_.Set(Utc(2026, 11, 24, 2, 0, 10));
+  ASSERT_EQ(Tick().size(), 1u);
+  auto changed = Reports();
+  ASSERT_EQ(changed.size(), 1u);
+  ASSERT_TRUE(changed[0].definition_changed.has_value());
+  EXPECT_EQ(changed[0].definition_changed->from_version, 1);
+  EXPECT_EQ(changed[0].definition_changed->to_version, 2);
+  EXPECT_FALSE(changed[0].previous_campaign_run_id.has_value());
+  EXPECT_EQ(changed[0].compared, 0);
+  EXPECT_EQ(changed[0].summary,
+            "tiny@smoke night 2026-11-24 02:00: 2 points, 2 reused, 0 run, 0 drifted beyond 0.005 m/s; "
+            "definition changed (version 1 -> 2), no earlier run of this definition to compare with");
+  // Stored and read back with it.
+  auto own = DriftReportFor(*store_, changed[0].campaign_run_id);
+  ASSERT_TRUE(own.ok() && own->has_value());
+  ASSERT_TRUE((*own)->definition_changed.has_value());
+  EXPECT_EQ((*own)->definition_changed->to_version, 2);
+
+  clock_.Set(Utc(2026, 11, 25, 2, 0, 10));
+  ASSERT_EQ(Tick().size(), 1u);
+  auto next = Reports();
+  ASSERT_EQ(next.size(), 1u);
+  EXPECT_FALSE(next[0].definition_changed.has_value());
+  EXPECT_EQ(next[0].previous_campaign_run_id, changed[0].campaign_run_id);
+  EXPECT_EQ(next[0].compared, 2);
 }
 
 }  // namespace

@@ -211,26 +211,23 @@ Result<int64_t> InsertSubmission(Transaction& t, const SubmitRequest& req, const
   return t.LastInsertId();
 }
 
-// The campaign run's row; a built-in campaign's definition is recorded when first submitted.
+// The campaign run's row, with the definition it runs: the campaign's version (0: built-in), its
+// resolved definition and that definition's SHA-256, so that its claims, report and drift read
+// what ran whatever the campaign becomes.
 Result<int64_t> InsertCampaignRun(Transaction& t, const SubmitRequest& req, const CatalogueEntry& campaign,
                                   const std::string& campaign_scale, double now) {
-  if (!campaign.stored) {
-    Statement st = t.Prepare(
-        "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
-        "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO NOTHING");
-    st.Bind(1, *req.campaign).Bind(2, campaign.definition.dump()).Bind(3, campaign.schedule);
-    st.Bind(4, campaign.drift_tolerance_mps).Bind(5, now);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
   Statement st = t.Prepare(
-      "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at) "
-      "VALUES (?, ?, ?, ?, ?)");
+      "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at, campaign_version, definition, "
+      "definition_sha256) VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
   st.Bind(1, *req.campaign).Bind(2, campaign_scale).Bind(3, req.trigger);
-  st.Bind(4, req.due_time).Bind(5, now);
+  st.Bind(4, req.due_time).Bind(5, now).Bind(6, campaign.version);
+  st.Bind(7, campaign.definition.dump()).Bind(8, DefinitionSha256(campaign.definition));
   SANDSWIM_RETURN_IF_ERROR(st.Run());
   const int64_t id = t.LastInsertId();
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.created", "campaign_run/" + std::to_string(id),
-                                   {{"campaign", *req.campaign}, {"trigger", req.trigger}}));
+                                   {{"campaign", *req.campaign},
+                                    {"trigger", req.trigger},
+                                    {"campaign_version", campaign.version}}));
   return id;
 }
 

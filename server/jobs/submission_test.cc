@@ -1,5 +1,7 @@
 #include "server/jobs/submission.h"
 
+#include "server/store/campaigns.h"
+
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -277,9 +279,12 @@ TEST_F(SubmissionTest, CampaignSubmissionAndScheduledSlotIsUnique) {
   EXPECT_TRUE(again->replayed);
   EXPECT_EQ(again->campaign_run_id, r->campaign_run_id);
   EXPECT_EQ(AllRows(), rows);
-  auto stored = store_->GetCampaign("paper-58");
-  ASSERT_TRUE(stored.ok() && stored->has_value());
-  EXPECT_EQ(*(*stored)->schedule, "0 2 * * *");
+  // The campaign run records the built-in definition it ran (version 0); the built-in campaign
+  // itself is not stored.
+  EXPECT_EQ(cr->campaign_version, 0);
+  EXPECT_EQ(cr->definition, *BuiltinCampaignDefinition("paper-58"));
+  EXPECT_EQ(cr->definition_sha256, DefinitionSha256(*BuiltinCampaignDefinition("paper-58")));
+  EXPECT_FALSE(store_->GetCampaign("paper-58")->has_value());
   SubmitRequest unknown;
   unknown.campaign = "nope";
   EXPECT_EQ(Submit(*store_, unknown, kTestEngine, 0).status().code(), StatusCode::kNotFound);

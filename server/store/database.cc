@@ -40,7 +40,7 @@ constexpr const char* kTables[] = {
     "campaigns",    "campaign_runs",      "submissions",  "sweeps",   "beds",
     "runs",         "run_decks",          "sweep_runs",   "leases",   "results",
     "trajectories", "run_logs",           "events",       "counters", "schema_migrations",
-    "sweep_counts", "campaign_schedules", "drift_reports"};
+    "sweep_counts", "campaign_schedules", "drift_reports", "campaign_versions"};
 
 Status SqlError(sqlite3* db, const std::string& what) {
   int code = sqlite3_extended_errcode(db);

@@ -316,6 +316,8 @@ void to_json(nlohmann::json& j, const CampaignRunInfo& c) {
                      {"trigger", c.trigger}, {"created_at", c.created_at}, {"sweeps", c.sweep_ids},
                      {"counts", c.counts}};
   PutOpt(j, "due_time", c.due_time);
+  j["campaign_version"] = c.campaign_version ? nlohmann::json(*c.campaign_version) : nlohmann::json(nullptr);
+  j["definition_sha256"] = c.definition_sha256.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.definition_sha256);
 }
 
 void to_json(nlohmann::json& j, const StoredCampaign& c) {
@@ -782,6 +784,9 @@ Result<std::vector<CampaignRunInfo>> ReadCampaignRuns(Transaction& t, Statement&
     c.trigger = st.Text(3);
     c.due_time = st.OptDouble(4);
     c.created_at = st.Double(5);
+    if (std::optional<int64_t> v = st.OptInt(6)) c.campaign_version = static_cast<int>(*v);
+    if (std::optional<std::string> d = st.OptText(7)) c.definition = ParseJsonOr(*d, nlohmann::json());
+    c.definition_sha256 = st.Text(8);
     out.push_back(std::move(c));
   }
   for (CampaignRunInfo& c : out) {
@@ -804,7 +809,8 @@ Result<std::vector<CampaignRunInfo>> ReadCampaignRuns(Transaction& t, Statement&
   return out;
 }
 
-constexpr const char* kCampaignRunColumns = "id, campaign, scale, trigger, due_time, created_at";
+constexpr const char* kCampaignRunColumns =
+    "id, campaign, scale, trigger, due_time, created_at, campaign_version, definition, definition_sha256";
 
 }  // namespace
 
@@ -831,7 +837,7 @@ Result<std::vector<CampaignRunInfo>> Store::ListCampaignRuns(const std::string& 
 }
 
 namespace {
-constexpr const char* kCampaignColumns = "name, definition, schedule, drift_tolerance_mps, updated_at";
+constexpr const char* kCampaignColumns = "name, definition, schedule, drift_tolerance_mps, updated_at, version";
 StoredCampaign CampaignFromRow(const Statement& st) {
   StoredCampaign c;
   c.name = st.Text(0);
@@ -839,6 +845,7 @@ StoredCampaign CampaignFromRow(const Statement& st) {
   c.schedule = st.OptText(2);
   c.drift_tolerance_mps = st.Double(3);
   c.updated_at = st.Double(4);
+  c.version = static_cast<int>(st.Int(5));
   return c;
 }
 }  // namespace
@@ -866,23 +873,6 @@ Result<std::vector<StoredCampaign>> Store::ListCampaigns() {
     out.push_back(CampaignFromRow(st));
   }
   return out;
-}
-
-Status Store::PutCampaign(const StoredCampaign& c) {
-  Result<Transaction> t = db_->Begin();
-  if (!t.ok()) return t.status();
-  {
-    Statement st = t->Prepare(
-        "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at) "
-        "VALUES (?, ?, ?, ?, ?) ON CONFLICT (name) DO UPDATE SET definition = excluded.definition,"
-        " schedule = excluded.schedule, drift_tolerance_mps = excluded.drift_tolerance_mps,"
-        " updated_at = excluded.updated_at");
-    st.Bind(1, c.name).Bind(2, c.definition.dump()).Bind(3, c.schedule);
-    st.Bind(4, c.drift_tolerance_mps).Bind(5, c.updated_at);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
-  SANDSWIM_RETURN_IF_ERROR(t->Event(c.updated_at, "campaign.saved", "campaign/" + c.name));
-  return t->Commit();
 }
 
 Result<Metrics> Store::GetMetrics() {

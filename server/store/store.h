@@ -146,7 +146,15 @@ struct CampaignRunInfo {
   double created_at = 0;
   std::vector<int64_t> sweep_ids;
   RunCounts counts;  // of the distinct runs of its sweeps
+  // What it ran (schema/013_campaign_versions.sql): the campaign's version (0: built-in), the
+  // resolved definition and its SHA-256 (campaigns.h DefinitionSha256). Unset/null/"" for a
+  // campaign run made before the migration.
+  std::optional<int> campaign_version;
+  nlohmann::json definition;
+  std::string definition_sha256;
 };
+// {"id","campaign","scale","trigger","created_at","sweeps","counts","due_time"?,
+//  "campaign_version" (int|null),"definition_sha256" (string|null)}: the definition is left out.
 void to_json(nlohmann::json& j, const CampaignRunInfo& c);
 
 struct StoredCampaign {
@@ -155,6 +163,7 @@ struct StoredCampaign {
   std::optional<std::string> schedule;
   double drift_tolerance_mps = 0;
   double updated_at = 0;
+  int version = 0;  // its current version (server/store/campaigns.h)
 };
 void to_json(nlohmann::json& j, const StoredCampaign& c);
 
@@ -228,8 +237,6 @@ class Store {
   // Newest first; `campaign` empty for all campaigns.
   Result<std::vector<CampaignRunInfo>> ListCampaignRuns(const std::string& campaign, int limit = 20);
   Result<std::optional<StoredCampaign>> GetCampaign(const std::string& name);
-  // Inserts or replaces a campaign definition (the scheduler reads schedules from here).
-  Status PutCampaign(const StoredCampaign& c);
   Result<std::vector<StoredCampaign>> ListCampaigns();
   Result<Metrics> GetMetrics();
   // REQUIRES: limits >= 1.

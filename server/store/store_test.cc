@@ -16,6 +16,7 @@
 #include "core/trajectory.h"
 #include "platform/clock.h"
 #include "server/jobs/submission.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim {
 namespace {
@@ -125,6 +126,11 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
                         "ALTER TABLE runs DROP COLUMN precision; ALTER TABLE runs DROP COLUMN snapshots;"
                         "ALTER TABLE runs DROP COLUMN materials;"
+                        "DROP TABLE campaign_versions; ALTER TABLE campaigns DROP COLUMN version;"
+                        "ALTER TABLE campaign_runs DROP COLUMN campaign_version;"
+                        "ALTER TABLE campaign_runs DROP COLUMN definition;"
+                        "ALTER TABLE campaign_runs DROP COLUMN definition_sha256;"
+                        "ALTER TABLE campaign_schedules DROP COLUMN source;"
                         "DROP TABLE snapshots;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2;"
@@ -161,7 +167,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->db().schema_version(), 12);
+  EXPECT_EQ(store->db().schema_version(), 13);
   EXPECT_EQ(*store->db().CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());
@@ -415,9 +421,9 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
 TEST_F(StoreTest, CampaignsRoundTrip) {
   auto store = MustOpen();
   StoredCampaign c{"mine", {{"name", "mine"}}, "0 3 * * *", 0.01, 5};
-  ASSERT_TRUE(store->PutCampaign(c).ok());
+  ASSERT_TRUE(PutCampaign(*store, c).ok());
   c.schedule.reset();
-  ASSERT_TRUE(store->PutCampaign(c).ok());
+  ASSERT_TRUE(PutCampaign(*store, c).ok());
   auto got = store->GetCampaign("mine");
   ASSERT_TRUE(got.ok() && got->has_value());
   EXPECT_FALSE((*got)->schedule.has_value());

@@ -26,6 +26,7 @@
 #include "server/analysis/report.h"
 #include "server/store/store.h"
 #include "server/jobs/submission.h"
+#include "server/store/campaigns.h"
 
 namespace {
 
@@ -71,7 +72,7 @@ int main(int argc, char** argv) {
   StoredCampaign campaign;
   campaign.name = "paper-58";
   campaign.definition = *definition;
-  if (!(*store)->PutCampaign(campaign).ok()) Die("cannot store the campaign");
+  if (!PutCampaign(**store, campaign).ok()) Die("cannot store the campaign");
   SubmitRequest request;
   request.campaign = "paper-58";
   request.scale = "smoke";

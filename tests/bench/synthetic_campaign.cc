@@ -11,6 +11,7 @@
 #include "server/jobs/lease_queue.h"
 #include "server/store/store.h"
 #include "server/jobs/submission.h"
+#include "server/store/campaigns.h"
 
 namespace sandswim::bench {
 
@@ -38,7 +39,7 @@ Result<SeededCampaign> SeedTenThousandRunCampaign(const std::string& db, const s
                                {"axes", json::array({{{"param", "Omega"}, {"values", omegas}},
                                                      {{"param", "A"}, {"values", amplitudes}}})},
                                {"combine", "product"}}})}};
-  if (Status s = (*store)->PutCampaign(campaign); !s.ok()) return s;
+  if (Status s = PutCampaign(**store, campaign); !s.ok()) return s;
   SubmitRequest request;
   request.campaign = "big-10k";
   request.scale = "smoke";
