@@ -1,26 +1,17 @@
 #include "cli/analyze.h"
 
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 
 #include "core/deck.h"
 #include "core/engine_log.h"
 #include "core/text.h"
+#include "platform/files.h"
 
 namespace sandswim::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-Result<std::string> ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::IOError("cannot read " + path);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return Status::IOError("cannot read " + path);
-  return ss.str();
-}
 
 // `given`, else `name` beside the dump when it exists; "" when neither.
 std::string Beside(const std::string& given, const std::string& dump, const char* name) {
@@ -35,13 +26,13 @@ std::string Beside(const std::string& given, const std::string& dump, const char
 Result<DumpAnalysis> AnalyzeDumpFile(const std::string& dump_path, const AnalyzeOptions& o) {
   DumpAnalysis a;
   a.dump = dump_path;
-  auto dump = ReadText(dump_path);
+  auto dump = ReadWholeFile(dump_path);
   if (!dump.ok()) return dump.status();
 
   DriveInfo drive;
   const std::string deck_path = Beside(o.deck, dump_path, "drive.in");
   if (!deck_path.empty()) {
-    auto deck = ReadText(deck_path);
+    auto deck = ReadWholeFile(deck_path);
     if (!deck.ok()) return deck.status();
     auto info = ReadDriveInfo(*deck);
     if (!info.ok()) return Status::InvalidArgument("--deck", deck_path + ": " + info.status().reason());
@@ -50,7 +41,7 @@ Result<DumpAnalysis> AnalyzeDumpFile(const std::string& dump_path, const Analyze
   EngineLog log;
   const std::string log_path = Beside(o.log, dump_path, kLogFile);
   if (!log_path.empty()) {
-    auto text = ReadText(log_path);
+    auto text = ReadWholeFile(log_path);
     if (!text.ok()) return text.status();
     log = ParseEngineLog(*text);
   }

@@ -557,5 +557,124 @@ TEST_F(CliTest, ExpandMatchesTheDaemonsKeys) {
   EXPECT_EQ(json::parse(expand.out)[0]["key"], json::parse(results.out)[0]["key"]);
 }
 
+// A user's own campaign, end to end on the real daemon: put (paper-58's baseline on three beds, from
+// stdin) -> list -> show -> edit in $EDITOR (a script), a refused edit kept -> run -> rm refused while
+// its runs are queued, then removed, its campaign run still readable; schedule set, listed, removed.
+// Last in this file: it cancels its sweeps, whose runs other campaign tests share.
+TEST_F(CliTest, OwnCampaignPutShowEditRunRm) {
+  const std::string definition =
+      R"({"name":"cli-own","extends":"paper-58","sweeps":["baseline"],"replicates":3,"scale":"smoke"})";
+  Outcome o = Sandswim({"campaign", "put", "-"}, definition);
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(o.out, StartsWith("cli-own: stored as version 1 (a new campaign)\n"));
+  EXPECT_THAT(o.out, HasSubstr("  plans 6 runs at smoke"));  // 2 points on 3 beds
+  o = Sandswim({"campaign", "put", "-"}, definition);
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(o.out.substr(0, o.out.find('\n')), "cli-own: unchanged, still version 1");
+
+  // A refusal names the definition's own field, once; nothing is stored.
+  o = Sandswim({"campaign", "put", "-"}, R"({"name":"cli-bad","extends":"paper-58","replicates":0})");
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, StartsWith("sandswim: replicates: "));
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1);
+  EXPECT_EQ(Sandswim({"campaign", "show", "cli-bad"}).code, 1);
+  o = Sandswim({"campaign", "put", "-"}, R"({"name":"paper-58","replicates":3})");
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, HasSubstr("extends"));  // how to make a copy instead
+
+  o = Sandswim({"campaign", "list"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(o.out, StartsWith("NAME"));
+  EXPECT_THAT(o.out, MatchesRegex("(.|\n)*\ncli-own +1  no +paper-58 +- +-\n(.|\n)*"));
+  EXPECT_THAT(o.out, MatchesRegex("(.|\n)*\npaper-58 +-  yes(.|\n)*"));
+
+  o = Sandswim({"campaign", "show", "cli-own"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(o.out, StartsWith("campaign cli-own, version 1\n  extends:   paper-58\n"));
+  EXPECT_THAT(o.out, HasSubstr("\"replicates\": 3"));
+  o = Sandswim({"campaign", "show", "cli-own", "--resolved", "--json"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  json shown = json::parse(o.out);
+  EXPECT_EQ(shown["resolved"]["sweeps"].size(), 1u);
+  EXPECT_FALSE(shown["resolved"].contains("extends"));
+
+  // edit: the editor is a script; VISUAL would win over EDITOR, so it is cleared.
+  const fs::path edit =
+      WriteFile("edit-replicates.sh", "#!/bin/sh\nsed -i 's/\"replicates\": 3/\"replicates\": 2/' \"$1\"\n");
+  const fs::path spoil =
+      WriteFile("spoil-replicates.sh", "#!/bin/sh\nsed -i 's/\"replicates\": 2/\"replicates\": 0/' \"$1\"\n");
+  fs::permissions(edit, fs::perms::owner_all);
+  fs::permissions(spoil, fs::perms::owner_all);
+  const char* visual = getenv("VISUAL");
+  const std::string saved_visual = visual != nullptr ? visual : "";
+  unsetenv("VISUAL");
+  setenv("EDITOR", edit.c_str(), 1);
+  o = Sandswim({"campaign", "edit", "cli-own"});
+  EXPECT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(o.out, StartsWith("cli-own: stored as version 2\n"));
+  EXPECT_THAT(o.out, HasSubstr("  plans 4 runs at smoke"));
+  setenv("EDITOR", spoil.c_str(), 1);
+  o = Sandswim({"campaign", "edit", "cli-own"}, "n\n");
+  unsetenv("EDITOR");
+  if (visual != nullptr) setenv("VISUAL", saved_visual.c_str(), 1);
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, HasSubstr("sandswim: replicates: "));
+  EXPECT_THAT(o.err, HasSubstr("re-open the editor to fix it? [Y/n]"));
+  std::smatch kept;
+  ASSERT_TRUE(std::regex_search(o.err, kept, std::regex("your text is kept in (\\S+) "))) << o.err;
+  EXPECT_THAT(ReadAll(kept[1].str()), HasSubstr("\"replicates\": 0"));
+  fs::remove(kept[1].str());
+  o = Sandswim({"campaign", "show", "cli-own", "--json"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  shown = json::parse(o.out);
+  EXPECT_EQ(shown["version"], 2);
+  EXPECT_EQ(shown["definition"]["replicates"], 2);
+  EXPECT_EQ(shown["versions"].size(), 2u);
+
+  // run: the campaign run and its sweeps, as submit prints them.
+  o = Sandswim({"campaign", "run", "cli-own"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(o.out, m, std::regex("cr:([0-9]+)\nsweeps:((?: [0-9]+)+)\n"))) << o.out;
+  const std::string cr = "cr:" + m[1].str();
+  std::vector<std::string> sweeps;
+  std::istringstream ids(m[2].str());
+  for (std::string id; ids >> id;) sweeps.push_back(id);
+  EXPECT_THAT(o.err, HasSubstr("4 run(s)"));
+  o = Sandswim({"status", cr, "--json"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(json::parse(o.out)["counts"]["queued"], 4);
+  o = Sandswim({"campaign", "show", "cli-own"});
+  EXPECT_THAT(o.out, HasSubstr("\n" + cr + " "));
+
+  // schedule: set (stored), listed, removed.
+  o = Sandswim({"schedule", "cli-own", "0 3 * * *", "--scale", "smoke"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(o.out, StartsWith("cli-own: 0 3 * * * at smoke, next due "));
+  o = Sandswim({"schedule"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(
+      o.out, MatchesRegex("(.|\n)*\ncli-own +0 3 \\* \\* \\* +smoke +[0-9-]+ [0-9:]+ UTC +sandswim schedule\n(.|\n)*"));
+  o = Sandswim({"schedule", "cli-own", "not a cron"});
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, StartsWith("sandswim: cron: "));
+
+  // rm: refused while its runs are queued (nothing removed), then removed once they are cancelled.
+  o = Sandswim({"campaign", "rm", "cli-own"});
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, HasSubstr("campaign run " + cr.substr(3) + " "));
+  EXPECT_EQ(Sandswim({"campaign", "show", "cli-own"}).code, 0);
+  for (const std::string& sweep : sweeps) ASSERT_EQ(Sandswim({"cancel", sweep}).code, 0);
+  o = Sandswim({"campaign", "rm", "cli-own"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_EQ(o.out, "removed campaign cli-own\n");
+  EXPECT_THAT(o.err, HasSubstr(cr));
+  EXPECT_EQ(Sandswim({"campaign", "show", "cli-own"}).code, 1);
+  EXPECT_EQ(Sandswim({"status", cr}).code, 0);  // its past run stays readable
+  o = Sandswim({"schedule", "--json"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  for (const auto& s : json::parse(o.out)) EXPECT_NE(s["campaign"], "cli-own");  // its schedule went with it
+}
+
 }  // namespace
 }  // namespace sandswim::cli

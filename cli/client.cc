@@ -105,6 +105,44 @@ class HttpDaemonClient : public DaemonClient {
     return Get("/api/v1/campaign-runs/" + std::to_string(id) + "/claims");
   }
 
+  Result<json> ListCampaigns() override {
+    auto reply = Get("/api/v1/campaigns");
+    if (!reply.ok()) return reply.status();
+    return ArrayOf(*reply, "campaigns", "/api/v1/campaigns");
+  }
+
+  Result<json> ListCampaignRuns(const std::string& name, int64_t limit) override {
+    const std::string path = "/api/v1/campaign-runs?campaign=" + httplib::detail::encode_query_param(name) +
+                             "&limit=" + std::to_string(limit);
+    auto reply = Get(path);
+    if (!reply.ok()) return reply.status();
+    return ArrayOf(*reply, "campaign_runs", path);
+  }
+
+  Result<json> GetCampaign(const std::string& name, int64_t version) override {
+    std::string path = CampaignPath(name);
+    if (version > 0) path += "?version=" + std::to_string(version);
+    return Get(path);
+  }
+
+  Result<json> PutCampaign(const std::string& name, const json& definition) override {
+    const std::string path = CampaignPath(name);
+    return Answer(http_.Put(path.c_str(), definition.dump(), "application/json"), "PUT", path);
+  }
+
+  Status DeleteCampaign(const std::string& name) override { return Delete(CampaignPath(name)); }
+
+  Result<json> RunCampaign(const std::string& name, const json& body) override {
+    return Post(CampaignPath(name) + "/runs", body, {});
+  }
+
+  Result<json> PutSchedule(const std::string& name, const json& body) override {
+    const std::string path = CampaignPath(name) + "/schedule";
+    return Answer(http_.Put(path.c_str(), body.dump(), "application/json"), "PUT", path);
+  }
+
+  Status DeleteSchedule(const std::string& name) override { return Delete(CampaignPath(name) + "/schedule"); }
+
   Result<json> CostModel() override { return Get("/api/v1/cost-model"); }
 
   Result<json> CampaignDrift(const std::string& name, const std::string& scale) override {
@@ -180,6 +218,25 @@ class HttpDaemonClient : public DaemonClient {
     return Answer(http_.Post(path.c_str(), headers, body.dump(), "application/json"), "POST", path);
   }
 
+  static std::string CampaignPath(const std::string& name) {
+    return "/api/v1/campaigns/" + httplib::detail::encode_query_param(name);
+  }
+
+  Status Delete(const std::string& path) {
+    auto reply = Answer(http_.Delete(path.c_str()), "DELETE", path);
+    return reply.ok() ? Status::Ok() : reply.status();
+  }
+
+  // The array under `key` of an answer to GET `path`.
+  static Result<json> ArrayOf(json& reply, const char* key, const std::string& path) {
+    auto items = reply.find(key);
+    if (items == reply.end() || !items->is_array()) {
+      return Status(StatusCode::kCorruption,
+                    std::string("the daemon's answer to GET ") + path + " has no \"" + key + "\" array");
+    }
+    return std::move(*items);
+  }
+
   // Follows next_cursor until the end or until `limit` items (0: no limit).
   Result<json> Paged(const std::string& prefix, const char* key, int64_t limit) {
     json all = json::array();
@@ -191,11 +248,8 @@ class HttpDaemonClient : public DaemonClient {
       if (!cursor.empty()) path += "&cursor=" + httplib::detail::encode_query_param(cursor);
       auto reply = Get(path);
       if (!reply.ok()) return reply.status();
-      auto items = reply->find(key);
-      if (items == reply->end() || !items->is_array()) {
-        return Status(StatusCode::kCorruption,
-                      std::string("the daemon's answer to GET ") + path + " has no \"" + key + "\" array");
-      }
+      auto items = ArrayOf(*reply, key, path);
+      if (!items.ok()) return items.status();
       for (auto& item : *items) all.push_back(std::move(item));
       if (limit > 0 && static_cast<int64_t>(all.size()) >= limit) break;
       auto next = reply->find("next_cursor");

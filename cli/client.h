@@ -73,6 +73,45 @@ class DaemonClient {
     (void)name, (void)scale, (void)campaign_run_id;
     return Status::Unavailable("this client cannot fetch reports");
   }
+  // ---- Campaigns as data (issue 29; /work contract: GET/PUT/DELETE /api/v1/campaigns/{name}) ----
+  // GET /api/v1/campaigns: the "campaigns" array (built-in and stored; version, extends, schedule).
+  virtual Result<nlohmann::json> ListCampaigns() { return Status::Unavailable("this client cannot list campaigns"); }
+  // GET /api/v1/campaign-runs?campaign=NAME&limit=N: the "campaign_runs" array, newest first.
+  virtual Result<nlohmann::json> ListCampaignRuns(const std::string& name, int64_t limit) {
+    (void)name, (void)limit;
+    return Status::Unavailable("this client cannot list campaign runs");
+  }
+  // GET /api/v1/campaigns/{name}[?version=N] (`version` 0: the current one): definition, resolved,
+  // versions, runs, schedule.
+  virtual Result<nlohmann::json> GetCampaign(const std::string& name, int64_t version) {
+    (void)name, (void)version;
+    return Status::Unavailable("this client cannot fetch campaigns");
+  }
+  // PUT /api/v1/campaigns/{name}: {name, version, unchanged, notes, planned_runs}.
+  virtual Result<nlohmann::json> PutCampaign(const std::string& name, const nlohmann::json& definition) {
+    (void)name, (void)definition;
+    return Status::Unavailable("this client cannot store campaigns");
+  }
+  // DELETE /api/v1/campaigns/{name}.
+  virtual Status DeleteCampaign(const std::string& name) {
+    (void)name;
+    return Status::Unavailable("this client cannot remove campaigns");
+  }
+  // POST /api/v1/campaigns/{name}/runs {"scale"?, "force"?}: the answer of a submission (Submit).
+  virtual Result<nlohmann::json> RunCampaign(const std::string& name, const nlohmann::json& body) {
+    (void)name, (void)body;
+    return Status::Unavailable("this client cannot run campaigns");
+  }
+  // PUT /api/v1/campaigns/{name}/schedule {"cron", "scale"?}: {campaign, cron, scale, next_due}.
+  virtual Result<nlohmann::json> PutSchedule(const std::string& name, const nlohmann::json& body) {
+    (void)name, (void)body;
+    return Status::Unavailable("this client cannot schedule campaigns");
+  }
+  // DELETE /api/v1/campaigns/{name}/schedule (kNotFound: none).
+  virtual Status DeleteSchedule(const std::string& name) {
+    (void)name;
+    return Status::Unavailable("this client cannot schedule campaigns");
+  }
   // GET /api/v1/cost-model: the engine rates the daemon has measured (server/store/cost_model.h).
   virtual Result<nlohmann::json> CostModel() { return Status::Unavailable("this client cannot fetch the cost model"); }
   // POST /api/v1/backup, streamed into the file at `path` (created or truncated): a consistent copy

@@ -13,10 +13,12 @@
 #include <CLI/CLI.hpp>
 
 #include "cli/analyze.h"
+#include "cli/campaign_edit.h"
 #include "cli/format.h"
 #include "cli/slurm_submit.h"
 #include "cli/snapshot.h"
 #include "cli/watch.h"
+#include "core/campaign_definition.h"
 #include "core/cost.h"
 #include "core/scale.h"
 #include "core/sweep.h"
@@ -29,6 +31,8 @@ namespace sandswim::cli {
 namespace {
 
 using json = nlohmann::json;
+
+class Context;
 
 // Every flag of every subcommand; each subcommand's setup binds the ones it takes.
 struct Args {
@@ -56,6 +60,12 @@ struct Args {
   int cores = 0;      // `expand --cost --cores N`
   std::string out_file;      // `report --out`, `backup FILE`
   SlurmSubmitOptions slurm;  // `slurm submit`
+  // `campaign ...`: the sub-subcommand parsed, and its flags; `schedule`.
+  int (*campaign_action)(Context&) = nullptr;
+  int64_t version = 0;
+  bool resolved = false;
+  std::vector<std::string> cron;  // `schedule NAME CRON`: its words, joined by spaces
+  bool off = false;
   // `analyze`: NaN / -1 mean "not given".
   std::vector<std::string> dumps;
   double an_f = NAN, an_dt = NAN, an_floor = NAN, an_surface = NAN;
@@ -96,8 +106,6 @@ class Context {
   std::unique_ptr<DaemonClient> client_;
 };
 
-std::string Describe(const Status& s) { return s.field().empty() ? s.reason() : s.field() + ": " + s.reason(); }
-
 int Fail(Context& c, const Status& s, int code = kExitError) {
   c.err() << "sandswim: " << Describe(s) << "\n";
   return code;
@@ -122,38 +130,52 @@ bool LooksLikeCampaignName(const std::string& text) {
   return std::regex_match(text, kName) && text.size() <= kMaxNameLength && text.find(".json") == std::string::npos;
 }
 
-// "-": JSON on stdin; an existing file: its JSON; a name: a campaign.
-Result<Input> ReadInput(Context& c, const std::string& arg) {
-  Input input;
+bool IsFile(const std::string& arg) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(arg, ec);
+}
+
+// The JSON object in FILE, or on stdin for "-". `what` says what it should hold, for the error.
+Result<json> ReadJsonObject(Context& c, const std::string& arg, const std::string& what) {
   std::string text;
   std::string where = arg;
-  std::error_code ec;
   if (arg == "-") {
     std::stringstream buffer;
     buffer << c.env.in->rdbuf();
     text = buffer.str();
     where = "stdin";
-  } else if (std::filesystem::is_regular_file(arg, ec)) {
+  } else {
     std::ifstream in(arg, std::ios::binary);
     if (!in) return Status::InvalidArgument("FILE", "cannot read " + arg);
     std::stringstream buffer;
     buffer << in.rdbuf();
     text = buffer.str();
-  } else if (LooksLikeCampaignName(arg)) {
-    input.campaign = arg;
-    return input;
-  } else {
-    return Status::InvalidArgument(
-        "FILE", "no such file: " + arg + " (give a sweep JSON file, - for stdin, or a campaign name such as paper-58)");
   }
+  json body;
   try {
-    input.body = json::parse(text);
+    body = json::parse(text);
   } catch (const json::parse_error& e) {
     return Status::InvalidArgument(where, "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
   }
-  if (!input.body.is_object())
-    return Status::InvalidArgument(where,
-                                   "expected a JSON object (a sweep, {\"sweeps\": [...]} or {\"campaign\": NAME})");
+  if (!body.is_object()) return Status::InvalidArgument(where, "expected a JSON object (" + what + ")");
+  return body;
+}
+
+// "-": JSON on stdin; an existing file: its JSON; a name: a campaign.
+Result<Input> ReadInput(Context& c, const std::string& arg) {
+  Input input;
+  if (arg != "-" && !IsFile(arg)) {
+    if (!LooksLikeCampaignName(arg)) {
+      return Status::InvalidArgument(
+          "FILE",
+          "no such file: " + arg + " (give a sweep JSON file, - for stdin, or a campaign name such as paper-58)");
+    }
+    input.campaign = arg;
+    return input;
+  }
+  auto body = ReadJsonObject(c, arg, "a sweep, {\"sweeps\": [...]} or {\"campaign\": NAME}");
+  if (!body.ok()) return body.status();
+  input.body = std::move(*body);
   return input;
 }
 
@@ -236,21 +258,26 @@ int WaitAndReport(Context& c, DaemonClient& client, const std::vector<Target>& t
   return failed ? kExitRunsFailed : kExitOk;
 }
 
+// Prints what a submission created; with --wait, follows it and prints its results.
+int ReportSubmission(Context& c, DaemonClient& client, const json& reply) {
+  if (c.args.wait) {
+    if (!c.args.json) PrintSubmission(c, reply);
+    return WaitAndReport(c, client, SubmittedTargets(reply), &reply);
+  }
+  if (c.args.json) {
+    PrintJson(c, reply);
+  } else {
+    PrintSubmission(c, reply);
+  }
+  return kExitOk;
+}
+
 int SubmitBodyAndReport(Context& c, const json& body) {
   auto client = c.Client();
   if (!client.ok()) return FailUsageIfInvalid(c, client.status());
   auto reply = (*client)->Submit(body, c.args.idempotency_key);
   if (!reply.ok()) return Fail(c, reply.status());
-  if (c.args.wait) {
-    if (!c.args.json) PrintSubmission(c, *reply);
-    return WaitAndReport(c, **client, SubmittedTargets(*reply), &*reply);
-  }
-  if (c.args.json) {
-    PrintJson(c, *reply);
-  } else {
-    PrintSubmission(c, *reply);
-  }
-  return kExitOk;
+  return ReportSubmission(c, **client, *reply);
 }
 
 // ---- Subcommands: setup and run ----------------------------------------------------------------
@@ -964,7 +991,7 @@ int RunSlurm(Context& c) {
   return kExitOk;
 }
 
-// ---- The table ---------------------------------------------------------------------------------
+// ---- The tables' rows --------------------------------------------------------------------------
 
 struct Command {
   const char* name;
@@ -973,6 +1000,345 @@ struct Command {
   void (*setup)(CLI::App&, Args&);
   int (*run)(Context&);
 };
+
+// ---- campaign ... and schedule: campaigns as data (issue 29) --------------------------------------
+
+void AddScaleChoice(CLI::App& sub, Args& a, const std::string& help) {
+  sub.add_option("--scale", a.scale, help)->check(CLI::IsMember({"paper", "mini", "smoke"}));
+}
+
+void AddCampaignName(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "NAME", "a campaign name (built-in such as paper-58, or stored)");
+}
+
+// The positional NAME as a campaign's name (core/campaign_definition.h), checked before any request.
+Status CheckNameArg(const Context& c) { return CheckCampaignName("NAME", c.args.target); }
+
+void SetupCampaignList(CLI::App& sub, Args& a) { AddJson(sub, a); }
+
+// Every campaign, each with its latest campaign run (one request each: campaigns are few).
+int RunCampaignList(Context& c) {
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto campaigns = (*client)->ListCampaigns();
+  if (!campaigns.ok()) return Fail(c, campaigns.status());
+  for (json& campaign : *campaigns) {
+    auto runs = (*client)->ListCampaignRuns(campaign.value("name", ""), 1);
+    if (!runs.ok()) return Fail(c, runs.status());
+    campaign["last_run"] = runs->empty() ? json(nullptr) : (*runs)[0];
+  }
+  if (c.args.json) {
+    PrintJson(c, *campaigns);
+  } else {
+    c.out() << RenderCampaignsTable(*campaigns);
+  }
+  return kExitOk;
+}
+
+void SetupCampaignShow(CLI::App& sub, Args& a) {
+  AddCampaignName(sub, a);
+  sub.add_option("--version", a.version, "this version of it (default: the current one)")->check(CLI::PositiveNumber);
+  sub.add_flag("--resolved", a.resolved, "the definition that runs (its base's fields filled in), not as written");
+  AddJson(sub, a);
+}
+
+int RunCampaignShow(Context& c) {
+  if (Status s = CheckNameArg(c); !s.ok()) return Fail(c, s, kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto reply = (*client)->GetCampaign(c.args.target, c.args.version);
+  if (!reply.ok()) return Fail(c, reply.status());
+  if (c.args.json) {
+    PrintJson(c, *reply);
+  } else {
+    c.out() << RenderCampaignDetail(*reply, c.args.resolved, c.OutRender());
+  }
+  return kExitOk;
+}
+
+void SetupCampaignPut(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "FILE", "a campaign definition (JSON, schema/campaign.schema.json); - for stdin");
+  AddJson(sub, a);
+}
+
+// The name a definition is stored under: its own "name".
+Result<std::string> NameOfDefinition(const json& definition) {
+  auto name = definition.find("name");
+  if (name == definition.end() || !name->is_string()) {
+    return Status::InvalidArgument("name", "the definition must name its campaign: {\"name\": \"mine\", ...}");
+  }
+  if (Status s = CheckCampaignName("name", name->get<std::string>()); !s.ok()) return s;
+  return name->get<std::string>();
+}
+
+// Stores a definition as a new campaign or a new version of one; the daemon validates it and stores
+// nothing it refuses (the refusal names the field).
+int RunCampaignPut(Context& c) {
+  auto definition =
+      ReadJsonObject(c, c.args.target, "a campaign: {\"name\": ..., \"extends\": ...} or with \"sweeps\"");
+  if (!definition.ok()) return FailUsageIfInvalid(c, definition.status());
+  auto name = NameOfDefinition(*definition);
+  if (!name.ok()) return Fail(c, name.status(), kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto reply = (*client)->PutCampaign(*name, *definition);
+  if (!reply.ok()) return Fail(c, reply.status());
+  if (c.args.json) {
+    PrintJson(c, *reply);
+  } else {
+    c.out() << RenderCampaignStored(*reply);
+  }
+  return kExitOk;
+}
+
+void SetupCampaignEdit(CLI::App& sub, Args& a) { AddCampaignName(sub, a); }
+
+// A name for the user's copy of built-in campaign `name` that no campaign has yet: NAME-copy,
+// else NAME-copy-2 ... -9 (else NAME-copy, which the daemon refuses only if it is built-in).
+std::string CopyName(DaemonClient& client, const std::string& name) {
+  for (int i = 1; i <= 9; ++i) {
+    std::string copy = name + "-copy" + (i > 1 ? "-" + std::to_string(i) : "");
+    auto existing = client.GetCampaign(copy, 0);
+    if (!existing.ok() && existing.status().code() == StatusCode::kNotFound) return copy;
+  }
+  return name + "-copy";
+}
+
+// A yes/no question on stderr, the answer from stdin (default yes; the end of input is no).
+bool Ask(Context& c, const std::string& question) {
+  c.err() << "sandswim: " << question << " [Y/n] " << std::flush;
+  std::string line;
+  if (!std::getline(*c.env.in, line)) {
+    c.err() << "\n";
+    return false;
+  }
+  const size_t start = line.find_first_not_of(" \t\r");
+  return start == std::string::npos || line[start] == 'y' || line[start] == 'Y';
+}
+
+// Opens the definition in $EDITOR and saves it when it changed; a built-in campaign is read-only,
+// so editing one starts a copy that extends it.
+int RunCampaignEdit(Context& c) {
+  if (Status s = CheckNameArg(c); !s.ok()) return Fail(c, s, kExitUsage);
+  const std::string& name = c.args.target;
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto current = (*client)->GetCampaign(name, 0);
+  if (!current.ok()) {
+    if (current.status().code() != StatusCode::kNotFound) return Fail(c, current.status());
+    return Fail(c, Status(StatusCode::kNotFound,
+                          "no campaign '" + name +
+                              "' to edit (sandswim campaign list names them; `sandswim campaign edit paper-58` starts "
+                              "a copy of a built-in one, `sandswim campaign put FILE` stores a new one)",
+                          "NAME"));
+  }
+  const bool builtin = current->value("builtin", false);
+  std::string text;
+  if (builtin) {
+    const std::string copy = CopyName(**client, name);
+    text = json{{"name", copy}, {"extends", name}}.dump(2) + "\n";
+    c.err() << "sandswim: " << name << " is built-in and read-only: this starts your own campaign \"" << copy
+            << "\" that extends it. Rename it if you like, add the fields to change (\"replicates\": 3, "
+               "\"scale\", \"precision\", \"sweeps\": [names of "
+            << name << "'s sweeps to keep], \"claims\": [ids to keep]; `sandswim campaign show " << name
+            << "` lists them); saving stores it under its \"name\"\n";
+  } else {
+    text = current->value("definition", json::object()).dump(2) + "\n";
+  }
+  const std::string editor = EditorCommand(c.env.getenv);
+  EditEdges edges;
+  edges.open = [&](const std::string& path) {
+    return c.env.run_editor ? c.env.run_editor(editor, path) : OpenInEditor(editor, path);
+  };
+  edges.ask = [&](const std::string& question) { return Ask(c, question); };
+  std::string saved_as;
+  edges.save = [&](const json& definition) -> Result<json> {
+    // A stored campaign's file may leave its name out; a copy must have one of its own.
+    std::string to = builtin ? "" : name;
+    if (definition.contains("name")) {
+      auto named = NameOfDefinition(definition);
+      if (!named.ok()) return named.status();
+      to = *named;
+    } else if (builtin) {
+      return Status::InvalidArgument("name", "name your copy: {\"name\": \"mine\", \"extends\": \"" + name + "\"}");
+    }
+    saved_as = to;
+    return (*client)->PutCampaign(to, definition);
+  };
+  const char* tmp = c.env.getenv("TMPDIR");
+  const std::string dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+  auto outcome = EditUntilSaved(text, dir, name, edges, c.err());
+  if (!outcome.ok()) return Fail(c, outcome.status());
+  switch (outcome->kind) {
+    case EditOutcome::Kind::kSaved:
+      c.out() << RenderCampaignStored(outcome->reply);
+      if (!builtin && saved_as != name) {
+        c.err() << "sandswim: saved as campaign " << saved_as << " (the file names it); " << name << " is as it was\n";
+      }
+      return kExitOk;
+    case EditOutcome::Kind::kUnchanged:
+      c.err() << "sandswim: no change; nothing saved"
+              << (builtin ? "" : " (" + name + " is still version " + current->value("version", json()).dump() + ")")
+              << "\n";
+      return kExitOk;
+    case EditOutcome::Kind::kKept:
+      break;
+  }
+  c.err() << "sandswim: nothing saved; your text is kept in " << outcome->kept_path
+          << " (once fixed: sandswim campaign put " << outcome->kept_path << ")\n";
+  return kExitError;
+}
+
+void SetupCampaignRm(CLI::App& sub, Args& a) { AddTarget(sub, a, "NAME", "a stored campaign's name"); }
+
+// Removes a stored campaign (and its schedule); its past campaign runs stay readable, and the
+// output names them.
+int RunCampaignRm(Context& c) {
+  if (Status s = CheckNameArg(c); !s.ok()) return Fail(c, s, kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  auto before = (*client)->GetCampaign(c.args.target, 0);
+  if (Status s = (*client)->DeleteCampaign(c.args.target); !s.ok()) return Fail(c, s);
+  std::string runs;
+  if (before.ok()) {
+    for (const auto& r : before->value("runs", json::array())) runs += " cr:" + r.value("id", json(0)).dump();
+  }
+  c.out() << "removed campaign " << c.args.target << "\n";
+  if (!runs.empty()) {
+    c.err() << "sandswim: its past campaign runs stay readable (sandswim status / results / check):" << runs << "\n";
+  }
+  return kExitOk;
+}
+
+void SetupCampaignRun(CLI::App& sub, Args& a) {
+  AddCampaignName(sub, a);
+  AddScaleChoice(sub, a, "scale to run at: paper, mini or smoke (default: the campaign's)");
+  sub.add_flag("--force", a.force, "rerun even runs whose result is already stored");
+  sub.add_flag("--wait", a.wait, "follow the runs (progress on stderr, as `watch`), then print the results");
+  sub.add_option("--interval", a.interval_s, "with --wait: seconds between polls")->check(CLI::Range(0.05, 3600.0));
+  AddJson(sub, a);
+}
+
+int RunCampaignRun(Context& c) {
+  if (Status s = CheckNameArg(c); !s.ok()) return Fail(c, s, kExitUsage);
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  json body = json::object();
+  if (!c.args.scale.empty()) body["scale"] = c.args.scale;
+  if (c.args.force) body["force"] = true;
+  auto reply = (*client)->RunCampaign(c.args.target, body);
+  if (!reply.ok()) return Fail(c, reply.status());
+  return ReportSubmission(c, **client, *reply);
+}
+
+// clang-format off
+const Command kCampaignCommands[] = {
+  {"list", "every campaign: version, built-in, what it extends, schedule, its last run",
+   "  sandswim campaign list\n"
+   "  sandswim campaign list --json",
+   SetupCampaignList, RunCampaignList},
+  {"show", "one campaign: its plan, schedule, notes, definition, versions and runs",
+   "  sandswim campaign show paper-58\n"
+   "  sandswim campaign show mine --version 2 --resolved",
+   SetupCampaignShow, RunCampaignShow},
+  {"put", "store a definition (a new campaign, or a new version of one); prints the version and notes",
+   "  sandswim campaign put mine.json\n"
+   "  echo '{\"name\":\"p58-3beds\",\"extends\":\"paper-58\",\"replicates\":3}' | sandswim campaign put -",
+   SetupCampaignPut, RunCampaignPut},
+  {"edit", "edit a campaign in $EDITOR (VISUAL, EDITOR, else vi); saved when changed and valid, else re-open it; "
+           "a built-in one starts your own copy",
+   "  sandswim campaign edit mine\n"
+   "  EDITOR=nano sandswim campaign edit paper-58   # a new campaign paper-58-copy extending it",
+   SetupCampaignEdit, RunCampaignEdit},
+  {"rm", "remove a stored campaign and its schedule (its past runs stay readable)",
+   "  sandswim campaign rm mine",
+   SetupCampaignRm, RunCampaignRm},
+  {"run", "submit a campaign; prints the campaign run (cr:ID) and its sweeps",
+   "  sandswim campaign run mine\n"
+   "  sandswim campaign run p58-3beds --scale smoke --wait",
+   SetupCampaignRun, RunCampaignRun},
+};
+// clang-format on
+
+void SetupCampaignGroup(CLI::App& sub, Args& a) {
+  sub.require_subcommand(1);
+  for (const Command& command : kCampaignCommands) {
+    CLI::App* s = sub.add_subcommand(command.name, command.summary);
+    s->footer(std::string("Examples:\n") + command.examples + "\n");
+    command.setup(*s, a);
+    s->callback([&a, run = command.run] { a.campaign_action = run; });
+  }
+}
+
+int RunCampaignGroup(Context& c) { return c.args.campaign_action ? c.args.campaign_action(c) : kExitUsage; }
+
+void SetupSchedule(CLI::App& sub, Args& a) {
+  AddTarget(sub, a, "NAME", "a campaign (built-in or stored); none: list the schedules", false);
+  sub.add_option("CRON", a.cron, "when, cron's five fields in UTC (\"0 2 * * *\": 02:00 every night)");
+  AddScaleChoice(sub, a, "with CRON: the scale its runs take (default: the campaign's)");
+  sub.add_flag("--off", a.off, "remove its schedule");
+  AddJson(sub, a);
+}
+
+// `schedule`: the schedules; `schedule NAME CRON`: set one (stored: it survives a restart);
+// `schedule NAME --off`: remove it.
+int RunSchedule(Context& c) {
+  std::string cron;
+  for (const std::string& word : c.args.cron) cron += (cron.empty() ? "" : " ") + word;
+  if (c.args.target.empty()) {
+    if (c.args.off || !c.args.scale.empty()) {
+      return Fail(c, Status::InvalidArgument("NAME", "name the campaign: sandswim schedule NAME --off"), kExitUsage);
+    }
+  } else if (Status s = CheckNameArg(c); !s.ok()) {
+    return Fail(c, s, kExitUsage);
+  } else if (c.args.off == !cron.empty()) {
+    return Fail(
+        c,
+        Status::InvalidArgument("CRON", "give CRON (sandswim schedule " + c.args.target +
+                                            " \"0 2 * * *\") or --off, not " + (c.args.off ? "both" : "neither")),
+        kExitUsage);
+  } else if (c.args.off && !c.args.scale.empty()) {
+    return Fail(c, Status::InvalidArgument("--scale", "goes with CRON, not with --off"), kExitUsage);
+  }
+  auto client = c.Client();
+  if (!client.ok()) return FailUsageIfInvalid(c, client.status());
+  if (c.args.target.empty()) {
+    auto campaigns = (*client)->ListCampaigns();
+    if (!campaigns.ok()) return Fail(c, campaigns.status());
+    json schedules = json::array();
+    for (const json& campaign : *campaigns) {
+      json s = campaign.value("schedule", json());
+      if (s.is_null()) continue;
+      if (s.is_string()) s = {{"cron", s}};
+      s["campaign"] = campaign.value("name", "");
+      schedules.push_back(s);
+    }
+    if (c.args.json) {
+      PrintJson(c, schedules);
+      return kExitOk;
+    }
+    c.out() << RenderSchedulesTable(*campaigns);
+    if (schedules.empty()) c.err() << "sandswim: no campaign is scheduled (sandswim schedule NAME \"0 2 * * *\")\n";
+    return kExitOk;
+  }
+  if (c.args.off) {
+    if (Status s = (*client)->DeleteSchedule(c.args.target); !s.ok()) return Fail(c, s);
+    c.out() << c.args.target << ": no schedule\n";
+    return kExitOk;
+  }
+  json body = {{"cron", cron}};
+  if (!c.args.scale.empty()) body["scale"] = c.args.scale;
+  auto reply = (*client)->PutSchedule(c.args.target, body);
+  if (!reply.ok()) return Fail(c, reply.status());
+  if (c.args.json) {
+    PrintJson(c, *reply);
+  } else {
+    c.out() << c.args.target << ": " << FormatSchedule(*reply) << "\n";
+  }
+  return kExitOk;
+}
+
+// ---- The table ---------------------------------------------------------------------------------
 
 // clang-format off
 const Command kCommands[] = {
@@ -1018,6 +1384,17 @@ const Command kCommands[] = {
    "  sandswim rerun paper-58\n"
    "  sandswim rerun paper-58 --scale mini --force",
    SetupRerun, RunRerun},
+  {"campaign", "your own campaigns: list, show, put, edit, rm, run (`sandswim campaign --help`)",
+   "  sandswim campaign list\n"
+   "  echo '{\"name\":\"p58-3beds\",\"extends\":\"paper-58\",\"replicates\":3}' | sandswim campaign put -\n"
+   "  sandswim campaign run p58-3beds --scale smoke\n"
+   "  sandswim campaign edit paper-58                # your own copy, in $EDITOR",
+   SetupCampaignGroup, RunCampaignGroup},
+  {"schedule", "rerun a campaign on a cron schedule (stored: survives a restart); none: list the schedules",
+   "  sandswim schedule p58-3beds \"0 2 * * *\" --scale smoke\n"
+   "  sandswim schedule p58-3beds --off\n"
+   "  sandswim schedule",
+   SetupSchedule, RunSchedule},
   {"expand", "offline: the distinct runs a sweep or campaign plans to (no daemon needed)",
    "  sandswim expand sweep.json\n"
    "  sandswim expand paper-58 --json | jq length   # 58\n"

@@ -49,6 +49,9 @@ struct Environment {
   std::function<Result<std::string>()> probe_engine;
   // Runs Slurm's client commands for `slurm submit` (tests: a fake; unset: the real ones).
   std::function<std::unique_ptr<slurm::SlurmCommands>()> make_slurm;
+  // Opens a file in the user's editor for `campaign edit` and waits (tests: a fake; unset:
+  // cli/campaign_edit.h OpenInEditor, on this terminal).
+  std::function<Status(const std::string& command, const std::string& path)> run_editor;
 };
 
 // Parses argv (argv[0] is the program name) and runs the subcommand. Returns the exit code.

@@ -3,8 +3,11 @@
 #ifndef SANDSWIM_CLI_FAKE_CLIENT_TEST_UTIL_H_
 #define SANDSWIM_CLI_FAKE_CLIENT_TEST_UTIL_H_
 
+#include <functional>
 #include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli/client.h"
 
@@ -18,6 +21,27 @@ class FakeClient : public DaemonClient {
   nlohmann::json runs = nlohmann::json::array();  // every run; ListRuns filters by state
   nlohmann::json cost_model;                      // GET /api/v1/cost-model; null: Unavailable
   std::string url = "http://fake";
+  // Campaigns: each as GET /api/v1/campaigns/{name} answers it ({name, version, builtin, definition,
+  // resolved, extends, schedule, versions, runs}); PutCampaign stores into it as the daemon would.
+  std::map<std::string, nlohmann::json> campaigns;
+  std::map<std::pair<std::string, int64_t>, nlohmann::json> versions;  // GET ?version=N of a past version
+  std::map<std::string, nlohmann::json> campaign_run_lists;            // GET /campaign-runs?campaign=NAME
+  std::vector<Status> put_refusals;                                    // PutCampaign answers these first, one a call
+  std::vector<std::pair<std::string, nlohmann::json>> puts;            // every PutCampaign: name, definition
+  Status delete_refusal;                                               // DeleteCampaign answers it when set
+  std::vector<std::string> deleted;
+  std::vector<std::pair<std::string, nlohmann::json>> run_requests;  // every RunCampaign: name, body
+  nlohmann::json run_reply = {{"campaign_run_id", 7}, {"ids", {3, 4}}, {"runs", 2}, {"runs_new", 2}};
+  Status schedule_refusal;  // PutSchedule answers it when set
+
+  // Called as the client is destroyed (at the end of RunCli), so a test can keep what it recorded.
+  std::function<void(const FakeClient&)> on_close;
+
+  FakeClient() = default;
+  FakeClient(const FakeClient&) = default;
+  ~FakeClient() override {
+    if (on_close) on_close(*this);
+  }
 
   const std::string& base_url() const override { return url; }
   Result<nlohmann::json> Healthz() override { return nlohmann::json{{"status", "ok"}}; }
@@ -68,6 +92,94 @@ class FakeClient : public DaemonClient {
     auto it = claims.find(id);
     if (it == claims.end()) return Status::NotFound("no campaign run " + std::to_string(id));
     return it->second;
+  }
+
+  Result<nlohmann::json> ListCampaigns() override {
+    nlohmann::json all = nlohmann::json::array();
+    for (const auto& [name, c] : campaigns) {
+      all.push_back({{"name", name},
+                     {"version", c.value("version", 0)},
+                     {"builtin", c.value("builtin", false)},
+                     {"extends", c.value("extends", nlohmann::json())},
+                     {"schedule", c.value("schedule", nlohmann::json())}});
+    }
+    return all;
+  }
+  Result<nlohmann::json> ListCampaignRuns(const std::string& name, int64_t limit) override {
+    nlohmann::json runs = nlohmann::json::array();
+    auto it = campaign_run_lists.find(name);
+    if (it == campaign_run_lists.end()) return runs;
+    for (const auto& r : it->second) {
+      if (static_cast<int64_t>(runs.size()) < limit) runs.push_back(r);
+    }
+    return runs;
+  }
+  Result<nlohmann::json> GetCampaign(const std::string& name, int64_t version) override {
+    auto it = campaigns.find(name);
+    if (it == campaigns.end()) return Status(StatusCode::kNotFound, "no campaign '" + name + "'", "name");
+    if (version > 0 && it->second.value("version", 0) != version) {
+      auto old = versions.find({name, version});
+      if (old == versions.end()) {
+        return Status(StatusCode::kNotFound, "no version " + std::to_string(version), "version");
+      }
+      return old->second;
+    }
+    return it->second;
+  }
+  Result<nlohmann::json> PutCampaign(const std::string& name, const nlohmann::json& definition) override {
+    puts.emplace_back(name, definition);
+    if (!put_refusals.empty()) {
+      Status refusal = put_refusals.front();
+      put_refusals.erase(put_refusals.begin());
+      return refusal;
+    }
+    nlohmann::json& c = campaigns[name];
+    if (c.is_null()) c = nlohmann::json::object();
+    if (c.value("builtin", false)) return Status(StatusCode::kConflict, "built-in", "name");
+    const bool unchanged = c.contains("definition") && c["definition"] == definition;
+    if (!unchanged) {
+      c["name"] = name;
+      c["version"] = c.value("version", 0) + 1;
+      c["builtin"] = false;
+      c["definition"] = definition;
+      c["resolved"] = definition;
+      c["extends"] = definition.value("extends", nlohmann::json());
+      if (!c.contains("schedule")) c["schedule"] = nullptr;
+    }
+    return nlohmann::json{{"name", name},
+                          {"version", c["version"]},
+                          {"created", c["version"] == 1 && !unchanged},
+                          {"unchanged", unchanged},
+                          {"notes", nlohmann::json::array()},
+                          {"planned_runs", {{"smoke", 2}, {"mini", 2}, {"paper", 2}}}};
+  }
+  Status DeleteCampaign(const std::string& name) override {
+    if (!delete_refusal.ok()) return delete_refusal;
+    if (campaigns.erase(name) == 0) return Status(StatusCode::kNotFound, "no campaign '" + name + "'", "name");
+    deleted.push_back(name);
+    return Status::Ok();
+  }
+  Result<nlohmann::json> RunCampaign(const std::string& name, const nlohmann::json& body) override {
+    run_requests.emplace_back(name, body);
+    if (!campaigns.count(name)) return Status(StatusCode::kNotFound, "no campaign '" + name + "'", "name");
+    return run_reply;
+  }
+  Result<nlohmann::json> PutSchedule(const std::string& name, const nlohmann::json& body) override {
+    if (!schedule_refusal.ok()) return schedule_refusal;
+    auto it = campaigns.find(name);
+    if (it == campaigns.end()) return Status(StatusCode::kNotFound, "no campaign '" + name + "'", "name");
+    nlohmann::json schedule = {{"cron", body["cron"]}, {"scale", body.value("scale", "paper")}, {"next_due", 1.8e9}};
+    it->second["schedule"] = schedule;
+    schedule["campaign"] = name;
+    return schedule;
+  }
+  Status DeleteSchedule(const std::string& name) override {
+    auto it = campaigns.find(name);
+    if (it == campaigns.end() || it->second.value("schedule", nlohmann::json()).is_null()) {
+      return Status(StatusCode::kNotFound, "'" + name + "' has no schedule", "schedule");
+    }
+    it->second["schedule"] = nullptr;
+    return Status::Ok();
   }
 };
 

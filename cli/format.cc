@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <sstream>
 
 namespace sandswim::cli {
@@ -59,6 +60,8 @@ std::string NumCell(const json& j, const char* key, int precision = 6) {
 }
 
 }  // namespace
+
+std::string Describe(const Status& s) { return s.field().empty() ? s.reason() : s.field() + ": " + s.reason(); }
 
 // ---- Building blocks ---------------------------------------------------------------------------
 
@@ -573,6 +576,193 @@ std::string RenderClaims(const json& reply, const RenderOptions& options) {
     }
   }
   return out;
+}
+
+// ---- Campaigns --------------------------------------------------------------------------------
+
+std::string FormatTimestamp(const json& epoch_s) {
+  if (epoch_s.is_string()) return epoch_s.get<std::string>();
+  if (!epoch_s.is_number() || !std::isfinite(epoch_s.get<double>())) return "-";
+  const std::time_t t = static_cast<std::time_t>(std::floor(epoch_s.get<double>()));
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", &tm);
+  return text;
+}
+
+std::string FormatSchedule(const json& schedule) {
+  if (schedule.is_string()) return schedule.get<std::string>();
+  if (!schedule.is_object()) return "-";
+  std::string out = Str(schedule, "cron", "?");
+  if (!Str(schedule, "scale").empty()) out += " at " + Str(schedule, "scale");
+  if (schedule.contains("next_due") && !schedule["next_due"].is_null()) {
+    out += ", next due " + FormatTimestamp(schedule["next_due"]);
+  }
+  if (Str(schedule, "source") == "flag") out += " (from sandswimd --schedule)";
+  return out;
+}
+
+std::string FormatPlannedRuns(const json& planned) {
+  std::string out;
+  if (!planned.is_object()) return out;
+  for (const char* scale : {"smoke", "mini", "paper"}) {
+    if (!planned.contains(scale)) continue;
+    out += (out.empty() ? Str(planned, scale) + " runs" : ", " + Str(planned, scale)) + " at " + scale;
+  }
+  return out;
+}
+
+namespace {
+
+// A campaign run in one cell: "cr:12 smoke, 2026-11-26 19:50 UTC, 57/58 done, 1 failed".
+std::string CampaignRunCell(const json& run) {
+  if (!run.is_object()) return "-";
+  std::string out = "cr:" + Str(run, "id", "?");
+  if (!Str(run, "scale").empty()) out += " " + Str(run, "scale");
+  out += ", " + FormatTimestamp(run.value("created_at", json()));
+  if (run.contains("counts")) {
+    const Counts c = CountsFromJson(run["counts"]);
+    out += ", " + std::to_string(c.done) + "/" + std::to_string(c.total()) + " done";
+    if (c.failed > 0) out += ", " + std::to_string(c.failed) + " failed";
+    if (!c.finished()) out += ", " + std::to_string(c.queued + c.running) + " to go";
+  } else if (!Str(run, "status").empty()) {
+    out += ", " + Str(run, "status");
+  }
+  return out;
+}
+
+// A schedule in a list's cell: "0 2 * * * at smoke" (when it is next due: `sandswim schedule`).
+std::string ScheduleCell(const json& schedule) {
+  if (schedule.is_string()) return schedule.get<std::string>();
+  if (!schedule.is_object()) return "-";
+  const std::string scale = Str(schedule, "scale");
+  return Str(schedule, "cron", "?") + (scale.empty() ? "" : " at " + scale);
+}
+
+// "paper-58" or "paper-58 (version 2)": a built-in base has no version worth saying.
+std::string ExtendsCell(const json& j) {
+  const std::string base = Str(j, "extends");
+  if (base.empty()) return "-";
+  const int64_t version = Int(j, "extends_version");
+  return version > 0 ? base + " (version " + std::to_string(version) + ")" : base;
+}
+
+}  // namespace
+
+std::string RenderCampaignsTable(const json& campaigns) {
+  Table t;
+  t.header = {"NAME", "VERSION", "BUILT-IN", "EXTENDS", "SCHEDULE", "LAST RUN"};
+  t.align = {Align::kLeft, Align::kRight, Align::kLeft, Align::kLeft, Align::kLeft, Align::kLeft};
+  if (campaigns.is_array()) {
+    for (const auto& c : campaigns) {
+      const bool builtin = Bool(c, "builtin");
+      const int64_t version = Int(c, "version");
+      t.rows.push_back({Str(c, "name", "?"), version > 0 ? std::to_string(version) : "-", builtin ? "yes" : "no",
+                        ExtendsCell(c), ScheduleCell(c.value("schedule", json())),
+                        CampaignRunCell(c.value("last_run", json()))});
+    }
+  }
+  return RenderTable(t);
+}
+
+std::string RenderCampaignDetail(const json& reply, bool resolved, const RenderOptions& options) {
+  std::ostringstream out;
+  const std::string name = Str(reply, "name", "?");
+  const bool builtin = Bool(reply, "builtin");
+  out << "campaign " << name;
+  if (builtin) {
+    out << " (built-in, read-only: `sandswim campaign edit " << name << "` starts your own copy)\n";
+  } else {
+    out << ", version " << Str(reply, "version", "?");
+    const int64_t current = Int(reply, "current_version");
+    if (current > 0 && current != Int(reply, "version")) out << " (the current one is " << current << ")";
+    out << "\n";
+  }
+  if (!Str(reply, "extends").empty()) out << "  extends:   " << ExtendsCell(reply) << "\n";
+  const std::string planned = FormatPlannedRuns(reply.value("planned_runs", json()));
+  if (!planned.empty()) out << "  plans:     " << planned << "\n";
+  const json schedule = reply.value("schedule", json());
+  out << "  schedule:  "
+      << (schedule.is_null() ? "none (sandswim schedule " + name + " \"0 2 * * *\" --scale smoke)"
+                             : FormatSchedule(schedule))
+      << "\n";
+  for (const auto& note : reply.value("notes", json::array())) {
+    out << "  note:      " << (note.is_string() ? note.get<std::string>() : note.dump()) << "\n";
+  }
+  const char* which = resolved ? "resolved" : "definition";
+  out << "\n"
+      << (resolved ? "resolved definition (what runs: the base's fields filled in)"
+                   : "definition (as written; --resolved shows what runs)")
+      << ":\n"
+      << reply.value(which, json::object()).dump(2) << "\n";
+
+  const json versions = reply.value("versions", json::array());
+  if (!versions.empty()) {
+    Table t;
+    t.header = {"VERSION", "CREATED", "EXTENDS", "SHA-256"};
+    t.align = {Align::kRight};
+    for (const auto& v : versions) {
+      t.rows.push_back({Str(v, "version", "?"), FormatTimestamp(v.value("created_at", json())), ExtendsCell(v),
+                        Str(v, "definition_sha256", "-").substr(0, 12)});
+    }
+    out << "\nversions:\n" << RenderTable(t);
+  }
+  const json runs = reply.value("runs", json::array());
+  if (runs.empty()) {
+    out << "\nruns: none yet (sandswim campaign run " << name << " --scale smoke)\n";
+  } else {
+    Table t;
+    t.header = {"RUN", "VERSION", "SCALE", "STATUS", "CREATED"};
+    t.align = {Align::kLeft, Align::kRight};
+    for (const auto& r : runs) {
+      const std::string status = Str(r, "status", "-");
+      t.rows.push_back({"cr:" + Str(r, "id", "?"), Str(r, "campaign_version", "-"), Str(r, "scale", "-"), status,
+                        FormatTimestamp(r.value("created_at", json()))});
+      t.color.push_back({"", "", "", options.color ? StateColor(status) : ""});
+    }
+    out << "\nruns:\n" << RenderTable(t);
+  }
+  return out.str();
+}
+
+std::string RenderCampaignStored(const json& reply) {
+  std::ostringstream out;
+  const std::string name = Str(reply, "name", "?");
+  if (Bool(reply, "unchanged")) {
+    out << name << ": unchanged, still version " << Str(reply, "version", "?") << "\n";
+  } else {
+    const bool created = reply.contains("created") ? Bool(reply, "created") : Int(reply, "version") == 1;
+    out << name << ": stored as version " << Str(reply, "version", "?") << (created ? " (a new campaign)" : "") << "\n";
+  }
+  const std::string planned = FormatPlannedRuns(reply.value("planned_runs", json()));
+  if (!planned.empty()) out << "  plans " << planned << "\n";
+  for (const auto& note : reply.value("notes", json::array())) {
+    out << "  note: " << (note.is_string() ? note.get<std::string>() : note.dump()) << "\n";
+  }
+  return out.str();
+}
+
+std::string RenderSchedulesTable(const json& campaigns) {
+  Table t;
+  t.header = {"CAMPAIGN", "CRON", "SCALE", "NEXT DUE", "SET BY"};
+  if (campaigns.is_array()) {
+    for (const auto& c : campaigns) {
+      const json s = c.value("schedule", json());
+      if (s.is_null()) continue;
+      if (s.is_string()) {
+        t.rows.push_back({Str(c, "name", "?"), s.get<std::string>(), "-", "-"});
+        continue;
+      }
+      const std::string source = Str(s, "source");
+      t.rows.push_back({Str(c, "name", "?"), Str(s, "cron", "?"), Str(s, "scale", "-"),
+                        FormatTimestamp(s.value("next_due", json())),
+                        source == "flag"  ? "sandswimd --schedule"
+                        : source == "api" ? "sandswim schedule"
+                                          : "-"});
+    }
+  }
+  return RenderTable(t);
 }
 
 }  // namespace sandswim::cli

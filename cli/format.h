@@ -22,12 +22,16 @@
 #include <nlohmann/json.hpp>
 
 #include "core/result_table.h"  // CsvCell, ResultColumns: the daemon's CSV
+#include "core/status.h"
 
 namespace sandswim::cli {
 
 struct RenderOptions {
   bool color = false;  // ANSI colours for states (decided by the caller: TTY, NO_COLOR)
 };
+
+// An error as the CLI prints it after "sandswim: ": "FIELD: reason", or the reason alone.
+std::string Describe(const Status& status);
 
 // ---- Building blocks ---------------------------------------------------------------------------
 
@@ -158,6 +162,27 @@ std::string RenderResultsCsv(const nlohmann::json& rows);
 std::string RenderClaims(const nlohmann::json& reply, const RenderOptions& options);
 // "surface", "floor", "surface,floor" or "" from a row's broke_surface / near_floor.
 std::string ResultFlags(const nlohmann::json& row);
+
+// ---- Campaigns (GET /api/v1/campaigns, GET/PUT /api/v1/campaigns/{name}) -------------------------
+
+// Seconds since the Unix epoch as "2026-11-26 19:42 UTC"; a string is shown as it is; else "-".
+std::string FormatTimestamp(const nlohmann::json& epoch_s);
+// A schedule {cron, scale, next_due, source} (or a bare cron string) as "0 2 * * * at smoke, next
+// due 2026-11-27 02:00 UTC", plus " (from sandswimd --schedule)" for a flag's; null: "-".
+std::string FormatSchedule(const nlohmann::json& schedule);
+// planned_runs {smoke, mini, paper} as "58 runs at smoke, 58 at mini, 58 at paper"; none: "".
+std::string FormatPlannedRuns(const nlohmann::json& planned);
+// GET /api/v1/campaigns "campaigns" -> NAME VERSION BUILT-IN EXTENDS SCHEDULE LAST RUN. An entry's
+// "last_run" (a CampaignRun of GET /api/v1/campaign-runs, added by the caller) fills LAST RUN.
+std::string RenderCampaignsTable(const nlohmann::json& campaigns);
+// GET /api/v1/campaigns/{name}: name, version, what it extends, its plan at each scale, schedule
+// and notes; the definition as written (or, `resolved`, what runs); its versions; its runs.
+std::string RenderCampaignDetail(const nlohmann::json& reply, bool resolved, const RenderOptions& options);
+// PUT /api/v1/campaigns/{name}'s answer: the version stored (or "unchanged"), the plan, the notes.
+std::string RenderCampaignStored(const nlohmann::json& reply);
+// The scheduled campaigns of GET /api/v1/campaigns -> CAMPAIGN CRON SCALE NEXT DUE SET BY (its
+// "source": "flag" is sandswimd --schedule, "api" is sandswim schedule or the dashboard).
+std::string RenderSchedulesTable(const nlohmann::json& campaigns);
 
 }  // namespace sandswim::cli
 

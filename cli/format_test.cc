@@ -317,5 +317,17 @@ TEST(FormatTest, ClaimsShowTheirRatesAtTheDesign) {
   EXPECT_THAT(RenderClaims(reply, options), Not(HasSubstr("rates:")));
 }
 
+TEST(FormatTest, TimestampsSchedulesAndPlans) {
+  EXPECT_EQ(FormatTimestamp(1795658400), "2026-11-26 02:00 UTC");
+  EXPECT_EQ(FormatTimestamp(1795658459.9), "2026-11-26 02:00 UTC");  // minutes are not rounded up
+  EXPECT_EQ(FormatTimestamp("tomorrow"), "tomorrow");
+  EXPECT_EQ(FormatTimestamp(nlohmann::json()), "-");
+  EXPECT_EQ(FormatSchedule(nlohmann::json()), "-");
+  EXPECT_EQ(FormatSchedule("0 2 * * *"), "0 2 * * *");  // a daemon older than stored schedules
+  EXPECT_EQ(FormatSchedule({{"cron", "0 2 * * *"}, {"scale", "smoke"}, {"next_due", nullptr}}), "0 2 * * * at smoke");
+  EXPECT_EQ(FormatPlannedRuns({{"paper", 58}, {"smoke", 174}}), "174 runs at smoke, 58 at paper");
+  EXPECT_EQ(FormatPlannedRuns(nlohmann::json()), "");
+}
+
 }  // namespace
 }  // namespace sandswim::cli

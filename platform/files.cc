@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <vector>
 
 namespace sandswim {
@@ -32,6 +33,15 @@ Result<std::string> Sha256OfFile(const std::string& path) {
     hex.push_back(kHex[md[i] & 15]);
   }
   return hex;
+}
+
+Result<std::string> ReadWholeFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::IOError("cannot read " + path);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) return Status::IOError("cannot read " + path);
+  return ss.str();
 }
 
 Status WriteFileAtomically(const std::string& path, std::string_view bytes) {

@@ -16,6 +16,9 @@ namespace sandswim {
 // is not there.
 Result<std::string> Sha256OfFile(const std::string& path);
 
+// The bytes of a file; IOError "cannot read PATH" when it cannot be opened or read.
+Result<std::string> ReadWholeFile(const std::string& path);
+
 // Writes `bytes` to `path` through a temporary file beside it (fsync, then rename), so a reader
 // never sees half a file; makes the directory if needed. IOError saying what failed.
 Status WriteFileAtomically(const std::string& path, std::string_view bytes);
