@@ -1,5 +1,6 @@
 #include "cli/commands.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -537,7 +538,9 @@ void SetupExpand(CLI::App& sub, Args& a) {
   sub.add_flag("--cost", a.cost,
                "also print what it costs: particle-steps, core-hours, and the wall time on the daemon's workers at "
                "the rates it measured (a default rate when no daemon answers)");
-  sub.add_option("--cores", a.cores, "with --cost: also the wall time on this many one-rank engines")
+  sub.add_option("--cores", a.cores,
+                 "with --cost: also the wall time on this many cores (one-rank engines; a bed every queued run "
+                 "waits for is costed on the idle ones, as sandswimd --local-workers N runs it)")
       ->check(CLI::PositiveNumber);
   AddJson(sub, a);
 }
@@ -546,7 +549,9 @@ void SetupExpand(CLI::App& sub, Args& a) {
 // local workers), else core/cost.h's defaults. Says which on stderr.
 struct CostRates {
   EngineRate run = DefaultRate(), bed = DefaultBedRate();
-  int slots = 0;  // the daemon's local workers; 0: no daemon answered
+  std::vector<RankRate> bed_by_ranks;  // beds per rank count; always holds ranks 1 (`bed`)
+  bool daemon = false;                 // a daemon answered
+  int slots = 0;                       // the daemon's local workers; 0: none, or no daemon answered
 };
 EngineRate RateFrom(const json& j, const EngineRate& fallback) {
   if (!j.is_object() || !j.value("s_per_unit", json()).is_number() || !(j["s_per_unit"].get<double>() > 0))
@@ -556,30 +561,67 @@ EngineRate RateFrom(const json& j, const EngineRate& fallback) {
 }
 CostRates RatesForCost(Context& c) {
   CostRates r;
+  auto with_one_rank = [&r] { r.bed_by_ranks.insert(r.bed_by_ranks.begin(), RankRate{1, r.bed}); };
   auto client = c.Client();
-  if (!client.ok()) return r;
+  if (!client.ok()) {
+    with_one_rank();
+    return r;
+  }
   auto model = (*client)->CostModel();
   if (!model.ok()) {
     c.err() << "sandswim: no cost model from the daemon (" << Describe(model.status())
             << "); costing at the default rates\n";
+    with_one_rank();
     return r;
   }
+  r.daemon = true;
   r.run = RateFrom(model->value("run_rate", json()), r.run);
   r.bed = RateFrom(model->value("bed_rate", json()), r.bed);
+  // Beds on 2 or more ranks (a daemon before bed ranks were recorded sends none).
+  const json by_ranks = model->value("bed_rates", json::array());
+  for (const json& b : by_ranks.is_array() ? by_ranks : json::array()) {
+    const int ranks = b.is_object() && b.value("ranks", json()).is_number_integer() ? b["ranks"].get<int>() : 0;
+    if (ranks < 2) continue;
+    const EngineRate rate = RateFrom(b, EngineRate{});
+    if (rate.s_per_unit > 0) r.bed_by_ranks.push_back({ranks, rate});
+  }
+  with_one_rank();
   r.slots = model->value("engine_slots", 0);
   return r;
+}
+
+// "1 bed on 2 ranks", "3 beds: 2 on 1 rank, 1 on 6 ranks".
+std::string DescribeBedRanks(const std::vector<int>& ranks) {
+  std::map<int, int> count;
+  for (int r : ranks) ++count[r];
+  auto on = [](int r) { return " on " + std::to_string(r) + (r == 1 ? " rank" : " ranks"); };
+  const std::string beds = std::to_string(ranks.size()) + (ranks.size() == 1 ? " bed" : " beds");
+  if (count.size() == 1) return beds + on(count.begin()->first);
+  std::string out = beds + ":";
+  for (auto it = count.begin(); it != count.end(); ++it)
+    out += (it == count.begin() ? " " : ", ") + std::to_string(it->second) + on(it->first);
+  return out;
 }
 
 // "1h05m ± 20m"
 std::string WithError(double s, double rel) { return FormatDuration(s) + " ± " + FormatDuration(s * rel); }
 
 // The cost lines of `expand --cost` for every scale's plan, and their JSON.
+// Beds are costed at the ranks they would get (core/cost.h BedRanks): on the daemon's local
+// worker (--local-workers N: N slots, --max-ranks N) or, with no daemon, on this machine's cores
+// as such a worker would run them; on --cores N as --local-workers N. A daemon with no local
+// workers has workers that widen only with --max-ranks: its beds are costed on one rank.
 json PrintCost(Context& c, const std::vector<ScalePlan>& plans) {
   const CostRates rates = RatesForCost(c);
   const int local = rates.slots > 0 ? rates.slots : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int local_max_ranks = rates.daemon && rates.slots == 0 ? 1 : local;
   json all = json::array();
   for (const ScalePlan& group : plans) {
     const PlanCost cost = CostOfPlan(group.plan, {}, rates.run, rates.bed);
+    std::vector<std::pair<int, PlanWall>> walls = {
+        {local, PlanWallOn(cost, local, local_max_ranks, rates.bed_by_ranks)}};
+    if (c.args.cores > 0)
+      walls.push_back({c.args.cores, PlanWallOn(cost, c.args.cores, c.args.cores, rates.bed_by_ranks)});
     json j = {{"scale", group.scale},
               {"runs", cost.runs},
               {"beds", cost.beds},
@@ -589,8 +631,14 @@ json PrintCost(Context& c, const std::vector<ScalePlan>& plans) {
               {"rel_error", cost.rel_error},
               {"s_per_particle_step", rates.run.s_per_unit},
               {"rate_basis", rates.run.basis},
-              {"wall_s", {{std::to_string(local), cost.WallSeconds(local)}}}};
-    if (c.args.cores > 0) j["wall_s"][std::to_string(c.args.cores)] = cost.WallSeconds(c.args.cores);
+              {"wall_s", json::object()},
+              {"wall_rel_error", json::object()},
+              {"bed_ranks", json::object()}};
+    for (const auto& [cores, wall] : walls) {
+      j["wall_s"][std::to_string(cores)] = wall.s;
+      j["wall_rel_error"][std::to_string(cores)] = wall.rel_error;
+      j["bed_ranks"][std::to_string(cores)] = wall.bed_ranks;
+    }
     all.push_back(j);
     if (c.args.json) continue;
     char line[256];
@@ -598,14 +646,25 @@ json PrintCost(Context& c, const std::vector<ScalePlan>& plans) {
                   group.scale.c_str(), static_cast<long long>(cost.runs), static_cast<long long>(cost.beds),
                   cost.particle_steps);
     c.out() << line;
-    std::snprintf(line, sizeof line, "  %.3g core-hours of runs + %.2g of beds, ± %.0f %%, at %.3g s a particle-step\n",
+    std::snprintf(line, sizeof line,
+                  "  %.3g core-hours of runs + %.2g of beds (on one rank), ± %.0f %%, at %.3g s a particle-step\n",
                   cost.run_core_s / 3600, cost.bed_core_s / 3600, cost.rel_error * 100, rates.run.s_per_unit);
     c.out() << line << "    (" << rates.run.basis << ")\n";
-    c.out() << "  wall time on " << (rates.slots > 0 ? "the daemon's " : "this machine's ") << local
-            << " one-rank engine(s): " << WithError(cost.WallSeconds(local), cost.rel_error) << "\n";
-    if (c.args.cores > 0) {
-      c.out() << "  wall time on " << c.args.cores
-              << " one-rank engine(s): " << WithError(cost.WallSeconds(c.args.cores), cost.rel_error) << "\n";
+    for (size_t i = 0; i < walls.size(); ++i) {
+      const auto& [cores, wall] = walls[i];
+      c.out() << "  wall time on "
+              << (i > 0             ? ""
+                  : rates.slots > 0 ? "the daemon's "
+                                    : "this machine's ")
+              << cores << " one-rank engine(s): " << WithError(wall.s, wall.rel_error);
+      if (cost.beds > 0) c.out() << " (" << DescribeBedRanks(wall.bed_ranks) << ")";
+      c.out() << "\n";
+    }
+    if (cost.beds > 0) {
+      const int widest = *std::max_element(walls.back().second.bed_ranks.begin(), walls.back().second.bed_ranks.end());
+      c.out() << "    (beds first; the last bed granted, which every queued run waits for, runs on the slots still\n"
+                 "     idle, as sandswimd --local-workers N widens it)\n"
+              << "    (beds: " << BedRateOnRanks(rates.bed_by_ranks, widest).basis << ")\n";
     }
   }
   return all;

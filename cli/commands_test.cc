@@ -215,9 +215,13 @@ TEST(CommandsTest, ExpandWithoutEngineWarnsAndUsesUnknown) {
 TEST(CommandsTest, ExpandCostUsesTheDaemonsRates) {
   Harness h;
   h.fill = [](FakeClient& c) {
-    c.cost_model = {{"run_rate", {{"s_per_unit", 1e-6}, {"rel_error", 0.1}, {"samples", 4}, {"basis", "measured: 4 done runs"}}},
-                    {"bed_rate", {{"s_per_unit", 0.1}, {"rel_error", 0.2}, {"samples", 1}, {"basis", "measured: 1 done bed"}}},
-                    {"engine_slots", 2}};
+    c.cost_model = {
+        {"run_rate", {{"s_per_unit", 1e-6}, {"rel_error", 0.1}, {"samples", 4}, {"basis", "measured: 4 done runs"}}},
+        {"bed_rate", {{"s_per_unit", 0.1}, {"rel_error", 0.2}, {"samples", 1}, {"basis", "measured: 1 done bed"}}},
+        {"bed_rates",
+         {{{"ranks", 1}, {"s_per_unit", 0.1}, {"rel_error", 0.2}, {"samples", 1}, {"basis", "one"}},
+          {{"ranks", 2}, {"s_per_unit", 0.07}, {"rel_error", 0.2}, {"samples", 1}, {"basis", "two"}}}},
+        {"engine_slots", 2}};
   };
   ASSERT_EQ(h.Run({"expand", "paper-58", "--scale", "smoke", "--cost", "--cores", "4", "--json"}, false), kExitOk)
       << h.err.str();
@@ -232,9 +236,36 @@ TEST(CommandsTest, ExpandCostUsesTheDaemonsRates) {
   EXPECT_NEAR(cost["run_core_hours"].get<double>(), steps * 6683 * 1e-6 / 3600, 1e-9);
   EXPECT_NEAR(cost["bed_core_hours"].get<double>(), 668.2 / 3600, 1e-9);
   EXPECT_EQ(cost["rate_basis"], "measured: 4 done runs");
-  // The bed, then the runs over 2 (the daemon's workers) or 4 engines.
-  EXPECT_NEAR(cost["wall_s"]["2"].get<double>(), 668.2 + steps * 6683 * 1e-6 / 2, 1e-6);
-  EXPECT_NEAR(cost["wall_s"]["4"].get<double>(), 668.2 + steps * 6683 * 1e-6 / 4, 1e-6);
+  // The bed, then the runs over 2 (the daemon's workers) or 4 engines. The one bed is granted with
+  // the queue dry and widened over the idle slots: on the daemon's 2, at the 2-rank rate it
+  // measured (0.07 s a grain); on 4 cores, at 4 ranks, where nothing was measured: the one-rank
+  // rate over 1.42 a doubling of ranks.
+  EXPECT_EQ(cost["bed_ranks"]["2"], json::array({2}));
+  EXPECT_EQ(cost["bed_ranks"]["4"], json::array({4}));
+  EXPECT_NEAR(cost["wall_s"]["2"].get<double>(), 6682 * 0.07 + steps * 6683 * 1e-6 / 2, 1e-6);
+  EXPECT_NEAR(cost["wall_s"]["4"].get<double>(), 668.2 / (1.42 * 1.42) + steps * 6683 * 1e-6 / 4, 1e-6);
+  EXPECT_GT(cost["wall_rel_error"]["4"].get<double>(), 0);
+
+  // The text says the rule and what the bed's rate rests on.
+  Harness text;
+  text.fill = h.fill;
+  ASSERT_EQ(text.Run({"expand", "paper-58", "--scale", "smoke", "--cost", "--cores", "4"}, false), kExitOk);
+  EXPECT_THAT(text.out.str(), HasSubstr("wall time on the daemon's 2 one-rank engine(s): "));
+  EXPECT_THAT(text.out.str(), HasSubstr("(1 bed on 2 ranks)"));
+  EXPECT_THAT(text.out.str(), HasSubstr("(1 bed on 4 ranks)"));
+  EXPECT_THAT(text.out.str(), HasSubstr("runs on the slots still\n     idle"));
+  EXPECT_THAT(text.out.str(), HasSubstr("no bed measured on 4"));
+
+  // A daemon without local workers: its workers widen only with --max-ranks, so its bed is on one rank.
+  Harness remote;
+  remote.fill = [&h](FakeClient& c) {
+    h.fill(c);
+    c.cost_model["engine_slots"] = 0;
+  };
+  ASSERT_EQ(remote.Run({"expand", "paper-58", "--scale", "smoke", "--cost", "--json"}, false), kExitOk);
+  const json remote_cost = json::parse(remote.out.str())["cost"][0];
+  ASSERT_EQ(remote_cost["bed_ranks"].size(), 1u);
+  EXPECT_EQ(remote_cost["bed_ranks"].begin()->get<std::vector<int>>(), std::vector<int>{1});
 
   Harness offline;
   ASSERT_EQ(offline.Run({"expand", "paper-58", "--scale", "smoke", "--cost"}, false), kExitOk) << offline.err.str();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace sandswim {
 EngineRate DefaultRate() {
@@ -12,6 +13,26 @@ EngineRate DefaultRate() {
 EngineRate DefaultBedRate() {
   return {kDefaultBedSecondsPerGrain, kDefaultRateRelError, 0,
           "default bed rate (a smoke bed in 12.8 minutes on one core), no bed measured yet"};
+}
+
+EngineRate BedRateOnRanks(const std::vector<RankRate>& by_ranks, int ranks) {
+  ranks = std::max(ranks, 1);
+  EngineRate one = DefaultBedRate();
+  for (const RankRate& r : by_ranks) {
+    if (r.ranks == ranks) return r.rate;
+    if (r.ranks == 1) one = r.rate;
+  }
+  if (ranks == 1) return one;
+  const double speedup = std::pow(kDefaultTwoRankSpeedup, std::log2(static_cast<double>(ranks)));
+  EngineRate r = one;
+  r.s_per_unit = one.s_per_unit / speedup;
+  r.rel_error = std::hypot(one.rel_error, kDefaultRateRelError);
+  char guess[160];
+  std::snprintf(guess, sizeof guess,
+                "; on %d ranks %.3gx faster (no bed measured on %d ranks: %.3gx a doubling of ranks, a guess)", ranks,
+                speedup, ranks, kDefaultTwoRankSpeedup);
+  r.basis = one.basis + guess;
+  return r;
 }
 
 EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fallback, const std::string& basis) {
@@ -64,6 +85,7 @@ PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& 
     bed_step_factor.push_back(kMaterials.dt / TimeStep(m));
   }
   PlanCost c;
+  c.run_rel_error = run_rate.rel_error;
   c.runs = static_cast<int64_t>(plan.runs.size());
   c.beds = static_cast<int64_t>(bed_grains.size());
   for (const PlannedRun& r : plan.runs) {
@@ -75,7 +97,8 @@ PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& 
   }
   c.run_core_s = c.particle_steps * run_rate.s_per_unit;
   for (size_t i = 0; i < bed_grains.size(); ++i) {
-    const double s = bed_grains[i] * bed_step_factor[i] * bed_rate.s_per_unit;
+    c.bed_work.push_back(bed_grains[i] * bed_step_factor[i]);
+    const double s = c.bed_work.back() * bed_rate.s_per_unit;
     c.bed_core_s += s;
     c.longest_bed_s = std::max(c.longest_bed_s, s);
   }
@@ -85,6 +108,34 @@ PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& 
   if (total > 0)
     c.rel_error = std::hypot(run_rate.rel_error * c.run_core_s, bed_rate.rel_error * c.bed_core_s) / total;
   return c;
+}
+
+std::vector<int> BedRanks(int beds, int slots, int max_ranks) {
+  std::vector<int> ranks(static_cast<size_t>(std::max(beds, 0)), 1);
+  if (beds >= 1 && beds <= slots) ranks.back() = std::clamp(slots - beds + 1, 1, std::max(max_ranks, 1));
+  return ranks;
+}
+
+PlanWall PlanWallOn(const PlanCost& cost, int slots, int max_ranks, const std::vector<RankRate>& bed_rates) {
+  slots = std::max(slots, 1);
+  PlanWall w;
+  w.bed_ranks = BedRanks(static_cast<int>(cost.bed_work.size()), slots, max_ranks);
+  // Beds in one wave (as many as the slots) end with the slowest; more beds than slots share them.
+  double beds_s = 0, bed_core_s = 0, longest_bed = 0, bed_sigma = 0;
+  for (size_t i = 0; i < cost.bed_work.size(); ++i) {
+    const EngineRate rate = BedRateOnRanks(bed_rates, w.bed_ranks[i]);
+    const double s = cost.bed_work[i] * rate.s_per_unit;
+    bed_core_s += s;
+    if (s > longest_bed) {
+      longest_bed = s;
+      bed_sigma = rate.rel_error;
+    }
+  }
+  beds_s = cost.bed_work.size() <= static_cast<size_t>(slots) ? longest_bed : std::max(longest_bed, bed_core_s / slots);
+  const double runs_s = cost.run_core_s / slots;
+  w.s = std::max(beds_s + runs_s, longest_bed + cost.longest_run_s);
+  if (w.s > 0) w.rel_error = std::hypot(cost.run_rel_error * runs_s, bed_sigma * beds_s) / (beds_s + runs_s);
+  return w;
 }
 
 std::optional<Eta> EstimateEta(const std::vector<WorkLeft>& left, const EngineRate& run_rate,

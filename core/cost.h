@@ -57,6 +57,21 @@ struct EngineRate {
 EngineRate DefaultRate();     // drive runs, per particle-step
 EngineRate DefaultBedRate();  // bed preparation, per grain
 
+// An engine rate measured on `ranks` MPI ranks (the cost model keeps runs' and beds' per rank count).
+struct RankRate {
+  int ranks = 1;
+  EngineRate rate;
+};
+// One smoke run on 2 ranks did 1.42x the particle-steps per second of one rank (issue 30, this
+// project's 2-core machine, both cores free for it). For a rank count nothing was measured on, each
+// doubling of ranks is taken to be this much faster; the guess's relative error is
+// kDefaultRateRelError, added to the rate's own.
+inline constexpr double kDefaultTwoRankSpeedup = 1.42;
+// The bed rate (per grain) on `ranks` ranks: the one `by_ranks` holds for that rank count; else
+// its one-rank rate (DefaultBedRate() when it has none) over kDefaultTwoRankSpeedup^log2(ranks),
+// its basis saying so. ranks < 1 counts as 1.
+EngineRate BedRateOnRanks(const std::vector<RankRate>& by_ranks, int ranks);
+
 // Pools the samples: total wall time over total work. Error: the samples' own rates' relative
 // spread over sqrt(n), at least kMinRateRelError; with one sample, the larger of that floor and
 // half the default's error. Samples with no work or no time are left out; none left: `fallback`.
@@ -69,12 +84,16 @@ struct PlanCost {
   int64_t beds = 0;
   double particle_steps = 0;  // at most (every run to its deck's end)
   double run_core_s = 0;      // particle_steps x rate (one rank a run)
-  double bed_core_s = 0;
+  double bed_core_s = 0;      // every bed on one rank
   double rel_error = 0;
   // Wall time on `slots` engines of one rank each: beds first (one slot each, in parallel), then
   // the runs spread over every slot; never less than the longest bed plus its longest run.
   double WallSeconds(int slots) const;
   double longest_bed_s = 0, longest_run_s = 0;
+  // Each bed's work in grains of a Table 1 bed (its grains x Table 1's step over its own), and the
+  // run rate's error alone: what PlanWallOn needs to cost beds on other rank counts.
+  std::vector<double> bed_work;
+  double run_rel_error = 0;
 };
 // A plan's runs (core/sweep.h: each its deck's steps at its materials' time step, on
 // plan.beds[bed]) and beds; bed_grains[i] is plan.beds[i]'s grain count where known (a bed
@@ -83,6 +102,28 @@ struct PlanCost {
 // grains + 1 (the SO) particles.
 PlanCost CostOfPlan(const Plan& plan, const std::vector<std::optional<double>>& bed_grains,
                     const EngineRate& run_rate, const EngineRate& bed_rate);
+
+// The ranks each of a plan's `beds` beds is prepared on by a worker of `slots` one-rank slots that
+// lends its idle slots' cores to a job granted with the queue dry, up to `max_ranks` ranks in all
+// (workers/worker.h; `sandswimd --local-workers N` starts such a worker with N slots and
+// --max-ranks N; other workers only with --max-ranks). The lease queue grants beds before runs,
+// one a slot; each grant but the last bed's finds another bed still leasable, and the last bed's
+// finds nothing (every run waits for a bed: core/api.h LeaseGrant::queue_dry), so it takes the
+// slots still idle: slots - beds + 1 ranks when beds <= slots, capped at max_ranks; with more
+// beds than slots the last one is granted while the others still run: 1. Runs are costed on one
+// rank (the queue's last runs may be widened too: an upper bound).
+std::vector<int> BedRanks(int beds, int slots, int max_ranks);
+
+// A plan's wall time on `slots` one-rank slots of such a worker (max_ranks <= 1: no widening),
+// with each bed on its BedRanks at BedRateOnRanks(bed_rates, ranks); otherwise as
+// PlanCost::WallSeconds: beds first, then the runs over every slot, never less than the longest
+// bed plus the longest run.
+struct PlanWall {
+  double s = 0;
+  double rel_error = 0;        // 1 sigma: the run rate's and the beds' (at their ranks), by their time
+  std::vector<int> bed_ranks;  // as BedRanks
+};
+PlanWall PlanWallOn(const PlanCost& cost, int slots, int max_ranks, const std::vector<RankRate>& bed_rates);
 
 // ---- During work: when will it be done ---------------------------------------------------------
 

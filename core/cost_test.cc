@@ -61,6 +61,46 @@ TEST(CostTest, PlanWallTimeSpreadsRunsOverSlotsAfterTheBed) {
   EXPECT_DOUBLE_EQ(CostOfPlan(plan, {}, run, bed).bed_core_s, 668.2);
 }
 
+// The last bed granted finds the queue dry and takes the slots still idle (up to max_ranks); the
+// others, and every bed when there are more beds than slots, run on one rank.
+TEST(CostTest, TheLastBedTakesTheIdleSlots) {
+  EXPECT_EQ(BedRanks(1, 2, 2), (std::vector<int>{2}));
+  EXPECT_EQ(BedRanks(1, 8, 8), (std::vector<int>{8}));
+  EXPECT_EQ(BedRanks(1, 8, 4), (std::vector<int>{4}));  // --max-ranks caps it
+  EXPECT_EQ(BedRanks(1, 2, 1), (std::vector<int>{1}));  // a worker that does not widen
+  EXPECT_EQ(BedRanks(1, 2, 0), (std::vector<int>{1}));
+  EXPECT_EQ(BedRanks(3, 8, 8), (std::vector<int>{1, 1, 6}));
+  EXPECT_EQ(BedRanks(2, 2, 2), (std::vector<int>{1, 1}));
+  EXPECT_EQ(BedRanks(3, 2, 2), (std::vector<int>{1, 1, 1}));
+  EXPECT_TRUE(BedRanks(0, 2, 2).empty());
+}
+
+TEST(CostTest, BedsAreCostedAtTheRanksTheyGet) {
+  EngineRate run{1e-6, 0.2, 5, "runs"}, bed{0.1, 0.3, 1, "bed"};
+  Plan plan;  // one bed of 999 grains (99.9 s on one rank), four runs of 100 s
+  plan.scale = "smoke";
+  plan.beds.resize(1);
+  plan.runs.resize(4);
+  for (auto& r : plan.runs) r.steps = 100000;
+  const PlanCost c = CostOfPlan(plan, {999.0}, run, bed);
+  // No widening: as WallSeconds.
+  for (int slots : {1, 2, 8}) EXPECT_NEAR(PlanWallOn(c, slots, 1, {{1, bed}}).s, c.WallSeconds(slots), 1e-9);
+  // On 2 slots the bed runs on 2 ranks at the 2-rank rate measured (0.07 s a grain), then the runs.
+  PlanWall w = PlanWallOn(c, 2, 2, {{1, bed}, {2, {0.07, 0.1, 3, "two"}}});
+  EXPECT_EQ(w.bed_ranks, (std::vector<int>{2}));
+  EXPECT_NEAR(w.s, 69.93 + 200, 1e-9);
+  EXPECT_NEAR(w.rel_error, std::hypot(0.2 * 200, 0.1 * 69.93) / 269.93, 1e-12);
+  // Nothing measured on 2 ranks: the one-rank rate over 1.42, with the guess's error added.
+  w = PlanWallOn(c, 2, 2, {{1, bed}});
+  EXPECT_NEAR(w.s, 99.9 / kDefaultTwoRankSpeedup + 200, 1e-9);
+  EXPECT_NEAR(w.rel_error,
+              std::hypot(0.2 * 200, std::hypot(0.3, kDefaultRateRelError) * 99.9 / kDefaultTwoRankSpeedup) /
+                  (99.9 / kDefaultTwoRankSpeedup + 200),
+              1e-12);
+  // No rates at all: the default bed rate.
+  EXPECT_NEAR(PlanWallOn(c, 1, 1, {}).s, 999 * kDefaultBedSecondsPerGrain + 400, 1e-9);
+}
+
 TEST(CostTest, EtaCountsWhatIsLeftOfRunningRunsAndBeds) {
   EngineRate run{1e-6, 0.1, 5, "runs"}, bed{0.1, 0.3, 1, "bed"};
   std::vector<WorkLeft> left;

@@ -419,7 +419,7 @@ Result<std::string> LeaseQueue::CompleteBed(Transaction& t, int64_t id, const ap
   if (!b.sha256.empty() && Lower(b.sha256) != bed->sha256) {
     return Status::FailedPrecondition("bed_result.sha256", "differs from the uploaded restart file's checksum");
   }
-  SANDSWIM_RETURN_IF_ERROR(jobs::MarkBedDone(t, id, b, now));
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkBedDone(t, id, b, c.execution.ranks, now));
   return std::string("done");
 }
 

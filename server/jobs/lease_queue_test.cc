@@ -202,6 +202,10 @@ TEST_F(LeaseQueueTest, GrantsSayWhenNothingElseIsLeasable) {
     ASSERT_TRUE(*st.Step());
     EXPECT_EQ(nlohmann::json::parse(st.Text(0)).at("ranks"), 2);
   }
+  // So do the beds' rows (the cost model's bed rates are per rank count) and the API's view.
+  EXPECT_EQ(store_->GetBed(bed1.id)->ranks, std::optional<int>(1));
+  EXPECT_EQ(store_->GetBed(bed2.id)->ranks, std::optional<int>(2));
+  EXPECT_EQ(nlohmann::json(*store_->GetBed(bed2.id)).at("ranks"), 2);
   // Four runs (two Omega on two beds): only the last one is granted with the queue dry.
   std::vector<bool> dry;
   for (int i = 0; i < 4; ++i) dry.push_back(MustLease().queue_dry);

@@ -47,9 +47,6 @@ std::string Plural(int n, const char* what) { return std::to_string(n) + " " + w
 
 }  // namespace
 
-Result<EngineRate> PooledRunRate(Transaction& t);
-Result<EngineRate> BedRate(Transaction& t);
-
 namespace {
 
 Result<CostModelView> ReadIn(Transaction& t, double now) {
@@ -72,9 +69,10 @@ Result<CostModelView> ReadIn(Transaction& t, double now) {
   Result<EngineRate> run_rate = PooledRunRate(t);
   if (!run_rate.ok()) return run_rate.status();
   v.run_rate = *run_rate;
-  Result<EngineRate> bed_rate = BedRate(t);
-  if (!bed_rate.ok()) return bed_rate.status();
-  v.bed_rate = *bed_rate;
+  Result<std::vector<RankRate>> bed_rates = BedRatesByRanks(t);
+  if (!bed_rates.ok()) return bed_rates.status();
+  v.bed_rates = std::move(bed_rates).value();
+  v.bed_rate = BedRateOnRanks(v.bed_rates, 1);
   {
     Statement st = t.Prepare(
         "SELECT (SELECT COUNT(*) FROM runs WHERE state = 'running') + (SELECT COUNT(*) FROM beds WHERE state = "
@@ -123,17 +121,39 @@ Result<EngineRate> PooledRunRate(Transaction& t) {
   return FitRate(pooled, DefaultRate(), basis);
 }
 
-Result<EngineRate> BedRate(Transaction& t) {
-  {
-    std::vector<RateSample> beds;
-    Statement st = t.Prepare(
-        "SELECT grains, finished_at - started_at FROM beds WHERE state = 'done' AND grains > 0 AND "
-        "finished_at > started_at ORDER BY finished_at DESC LIMIT ?1");
-    st.Bind(1, kRateWindow);
-    Status s = StepAll(st, [&](const Statement& r) { beds.push_back({r.Double(0), r.Double(1)}); });
-    if (!s.ok()) return s;
-    return FitRate(beds, DefaultBedRate(), "measured: " + Plural(static_cast<int>(beds.size()), "done bed"));
+Result<std::vector<RankRate>> BedRatesByRanks(Transaction& t) {
+  struct Beds {
+    std::vector<RateSample> samples;
+    int unknown = 0;  // of them, beds prepared before their ranks were recorded
+  };
+  std::map<int, Beds> by_ranks;
+  // Newest first; each rank count keeps its newest kRateWindow (beds are few: no window in SQL).
+  Statement st = t.Prepare(
+      "SELECT COALESCE(ranks, 1), ranks IS NULL, grains, finished_at - started_at FROM beds WHERE state = 'done' "
+      "AND grains > 0 AND finished_at > started_at ORDER BY finished_at DESC");
+  Status s = StepAll(st, [&](const Statement& r) {
+    Beds& beds = by_ranks[std::max(1, static_cast<int>(r.Int(0)))];
+    if (beds.samples.size() >= static_cast<size_t>(kRateWindow)) return;
+    beds.samples.push_back({r.Double(2), r.Double(3)});
+    if (r.Int(1) != 0) ++beds.unknown;
+  });
+  if (!s.ok()) return s;
+  std::vector<RankRate> out;
+  for (const auto& [ranks, beds] : by_ranks) {
+    std::string basis =
+        "measured: " + Plural(static_cast<int>(beds.samples.size()), "done bed") + " on " + Plural(ranks, "rank");
+    if (beds.unknown > 0) {
+      basis += " (" + std::to_string(beds.unknown) + " of them prepared before ranks were recorded, counted as 1)";
+    }
+    out.push_back({ranks, FitRate(beds.samples, DefaultBedRate(), basis)});
   }
+  return out;
+}
+
+Result<EngineRate> BedRate(Transaction& t, int ranks) {
+  Result<std::vector<RankRate>> rates = BedRatesByRanks(t);
+  if (!rates.ok()) return rates.status();
+  return BedRateOnRanks(*rates, ranks);
 }
 
 Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t steps) {
@@ -171,7 +191,17 @@ void to_json(json& j, const CostModelView& v) {
     r["ranks"] = h.ranks;
     hosts.push_back(std::move(r));
   }
-  j = {{"run_rate", v.run_rate}, {"bed_rate", v.bed_rate}, {"hosts", hosts}, {"engines_in_flight", v.engines_in_flight}};
+  json beds = json::array();
+  for (const RankRate& b : v.bed_rates) {
+    json r = b.rate;
+    r["ranks"] = b.ranks;
+    beds.push_back(std::move(r));
+  }
+  j = {{"run_rate", v.run_rate},
+       {"bed_rate", v.bed_rate},
+       {"bed_rates", beds},
+       {"hosts", hosts},
+       {"engines_in_flight", v.engines_in_flight}};
 }
 
 Result<CostModelView> ReadCostModel(Store& store, double now) {

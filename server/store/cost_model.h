@@ -3,8 +3,11 @@
 //
 // Rates are measured, never configured: a done run's result holds its steps, grains, wall time,
 // host and rank count; a running run's row holds the step it reached at its last heartbeat; a done
-// bed holds its grains and its start and end. ReadCostModel groups the runs' rates by host and rank
-// count (what `GET /api/v1/cost-model` and `sandswim expand --cost` show) and pools the newest
+// bed holds its grains, its start and end and the ranks it ran on (NULL for beds prepared before
+// migration 14: counted as one rank, and the basis says how many). ReadCostModel groups the runs'
+// rates by host and rank count and the beds' by rank count (a bed on 2 ranks takes about 0.7x the
+// time of one on 1 rank: pooled, it made the next one-rank bed look up to 30 % shorter), which is
+// what `GET /api/v1/cost-model` and `sandswim expand --cost` show, and pools the newest
 // kRateWindow results with the running runs' progress for the ETA, so the estimate follows the
 // machine's load as it is now and exists from a run's first heartbeats. ReadEta adds up what is
 // left of a sweep's or a campaign run's runs and beds (core/cost.h EstimateEta).
@@ -39,19 +42,22 @@ struct HostRate {
 struct CostModelView {
   std::vector<HostRate> hosts;  // done runs, per host and rank count, by host then ranks
   EngineRate run_rate;          // pooled for the ETA (see above), per particle-step
-  EngineRate bed_rate;          // done beds, per grain
+  EngineRate bed_rate;          // done beds on one rank, per grain (BedRateOnRanks(bed_rates, 1))
+  std::vector<RankRate> bed_rates;  // done beds, per rank count, by ranks
   int engines_in_flight = 0;    // runs and beds running now
 };
-// {"run_rate":{...},"bed_rate":{...},"hosts":[{"host","ranks",...rate}],"engines_in_flight"};
-// a rate: {"s_per_unit","rel_error","samples","basis"}.
+// {"run_rate":{...},"bed_rate":{...},"bed_rates":[{"ranks",...rate}],"hosts":[{"host","ranks",...rate}],
+//  "engines_in_flight"}; a rate: {"s_per_unit","rel_error","samples","basis"}.
 void to_json(nlohmann::json& j, const CostModelView& v);
 void to_json(nlohmann::json& j, const EngineRate& r);
 
 Result<CostModelView> ReadCostModel(Store& store, double now);
 
-// Inside a transaction: the pooled run rate (per particle-step) and the beds' (per grain).
+// Inside a transaction: the pooled run rate (per particle-step); the newest kRateWindow done beds'
+// rates (per grain) per rank count; the bed rate on `ranks` ranks (core/cost.h BedRateOnRanks).
 Result<EngineRate> PooledRunRate(Transaction& t);
-Result<EngineRate> BedRate(Transaction& t);
+Result<std::vector<RankRate>> BedRatesByRanks(Transaction& t);
+Result<EngineRate> BedRate(Transaction& t, int ranks = 1);
 
 // A lease's wall budget when the operator sets none (sandswimd --wall-budget 0): this multiple of
 // the cost model's prediction, plus a margin for the engine's start and a slow first rate. At the
@@ -60,7 +66,8 @@ Result<EngineRate> BedRate(Transaction& t);
 // measured rate still finishes; a hung engine is stopped sooner by the worker's --stall-after.
 inline constexpr double kWallBudgetMultiple = 4;
 inline constexpr double kWallBudgetMarginS = 600;
-// The budget of a lease on bed `bed_id` (bed = true) or of a run of `steps` steps on it.
+// The budget of a lease on bed `bed_id` (bed = true: at the one-rank bed rate, since a worker may or
+// may not widen it) or of a run of `steps` steps on it.
 Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t steps);
 
 enum class EtaScope { kSweep, kCampaignRun };

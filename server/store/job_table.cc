@@ -266,11 +266,13 @@ Status RecordBedUpload(Transaction& t, int64_t bed_id, const std::string& path, 
   return st.Run();
 }
 
-Status MarkBedDone(Transaction& t, int64_t bed_id, const api::BedResult& result, double now) {
+Status MarkBedDone(Transaction& t, int64_t bed_id, const api::BedResult& result, int ranks, double now) {
   Statement st = t.Prepare(
       "UPDATE beds SET state = 'done', lease_expires_at = NULL, finished_at = ?, grains = ?, "
-      "result = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
-  st.Bind(1, now).Bind(2, result.grains).Bind(3, api::ToJsonText(nlohmann::json(result))).Bind(4, bed_id);
+      "result = ?, ranks = ?, last_error_kind = NULL, last_error = NULL WHERE id = ?");
+  st.Bind(1, now).Bind(2, result.grains).Bind(3, api::ToJsonText(nlohmann::json(result)));
+  // A worker that says no rank count (0, an older worker's default is 1) leaves it unknown.
+  st.Bind(4, ranks >= 1 ? std::optional<int64_t>(ranks) : std::nullopt).Bind(5, bed_id);
   return st.Run();
 }
 

@@ -120,7 +120,9 @@ struct BedRow {
 Result<BedRow> LoadBed(Transaction& t, int64_t bed_id);
 // The restart file uploaded under a bed's lease.
 Status RecordBedUpload(Transaction& t, int64_t bed_id, const std::string& path, const std::string& sha256);
-Status MarkBedDone(Transaction& t, int64_t bed_id, const api::BedResult& result, double now);
+// The bed prepared: done at `now`, with its result and the MPI ranks it ran on (its completion's
+// execution.ranks; the cost model's bed rates are per rank count).
+Status MarkBedDone(Transaction& t, int64_t bed_id, const api::BedResult& result, int ranks, double now);
 // Fails the queued runs waiting for a bed that failed for good, with a "runs.failed" event naming
 // the bed and the reason. Returns how many.
 Result<int64_t> FailRunsOfBed(Transaction& t, int64_t bed_id, const std::string& reason, double now);

@@ -665,7 +665,7 @@ namespace {
 constexpr const char* kBedColumns =
     "b.id, b.key, b.scale, b.replicate, b.seed_pour1, b.seed_pour2, b.state, b.attempts, b.result, "
     "b.last_error_kind, b.last_error, b.created_at, b.finished_at, "
-    "(SELECT count(*) FROM runs r WHERE r.bed_id = b.id)";
+    "(SELECT count(*) FROM runs r WHERE r.bed_id = b.id), b.ranks";
 
 Result<BedView> BedFromRow(const Statement& st) {
   BedView b;
@@ -691,6 +691,7 @@ Result<BedView> BedFromRow(const Statement& st) {
   b.created_at = st.Double(11);
   b.finished_at = st.OptDouble(12);
   b.runs = st.Int(13);
+  if (!st.IsNull(14)) b.ranks = static_cast<int>(st.Int(14));
   return b;
 }
 
@@ -701,6 +702,7 @@ void to_json(nlohmann::json& j, const BedView& b) {
                      {"state", b.state}, {"attempts", b.attempts}, {"runs", b.runs},   {"created_at", b.created_at}};
   if (b.seed_pour1 && b.seed_pour2) j["seeds"] = {{"pour1", *b.seed_pour1}, {"pour2", *b.seed_pour2}};
   if (b.result) j["result"] = *b.result;
+  if (b.ranks) j["ranks"] = *b.ranks;
   if (b.last_error) j["last_error"] = {{"kind", b.last_error->kind}, {"message", b.last_error->message}};
   if (b.finished_at) j["finished_at"] = *b.finished_at;
 }

@@ -198,12 +198,15 @@ struct BedView {
   std::string state;                              // queued | running | done | failed
   int attempts = 0;
   std::optional<api::BedResult> result;
+  // The MPI ranks it was prepared on; absent while not done, and for beds prepared before they
+  // were recorded (the cost model counts those as one rank).
+  std::optional<int> ranks;
   std::optional<api::Failure> last_error;
   int64_t runs = 0;  // runs on this bed
   double created_at = 0;
   std::optional<double> finished_at;
 };
-// {"id","key","scale","replicate","seeds":{"pour1","pour2"}?,"state","attempts","result"?,
+// {"id","key","scale","replicate","seeds":{"pour1","pour2"}?,"state","attempts","result"?,"ranks"?,
 //  "last_error"?,"runs","created_at","finished_at"?}
 void to_json(nlohmann::json& j, const BedView& b);
 

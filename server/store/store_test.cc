@@ -133,7 +133,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
                         "ALTER TABLE campaign_schedules DROP COLUMN source;"
                         "DROP TABLE snapshots;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
-                        "ALTER TABLE beds DROP COLUMN seed_pour2;"
+                        "ALTER TABLE beds DROP COLUMN seed_pour2; ALTER TABLE beds DROP COLUMN ranks;"
                         "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
                         "uz_stderr REAL NOT NULL, window_t0 REAL NOT NULL, window_t1 REAL NOT NULL, dz REAL NOT NULL, "
                         "z_osc_amplitude REAL NOT NULL, x_drift REAL NOT NULL, broke_surface INTEGER NOT NULL, "
@@ -167,7 +167,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->db().schema_version(), 13);
+  EXPECT_EQ(store->db().schema_version(), 14);
   EXPECT_EQ(*store->db().CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());
