@@ -107,6 +107,77 @@ double Calibrator::PlannedSimSeconds() const {
   return s;
 }
 
+SimRun Calibrator::RunOne(const Law& law, const Noise& noise, const Bed& bed, const Point& point, double duration_s,
+                          const std::optional<PrecisionTarget>& target, uint64_t world, uint64_t night,
+                          int64_t run_id, ResultRow* out_row) const {
+  const DriveInfo drive = DriveFacts(point, *scale_);
+  RunSpec spec;
+  spec.point = point;
+  spec.duration_s = duration_s;
+  spec.z_floor = scale_->z_floor;
+  spec.lag_s = design_.follow_lag_s;
+  const DriveStartMarker start{bed.grains, bed.z0, bed.surface};
+  // The worker: it looks at the growing dump now and then (its heartbeat), but here only when
+  // its answer can have changed -- at each block's end (a look between two sees no new block),
+  // from the first time the window can hold the target's min_periods blocks, at most every
+  // follow_every_s -- and whenever the SO has come within the clearance of a boundary since its
+  // last look (the window may have closed). A real worker looks more often, to the same effect.
+  const double block = drive.f > 0 ? 1 / drive.f : WindowRule{}.undriven_block_s;
+  const double every = std::max(design_.follow_every_s, block);
+  const double clearance = WindowRule{}.clearance_m, r_so = kMaterials.d_so / 2;
+  double next_look = target ? std::max(every, target->min_periods * block) : every;
+  bool near_boundary = false;
+  if (target && design_.follow) {
+    spec.stop_hook = [&, target](const std::vector<SoSample>& so_far, std::string* reason) {
+      const SoSample& s = so_far.back();
+      const bool near = s.z + r_so + clearance >= bed.surface || s.z - r_so - clearance <= scale_->z_floor;
+      const bool first_near = near && !near_boundary;
+      near_boundary = near_boundary || near;
+      if (s.t < next_look - 1e-12 && !first_near) return false;
+      while (next_look <= s.t + 1e-12) next_look += every;
+      const StopVerdict v = worker::FollowRun(so_far, drive, start, *target);
+      if (v == StopVerdict::kContinue) return false;
+      *reason = v == StopVerdict::kTargetMet ? "target" : "window";
+      return true;
+    };
+  }
+  const uint64_t seed = RunSeed(world ^ (night * 0x9e3779b97f4a7c15ULL), bed.replicate, point);
+  EngineRun engine = GenerateRun(law, noise, bed, spec, seed);
+  SimRun run;
+  run.point = point;
+  run.replicate = bed.replicate;
+  run.true_uz = engine.true_uz;
+  run.law_uz = LawUz(law, point);
+  run.planned_s = spec.duration_s;
+  run.simulated_s = engine.samples.back().t;
+  run.stop_reason = engine.stop.reason;
+  run.has_target = target.has_value();
+  EngineLog log;
+  log.drive_start = engine.start;
+  log.drive_stop = engine.stop;
+  Result<api::RunResult> result = AnalyzeRun(engine.samples, RunInputsFrom(drive, log, target));
+  if (result.ok())
+    run.result = *result;
+  else
+    run.failure = "bad_output: " + result.status().reason();
+  if (out_row != nullptr) {
+    ResultRow row;
+    row.run_id = run_id;
+    row.point = point;
+    row.run_duration_s = duration_s;
+    row.bed_id = bed.replicate + 1;
+    row.replicate = bed.replicate;
+    if (result.ok()) {
+      row.state = "done";
+      row.result = StoredResult{*result, {}, {}, 0};
+    } else {
+      row.state = "failed";
+    }
+    *out_row = std::move(row);
+  }
+  return run;
+}
+
 SimCampaign Calibrator::Simulate(const Law& law, const Noise& noise, uint64_t world, uint64_t night) const {
   SimCampaign out;
   std::vector<Bed> beds;
@@ -115,68 +186,14 @@ SimCampaign Calibrator::Simulate(const Law& law, const Noise& noise, uint64_t wo
   for (size_t i = 0; i < plan_.runs.size(); ++i) {
     const PlannedRun& planned = plan_.runs[i];
     const Bed& bed = beds.at(static_cast<size_t>(planned.replicate));
-    const DriveInfo drive = DriveFacts(planned.point, *scale_);
     std::optional<PrecisionTarget> target = design_.precision ? planned.precision : std::nullopt;
-    RunSpec spec;
-    spec.point = planned.point;
-    spec.duration_s = design_.precision ? planned.run_duration_s : planned.point.duration_s;
-    spec.z_floor = scale_->z_floor;
-    spec.lag_s = design_.follow_lag_s;
-    const DriveStartMarker start{bed.grains, bed.z0, bed.surface};
-    // The worker: it looks at the growing dump now and then (its heartbeat), but here only when
-    // its answer can have changed -- at each block's end (a look between two sees no new block),
-    // from the first time the window can hold the target's min_periods blocks, at most every
-    // follow_every_s -- and whenever the SO has come within the clearance of a boundary since its
-    // last look (the window may have closed). A real worker looks more often, to the same effect.
-    const double block = drive.f > 0 ? 1 / drive.f : WindowRule{}.undriven_block_s;
-    const double every = std::max(design_.follow_every_s, block);
-    const double clearance = WindowRule{}.clearance_m, r_so = kMaterials.d_so / 2;
-    double next_look = target ? std::max(every, target->min_periods * block) : every;
-    bool near_boundary = false;
-    if (target && design_.follow) {
-      spec.stop_hook = [&, target](const std::vector<SoSample>& so_far, std::string* reason) {
-        const SoSample& s = so_far.back();
-        const bool near = s.z + r_so + clearance >= bed.surface || s.z - r_so - clearance <= scale_->z_floor;
-        const bool first_near = near && !near_boundary;
-        near_boundary = near_boundary || near;
-        if (s.t < next_look - 1e-12 && !first_near) return false;
-        while (next_look <= s.t + 1e-12) next_look += every;
-        const StopVerdict v = worker::FollowRun(so_far, drive, start, *target);
-        if (v == StopVerdict::kContinue) return false;
-        *reason = v == StopVerdict::kTargetMet ? "target" : "window";
-        return true;
-      };
-    }
-    const uint64_t seed = RunSeed(world ^ (night * 0x9e3779b97f4a7c15ULL), planned.replicate, planned.point);
-    EngineRun engine = GenerateRun(law, noise, bed, spec, seed);
-    SimRun run;
-    run.point = planned.point;
-    run.replicate = planned.replicate;
-    run.true_uz = engine.true_uz;
-    run.law_uz = LawUz(law, planned.point);
-    run.planned_s = spec.duration_s;
-    run.simulated_s = engine.samples.back().t;
-    run.stop_reason = engine.stop.reason;
-    run.has_target = target.has_value();
-    EngineLog log;
-    log.drive_start = engine.start;
-    log.drive_stop = engine.stop;
-    Result<api::RunResult> result = AnalyzeRun(engine.samples, RunInputsFrom(drive, log, target));
+    const double duration = design_.precision ? planned.run_duration_s : planned.point.duration_s;
     ResultRow row;
-    row.run_id = static_cast<int64_t>(i) + 1;
+    SimRun run = RunOne(law, noise, bed, planned.point, duration, target, world, night,
+                        static_cast<int64_t>(i) + 1, &row);
     row.key = planned.key;
-    row.point = planned.point;
     row.run_duration_s = planned.run_duration_s;
-    row.bed_id = planned.replicate + 1;
-    row.replicate = planned.replicate;
-    if (result.ok()) {
-      run.result = *result;
-      row.state = "done";
-      row.result = StoredResult{*result, {}, planned.key, 0};
-    } else {
-      run.failure = "bad_output: " + result.status().reason();
-      row.state = "failed";
-    }
+    if (row.result) row.result->key = planned.key;
     out.runs.push_back(std::move(run));
     all_rows.push_back(std::move(row));
   }
@@ -207,6 +224,7 @@ SimCampaign Calibrator::Simulate(const Law& law, const Noise& noise, uint64_t wo
   }
   out.verdicts = EvaluateClaims(campaign_.claims, input);
   out.sweeps = std::move(input.sweeps);
+  out.beds = std::move(input.beds);
   return out;
 }
 

@@ -29,6 +29,7 @@
 #include "core/claims.h"
 #include "core/status.h"
 #include "core/sweep.h"
+#include "server/store/store.h"
 #include "tests/truth/truth_law.h"
 
 namespace sandswim::truth {
@@ -62,6 +63,7 @@ struct SimCampaign {
   std::vector<SimRun> runs;             // in plan order
   std::vector<ClaimVerdict> verdicts;   // in the campaign's claims' order
   std::vector<ClaimSweep> sweeps;       // as EvaluateClaims saw them
+  std::vector<ClaimBed> beds;           // as EvaluateClaims saw them
 };
 
 class Calibrator {
@@ -69,6 +71,13 @@ class Calibrator {
   static Result<Calibrator> Make(const Design& design);
   // `world`: the draw of beds and noise (the same world gives the same campaign).
   SimCampaign Simulate(const Law& law, const Noise& noise, uint64_t world, uint64_t night = 0) const;
+  // One run as Simulate runs each (the worker following it to `target`), on `bed`, lasting at most
+  // `duration_s`; `row` (when given) gets the store's row for it, run id `run_id`.
+  SimRun RunOne(const Law& law, const Noise& noise, const Bed& bed, const Point& point, double duration_s,
+                const std::optional<PrecisionTarget>& target, uint64_t world, uint64_t night, int64_t run_id,
+                ResultRow* row = nullptr) const;
+  const Campaign& campaign() const { return campaign_; }
+  const Scale& scale() const { return *scale_; }
   const Design& design() const { return design_; }
   const Plan& plan() const { return plan_; }
   const std::vector<Claim>& claims() const { return campaign_.claims; }
