@@ -346,8 +346,11 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
       "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,"
       "inconclusive_reason,trending,trend_p,trend_slope,trend_slope_se,trend_note,dz,dz_rate,z_osc_amplitude,"
       "x_osc_amplitude,x_drift,broke_surface,near_floor,stop_reason,"
-      "stop_note,precision_met,sim_time_s,grains,analysis,analysed_from,engine_version");
-  EXPECT_THAT(row1, MatchesRegex("[0-9]+,[0-9a-f]{64},queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,0,[0-9]+(,){32}"));
+      "stop_note,precision_met,sim_time_s,grains,analysis,analysed_from,engine_version,"
+      "so_density_kg_m3,so_diameter_m,so_friction,so_restitution,grain_diameter_m,grain_density_kg_m3,"
+      "grain_friction,grain_restitution,grain_youngs_Pa,grain_poisson");
+  EXPECT_THAT(row1, MatchesRegex("[0-9]+,[0-9a-f]{64},queued,oscillatory,0.03,3.0,30.0,,,0.3,0.3,0,[0-9]+(,){32},"
+                                 "2500.0,0.12,0.5,0.5,0.02,2500.0,0.45,0.9,10000000.0,0.25"));
 
   for (std::vector<std::string> args : {std::vector<std::string>{"--format", "json"}, {"--json"}}) {
     std::vector<std::string> argv = {"results", std::to_string(id)};

@@ -432,6 +432,45 @@ std::string ResultFlags(const json& row) {
   return flags;
 }
 
+namespace {
+
+// The materials some row sets (its JSON carries only those not Table 1's), in core/materials.h's
+// order: the swept ones, shown as columns beside the drive's.
+std::vector<const MaterialField*> RowsMaterials(const json& rows) {
+  std::vector<const MaterialField*> shown;
+  if (!rows.is_array()) return shown;
+  for (const MaterialField& f : MaterialFields()) {
+    for (const auto& r : rows) {
+      if (r.contains(std::string(f.name))) {
+        shown.push_back(&f);
+        break;
+      }
+    }
+  }
+  return shown;
+}
+
+// Inserts a column per material after the header's `at`-th column ("so_density (kg/m^3)"), and
+// each row's value (Table 1's where it sets none).
+void AddMaterialColumns(Table& t, const std::vector<const MaterialField*>& shown, size_t at) {
+  for (size_t i = 0; i < shown.size(); ++i) {
+    const MaterialField& f = *shown[i];
+    t.header.insert(t.header.begin() + at + i,
+                    std::string(f.name) + (f.unit.empty() ? "" : " (" + std::string(f.unit) + ")"));
+    t.align.insert(t.align.begin() + at + i, Align::kRight);
+  }
+}
+std::vector<std::string> MaterialCells(const json& r, const std::vector<const MaterialField*>& shown) {
+  std::vector<std::string> cells;
+  for (const MaterialField* f : shown) {
+    const std::string name(f->name);
+    cells.push_back(r.contains(name) ? NumCell(r, name.c_str()) : DisplayNumber(kTable1.*f->member));
+  }
+  return cells;
+}
+
+}  // namespace
+
 std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
   bool with_sweeps = false;
   if (rows.is_array()) {
@@ -442,6 +481,9 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
               "AXIS", "DURATION", "U_z (m/s)", "Δz/T (m/s)", "Δz (m)", "FLAGS"};
   t.align = {Align::kRight, Align::kLeft,  Align::kLeft,  Align::kRight, Align::kRight, Align::kRight,
              Align::kLeft,  Align::kRight, Align::kRight, Align::kRight, Align::kRight, Align::kLeft};
+  constexpr size_t kAfterDrive = 8;  // the materials' columns follow DURATION
+  const std::vector<const MaterialField*> materials = RowsMaterials(rows);
+  AddMaterialColumns(t, materials, kAfterDrive);
   if (with_sweeps) t.header.push_back("SWEEPS");
   if (rows.is_array()) {
     for (const auto& r : rows) {
@@ -452,6 +494,8 @@ std::string RenderResultsTable(const json& rows, const RenderOptions& options) {
                                       NumCell(r, "A"),           NumCell(r, "f"),          OmegaCell(r),
                                       axis.empty() ? "-" : axis, NumCell(r, "duration_s"), Str(r, "Uz_text", "-"),
                                       NumCell(r, "dz_rate", 2),  NumCell(r, "dz", 3),      flags.empty() ? "-" : flags};
+      const std::vector<std::string> cells = MaterialCells(r, materials);
+      row.insert(row.begin() + kAfterDrive, cells.begin(), cells.end());
       if (with_sweeps) {
         std::string sweeps;
         for (const auto& s : r.value("sweeps", json::array())) {
@@ -471,6 +515,9 @@ std::string RenderAggregatesTable(const json& aggregates, const RenderOptions&) 
   t.header = {"MODE", "A", "f", "Omega/omega", "AXIS", "U_z (m/s), mean ± se", "K", "EACH BED (m/s)", "NOTE"};
   t.align = {Align::kLeft,  Align::kRight, Align::kRight, Align::kRight, Align::kLeft,
              Align::kRight, Align::kRight, Align::kLeft,  Align::kLeft};
+  constexpr size_t kAfterDrive = 5;  // the materials' columns follow AXIS
+  const std::vector<const MaterialField*> materials = RowsMaterials(aggregates);
+  AddMaterialColumns(t, materials, kAfterDrive);
   if (aggregates.is_array()) {
     for (const auto& a : aggregates) {
       std::string each;
@@ -482,9 +529,18 @@ std::string RenderAggregatesTable(const json& aggregates, const RenderOptions&) 
       }
       const std::string axis = Str(a, "axis");
       const std::string note = Str(a, "note");
-      t.rows.push_back({Str(a, "mode", "-"), NumCell(a, "A"), NumCell(a, "f"), OmegaCell(a), axis.empty() ? "-" : axis,
-                        Str(a, "uz_text", "-"), Str(a, "conclusive", "0") + "/" + Str(a, "replicates", "0"),
-                        each.empty() ? "-" : each, note.empty() ? "-" : note});
+      std::vector<std::string> row = {Str(a, "mode", "-"),
+                                      NumCell(a, "A"),
+                                      NumCell(a, "f"),
+                                      OmegaCell(a),
+                                      axis.empty() ? "-" : axis,
+                                      Str(a, "uz_text", "-"),
+                                      Str(a, "conclusive", "0") + "/" + Str(a, "replicates", "0"),
+                                      each.empty() ? "-" : each,
+                                      note.empty() ? "-" : note};
+      const std::vector<std::string> cells = MaterialCells(a, materials);
+      row.insert(row.begin() + kAfterDrive, cells.begin(), cells.end());
+      t.rows.push_back(std::move(row));
       t.color.push_back({});
     }
   }
@@ -504,13 +560,13 @@ std::string RenderResults(const json& reply, const RenderOptions& options) {
 }
 
 std::string RenderResultsCsv(const json& rows) {
-  std::vector<std::string> columns = ResultColumns();
+  std::vector<std::string> columns = ResultCsvColumns();
   std::vector<json> list;
   bool with_sweeps = false;
   if (rows.is_array()) {
     for (const auto& r : rows) {
       with_sweeps = with_sweeps || r.contains("sweeps");
-      list.push_back(r);
+      list.push_back(ResultCsvRow(r));
     }
   }
   if (with_sweeps) columns.push_back("sweeps");

@@ -125,10 +125,32 @@ TEST(FormatTest, ResultsCsvGolden) {
       "Uz_ci95,Uz_blocks,block_s,block_kind,window_t0,window_t1,window_end,conclusive,inconclusive_reason,trending,"
       "trend_p,trend_slope,trend_slope_se,trend_note,dz,dz_rate,z_osc_amplitude,x_osc_amplitude,x_drift,"
       "broke_surface,near_floor,stop_reason,stop_note,precision_met,sim_time_s,grains,analysis,analysed_from,"
-      "engine_version\n"
+      "engine_version,so_density_kg_m3,so_diameter_m,so_friction,so_restitution,grain_diameter_m,"
+      "grain_density_kg_m3,grain_friction,grain_restitution,grain_youngs_Pa,grain_poisson\n"
       "1,k1,done,oscillatory,0.03,3.0,-80.0,,,5.0,5.0,,,\"0.0123 ± 0.0001, 4 periods\",0.0123456,0.0001,0.000318,4,"
-      ",,,,surface,true,,,,,,,0.061728,0.012346,,,,true,false,surface,,,,,2,,\n"
-      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,\n");
+      ",,,,surface,true,,,,,,,0.061728,0.012346,,,,true,false,surface,,,,,2,,,"
+      "2500.0,0.12,0.5,0.5,0.02,2500.0,0.45,0.9,10000000.0,0.25\n"
+      "12,\"k,2\",failed,vibration+rotation,0.03,3.0,,80.0,xz,4.0,4.0,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,,"
+      "2500.0,0.12,0.5,0.5,0.02,2500.0,0.45,0.9,10000000.0,0.25\n");
+}
+
+// A sweep over materials: its rows show the swept materials as columns after the drive's (Table
+// 1's value where a row sets none), its CSV their values; a Table 1 sweep's table is unchanged
+// (ResultsTableGolden).
+TEST(FormatTest, ResultsShowTheSweptMaterials) {
+  json rows = TwoResultRows();
+  rows[1]["so_density"] = 5000;
+  rows[1]["grain_youngs"] = 1e8;
+  const std::string table = RenderResultsTable(rows, {});
+  EXPECT_THAT(table, HasSubstr("DURATION  so_density (kg/m^3)  grain_youngs (Pa)  "));
+  EXPECT_THAT(table, HasSubstr("2500"));  // row 1: Table 1's
+  EXPECT_THAT(table, HasSubstr("5000"));
+  EXPECT_THAT(table, HasSubstr("1e+07"));
+  EXPECT_THAT(table, HasSubstr("1e+08"));
+  EXPECT_THAT(RenderResultsCsv(rows), HasSubstr(",2,,,2500.0,0.12,0.5,0.5,0.02,2500.0,0.45,0.9,10000000.0,0.25\n"));
+  EXPECT_THAT(RenderResultsCsv(rows), HasSubstr(",5000,0.12,0.5,0.5,0.02,2500.0,0.45,0.9,100000000.0,0.25\n"));
+  json aggregates = json::array({{{"mode", "oscillatory"}, {"A", 0.03}, {"so_density", 5000}, {"replicates", 2}}});
+  EXPECT_THAT(RenderAggregatesTable(aggregates, {}), HasSubstr("AXIS  so_density (kg/m^3)  U_z"));
 }
 
 // A point on three beds: its mean ± standard error, K as conclusive/all, each bed's value (an

@@ -129,6 +129,7 @@ void to_json(nlohmann::json& j, const LeaseGrant& g) {
   if (!g.key_engine.empty()) j["key_engine"] = g.key_engine;
   PutOptional(j, "bed", g.bed);
   PutOptional(j, "z_floor_m", g.z_floor_m);
+  PutOptional(j, "so_radius_m", g.so_radius_m);
   if (g.precision) j["precision"] = PrecisionToJson(*g.precision);
   if (!g.snapshots.empty()) j["snapshots"] = g.snapshots;
   if (g.queue_dry) j["queue_dry"] = true;
@@ -151,6 +152,7 @@ void from_json(const nlohmann::json& j, LeaseGrant& g) {
   g.f_hz = j.value("f_hz", 0.0);
   g.A_m = j.value("A_m", 0.0);
   GetOptional(j, "z_floor_m", g.z_floor_m);
+  GetOptional(j, "so_radius_m", g.so_radius_m);
   if (auto it = j.find("precision"); it != j.end() && !it->is_null()) {
     auto t = PrecisionFromJson(*it);
     if (!t.ok()) throw nlohmann::json::other_error::create(501, "precision: " + t.status().ToString(), &*it);

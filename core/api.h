@@ -82,6 +82,9 @@ struct LeaseGrant {
   double f_hz = 0;  // 0 when the mode does not vibrate
   double A_m = 0;
   std::optional<double> z_floor_m;
+  // The SO's radius the deck states (its point's so_diameter / 2), runs only; absent from a daemon
+  // older than materials: Table 1's.
+  std::optional<double> so_radius_m;
   // The run's precision target (core/precision.h): the worker follows U_z on the growing dump and
   // ends the run, through the deck's control file, once DecideStop says so. Absent: the run lasts
   // `steps`.

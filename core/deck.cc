@@ -244,6 +244,7 @@ DriveInfo DriveFacts(const Point& p, const Scale& s) {
   d.f = p.has_vibration() ? p.f : 0.0;
   d.A = p.has_vibration() ? p.A : 0.0;
   d.z_floor = std::round(BoxFor(s, p.materials).z_floor * 1e9) / 1e9;  // as the deck's Length()
+  d.so_radius = p.materials.d_so / 2;                                 // as the deck's r_so
   return d;
 }
 

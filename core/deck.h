@@ -111,13 +111,16 @@ long long DriveSteps(const Point& p, const std::optional<PrecisionTarget>& targe
 // steady window has closed (core/precision.h StopVerdict).
 std::string ControlFileText(StopVerdict verdict);
 
-// Drive facts a drive deck states (its `timestep`, `variable f/A equal` and floor wall `zplane`
-// lines): what reading the run's dump needs besides the dump.
+// Drive facts a drive deck states (its `timestep`, `variable f/A equal`, floor wall `zplane` and
+// `variable top_gap equal v_so_z+<r>-...` lines): what reading the run's dump needs besides the dump.
 struct DriveInfo {
   double dt = 0;                  // s
   double f = 0;                   // Hz; 0 when the mode does not vibrate
   double A = 0;                   // m
   std::optional<double> z_floor;  // m, the floor wall's height, when the deck has one
+  // m, the SO's radius (its point's so_diameter / 2): the analysis keeps the SO's clearance from
+  // the surface and the floor with it (core/trajectory.h BedBounds). Table 1's when not stated.
+  double so_radius = kMaterials.d_so / 2;
 };
 
 // The drive facts of `p` at `scale`, exactly as RenderDriveDeck states them (the same numbers:

@@ -51,6 +51,38 @@ const std::vector<std::string>& ResultColumns() {
   return kColumns;
 }
 
+std::string MaterialCsvColumn(const MaterialField& field) {
+  std::string column(field.name);
+  if (field.unit.empty()) return column;
+  column += '_';
+  for (char ch : field.unit) {
+    if (ch == '/') column += '_';
+    else if (ch != '^') column += ch;
+  }
+  return column;
+}
+
+const std::vector<std::string>& ResultCsvColumns() {
+  static const std::vector<std::string> kColumns = [] {
+    std::vector<std::string> columns = ResultColumns();
+    for (const MaterialField& f : MaterialFields()) columns.push_back(MaterialCsvColumn(f));
+    return columns;
+  }();
+  return kColumns;
+}
+
+nlohmann::json ResultCsvRow(const nlohmann::json& row) {
+  nlohmann::json out = row;
+  for (const MaterialField& f : MaterialFields()) {
+    const std::string name(f.name);
+    auto it = row.find(name);
+    nlohmann::json value = it != row.end() && it->is_number() ? *it : nlohmann::json(kTable1.*f.member);
+    out.erase(name);  // before: a dimensionless field's column is its name
+    out[MaterialCsvColumn(f)] = std::move(value);
+  }
+  return out;
+}
+
 std::string CsvCell(const nlohmann::json& v) {
   if (v.is_null()) return "";
   if (v.is_array()) {

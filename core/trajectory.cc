@@ -103,10 +103,17 @@ void TestTrend(const std::vector<SoSample>& samples, const WindowRule& rule, api
 
 }  // namespace
 
+Result<double> ReadTimeStep(std::string_view deck) {
+  auto dt = LineValue(deck, "timestep");
+  if (!dt || !(*dt > 0) || !std::isfinite(*dt))
+    return Status::InvalidArgument("deck", "the deck has no 'timestep <dt>' line with dt > 0");
+  return *dt;
+}
+
 Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
   DriveInfo info;
-  auto dt = LineValue(deck, "timestep");
-  if (!dt || *dt <= 0) return Status::InvalidArgument("deck", "the deck has no 'timestep <dt>' line with dt > 0");
+  Result<double> dt = ReadTimeStep(deck);
+  if (!dt.ok()) return dt.status();
   info.dt = *dt;
   // Every drive deck states f (0 for constant rotation): a deck without it is not one of ours, and
   // guessing "no period" would analyse a vibrating run with the wrong blocks.
@@ -124,6 +131,14 @@ Result<DriveInfo> ReadDriveInfo(std::string_view deck) {
     size_t z = line.find(" zplane ");
     double v;
     if (z != std::string_view::npos && ToDouble(line.substr(z + 8), &v)) info.z_floor = v;
+  }
+  // "variable top_gap equal v_so_z+R-v_z_surface": the SO's radius R (a deck without it, Table 1's).
+  const std::string_view gap = "\nvariable top_gap equal v_so_z+";
+  at = deck.find(gap);
+  if (at != std::string_view::npos) {
+    std::string_view rest = deck.substr(at + gap.size());
+    double v;
+    if (ToDouble(rest.substr(0, rest.find('-')), &v) && v > 0) info.so_radius = v;
   }
   return info;
 }
@@ -432,6 +447,7 @@ RunInputs RunInputsFrom(const DriveInfo& drive, const EngineLog& log, const std:
   in.f = drive.f;
   if (drive.dt > 0) in.dt = drive.dt;
   in.bounds.floor = drive.z_floor;
+  in.bounds.so_radius = drive.so_radius;
   in.start = log.drive_start;
   in.stop = log.drive_stop;
   if (in.start) in.bounds.surface = in.start->surface;

@@ -95,6 +95,9 @@ struct SoSample {
 // in their lease. InvalidArgument naming the missing line when the deck does not state dt or f (every drive deck
 // states "variable f equal", 0 for constant rotation).
 Result<DriveInfo> ReadDriveInfo(std::string_view deck);
+// The step a deck (a bed's or a drive's) states on its 'timestep <dt>' line: its materials' own
+// (core/materials.h TimeStep). InvalidArgument ("deck") when it states none with dt > 0.
+Result<double> ReadTimeStep(std::string_view deck);
 
 // How the steady window is chosen. The defaults are the service's; `sandswim analyze` can change
 // them. Each number is a stated choice, not fitted to any result:
@@ -128,7 +131,7 @@ std::optional<Trend> BlockRateTrend(const std::vector<SoSample>& samples, double
 struct BedBounds {
   std::optional<double> surface;  // m, the bed surface (highest grain centre at the drive's start)
   std::optional<double> floor;    // m, the floor wall
-  double so_radius = kMaterials.d_so / 2;
+  double so_radius = kMaterials.d_so / 2;  // m, the run's SO (core/deck.h DriveInfo::so_radius)
 };
 
 // The mean rate over whole blocks of [t0, t1], see above. No samples are dropped or smoothed.

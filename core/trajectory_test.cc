@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/deck.h"
 #include "core/dump_reader.h"
 #include "core/engine_log.h"
 #include "core/scale.h"
@@ -35,6 +36,41 @@ std::vector<SoSample> Synthetic(double duration, double z0, double u, double amp
 }
 
 const BedBounds kNoBounds{};
+
+// The clearance from the surface is kept by the run's own SO: a point of a larger SO (d_so 0.2 m,
+// radius 0.1 m) ends its window earlier than Table 1's (0.06 m) on the same path, and both the
+// lease's facts (DriveFacts) and an offline read of its deck (ReadDriveInfo) carry its radius.
+TEST(TrajectoryTest, TheClearanceIsKeptByThePointsOwnSo) {
+  Point big = OscillatoryPoint(0.03, 3, -80, 4);
+  big.materials.d_so = 0.2;
+  const Scale& paper = *FindScale("paper");
+  const DriveInfo facts = DriveFacts(big, paper);
+  EXPECT_EQ(facts.so_radius, 0.1);
+  EXPECT_EQ(DriveFacts(OscillatoryPoint(0.03, 3, -80, 4), paper).so_radius, kMaterials.d_so / 2);
+  Result<DriveInfo> read = ReadDriveInfo(RenderDriveDeck(big, paper, std::nullopt));
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  EXPECT_EQ(read->so_radius, 0.1);
+  EXPECT_EQ(ReadDriveInfo("timestep 1e-5\nvariable f equal 0\n")->so_radius, kMaterials.d_so / 2);
+
+  // Rising at 0.1 m/s from 0 under a surface at 0.3 m + the clearance: Table 1's SO comes within
+  // its clearance at t = (0.3 - 0.06) / 0.1 = 2.4 s, the 0.2 m SO at (0.3 - 0.1) / 0.1 = 2 s.
+  const double clear = WindowRule{}.clearance_m;
+  auto s = Synthetic(4.0, 0.0, 0.1, 0.002, 3.0, 0.0, 0.0);
+  EngineLog log;
+  log.drive_start = DriveStartMarker{5000, 0.0, 0.3 + clear};
+  DriveInfo bigger = facts;
+  bigger.z_floor.reset();  // the surface alone
+  DriveInfo table1 = bigger;
+  table1.so_radius = kMaterials.d_so / 2;
+  auto small = AnalyzeRun(s, RunInputsFrom(table1, log));
+  auto large = AnalyzeRun(s, RunInputsFrom(bigger, log));
+  ASSERT_TRUE(small.ok() && large.ok());
+  EXPECT_EQ(small->window_end, "surface");
+  EXPECT_EQ(large->window_end, "surface");
+  EXPECT_LE(large->window_t1, 2.0 + 1e-9);
+  EXPECT_GT(small->window_t1, 2.0 + 1e-9);
+  EXPECT_LT(large->uz_blocks, small->uz_blocks);  // fewer whole periods before the earlier end
+}
 
 TEST(TrajectoryTest, RecoversTheDriftOfANoiselessRunExactly) {
   // A start-up transient in the first period that the window must skip; harmonics at f and 2f.

@@ -458,7 +458,8 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
     return Fail(job, &*dir, "bad_lease",
                 "the lease carries no timestep (dt_s): the daemon is older than this worker; upgrade sandswimd");
   }
-  const DriveInfo drive{grant.dt_s, grant.f_hz, grant.A_m, grant.z_floor_m};
+  const DriveInfo drive{grant.dt_s, grant.f_hz, grant.A_m, grant.z_floor_m,
+                        grant.so_radius_m.value_or(kMaterials.d_so / 2)};
   auto progress = std::make_unique<JobProgress>(*dir, grant.kind, drive.dt);
   std::optional<ExitFacts> facts = Supervise(job, *dir, drive, *progress);
   if (!facts) return;  // abandoned or handed back

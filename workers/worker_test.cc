@@ -192,6 +192,7 @@ api::LeaseGrant WithDriveFacts(api::LeaseGrant g) {
   g.f_hz = drive->f;
   g.A_m = drive->A;
   g.z_floor_m = drive->z_floor;
+  g.so_radius_m = drive->so_radius;
   return g;
 }
 

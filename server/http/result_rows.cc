@@ -174,7 +174,7 @@ std::string ResultsPath(ResultsOf of, int64_t id) {
 }
 
 std::vector<std::string> CsvColumns(ResultsOf of) {
-  std::vector<std::string> columns = ResultColumns();
+  std::vector<std::string> columns = ResultCsvColumns();
   if (of == ResultsOf::kCampaignRun) columns.push_back("sweeps");
   return columns;
 }
@@ -183,7 +183,7 @@ std::vector<std::string> CsvColumns(ResultsOf of) {
 std::string CsvLines(const std::vector<ResultRow>& rows, ResultsOf of, bool header) {
   std::vector<json> objects;
   objects.reserve(rows.size());
-  for (const ResultRow& row : rows) objects.push_back(ResultRowJson(row, of));
+  for (const ResultRow& row : rows) objects.push_back(ResultCsvRow(ResultRowJson(row, of)));
   std::string text = RowsToCsv(objects, CsvColumns(of));
   if (!header) text.erase(0, text.find('\n') + 1);
   return text;

@@ -671,6 +671,53 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   }
 }
 
+// A run's materials where its results are: its JSON row carries those not Table 1's (a Table 1 row
+// is what it always was); its CSV row all ten, named with their units, at the end.
+TEST_F(RoutesTest, ResultsCarryTheirPointsMaterials) {
+  auto r = Post("/api/v1/sweeps", R"({"name": "density", "scale": "smoke",
+    "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3, "grain_youngs": 1e8},
+    "axes": [{"param": "so_density", "values": [2500, 5000]}], "combine": "product"})");
+  ASSERT_EQ(r->status, 201) << r->body;
+  const std::string path = "/api/v1/sweeps/" + std::to_string(Body(r)["id"].get<int64_t>()) + "/results";
+  json rows = Body(client_->Get(path.c_str()))["results"];
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_FALSE(rows[0].contains("so_density")) << rows[0];  // Table 1's
+  EXPECT_EQ(rows[1]["so_density"], 5000.0);
+  EXPECT_EQ(rows[0]["grain_youngs"], 1e8);
+  EXPECT_EQ(rows[1]["grain_youngs"], 1e8);
+  EXPECT_FALSE(rows[1].contains("so_diameter"));
+
+  auto csv = client_->Get((path + "?format=csv").c_str());
+  ASSERT_EQ(csv->status, 200);
+  std::istringstream lines(csv->body);
+  std::string header, row1, row2;
+  std::getline(lines, header);
+  std::getline(lines, row1);
+  std::getline(lines, row2);
+  auto cells = [](const std::string& line) {
+    std::vector<std::string> out;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) out.push_back(cell);
+    if (!line.empty() && line.back() == ',') out.push_back("");
+    return out;
+  };
+  const std::vector<std::string> names = cells(header);
+  ASSERT_EQ(names.size(), ResultCsvColumns().size());
+  EXPECT_THAT(header, HasSubstr(",engine_version,so_density_kg_m3,so_diameter_m,so_friction,so_restitution,"
+                                "grain_diameter_m,grain_density_kg_m3,grain_friction,grain_restitution,"
+                                "grain_youngs_Pa,grain_poisson"));
+  auto at = [&](const std::string& line, const std::string& column) {
+    const size_t i = std::find(names.begin(), names.end(), column) - names.begin();
+    const std::vector<std::string> c = cells(line);
+    return i < c.size() ? c[i] : std::string("(none)");
+  };
+  EXPECT_EQ(at(row1, "so_density_kg_m3"), "2500.0");
+  EXPECT_EQ(at(row2, "so_density_kg_m3"), "5000.0");
+  EXPECT_EQ(at(row1, "grain_youngs_Pa"), "100000000.0");
+  EXPECT_EQ(at(row2, "so_diameter_m"), "0.12");
+  EXPECT_EQ(at(row2, "grain_poisson"), "0.25");
+}
+
 TEST_F(RoutesTest, CancelStopsQueuedRuns) {
   int64_t sweep = SubmitExample();
   auto r = Post("/api/v1/sweeps/" + std::to_string(sweep) + "/cancel", "");

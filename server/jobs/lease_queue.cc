@@ -215,7 +215,11 @@ Result<bool> LeaseQueue::NextBed(Transaction& t, api::LeaseGrant& g) {
   g.key = (*bed)->key;
   g.deck = (*bed)->deck;
   g.attempt = (*bed)->attempts + 1;
-  g.dt_s = kMaterials.dt;  // the bed deck's timestep (core/deck.cc)
+  // The bed's own step (its materials' TimeStep, core/materials.h), as its deck states it: a bed of
+  // stiffer or smaller grains steps shorter than Table 1's 1e-5 s. Every bed deck states one; were
+  // one not to, Table 1's (what every bed deck stated before materials could be set).
+  const Result<double> dt = ReadTimeStep((*bed)->deck);
+  g.dt_s = dt.ok() ? *dt : kMaterials.dt;
   g.key_engine = (*bed)->engine_version.value_or("");
   return true;
 }
@@ -280,6 +284,7 @@ Result<bool> LeaseQueue::NextRun(Transaction& t, api::LeaseGrant& g, double now)
       g.f_hz = deck->drive.f;
       g.A_m = deck->drive.A;
       g.z_floor_m = deck->drive.z_floor;
+      g.so_radius_m = deck->drive.so_radius;
       g.precision = deck->precision;
       g.snapshots = deck->snapshots;
       return true;

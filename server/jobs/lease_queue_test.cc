@@ -275,6 +275,20 @@ TEST_F(LeaseQueueTest, GrantsCarryTheDrivesFactsTheirDeckStates) {
   }
 }
 
+// A bed of stiffer grains is poured with its own, shorter step (core/materials.h TimeStep: 3.1e-6 s
+// for E = 1e8 Pa), and its lease says so: the worker reads the bed's dump and paces its progress
+// with it (it was Table 1's 1e-5 s for every bed, 3.2 times the real step here).
+TEST_F(LeaseQueueTest, ABedIsLeasedWithItsOwnTimeStep) {
+  nlohmann::json j = OmegaSignSweep();
+  j["base"]["grain_youngs"] = 1e8;
+  SubmitJson(j);
+  api::LeaseGrant bed = MustLease();
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  EXPECT_EQ(bed.dt_s, 3.1e-6);
+  EXPECT_NE(bed.deck.find("timestep        3.1e-06\n"), std::string::npos) << bed.deck;
+  EXPECT_EQ(nlohmann::json(bed).get<api::LeaseGrant>().dt_s, 3.1e-6);
+}
+
 TEST_F(LeaseQueueTest, RunsOfOtherMaterialsAreLeasedWithTheirOwnDecks) {
   // The runs table keeps each run's materials (migration 12): the deck rendered at lease time is
   // the one its key was made from, with the SO's density set after read_restart and the stiffer

@@ -361,6 +361,7 @@ struct OldResult {
   bool vibrates = false;
   int analysis = 1;
   std::optional<std::string> precision;  // the run's precision target (JSON), if it had one
+  std::optional<std::string> materials;  // the run's materials (runs.materials), NULL: Table 1's
 };
 
 // The result analysis `kAnalysisVersion` makes of `o`'s stored trajectory, or why there is none.
@@ -373,8 +374,11 @@ Result<api::RunResult> Reanalyse(const OldResult& o) {
     for (size_t i = 0; i < tr.t.size() && i < tr.x.size() && i < tr.y.size() && i < tr.z.size(); ++i) {
       samples.push_back({std::llround(tr.t[i] / kMaterials.dt), tr.t[i], tr.x[i], tr.y[i], tr.z[i]});
     }
+    Result<Materials> materials = StoredMaterials(o.materials);
+    if (!materials.ok()) return materials.status();
     BedBounds bounds;
-    if (const Scale* scale = FindScale(o.scale)) bounds.floor = scale->z_floor;
+    bounds.so_radius = materials->d_so / 2;  // the run's SO, as its deck's r_so
+    if (const Scale* scale = FindScale(o.scale)) bounds.floor = BoxFor(*scale, *materials).z_floor;
     nlohmann::json bed = ParseJsonOr(o.bed_result, nullptr);
     if (bed.is_object() && bed.contains("grain_top")) bounds.surface = bed["grain_top"].get<double>();
     DriveStartMarker start{o.grains, o.z0, bounds.surface.value_or(0)};
@@ -434,8 +438,8 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
       if (!t.ok()) return t.status();
       Statement st = t->Prepare(
           "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), "
-          "res.stop_reason, res.sim_time_s, res.steps, res.grains, res.z0, res.analysis, r.precision "
-          "FROM results res "
+          "res.stop_reason, res.sim_time_s, res.steps, res.grains, res.z0, res.analysis, r.precision, "
+          "r.materials FROM results res "
           "JOIN runs r ON r.id = res.run_id JOIN beds b ON b.id = r.bed_id "
           "LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
           "WHERE res.analysis < ? AND res.analysed_from != 'unreadable' AND res.run_id > ? "
@@ -460,6 +464,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
         o.z0 = st.Double(10);
         o.analysis = static_cast<int>(st.Int(11));
         o.precision = st.OptText(12);
+        o.materials = st.OptText(13);
         page.push_back(std::move(o));
       }
     }
