@@ -117,19 +117,22 @@ const DriftAlarmRates* FindDriftAlarmRates(const std::string& campaign, const st
   return nullptr;
 }
 
-std::string DriftAlarmText(const std::string& campaign, const std::string& scale, int beds) {
+std::string DriftAlarmText(const std::string& campaign, const std::string& scale, int beds,
+                           bool same_beds_known_errors) {
   const DriftAlarmRates* r = FindDriftAlarmRates(campaign, scale, beds);
   const std::string k = "K = " + std::to_string(beds) + (beds == 1 ? " bed" : " beds");
-  if (r == nullptr) {
+  const std::string nominal = "; the rule's nominal level is 5 % per point and 5 % per campaign (any point, Holm)";
+  if (r == nullptr) return "false alarms: not measured at this design (" + campaign + " at " + scale + ", " + k + ")" + nominal;
+  if (!same_beds_known_errors) {
     return "false alarms: not measured at this design (" + campaign + " at " + scale + ", " + k +
-           "); the rule's nominal level is 5 % per point and 5 % per campaign (any point, Holm)";
+           ", some runs compared across re-poured or unknown beds or without their intervals)" + nominal;
   }
   const double point_hi = WilsonInterval(r->points_drifted, r->points).second;
   const double campaign_hi = WilsonInterval(r->campaigns_drifted, r->campaigns).second;
   return "false alarms <= " + Percent(point_hi) + " % per point, <= " + Percent(campaign_hi) +
          " % per campaign (any point, Holm) at this design (" + campaign + " at " + scale + ", " + k +
          ", drift rule " + std::to_string(r->rule) + "; " + std::to_string(r->campaigns) +
-         " simulated night pairs)";
+         " night pairs simulated on the truth engine)";
 }
 
 }  // namespace sandswim

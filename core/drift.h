@@ -99,7 +99,11 @@ const DriftAlarmRates* FindDriftAlarmRates(const std::string& campaign, const st
 // "false alarms <= 5.3 % per point, <= 6.1 % per campaign (any point, Holm) at this design (paper-58 at smoke,
 // K = 1 bed, drift rule 2; 300 simulated night pairs)" or "false alarms: not measured at this design
 // (campaign at scale, K = 2); the rule's nominal level is 5 % per point and per campaign (Holm)".
-std::string DriftAlarmText(const std::string& campaign, const std::string& scale, int beds);
+// The rates were measured on two nights on the same beds with both runs' intervals known:
+// `same_beds_known_errors` false (a pair on a re-poured or unknown bed, or an error without its
+// interval) is another design, and the text says "not measured".
+std::string DriftAlarmText(const std::string& campaign, const std::string& scale, int beds,
+                           bool same_beds_known_errors = true);
 
 }  // namespace sandswim
 

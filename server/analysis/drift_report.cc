@@ -51,7 +51,10 @@ DriftBedPair PairOf(const DriftPoint& p) {
   b.uz_stderr_previous = p.uz_stderr_previous.value_or(0);
   b.dof = dof(p.uz_stderr, p.uz_ci95);
   b.dof_previous = dof(p.uz_stderr_previous, p.uz_ci95_previous);
-  b.same_bed = p.bed_id == 0 || p.bed_id_previous == 0 || p.bed_id == p.bed_id_previous;
+  // The same bed only when known to be: a reused run (one result both nights) or both bed ids known
+  // and equal. A report stored before bed ids were kept says 0, and an unknown bed may have been
+  // re-poured (an engine or template change reruns on new beds): it gets the bed prior.
+  b.same_bed = p.reused || (p.bed_id != 0 && p.bed_id == p.bed_id_previous);
   return b;
 }
 
@@ -381,6 +384,7 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
   report.reused = report.ran = report.missing = report.compared = report.drifted = report.inconclusive = 0;
   report.estimator_changed = report.no_error = 0;
   int64_t other_beds = 0;  // runs on a re-poured bed at a scale with no bed-to-bed prior
+  bool measured_design = true;  // every compared pair like those kMeasured was measured on
   for (DriftPoint& p : report.rows) {
     p.uz_previous.reset();
     p.uz_stderr_previous.reset();
@@ -414,13 +418,17 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
     p.uz_ci95_previous = it->second->uz_ci95;
     p.bed_id_previous = it->second->bed_id;
     p.difference = *p.uz - *p.uz_previous;
-    const DriftDecision d = decide({PairOf(p)});
+    const DriftBedPair pair = PairOf(p);
+    const DriftDecision d = decide({pair});
     if (!d.compared) {
       p.not_compared = d.not_compared;
       p.no_error = d.not_compared == "no error";
       ++(p.no_error ? report.no_error : other_beds);
       continue;
     }
+    // The measured rates (core/drift.cc kMeasured) are for pairs on the same bed with both
+    // intervals known: any other pair makes this a design they were not measured at.
+    if (!pair.same_bed || !p.uz_ci95 || !p.uz_ci95_previous) measured_design = false;
     p.tolerance = d.tolerance;
     if (d.tested) p.p_value = d.p_value;
     p.drifted = d.drifted;
@@ -495,7 +503,7 @@ void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZ
   report.campaign_drifted = report.points_drifted_familywise > 0;
   int beds = 1;
   for (const DriftAggregate& a : report.aggregates) beds = std::max(beds, a.replicates);
-  report.false_alarms = DriftAlarmText(report.campaign, report.scale, beds);
+  report.false_alarms = DriftAlarmText(report.campaign, report.scale, beds, measured_design);
 
   std::string head = report.campaign + "@" + report.scale + " ";
   if (report.trigger == "schedule" && report.due_time) {

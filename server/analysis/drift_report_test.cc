@@ -24,6 +24,7 @@ TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheir
     p.point = point;
     p.replicate = replicate;
     p.run_id = 10 + replicate;
+    p.bed_id = 100 + replicate;  // the same beds both nights
     p.state = "done";
     p.uz = uz;
     p.uz_stderr = se;
@@ -97,6 +98,18 @@ TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheir
   nlohmann::json old = now;
   old.erase("rule");
   EXPECT_EQ(old.get<DriftReport>().rule, 1);
+
+  // A previous report that does not know its beds (stored before bed ids were kept): the beds may
+  // have been re-poured, so each pair gets the scale's bed-to-bed prior (smoke's) and bed 1's 0.010
+  // is no longer beyond chance; the committed false-alarm rates (same beds) are not quoted for it.
+  now.tolerance_mps = 0;
+  for (DriftPoint& p : previous.rows) p.bed_id = 0;
+  CompareWithPrevious(now, &previous, CronZone::kUtc);
+  EXPECT_FALSE(now.rows[1].drifted);
+  EXPECT_GT(*now.rows[1].tolerance, 1.96 * std::sqrt(2.0) * 0.003);
+  // paper-58 at smoke has committed rates, measured on the same beds: not for this pair.
+  EXPECT_EQ(DriftAlarmText("paper-58", "smoke", 1).rfind("false alarms <= ", 0), 0u);
+  EXPECT_NE(DriftAlarmText("paper-58", "smoke", 1, false).find("not measured at this design"), std::string::npos);
 }
 
 // After an upgrade of the U_z analysis, the first report compares no rate with one the old

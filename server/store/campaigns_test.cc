@@ -183,6 +183,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
                         "ALTER TABLE campaign_runs DROP COLUMN definition;"
                         "ALTER TABLE campaign_runs DROP COLUMN definition_sha256;"
                         "ALTER TABLE campaign_schedules DROP COLUMN source;"
+                        "ALTER TABLE beds DROP COLUMN ranks;"
                         "DELETE FROM schema_migrations WHERE version >= 13; PRAGMA user_version = 12;")
                     .ok());
     Statement st = t->Prepare(
@@ -199,7 +200,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
   }
   auto s = Store::Open(path);
   ASSERT_TRUE(s.ok()) << s.status().ToString();
-  EXPECT_EQ((*s)->db().schema_version(), 13);
+  EXPECT_EQ((*s)->db().schema_version(), 14);
   auto found = FindCampaign(**s, "mine");
   ASSERT_TRUE(found.ok()) << found.status().ToString();
   EXPECT_EQ(found->version, 1);

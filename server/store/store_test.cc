@@ -459,7 +459,7 @@ TEST_F(StoreTest, ResultsPagesOfACampaignRunShowEachRunOnceWithItsSweeps) {
                   {"description", "two sweeps that share two runs"},
                   {"scale", "smoke"},
                   {"sweeps", {sweep("early", {10, 20, 30, 40}), sweep("late", {40, 30, 60, 70})}}};
-  ASSERT_TRUE(store->PutCampaign(c).ok());
+  ASSERT_TRUE(PutCampaign(*store, c).ok());
   SubmitRequest request;
   request.campaign = "overlap";
   auto sub = Submit(*store, request, "engine", 1.7e9);

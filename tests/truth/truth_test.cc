@@ -376,8 +376,8 @@ TEST(CommittedCalibrationTest, SmallRunAgreesWithTheTable) {
 
 // The drift report's false alarms on the truth engine (core/drift.h, bench_drift_alarms is the
 // full measurement): two nights of paper-58 at smoke under one law on the same beds, K = 1. Per
-// point the rate must be <= 5 % within its Monte Carlo error (its Wilson interval reaches 5 %), and
-// so must the campaign's Holm verdict. Rule 1 passed the per-point part (3.8 % [3.4, 4.2], 200 night
+// point the rate must be <= 5 % (its estimate at this fixed seed), and so must the campaign's
+// Holm verdict's. Rule 1 passed the per-point part (3.8 % [3.4, 4.2], 200 night
 // pairs) but said "some point drifted" in most campaigns with nothing changed (it had no
 // verdict for the campaign; its any-run rate is checked here to fail the same bound); so does
 // rule 2 at 5 % per point, which is why the campaign's verdict is Holm's. And the committed rates
@@ -392,9 +392,13 @@ TEST(DriftAlarmTest, FalseAlarmsPerPointAndPerCampaignWithinFivePercent) {
   ASSERT_EQ(d.campaigns, n);
   ASSERT_GT(d.points_compared, 20 * n);
   const auto [point_lo, point_hi] = WilsonInterval(d.points_drifted, d.points_compared);
-  EXPECT_LE(point_lo, 0.05) << d.points_drifted << " of " << d.points_compared << " points drifted";
   const auto [campaign_lo, campaign_hi] = WilsonInterval(d.campaigns_drifted, d.campaigns);
-  EXPECT_LE(campaign_lo, 0.05) << d.campaigns_drifted << " of " << d.campaigns << " campaigns drifted (Holm)";
+  // The rates themselves (a fixed seed: deterministic), not their Wilson lower bounds, which a rule
+  // at 6 % would still pass.
+  EXPECT_LE(static_cast<double>(d.points_drifted) / d.points_compared, 0.05)
+      << d.points_drifted << " of " << d.points_compared << " points drifted";
+  EXPECT_LE(static_cast<double>(d.campaigns_drifted) / d.campaigns, 0.05)
+      << d.campaigns_drifted << " of " << d.campaigns << " campaigns drifted (Holm)";
   // Without a multiplicity rule a campaign raises some alarm most nights.
   EXPECT_GT(WilsonInterval(d.campaigns_any_run_rule1, d.campaigns).first, 0.05);
   EXPECT_GT(WilsonInterval(d.campaigns_any_point, d.campaigns).first, 0.05);

@@ -332,7 +332,11 @@ class Client:
         every page, their "next" paths followed, the largest pages the daemon gives."""
         reply = self._object(f"{path}?limit=10000")
         next_path = reply.pop("next", None)
+        seen: set[str] = set()
         while next_path:
+            if next_path in seen:  # a daemon that repeats a page would loop for ever
+                raise SandswimError(f"the daemon's pages repeat at GET {next_path}", field="next")
+            seen.add(next_path)
             page = self._json("GET", next_path)
             if not page.get("results"):
                 raise SandswimError(f"the daemon's answer to GET {next_path} has no rows", field="results")
