@@ -1333,7 +1333,7 @@ int RunCampaignGroup(Context& c) { return c.args.campaign_action ? c.args.campai
 
 void SetupSchedule(CLI::App& sub, Args& a) {
   AddTarget(sub, a, "NAME", "a campaign (built-in or stored); none: list the schedules", false);
-  sub.add_option("CRON", a.cron, "when, cron's five fields in UTC (\"0 2 * * *\": 02:00 every night)");
+  sub.add_option("CRON", a.cron, "when, cron's five fields in the daemon's local time zone (\"0 2 * * *\": 02:00 every night)");
   AddScaleChoice(sub, a, "with CRON: the scale its runs take (default: the campaign's)");
   sub.add_flag("--off", a.off, "remove its schedule");
   AddJson(sub, a);

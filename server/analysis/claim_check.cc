@@ -10,9 +10,29 @@
 namespace sandswim {
 namespace {
 
-// The claims of the campaign a run belongs to, and where they come from.
-Status FindClaims(Store& store, const std::string& campaign, CampaignRunClaims& out, std::vector<Claim>& claims,
+// The claims of the campaign a run belongs to, and where they come from: the definition the run
+// recorded (schema/013: what it ran, whatever the campaign became since) when it states claims;
+// else, for a campaign run made before definitions were recorded or of a built-in campaign recorded
+// before its file stated claims, the campaign's catalogue entry by name.
+Status FindClaims(Store& store, const CampaignRunInfo& run, CampaignRunClaims& out, std::vector<Claim>& claims,
                   nlohmann::json& definition) {
+  const std::string& campaign = run.campaign;
+  if (run.definition.is_object() &&
+      (run.definition.contains("claims") || !BuiltinCampaign(campaign).ok())) {
+    Result<Campaign> recorded = ParseCampaign(run.definition);
+    if (recorded.ok()) {
+      claims = recorded->claims;
+      definition = run.definition;
+      out.claims_source = run.campaign_version.value_or(0) > 0 ? "stored" : "builtin";
+      if (claims.empty()) {
+        out.claims_source = "none";
+        out.note = "the definition this run recorded states no claims";
+      }
+      return Status::Ok();
+    }
+    out.note = "the definition this run recorded no longer parses (" + recorded.status().ToString() +
+               "): the claims are the campaign's current ones";
+  }
   Result<CatalogueEntry> entry = FindCampaign(store, campaign);
   if (!entry.ok()) {
     if (entry.status().code() != StatusCode::kNotFound) return entry.status();
@@ -94,7 +114,7 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   out.campaign_run = campaign_run;
   std::vector<Claim> claims;
   nlohmann::json definition;
-  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run.campaign, out, claims, definition));
+  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run, out, claims, definition));
   if (claims.empty()) return out;
 
   ClaimInput input;

@@ -529,6 +529,17 @@ TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) 
   }
   EXPECT_THAT(*html, HasSubstr("not calibrated at this design"));
 
+  // A new version without claims changes nothing for this run: its claims are those of the
+  // definition it recorded when it was submitted (before, the campaign's current ones).
+  StoredCampaign edited = campaign;
+  edited.definition.erase("claims");
+  ASSERT_TRUE(PutCampaign(*store_, edited).ok());
+  auto after_edit = CheckClaims(*store_, id);
+  ASSERT_TRUE(after_edit.ok()) << after_edit.status().ToString();
+  EXPECT_EQ(after_edit->claims_source, "stored");
+  ASSERT_EQ(after_edit->verdicts.size(), 3u);
+  EXPECT_EQ(after_edit->verdicts[0].verdict, Verdict::kHolds);
+
   // The fixture's campaign states none: an empty list.
   auto none = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());
   ASSERT_EQ(none->status, 200);
