@@ -56,16 +56,6 @@ void Cost(AdaptiveAction& a, const AdaptiveCost& cost, int beds_now) {
   a.new_beds = static_cast<int>(new_beds.size());
 }
 
-bool MeasuredRun(const api::RunResult& r) {
-  return r.conclusive && r.uz && std::isfinite(*r.uz) && r.uz_stderr && *r.uz_stderr > 0 && r.uz_ci95 &&
-         *r.uz_ci95 > 0;
-}
-
-int Boundary(const api::RunResult& r) {
-  if (r.stop_reason == "surface" || r.window_end == "surface" || r.broke_surface) return 1;
-  if (r.stop_reason == "floor" || r.window_end == "floor" || r.near_floor) return -1;
-  return 0;
-}
 
 // The sweeps a claim's rule names: every string (or string in an array) of the rule that is a
 // declared sweep's name.
@@ -145,7 +135,7 @@ std::vector<PointInfo> PointsOf(const ClaimInput& in, const std::vector<std::str
         se2 += *res.uz_stderr * *res.uz_stderr;
       } else {
         p.all_measured = false;
-        if (Boundary(res) != 0 && p.boundary == nullptr) p.boundary = r;
+        if (BoundaryReached(res) != 0 && p.boundary == nullptr) p.boundary = r;
       }
       if (res.z_osc_amplitude > 0) amp += res.z_osc_amplitude, ++namp;
       if (res.x_osc_amplitude) xamp += *res.x_osc_amplitude, ++nx;
@@ -193,7 +183,7 @@ Scatter ScatterOf(const ClaimInput& in) {
         const double sd = *r.result->uz_stderr * std::sqrt(static_cast<double>(r.result->uz_blocks));
         abs = std::min(abs, sd);
         if (std::abs(*r.result->uz) >= 0.02) rel.push_back(sd / std::abs(*r.result->uz));
-      } else if (Boundary(*r.result) != 0) {
+      } else if (BoundaryReached(*r.result) != 0) {
         s.room = std::min(s.room, std::abs(r.result->dz));
       }
     }
@@ -336,7 +326,7 @@ bool Clear(const PointInfo& p, const std::string& kind) {
     if (!p.all_measured) {
       // Censored beds give a sign: clear when every bed is measured or at a boundary.
       for (const ClaimRun* r : p.runs)
-        if (!r->result || (!MeasuredRun(*r->result) && Boundary(*r->result) == 0)) return false;
+        if (!r->result || (!MeasuredRun(*r->result) && BoundaryReached(*r->result) == 0)) return false;
       return true;
     }
     for (const ClaimRun* r : p.runs)
@@ -413,7 +403,7 @@ std::vector<AdaptiveAction> Candidates(const AdaptiveState& state, const Claim& 
           for (int j = 0; j < add; ++j) rep.runs.push_back(LongOrder(*p, p->beds() + j, next, base, scale, false));
           if (!long_runs) continue;
           for (const ClaimRun* r : p->runs)
-            if (r->result && Boundary(*r->result) == 0 && r->result->sim_time_s < next / 1.5)
+            if (r->result && BoundaryReached(*r->result) == 0 && r->result->sim_time_s < next / 1.5)
               rep.runs.push_back(LongOrder(*p, r->replicate, next, base, scale, true));
         }
         if (rep.runs.empty()) continue;
@@ -432,7 +422,7 @@ std::vector<AdaptiveAction> Candidates(const AdaptiveState& state, const Claim& 
       for (const PointInfo* p : set) {
         const double base = BaseMaxDuration(p->point, scale);
         for (const ClaimRun* r : p->runs) {
-          if (!r->result || Boundary(*r->result) != 0) continue;
+          if (!r->result || BoundaryReached(*r->result) != 0) continue;
           const double now = std::max(base, r->result->sim_time_s);
           const double next = most ? options.max_duration_factor * base : 2 * std::ceil(now * 2 - 1e-9) / 2;
           if (next > options.max_duration_factor * base + 1e-9 || next < now * 1.5) continue;

@@ -260,17 +260,22 @@ struct BedEvidence {
   std::string detail;  // kCensored: how the bound was made; otherwise why the bed gives no U_z
 };
 
-bool Measured(const api::RunResult& r) {
+}  // namespace claim_rules
+}  // namespace
+
+bool MeasuredRun(const api::RunResult& r) {
   return r.conclusive && r.uz && std::isfinite(*r.uz) && r.uz_stderr && *r.uz_stderr > 0 && r.uz_ci95 &&
          *r.uz_ci95 > 0;
 }
 
-// +1 when the run ended at (or its window closed at) the surface, -1 at the floor, 0 neither.
 int BoundaryReached(const api::RunResult& r) {
   if (r.stop_reason == "surface" || r.window_end == "surface" || r.broke_surface) return 1;
   if (r.stop_reason == "floor" || r.window_end == "floor" || r.near_floor) return -1;
   return 0;
 }
+
+namespace {
+namespace claim_rules {
 
 BedEvidence AssessRun(const ClaimRun& r) {
   BedEvidence b;
@@ -286,7 +291,7 @@ BedEvidence AssessRun(const ClaimRun& r) {
     return b;
   }
   const api::RunResult& res = *r.result;
-  if (Measured(res)) {
+  if (MeasuredRun(res)) {
     b.state = BedState::kMeasured;
     return b;
   }

@@ -273,6 +273,13 @@ inline constexpr int kClaimRulesVersion = 3;
 // One verdict per claim, in the claims' order.
 std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const ClaimInput& input);
 
+// What one bed's run gives a claim, as EvaluateClaims reads it (and the adaptive planner,
+// core/adaptive.h, reads it the same way): measured = conclusive with a finite U_z, a positive
+// standard error and 95 % half-width; the boundary it reached = +1 when the run ended (or its
+// window closed) at the surface, -1 at the floor, 0 neither.
+bool MeasuredRun(const api::RunResult& r);
+int BoundaryReached(const api::RunResult& r);
+
 // {"id","title","source","paper","rule","verdict","scale","verdict_text" ("holds at smoke"),"reason",
 //  "parts":[{"name","verdict","reason","figures":[{"name","value"?,"stderr"?,"lo"?,"hi"?,"unit",
 //  "verdict"?,"note","censored"?,"bound"?}],"rates"?}],"rates"? (ClaimRatesToJson),
