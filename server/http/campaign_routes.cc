@@ -111,7 +111,6 @@ void ListCampaigns(Call& c) {
     }
     campaign->name = s.name;
     campaign->schedule = s.schedule;
-    campaign->drift_tolerance_mps = s.drift_tolerance_mps;
     auto current = GetCampaignVersion(*c.deps.store, s.name, s.version);
     if (!current.ok()) return Fail(c, current.status());
     campaigns.push_back(CampaignJson(*campaign, IsBuiltinCampaign(s.name), /*stored=*/true, s.version, *current,

@@ -124,7 +124,6 @@ Result<SavedCampaign> SaveCampaign(Store& store, const std::string& name, const 
   v.extends = checked->extends;
   v.extends_version = checked->extends_version;
   v.schedule = checked->campaign.schedule;
-  v.drift_tolerance_mps = checked->campaign.drift_tolerance_mps;
   v.now = now;
   Result<PutVersionResult> put = PutCampaignVersion(store, v);
   if (!put.ok()) return put.status();
