@@ -193,12 +193,14 @@ Status DeleteCampaign(Store& store, const std::string& name, double now) {
     if (!*row) return Status(StatusCode::kNotFound, "no stored campaign named '" + name + "'", "name");
   }
   {
+    // The newest such campaign run: runs are shared, so an older one may show runs a later
+    // (forced) rerun requeued.
     Statement st = t->Prepare(
         "SELECT s.campaign_run_id, COUNT(DISTINCT r.id) FROM sweeps s "
         "JOIN campaign_runs cr ON cr.id = s.campaign_run_id "
         "JOIN sweep_runs sr ON sr.sweep_id = s.id JOIN runs r ON r.id = sr.run_id "
         "WHERE cr.campaign = ? AND r.state IN ('queued', 'running') "
-        "GROUP BY s.campaign_run_id ORDER BY s.campaign_run_id LIMIT 1");
+        "GROUP BY s.campaign_run_id ORDER BY s.campaign_run_id DESC LIMIT 1");
     st.Bind(1, name);
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();

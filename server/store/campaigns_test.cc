@@ -168,6 +168,14 @@ TEST_F(CampaignsTest, ARefusedDeleteChangesNothing) {
   EXPECT_EQ(run->campaign_version, 1);
   EXPECT_EQ(run->definition, v.resolved);
   EXPECT_EQ(run->definition_sha256, DefinitionSha256(v.resolved));
+
+  // A later campaign run sharing those queued runs is the one named (before: the oldest, which may
+  // have finished long ago and had its runs requeued by a forced rerun).
+  auto again = Submit(*store_, request, "engine", 16);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  refused = DeleteCampaign(*store_, "mine", 20);
+  EXPECT_NE(refused.reason().find("campaign run " + std::to_string(*again->campaign_run_id) + " "), std::string::npos)
+      << refused.reason();
 }
 
 // A database of schema 12 with a stored campaign and a campaign run of it: after the migration the
