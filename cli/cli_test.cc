@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -542,9 +543,50 @@ TEST_F(CliTest, ExpandPaper58IsOfflineAnd58Runs) {
   EXPECT_EQ(std::count(o.out.begin(), o.out.end(), '\n'), 58);
   EXPECT_THAT(o.err, HasSubstr("58 distinct run(s); engine x"));
 
-  o = Sandswim({"expand", "no-such-campaign"}, "", false);
+  // A name that is not built in is asked of the daemon; with none there, the error says what to do.
+  o = Sandswim({"--server", "http://127.0.0.1:1", "expand", "no-such-campaign"}, "", false);
   EXPECT_EQ(o.code, 1);
-  EXPECT_THAT(o.err, HasSubstr("no builtin campaign \"no-such-campaign\""));
+  EXPECT_THAT(o.err, HasSubstr("campaign \"no-such-campaign\" is not built in (builtin: paper-58"));
+  EXPECT_THAT(o.err, HasSubstr("no daemon at http://127.0.0.1:1"));
+  EXPECT_THAT(o.err, HasSubstr("sandswim expand mine.json"));
+}
+
+// A stored campaign is expanded from the definition the daemon holds (its current version, its
+// base filled in), saying so; --cost works on it; a name the daemon does not hold either is refused
+// naming both places looked in.
+TEST_F(CliTest, ExpandAStoredCampaignFromTheDaemon) {
+  Outcome o = Sandswim({"campaign", "put", "-"},
+                       R"({"name":"cli-expand","extends":"paper-58","sweeps":["baseline"],"replicates":3,"scale":"smoke"})");
+  ASSERT_EQ(o.code, 0) << o.err;
+  o = Sandswim({"expand", "cli-expand", "--json", "--engine-version", "test-engine"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  const json runs = json::parse(o.out);
+  ASSERT_EQ(runs.size(), 6u);  // baseline's 2 points on 3 beds
+  std::set<int> beds;
+  for (const json& r : runs) beds.insert(r.value("replicate", 0));
+  EXPECT_EQ(beds.size(), 3u) << o.out;
+  EXPECT_THAT(o.err, HasSubstr("sandswim: campaign cli-expand version 1 (as it runs, its base filled in) from the "
+                               "daemon at " + *server_));
+  // The same keys the daemon plans when it runs it.
+  Outcome run = Sandswim({"campaign", "run", "cli-expand"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(run.out, m, std::regex("cr:[0-9]+"))) << run.out;
+  Outcome results = Sandswim({"results", m[0].str(), "--json"});
+  ASSERT_EQ(results.code, 0) << results.err;
+  std::set<std::string> planned, daemon;
+  for (const json& r : runs) planned.insert(r["key"].get<std::string>());
+  for (const json& r : json::parse(results.out)) daemon.insert(r["key"].get<std::string>());
+  EXPECT_EQ(planned, daemon);
+
+  o = Sandswim({"expand", "cli-expand", "--scale", "mini", "--cost", "--engine-version", "test-engine"});
+  ASSERT_EQ(o.code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("mini: 6 runs on 3 bed(s)"));
+
+  o = Sandswim({"expand", "cli-nobody"});
+  EXPECT_EQ(o.code, 1);
+  EXPECT_THAT(o.err, HasSubstr("no campaign \"cli-nobody\": not built in (builtin: paper-58"));
+  EXPECT_THAT(o.err, HasSubstr(") and not stored in the daemon at " + *server_));
 }
 
 TEST_F(CliTest, ExpandMatchesTheDaemonsKeys) {

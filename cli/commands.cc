@@ -532,7 +532,9 @@ int RunRerun(Context& c) {
 }
 
 void SetupExpand(CLI::App& sub, Args& a) {
-  AddTarget(sub, a, "FILE|CAMPAIGN", "a sweep or campaign JSON file (- for stdin) or a builtin campaign name");
+  AddTarget(sub, a, "FILE|CAMPAIGN",
+            "a sweep or campaign JSON file (- for stdin), a builtin campaign name (offline) or a stored one (its "
+            "definition from the daemon)");
   sub.add_option("--scale", a.scale, "scale to plan at (default: the file's or campaign's)");
   sub.add_option("--engine-version", a.engine_version, "the LIGGGHTS version for the keys (default: ask liggghts)");
   sub.add_flag("--cost", a.cost,
@@ -670,6 +672,13 @@ json PrintCost(Context& c, const std::vector<ScalePlan>& plans) {
   return all;
 }
 
+// "paper-58" (the built-in campaigns, for messages).
+std::string BuiltinNames() {
+  std::string names;
+  for (const auto& n : BuiltinCampaignNames()) names += (names.empty() ? "" : ", ") + n;
+  return names;
+}
+
 // The sweeps `input` names and the scale each runs at.
 Result<std::vector<SweepSpec>> SweepsOf(const Input& input, const std::string& scale_flag) {
   std::vector<SweepSpec> sweeps;
@@ -683,13 +692,8 @@ Result<std::vector<SweepSpec>> SweepsOf(const Input& input, const std::string& s
     std::string name = input.campaign                       ? *input.campaign
                        : input.body["campaign"].is_string() ? input.body["campaign"].get<std::string>()
                                                             : "";
-    auto campaign = BuiltinCampaign(name);
-    if (!campaign.ok()) {
-      std::string names;
-      for (const auto& n : BuiltinCampaignNames()) names += (names.empty() ? "" : ", ") + n;
-      return Status::NotFound("no builtin campaign \"" + name + "\" (builtin: " + names +
-                              "); expand works offline: give a campaign JSON file instead");
-    }
+    auto campaign = BuiltinCampaign(name);  // RunExpand fetched any other one from the daemon
+    if (!campaign.ok()) return Status::NotFound("no builtin campaign \"" + name + "\" (builtin: " + BuiltinNames() + ")");
     std::string scale = scale_flag;
     if (scale.empty() && input.body.contains("scale") && input.body["scale"].is_string()) {
       scale = input.body["scale"].get<std::string>();
@@ -724,9 +728,57 @@ Result<std::vector<SweepSpec>> SweepsOf(const Input& input, const std::string& s
   return sweeps;
 }
 
+// A campaign `expand` names that is not built in is one stored in the daemon: its current version's
+// resolved definition (GET /api/v1/campaigns/NAME, with the daemon and token every command finds),
+// expanded here as a campaign file would be. Says on stderr which version came from where; with no
+// daemon to ask, says what to do instead.
+Result<json> DaemonCampaignDefinition(Context& c, const std::string& name) {
+  auto client = c.Client();
+  if (!client.ok()) return client.status();
+  auto reply = (*client)->GetCampaign(name, 0);
+  if (!reply.ok()) {
+    const Status& s = reply.status();
+    if (s.code() == StatusCode::kUnavailable) {
+      return Status(StatusCode::kUnavailable,
+                    "campaign \"" + name + "\" is not built in (builtin: " + BuiltinNames() +
+                        "), so expand asks the daemon for it: " + s.reason() +
+                        "; or point --server at the daemon that stores it, or expand its definition from a "
+                        "file: sandswim expand mine.json");
+    }
+    if (s.code() == StatusCode::kNotFound) {
+      return Status(StatusCode::kNotFound,
+                    "no campaign \"" + name + "\": not built in (builtin: " + BuiltinNames() +
+                        ") and not stored in the daemon at " + (*client)->base_url() +
+                        " (sandswim campaign list shows the ones it has)");
+    }
+    return s;
+  }
+  auto resolved = reply->find("resolved");
+  if (resolved == reply->end() || !resolved->is_object()) {
+    return Status::Corruption("the daemon's answer to GET /api/v1/campaigns/" + name + " has no \"resolved\" definition");
+  }
+  c.err() << "sandswim: campaign " << name << " version " << reply->value("version", 0)
+          << " (as it runs, its base filled in) from the daemon at " << (*client)->base_url() << "\n";
+  return *resolved;
+}
+
 int RunExpand(Context& c) {
   auto input = ReadInput(c, c.args.target);
   if (!input.ok()) return FailUsageIfInvalid(c, input.status());
+  // A campaign by name (or a {"campaign": NAME} file) that is not built in: the daemon's.
+  std::string named = input->campaign ? *input->campaign
+                      : input->body.contains("campaign") && input->body["campaign"].is_string()
+                          ? input->body["campaign"].get<std::string>()
+                          : "";
+  if (!named.empty() && !BuiltinCampaign(named).ok()) {
+    auto definition = DaemonCampaignDefinition(c, named);
+    if (!definition.ok()) return FailUsageIfInvalid(c, definition.status());
+    if (c.args.scale.empty() && input->body.contains("scale") && input->body["scale"].is_string()) {
+      c.args.scale = input->body["scale"].get<std::string>();
+    }
+    input->campaign.reset();
+    input->body = std::move(definition).value();
+  }
   auto sweeps = SweepsOf(*input, c.args.scale);
   if (!sweeps.ok()) return FailUsageIfInvalid(c, sweeps.status());
   std::string engine = c.args.engine_version;
@@ -1454,11 +1506,12 @@ const Command kCommands[] = {
    "  sandswim schedule p58-3beds --off\n"
    "  sandswim schedule",
    SetupSchedule, RunSchedule},
-  {"expand", "offline: the distinct runs a sweep or campaign plans to (no daemon needed)",
+  {"expand", "the distinct runs a sweep or campaign plans to (offline; a stored campaign is fetched from the daemon)",
    "  sandswim expand sweep.json\n"
    "  sandswim expand paper-58 --json | jq length   # 58\n"
    "  sandswim expand paper-58 --scale smoke\n"
-   "  sandswim expand paper-58 --scale smoke --cost --cores 8",
+   "  sandswim expand paper-58 --scale smoke --cost --cores 8\n"
+   "  sandswim expand mine --scale smoke        # a stored campaign: its current version, from the daemon",
    SetupExpand, RunExpand},
   {"report", "write a campaign's HTML report (figures, fits, drift report) to a file and print its path",
    "  sandswim report paper-58\n"

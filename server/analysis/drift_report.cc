@@ -104,11 +104,21 @@ std::string Tolerance(double v) {
   return buf;
 }
 
-// The campaign's drift tolerance: a stored definition's column, else the builtin campaign's.
-Result<double> ToleranceOf(Store& store, const std::string& campaign) {
-  Result<CatalogueEntry> found = FindCampaign(store, campaign);
-  if (found.ok()) return found->drift_tolerance_mps;
-  if (found.status().code() == StatusCode::kNotFound) return 0.0;  // the campaign is gone: flag every change
+// The one rule for the tolerance a campaign run's drift is held to: that of the definition the run
+// recorded when it was submitted (schema/013), as its claims are, so that a later version of the
+// campaign changes nothing about a run made before it. Only a campaign run recorded before
+// definitions were kept (or one whose recorded definition no longer parses) takes its campaign's
+// current definition, the built-in file's for a built-in campaign; 0 (no tolerance: the errors
+// decide) when the campaign is gone as well. The campaigns.drift_tolerance_mps column is never
+// read (server/store/campaigns.h).
+Result<double> DriftToleranceOf(Store& store, const CampaignRunInfo& run) {
+  if (run.definition.is_object()) {
+    Result<Campaign> recorded = ParseCampaign(run.definition);
+    if (recorded.ok()) return recorded->drift_tolerance_mps;
+  }
+  Result<CatalogueEntry> found = FindCampaign(store, run.campaign);
+  if (found.ok()) return found->campaign.drift_tolerance_mps;
+  if (found.status().code() == StatusCode::kNotFound) return 0.0;
   return found.status();
 }
 
@@ -170,7 +180,7 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
   report.due_time = info.due_time;
   report.campaign_run_created_at = info.created_at;
   report.created_at = now;
-  auto tolerance = ToleranceOf(store, info.campaign);
+  auto tolerance = DriftToleranceOf(store, info);
   if (!tolerance.ok()) return tolerance.status();
   report.tolerance_mps = *tolerance;
   std::map<int64_t, bool> seen;

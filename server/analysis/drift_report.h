@@ -4,7 +4,8 @@
 // `rule`): rule 2 holds a run's change to the 95 % bound of the difference from both runs' own
 // errors with Welch's degrees of freedom (Student t), a point's to that of its beds' mean paired
 // difference (each bed against itself: the bed's effect cancels), and, when the campaign sets
-// drift_tolerance_mps (> 0), also to that tolerance. A rate without an error is not compared
+// drift_tolerance_mps (> 0), also to that tolerance: the one of the definition the campaign run
+// recorded, not the campaign's current one (drift_report.cc DriftToleranceOf). A rate without an error is not compared
 // ("no error"). Across the campaign's points, Holm's procedure at family-wise 5 % says whether the
 // campaign as a whole drifted (`campaign_drifted`); `false_alarms` quotes the rule's false-alarm
 // rates measured on the truth engine at the design (core/drift.h DriftAlarmText).
@@ -111,7 +112,7 @@ struct DriftReport {
   std::optional<double> due_time;  // schedule: the due minute
   double campaign_run_created_at = 0;
   std::optional<int64_t> previous_campaign_run_id;
-  double tolerance_mps = 0;  // the campaign's; 0: derived from the errors (see above)
+  double tolerance_mps = 0;  // its recorded definition's; 0: derived from the errors (see above)
   double created_at = 0;
   int64_t points = 0, reused = 0, ran = 0, missing = 0, compared = 0, drifted = 0, inconclusive = 0;
   int64_t estimator_changed = 0;           // points not compared: the U_z analysis changed

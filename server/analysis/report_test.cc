@@ -63,7 +63,6 @@ class ReportTest : public ::testing::Test {
     StoredCampaign campaign;
     campaign.name = "tiny";
     campaign.definition = json::parse(kCampaign);
-    campaign.drift_tolerance_mps = 0.001;
     ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
     SubmitRequest request;
     request.campaign = "tiny";

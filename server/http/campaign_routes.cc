@@ -111,7 +111,6 @@ void ListCampaigns(Call& c) {
     }
     campaign->name = s.name;
     campaign->schedule = s.schedule;
-    campaign->drift_tolerance_mps = s.drift_tolerance_mps;
     auto current = GetCampaignVersion(*c.deps.store, s.name, s.version);
     if (!current.ok()) return Fail(c, current.status());
     campaigns.push_back(CampaignJson(*campaign, IsBuiltinCampaign(s.name), /*stored=*/true, s.version, *current,
@@ -157,6 +156,7 @@ void GetCampaign(Call& c) {
   if (!versions.ok()) return Fail(c, versions.status());
   json reply;
   std::optional<Campaign> campaign;
+  std::optional<CampaignVersion> shown;  // the stored version shown (none: a built-in campaign)
   if (c.req.has_param("version")) {
     auto n = QueryInt(c, "version", 0, INT32_MAX);
     if (!n.ok()) return Fail(c, n.status());
@@ -183,6 +183,7 @@ void GetCampaign(Call& c) {
              {"resolved", v->resolved},       {"extends", v->extends.empty() ? json(nullptr) : json(v->extends)},
              {"extends_version", v->extends.empty() ? json(nullptr) : json(v->extends_version)},
              {"definition_sha256", v->definition_sha256}};
+    if (v->version > 0) shown = v;
   } else {
     auto entry = FindCampaign(store, name, "name");
     if (!entry.ok()) return Fail(c, entry.status());
@@ -196,6 +197,14 @@ void GetCampaign(Call& c) {
              {"extends", v && !v->extends.empty() ? json(v->extends) : json(nullptr)},
              {"extends_version", v && !v->extends.empty() ? json(v->extends_version) : json(nullptr)},
              {"definition_sha256", DefinitionSha256(entry->definition)}};
+    shown = v;
+  }
+  // PUT's notes for this version, made again as PUT made them (campaign_edits.h NotesOf).
+  std::vector<std::string> notes;
+  if (shown) {
+    auto made = NotesOf(store, *shown);
+    if (!made.ok()) return Fail(c, made.status());
+    notes = std::move(made).value();
   }
   auto stored = store.GetCampaign(name);
   if (!stored.ok()) return Fail(c, stored.status());
@@ -207,7 +216,7 @@ void GetCampaign(Call& c) {
   reply["builtin"] = IsBuiltinCampaign(name);
   reply["stored"] = stored->has_value();
   reply["current_version"] = stored->has_value() ? json((*stored)->version) : json(IsBuiltinCampaign(name) ? 0 : -1);
-  reply["notes"] = json::array();
+  reply["notes"] = notes;
   reply["planned_runs"] = PlannedRunsAtEachScale(*campaign, c.deps.engine_version);
   reply["schedule"] = ScheduleJson(*schedule);
   reply["versions"] = *versions;

@@ -219,6 +219,34 @@ TEST_F(CampaignRoutesTest, ACopyOfABuiltInCampaignOverridesItsFields) {
   EXPECT_EQ(c["resolved"]["sweeps"].size(), 10u);
 }
 
+// What PUT said when it stored a version (the base's claims its sweeps can no longer judge, left
+// out) is what GET shows for that version, also after a newer version without "extends" (before,
+// GET always answered "notes": []).
+TEST_F(CampaignRoutesTest, GetShowsTheNotesPutGave) {
+  auto put = Put("/api/v1/campaigns/two-sweeps",
+                 R"({"extends": "paper-58", "sweeps": ["baseline", "Omega-sweep"], "scale": "smoke"})");
+  ASSERT_EQ(put->status, 201) << put->body;
+  const json notes = Body(put)["notes"];
+  ASSERT_FALSE(notes.empty()) << put->body;
+  EXPECT_THAT(notes.dump(), HasSubstr("claim F4 of paper-58 left out"));
+  auto got = Get("/api/v1/campaigns/two-sweeps");
+  ASSERT_EQ(got->status, 200) << got->body;
+  EXPECT_EQ(Body(got)["notes"], notes);
+
+  json own = Body(got)["resolved"];
+  own.erase("claims");
+  clock_.Advance(60);
+  auto second = Put("/api/v1/campaigns/two-sweeps", own.dump());
+  ASSERT_EQ(second->status, 200) << second->body;
+  EXPECT_TRUE(Body(second)["notes"].empty());
+  EXPECT_TRUE(Body(Get("/api/v1/campaigns/two-sweeps"))["notes"].empty());
+  auto first = Get("/api/v1/campaigns/two-sweeps?version=1");
+  ASSERT_EQ(first->status, 200) << first->body;
+  EXPECT_EQ(Body(first)["notes"], notes);
+  // A built-in campaign has none.
+  EXPECT_TRUE(Body(Get("/api/v1/campaigns/paper-58"))["notes"].empty());
+}
+
 TEST_F(CampaignRoutesTest, RunsRecordTheirVersionAndDeleteWaitsForThem) {
   ASSERT_EQ(Put("/api/v1/campaigns/mine", Mine().dump())->status, 201);
   auto unknown_field = Post("/api/v1/campaigns/mine/runs", R"({"scael": "mini"})");

@@ -124,7 +124,6 @@ Result<SavedCampaign> SaveCampaign(Store& store, const std::string& name, const 
   v.extends = checked->extends;
   v.extends_version = checked->extends_version;
   v.schedule = checked->campaign.schedule;
-  v.drift_tolerance_mps = checked->campaign.drift_tolerance_mps;
   v.now = now;
   Result<PutVersionResult> put = PutCampaignVersion(store, v);
   if (!put.ok()) return put.status();
@@ -136,6 +135,32 @@ Result<SavedCampaign> SaveCampaign(Store& store, const std::string& name, const 
   out.notes = std::move(checked->notes);
   out.planned_runs = std::move(checked->planned_runs);
   return out;
+}
+
+Result<std::vector<std::string>> NotesOf(Store& store, const CampaignVersion& v) {
+  if (v.extends.empty()) return std::vector<std::string>();
+  CampaignLookup then = [&store, &v](const std::string& base) -> Result<BaseCampaign> {
+    if (v.extends_version == 0) {
+      Result<json> builtin = BuiltinCampaignDefinition(base);
+      if (!builtin.ok()) return builtin.status();
+      return BaseCampaign{*builtin, 0};
+    }
+    Result<std::optional<CampaignVersion>> found = GetCampaignVersion(store, base, v.extends_version);
+    if (!found.ok()) return found.status();
+    if (!found->has_value()) {
+      return Status::NotFound("campaign '" + base + "' has no version " + std::to_string(v.extends_version));
+    }
+    return BaseCampaign{(*found)->resolved, v.extends_version};
+  };
+  Result<ResolvedDefinition> resolved = ResolveCampaignDefinition(v.definition, then);
+  if (!resolved.ok()) {
+    const StatusCode code = resolved.status().code();
+    if (code != StatusCode::kInvalidArgument && code != StatusCode::kNotFound) return resolved.status();
+    return std::vector<std::string>{"the notes of version " + std::to_string(v.version) +
+                                    " cannot be made again: its base " + v.extends + " no longer resolves it (" +
+                                    resolved.status().ToString() + ")"};
+  }
+  return std::move(resolved->notes);
 }
 
 Status RemoveCampaign(Store& store, const std::string& name, double now) {

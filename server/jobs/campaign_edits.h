@@ -27,6 +27,7 @@
 #include "core/status.h"
 #include "core/sweep.h"
 #include "server/jobs/submission.h"
+#include "server/store/campaigns.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -73,6 +74,13 @@ void to_json(nlohmann::json& j, const SavedCampaign& s);
 Result<SavedCampaign> SaveCampaign(Store& store, const std::string& name, const nlohmann::json& definition,
                                    const std::string& engine_version, double now,
                                    int64_t max_queued_runs = kMaxQueuedRuns);
+
+// The notes PUT answered when it stored `v` (what resolving its "extends" left out, and why), made
+// again by the same code: `v`'s definition as written, resolved against the version of its base it
+// was resolved against then (a built-in base: its file). None are stored; GET shows these. A
+// version whose resolving no longer works (a built-in base's file changed since) gets one note that
+// says so.
+Result<std::vector<std::string>> NotesOf(Store& store, const CampaignVersion& v);
 
 // Deletes the stored campaign `name` with its schedule (server/store/campaigns.h DeleteCampaign);
 // kConflict for a built-in one.

@@ -59,7 +59,6 @@ class SchedulerTest : public ::testing::Test {
     c.name = "tiny";
     c.definition = TinyCampaign();
     c.schedule = "0 2 * * *";
-    c.drift_tolerance_mps = 0.005;
     c.updated_at = clock_.Now();
     ASSERT_TRUE(PutCampaign(*store_, c).ok());
   }
@@ -458,7 +457,6 @@ TEST_F(SchedulerTest, DriftSaysWhenTheDefinitionChanged) {
   c.name = "tiny";
   c.definition = edited;
   c.schedule = "0 2 * * *";
-  c.drift_tolerance_mps = 0.005;
   c.updated_at = clock_.Now();
   ASSERT_TRUE(PutCampaign(*store_, c).ok());
 
@@ -487,6 +485,42 @@ TEST_F(SchedulerTest, DriftSaysWhenTheDefinitionChanged) {
   EXPECT_FALSE(next[0].definition_changed.has_value());
   EXPECT_EQ(next[0].previous_campaign_run_id, changed[0].campaign_run_id);
   EXPECT_EQ(next[0].compared, 2);
+}
+
+// A campaign run's drift is held to the tolerance of the definition it recorded, not to that of
+// the campaign's version when its report is made (before, the campaign's current one: 0.05 here).
+TEST_F(SchedulerTest, DriftUsesTheToleranceOfTheDefinitionTheRunRecorded) {
+  auto put = [&](double tolerance) {
+    StoredCampaign c;
+    c.name = "tiny";
+    c.definition = TinyCampaign();
+    c.definition["drift_tolerance_mps"] = tolerance;
+    c.schedule = "0 2 * * *";
+    c.updated_at = clock_.Now();
+    ASSERT_TRUE(PutCampaign(*store_, c).ok());
+  };
+  put(0.01);  // version 2 (SetUp stored version 1 at 0.005)
+  Register();
+  clock_.Set(Utc(2026, 11, 23, 2, 0, 10));
+  auto first = Tick();
+  ASSERT_EQ(first.size(), 1u);
+  put(0.05);  // version 3, while version 2's runs are still queued
+  CompleteAll(-0.010, 0.020);
+  auto reports = Reports();
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].campaign_run_id, first[0].campaign_run_id);
+  EXPECT_EQ(reports[0].tolerance_mps, 0.01);
+  EXPECT_NE(reports[0].summary.find("drifted beyond 0.01 m/s"), std::string::npos) << reports[0].summary;
+
+  // The next night runs version 3: its own tolerance.
+  clock_.Set(Utc(2026, 11, 24, 2, 0, 10));
+  ASSERT_EQ(Tick().size(), 1u);
+  auto next = Reports();
+  ASSERT_EQ(next.size(), 1u);
+  EXPECT_EQ(next[0].tolerance_mps, 0.05);
+  ASSERT_TRUE(next[0].definition_changed.has_value());
+  EXPECT_EQ(next[0].definition_changed->from_version, 2);
+  EXPECT_EQ(next[0].definition_changed->to_version, 3);
 }
 
 }  // namespace

@@ -20,7 +20,6 @@ Result<CatalogueEntry> FindCampaign(Store& store, const std::string& name, const
     entry.definition = row.definition;
     entry.stored = true;
     entry.schedule = row.schedule;
-    entry.drift_tolerance_mps = row.drift_tolerance_mps;
     entry.version = row.version;
     return entry;
   }
@@ -36,7 +35,6 @@ Result<CatalogueEntry> FindCampaign(Store& store, const std::string& name, const
   if (!definition.ok()) return definition.status();
   entry.definition = std::move(definition).value();
   entry.schedule = entry.campaign.schedule;
-  entry.drift_tolerance_mps = entry.campaign.drift_tolerance_mps;
   return entry;
 }
 
@@ -93,15 +91,15 @@ Result<PutVersionResult> PutCampaignVersion(Store& store, const NewCampaignVersi
   if (!t.ok()) return t.status();
   PutVersionResult out;
   std::optional<int> current;
-  bool same_columns = false;  // the row's schedule and tolerance (Store::PutCampaign sets them apart)
+  bool same_columns = false;  // the row's schedule (Store::PutCampaign sets it apart)
   {
-    Statement st = t->Prepare("SELECT version, schedule, drift_tolerance_mps FROM campaigns WHERE name = ?");
+    Statement st = t->Prepare("SELECT version, schedule FROM campaigns WHERE name = ?");
     st.Bind(1, v.name);
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
     if (*row) {
       current = static_cast<int>(st.Int(0));
-      same_columns = st.OptText(1) == v.schedule && st.Double(2) == v.drift_tolerance_mps;
+      same_columns = st.OptText(1) == v.schedule;
     }
   }
   out.created = !current.has_value();
@@ -133,13 +131,17 @@ Result<PutVersionResult> PutCampaignVersion(Store& store, const NewCampaignVersi
     SANDSWIM_RETURN_IF_ERROR(st.Run());
   }
   {
+    // The tolerance column mirrors the resolved definition's field; nothing reads it (campaigns.h).
+    auto tolerance = v.resolved.find("drift_tolerance_mps");
+    const double tolerance_mps =
+        tolerance != v.resolved.end() && tolerance->is_number() ? tolerance->get<double>() : 0.0;
     Statement st = t->Prepare(
         "INSERT INTO campaigns (name, definition, schedule, drift_tolerance_mps, updated_at, version) "
         "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (name) DO UPDATE SET definition = excluded.definition,"
         " schedule = excluded.schedule, drift_tolerance_mps = excluded.drift_tolerance_mps,"
         " updated_at = excluded.updated_at, version = excluded.version");
     st.Bind(1, v.name).Bind(2, v.resolved.dump()).Bind(3, v.schedule);
-    st.Bind(4, v.drift_tolerance_mps).Bind(5, v.now).Bind(6, out.version);
+    st.Bind(4, tolerance_mps).Bind(5, v.now).Bind(6, out.version);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
   }
   SANDSWIM_RETURN_IF_ERROR(
@@ -154,7 +156,6 @@ Status PutCampaign(Store& store, const StoredCampaign& c) {
   v.definition = c.definition;
   v.resolved = c.definition;
   v.schedule = c.schedule;
-  v.drift_tolerance_mps = c.drift_tolerance_mps;
   v.now = c.updated_at;
   return PutCampaignVersion(store, v).status();
 }
@@ -192,12 +193,14 @@ Status DeleteCampaign(Store& store, const std::string& name, double now) {
     if (!*row) return Status(StatusCode::kNotFound, "no stored campaign named '" + name + "'", "name");
   }
   {
+    // The newest such campaign run: runs are shared, so an older one may show runs a later
+    // (forced) rerun requeued.
     Statement st = t->Prepare(
         "SELECT s.campaign_run_id, COUNT(DISTINCT r.id) FROM sweeps s "
         "JOIN campaign_runs cr ON cr.id = s.campaign_run_id "
         "JOIN sweep_runs sr ON sr.sweep_id = s.id JOIN runs r ON r.id = sr.run_id "
         "WHERE cr.campaign = ? AND r.state IN ('queued', 'running') "
-        "GROUP BY s.campaign_run_id ORDER BY s.campaign_run_id LIMIT 1");
+        "GROUP BY s.campaign_run_id ORDER BY s.campaign_run_id DESC LIMIT 1");
     st.Bind(1, name);
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();

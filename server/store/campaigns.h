@@ -9,6 +9,12 @@
 // (core/campaign_definition.h: no "extends"), which is what runs. Deleting a campaign keeps its
 // versions (its past campaign runs name them); storing it again goes on from the last version.
 //
+// The drift tolerance has one home, the definition's `drift_tolerance_mps`: a campaign run's drift
+// report holds it to the tolerance of the definition that run recorded (server/analysis/
+// drift_report.cc DriftToleranceOf). The column campaigns.drift_tolerance_mps (schema/001) is
+// written from the resolved definition with each version, for whoever reads the file, and read by
+// nothing here: there is no operator override of it (sandswimd has no such flag).
+//
 // Thread safety: free functions over a thread-safe Store; each write is one transaction.
 #ifndef SANDSWIM_SERVER_STORE_CAMPAIGNS_H_
 #define SANDSWIM_SERVER_STORE_CAMPAIGNS_H_
@@ -30,7 +36,6 @@ struct CatalogueEntry {
   nlohmann::json definition;            // as stored, or the built-in file's JSON
   bool stored = false;                  // false: the built-in one, not yet recorded in the store
   std::optional<std::string> schedule;  // the stored row's, else the definition's
-  double drift_tolerance_mps = 0;       // the stored row's, else the definition's
   int version = 0;                      // the stored campaign's current version; 0: built-in
 };
 
@@ -53,7 +58,7 @@ struct CampaignVersion {
 void to_json(nlohmann::json& j, const CampaignVersion& v);
 
 // A version to store. REQUIRES: `resolved` parses (ParseCampaign) and names `name`; `schedule`
-// and `drift_tolerance_mps` are the resolved definition's.
+// is the resolved definition's.
 struct NewCampaignVersion {
   std::string name;
   nlohmann::json definition;
@@ -61,7 +66,6 @@ struct NewCampaignVersion {
   std::string extends;
   int extends_version = 0;
   std::optional<std::string> schedule;
-  double drift_tolerance_mps = 0;
   double now = 0;
 };
 struct PutVersionResult {
@@ -74,7 +78,7 @@ struct PutVersionResult {
 Result<PutVersionResult> PutCampaignVersion(Store& store, const NewCampaignVersion& v);
 
 // Stores `c.definition` as the next version of the campaign, as written and as resolved alike,
-// with `c`'s schedule and tolerance columns (tests and benchmarks; the REST API checks and
+// with `c`'s schedule column (tests and benchmarks; the REST API checks and
 // resolves a definition first: server/jobs/campaign_edits.h SaveCampaign).
 Status PutCampaign(Store& store, const StoredCampaign& c);
 

@@ -42,18 +42,19 @@ TEST_F(CampaignsTest, TheBuiltInOneWhenNoneIsStored) {
 TEST_F(CampaignsTest, AStoredOneWinsWithItsOwnColumns) {
   nlohmann::json definition = *BuiltinCampaignDefinition("paper-58");
   definition["scale"] = "mini";
+  definition["drift_tolerance_mps"] = 0.25;
   StoredCampaign row;
   row.name = "paper-58";
   row.definition = definition;
   row.schedule = "0 3 * * *";
-  row.drift_tolerance_mps = 0.25;
   ASSERT_TRUE(PutCampaign(*store_, row).ok());
   auto found = FindCampaign(*store_, "paper-58");
   ASSERT_TRUE(found.ok()) << found.status().ToString();
   EXPECT_TRUE(found->stored);
   EXPECT_EQ(found->campaign.scale, "mini");
   EXPECT_EQ(found->schedule, "0 3 * * *");
-  EXPECT_EQ(found->drift_tolerance_mps, 0.25);
+  // The tolerance has one home, the definition (campaigns.h).
+  EXPECT_EQ(found->campaign.drift_tolerance_mps, 0.25);
 }
 
 TEST_F(CampaignsTest, AnUnknownNameIsNotFoundAndNamesTheBuiltInOnes) {
@@ -167,6 +168,14 @@ TEST_F(CampaignsTest, ARefusedDeleteChangesNothing) {
   EXPECT_EQ(run->campaign_version, 1);
   EXPECT_EQ(run->definition, v.resolved);
   EXPECT_EQ(run->definition_sha256, DefinitionSha256(v.resolved));
+
+  // A later campaign run sharing those queued runs is the one named (before: the oldest, which may
+  // have finished long ago and had its runs requeued by a forced rerun).
+  auto again = Submit(*store_, request, "engine", 16);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  refused = DeleteCampaign(*store_, "mine", 20);
+  EXPECT_NE(refused.reason().find("campaign run " + std::to_string(*again->campaign_run_id) + " "), std::string::npos)
+      << refused.reason();
 }
 
 // A database of schema 12 with a stored campaign and a campaign run of it: after the migration the

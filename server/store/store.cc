@@ -325,7 +325,6 @@ void to_json(nlohmann::json& j, const CampaignRunInfo& c) {
 void to_json(nlohmann::json& j, const StoredCampaign& c) {
   j = nlohmann::json{{"name", c.name},
                      {"definition", c.definition},
-                     {"drift_tolerance_mps", c.drift_tolerance_mps},
                      {"updated_at", c.updated_at}};
   PutOpt(j, "schedule", c.schedule);
 }
@@ -933,15 +932,15 @@ Result<std::vector<CampaignRunInfo>> Store::ListCampaignRuns(const std::string& 
 }
 
 namespace {
-constexpr const char* kCampaignColumns = "name, definition, schedule, drift_tolerance_mps, updated_at, version";
+// campaigns.drift_tolerance_mps is not read: the tolerance is the definition's (server/store/campaigns.h).
+constexpr const char* kCampaignColumns = "name, definition, schedule, updated_at, version";
 StoredCampaign CampaignFromRow(const Statement& st) {
   StoredCampaign c;
   c.name = st.Text(0);
   c.definition = ParseJsonOr(st.Text(1), nlohmann::json::object());
   c.schedule = st.OptText(2);
-  c.drift_tolerance_mps = st.Double(3);
-  c.updated_at = st.Double(4);
-  c.version = static_cast<int>(st.Int(5));
+  c.updated_at = st.Double(3);
+  c.version = static_cast<int>(st.Int(4));
   return c;
 }
 }  // namespace

@@ -181,7 +181,6 @@ struct StoredCampaign {
   std::string name;
   nlohmann::json definition;  // as accepted by ParseCampaign()
   std::optional<std::string> schedule;
-  double drift_tolerance_mps = 0;
   double updated_at = 0;
   int version = 0;  // its current version (server/store/campaigns.h)
 };

@@ -8,11 +8,14 @@
 // The engine writes its whole run at once, before the worker's first heartbeat, so no run is
 // ended early by the precision target: the in-process side runs with the planned durations and
 // targets and no worker following (Design::follow = false).
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -178,6 +181,70 @@ TEST(TruthEngineDaemonTest, AnOwnCampaignEditedSaysItsDefinitionChanged) {
   const json campaign = daemon.Get("/api/v1/campaigns/mine");
   EXPECT_EQ(campaign["versions"].size(), 2u) << campaign.dump();
   EXPECT_EQ(campaign["runs"].size(), 2u) << campaign.dump();
+}
+
+// The same, as a user types it: the real CLI against the real daemon and worker. put -> run --wait
+// (its results) -> edit in $EDITOR (a script) -> run --wait -> `status mine` (the campaign's last
+// drift report) says the definition changed and held the second run to the second version's
+// tolerance.
+TEST(TruthEngineDaemonTest, AnOwnCampaignThroughTheCli) {
+  const std::string dir = testing::CacheDir() + "/truth-engine/own-campaign-cli";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  setenv("SANDSWIM_TRUTH_LAW", "paper", 1);
+  setenv("SANDSWIM_TRUTH_SEED", "6", 1);
+  unsetenv("SANDSWIM_TRUTH_PACE");
+  testing::Daemon daemon(dir + "/daemon", {"--scheduler-tick", "1"});
+  auto worker = testing::StartWorker(daemon, dir + "/worker", 2,
+                                     {"--launcher", "direct", "--engine", SANDSWIM_TRUTH_ENGINE_PATH});
+  // Runs `sandswim ARGS` with `env` before it (a shell line), returns its exit code and output.
+  auto cli = [&](const std::string& args, std::string* out, const std::string& env = "") {
+    const std::string file = dir + "/cli.out";
+    const std::string line = env + " " SANDSWIM_CLI_PATH " --server " + daemon.url() + " " + args + " >" + file +
+                             " 2>&1 </dev/null";
+    const int status = std::system(line.c_str());
+    std::ifstream in(file);
+    *out = std::string(std::istreambuf_iterator<char>(in), {});
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  std::ofstream(dir + "/mine.json") << json{{"name", "mine"},
+                                            {"description", "the sign of U_z at +-80 rad/s"},
+                                            {"scale", "smoke"},
+                                            {"drift_tolerance_mps", 0.01},
+                                            {"sweeps",
+                                             {{{"name", "signs"},
+                                               {"base",
+                                                {{"mode", "oscillatory"},
+                                                 {"A", 0.03},
+                                                 {"f", 3},
+                                                 {"Omega", -80},
+                                                 {"duration_s", 1}}},
+                                               {"axes", {{{"param", "Omega"}, {"values", {-80, 80}}}}}}}}}
+                                           .dump(2);
+  std::ofstream(dir + "/edit.sh") << "#!/bin/sh\nsed -i 's/\"A\": 0.03/\"A\": 0.02/; "
+                                     "s/\"drift_tolerance_mps\": 0.01/\"drift_tolerance_mps\": 0.05/' \"$1\"\n";
+  fs::permissions(dir + "/edit.sh", fs::perms::owner_all);
+
+  std::string out;
+  ASSERT_EQ(cli("campaign put " + dir + "/mine.json", &out), 0) << out;
+  EXPECT_NE(out.find("mine: stored as version 1 (a new campaign)"), std::string::npos) << out;
+  ASSERT_EQ(cli("campaign run mine --wait", &out), 0) << out << worker->Output();
+  EXPECT_NE(out.find("2/2 done"), std::string::npos) << out;
+  ASSERT_EQ(cli("campaign edit mine", &out, "VISUAL= EDITOR=" + dir + "/edit.sh"), 0) << out;
+  EXPECT_NE(out.find("mine: stored as version 2"), std::string::npos) << out;
+  ASSERT_EQ(cli("campaign run mine --wait", &out), 0) << out << worker->Output();
+  // The drift report is made by the scheduler's next tick after the runs finish.
+  bool reported = false;
+  for (int i = 0; i < 120 && !reported; ++i) {
+    reported = cli("status mine", &out) == 0 && out.find("rerun cr:2") != std::string::npos;
+    if (!reported) usleep(250 * 1000);
+  }
+  worker->Stop();
+  ASSERT_TRUE(reported) << out;
+  EXPECT_NE(out.find("drifted beyond 0.05 m/s"), std::string::npos) << out;
+  EXPECT_NE(out.find("definition changed (version 1 -> 2), no earlier run of this definition to compare with"),
+            std::string::npos)
+      << out;
 }
 
 }  // namespace
