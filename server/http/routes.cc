@@ -127,7 +127,7 @@ std::optional<Refusal> CheckAuth(const Deps& deps, const Route& route, const htt
   if (given->size() == deps.token.size() && CRYPTO_memcmp(given->data(), deps.token.data(), given->size()) == 0) {
     return std::nullopt;
   }
-  if (throttle.Failed(ClientKey(req.remote_addr), req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
+  if (throttle.Failed(ClientKey(req.remote_addr, deps.loopback_clients_apart), req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
     return Refusal{
         Status(StatusCode::kResourceExhausted,
                "too many requests with a wrong token from " + req.remote_addr + "; try again later", "Authorization"),
@@ -495,6 +495,7 @@ bool IsReservedRoute(const std::string& method, const std::string& path) {
 // Slow, idle and greedy clients are held off by the server (server/http/guarded_http_server.h).
 ApiServer::ApiServer(Deps deps, ConnectionLimits limits)
     : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(limits)) {
+  deps_.loopback_clients_apart = limits.loopback_clients_apart;  // one rule for "which client": the limits'
   server_->SetReserved(IsReservedRoute);
   server_->SetRefusalBody([](int http_status, const std::string& detail) {
     const Status why = http_status == 429 ? Status::ResourceExhausted("", detail) : Status::Unavailable(detail);

@@ -434,6 +434,53 @@ TEST_F(TokenRoutesTest, WrongTokensAreCountedAndSlowedTheRightOneIsNot) {
   EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_failures_total 5\n"));
 }
 
+// The wrong-token throttle counts clients as the connection limits do: every loopback address is
+// one client, unless the daemon counts them apart (--http-loopback-clients-apart). Three guesses
+// from 127.0.0.2, then two from 127.0.0.3: the latter are slowed as the same client's 4th and 5th,
+// or, apart, are a new client's first two.
+TEST_F(TokenRoutesTest, TheWrongTokenThrottleCountsLoopbackClientsAsTheLimitsDo) {
+  auto guess_from = [&](const char* address) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, address, &from.sin_addr);
+    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from), 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(server_->port()));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    const std::string head = "GET /api/v1/sweeps HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(server_->port()) +
+                             "\r\nAuthorization: Bearer guess\r\nConnection: close\r\n\r\n";
+    send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+    std::string answer;
+    char buf[4096];
+    ssize_t n;
+    while ((n = recv(fd, buf, sizeof buf, 0)) > 0) answer.append(buf, static_cast<size_t>(n));
+    close(fd);
+    return answer.substr(0, answer.find("\r\n"));
+  };
+  auto delayed = [&] {
+    auto metrics = client_->Get("/metrics", {{"Authorization", "Bearer s3cret"}});
+    EXPECT_EQ(metrics->status, 200);
+    const std::string key = "\nsandswim_auth_delayed_total ";
+    const size_t at = metrics->body.find(key);
+    return at == std::string::npos ? -1 : std::stoi(metrics->body.substr(at + key.size()));
+  };
+  for (bool apart : {false, true}) {
+    if (apart) {
+      Shutdown();
+      deps_.loopback_clients_apart = true;
+      Start("s3cret");
+    }
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(guess_from("127.0.0.2"), "HTTP/1.1 401 Unauthorized") << apart;
+    EXPECT_EQ(delayed(), 0) << apart;
+    for (int i = 0; i < 2; ++i) EXPECT_EQ(guess_from("127.0.0.3"), "HTTP/1.1 401 Unauthorized") << apart;
+    EXPECT_EQ(delayed(), apart ? 0 : 2) << (apart ? "127.0.0.3 was counted with 127.0.0.2 though set apart"
+                                                  : "127.0.0.3 was not counted with 127.0.0.2");
+  }
+}
+
 // A Host that does not name this daemon (a page on a rebound DNS name) gets 421 on every path,
 // and nothing runs.
 TEST_F(RoutesTest, AHostThatIsNotThisDaemonIsMisdirected) {
