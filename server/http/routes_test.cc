@@ -448,6 +448,49 @@ TEST_F(TokenRoutesTest, EveryRouteButThePublicOnesNeedsTheToken) {
   EXPECT_EQ(client_->Get("/ui/app.js")->status, 200);
 }
 
+// What the daemon's reserve serves (ApiServer): the worker protocol only with the daemon's token,
+// and /healthz. A client past its connections (one here) is served only those: a heartbeat with a
+// wrong token is refused 429 there like any other request, with the right one it reaches its route.
+TEST_F(TokenRoutesTest, TheReserveServesWorkerCallsOnlyWithTheToken) {
+  ConnectionLimits limits;
+  limits.max_connections_per_client = 1;
+  ApiServer api(deps_, limits);
+  auto port = api.Bind({"127.0.0.1", 0});
+  ASSERT_TRUE(port.ok()) << port.status().ToString();
+  std::thread serving([&] { api.Serve(); });
+  auto connect_to = [&] {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(*port));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    return fd;
+  };
+  auto ask = [&](const std::string& request_line, const std::string& auth) {
+    const int fd = connect_to();
+    const std::string head = request_line + "\r\nHost: 127.0.0.1:" + std::to_string(*port) + "\r\n" + auth +
+                             "Content-Type: application/json\r\nContent-Length: 2\r\nConnection: close\r\n\r\n{}";
+    send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+    std::string answer;
+    char buf[4096];
+    ssize_t n;
+    while ((n = recv(fd, buf, sizeof buf, 0)) > 0) answer.append(buf, static_cast<size_t>(n));
+    close(fd);
+    return answer.substr(0, answer.find("\r\n"));
+  };
+  const int held = connect_to();  // the client's one connection
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::string beat = "POST /api/v1/leases/abc/heartbeat HTTP/1.1";
+  EXPECT_EQ(ask(beat, "Authorization: Bearer s3creT\r\n"), "HTTP/1.1 429 Too Many Requests");
+  EXPECT_EQ(ask(beat, ""), "HTTP/1.1 429 Too Many Requests");
+  EXPECT_EQ(ask(beat, "Authorization: Bearer s3cret\r\n"), "HTTP/1.1 409 Conflict") << "an unknown lease, at its route";
+  EXPECT_EQ(ask("GET /healthz HTTP/1.1", ""), "HTTP/1.1 200 OK");
+  close(held);
+  api.Stop();
+  serving.join();
+}
+
 // --public-reads: reads need no token; writes still do.
 TEST_F(TokenRoutesTest, PublicReadsOpenReadsOnly) {
   Shutdown();
