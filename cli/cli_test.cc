@@ -367,6 +367,34 @@ TEST_F(CliTest, ResultsInTableCsvAndJson) {
   }
 }
 
+// A sweep over several pages (2 points on 3 beds each, read 2 runs a page: the first page holds
+// only the first point's runs, the second one run of each) prints the same tables as from one page.
+TEST_F(CliTest, ResultsOverSeveralPagesPrintTheSameTables) {
+  std::string file = WriteFile("paged.json", json{{"name", "paged"},
+                                                  {"scale", "smoke"},
+                                                  {"replicates", 3},
+                                                  {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", 41}, {"duration_s", 0.3}}},
+                                                  {"axes", {{{"param", "Omega"}, {"values", {41, -41}}}}}}
+                                                 .dump());
+  Outcome o = Sandswim({"submit", file});
+  ASSERT_EQ(o.code, 0) << o.err;
+  const std::string id = Trimmed(o.out);
+  const Outcome whole = Sandswim({"results", id});
+  ASSERT_EQ(whole.code, 0) << whole.err;
+  EXPECT_THAT(whole.out, HasSubstr("per point, over its replicate beds"));
+  const size_t first = whole.out.find("queued queued queued");
+  ASSERT_NE(first, std::string::npos) << whole.out;
+  EXPECT_NE(whole.out.find("queued queued queued", first + 1), std::string::npos) << "both points over 3 beds";
+  setenv("SANDSWIM_RESULTS_PAGE_ROWS", "2", 1);
+  const Outcome paged = Sandswim({"results", id});
+  const Outcome paged_json = Sandswim({"results", id, "--json"});
+  unsetenv("SANDSWIM_RESULTS_PAGE_ROWS");
+  ASSERT_EQ(paged.code, 0) << paged.err;
+  EXPECT_EQ(paged.out, whole.out);
+  ASSERT_EQ(paged_json.code, 0) << paged_json.err;
+  EXPECT_EQ(json::parse(paged_json.out).size(), 6u);
+}
+
 TEST_F(CliTest, ShowPrintsPointDeckAndLog) {
   int64_t id = SubmitSweep("show-sweep", 40);
   Outcome runs = Sandswim({"runs", "--sweep", std::to_string(id), "--json"});

@@ -3,11 +3,14 @@
 #include "platform/tls.h"
 #include "platform/token.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include <netdb.h>
@@ -261,11 +264,29 @@ class HttpDaemonClient : public DaemonClient {
     return all;
   }
 
-  // A results read whole: the first page's answer (with its "aggregates") holding the "results" of
-  // every page, followed by their "next" paths, the largest pages the daemon gives.
+  // A results read whole: the first page's answer holding the "results" of every page, followed
+  // by their "next" paths, the largest pages the daemon gives, and the "aggregates" of every page,
+  // each point once (a page has those of the points of its runs: a point whose runs two pages
+  // share is on both, the same; known by the smallest run id among its values).
   Result<json> AllResults(const std::string& path) {
-    auto all = Get(path + "?limit=10000");
+    // The most rows a page may hold; $SANDSWIM_RESULTS_PAGE_ROWS asks for fewer (the tests read a
+    // sweep over several pages that way).
+    int rows = 10000;
+    if (const char* env = std::getenv("SANDSWIM_RESULTS_PAGE_ROWS"); env != nullptr && std::atoi(env) > 0) {
+      rows = std::min(rows, std::atoi(env));
+    }
+    auto all = Get(path + "?limit=" + std::to_string(rows));
     if (!all.ok()) return all.status();
+    std::set<int64_t> points;
+    auto point_of = [](const json& aggregate) {
+      int64_t least = INT64_MAX;
+      for (const json& v : aggregate.value("values", json::array())) {
+        if (v.contains("run_id") && v["run_id"].is_number_integer()) least = std::min(least, v["run_id"].get<int64_t>());
+      }
+      return least;
+    };
+    if (!all->contains("aggregates") || !(*all)["aggregates"].is_array()) (*all)["aggregates"] = json::array();
+    for (const json& a : (*all)["aggregates"]) points.insert(point_of(a));
     for (;;) {
       if (!all->contains("results") || !(*all)["results"].is_array()) {
         return Status(StatusCode::kCorruption, "the daemon's answer to GET " + path + " has no \"results\" array");
@@ -282,6 +303,11 @@ class HttpDaemonClient : public DaemonClient {
         return Status(StatusCode::kCorruption, "the daemon's answer to GET " + next_path + " has no rows");
       }
       for (auto& row : *rows) (*all)["results"].push_back(std::move(row));
+      if (auto aggregates = page->find("aggregates"); aggregates != page->end() && aggregates->is_array()) {
+        for (auto& a : *aggregates) {
+          if (points.insert(point_of(a)).second) (*all)["aggregates"].push_back(std::move(a));
+        }
+      }
       if (page->contains("next")) (*all)["next"] = (*page)["next"];
     }
     all->erase("next_cursor");

@@ -675,6 +675,31 @@ TEST(CampaignTest, BadCampaignsNameTheField) {
   }
 }
 
+// A submission of several sweeps past the cap names the sweep that passes it and says what the
+// sweeps before it took (issue 27: it said "more than 0 points (at most 0 runs)").
+TEST(SweepTest, ASweepPastWhatIsLeftOfTheCapSaysWhatTheSweepsBeforeItTook) {
+  auto sweep = [](const std::string& name, double sign, int fs) {
+    json values = json::array();
+    for (int i = 0; i < fs; ++i) values.push_back(1 + 0.01 * i);
+    json omegas = json::array();
+    for (int i = 0; i < 10; ++i) omegas.push_back(sign * (10 + i));
+    auto s = ParseSweep(json{{"name", name},
+                             {"scale", "smoke"},
+                             {"base", {{"mode", "oscillatory"}, {"A", 0.03}, {"f", 3}, {"Omega", -80}, {"duration_s", 0.3}}},
+                             {"axes", {{{"param", "Omega"}, {"values", omegas}}, {{"param", "f"}, {"values", values}}}}});
+    EXPECT_TRUE(s.ok()) << s.status().ToString();
+    return *s;
+  };
+  auto plan = PlanSweeps({sweep("a", 1, 6), sweep("b", -1, 5)}, *FindScale("smoke"), "e", 100);  // 60 + 50 runs
+  ASSERT_FALSE(plan.ok());
+  EXPECT_EQ(plan.status().field(), "sweeps[1].axes");
+  EXPECT_EQ(plan.status().reason(), "with the 60 runs of the sweeps before it, the submission comes to more than 100 "
+                                    "runs, the most one submission may hold");
+  auto alone = PlanSweeps({sweep("c", 1, 11)}, *FindScale("smoke"), "e", 100);  // 110 runs
+  ASSERT_FALSE(alone.ok());
+  EXPECT_EQ(alone.status().reason(), "the sweep expands to more than 100 points (at most 100 runs per submission)");
+}
+
 }  // namespace
 
 // A sweep may ask for snapshots; a point two sweeps share takes every fraction either asks for, and

@@ -117,7 +117,7 @@ void AddFlags(CLI::App& app, Flags& flags) {
       ->check(CLI::Range(1, 100000));
   app.add_flag("--http-loopback-clients-apart", flags.http.loopback_clients_apart,
                "count each loopback address (127.0.0.0/8, ::1) as a client of its own for "
-               "--http-connections-per-client (default: all of them are one client, the local host, since a local "
+               "--http-connections-per-client and the wrong-token throttle (default: all of them are one client, the local host, since a local "
                "user can connect from any of them)");
   app.add_option("--http-max-connections", flags.http.max_connections,
                  "connections open in all (at most the file limit allows); past them a new one is closed at once")

@@ -83,11 +83,12 @@ Answer Ask(const std::string& listen, const std::string& from, const std::string
 
 class LoadLimitsTest : public ::testing::Test {
  protected:
-  void StartDaemon(std::vector<std::string> extra) {
+  void StartDaemon(std::vector<std::string> extra, bool loopback_apart = true) {
     dir_ = testing::CacheDir() + "/load-limits";
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    extra.push_back("--http-loopback-clients-apart");  // 127.0.0.2 (the other reader) stands for another host
+    // 127.0.0.2 (the other reader) stands for another host
+    if (loopback_apart) extra.push_back("--http-loopback-clients-apart");
     daemon_ = std::make_unique<testing::Daemon>(dir_ + "/daemon", extra);
   }
   void TearDown() override {
@@ -200,6 +201,94 @@ TEST_F(LoadLimitsTest, AKeepAliveCrowdAndItsStreamsCostNoWorkerItsLease) {
   EXPECT_EQ(daemon_->Query("SELECT max(attempts) FROM beds"), "1") << "the bed's lease was lost";
   EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs WHERE state = 'done'"), "3");
   EXPECT_THAT(daemon_->process().Output(), ::testing::Not(::testing::HasSubstr("lease(s) expired")));
+}
+
+// The last connection slots (the reserve) belong to the worker protocol and /healthz, not to a
+// client: a local crowd -- the worker's own client, as all of loopback is one by default -- that
+// holds every slot with silent connections, opens a new one as soon as one is closed, and
+// hammers /healthz, costs the worker no lease. 64 connections in all, the last 8 the reserve; the
+// worker's connections find it full and take the slot of the reserve's connection that has waited
+// longest without a request. (Before, one client held at most 4 of the reserve: the crowd took
+// those 4 and the worker, the same client, was shut out: its heartbeats failed until the lease
+// expired.)
+TEST_F(LoadLimitsTest, ALocalCrowdHoldingTheReserveCostsNoWorkerItsLease) {
+  setenv("SANDSWIM_STAND_IN_SECONDS", "4", 1);  // a bed and three runs of 4 s: ~16 s of heartbeats
+  // With a token, as a daemon starts by default: the reserve serves the worker's calls because
+  // they carry it (a worker call without it is an ordinary request).
+  setenv("SANDSWIM_TOKEN", "0123456789abcdef0123456789abcdef", 1);
+  struct Unset {
+    ~Unset() { unsetenv("SANDSWIM_TOKEN"); }
+  } unset;
+  StartDaemon({"--lease-ttl", "3", "--http-max-connections", "64"}, /*loopback_apart=*/false);
+  int status = 0;
+  json submitted = daemon_->Post("/api/v1/sweeps", testing::OmegaSweep("reserve", {-10, -20, -30}, 0.05, 20), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const int64_t sweep = submitted["id"].get<int64_t>();
+  const std::string listen = daemon_->listen();
+  // The crowd, from 127.0.0.1 and 127.0.0.3 (one client): 100 silent holders, more than the
+  // daemon keeps open, each opened again once closed; 30 connections asking /healthz every 50 ms.
+  constexpr int kHolders = 100, kHammers = 30;
+  std::vector<int> holders(kHolders, -1), hammers(kHammers, -1);
+  int64_t holder_opens = 0, hammer_answers = 0;
+  auto tend = [&](std::vector<int>& fds, bool ask, int64_t* answers) {
+    for (size_t i = 0; i < fds.size(); ++i) {
+      if (fds[i] >= 0) {
+        std::string got;
+        const bool open = Drain(fds[i], &got);
+        if (answers != nullptr) {
+          for (size_t at = got.find("HTTP/1.1 200"); at != std::string::npos; at = got.find("HTTP/1.1 200", at + 1)) ++*answers;
+        }
+        if (!open) {
+          close(fds[i]);
+          fds[i] = -1;
+        }
+      }
+      if (fds[i] < 0) {
+        fds[i] = testing::ConnectTo(listen, i % 2 == 0 ? "" : "127.0.0.3");
+        if (fds[i] >= 0 && !ask) ++holder_opens;
+      }
+      if (fds[i] >= 0 && ask) Send(fds[i], std::string("GET /healthz HTTP/1.1\r\nHost: ") + listen + "\r\n\r\n");
+    }
+  };
+  const auto start = Steady::now();
+  while (SecondsSince(start) < 2) {  // the table full before the worker comes
+    tend(holders, false, nullptr);
+    tend(hammers, true, &hammer_answers);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  worker_ = testing::StartWorker(*daemon_, dir_ + "/worker", 1,
+                                 {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
+  std::vector<double> fresh_healthz;
+  int fresh_failed = 0;
+  auto next_probe = Steady::now() + std::chrono::seconds(1);
+  bool done = false;
+  while (!done && SecondsSince(start) < 120) {
+    tend(holders, false, nullptr);
+    tend(hammers, true, &hammer_answers);
+    if (Steady::now() >= next_probe) {
+      const Answer healthz = Ask(listen, "", "/healthz", 10);
+      if (healthz.status == 200) fresh_healthz.push_back(healthz.seconds);
+      else ++fresh_failed;
+      done = daemon_->Query("SELECT count(*) FROM runs WHERE state IN ('queued', 'running')") == "0";
+      next_probe = Steady::now() + std::chrono::seconds(1);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  for (int fd : holders) if (fd >= 0) close(fd);
+  for (int fd : hammers) if (fd >= 0) close(fd);
+  std::sort(fresh_healthz.begin(), fresh_healthz.end());
+  std::printf("LOAD reserve: %lld holder connections opened, %lld /healthz answered to the crowd in %.0f s; "
+              "fresh /healthz %zu answered (slowest %.3f s), %d not\n",
+              static_cast<long long>(holder_opens), static_cast<long long>(hammer_answers), SecondsSince(start),
+              fresh_healthz.size(), fresh_healthz.empty() ? -1.0 : fresh_healthz.back(), fresh_failed);
+  ASSERT_TRUE(done) << "the sweep did not finish under the crowd";
+  EXPECT_GT(holder_opens, 64) << "the crowd never filled the daemon's connections";
+  EXPECT_EQ(daemon_->Query("SELECT max(attempts) FROM runs"), "1") << "a run's lease was lost";
+  EXPECT_EQ(daemon_->Query("SELECT max(attempts) FROM beds"), "1") << "the bed's lease was lost";
+  EXPECT_EQ(daemon_->Query("SELECT count(*) FROM runs WHERE state = 'done'"), "3");
+  EXPECT_THAT(daemon_->process().Output(), ::testing::Not(::testing::HasSubstr("lease(s) expired")));
+  EXPECT_GT(fresh_healthz.size(), 0u) << "no fresh /healthz got a reserve slot";
+  (void)sweep;
 }
 
 // One stream per client here: a stream the page closes is noticed at the stream's next write (a

@@ -113,13 +113,21 @@ async function api(path, options = {}) {
   return { body, res };
 }
 const get = async path => (await api(path)).body;
-// A results read whole (GET .../results is paged): the first page, with its aggregates, holding
-// the rows of every page, their `next` paths followed.
+// A results read whole (GET .../results is paged): the first page holding the rows of every page,
+// their `next` paths followed, and the aggregates of every page, each point once (a page has those
+// of the points of its runs: a point whose runs two pages share is on both, the same; known by the
+// smallest run id among its values).
 async function getResults(path) {
   const all = await get(`${path}?limit=10000`);
+  const pointOf = a => Math.min(...(a.values || []).map(v => v.run_id));
+  all.aggregates = all.aggregates || [];
+  const points = new Set(all.aggregates.map(pointOf));
   for (let next = all.next; next; ) {
     const page = await get(next);
     all.results.push(...page.results);
+    for (const a of page.aggregates || []) {
+      if (!points.has(pointOf(a))) { points.add(pointOf(a)); all.aggregates.push(a); }
+    }
     next = page.results.length ? page.next : null;
   }
   delete all.next;

@@ -37,6 +37,10 @@ struct Deps {
   std::string engine_version;  // enters every content key (Submit)
   std::string token;           // bearer token; empty: no auth
   bool public_reads = false;   // reads need no token (--public-reads)
+  // Which client a peer is, for the wrong-token throttle: ClientKey(address, loopback_clients_apart),
+  // the rule the connection limits count by. ApiServer copies it from its ConnectionLimits
+  // (--http-loopback-clients-apart), so the two never disagree.
+  bool loopback_clients_apart = false;
   // Which Host headers name this daemon; ApiServer::Bind fills in the address and port it got.
   HostPolicy host_policy;
   size_t max_json_body = kMaxJsonBodyBytes;

@@ -309,6 +309,7 @@ struct GuardedHttpServer::Connection {
   bool draining = false;    // answered and half-closed: what still arrives is dropped until idle_until
   uint64_t drained = 0;     // bytes dropped so far
   int served = 0;
+  Steady::time_point opened;                      // when it was accepted
   Steady::time_point idle_until;                  // parked without a byte: closed then
   std::optional<Steady::time_point> head_started;  // the next head's first byte
 };
@@ -358,7 +359,7 @@ bool GuardedHttpServer::SetTls(const std::string& cert_file, const std::string& 
   return true;
 }
 
-void GuardedHttpServer::SetReserved(std::function<bool(const std::string&, const std::string&)> reserved) {
+void GuardedHttpServer::SetReserved(std::function<bool(const httplib::Request&)> reserved) {
   reserved_ = std::move(reserved);
 }
 
@@ -369,6 +370,11 @@ void GuardedHttpServer::SetRefusalBody(std::function<std::string(int, const std:
 int GuardedHttpServer::open_connections() const {
   std::lock_guard<std::mutex> lock(mu_);
   return open_;
+}
+
+int64_t GuardedHttpServer::reserve_taken() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return reserve_taken_;
 }
 
 void GuardedHttpServer::StartThreads() {
@@ -436,12 +442,19 @@ void GuardedHttpServer::Admit(socket_t sock) {
     c->handshaking = true;
   }
   c->client = ClientKey(c->peer, limits_.loopback_clients_apart);
+  c->opened = Steady::now();
+  std::unique_ptr<Connection> taken;  // a reserve connection whose slot this one gets
   {
     std::lock_guard<std::mutex> lock(mu_);
-    // The last slots are kept for the worker protocol and /healthz, a few per client, so that
-    // clients that fill every other slot (one spread over many addresses) cannot keep a worker out.
+    // The last slots are kept for the worker protocol and /healthz, for whoever comes: when every
+    // slot is taken, the newcomer takes the slot of the reserve connection that has waited longest
+    // without a request, so that a crowd holding the reserve cannot keep a worker out.
     const bool reserve = open_ >= max_open_ - ReserveSlots();
-    if (!stopping_ && open_ < max_open_ && (!reserve || in_reserve_[c->client] < kReservePerClient)) {
+    if (!stopping_ && open_ >= max_open_) {
+      taken = TakeReserveSlotLocked();
+      if (taken) ++reserve_taken_;
+    }
+    if (!stopping_ && open_ < max_open_) {
       ++open_;
       const int n = ++per_client_[c->client];
       c->counted = true;
@@ -450,11 +463,12 @@ void GuardedHttpServer::Admit(socket_t sock) {
       c->restricted = reserve || n > limits_.max_connections_per_client;
     }
   }
+  if (taken) Close(std::move(taken));  // already uncounted: its slot is this connection's
   if (!c->counted) {  // past the fd budget: no thread, no read, no answer
     client_refused_.fetch_add(1);
     spdlog::warn("closed a connection from {} at once: {} connections are open, the most this daemon keeps "
-                 "(its last {} for the worker protocol and /healthz, {} per client)",
-                 c->peer, max_open_, ReserveSlots(), kReservePerClient);
+                 "(its last {} for the worker protocol and /healthz), and every one of those is in use",
+                 c->peer, max_open_, ReserveSlots());
     return Close(std::move(c));
   }
   c->idle_until = Steady::now() + Seconds(limits_.idle_s);
@@ -517,13 +531,42 @@ void GuardedHttpServer::Close(std::unique_ptr<Connection> c) {
   close(c->fd);
   if (!c->counted) return;
   std::lock_guard<std::mutex> lock(mu_);
+  UncountLocked(*c);
+}
+
+void GuardedHttpServer::UncountLocked(Connection& c) {
+  if (!c.counted) return;
+  c.counted = false;
   --open_;
-  auto it = per_client_.find(c->client);
+  auto it = per_client_.find(c.client);
   if (it != per_client_.end() && --it->second <= 0) per_client_.erase(it);
-  if (c->in_reserve) {
-    auto r = in_reserve_.find(c->client);
+  if (c.in_reserve) {
+    auto r = in_reserve_.find(c.client);
     if (r != in_reserve_.end() && --r->second <= 0) in_reserve_.erase(r);
   }
+}
+
+std::unique_ptr<GuardedHttpServer::Connection> GuardedHttpServer::TakeReserveSlotLocked() {
+  // Parked reserve connections wait for (the rest of) a request head, or drain after a refusal:
+  // neither is being served. Of the client holding most of the reserve (a crowd before a worker
+  // on another host), the one opened first (a crowd's before a worker's newest).
+  Connection* pick = nullptr;
+  for (auto& [fd, c] : parked_) {
+    if (!c->in_reserve) continue;
+    if (pick == nullptr) {
+      pick = c.get();
+      continue;
+    }
+    const int mine = in_reserve_[c->client], theirs = in_reserve_[pick->client];
+    if (mine > theirs || (mine == theirs && c->opened < pick->opened)) pick = c.get();
+  }
+  if (pick == nullptr) return nullptr;
+  auto it = parked_.find(pick->fd);
+  std::unique_ptr<Connection> taken = std::move(it->second);
+  parked_.erase(it);
+  epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, taken->fd, nullptr);
+  UncountLocked(*taken);
+  return taken;
 }
 
 // Waits for parked connections' bytes; a connection whose head is whole goes to a serving thread.
@@ -659,7 +702,7 @@ GuardedHttpServer::After GuardedHttpServer::ServeOne(Connection& c) {
   bool body_unframed = false;  // chunked, or read to the end: never kept alive
   try {
     ret = process_request(stream, last, connection_closed, [&](httplib::Request& req) {
-      const bool reserved = reserved_ && reserved_(req.method, req.path);
+      const bool reserved = reserved_ && reserved_(req);
       if (!reserved) {
         if (c.restricted) {
           throw Refused{429, 2,

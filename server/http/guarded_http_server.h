@@ -24,9 +24,15 @@
 //    connection is served only for reserved requests (one request, then closed); any other request
 //    on it is answered 429 with Retry-After and the connection closed. Workers on the same host as
 //    a greedy client keep their heartbeats that way. Past `max_connections` in all, a new connection
-//    is closed at once; the last ReserveSlots() before it (up to 64) are admitted as restricted
-//    connections, at most kReservePerClient per client, so that clients spread over many
-//    addresses (127.0.0.0/8 on one machine) that fill every other slot still leave workers some.
+//    is closed at once, except into the reserve: the last ReserveSlots() before it (up to 64) are
+//    admitted as restricted connections, for whoever comes, and belong to no client. When every
+//    slot is taken, a new connection takes the slot of the reserve's connection that has waited
+//    longest without a whole request (the one its client -- the one holding most of the reserve --
+//    opened first): a crowd that holds the reserve with silent or slow connections, however many
+//    addresses it has and even when it is the workers' own client (all of loopback is one), cannot
+//    keep a worker's next connection out; a reserve connection that has sent its request is not
+//    taken. What it may ask is the predicate's (SetReserved: the worker protocol with the right
+//    token, and /healthz).
 //  - A request head larger than the 16 KiB buffer is answered 431 by the poller (no thread) and the
 //    connection drained and closed.
 //  - TLS (SetTls): the handshake is stepped by the poller as its bytes arrive, under the head's deadline.
@@ -66,9 +72,9 @@ class GuardedHttpServer : public httplib::Server {
   explicit GuardedHttpServer(ConnectionLimits limits = {});
   ~GuardedHttpServer() override;
 
-  // Names the requests the reserved threads serve (a predicate on the method and path of a request
-  // whose head has arrived). Unset: none.
-  void SetReserved(std::function<bool(const std::string& method, const std::string& path)> reserved);
+  // Names the requests the reserved threads and the reserve's connections serve (a predicate on a
+  // request whose head has arrived: its method, path and headers; no body). Unset: none.
+  void SetReserved(std::function<bool(const httplib::Request& head)> reserved);
   // Renders the body of a refusal (429, 503) as the routes' problem documents are rendered; unset:
   // the detail as plain text.
   void SetRefusalBody(std::function<std::string(int http_status, const std::string& detail)> body);
@@ -93,6 +99,8 @@ class GuardedHttpServer : public httplib::Server {
   // had too many connections open (or 431: a request head past the buffer).
   int64_t busy_refused() const { return busy_refused_.load(); }
   int64_t client_refused() const { return client_refused_.load(); }
+  // Reserve connections closed to give their slot to a newcomer (waiting without a whole request).
+  int64_t reserve_taken() const;
   // Open connections (parked, queued or served).
   int open_connections() const;
 
@@ -112,6 +120,10 @@ class GuardedHttpServer : public httplib::Server {
   void Park(std::unique_ptr<Connection> c);  // wait for its next head in the poller
   void Enqueue(std::unique_ptr<Connection> c);
   void Close(std::unique_ptr<Connection> c);
+  // Takes a parked reserve connection out of the poller to give its slot to a newcomer: of the
+  // client holding most of the reserve, the one opened first. REQUIRES mu_; null when none waits.
+  std::unique_ptr<Connection> TakeReserveSlotLocked();
+  void UncountLocked(Connection& c);  // REQUIRES mu_
   void PollLoop();
   void ServeLoop();
   void StartThreads();
@@ -119,7 +131,7 @@ class GuardedHttpServer : public httplib::Server {
 
   ConnectionLimits limits_;
   ssl_ctx_st* tls_ = nullptr;  // SSL_CTX, owned; null: plain HTTP
-  std::function<bool(const std::string&, const std::string&)> reserved_;
+  std::function<bool(const httplib::Request&)> reserved_;
   std::function<std::string(int, const std::string&)> refusal_body_;
   std::atomic<int64_t> slow_closed_{0}, busy_refused_{0}, client_refused_{0};
   std::atomic<int> readers_in_flight_{0};
@@ -133,9 +145,9 @@ class GuardedHttpServer : public httplib::Server {
   std::deque<std::unique_ptr<Connection>> ready_;
   std::map<std::string, int> per_client_;  // by ClientKey (server/http/request_policy.h)
   std::map<std::string, int> in_reserve_;  // connections in the reserved slots, by client
-  // The last open-connection slots, admitted only for reserved requests, at most kReservePerClient each.
+  // The last open-connection slots, admitted only for reserved requests.
   int ReserveSlots() const { return std::max(4, std::min(64, max_open_ / 8)); }
-  static constexpr int kReservePerClient = 4;
+  int64_t reserve_taken_ = 0;  // reserve connections whose slot a newcomer took
   int open_ = 0;
   int max_open_ = 0;
   std::thread poller_;

@@ -21,7 +21,7 @@ namespace sandswim {
 
 class LoopbackServer {
  public:
-  explicit LoopbackServer(const Deps& deps) : deps_(deps) {
+  explicit LoopbackServer(const Deps& deps) : deps_(deps), server_(LimitsOf(deps)) {
     RegisterRoutes(server_, deps_);
     port_ = server_.bind_to_any_port("127.0.0.1");
     if (port_ <= 0) throw std::runtime_error("LoopbackServer: cannot bind 127.0.0.1");
@@ -43,6 +43,12 @@ class LoopbackServer {
   httplib::Client& client() { return *client_; }
 
  private:
+  // The daemon's limits, counting loopback clients as the deps say (as ApiServer makes them agree).
+  static ConnectionLimits LimitsOf(const Deps& deps) {
+    ConnectionLimits limits;
+    limits.loopback_clients_apart = deps.loopback_clients_apart;
+    return limits;
+  }
   Deps deps_;
   GuardedHttpServer server_;  // as the daemon serves
   int port_ = 0;

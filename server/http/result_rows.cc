@@ -117,19 +117,19 @@ ReplicateValue ReplicateOf(const ResultRow& row) {
   return v;
 }
 
-// The per-point aggregates of every run of `of` `id`, each with its point's fields, as JSON text
-// (an array, written an aggregate at a time: 100,000 of them as one JSON tree took some 200 MB),
-// read kMaxResultsPage rows at a time (only each row's point and replicate value are kept).
-Result<std::string> AggregatesText(Store& store, ResultsOf of, int64_t id) {
+// The per-point aggregates of the points of `page`'s runs, each over every run of that point in
+// `of` `id` (Store::ResultsOfDrives: a point whose runs a page boundary splits gets its whole
+// aggregate on both pages), with its point's fields, in the set's order, as JSON text (an array,
+// written an aggregate at a time).
+Result<std::string> AggregatesText(Store& store, ResultsOf of, int64_t id, const std::vector<ResultRow>& page) {
+  std::vector<Point> points;
+  points.reserve(page.size());
+  for (const ResultRow& row : page) points.push_back(row.point);
+  auto rows = store.ResultsOfDrives(of, id, points);
+  if (!rows.ok()) return rows.status();
   std::vector<std::pair<Point, ReplicateValue>> runs;
-  ResultCursor after;
-  for (;;) {
-    auto page = store.ResultsPage(of, id, after, kMaxResultsPage);
-    if (!page.ok()) return page.status();
-    for (const ResultRow& row : page->rows) runs.emplace_back(row.point, ReplicateOf(row));
-    if (!page->next) break;
-    after = *page->next;
-  }
+  runs.reserve(rows->size());
+  for (const ResultRow& row : *rows) runs.emplace_back(row.point, ReplicateOf(row));
   std::string text = "[";
   bool first = true;
   for (const PointAggregate& a : AggregateByPoint(runs)) {
@@ -237,8 +237,7 @@ void SendResults(Call& c, ResultsOf of) {
   if (!limit.ok()) return Fail(c, limit.status());
   const int rows = static_cast<int>(limit->value_or(kDefaultResultsPage));
   ResultCursor after;
-  const bool first = !c.req.has_param("cursor");
-  if (!first) {
+  if (c.req.has_param("cursor")) {
     auto cursor = ParseCursor(of, c.req.get_param_value("cursor"));
     if (!cursor.ok()) return Fail(c, cursor.status());
     after = *cursor;
@@ -255,13 +254,12 @@ void SendResults(Call& c, ResultsOf of) {
   }
   // The rows (and aggregates) are written as text one at a time: a page of 10,000 rows as one
   // JSON tree took ten times its 11 MB of text.
+  reply["aggregates_of"] = kAggregatesOf;
   std::string text = api::ToJsonText(reply);
   text.pop_back();  // its closing brace
-  if (first) {
-    auto aggregates = AggregatesText(*c.deps.store, of, *id);
-    if (!aggregates.ok()) return Fail(c, aggregates.status());
-    text += ",\"aggregates\":" + *aggregates;
-  }
+  auto aggregates = AggregatesText(*c.deps.store, of, *id, page->rows);
+  if (!aggregates.ok()) return Fail(c, aggregates.status());
+  text += ",\"aggregates\":" + *aggregates;
   text += ",\"results\":[";
   for (size_t i = 0; i < page->rows.size(); ++i) {
     if (i > 0) text += ',';

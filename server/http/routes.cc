@@ -127,7 +127,7 @@ std::optional<Refusal> CheckAuth(const Deps& deps, const Route& route, const htt
   if (given->size() == deps.token.size() && CRYPTO_memcmp(given->data(), deps.token.data(), given->size()) == 0) {
     return std::nullopt;
   }
-  if (throttle.Failed(ClientKey(req.remote_addr), req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
+  if (throttle.Failed(ClientKey(req.remote_addr, deps.loopback_clients_apart), req.method + " " + req.path) == FailedAuthThrottle::Verdict::kBusy) {
     return Refusal{
         Status(StatusCode::kResourceExhausted,
                "too many requests with a wrong token from " + req.remote_addr + "; try again later", "Authorization"),
@@ -484,18 +484,28 @@ Status CheckListenPolicy(const ListenAddress& address, bool have_token, bool tls
 // ---- ApiServer ---------------------------------------------------------------------------------
 
 namespace {
-// The worker protocol and /healthz: what the reserved threads serve (server/http/guarded_http_server.h),
-// so that no reader can cost a worker its lease.
-bool IsReservedRoute(const std::string& method, const std::string& path) {
-  const Route* route = FindRoute(method, path);
-  return route != nullptr && (route->access == Access::kWorker || std::string_view(route->path) == "/healthz");
+// The worker protocol with the daemon's token (any, when it has none), and /healthz: what the
+// reserved threads and the reserve's connections serve (server/http/guarded_http_server.h), so that
+// no reader can cost a worker its lease. A worker call with a wrong or no token is an ordinary
+// request (and is refused 401 there): a guesser holds no reserved thread while its failure is slowed.
+bool IsReservedRequest(const std::string& token, const httplib::Request& head) {
+  const Route* route = FindRoute(head.method, head.path);
+  if (route == nullptr) return false;
+  if (std::string_view(route->path) == "/healthz") return true;
+  if (route->access != Access::kWorker) return false;
+  if (token.empty()) return true;
+  const std::string header = head.get_header_value("Authorization");
+  const std::string prefix = "Bearer ";
+  if (header.rfind(prefix, 0) != 0 || header.size() - prefix.size() != token.size()) return false;
+  return CRYPTO_memcmp(header.data() + prefix.size(), token.data(), token.size()) == 0;
 }
 }  // namespace
 
 // Slow, idle and greedy clients are held off by the server (server/http/guarded_http_server.h).
 ApiServer::ApiServer(Deps deps, ConnectionLimits limits)
     : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(limits)) {
-  server_->SetReserved(IsReservedRoute);
+  deps_.loopback_clients_apart = limits.loopback_clients_apart;  // one rule for "which client": the limits'
+  server_->SetReserved([this](const httplib::Request& head) { return IsReservedRequest(deps_.token, head); });
   server_->SetRefusalBody([](int http_status, const std::string& detail) {
     const Status why = http_status == 429 ? Status::ResourceExhausted("", detail) : Status::Unavailable(detail);
     return api::ToJsonText(ProblemFor(why, http_status));

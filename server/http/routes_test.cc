@@ -26,6 +26,7 @@
 #include "core/sweep.h"
 #include "platform/http_status.h"
 #include "server/http/loopback_server_test_util.h"
+#include "server/http/result_rows.h"
 #include "server/dashboard/live_feed.h"
 
 namespace sandswim {
@@ -297,8 +298,21 @@ TEST_F(RoutesTest, CampaignSubmissionCreatesACampaignRun) {
 }
 
 // GET .../results: pages of `limit` rows after a cursor, linked by "next" and a Link header, the
-// aggregates of every run on the first page only; CSV streamed whole. Bad paging is a 400 naming
+// aggregates of the points of each page's runs, each over all its runs; CSV streamed whole. Bad paging is a 400 naming
 // its parameter.
+// The aggregates of `all` (a whole set's, in its order) whose points have a run among `rows`.
+json AggregatesOfRuns(const json& all, const json& rows) {
+  std::set<int64_t> runs;
+  for (const json& row : rows) runs.insert(row["run_id"].get<int64_t>());
+  json out = json::array();
+  for (const json& a : all) {
+    bool here = false;
+    for (const json& v : a["values"]) here = here || runs.count(v["run_id"].get<int64_t>()) > 0;
+    if (here) out.push_back(a);
+  }
+  return out;
+}
+
 TEST_F(RoutesTest, ResultsArePagedByACursorAndStreamedAsCsv) {
   auto r = Post("/api/v1/sweeps", R"({"campaign": "paper-58", "scale": "smoke"})");
   ASSERT_EQ(r->status, 201) << r->body;
@@ -317,10 +331,9 @@ TEST_F(RoutesTest, ResultsArePagedByACursorAndStreamedAsCsv) {
     ASSERT_EQ(page->status, 200) << page->body;
     const json body = Body(page);
     EXPECT_LE(body["results"].size(), 7u);
-    EXPECT_EQ(body.contains("aggregates"), pages == 1) << "the aggregates come once, on the first page";
-    if (pages == 1) {
-      EXPECT_EQ(body["aggregates"], whole["aggregates"]);
-    }
+    EXPECT_EQ(body["aggregates"], AggregatesOfRuns(whole["aggregates"], body["results"]))
+        << "a page's aggregates: those of its runs' points, each as over the whole set";
+    EXPECT_EQ(body["aggregates_of"], routes::kAggregatesOf);
     for (const json& row : body["results"]) rows.push_back(row);
     next = body.value("next", "");
     if (!next.empty()) {
@@ -345,7 +358,7 @@ TEST_F(RoutesTest, ResultsArePagedByACursorAndStreamedAsCsv) {
   const std::string sweep_path = "/api/v1/sweeps/" + std::to_string(sweep) + "/results";
   const json first = Body(client_->Get((sweep_path + "?limit=1").c_str()));
   ASSERT_EQ(first["results"].size(), 1u);
-  EXPECT_EQ(first["aggregates"].size(), 2u) << "aggregates over every run, not the page's";
+  EXPECT_EQ(first["aggregates"].size(), 1u) << "the aggregates of the page's points, not of every run";
   const json second = Body(client_->Get(first["next"].get<std::string>().c_str()));
   ASSERT_EQ(second["results"].size(), 1u);
   EXPECT_NE(second["results"][0]["run_id"], first["results"][0]["run_id"]);
@@ -363,6 +376,36 @@ TEST_F(RoutesTest, ResultsArePagedByACursorAndStreamedAsCsv) {
   EXPECT_EQ(Body(bad)["field"], "cursor");
   EXPECT_EQ(client_->Get("/api/v1/sweeps/999/results?format=csv")->status, 404);
   EXPECT_EQ(client_->Get("/api/v1/campaign-runs/999/results")->status, 404);
+}
+
+// A point whose replicate runs a page boundary splits: each page that holds one of its runs has
+// its aggregate over all three beds, the same; the pages' aggregates, each point once, are the
+// whole set's (what the CLI, the notebook client and the dashboard show, following the pages).
+TEST_F(RoutesTest, APagesAggregatesAreOverAllOfItsPointsRuns) {
+  auto r = Post("/api/v1/sweeps", R"({"name": "reps", "scale": "smoke", "replicates": 3,
+    "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
+    "axes": [{"param": "Omega", "values": [-80, 80]}], "combine": "product"})");
+  ASSERT_EQ(r->status, 201) << r->body;
+  const std::string path = "/api/v1/sweeps/" + std::to_string(Body(r)["id"].get<int64_t>()) + "/results";
+  const json whole = Body(client_->Get(path.c_str()));
+  ASSERT_EQ(whole["results"].size(), 6u);
+  ASSERT_EQ(whole["aggregates"].size(), 2u);
+  std::string next = path + "?limit=2";
+  std::vector<size_t> per_page;
+  json merged = json::array();
+  std::set<int64_t> points;
+  for (int pages = 0; !next.empty() && pages < 10; ++pages) {
+    const json body = Body(client_->Get(next.c_str()));
+    per_page.push_back(body["aggregates"].size());
+    EXPECT_EQ(body["aggregates"], AggregatesOfRuns(whole["aggregates"], body["results"]));
+    for (const json& a : body["aggregates"]) {
+      EXPECT_EQ(a["replicates"], 3) << "a point's aggregate over some of its runs";
+      if (points.insert(a["values"][0]["run_id"].get<int64_t>()).second) merged.push_back(a);
+    }
+    next = body.value("next", "");
+  }
+  EXPECT_EQ(per_page, (std::vector<size_t>{1, 2, 1})) << "runs 1-2 of point 1; 3 of 1 and 1 of 2; 2-3 of 2";
+  EXPECT_EQ(merged, whole["aggregates"]);
 }
 
 class TokenRoutesTest : public RoutesTest {
@@ -405,6 +448,49 @@ TEST_F(TokenRoutesTest, EveryRouteButThePublicOnesNeedsTheToken) {
   EXPECT_EQ(client_->Get("/ui/app.js")->status, 200);
 }
 
+// What the daemon's reserve serves (ApiServer): the worker protocol only with the daemon's token,
+// and /healthz. A client past its connections (one here) is served only those: a heartbeat with a
+// wrong token is refused 429 there like any other request, with the right one it reaches its route.
+TEST_F(TokenRoutesTest, TheReserveServesWorkerCallsOnlyWithTheToken) {
+  ConnectionLimits limits;
+  limits.max_connections_per_client = 1;
+  ApiServer api(deps_, limits);
+  auto port = api.Bind({"127.0.0.1", 0});
+  ASSERT_TRUE(port.ok()) << port.status().ToString();
+  std::thread serving([&] { api.Serve(); });
+  auto connect_to = [&] {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(*port));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    return fd;
+  };
+  auto ask = [&](const std::string& request_line, const std::string& auth) {
+    const int fd = connect_to();
+    const std::string head = request_line + "\r\nHost: 127.0.0.1:" + std::to_string(*port) + "\r\n" + auth +
+                             "Content-Type: application/json\r\nContent-Length: 2\r\nConnection: close\r\n\r\n{}";
+    send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+    std::string answer;
+    char buf[4096];
+    ssize_t n;
+    while ((n = recv(fd, buf, sizeof buf, 0)) > 0) answer.append(buf, static_cast<size_t>(n));
+    close(fd);
+    return answer.substr(0, answer.find("\r\n"));
+  };
+  const int held = connect_to();  // the client's one connection
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::string beat = "POST /api/v1/leases/abc/heartbeat HTTP/1.1";
+  EXPECT_EQ(ask(beat, "Authorization: Bearer s3creT\r\n"), "HTTP/1.1 429 Too Many Requests");
+  EXPECT_EQ(ask(beat, ""), "HTTP/1.1 429 Too Many Requests");
+  EXPECT_EQ(ask(beat, "Authorization: Bearer s3cret\r\n"), "HTTP/1.1 409 Conflict") << "an unknown lease, at its route";
+  EXPECT_EQ(ask("GET /healthz HTTP/1.1", ""), "HTTP/1.1 200 OK");
+  close(held);
+  api.Stop();
+  serving.join();
+}
+
 // --public-reads: reads need no token; writes still do.
 TEST_F(TokenRoutesTest, PublicReadsOpenReadsOnly) {
   Shutdown();
@@ -432,6 +518,53 @@ TEST_F(TokenRoutesTest, WrongTokensAreCountedAndSlowedTheRightOneIsNot) {
   EXPECT_EQ(client_->Get("/api/v1/sweeps")->status, 401);
   metrics = client_->Get("/metrics", {{"Authorization", "Bearer s3cret"}});
   EXPECT_THAT(metrics->body, HasSubstr("sandswim_auth_failures_total 5\n"));
+}
+
+// The wrong-token throttle counts clients as the connection limits do: every loopback address is
+// one client, unless the daemon counts them apart (--http-loopback-clients-apart). Three guesses
+// from 127.0.0.2, then two from 127.0.0.3: the latter are slowed as the same client's 4th and 5th,
+// or, apart, are a new client's first two.
+TEST_F(TokenRoutesTest, TheWrongTokenThrottleCountsLoopbackClientsAsTheLimitsDo) {
+  auto guess_from = [&](const char* address) {
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, address, &from.sin_addr);
+    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from), 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(server_->port()));
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to), 0);
+    const std::string head = "GET /api/v1/sweeps HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(server_->port()) +
+                             "\r\nAuthorization: Bearer guess\r\nConnection: close\r\n\r\n";
+    send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+    std::string answer;
+    char buf[4096];
+    ssize_t n;
+    while ((n = recv(fd, buf, sizeof buf, 0)) > 0) answer.append(buf, static_cast<size_t>(n));
+    close(fd);
+    return answer.substr(0, answer.find("\r\n"));
+  };
+  auto delayed = [&] {
+    auto metrics = client_->Get("/metrics", {{"Authorization", "Bearer s3cret"}});
+    EXPECT_EQ(metrics->status, 200);
+    const std::string key = "\nsandswim_auth_delayed_total ";
+    const size_t at = metrics->body.find(key);
+    return at == std::string::npos ? -1 : std::stoi(metrics->body.substr(at + key.size()));
+  };
+  for (bool apart : {false, true}) {
+    if (apart) {
+      Shutdown();
+      deps_.loopback_clients_apart = true;
+      Start("s3cret");
+    }
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(guess_from("127.0.0.2"), "HTTP/1.1 401 Unauthorized") << apart;
+    EXPECT_EQ(delayed(), 0) << apart;
+    for (int i = 0; i < 2; ++i) EXPECT_EQ(guess_from("127.0.0.3"), "HTTP/1.1 401 Unauthorized") << apart;
+    EXPECT_EQ(delayed(), apart ? 0 : 2) << (apart ? "127.0.0.3 was counted with 127.0.0.2 though set apart"
+                                                  : "127.0.0.3 was not counted with 127.0.0.2");
+  }
 }
 
 // A Host that does not name this daemon (a page on a rebound DNS name) gets 421 on every path,

@@ -4,6 +4,9 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
+#include <set>
+#include <tuple>
 #include <utility>
 
 #include "core/deck.h"
@@ -862,6 +865,64 @@ Result<ResultPage> Store::ResultsPage(ResultsOf of, int64_t id, const ResultCurs
     page.rows.push_back(std::move(r).value());
   }
   return page;
+}
+
+Result<std::vector<ResultRow>> Store::ResultsOfDrives(ResultsOf of, int64_t id, const std::vector<Point>& points) {
+  Result<Transaction> t = db_->BeginRead();
+  if (!t.ok()) return t.status();
+  const bool campaign = of == ResultsOf::kCampaignRun;
+  if (Status s = campaign ? MustExist(*t, "campaign_runs", "campaign run", id) : MustExist(*t, "sweeps", "sweep", id);
+      !s.ok())
+    return s;
+  std::set<DriveId> drives;
+  std::set<std::tuple<double, double, double, double>> numbers;  // a first sieve on the run's own columns
+  for (const Point& p : points) {
+    drives.insert(DriveIdOf(p));
+    numbers.emplace(p.A, p.f, p.Omega, p.omega);
+  }
+  std::vector<int64_t> candidates;  // in the set's order, each once
+  {
+    Statement st = t->Prepare(
+        campaign ? "SELECT r.id, r.A, r.f, r.osc_omega, r.rot_omega FROM sweeps s JOIN sweep_runs sr ON sr.sweep_id = "
+                   "s.id JOIN runs r ON r.id = sr.run_id WHERE s.campaign_run_id = ? ORDER BY sr.sweep_id, sr.position"
+                 : "SELECT r.id, r.A, r.f, r.osc_omega, r.rot_omega FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+                   "WHERE sr.sweep_id = ? ORDER BY sr.position");
+    st.Bind(1, id);
+    std::set<int64_t> seen;
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      if (numbers.count({st.Double(1), st.Double(2), st.Double(3), st.Double(4)}) == 0) continue;
+      if (seen.insert(st.Int(0)).second) candidates.push_back(st.Int(0));
+    }
+  }
+  std::map<int64_t, ResultRow> found;
+  constexpr size_t kChunk = 500;  // ids bound per statement
+  for (size_t from = 0; from < candidates.size(); from += kChunk) {
+    const size_t to = std::min(candidates.size(), from + kChunk);
+    std::string marks;
+    for (size_t i = from; i < to; ++i) marks += i == from ? "?" : ",?";
+    Statement st = t->Prepare("SELECT " + ResultRowColumns() +
+                              " FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN results res ON res.run_id = r.id "
+                              "WHERE r.id IN (" + marks + ")");
+    for (size_t i = from; i < to; ++i) st.Bind(static_cast<int>(i - from + 1), candidates[i]);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      Result<ResultRow> r = ResultRowFromRow(st);
+      if (!r.ok()) return r.status();
+      if (drives.count(DriveIdOf(r->point)) > 0) found.emplace(r->run_id, std::move(r).value());
+    }
+  }
+  std::vector<ResultRow> rows;
+  rows.reserve(found.size());
+  for (int64_t run : candidates) {
+    auto it = found.find(run);
+    if (it != found.end()) rows.push_back(std::move(it->second));
+  }
+  return rows;
 }
 
 namespace {

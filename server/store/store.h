@@ -259,6 +259,12 @@ class Store {
   // results after `after`, in one read transaction: what a page of GET .../results shows and what
   // a results stream reads at a time, so that no read holds a whole 100,000-run set in memory.
   Result<ResultPage> ResultsPage(ResultsOf of, int64_t id, const ResultCursor& after, int limit);
+  // Every run of a sweep's or a campaign run's results that drives the SO as one of `points` does
+  // (core/point.h SameDrive: all but the duration, materials included), each run once, in the
+  // set's order: the runs a results page's aggregates are over, so that a point's aggregate is
+  // never partial, wherever in the set its other runs stand. One read transaction: one pass over
+  // the set's run ids and drive numbers, whole rows read only for those that match.
+  Result<std::vector<ResultRow>> ResultsOfDrives(ResultsOf of, int64_t id, const std::vector<Point>& points);
   Result<CampaignRunInfo> GetCampaignRun(int64_t id);
   // Newest first; `campaign` empty for all campaigns.
   Result<std::vector<CampaignRunInfo>> ListCampaignRuns(const std::string& campaign, int limit = 20);

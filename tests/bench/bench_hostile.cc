@@ -12,11 +12,15 @@
 // The big sweep is written into the daemon's store before the daemon starts (Submit, as a POST
 // would; a 100,000-value POST body is past the daemon's body limit), its runs queued. The daemon's
 // resident memory is sampled every 0.1 s (peak, and at the start of the reads).
+// With `--holders N` the crowd also holds N silent connections, each opened again as soon as the
+// daemon closes it, and with `--max-connections M` (sandswimd --http-max-connections) the daemon
+// keeps at most M: with N + --connections past M the crowd holds every slot, the reserve's too
+// (the reserve attack: with --loopback-apart 0 the crowd and the worker are one client).
 // It prints its figures. SANDSWIMD_UNDER_TEST=PATH measures another build's daemon (the
 // same benchmark before and after a change).
 //
 //   bench_hostile [--connections 250] [--seconds 30] [--readers 4] [--read-runs 100000] [--page 10000]
-//                 [--loopback-apart 1]
+//                 [--loopback-apart 1] [--holders 0] [--max-connections 4096]
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -162,6 +166,11 @@ int main(int argc, char** argv) {
   // before --http-loopback-clients-apart counted each loopback address apart anyway (--loopback-apart 0).
   std::vector<std::string> flags = {"--lease-ttl", "6"};
   if (Flag(argc, argv, "--loopback-apart", 1) != 0) flags.push_back("--http-loopback-clients-apart");
+  const int holders = Flag(argc, argv, "--holders", 0);
+  if (const int max_connections = Flag(argc, argv, "--max-connections", 0); max_connections > 0) {
+    flags.push_back("--http-max-connections");
+    flags.push_back(std::to_string(max_connections));
+  }
   sandswim::testing::Daemon daemon(dir + "/daemon", flags);
   const std::string listen = daemon.listen();
   // The process started is the engine guard; its one child is sandswimd.
@@ -184,12 +193,19 @@ int main(int argc, char** argv) {
 
   std::atomic<bool> stop{false};
   // The crowd.
-  std::atomic<int64_t> crowd_reconnects{0};
+  std::atomic<int64_t> crowd_reconnects{0}, holder_opens{0};
   std::thread crowd([&] {
-    std::vector<int> fds(connections, -1);
+    std::vector<int> fds(connections, -1), held(holders, -1);
     std::vector<Steady::time_point> next(connections, Steady::now());
     while (!stop.load()) {
       const auto now = Steady::now();
+      for (int& fd : held) {  // silent: the daemon closes them (idle, or a newcomer takes the slot)
+        if (fd >= 0 && !Drain(fd)) {
+          close(fd);
+          fd = -1;
+        }
+        if (fd < 0 && (fd = sandswim::testing::ConnectTo(listen)) >= 0) holder_opens.fetch_add(1);
+      }
       for (int i = 0; i < connections; ++i) {
         if (fds[i] >= 0 && !Drain(fds[i])) {
           close(fds[i]);
@@ -204,6 +220,8 @@ int main(int argc, char** argv) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     for (int fd : fds)
+      if (fd >= 0) close(fd);
+    for (int fd : held)
       if (fd >= 0) close(fd);
   });
   std::this_thread::sleep_for(std::chrono::seconds(4));  // every crowd connection open and asking
@@ -286,13 +304,15 @@ int main(int argc, char** argv) {
   crowd.join();
   std::lock_guard<std::mutex> lock(mu);
   std::printf(
-      "bench_hostile: %d keep-alive connections (/healthz every 3 s, %lld reconnects), %d readers, %d s\n"
+      "bench_hostile: %d keep-alive connections (/healthz every 3 s, %lld reconnects), %d silent holders (%lld "
+      "opened), %d readers, %d s\n"
       "  fresh /healthz: %zu answered, %d failed; p50 %.3f s, p99 %.3f s, max %.3f s\n"
       "  heartbeat (new connection, TTL 6 s): %zu answered, %d lost lease (409), %d failed; p50 %.3f s, "
       "p99 %.3f s, max %.3f s\n"
       "  whole %d-run reads: %lld of %.1f MB each (%lld pages in all), %lld failed; p50 %.1f s, max %.1f s\n"
       "  daemon resident memory: %.0f MB at the start of the reads, %.0f MB at its peak\n",
-      connections, static_cast<long long>(crowd_reconnects.load()), readers, seconds, healthz.size(), healthz_errors,
+      connections, static_cast<long long>(crowd_reconnects.load()), holders,
+      static_cast<long long>(holder_opens.load()), readers, seconds, healthz.size(), healthz_errors,
       Pct(healthz, 0.5), Pct(healthz, 0.99), Pct(healthz, 1.0), beats.size(), beats_409, beat_errors, Pct(beats, 0.5),
       Pct(beats, 0.99), Pct(beats, 1.0), read_runs, static_cast<long long>(reads.load()),
       reads.load() > 0 ? static_cast<double>(read_bytes.load()) / reads.load() / 1e6 : 0.0,

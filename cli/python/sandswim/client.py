@@ -33,6 +33,10 @@ from .token import DEFAULT_SERVER, find_token
 _NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")  # a campaign's name, as the CLI tells it from a file
 
 
+# Rows a results page is asked for: the most the daemon gives (pages are followed to the end).
+RESULTS_PAGE_ROWS = 10000
+
+
 @dataclass(frozen=True)
 class Submission:
     """What one submission made: a campaign run (and its sweeps), or sweeps.
@@ -328,9 +332,17 @@ class Client:
         return [self._all_results(f"/api/v1/{kind}/{ident}/results") for kind, ident in _targets(target)]
 
     def _all_results(self, path: str) -> dict[str, Any]:
-        """A results read whole: the first page (with its "aggregates") holding the "results" of
-        every page, their "next" paths followed, the largest pages the daemon gives."""
-        reply = self._object(f"{path}?limit=10000")
+        """A results read whole: the first page holding the "results" of every page, their "next"
+        paths followed, the largest pages the daemon gives, and the "aggregates" of every page,
+        each point once (a page has those of the points of its runs: a point whose runs two pages
+        share is on both, the same; known by the smallest run id among its values)."""
+
+        def point_of(aggregate: Mapping[str, Any]) -> int:
+            return min((v["run_id"] for v in aggregate.get("values", []) if "run_id" in v), default=-1)
+
+        reply = self._object(f"{path}?limit={RESULTS_PAGE_ROWS}")
+        aggregates = list(reply.get("aggregates") or [])
+        points = {point_of(a) for a in aggregates}
         next_path = reply.pop("next", None)
         seen: set[str] = set()
         while next_path:
@@ -341,7 +353,12 @@ class Client:
             if not page.get("results"):
                 raise SandswimError(f"the daemon's answer to GET {next_path} has no rows", field="results")
             reply["results"].extend(page["results"])
+            for a in page.get("aggregates") or []:
+                if point_of(a) not in points:
+                    points.add(point_of(a))
+                    aggregates.append(a)
             next_path = page.get("next")
+        reply["aggregates"] = aggregates
         reply.pop("next_cursor", None)
         return reply
 

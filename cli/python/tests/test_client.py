@@ -12,10 +12,12 @@ import json
 import os
 import tempfile
 
+import pandas as pd
 import pytest
 import requests
 
 import sandswim
+import sandswim.client as sandswim_client
 from sandswim import Client, SandswimError, Submission, find_token
 from service import Service
 
@@ -242,6 +244,18 @@ def test_aggregates_one_row_a_point_over_three_beds(service, client, baseline):
     mean = columns.index("uz_mean [m/s]")
     assert {"uz_stderr [m/s]", "uz_ci95 [m/s]", "uz_sd_between [m/s]"} <= set(columns[mean + 1: mean + 4])
     assert list(frame["uz_mean [m/s]"]) == [a.get("uz_mean") for a in reply]
+
+
+def test_a_sweep_over_several_pages_gives_the_same_tables(client, baseline, monkeypatch):
+    # 6 runs, 3 beds a point, read 2 a page: the first page holds only the first point's runs,
+    # the second one run of each (both aggregates, over all three beds); the frames are those of
+    # one page.
+    whole_results, whole_aggregates = client.results(baseline), client.aggregates(baseline)
+    monkeypatch.setattr(sandswim_client, "RESULTS_PAGE_ROWS", 2)
+    paged_aggregates = client.aggregates(baseline)
+    assert list(paged_aggregates["replicates"]) == [3, 3]
+    pd.testing.assert_frame_equal(paged_aggregates, whole_aggregates)
+    pd.testing.assert_frame_equal(client.results(baseline), whole_results)
 
 
 def test_trajectory_of_a_run_and_of_a_sweep(service, client, baseline):
