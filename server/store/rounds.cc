@@ -40,6 +40,36 @@ json ActionToJson(const AdaptiveAction& a) {
           {"draws", a.draws},               {"new_beds", a.new_beds}, {"runs", runs}};
 }
 
+json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h) {
+  json out = json::array();
+  double spent = 0;
+  for (const RoundRow& r : rows) {
+    json actions = json::array();
+    for (const json& a : r.actions) {
+      actions.push_back({{"kind", a.value("kind", "")},
+                         {"claim", a.value("claim", "")},
+                         {"reason", a.value("reason", "")},
+                         {"core_h", a.value("core_h", 0.0)},
+                         {"runs", a.contains("runs") ? a["runs"].size() : 0}});
+    }
+    json j{{"round", r.round},
+           {"planned_at", r.planned_at},
+           {"finished_at", r.finished_at ? json(*r.finished_at) : json(nullptr)},
+           {"core_h_planned", r.core_h_planned},
+           {"core_h_spent", r.core_h_spent ? json(*r.core_h_spent) : json(nullptr)},
+           {"budget_left_core_h", nullptr},
+           {"actions", actions},
+           {"claims_after", r.verdicts_after},
+           {"stop_reason", r.stop_reason ? json(*r.stop_reason) : json(nullptr)}};
+    if (r.core_h_spent) {
+      spent += *r.core_h_spent;
+      j["budget_left_core_h"] = budget_core_h - spent;
+    }
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
 Result<std::vector<RoundRow>> ListRounds(Transaction& t, int64_t campaign_run_id) {
   Statement st = t.Prepare(
       "SELECT round, planned_at, finished_at, core_h_planned, core_h_spent, actions, verdicts_after, stop_reason "

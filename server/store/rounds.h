@@ -51,6 +51,13 @@ struct FrozenVerdict {
 //  "replicate","max_duration_s","replaces"}]}
 nlohmann::json ActionToJson(const AdaptiveAction& a);
 
+// The rounds as GET /api/v1/campaign-runs/{id} shows them, `budget_core_h` the campaign's:
+// [{"round","planned_at","finished_at","core_h_planned","core_h_spent","budget_left_core_h"
+//   (after it: the budget less every round's spending so far; null until its look),
+//   "actions":[{"kind","claim","reason","core_h","runs" (how many)}],"claims_after":[{"claim",
+//   "verdict","frozen_at_round"?}] (null until its look),"stop_reason"}]
+nlohmann::json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h);
+
 // The rounds of a campaign run, in order (none: not adaptive, or its first look is to come).
 Result<std::vector<RoundRow>> ListRounds(Transaction& t, int64_t campaign_run_id);
 Result<std::vector<RoundRow>> ListRounds(Store& store, int64_t campaign_run_id);
