@@ -125,7 +125,7 @@ Result<std::vector<int64_t>> OpenAdaptiveCampaignRuns(Store& store) {
   if (!t.ok()) return t.status();
   Statement st = t->Prepare(
       "SELECT cr.id FROM campaign_runs cr WHERE json_valid(cr.definition) "
-      "AND json_type(cr.definition, '$.adaptive') = 'object' "
+      "AND json_type(cr.definition, '$.adaptive') IS 'object' "
       "AND NOT EXISTS (SELECT 1 FROM campaign_rounds r WHERE r.campaign_run_id = cr.id AND r.stop_reason IS NOT NULL) "
       "ORDER BY cr.id");
   std::vector<int64_t> out;
