@@ -257,6 +257,46 @@ std::string RenderStatus(const Snapshot& s, const RenderOptions& options) {
       out += "  run " + std::to_string(f.id) + "  " + f.point + "\n    " + f.reason + "\n";
     }
   }
+  out += RenderRounds(s.adaptive, s.rounds);
+  return out;
+}
+
+std::string RenderRounds(const json& adaptive, const json& rounds) {
+  if (!rounds.is_array() || rounds.empty()) return "";
+  auto h = [](const json& v) {
+    if (!v.is_number()) return std::string("-");
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", v.get<double>());
+    return std::string(buf);
+  };
+  std::string out = "rounds";
+  if (adaptive.is_object()) {
+    out += " (budget " + h(adaptive.value("budget_core_h", json())) + " core-h, at most " +
+           std::to_string(adaptive.value("max_rounds", 4)) + " rounds)";
+  }
+  out += ":\n";
+  for (const json& r : rounds) {
+    const bool finished = r.value("finished_at", json()).is_number();
+    out += "  round " + std::to_string(r.value("round", 0)) + "  " + (finished ? "finished" : "running") +
+           "  planned " + h(r.value("core_h_planned", json())) + " core-h";
+    if (finished) {
+      out += ", spent " + h(r.value("core_h_spent", json())) + ", " + h(r.value("budget_left_core_h", json())) +
+             " core-h left";
+    }
+    out += "\n";
+    for (const json& a : r.value("actions", json::array())) out += "    " + a.value("reason", std::string()) + "\n";
+    const json after = r.value("claims_after", json());
+    if (after.is_array() && !after.empty()) {
+      std::string states;
+      for (const json& c : after) {
+        states += (states.empty() ? "" : ", ") + c.value("claim", std::string("?")) + " " +
+                  c.value("verdict", std::string("?"));
+        if (c.contains("frozen_at_round")) states += " (round " + std::to_string(c.value("frozen_at_round", 0)) + ")";
+      }
+      out += "    after it: " + states + "\n";
+    }
+    if (r.value("stop_reason", json()).is_string()) out += "  stopped: " + r["stop_reason"].get<std::string>() + "\n";
+  }
   return out;
 }
 
@@ -293,6 +333,10 @@ json SnapshotToJson(const Snapshot& s) {
   if (eta && s.eta) {
     j["eta_rel_error"] = s.eta->rel_error;
     j["eta_basis"] = s.eta->basis;
+  }
+  if (!s.rounds.empty()) {
+    j["adaptive"] = s.adaptive;
+    j["rounds"] = s.rounds;
   }
   return j;
 }

@@ -116,6 +116,10 @@ struct Snapshot {
   // When runs are queued and none runs: the state of the bed they wait for ("queued",
   // "running", "done", "failed"), so the ETA line can say the bed is being prepared.
   std::string waiting_bed_state;
+  // A campaign run in rounds (GET /api/v1/campaign-runs/{id} "adaptive" and "rounds"; null and []
+  // otherwise): status prints a few lines a round.
+  nlohmann::json adaptive;
+  nlohmann::json rounds = nlohmann::json::array();
   // The ETA while work is moving: runs in flight, or the bed they wait for being prepared. When
   // nothing moves (no worker) there is no time to give, whatever the daemon estimates.
   std::optional<double> eta_s() const;
@@ -124,6 +128,10 @@ struct Snapshot {
 // The full `status` text: title, counts, runs in flight (bar, simulated time / duration, SO z),
 // failures with their reasons, ETA.
 std::string RenderStatus(const Snapshot& s, const RenderOptions& options);
+// The rounds of an adaptive campaign run, a few lines each: "round 2  finished  planned 0.48 core-h,
+// spent 0.31, 12.4 core-h left" / each action's reason / "  after it: F1 holds (round 1), F4
+// inconclusive", and the stop reason. "" for none.
+std::string RenderRounds(const nlohmann::json& adaptive, const nlohmann::json& rounds);
 // A `watch` frame on a terminal: title, counts + ETA, one progress line per running run.
 std::string RenderWatchFrame(const Snapshot& s, const RenderOptions& options);
 // {"title","counts":{...},"running":[{"id","point","sim_time_s","duration_s","so_z","worker"}],

@@ -210,6 +210,35 @@ TEST(FormatTest, StatusGolden) {
             "    engine_error: ERROR: Lost atoms\n");
 }
 
+// An adaptive campaign run's status: each round, what it added and why, what it cost, the budget
+// left and the claims' states after it; the stop reason last.
+TEST(FormatTest, StatusShowsTheRoundsOfAnAdaptiveCampaignRun) {
+  Snapshot s = SampleSnapshot();
+  s.adaptive = {{"budget_core_h", 20}, {"max_rounds", 4}};
+  s.rounds = nlohmann::json::parse(R"([
+    {"round": 1, "finished_at": 5, "core_h_planned": 14.7, "core_h_spent": 10.31, "budget_left_core_h": 9.69,
+     "actions": [{"kind": "first round", "claim": "", "reason": "every declared point once, on one bed", "runs": 51}],
+     "claims_after": [{"claim": "F1", "verdict": "holds", "frozen_at_round": 1}, {"claim": "F4", "verdict": "inconclusive"}],
+     "stop_reason": null},
+    {"round": 2, "finished_at": null, "core_h_planned": 0.48, "core_h_spent": null, "budget_left_core_h": null,
+     "actions": [{"kind": "new point", "claim": "F4", "reason": "F4: the peak lies between 4 and 6 Hz; adding f = 4.5, 5.5 on 1 bed: +0.48 core-h", "runs": 2}],
+     "claims_after": null, "stop_reason": null}])");
+  const std::string out = RenderStatus(s, {});
+  EXPECT_NE(out.find("rounds (budget 20 core-h, at most 4 rounds):\n"
+                     "  round 1  finished  planned 14.7 core-h, spent 10.3, 9.69 core-h left\n"
+                     "    every declared point once, on one bed\n"
+                     "    after it: F1 holds (round 1), F4 inconclusive\n"
+                     "  round 2  running  planned 0.48 core-h\n"
+                     "    F4: the peak lies between 4 and 6 Hz; adding f = 4.5, 5.5 on 1 bed: +0.48 core-h\n"),
+            std::string::npos)
+      << out;
+  s.rounds[1]["finished_at"] = 9;
+  s.rounds[1]["stop_reason"] = "every claim runs can decide is decided";
+  EXPECT_NE(RenderStatus(s, {}).find("  stopped: every claim runs can decide is decided\n"), std::string::npos);
+  EXPECT_EQ(SnapshotToJson(s)["rounds"].size(), 2u);
+  EXPECT_EQ(RenderRounds(nullptr, nlohmann::json::array()), "");  // the fixed design: no lines
+}
+
 // While the bed is prepared nothing runs; the ETA says so instead of asking for a worker.
 TEST(FormatTest, EtaNamesTheBedWhileNothingRuns) {
   Snapshot s;

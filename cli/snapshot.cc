@@ -109,6 +109,8 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target) {
               run->value("scale", "?") + ", " + run->value("trigger", "manual") + ")";
     s.counts = CountsFromJson(run->value("counts", json::object()));
     s.eta = EtaFrom(*run);
+    s.adaptive = run->value("adaptive", json());
+    s.rounds = run->value("rounds", json::array());
     for (const json& id : run->value("sweeps", json::array())) {
       if (id.is_number_integer()) sweep_ids.push_back(id.get<int64_t>());
     }

@@ -228,7 +228,9 @@ api::RunResult DrawResult(const RunOrder& o, const PointInfo& info, const ClaimR
     r.inconclusive_reason = "too few whole periods before the boundary";
     return r;
   }
-  const int blocks_possible = std::max(0, std::min(max_blocks, static_cast<int>((to_boundary - transient) / block)));
+  // In double: with no boundary seen, to_boundary is 1e9 s, past an int's range in periods.
+  const int blocks_possible =
+      static_cast<int>(std::max(0.0, std::min<double>(max_blocks, std::floor((to_boundary - transient) / block))));
   if (blocks_possible < 2) {
     r.stop_reason = "duration";
     r.sim_time_s = o.max_duration_s;
@@ -522,6 +524,33 @@ AdaptiveRound FirstRound(const std::vector<AdaptiveSweep>& sweeps, const Adaptiv
   round.sim_s = a.sim_s;
   round.actions.push_back(std::move(a));
   return round;
+}
+
+std::vector<AdaptiveSweep> AdaptiveSweepsOf(const std::vector<SweepSpec>& sweeps) {
+  std::vector<AdaptiveSweep> out;
+  for (const SweepSpec& s : sweeps) {
+    Result<std::vector<Point>> points = ExpandSweep(s);
+    out.push_back({s.name, points.ok() ? *points : std::vector<Point>{}});
+  }
+  return out;
+}
+
+Status CheckAdaptiveBudget(const Campaign& campaign, const std::string& scale, const AdaptiveCost& cost) {
+  if (!campaign.adaptive) return Status::Ok();
+  AdaptiveCost at = cost;
+  at.scale = FindScale(scale);
+  if (at.scale == nullptr) return Status::InvalidArgument("scale", "must be one of paper, mini, smoke");
+  std::vector<SweepSpec> sweeps = campaign.sweeps;
+  for (SweepSpec& s : sweeps) s.scale = scale;
+  const Status s = ValidateAdaptiveBudget(campaign.adaptive->budget_core_h, FirstRound(AdaptiveSweepsOf(sweeps), at));
+  if (s.ok()) return s;
+  auto rate = [](const EngineRate& r) {
+    return Num(r.s_per_unit, 3) + " s" + (r.samples > 0 ? " from " + std::to_string(r.samples) + " measured" : " (a default)");
+  };
+  return Status(s.code(),
+                s.reason() + " at " + scale + ", at the cost model's rates now (runs " + rate(cost.run_rate) +
+                    " per particle-step, beds " + rate(cost.bed_rate) + " per grain; GET /api/v1/cost-model)",
+                "adaptive." + s.field());
 }
 
 Status ValidateAdaptiveBudget(double budget_core_h, const AdaptiveRound& first) {

@@ -65,6 +65,7 @@
 #include "core/precision.h"
 #include "core/scale.h"
 #include "core/status.h"
+#include "core/sweep.h"
 
 namespace sandswim {
 
@@ -127,6 +128,13 @@ struct AdaptiveOptions {
   double max_duration_factor = 4;   // times the scale's precision target's maximum
 };
 
+// A look at a campaign run's claims: the claims it is judged by and what its stored runs say, as
+// the claims read them (server/analysis/claim_check.h LookAtClaims).
+struct ClaimLook {
+  std::vector<Claim> claims;
+  ClaimInput input;
+};
+
 // What the campaign run knows before a round.
 struct AdaptiveState {
   std::vector<Claim> claims;
@@ -140,6 +148,15 @@ struct AdaptiveState {
 // The first round's orders: every declared point once (a point two sweeps share once, under the
 // first), on bed 0, at the scale's precision target (or its duration without one).
 AdaptiveRound FirstRound(const std::vector<AdaptiveSweep>& sweeps, const AdaptiveCost& cost);
+
+// A campaign's declared sweeps as the planner takes them (ExpandSweep; a sweep that does not expand
+// has no points), at the scale its SweepSpecs name.
+std::vector<AdaptiveSweep> AdaptiveSweepsOf(const std::vector<SweepSpec>& sweeps);
+
+// An adaptive campaign's budget (Campaign::adaptive) against its first round at `scale` and the
+// cost model's rates in `cost`: ValidateAdaptiveBudget's refusal on "adaptive.budget_core_h",
+// saying the rates it was costed at. Ok for a campaign that is not adaptive.
+Status CheckAdaptiveBudget(const Campaign& campaign, const std::string& scale, const AdaptiveCost& cost);
 
 // Refuses (InvalidArgument "budget_core_h") a budget that is not finite and positive, or smaller
 // than the first round: "... needs at least X core-h (the first round: N runs and 1 bed; the

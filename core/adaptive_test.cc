@@ -112,6 +112,66 @@ TEST(AdaptiveBudgetTest, ABudgetBelowTheFirstRoundIsRefusedWithTheNumberItNeeds)
   EXPECT_TRUE(ValidateAdaptiveBudget(first.core_h * 3, first).ok());
 }
 
+// The campaign field that makes a campaign adaptive (core/sweep.h AdaptiveSettings), and its
+// budget priced against the first round at a scale and the cost model's rates.
+TEST(AdaptiveBudgetTest, TheCampaignFieldIsParsedAndItsBudgetPricedAtTheScale) {
+  nlohmann::json j = *BuiltinCampaignDefinition("paper-58");
+  j["name"] = "mine";
+  EXPECT_FALSE(ParseCampaign(j)->adaptive.has_value());  // absent: the fixed design
+  j["adaptive"] = {{"budget_core_h", 20}, {"max_rounds", 3}};
+  Result<Campaign> c = ParseCampaign(j);
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  ASSERT_TRUE(c->adaptive.has_value());
+  EXPECT_EQ(c->adaptive->budget_core_h, 20);
+  EXPECT_EQ(c->adaptive->max_rounds, 3);
+  j["adaptive"] = {{"budget_core_h", 20}};
+  EXPECT_EQ(ParseCampaign(j)->adaptive->max_rounds, 4);
+
+  struct Bad {
+    nlohmann::json adaptive;
+    std::string field;
+  };
+  for (const Bad& bad : std::vector<Bad>{{{{"budget_core_h", 0}}, "adaptive.budget_core_h"},
+                                         {{{"budget_core_h", -3}}, "adaptive.budget_core_h"},
+                                         {{{"budget_core_h", "a lot"}}, "adaptive.budget_core_h"},
+                                         {{{"max_rounds", 3}}, "adaptive.budget_core_h"},
+                                         {{{"budget_core_h", 5}, {"max_rounds", 0}}, "adaptive.max_rounds"},
+                                         {{{"budget_core_h", 5}, {"max_rounds", 2.5}}, "adaptive.max_rounds"},
+                                         {{{"budget_core_h", 5}, {"rounds", 2}}, "adaptive.rounds"},
+                                         {5, "adaptive"}}) {
+    j["adaptive"] = bad.adaptive;
+    Result<Campaign> r = ParseCampaign(j);
+    ASSERT_FALSE(r.ok()) << bad.adaptive.dump();
+    EXPECT_EQ(r.status().field(), bad.field) << r.status().ToString();
+  }
+  j["adaptive"] = {{"budget_core_h", 20}};
+  nlohmann::json no_claims = j;
+  no_claims.erase("claims");
+  EXPECT_EQ(ParseCampaign(no_claims).status().field(), "adaptive");
+  nlohmann::json two_beds = j;
+  two_beds["replicates"] = 2;
+  EXPECT_EQ(ParseCampaign(two_beds).status().field(), "replicates");
+
+  // The budget against round 1 at smoke and at mini (about 8x the particle-steps), at the rates given.
+  Fixture f = Paper58AtSmoke();
+  const double smoke_first = FirstRound(f.sweeps, f.cost).core_h;
+  AdaptiveCost cost;  // the default rates; the scale is the one asked
+  Campaign campaign = *ParseCampaign(j);
+  campaign.adaptive->budget_core_h = smoke_first * 1.01;
+  EXPECT_TRUE(CheckAdaptiveBudget(campaign, "smoke", cost).ok());
+  Status at_mini = CheckAdaptiveBudget(campaign, "mini", cost);
+  ASSERT_FALSE(at_mini.ok());
+  EXPECT_EQ(at_mini.field(), "adaptive.budget_core_h");
+  EXPECT_THAT(at_mini.reason(), HasSubstr("needs at least"));
+  EXPECT_THAT(at_mini.reason(), HasSubstr("at mini, at the cost model's rates now"));
+  // Twice as slow an engine: the same budget no longer pays for round 1 at smoke.
+  cost.run_rate.s_per_unit *= 2;
+  cost.bed_rate.s_per_unit *= 2;
+  EXPECT_EQ(CheckAdaptiveBudget(campaign, "smoke", cost).field(), "adaptive.budget_core_h");
+  campaign.adaptive.reset();
+  EXPECT_TRUE(CheckAdaptiveBudget(campaign, "mini", cost).ok());  // not adaptive: nothing to price
+}
+
 TEST(AdaptiveRoundTest, NeverSpendsMoreThanTheBudgetLeft) {
   Fixture f = Paper58AtSmoke();
   AdaptiveState s = FirstRoundDone(f, 0.6);

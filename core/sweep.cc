@@ -594,10 +594,36 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
   return points;
 }
 
+namespace {
+
+Result<AdaptiveSettings> ParseAdaptiveSettings(const json& j) {
+  SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
+  SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"budget_core_h", "max_rounds"}));
+  AdaptiveSettings a;
+  if (!j.count("budget_core_h")) return Status::InvalidArgument("budget_core_h", "is required (core-hours of engine time)");
+  auto budget = ReadNumber(j, "budget_core_h");
+  if (!budget.ok()) return budget.status();
+  if (!std::isfinite(*budget) || *budget <= 0)
+    return Status::InvalidArgument("budget_core_h", "must be a positive number of core-hours");
+  a.budget_core_h = *budget;
+  if (j.count("max_rounds")) {
+    const json& v = j["max_rounds"];
+    if (!v.is_number_integer()) return WrongType("max_rounds", "an integer", v);
+    const int64_t n = v.get<int64_t>();
+    if (n < 1 || n > kMaxAdaptiveRounds)
+      return Status::InvalidArgument("max_rounds", "must be from 1 to " + std::to_string(kMaxAdaptiveRounds) +
+                                                       " (the first round included), got " + std::to_string(n));
+    a.max_rounds = static_cast<int>(n);
+  }
+  return a;
+}
+
+}  // namespace
+
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
   SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision",
-                                         "replicates", "snapshots", "sweeps", "claims"}));
+                                         "replicates", "snapshots", "sweeps", "claims", "adaptive"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -650,6 +676,21 @@ Result<Campaign> ParseCampaign(const json& j) {
     auto claims = ParseClaims(j["claims"], names);
     if (!claims.ok()) return claims.status().WithFieldPrefix("claims");
     c.claims = std::move(claims).value();
+  }
+  if (j.count("adaptive")) {
+    auto adaptive = ParseAdaptiveSettings(j["adaptive"]);
+    if (!adaptive.ok()) return adaptive.status().WithFieldPrefix("adaptive");
+    if (c.claims.empty())
+      return Status::InvalidArgument("adaptive", "needs claims: rounds are planned from the claims still undecided");
+    for (size_t i = 0; i < c.sweeps.size(); ++i) {
+      if (c.sweeps[i].Replicates() > 1) {
+        return Status::InvalidArgument(
+            j.count("replicates") ? "replicates" : "sweeps[" + std::to_string(i) + "].replicates",
+            "must be 1 (or absent) in an adaptive campaign: its first round runs every point on one bed, and "
+            "later rounds add beds where a claim needs them");
+      }
+    }
+    c.adaptive = *adaptive;
   }
   return c;
 }

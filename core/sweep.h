@@ -73,6 +73,17 @@ Result<SweepSpec> ParseSweep(const nlohmann::json& j);
 // ("axes[0].values[3]: A = 0.2 m needs ..."). Fails with ResourceExhausted past `max_points`.
 Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points = kMaxRunsPerSubmission);
 
+// A campaign run in rounds (core/adaptive.h; issue 31): round 1 is the campaign's points on one bed,
+// each later round is planned by the daemon from the claims still undecided, until every claim is
+// decided, `max_rounds` rounds have run (the fixed look schedule the error rates are measured at)
+// or `budget_core_h` core-hours of engine time (the cost model's) are spent. Absent: the fixed
+// design, every point on every replicate bed in one go.
+struct AdaptiveSettings {
+  double budget_core_h = 0;  // > 0, finite; at least the first round's (checked against the cost model)
+  int max_rounds = 4;        // 1 .. kMaxAdaptiveRounds, the first included
+};
+inline constexpr int kMaxAdaptiveRounds = 10;
+
 struct Campaign {
   std::string name;
   std::string description;
@@ -85,6 +96,8 @@ struct Campaign {
   std::optional<SnapshotFractions> snapshots;  // for its sweeps that set none
   // The paper's findings it tests (core/claims.h); each rule names sweeps of this campaign.
   std::vector<Claim> claims;
+  // Run in rounds (above); requires claims and one replicate bed (more beds are what rounds add).
+  std::optional<AdaptiveSettings> adaptive;
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);

@@ -323,7 +323,7 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
 
   const json& campaign = defs_.at("campaign");
   EXPECT_EQ(Keys(campaign), (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps",
-                                                   "precision", "replicates", "snapshots", "sweeps", "claims"}));
+                                                   "precision", "replicates", "snapshots", "sweeps", "claims", "adaptive"}));
   EXPECT_EQ(Strings(campaign.at("required")), (std::set<std::string>{"name", "description", "scale", "sweeps"}));
   json c = {{"name", "c"},
             {"description", "d"},

@@ -17,10 +17,12 @@
 #include "platform/engine_probe.h"
 #include "platform/tls.h"
 #include "platform/token.h"
+#include "server/analysis/claim_check.h"
 #include "server/analysis/drift_report.h"
 #include "server/jobs/lease_queue.h"
 #include "server/dashboard/live_feed.h"
 #include "server/local_workers.h"
+#include "server/jobs/rounds.h"
 #include "server/periodic.h"
 #include "server/jobs/pilot_watch.h"
 #include "server/analysis/plot_renderer.h"
@@ -335,8 +337,10 @@ void WatchPilots(sandswim::PilotWatch& pilot_watch, bool& warned) {
   if (check->reclaimed > 0) spdlog::info("{} job(s) of gone Slurm pilots queued again", check->reclaimed);
 }
 
-// Due reruns are submitted; finished campaign runs get their drift reports.
-void SchedulerPass(sandswim::Scheduler& scheduler, sandswim::Store& store, sandswim::Clock& clock) {
+// Due reruns are submitted; adaptive campaign runs whose round finished get their next round (or
+// stop, saying why); finished campaign runs get their drift reports.
+void SchedulerPass(sandswim::Scheduler& scheduler, sandswim::RoundDriver& rounds, sandswim::Store& store,
+                   sandswim::Clock& clock) {
   auto tick = scheduler.Tick();
   if (!tick.ok()) {
     spdlog::error("scheduler: {}; will retry at the next tick", tick.status().ToString());
@@ -344,6 +348,15 @@ void SchedulerPass(sandswim::Scheduler& scheduler, sandswim::Store& store, sands
     for (const auto& rerun : tick->submitted) spdlog::info("{}", sandswim::DescribeRerun(rerun, scheduler.zone()));
     for (const auto& [campaign, why] : tick->errors) {
       spdlog::error("scheduled rerun of {}: {}; will retry at the next tick", campaign, why.ToString());
+    }
+  }
+  auto pass = rounds.Tick(clock.Now());
+  if (!pass.ok()) {
+    spdlog::error("rounds: {}; will retry at the next tick", pass.status().ToString());
+  } else {
+    for (const auto& step : pass->steps) spdlog::info("{}", step.text);
+    for (const auto& [id, why] : pass->errors) {
+      spdlog::error("rounds of campaign run {}: {}; will retry at the next tick", id, why.ToString());
     }
   }
   auto reports = sandswim::ReportFinishedCampaignRuns(store, clock.Now(), scheduler.zone());
@@ -431,6 +444,11 @@ int main(int argc, char** argv) {
   if (Status s = RegisterSchedules(scheduler, flags.schedules, clock); !s.ok()) {
     return Die(s, "use --schedule NAME[:SCALE] (e.g. paper-58:smoke) with a campaign that exists, or drop it");
   }
+  // Adaptive campaign runs (server/jobs/rounds.h), looked at as their claims are shown.
+  sandswim::RoundDriverOptions round_options;
+  round_options.engine_version = flags.engine_version;
+  round_options.max_queued_runs = flags.max_queued_runs;
+  sandswim::RoundDriver rounds(store->get(), &sandswim::LookAtClaims, round_options);
   // Figures are drawn by sandswim-render in processes of their own (server/analysis/plot_renderer.h).
   sandswim::PosixSubprocesses renderer_processes;
   const std::string renderer_path = sandswim::ExecutableDir() + "/sandswim-render";
@@ -480,7 +498,7 @@ int main(int argc, char** argv) {
   periodic.Add("lease expiry", 1, [&] { ExpireLeases(leases, flags.db); });
   periodic.Add("pilot watch", flags.slurm_check_s, [&, warned = false]() mutable { WatchPilots(pilot_watch, warned); });
   periodic.Add(
-      "scheduler", flags.scheduler_tick_s, [&] { SchedulerPass(scheduler, **store, clock); },
+      "scheduler", flags.scheduler_tick_s, [&] { SchedulerPass(scheduler, rounds, **store, clock); },
       /*run_at_start=*/true);
   periodic.Start();
 

@@ -108,15 +108,11 @@ Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id) {
   return CheckClaims(store, *info, *analyses);
 }
 
-Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
-                                      const std::vector<SweepAnalysis>& analyses) {
-  CampaignRunClaims out;
-  out.campaign_run = campaign_run;
-  std::vector<Claim> claims;
-  nlohmann::json definition;
-  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run, out, claims, definition));
-  if (claims.empty()) return out;
+namespace {
 
+// The runs and beds of a campaign run's analysed sweeps as the claims read them.
+Result<ClaimInput> InputOf(Store& store, const CampaignRunInfo& campaign_run,
+                           const std::vector<SweepAnalysis>& analyses) {
   ClaimInput input;
   input.scale = campaign_run.scale;
   std::set<int64_t> bed_ids;
@@ -141,6 +137,36 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
     }
     input.beds.push_back(b);
   }
+  return input;
+}
+
+}  // namespace
+
+Result<ClaimLook> LookAtClaims(Store& store, const CampaignRunInfo& campaign_run) {
+  ClaimLook look;
+  CampaignRunClaims out;
+  nlohmann::json definition;
+  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run, out, look.claims, definition));
+  if (look.claims.empty()) return look;
+  Result<std::vector<SweepAnalysis>> analyses = AnalyzeCampaignRun(store, campaign_run);
+  if (!analyses.ok()) return analyses.status();
+  Result<ClaimInput> input = InputOf(store, campaign_run, *analyses);
+  if (!input.ok()) return input.status();
+  look.input = std::move(input).value();
+  return look;
+}
+
+Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
+                                      const std::vector<SweepAnalysis>& analyses) {
+  CampaignRunClaims out;
+  out.campaign_run = campaign_run;
+  std::vector<Claim> claims;
+  nlohmann::json definition;
+  SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run, out, claims, definition));
+  if (claims.empty()) return out;
+  Result<ClaimInput> found = InputOf(store, campaign_run, analyses);
+  if (!found.ok()) return found.status();
+  const ClaimInput& input = *found;
   out.verdicts = EvaluateClaims(claims, input);
   out.design = DesignOf(campaign_run.campaign, definition, claims, input);
   AttachClaimRates(out.verdicts, out.design);

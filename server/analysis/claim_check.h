@@ -23,6 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/adaptive.h"
 #include "core/claim_rates.h"
 #include "core/claims.h"
 #include "core/status.h"
@@ -48,6 +49,12 @@ Result<CampaignRunClaims> CheckClaims(Store& store, int64_t campaign_run_id);
 // as AnalyzeSweep made them): the report has them at hand.
 Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campaign_run,
                                       const std::vector<SweepAnalysis>& analyses);
+
+// What CheckClaims evaluates, before it does: the claims the campaign run is judged by (none: an
+// empty look) and its runs and beds as the claims read them. The daemon's rounds
+// (server/jobs/rounds.h) look through this, so that a round is planned from the same data the
+// verdicts shown are decided on.
+Result<ClaimLook> LookAtClaims(Store& store, const CampaignRunInfo& campaign_run);
 
 // The pure part: what the claims see of one sweep -- its analysis's samples and fits, and every
 // run of its result rows with its state, result and last error (`failures`: run id -> "kind:

@@ -32,6 +32,7 @@
 #include "platform/http_status.h"
 #include "server/store/campaigns.h"
 #include "server/store/cost_model.h"
+#include "server/store/rounds.h"
 #include "server/analysis/claim_check.h"
 #include "server/analysis/drift_report.h"
 #include "server/dashboard/dashboard_files.h"
@@ -302,6 +303,16 @@ void GetCampaignRun(Call& c) {
   json reply = *info;
   reply["last_drift"] = drift->has_value() ? json(**drift) : json(nullptr);
   reply["eta"] = EtaJson(*eta);
+  // Its rounds (server/jobs/rounds.h) when its definition runs in rounds; else none.
+  reply["adaptive"] = nullptr;
+  reply["rounds"] = json::array();
+  if (info->definition.is_object() && info->definition.contains("adaptive") &&
+      info->definition["adaptive"].is_object()) {
+    auto rows = rounds::ListRounds(*c.deps.store, *id);
+    if (!rows.ok()) return Fail(c, rows.status());
+    reply["adaptive"] = info->definition["adaptive"];
+    reply["rounds"] = rounds::RoundsToJson(*rows, info->definition["adaptive"].value("budget_core_h", 0.0));
+  }
   SendJson(c, 200, reply);
 }
 

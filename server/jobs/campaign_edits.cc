@@ -2,9 +2,11 @@
 
 #include <algorithm>
 
+#include "core/adaptive.h"
 #include "core/campaign_definition.h"
 #include "core/scale.h"
 #include "server/store/campaigns.h"
+#include "server/store/rounds.h"
 
 namespace sandswim {
 
@@ -117,6 +119,12 @@ Result<SavedCampaign> SaveCampaign(Store& store, const std::string& name, const 
   Result<CheckedCampaign> checked =
       CheckCampaign(store, name, definition, engine_version, kMaxRunsPerSubmission, max_queued_runs);
   if (!checked.ok()) return checked.status();
+  // An adaptive campaign's budget must pay for its first round at the cost model's rates now.
+  if (checked->campaign.adaptive) {
+    Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(store, checked->campaign.scale, now);
+    if (!cost.ok()) return cost.status();
+    SANDSWIM_RETURN_IF_ERROR(Unprocessable(CheckAdaptiveBudget(checked->campaign, checked->campaign.scale, *cost)));
+  }
   NewCampaignVersion v;
   v.name = name;
   v.definition = checked->definition;

@@ -4,10 +4,12 @@
 #include <map>
 #include <utility>
 
+#include "core/adaptive.h"
 #include "core/keys.h"
 #include "core/scale.h"
 #include "server/store/campaigns.h"
 #include "server/store/job_table.h"
+#include "server/store/rounds.h"
 
 namespace sandswim {
 namespace {
@@ -384,8 +386,7 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
 
 // Each new sweep's counts by state (sweep_counts, schema/003_perf.sql), from its membership rows,
 // in this transaction (one aggregate per sweep instead of a trigger per row), and its event.
-Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const std::vector<int64_t>& sweep_ids,
-                    std::map<int64_t, int64_t>& runs_of, double now) {
+Status RecountSweeps(Transaction& t, const std::vector<int64_t>& sweep_ids) {
   Statement recount = t.Prepare(
       "UPDATE sweep_counts SET (queued, running, done, failed, cancelled) = ("
       "SELECT COALESCE(SUM(r.state = 'queued'), 0), COALESCE(SUM(r.state = 'running'), 0), "
@@ -398,6 +399,12 @@ Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const 
     recount.Bind(1, id);
     SANDSWIM_RETURN_IF_ERROR(recount.Run());
   }
+  return Status::Ok();
+}
+
+Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const std::vector<int64_t>& sweep_ids,
+                    std::map<int64_t, int64_t>& runs_of, double now) {
+  SANDSWIM_RETURN_IF_ERROR(RecountSweeps(t, sweep_ids));
   for (size_t i = 0; i < sweeps.size(); ++i) {
     SANDSWIM_RETURN_IF_ERROR(
         t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
@@ -439,6 +446,12 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
     campaign_scale = req.scale.value_or(campaign->campaign.scale);
     sweeps = campaign->campaign.sweeps;
     for (SweepSpec& s : sweeps) s.scale = campaign_scale;
+    // An adaptive campaign (its rounds: server/jobs/rounds.h) must afford its first round here and now.
+    if (campaign->campaign.adaptive) {
+      Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(store, campaign_scale, now);
+      if (!cost.ok()) return cost.status();
+      SANDSWIM_RETURN_IF_ERROR(CheckAdaptiveBudget(campaign->campaign, campaign_scale, *cost));
+    }
   }
   // Decks are hashed into keys but not kept: a run's deck is rendered again from its stored
   // point and its bed's scale when it is leased or read (RenderDriveDeck is a pure function).
@@ -500,6 +513,32 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
   }
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
   return out;
+}
+
+Status AddPlannedRuns(Transaction& t, const ScalePlan& g, const std::string& engine_version, double now,
+                      const std::map<std::string, int64_t>& sweep_ids, std::map<int64_t, int64_t>& next_position,
+                      SubmitResult& out) {
+  std::vector<int64_t> bed_ids;
+  std::vector<SubmittedBed> failed_beds;
+  for (const PlannedBed& bed : g.plan.beds) {
+    Result<SubmittedBed> b = UpsertBed(t, g.scale, bed, engine_version, now);
+    if (!b.ok()) return b.status();
+    bed_ids.push_back(b->id);
+    if (b->failed_for_good) failed_beds.push_back(*b);
+  }
+  SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, sweep_ids, /*force=*/false, now, next_position, out));
+  for (const SubmittedBed& b : failed_beds) {
+    Result<int64_t> n = jobs::FailRunsOfBed(t, b.id, *b.failed_for_good, now);
+    if (!n.ok()) return n.status();
+    out.runs_failed_bed += *n;
+  }
+  return Status::Ok();
+}
+
+Status FinishAddedRuns(Transaction& t, const std::vector<int64_t>& sweep_ids, int64_t max_queued_runs,
+                       const SubmitResult& out) {
+  SANDSWIM_RETURN_IF_ERROR(CheckQueueCap(t, max_queued_runs, out));
+  return RecountSweeps(t, sweep_ids);
 }
 
 }  // namespace sandswim

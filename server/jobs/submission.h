@@ -32,6 +32,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -86,6 +87,18 @@ Result<SubmitRequest> ParseSubmitRequest(const nlohmann::json& body);
 // REQUIRES: `engine_version` is what workers' LIGGGHTS reports (it enters every key); `now` is
 // the submission time (Clock::Now()).
 Result<SubmitResult> Submit(Store& store, const SubmitRequest& request, const std::string& engine_version, double now);
+
+// Runs added to sweeps that exist (the rounds of an adaptive campaign run, server/jobs/rounds.h),
+// in the caller's transaction `t`, by the same rules as a submission's (beds and runs by key: a
+// new one queued, a done one reused, a failed one queued again; membership at `next_position`,
+// each sweep's next position, advanced). `g.plan.runs[i].sweeps` name sweeps of `sweep_ids`.
+// Counted in `out`. Then FinishAddedRuns: the queue cap (as Submit's: kUnavailable, and the
+// caller's transaction is to be dropped) and the sweeps' counts.
+Status AddPlannedRuns(Transaction& t, const ScalePlan& g, const std::string& engine_version, double now,
+                      const std::map<std::string, int64_t>& sweep_ids, std::map<int64_t, int64_t>& next_position,
+                      SubmitResult& out);
+Status FinishAddedRuns(Transaction& t, const std::vector<int64_t>& sweep_ids, int64_t max_queued_runs,
+                       const SubmitResult& out);
 
 }  // namespace sandswim
 

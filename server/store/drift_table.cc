@@ -28,6 +28,10 @@ Result<std::vector<int64_t>> FinishedWithoutReport(Transaction& t) {
       "  AND NOT EXISTS (SELECT 1 FROM sweeps s JOIN sweep_runs sr ON sr.sweep_id = s.id "
       "                  JOIN runs r ON r.id = sr.run_id "
       "                  WHERE s.campaign_run_id = cr.id AND r.state IN ('queued', 'running')) "
+      // An adaptive campaign run (schema/015) is finished when its rounds have stopped, not when a round's runs are.
+      "  AND NOT (COALESCE(json_valid(cr.definition), 0) AND json_type(cr.definition, '$.adaptive') IS 'object' "
+      "           AND NOT EXISTS (SELECT 1 FROM campaign_rounds rd WHERE rd.campaign_run_id = cr.id "
+      "                           AND rd.stop_reason IS NOT NULL)) "
       "ORDER BY cr.id");
   std::vector<int64_t> ids;
   while (true) {

@@ -4,14 +4,7 @@
 
 namespace sandswim::truth {
 
-std::vector<AdaptiveSweep> DeclaredSweeps(const Calibrator& cal) {
-  std::vector<AdaptiveSweep> out;
-  for (const SweepSpec& s : cal.campaign().sweeps) {
-    Result<std::vector<Point>> points = ExpandSweep(s);
-    out.push_back({s.name, points.ok() ? *points : std::vector<Point>{}});
-  }
-  return out;
-}
+std::vector<AdaptiveSweep> DeclaredSweeps(const Calibrator& cal) { return AdaptiveSweepsOf(cal.campaign().sweeps); }
 
 double SpentCoreHours(const SimCampaign& c, const AdaptiveCost& cost) {
   double h = 0;

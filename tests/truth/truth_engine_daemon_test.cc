@@ -245,6 +245,86 @@ TEST(TruthEngineDaemonTest, AnOwnCampaignThroughTheCli) {
   EXPECT_NE(out.find("definition changed (version 1 -> 2), no earlier run of this definition to compare with"),
             std::string::npos)
       << out;
+// An adaptive campaign (issue 31) through the real daemon and worker on the truth engine: the
+// sign of a slow rise (rotation alone), which one bed at the scale's target leaves open. Round 1 runs,
+// the daemon's scheduler tick looks at the claim and plans round 2 with its reason, round 2 runs,
+// and the rounds stop with a reason; a claim decided is frozen at the round whose look decided it.
+TEST(TruthEngineDaemonTest, AnAdaptiveCampaignRunsInRoundsAndStopsWithAReason) {
+  const std::string dir = testing::CacheDir() + "/truth-engine/adaptive";
+  fs::remove_all(dir);
+  setenv("SANDSWIM_TRUTH_LAW", "paper", 1);
+  setenv("SANDSWIM_TRUTH_SEED", "11", 1);
+  unsetenv("SANDSWIM_TRUTH_PACE");
+  const json definition{
+      {"description", "the sign of a slow rise, in rounds"},
+      {"scale", "smoke"},
+      {"sweeps",
+       {{{"name", "rotation"}, {"base", {{"mode", "rotation"}, {"omega", 80}, {"axis", "x"}, {"duration_s", 2}}}}}},
+      {"claims",
+       {{{"id", "S1"},
+         {"title", "Rotation alone rises (slowly: the truth law's 5 mm/s)"},
+         {"source", "the abstract's three modes"},
+         {"paper", {{"text", "the displacement in z is always upward"}}},
+         {"rule", {{"kind", "sign"}, {"sweeps", {"rotation"}}, {"expect", "rise"}}}}}},
+      {"adaptive", {{"budget_core_h", 20}, {"max_rounds", 3}}}};
+  testing::Daemon daemon(dir + "/daemon", {"--scheduler-tick", "1"});
+  int status = 0;
+  const json put = daemon.Put("/api/v1/campaigns/signs", definition, &status);
+  ASSERT_EQ(status, 201) << put.dump();
+  const json submitted = daemon.Post("/api/v1/campaigns/signs/runs", json::object(), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const int64_t id = submitted.value("id", int64_t{0});
+  auto worker = testing::StartWorker(daemon, dir + "/worker", 2,
+                                     {"--launcher", "direct", "--engine", SANDSWIM_TRUTH_ENGINE_PATH});
+  json info;
+  for (int i = 0; i < 1200; ++i) {
+    info = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id));
+    const json& rounds = info["rounds"];
+    if (rounds.is_array() && !rounds.empty() && rounds.back()["stop_reason"].is_string()) break;
+    usleep(250 * 1000);
+  }
+  worker->Stop();
+  const json& rounds = info["rounds"];
+  ASSERT_TRUE(rounds.is_array() && !rounds.empty()) << info.dump();
+  ASSERT_TRUE(rounds.back()["stop_reason"].is_string()) << info.dump(1) << "\n" << worker->Output();
+  EXPECT_EQ(info["adaptive"]["budget_core_h"], 20);
+  EXPECT_EQ(rounds[0]["actions"][0]["kind"], "first round");
+  EXPECT_EQ(rounds[0]["actions"][0]["runs"], 1);
+  ASSERT_GE(rounds.size(), 2u) << "round 1 decided the claim: pick a slower point\n" << info.dump(1);
+  // Round 2: what it added, for which claim and why, at what cost.
+  ASSERT_FALSE(rounds[1]["actions"].empty()) << info.dump(1);
+  const json& action = rounds[1]["actions"][0];
+  EXPECT_EQ(action["claim"], "S1");
+  EXPECT_NE(action["reason"].get<std::string>().find("S1: "), std::string::npos) << action.dump();
+  EXPECT_GT(action["runs"].get<int>(), 0);
+  EXPECT_GT(rounds[1]["core_h_planned"].get<double>(), 0);
+  EXPECT_EQ(rounds[0]["claims_after"][0]["verdict"], "inconclusive") << info.dump(1);
+  double spent = 0;
+  for (const json& r : rounds) {
+    ASSERT_TRUE(r["finished_at"].is_number()) << r.dump();
+    spent += r["core_h_spent"].get<double>();
+    EXPECT_NEAR(r["budget_left_core_h"].get<double>(), 20 - spent, 1e-9);
+  }
+  EXPECT_LE(spent, 20);
+  // The claim's state after the last look: decided and frozen at a round, or open with the reason.
+  const json& last = rounds.back()["claims_after"][0];
+  if (last["verdict"] != "inconclusive") {
+    EXPECT_TRUE(last["frozen_at_round"].is_number()) << last.dump();
+    EXPECT_NE(rounds.back()["stop_reason"].get<std::string>().find("decided"), std::string::npos);
+  }
+  // Its runs are the campaign run's results, round 2's among them (a longer run in its point's place).
+  const json results = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
+  EXPECT_GE(results["results"].size(), 1u) << results.dump();
+  // Its drift report is made once its rounds stopped, not when round 1's runs were done: it
+  // counts the runs round 2 made.
+  for (int i = 0; i < 120 && info["last_drift"].value("campaign_run_id", int64_t{0}) != id; ++i) {
+    usleep(250 * 1000);
+    info = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id));
+  }
+  ASSERT_EQ(info["last_drift"].value("campaign_run_id", int64_t{0}), id) << info.dump(1);
+  EXPECT_GE(info["last_drift"]["created_at"].get<double>(), rounds.back()["finished_at"].get<double>());
+  EXPECT_EQ(info["last_drift"]["ran"].get<int64_t>(), static_cast<int64_t>(results["results"].size()))
+      << info["last_drift"].dump(1);
 }
 
 }  // namespace

@@ -1,0 +1,257 @@
+#include "server/jobs/rounds.h"
+
+#include <algorithm>
+#include <map>
+#include <set>
+#include <utility>
+
+#include "core/scale.h"
+#include "core/text.h"
+#include "server/store/rounds.h"
+
+namespace sandswim {
+namespace {
+
+using nlohmann::json;
+
+bool Busy(const std::string& state) { return state == "queued" || state == "running"; }
+
+// Core-hours the campaign run's runs and beds took as they ran, at the rates in `cost`: each done
+// run's simulated time, each prepared bed. Runs two sweeps share count once.
+double SpentCoreHours(const ClaimInput& input, const AdaptiveCost& cost) {
+  double h = 0;
+  std::set<int64_t> seen;
+  const Point* any = nullptr;
+  for (const ClaimSweep& s : input.sweeps)
+    for (const ClaimRun& r : s.runs) {
+      if (any == nullptr) any = &r.point;
+      if (!seen.insert(r.run_id).second || !r.result) continue;
+      h += cost.RunCoreHours(r.point, r.result->sim_time_s);
+    }
+  if (any != nullptr)
+    for (const ClaimBed& b : input.beds)
+      if (b.state == "done") h += cost.BedCoreHours(*any);
+  return h;
+}
+
+// The claims' states after a look: a frozen one as it was decided (and at which round), an open
+// one inconclusive.
+json StatesAfter(const std::vector<Claim>& claims, const std::map<std::string, Verdict>& frozen,
+                 const std::map<std::string, int>& frozen_round) {
+  json out = json::array();
+  for (const Claim& c : claims) {
+    json j{{"claim", c.id}};
+    if (auto it = frozen.find(c.id); it != frozen.end()) {
+      j["verdict"] = VerdictName(it->second);
+      j["frozen_at_round"] = frozen_round.at(c.id);
+    } else {
+      j["verdict"] = VerdictName(Verdict::kInconclusive);
+    }
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+json ActionsJson(const AdaptiveRound& round) {
+  json out = json::array();
+  for (const AdaptiveAction& a : round.actions) out.push_back(rounds::ActionToJson(a));
+  return out;
+}
+
+// One order as a plan of the run it asks for: its point on its replicate bed (only that bed), in
+// its sweep, as the submission plans any run (core/sweep.h PlanSweeps: the same keys and decks).
+Result<ScalePlan> PlanOrder(const RunOrder& o, const std::string& scale, const std::vector<SweepSpec>& declared,
+                            const std::string& engine_version) {
+  const Scale* sc = FindScale(scale);
+  if (sc == nullptr) return Status::InvalidArgument("scale", "unknown scale \"" + scale + "\"");
+  SweepSpec spec;
+  spec.name = o.sweep;
+  spec.scale = scale;
+  spec.base = o.point;
+  spec.base.duration_s = o.max_duration_s;
+  spec.precision = o.precision;
+  spec.replicates = o.replicate + 1;
+  for (const SweepSpec& d : declared)
+    if (d.name == o.sweep) spec.snapshots = d.snapshots;
+  Result<Plan> plan = PlanSweeps({spec}, *sc, engine_version);
+  if (!plan.ok()) return plan.status();
+  ScalePlan out;
+  out.scale = scale;
+  out.plan.scale = plan->scale;
+  std::map<int, int> bed_index;
+  for (PlannedRun& r : plan->runs) {
+    if (r.replicate != o.replicate) continue;
+    auto [it, inserted] = bed_index.emplace(r.bed, static_cast<int>(out.plan.beds.size()));
+    if (inserted) out.plan.beds.push_back(plan->beds[static_cast<size_t>(r.bed)]);
+    r.bed = it->second;
+    out.plan.runs.push_back(std::move(r));
+  }
+  if (out.plan.runs.empty()) return Status::Internal("the order of " + o.sweep + " planned no run");
+  return out;
+}
+
+// The run a longer order replaces: the point's run on that bed in the campaign run's sweeps.
+std::optional<int64_t> ReplacedRun(const ClaimInput& input, const RunOrder& o) {
+  const DriveId id = DriveIdOf(o.point);
+  for (const ClaimSweep& s : input.sweeps)
+    for (const ClaimRun& r : s.runs)
+      if (r.replicate == o.replicate && DriveIdOf(r.point) == id) return r.run_id;
+  return std::nullopt;
+}
+
+}  // namespace
+
+RoundDriver::RoundDriver(Store* store, ClaimLookFn look, RoundDriverOptions options)
+    : store_(store), look_(std::move(look)), options_(std::move(options)) {}
+
+Result<RoundDriver::Pass> RoundDriver::Tick(double now) {
+  Result<std::vector<int64_t>> open = rounds::OpenAdaptiveCampaignRuns(*store_);
+  if (!open.ok()) return open.status();
+  Pass pass;
+  for (int64_t id : *open) {
+    Result<std::optional<RoundStep>> step = Step(id, now);
+    if (!step.ok()) {
+      pass.errors.emplace_back(id, step.status());
+    } else if (*step) {
+      pass.steps.push_back(std::move(**step));
+    }
+  }
+  return pass;
+}
+
+Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, double now) {
+  using Out = std::optional<RoundStep>;
+  Result<CampaignRunInfo> info = store_->GetCampaignRun(campaign_run_id);
+  if (!info.ok()) return info.status();
+  Result<Campaign> campaign = ParseCampaign(info->definition);
+  if (!campaign.ok() || !campaign->adaptive) return Out();
+  const AdaptiveSettings& settings = *campaign->adaptive;
+  std::vector<SweepSpec> declared = campaign->sweeps;
+  for (SweepSpec& s : declared) s.scale = info->scale;
+  Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
+  if (!cost.ok()) return cost.status();
+
+  Result<std::vector<rounds::RoundRow>> stored = rounds::ListRounds(*store_, campaign_run_id);
+  if (!stored.ok()) return stored.status();
+  if (stored->empty()) {
+    // Round 1 is what was submitted: its row says so and what it was planned to cost.
+    const AdaptiveRound first = FirstRound(AdaptiveSweepsOf(declared), *cost);
+    rounds::RoundRow row;
+    row.campaign_run_id = campaign_run_id;
+    row.round = 1;
+    row.planned_at = info->created_at;
+    row.core_h_planned = first.core_h;
+    row.actions = ActionsJson(first);
+    Status s = store_->db().Write([&](Transaction& t) { return rounds::InsertRound(t, row); });
+    if (!s.ok() && s.code() != StatusCode::kConflict) return s;
+    stored->push_back(row);
+  }
+  const rounds::RoundRow& last = stored->back();
+  if (last.stop_reason || last.finished_at) return Out();
+
+  Result<ClaimLook> look = look_(*store_, *info);
+  if (!look.ok()) return look.status();
+  int cancelled = 0;
+  for (const ClaimSweep& s : look->input.sweeps)
+    for (const ClaimRun& r : s.runs) {
+      if (Busy(r.state)) return Out();
+      cancelled += r.state == "cancelled";
+    }
+  for (const ClaimBed& b : look->input.beds)
+    if (Busy(b.state)) return Out();
+
+  // The look after round `last.round`.
+  Result<std::map<std::string, rounds::FrozenVerdict>> frozen_rows = rounds::FrozenVerdicts(*store_, campaign_run_id);
+  if (!frozen_rows.ok()) return frozen_rows.status();
+  AdaptiveState state;
+  std::map<std::string, int> frozen_round;
+  for (const auto& [claim, f] : *frozen_rows) {
+    state.frozen[claim] = f.verdict;
+    frozen_round[claim] = f.round;
+  }
+  const std::vector<ClaimVerdict> verdicts = EvaluateClaims(look->claims, look->input);
+  for (const std::string& claim : FreezeDecisions(verdicts, state.frozen)) frozen_round[claim] = last.round;
+  state.claims = look->claims;
+  state.sweeps = AdaptiveSweepsOf(declared);
+  state.input = look->input;
+  state.rounds_done = last.round;
+  state.spent_core_h = SpentCoreHours(look->input, *cost);
+  double spent_before = 0;
+  for (const rounds::RoundRow& r : *stored) spent_before += r.core_h_spent.value_or(0);
+  const double spent_now = std::max(0.0, state.spent_core_h - spent_before);
+
+  AdaptiveOptions options = options_.adaptive;
+  options.max_rounds = settings.max_rounds;
+  AdaptiveRound next;
+  if (cancelled > 0) {
+    next.round = last.round + 1;
+    next.stop = true;
+    next.stop_reason = std::to_string(cancelled) + " of its runs were cancelled: its rounds stop there (submit the "
+                                                    "campaign again to start anew)";
+  } else {
+    next = PlanNextRound(state, settings.budget_core_h, *cost, options);
+  }
+  const json after = StatesAfter(look->claims, state.frozen, frozen_round);
+  const double left = settings.budget_core_h - state.spent_core_h;
+
+  // Plans of the next round's runs, before the transaction (nothing to refuse inside it but the cap).
+  std::vector<ScalePlan> plans;
+  std::vector<std::optional<int64_t>> replaced;
+  if (!next.stop) {
+    for (const AdaptiveAction& a : next.actions)
+      for (const RunOrder& o : a.runs) {
+        Result<ScalePlan> plan = PlanOrder(o, info->scale, declared, options_.engine_version);
+        if (!plan.ok()) return plan.status().WithFieldPrefix("round " + std::to_string(next.round) + " (" + a.claim + ")");
+        plans.push_back(std::move(plan).value());
+        replaced.push_back(o.replaces ? ReplacedRun(look->input, o) : std::nullopt);
+      }
+  }
+
+  Status written = store_->db().Write([&](Transaction& t) -> Status {
+    SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, spent_now, after,
+                                                 next.stop ? std::optional<std::string>(next.stop_reason) : std::nullopt));
+    SANDSWIM_RETURN_IF_ERROR(rounds::FreezeVerdicts(t, campaign_run_id, last.round, now, state.frozen));
+    if (next.stop) return Status::Ok();
+    rounds::RoundRow row;
+    row.campaign_run_id = campaign_run_id;
+    row.round = next.round;
+    row.planned_at = now;
+    row.core_h_planned = next.core_h;
+    row.actions = ActionsJson(next);
+    SANDSWIM_RETURN_IF_ERROR(rounds::InsertRound(t, row));
+    Result<std::map<std::string, rounds::SweepSlot>> slots = rounds::CampaignRunSweeps(t, campaign_run_id);
+    if (!slots.ok()) return slots.status();
+    std::map<std::string, int64_t> ids;
+    std::map<int64_t, int64_t> next_position;
+    std::vector<int64_t> sweep_ids;
+    for (const auto& [name, slot] : *slots) {
+      ids[name] = slot.id;
+      next_position[slot.id] = slot.next_position;
+      sweep_ids.push_back(slot.id);
+    }
+    SubmitResult added;
+    for (size_t i = 0; i < plans.size(); ++i) {
+      if (replaced[i]) {
+        Result<int64_t> left_sweeps = rounds::LeaveCampaignRunSweeps(t, campaign_run_id, *replaced[i]);
+        if (!left_sweeps.ok()) return left_sweeps.status();
+      }
+      SANDSWIM_RETURN_IF_ERROR(
+          AddPlannedRuns(t, plans[i], options_.engine_version, now, ids, next_position, added));
+    }
+    return FinishAddedRuns(t, sweep_ids, options_.max_queued_runs, added);
+  });
+  // Another pass took this look first: what it stored stands.
+  if (written.code() == StatusCode::kConflict && written.field() == "round") return Out();
+  if (!written.ok()) return written;
+
+  RoundStep step;
+  step.campaign_run_id = campaign_run_id;
+  step.stopped = next.stop;
+  step.round = next.stop ? last.round : next.round;
+  step.text = "campaign run " + std::to_string(campaign_run_id) + ": " +
+              (next.stop ? "rounds stop after round " + std::to_string(last.round) + ": " + next.stop_reason
+                         : DescribeRound(next, left));
+  return Out(std::move(step));
+}
+
+}  // namespace sandswim

@@ -1,0 +1,92 @@
+// RoundDriver: runs adaptive campaign runs (issue 31; a campaign with "adaptive", core/sweep.h
+// AdaptiveSettings) in rounds, on the daemon's scheduler tick. The decisions are core/adaptive.h's;
+// this is the part that reads the store and writes to it.
+//
+// A campaign run is submitted as usual (server/jobs/submission.h): its runs are round 1, every
+// declared point on one bed (core/adaptive.h FirstRound; the campaign's budget was checked against
+// it at PUT and at submission). On each tick, for every adaptive campaign run that has not
+// stopped (server/store/rounds.h OpenAdaptiveCampaignRuns):
+//   1. round 1's row is stored if it is not yet (what was submitted, and its planned cost);
+//   2. while any run or bed of the campaign run is queued or running, nothing more happens;
+//   3. else the claims are looked at (`look`: server/analysis/claim_check.h LookAtClaims, the data
+//      the verdicts shown are decided on), the verdicts each decides are frozen
+//      (FreezeDecisions: never looked at again), what was spent is counted (each done run's
+//      simulated time and each prepared bed at the cost model's rates now; a failed run counts
+//      nothing, its time is not known), and PlanNextRound plans the next round or says why
+//      none follows (every claim decided, max_rounds rounds run, the budget spent, nothing left
+//      that could decide);
+//   4. in ONE transaction: the round's look (finished_at, core-h spent, the claims' states after
+//      it, the stop reason), the verdicts frozen at it, the next round's row and its runs (added
+//      to the campaign run's sweeps: a new bed is the next replicate index, a new point joins its
+//      sweep, a longer run takes its point's place on that bed in the campaign run's sweeps).
+// Restart-safe: everything it knows is in the store. A daemon stopped anywhere in a pass either
+// committed the round or did not; the next pass (of this daemon or the next) continues from what
+// is stored. Two passes that plan the same round from the same store cannot both store it (the
+// round's look is taken once: server/store/rounds.h FinishRound), so no round is stored twice.
+// A campaign run some of whose runs were cancelled stops, saying so (cancelling is how its
+// owner stops it).
+//
+// Left for later: nightly reruns of an adaptive campaign plan from scratch (each campaign run has
+// rounds of its own); a longer run starts from its beginning (continuing from the restart written
+// at the end of the shorter one is not done).
+//
+// Thread safety: Tick() from one thread at a time (the scheduler's); the Store is thread-safe.
+#ifndef SANDSWIM_SERVER_JOBS_ROUNDS_H_
+#define SANDSWIM_SERVER_JOBS_ROUNDS_H_
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/adaptive.h"
+#include "core/status.h"
+#include "server/jobs/submission.h"
+#include "server/store/store.h"
+
+namespace sandswim {
+
+// How a campaign run's claims are looked at (the daemon: LookAtClaims). Injected, because the
+// jobs room does not see the analysis room (README "Code layout").
+using ClaimLookFn = std::function<Result<ClaimLook>(Store&, const CampaignRunInfo&)>;
+
+// What one pass did for one campaign run.
+struct RoundStep {
+  int64_t campaign_run_id = 0;
+  int round = 0;  // the round planned (or, stopped: the last one run)
+  bool stopped = false;
+  std::string text;  // "campaign run 7: round 2: F4: ... (+0.4 core-h, 3.1 core-h left)" / "... stops: ..."
+};
+
+struct RoundDriverOptions {
+  std::string engine_version;  // enters the keys of the runs it adds
+  int64_t max_queued_runs = kMaxQueuedRuns;
+  AdaptiveOptions adaptive;  // max_rounds is each campaign's own
+};
+
+class RoundDriver {
+ public:
+  RoundDriver(Store* store, ClaimLookFn look, RoundDriverOptions options);
+
+  // One pass over every adaptive campaign run that has not stopped. A campaign run whose pass
+  // fails is left as it was (logged by the caller from `errors`) and tried again next time.
+  struct Pass {
+    std::vector<RoundStep> steps;
+    std::vector<std::pair<int64_t, Status>> errors;
+  };
+  Result<Pass> Tick(double now);
+
+  // The same for one campaign run: nullopt when there is nothing to do yet (its runs are not all
+  // finished, it is not adaptive, or it has stopped).
+  Result<std::optional<RoundStep>> Step(int64_t campaign_run_id, double now);
+
+ private:
+  Store* store_;
+  ClaimLookFn look_;
+  RoundDriverOptions options_;
+};
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_SERVER_JOBS_ROUNDS_H_

@@ -1,0 +1,232 @@
+#include "server/store/rounds.h"
+
+#include <utility>
+
+#include "core/scale.h"
+#include "server/store/cost_model.h"
+
+namespace sandswim::rounds {
+namespace {
+
+using nlohmann::json;
+
+json ParseOr(const std::string& text, json fallback) {
+  if (text.empty()) return fallback;
+  json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  return j.is_discarded() ? fallback : j;
+}
+
+Verdict VerdictOf(const std::string& name) {
+  if (name == "holds") return Verdict::kHolds;
+  if (name == "differs") return Verdict::kDiffers;
+  return Verdict::kInconclusive;
+}
+
+}  // namespace
+
+json ActionToJson(const AdaptiveAction& a) {
+  json runs = json::array();
+  for (const RunOrder& o : a.runs) {
+    json r{{"sweep", o.sweep},
+           {"point", PointToJson(o.point)},
+           {"replicate", o.replicate},
+           {"max_duration_s", o.max_duration_s},
+           {"replaces", o.replaces}};
+    if (o.precision) r["precision"] = PrecisionToJson(*o.precision);
+    runs.push_back(std::move(r));
+  }
+  return {{"kind", ActionKindName(a.kind)}, {"claim", a.claim},   {"reason", a.reason},
+          {"core_h", a.core_h},             {"sim_s", a.sim_s},   {"gain", a.gain},
+          {"draws", a.draws},               {"new_beds", a.new_beds}, {"runs", runs}};
+}
+
+json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h) {
+  json out = json::array();
+  double spent = 0;
+  for (const RoundRow& r : rows) {
+    json actions = json::array();
+    for (const json& a : r.actions) {
+      actions.push_back({{"kind", a.value("kind", "")},
+                         {"claim", a.value("claim", "")},
+                         {"reason", a.value("reason", "")},
+                         {"core_h", a.value("core_h", 0.0)},
+                         {"runs", a.contains("runs") ? a["runs"].size() : 0}});
+    }
+    json j{{"round", r.round},
+           {"planned_at", r.planned_at},
+           {"finished_at", r.finished_at ? json(*r.finished_at) : json(nullptr)},
+           {"core_h_planned", r.core_h_planned},
+           {"core_h_spent", r.core_h_spent ? json(*r.core_h_spent) : json(nullptr)},
+           {"budget_left_core_h", nullptr},
+           {"actions", actions},
+           {"claims_after", r.verdicts_after},
+           {"stop_reason", r.stop_reason ? json(*r.stop_reason) : json(nullptr)}};
+    if (r.core_h_spent) {
+      spent += *r.core_h_spent;
+      j["budget_left_core_h"] = budget_core_h - spent;
+    }
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+Result<std::vector<RoundRow>> ListRounds(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare(
+      "SELECT round, planned_at, finished_at, core_h_planned, core_h_spent, actions, verdicts_after, stop_reason "
+      "FROM campaign_rounds WHERE campaign_run_id = ? ORDER BY round");
+  st.Bind(1, campaign_run_id);
+  std::vector<RoundRow> out;
+  for (;;) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    RoundRow r;
+    r.campaign_run_id = campaign_run_id;
+    r.round = static_cast<int>(st.Int(0));
+    r.planned_at = st.Double(1);
+    r.finished_at = st.OptDouble(2);
+    r.core_h_planned = st.Double(3);
+    r.core_h_spent = st.OptDouble(4);
+    r.actions = ParseOr(st.Text(5), json::array());
+    r.verdicts_after = ParseOr(st.Text(6), json());
+    r.stop_reason = st.OptText(7);
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+Result<std::vector<RoundRow>> ListRounds(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return ListRounds(*t, campaign_run_id);
+}
+
+Result<std::map<std::string, FrozenVerdict>> FrozenVerdicts(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare("SELECT claim, verdict, round, frozen_at FROM campaign_run_verdicts WHERE campaign_run_id = ?");
+  st.Bind(1, campaign_run_id);
+  std::map<std::string, FrozenVerdict> out;
+  for (;;) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    out[st.Text(0)] = FrozenVerdict{VerdictOf(st.Text(1)), static_cast<int>(st.Int(2)), st.Double(3)};
+  }
+  return out;
+}
+
+Result<std::map<std::string, FrozenVerdict>> FrozenVerdicts(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return FrozenVerdicts(*t, campaign_run_id);
+}
+
+Result<std::vector<int64_t>> OpenAdaptiveCampaignRuns(Store& store) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT cr.id FROM campaign_runs cr WHERE json_valid(cr.definition) "
+      "AND json_type(cr.definition, '$.adaptive') IS 'object' "
+      "AND NOT EXISTS (SELECT 1 FROM campaign_rounds r WHERE r.campaign_run_id = cr.id AND r.stop_reason IS NOT NULL) "
+      "ORDER BY cr.id");
+  std::vector<int64_t> out;
+  for (;;) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    out.push_back(st.Int(0));
+  }
+  return out;
+}
+
+Result<AdaptiveCost> AdaptiveCostNow(Store& store, const std::string& scale, double now) {
+  AdaptiveCost cost;
+  cost.scale = FindScale(scale);
+  if (cost.scale == nullptr) return Status::InvalidArgument("scale", "unknown scale \"" + scale + "\"");
+  Result<CostModelView> model = ReadCostModel(store, now);
+  if (!model.ok()) return model.status();
+  cost.run_rate = model->run_rate;
+  cost.bed_rate = model->bed_rate;
+  return cost;
+}
+
+Status InsertRound(Transaction& t, const RoundRow& r) {
+  Statement st = t.Prepare(
+      "INSERT INTO campaign_rounds (campaign_run_id, round, planned_at, finished_at, core_h_planned, core_h_spent, "
+      "actions, verdicts_after, stop_reason) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
+  st.Bind(1, r.campaign_run_id).Bind(2, r.round).Bind(3, r.planned_at).Bind(4, r.finished_at);
+  st.Bind(5, r.core_h_planned).Bind(6, r.core_h_spent).Bind(7, r.actions.dump());
+  if (r.verdicts_after.is_null()) {
+    st.BindNull(8);
+  } else {
+    st.Bind(8, r.verdicts_after.dump());
+  }
+  st.Bind(9, r.stop_reason);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  if (t.Changes() != 1) {
+    return Status(StatusCode::kConflict,
+                  "round " + std::to_string(r.round) + " of campaign run " + std::to_string(r.campaign_run_id) +
+                      " is stored already",
+                  "round");
+  }
+  return t.Event(r.planned_at, "campaign_run.round_planned", "campaign_run/" + std::to_string(r.campaign_run_id),
+                 {{"round", r.round}, {"core_h_planned", r.core_h_planned}});
+}
+
+Status FinishRound(Transaction& t, int64_t campaign_run_id, int round, double now, double core_h_spent,
+                   const json& verdicts_after, const std::optional<std::string>& stop_reason) {
+  Statement st = t.Prepare(
+      "UPDATE campaign_rounds SET finished_at = ?, core_h_spent = ?, verdicts_after = ?, stop_reason = ? "
+      "WHERE campaign_run_id = ? AND round = ? AND finished_at IS NULL");
+  st.Bind(1, now).Bind(2, core_h_spent).Bind(3, verdicts_after.dump()).Bind(4, stop_reason);
+  st.Bind(5, campaign_run_id).Bind(6, round);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  if (t.Changes() != 1) {
+    return Status(StatusCode::kConflict,
+                  "round " + std::to_string(round) + " of campaign run " + std::to_string(campaign_run_id) +
+                      " is not stored or its look was taken already",
+                  "round");
+  }
+  json detail{{"round", round}, {"core_h_spent", core_h_spent}};
+  if (stop_reason) detail["stop_reason"] = *stop_reason;
+  return t.Event(now, stop_reason ? "campaign_run.rounds_stopped" : "campaign_run.round_finished",
+                 "campaign_run/" + std::to_string(campaign_run_id), detail);
+}
+
+Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double now,
+                      const std::map<std::string, Verdict>& frozen) {
+  Statement st = t.Prepare(
+      "INSERT INTO campaign_run_verdicts (campaign_run_id, claim, verdict, round, frozen_at) VALUES (?, ?, ?, ?, ?) "
+      "ON CONFLICT DO NOTHING");
+  for (const auto& [claim, verdict] : frozen) {
+    if (verdict == Verdict::kInconclusive) continue;
+    st.Reset();
+    st.Bind(1, campaign_run_id).Bind(2, claim).Bind(3, VerdictName(verdict)).Bind(4, round).Bind(5, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+  }
+  return Status::Ok();
+}
+
+Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare(
+      "SELECT s.name, s.id, COALESCE((SELECT MAX(position) + 1 FROM sweep_runs sr WHERE sr.sweep_id = s.id), 0) "
+      "FROM sweeps s WHERE s.campaign_run_id = ? ORDER BY s.id");
+  st.Bind(1, campaign_run_id);
+  std::map<std::string, SweepSlot> out;
+  for (;;) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    out[st.Text(0)] = SweepSlot{st.Int(1), st.Int(2)};
+  }
+  return out;
+}
+
+Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id) {
+  Statement st = t.Prepare(
+      "DELETE FROM sweep_runs WHERE run_id = ? AND sweep_id IN (SELECT id FROM sweeps WHERE campaign_run_id = ?)");
+  st.Bind(1, run_id).Bind(2, campaign_run_id);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  return t.Changes();
+}
+
+}  // namespace sandswim::rounds

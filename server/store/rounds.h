@@ -1,0 +1,96 @@
+// The rounds of adaptive campaign runs (issue 31; schema/015_campaign_rounds.sql): one row per
+// round (what it added and why, core-hours planned and spent, the claims' states after it, why
+// the campaign run stopped) and the verdicts frozen at their first deciding look. The driver that
+// writes them is server/jobs/rounds.h; GET /api/v1/campaign-runs/{id} and `sandswim status cr:ID`
+// read them.
+//
+// Writes take the caller's transaction, so that a round's row, the look that finishes the round
+// before it, its frozen verdicts and its runs are stored together or not at all. InsertRound
+// refuses (kConflict) a round already stored and FinishRound one already finished: a second
+// driver (or a daemon started again) that planned the same round from the same store loses its
+// transaction instead of storing a duplicate.
+//
+// Thread safety: as Store (each call is one transaction, or runs in the caller's).
+#ifndef SANDSWIM_SERVER_STORE_ROUNDS_H_
+#define SANDSWIM_SERVER_STORE_ROUNDS_H_
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/adaptive.h"
+#include "core/status.h"
+#include "server/store/database.h"
+#include "server/store/store.h"
+
+namespace sandswim::rounds {
+
+struct RoundRow {
+  int64_t campaign_run_id = 0;
+  int round = 0;
+  double planned_at = 0;
+  std::optional<double> finished_at;
+  double core_h_planned = 0;
+  std::optional<double> core_h_spent;
+  nlohmann::json actions = nlohmann::json::array();  // ActionToJson of each
+  nlohmann::json verdicts_after;                      // null until its look
+  std::optional<std::string> stop_reason;
+};
+
+struct FrozenVerdict {
+  Verdict verdict = Verdict::kInconclusive;
+  int round = 0;
+  double frozen_at = 0;
+};
+
+// {"kind","claim","reason","core_h","sim_s","gain","draws","new_beds","runs":[{"sweep","point",
+//  "replicate","max_duration_s","replaces"}]}
+nlohmann::json ActionToJson(const AdaptiveAction& a);
+
+// The rounds as GET /api/v1/campaign-runs/{id} shows them, `budget_core_h` the campaign's:
+// [{"round","planned_at","finished_at","core_h_planned","core_h_spent","budget_left_core_h"
+//   (after it: the budget less every round's spending so far; null until its look),
+//   "actions":[{"kind","claim","reason","core_h","runs" (how many)}],"claims_after":[{"claim",
+//   "verdict","frozen_at_round"?}] (null until its look),"stop_reason"}]
+nlohmann::json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h);
+
+// The rounds of a campaign run, in order (none: not adaptive, or its first look is to come).
+Result<std::vector<RoundRow>> ListRounds(Transaction& t, int64_t campaign_run_id);
+Result<std::vector<RoundRow>> ListRounds(Store& store, int64_t campaign_run_id);
+Result<std::map<std::string, FrozenVerdict>> FrozenVerdicts(Transaction& t, int64_t campaign_run_id);
+Result<std::map<std::string, FrozenVerdict>> FrozenVerdicts(Store& store, int64_t campaign_run_id);
+
+// Campaign runs whose recorded definition is adaptive and that have not stopped, oldest first.
+Result<std::vector<int64_t>> OpenAdaptiveCampaignRuns(Store& store);
+
+// The cost model's rates now (server/store/cost_model.h ReadCostModel: the pooled run rate and the
+// one-rank bed rate) at `scale`, as the planner costs rounds and the budget check prices round 1.
+// InvalidArgument "scale" for an unknown scale.
+Result<AdaptiveCost> AdaptiveCostNow(Store& store, const std::string& scale, double now);
+
+// kConflict when the round is stored already.
+Status InsertRound(Transaction& t, const RoundRow& row);
+// The look after a round: kConflict when it was taken already (finished_at set).
+Status FinishRound(Transaction& t, int64_t campaign_run_id, int round, double now, double core_h_spent,
+                   const nlohmann::json& verdicts_after, const std::optional<std::string>& stop_reason);
+// Stores the verdicts `frozen` holds that are not stored yet, as frozen at `round`.
+Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double now,
+                      const std::map<std::string, Verdict>& frozen);
+
+// The campaign run's sweeps by name, and each one's next membership position.
+struct SweepSlot {
+  int64_t id = 0;
+  int64_t next_position = 0;
+};
+Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id);
+// A longer run replaces `run_id` in the campaign run's sweeps: its membership of them is removed
+// (the run and its result stay, for any other sweep that has it). Returns the memberships removed.
+Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id);
+
+}  // namespace sandswim::rounds
+
+#endif  // SANDSWIM_SERVER_STORE_ROUNDS_H_
