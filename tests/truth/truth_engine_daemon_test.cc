@@ -245,6 +245,8 @@ TEST(TruthEngineDaemonTest, AnOwnCampaignThroughTheCli) {
   EXPECT_NE(out.find("definition changed (version 1 -> 2), no earlier run of this definition to compare with"),
             std::string::npos)
       << out;
+}
+
 // An adaptive campaign (issue 31) through the real daemon and worker on the truth engine: the
 // sign of a slow rise (rotation alone), which one bed at the scale's target leaves open. Round 1 runs,
 // the daemon's scheduler tick looks at the claim and plans round 2 with its reason, round 2 runs,
