@@ -1,7 +1,6 @@
 #include "core/materials.h"
 
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <string>
 
@@ -89,6 +88,26 @@ std::optional<std::string> MaterialsText(const Materials& m) {
     if (m.*f.member != kTable1.*f.member) j[std::string(f.name)] = m.*f.member;
   if (j.empty()) return std::nullopt;
   return j.dump();
+}
+
+std::string MaterialsLabel(const Materials& m, std::string_view except) {
+  std::string out;
+  for (const MaterialField& f : kMaterialFields) {
+    if (m.*f.member == kTable1.*f.member || f.name == except) continue;
+    out += (out.empty() ? "" : ", ") + std::string(f.name) + " = " + Num(m.*f.member, 4) + (f.unit.empty() ? "" : " ") +
+           std::string(f.unit);
+  }
+  return out;
+}
+
+nlohmann::json MaterialFieldsJson() {
+  nlohmann::json out = nlohmann::json::array();
+  for (const MaterialField& f : kMaterialFields)
+    out.push_back({{"name", std::string(f.name)},
+                   {"unit", std::string(f.unit)},
+                   {"role", f.role == MaterialRole::kBed ? "bed" : "drive"},
+                   {"table1", kTable1.*f.member}});
+  return out;
 }
 
 Result<Materials> StoredMaterials(const std::optional<std::string>& text) {

@@ -12,6 +12,8 @@
 #include <string>
 #include <string_view>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/status.h"
 
 namespace sandswim {
@@ -82,6 +84,15 @@ Status ValidateMaterials(const Materials& m);
 // text is not such an object.
 std::optional<std::string> MaterialsText(const Materials& m);
 Result<Materials> StoredMaterials(const std::optional<std::string>& text);
+
+// For people: the fields that are not Table 1's, "so_density = 5000 kg/m^3, grain_friction = 0.3"
+// (in MaterialFields' order; "" when all are Table 1's; `except` left out), so that points which
+// differ only in their materials do not read alike in a table or a legend.
+std::string MaterialsLabel(const Materials& m, std::string_view except = {});
+// Every field as the API lists it for a client that shows them (the results' `material_fields`):
+// [{"name", "unit", "role": "bed"|"drive", "table1"}], in MaterialFields' order. A row or point
+// carries only the fields that are not Table 1's: a client shows `table1` where a row has none.
+nlohmann::json MaterialFieldsJson();
 
 // ---- Time step ---------------------------------------------------------------------------------
 // The rule: the paper's step (Table1Materials::dt, 1e-5 s) scaled by the Rayleigh time of the

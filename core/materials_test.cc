@@ -328,5 +328,27 @@ TEST(MaterialsTest, TheDensityRatioCampaignIsBuiltInAndPoursOneBed) {
   EXPECT_EQ(ratios, (std::set<double>{0.5, 0.75, 1, 1.5, 2, 3}));
 }
 
+// Labels for people name the fields that are not Table 1's, with units, and the API lists every
+// field with its Table 1 value for a client that must show one where a row has none.
+TEST(MaterialsTest, LabelsNameWhatIsNotTable1AndTheApiListsEveryField) {
+  Materials m;
+  EXPECT_EQ(MaterialsLabel(m), "");
+  m.rho_so = 5000;
+  m.mu_grain_grain = 0.3;
+  EXPECT_EQ(MaterialsLabel(m), "so_density = 5000 kg/m^3, grain_friction = 0.3");
+  EXPECT_EQ(MaterialsLabel(m, "so_density"), "grain_friction = 0.3");
+  const json fields = MaterialFieldsJson();
+  ASSERT_EQ(fields.size(), kMaterialFieldCount);
+  EXPECT_EQ(fields[0]["name"], "so_density");
+  EXPECT_EQ(fields[0]["unit"], "kg/m^3");
+  EXPECT_EQ(fields[0]["role"], "drive");
+  EXPECT_EQ(fields[0]["table1"].get<double>(), Materials().rho_so);
+  for (const json& f : fields) {
+    const MaterialField* known = FindMaterialField(f["name"].get<std::string>());
+    ASSERT_NE(known, nullptr) << f;
+    EXPECT_EQ(f["table1"].get<double>(), Materials().*known->member) << f;
+  }
+}
+
 }  // namespace
 }  // namespace sandswim

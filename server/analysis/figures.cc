@@ -1,5 +1,7 @@
 #include "server/analysis/figures.h"
 
+#include "core/materials.h"
+
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -20,6 +22,7 @@
 #include <plplot.h>
 
 #include "core/keys.h"
+#include "core/materials.h"
 #include "core/text.h"
 #include "core/trajectory.h"
 
@@ -592,15 +595,26 @@ Result<std::string> RenderPlot(const Plot& plot, ImageFormat format) {
 // ---- Builders ----------------------------------------------------------------------------------
 
 std::string PointLabel(const Point& p, const std::string& param) {
+  // Materials that are not Table 1's close every label (points differing only in them must not read
+  // alike); a swept material leads it, like a swept drive parameter.
+  const std::string materials = MaterialsLabel(p.materials);
+  const auto with_materials = [&](std::string label) {
+    return materials.empty() ? label : label + ", " + materials;
+  };
   const std::string omega = "Ω = " + Signed(p.Omega) + " rad/s";
-  if (param == "Omega") return omega;
-  if (param == "A") return "A = " + Num(p.A, 4) + " m, " + omega;
-  if (param == "f") return "f = " + Num(p.f, 4) + " Hz, " + omega;
+  if (param == "Omega") return with_materials(omega);
+  if (param == "A") return with_materials("A = " + Num(p.A, 4) + " m, " + omega);
+  if (param == "f") return with_materials("f = " + Num(p.f, 4) + " Hz, " + omega);
+  if (const MaterialField* m = FindMaterialField(param)) {
+    const std::string rest = MaterialsLabel(p.materials, m->name);
+    return std::string(m->name) + " = " + Num(p.materials.*m->member, 4) +
+           (m->unit.empty() ? "" : " " + std::string(m->unit)) + ", " + omega + (rest.empty() ? "" : ", " + rest);
+  }
   std::string label = std::string(ModeName(p.mode));
   if (p.has_vibration()) label += ", A = " + Num(p.A, 4) + " m, f = " + Num(p.f, 4) + " Hz";
   if (p.mode == Mode::kOscillatory) label += ", " + omega;
   if (p.has_constant_rotation()) label += ", ω = " + Num(p.omega, 4) + " rad/s (" + std::string(AxisName(p.axis)) + ")";
-  return label;
+  return with_materials(label);
 }
 
 Plot RunTrajectoryPlot(int64_t run_id, const Point& point, const api::Trajectory& trajectory,

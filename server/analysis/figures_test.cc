@@ -452,5 +452,24 @@ TEST_F(FigureCacheTest, NewDataMakesANewFileAndTheOldOneGoes) {
   EXPECT_EQ(files, 2);
 }
 
+// Points that differ only in their materials do not read alike: a label ends with the materials
+// that are not Table 1's, and a swept material leads it.
+TEST(FiguresTest, PointLabelsNameMaterialsThatAreNotTable1s) {
+  Point p;
+  p.mode = Mode::kOscillatory;
+  p.A = 0.03;
+  p.f = 3;
+  p.Omega = -80;
+  const std::string table1 = PointLabel(p, "");
+  EXPECT_EQ(table1.find("so_density"), std::string::npos) << table1;
+  p.materials.rho_so = 5000;
+  EXPECT_EQ(PointLabel(p, ""), table1 + ", so_density = 5000 kg/m^3");
+  EXPECT_EQ(PointLabel(p, "Omega"), "Ω = -80 rad/s, so_density = 5000 kg/m^3");
+  p.materials.mu_grain_grain = 0.3;
+  EXPECT_EQ(PointLabel(p, "so_density"), "so_density = 5000 kg/m^3, Ω = -80 rad/s, grain_friction = 0.3");
+  p.materials.rho_so = Materials().rho_so;  // the sweep's Table 1 point still names the swept field
+  EXPECT_EQ(PointLabel(p, "so_density"), "so_density = 2500 kg/m^3, Ω = -80 rad/s, grain_friction = 0.3");
+}
+
 }  // namespace
 }  // namespace sandswim

@@ -357,7 +357,14 @@ function decimate(t, z, max = 800) {
 
 const flagText = r => [r.precision_met ? 'target met' : '', r.broke_surface ? 'broke surface' : '', r.near_floor ? 'near floor' : '',
   r.conclusive === false ? 'inconclusive' : '', r.trending ? 'trend' : ''].filter(Boolean).join(', ');
-function resultColumns(withSweeps) {
+// The material parameters some row sets (`fields`: the results' material_fields), one column each;
+// a row without the field has Table 1's value (the API carries only those that are not).
+function materialColumns(fields, rows) {
+  return (fields || []).filter(f => rows.some(r => r[f.name] !== undefined)).map(f => ({
+    key: f.name, label: f.unit ? `${f.name} (${f.unit})` : f.name, num: true,
+    value: r => r[f.name] ?? f.table1, html: r => num(r[f.name] ?? f.table1) }));
+}
+function resultColumns(withSweeps, results) {
   const cols = [
     { key: 'run_id', label: 'run', num: true, html: r => `<a href="/runs/${r.run_id}">${r.run_id}</a>` },
     { key: 'mode', label: 'mode' },
@@ -365,6 +372,7 @@ function resultColumns(withSweeps) {
     { key: 'f', label: 'f (Hz)', num: true, html: r => num(r.f) },
     { key: 'Omega', label: 'Ω (rad/s)', num: true, html: r => num(r.Omega) },
     { key: 'omega', label: 'ω (rad/s)', num: true, html: r => num(r.omega) },
+    ...materialColumns(results && results.material_fields, (results && results.results) || []),
     { key: 'replicate', label: 'bed', num: true },
     { key: 'state', label: 'state', html: r => stateBadge(r.state) + (r.progress ? ` <span class="muted">${esc(r.progress)}</span>` : '') },
     { key: 'Uz', label: 'U_z (m/s)', num: true, html: r => esc(r.Uz_text || ''), value: r => r.Uz },
@@ -420,11 +428,15 @@ async function sweepUzPlot(el, sweep) {
   const param = axes.length === 1 ? axes[0].param : null;
   if (!param) { el.innerHTML = '<p class="muted">No single swept parameter: no U_z curve.</p>'; return false; }
   const generation = nav.generation;
-  const [results, fits] = await Promise.all([get(`/api/v1/sweeps/${sweep.id}/results?limit=1`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
+  // Every page: a page carries the aggregates of its own points only.
+  const [results, fits] = await Promise.all([getResults(`/api/v1/sweeps/${sweep.id}/results`), get(`/api/v1/sweeps/${sweep.id}/fits`).catch(() => null)]);
   if (!current(generation)) return false;
   const pts = (results.aggregates || []).filter(a => a.uz_mean !== undefined && a.conclusive > 0);
   if (!pts.length) { el.innerHTML = `<p class="muted">${esc(sweep.name)}: no conclusive U_z yet.</p>`; return false; }
-  const x = pts.map(a => a[param]), y = pts.map(a => a.uz_mean), err = pts.map(a => a.uz_ci95 ?? null);
+  // A swept material: a point at Table 1's value does not carry the field (material_fields says it).
+  const material = (results.material_fields || []).find(f => f.name === param);
+  const x = pts.map(a => a[param] ?? (material ? material.table1 : undefined)), y = pts.map(a => a.uz_mean), err = pts.map(a => a.uz_ci95 ?? null);
+  const xLabel = material && material.unit ? `${param} (${material.unit})` : param;
   const curves = [];
   for (const b of (fits && fits.branches) || []) {
     const lo = Math.min(...x), hi = Math.max(...x), grid = Array.from({ length: 60 }, (_, i) => lo + (hi - lo) * i / 59);
@@ -437,7 +449,7 @@ async function sweepUzPlot(el, sweep) {
       curves.push({ label: `fit: C3=${num(l.C3)}±${num(l.C3_stderr)} 1/s`, x: xs, y: xs.map(v => l.C3 * v) });
     }
   }
-  uzPlot(el, { title: `${sweep.name}: U_z against ${param}`, xLabel: param, yLabel: 'U_z (m/s)', x, y, err, curves });
+  uzPlot(el, { title: `${sweep.name}: U_z against ${param}`, xLabel, yLabel: 'U_z (m/s)', x, y, err, curves });
   return true;
 }
 
@@ -502,7 +514,7 @@ async function campaignRunPage(id) {
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
     <section class="card"><h2>U_z against the swept parameter</h2><div id="uz-plots" class="grid2"></div>
       <h2>Figures</h2><div id="figures" class="grid2"></div></section>`;
-  const table = dataTable($('#runs'), resultColumns(true), results.results || [], { filterPlaceholder: 'filter runs (e.g. "Omega done", "inconclusive")', rowId: r => r.run_id });
+  const table = dataTable($('#runs'), resultColumns(true, results), results.results || [], { filterPlaceholder: 'filter runs (e.g. "Omega done", "inconclusive")', rowId: r => r.run_id });
   performance.mark('runs-table');  // the page's first render with its runs (tests/bench/bench_dashboard.cc)
   followRows(table);
   onLive(snap => {
@@ -553,7 +565,7 @@ async function sweepPage(id) {
     <section class="card"><h2>The daemon's figures</h2><div class="grid2" id="figures">${sweep.counts.done > 0
       ? `<figure><img class="figure" alt="trajectories" loading="lazy" src="${esc(authed(`/api/v1/sweeps/${id}/trajectories.svg`))}"><figcaption>Δz(t) of every run</figcaption></figure>`
       : '<p class="muted">Drawn once runs have finished.</p>'}</div></section>`;
-  const table = dataTable($('#runs'), resultColumns(false), results.results || [], { rowId: r => r.run_id });
+  const table = dataTable($('#runs'), resultColumns(false, results), results.results || [], { rowId: r => r.run_id });
   followRows(table);
   $('#cancel').addEventListener('click', async () => {
     try {

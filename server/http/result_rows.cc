@@ -23,6 +23,7 @@
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 #include "core/aggregate.h"
+#include "core/materials.h"
 #include "core/result_table.h"
 #include "core/snapshot.h"
 #include "core/sweep.h"
@@ -244,7 +245,7 @@ void SendResults(Call& c, ResultsOf of) {
   }
   auto page = c.deps.store->ResultsPage(of, *id, after, rows);
   if (!page.ok()) return Fail(c, page.status());
-  json reply = {{"id", *id}, {"next_cursor", nullptr}};
+  json reply = {{"id", *id}, {"next_cursor", nullptr}, {"material_fields", MaterialFieldsJson()}};
   if (page->next) {
     const std::string cursor = CursorText(of, *page->next);
     const std::string next = ResultsPath(of, *id) + "?cursor=" + cursor + "&limit=" + std::to_string(rows);

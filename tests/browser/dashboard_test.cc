@@ -226,6 +226,26 @@ TEST_F(DashboardTest, SweepPageDrawsItsFigures) {
   EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
 }
 
+// A sweep over a material: its runs table has the material's column, with its unit, and the point
+// at Table 1's value shows that value (the row does not carry it).
+TEST_F(DashboardTest, AMaterialSweepShowsItsColumnWithTable1sValue) {
+  int status = 0;
+  json sweep = OmegaSweep("dash-density", {-80}, 1.5);
+  sweep["axes"] = json::array({{{"param", "so_density"}, {"values", {2500, 5000}}}});
+  const json made = daemon_->Post("/api/v1/sweeps", sweep, &status);
+  ASSERT_EQ(status, 201) << made.dump();
+  Open("/sweeps/" + std::to_string(made["id"].get<int64_t>()));
+  ASSERT_TRUE(browser_->WaitUntil("document.querySelectorAll('#runs tbody tr').length === 2", 20)) << browser_->Text("#main");
+  const std::string header = browser_->Text("#runs thead");
+  EXPECT_THAT(header, HasSubstr("so_density (kg/m^3)"));
+  const json cells = browser_->Script(
+      "const i = [...document.querySelectorAll('#runs thead th')].findIndex(th => th.textContent.includes('so_density'));"
+      "return [...document.querySelectorAll('#runs tbody tr')].map(tr => tr.children[i].textContent.trim()).sort();");
+  EXPECT_EQ(cells, json::array({"2500", "5000"})) << cells.dump();
+  Shot("material-sweep");
+  EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
+}
+
 // A bad sweep: the daemon's problem+json names the field, and the editor shows the reason next to
 // that field's line. Nothing is stored.
 TEST_F(DashboardTest, BadSweepShowsTheFieldErrorNextToTheField) {
