@@ -401,12 +401,7 @@ Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const ap
     if (!sha.ok()) return Status::FailedPrecondition(field, "upload snapshot " + std::to_string(snap.idx) + " first");
     if (*sha != Lower(snap.sha256))
       return Status::FailedPrecondition(field + ".sha256", "differs from the uploaded snapshot's checksum " + *sha);
-    Statement ins = t.Prepare(
-        "INSERT OR REPLACE INTO snapshots (run_id, idx, fraction, t_s, step, grains, bytes, sha256) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
-    ins.Bind(1, id).Bind(2, static_cast<int64_t>(snap.idx)).Bind(3, snap.fraction).Bind(4, snap.t_s);
-    ins.Bind(5, snap.step).Bind(6, snap.grains).Bind(7, snap.bytes).Bind(8, *sha);
-    SANDSWIM_RETURN_IF_ERROR(ins.Run());
+    SANDSWIM_RETURN_IF_ERROR(jobs::PutSnapshot(t, id, snap, *sha));
     kept.push_back(snap.idx);
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRunDone(t, id, r.sim_time_s, r.steps, now));
@@ -514,14 +509,8 @@ Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart() {
   const double until = clock_->Now() + options_.ttl_s;
   Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
-  int64_t extended = 0;
-  for (const char* table : {"runs", "beds"}) {
-    Statement st = begun->Prepare(std::string("UPDATE ") + table +
-                                  " SET lease_expires_at = ? WHERE state = 'running' AND lease_expires_at < ?");
-    st.Bind(1, until).Bind(2, until);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    extended += begun->Changes();
-  }
+  Result<int64_t> extended = jobs::ExtendRunningLeases(*begun, until);
+  if (!extended.ok()) return extended.status();
   SANDSWIM_RETURN_IF_ERROR(begun->Commit());
   return extended;
 }
@@ -609,11 +598,9 @@ Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string
     if (!t.ok()) return t.status();
     Result<LeaseRow> lease = CurrentUploadLease(*t, token, api::JobKind::kRun, options_.max_attempts);
     if (!lease.ok()) return lease.status();
-    Statement st = t->Prepare("SELECT snapshots FROM runs WHERE id = ?");
-    st.Bind(1, lease->job_id);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    Result<SnapshotFractions> asked = StoredSnapshotFractions(*row ? st.OptText(0) : std::nullopt);
+    Result<std::optional<std::string>> stored = jobs::SnapshotsAsked(*t, lease->job_id);
+    if (!stored.ok()) return stored.status();
+    Result<SnapshotFractions> asked = StoredSnapshotFractions(*stored);
     if (!asked.ok()) return asked.status();
     if (idx < 0 || static_cast<size_t>(idx) >= asked->size())
       return Status::InvalidArgument("n", "run " + std::to_string(lease->job_id) + " asked for " +
@@ -636,20 +623,12 @@ Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
   {
     Result<Transaction> t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
-    Statement st = t->Prepare("SELECT run_id, idx FROM snapshots");
-    while (true) {
-      Result<bool> row = st.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      recorded[st.Int(0)].push_back(static_cast<int>(st.Int(1)));
-    }
-    Statement live = t->Prepare("SELECT id FROM runs WHERE state = 'running'");
-    while (true) {
-      Result<bool> row = live.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      running.insert(live.Int(0));
-    }
+    Result<std::map<int64_t, std::vector<int>>> snapshots = jobs::RecordedSnapshots(*t);
+    if (!snapshots.ok()) return snapshots.status();
+    recorded = std::move(snapshots).value();
+    Result<std::set<int64_t>> live = jobs::RunningRunIds(*t);
+    if (!live.ok()) return live.status();
+    running = std::move(live).value();
   }
   int64_t removed = 0;
   for (const auto& entry : fs::directory_iterator(root, ec)) {
