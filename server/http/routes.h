@@ -75,8 +75,6 @@ void RegisterRoutes(httplib::Server& server, Deps& deps);
 // POST /api/v1/backup's copy (DATA/backups/) and an upload's body before it is checked and stored
 // (DATA/uploads/: bed restarts, snapshots). A daemon that died mid-request leaves its file there:
 // the next start empties both, returning how many files it removed.
-std::string BackupDir(const std::string& data_dir);
-std::string UploadDir(const std::string& data_dir);
 Result<int> ClearScratchDirs(const std::string& data_dir);
 
 

@@ -20,6 +20,7 @@
 #include "core/point.h"
 #include "core/scale.h"
 #include "core/trajectory.h"
+#include "platform/data_dir.h"
 #include "platform/files.h"
 #include "server/store/cost_model.h"
 
@@ -326,10 +327,13 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
 }
 
 Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, const api::Completion& c) {
+  // Snapshot files are read (if at all) before the write transaction, which other writers wait for.
+  Result<std::map<int, HashedFile>> snapshots = HashListedSnapshots(token, c);
+  if (!snapshots.ok()) return snapshots.status();
   return store_->db().WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
     const double now = clock_->Now();
     if (c.next) SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(*c.next, "next.slurm_job"));
-    Result<api::CompletionReply> reply = CompleteIn(t, token, c, now);
+    Result<api::CompletionReply> reply = CompleteIn(t, token, c, now, *snapshots);
     if (!reply.ok() || !c.next) return reply;
     if (reply->state == "duplicate") {
       // A retry: the reply to the first completion was lost, and with it the job it leased. That
@@ -346,8 +350,40 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, cons
   });
 }
 
+Result<std::map<int, LeaseQueue::HashedFile>> LeaseQueue::HashListedSnapshots(const std::string& token,
+                                                                               const api::Completion& c) {
+  std::map<int, HashedFile> out;
+  if (!c.ok || c.snapshots.empty() || options_.data_dir.empty()) return out;
+  int64_t run_id = 0;
+  {
+    Result<Transaction> t = store_->db().BeginRead();
+    if (!t.ok()) return t.status();
+    Result<LeaseRow> lease = jobs::FindLease(*t, token);
+    if (!lease.ok() || lease->kind != api::JobKind::kRun) return out;  // CompleteIn says why
+    run_id = lease->job_id;
+  }
+  const DataDir data(options_.data_dir);
+  for (const api::Snapshot& snap : c.snapshots) {
+    const std::string path = data.Snapshot(run_id, snap.idx);
+    Result<FileIdentity> now = IdentifyFile(path);
+    if (!now.ok()) continue;
+    {
+      std::lock_guard<std::mutex> lock(written_mu_);
+      auto it = written_snapshots_.find(path);
+      if (it != written_snapshots_.end() && it->second.identity == *now) {
+        out[snap.idx] = it->second;
+        continue;
+      }
+    }
+    Result<std::string> sha = Sha256OfFile(path);  // a file written before this daemon started
+    if (!sha.ok()) continue;
+    out[snap.idx] = HashedFile{*sha, *now};
+  }
+  return out;
+}
+
 Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::string& token, const api::Completion& c,
-                                                    double now) {
+                                                    double now, const std::map<int, HashedFile>& snapshots) {
   Result<LeaseRow> lease = jobs::FindLease(t, token);
   if (!lease.ok()) return lease.status();
   if (lease->completed) {
@@ -371,7 +407,7 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
   }
 
   Result<std::string> state =
-      c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now) : CompleteBed(t, id, c, now))
+      c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now, snapshots) : CompleteBed(t, id, c, now))
            : CompleteFailure(t, kind, id, *job, *c.failure, now);
   if (!state.ok()) return state.status();
   if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
@@ -388,7 +424,8 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
   return api::CompletionReply{*state};
 }
 
-Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now) {
+Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
+                                            const std::map<int, HashedFile>& snapshots) {
   const api::RunResult& r = *c.result;
   SANDSWIM_RETURN_IF_ERROR(jobs::PutResult(t, id, r, c.execution, now));
   if (c.trajectory) SANDSWIM_RETURN_IF_ERROR(jobs::PutTrajectory(t, id, *c.trajectory));
@@ -397,15 +434,26 @@ Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const ap
     const api::Snapshot& snap = c.snapshots[i];
     const std::string field = "snapshots[" + std::to_string(i) + "]";
     if (options_.data_dir.empty()) return Status::FailedPrecondition(field, "this daemon keeps no snapshots");
-    Result<std::string> sha = Sha256OfFile(SnapshotPath(options_.data_dir, id, snap.idx));
-    if (!sha.ok()) return Status::FailedPrecondition(field, "upload snapshot " + std::to_string(snap.idx) + " first");
-    if (*sha != Lower(snap.sha256))
-      return Status::FailedPrecondition(field + ".sha256", "differs from the uploaded snapshot's checksum " + *sha);
-    SANDSWIM_RETURN_IF_ERROR(jobs::PutSnapshot(t, id, snap, *sha));
+    auto hashed = snapshots.find(snap.idx);
+    if (hashed == snapshots.end())
+      return Status::FailedPrecondition(field, "upload snapshot " + std::to_string(snap.idx) + " first");
+    // The file hashed is still the one there (a stat, not a read), else a newer upload replaced it.
+    Result<FileIdentity> there = IdentifyFile(DataDir(options_.data_dir).Snapshot(id, snap.idx));
+    if (!there.ok() || *there != hashed->second.identity) {
+      return Status::Unavailable("snapshot " + std::to_string(snap.idx) +
+                                 "'s file was replaced while this completion was read; send the completion again");
+    }
+    const std::string& sha = hashed->second.sha256;
+    if (sha != Lower(snap.sha256))
+      return Status::FailedPrecondition(field + ".sha256", "differs from the uploaded snapshot's checksum " + sha);
+    SANDSWIM_RETURN_IF_ERROR(jobs::PutSnapshot(t, id, snap, sha));
     kept.push_back(snap.idx);
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRunDone(t, id, r.sim_time_s, r.steps, now));
-  if (!options_.data_dir.empty()) RemoveSnapshotFiles(options_.data_dir, id, kept);
+  if (!options_.data_dir.empty()) {
+    RemoveSnapshotFiles(options_.data_dir, id, kept);
+    ForgetWrittenSnapshots(id);
+  }
   return std::string("done");
 }
 
@@ -533,7 +581,7 @@ Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
 }
 
 Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view bytes, const std::string& sha256,
-                                 const std::string& data_dir) {
+                                 const std::string& data_dir, const std::string& upload_file) {
   const std::string expected = Lower(sha256);
   const std::string actual = Sha256Hex(bytes);
   if (expected != actual) {
@@ -557,8 +605,8 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
     if (!found.ok()) return found.status();
     key = found->second;
   }
-  const std::string path = (std::filesystem::path(data_dir) / "beds" / (key + ".restart")).string();
-  SANDSWIM_RETURN_IF_ERROR(WriteFileAtomically(path, bytes));
+  const std::string path = DataDir(data_dir).BedRestart(key);
+  SANDSWIM_RETURN_IF_ERROR(PlaceFile(path, bytes, upload_file));
   const double now = clock_->Now();
   Result<Transaction> t = store_->db().Begin();
   if (!t.ok()) return t.status();
@@ -583,7 +631,7 @@ Status LeaseQueue::CheckUploadLease(const std::string& token, api::JobKind kind,
 }
 
 Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string_view bytes,
-                                  const std::string& sha256) {
+                                  const std::string& sha256, const std::string& upload_file) {
   if (options_.data_dir.empty()) return Status::FailedPrecondition("n", "this daemon keeps no snapshots");
   const std::string actual = Sha256Hex(bytes);
   if (Lower(sha256) != actual) {
@@ -609,13 +657,27 @@ Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string
   }
   // A lease lost while the bytes are written leaves a file its completion never lists: the next
   // attempt overwrites it, and an unlisted one goes when the run completes or the daemon starts.
-  return WriteFileAtomically(SnapshotPath(options_.data_dir, run_id, idx), bytes);
+  const std::string path = DataDir(options_.data_dir).Snapshot(run_id, idx);
+  SANDSWIM_RETURN_IF_ERROR(PlaceFile(path, bytes, upload_file));
+  Result<FileIdentity> written = IdentifyFile(path);
+  if (written.ok()) {
+    std::lock_guard<std::mutex> lock(written_mu_);
+    written_snapshots_[path] = HashedFile{actual, *written};
+  }
+  return Status::Ok();
+}
+
+void LeaseQueue::ForgetWrittenSnapshots(int64_t run_id) {
+  const std::string dir = DataDir(options_.data_dir).RunSnapshots(run_id) + "/";
+  std::lock_guard<std::mutex> lock(written_mu_);
+  for (auto it = written_snapshots_.lower_bound(dir); it != written_snapshots_.end() && it->first.rfind(dir, 0) == 0;)
+    it = written_snapshots_.erase(it);
 }
 
 Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
   namespace fs = std::filesystem;
   if (options_.data_dir.empty()) return int64_t{0};
-  const fs::path root = fs::path(options_.data_dir) / "snapshots";
+  const fs::path root = DataDir(options_.data_dir).Snapshots();
   std::error_code ec;
   if (!fs::is_directory(root, ec)) return int64_t{0};
   std::map<int64_t, std::vector<int>> recorded;
