@@ -1,6 +1,12 @@
-// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the periodic jobs
+// sandswimd: the process. Flags -> Store, LeaseQueue, ApiServer, the periodic jobs
 // (server/periodic.h: lease expiry, the Slurm pilot watch, the scheduler's nightly reruns and drift
-// reports) and the local-worker supervisor; SIGTERM/SIGINT stop them in reverse order.
+// reports) and the local-worker supervisor; SIGTERM/SIGINT stop them in reverse order. Before it
+// serves, it recovers what a stopped daemon left, in this order, each step a call into the module
+// that owns it: results of an older analysis analysed again (Store::ReanalyzeOldResults), the
+// scratch directories emptied (ClearScratchDirs: unfinished backups and uploads), the running
+// jobs' leases extended by the outage (LeaseQueue::ExtendLeasesAfterRestart), snapshot files no
+// run recorded removed (LeaseQueue::RemoveUnrecordedSnapshots). A step that fails ends the start,
+// saying what to check.
 #include <signal.h>
 #include <unistd.h>
 

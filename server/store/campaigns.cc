@@ -93,7 +93,7 @@ Result<PutVersionResult> PutCampaignVersion(Store& store, const NewCampaignVersi
   if (!t.ok()) return t.status();
   PutVersionResult out;
   std::optional<int> current;
-  bool same_columns = false;  // the row's schedule and tolerance (Store::PutCampaign sets them apart)
+  bool same_columns = false;  // the row's schedule and tolerance (PutCampaign (campaigns.h) sets them apart)
   {
     Statement st = t->Prepare("SELECT version, schedule, drift_tolerance_mps FROM campaigns WHERE name = ?");
     st.Bind(1, v.name);

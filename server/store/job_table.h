@@ -1,7 +1,9 @@
 // Job table: the rows of the worker protocol -- beds and runs as jobs, and the leases granted on
-// them (tables beds, runs, leases, results, trajectories, run_logs, snapshots, sweeps) -- read and written
-// inside a caller's Transaction. The lease queue (lease_queue.h) decides what happens to a job
-// (its state machine); every SQL statement it needs lives here, named after what it does.
+// them (tables beds, runs, leases, results, trajectories, run_logs, snapshots, sweeps) -- read and
+// written inside a caller's Transaction. The lease queue (server/jobs/lease_queue.h) decides what
+// happens to a job (its state machine); the SQL of its statements lives here, each named after what
+// it does, but for the wall budget a grant carries (cost_model.h WallBudget). The rows a submission
+// writes are submission_table.h's.
 //
 // Nothing here commits, counts or logs events: the caller's transaction does, so a state change
 // and its audit event stay one atomic change.
