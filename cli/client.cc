@@ -1,5 +1,6 @@
 #include "cli/client.h"
 
+#include "platform/data_dir.h"
 #include "platform/tls.h"
 #include "platform/token.h"
 
@@ -388,7 +389,7 @@ Result<ClientOptions> ResolveClientOptions(const std::string& server_flag, const
   auto tls = ResolveTlsTrust(tls_fingerprint_flag, tls_ca_flag, getenv);
   if (!tls.ok()) return tls.status();
   options.tls = *tls;
-  const std::string own_cert = TlsDirIn(kDefaultDataDir) + "/cert.pem";
+  const std::string own_cert = SelfSignedCertificate(DataDir(kDefaultDataDir).Tls());
   if (parts[1].str() == "https" && tls->fingerprint.empty() && tls->ca_file.empty() && IsLoopbackHost(host) &&
       access(own_cert.c_str(), R_OK) == 0) {
     auto pinned = CertificateFingerprint(own_cert);

@@ -73,7 +73,7 @@ class DaemonClient {
     (void)name, (void)scale, (void)campaign_run_id;
     return Status::Unavailable("this client cannot fetch reports");
   }
-  // ---- Campaigns as data (issue 29; /work contract: GET/PUT/DELETE /api/v1/campaigns/{name}) ----
+  // ---- Campaigns as data (GET/PUT/DELETE /api/v1/campaigns/{name}) -------------------------------
   // GET /api/v1/campaigns: the "campaigns" array (built-in and stored; version, extends, schedule).
   virtual Result<nlohmann::json> ListCampaigns() { return Status::Unavailable("this client cannot list campaigns"); }
   // GET /api/v1/campaign-runs?campaign=NAME&limit=N: the "campaign_runs" array, newest first.

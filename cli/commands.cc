@@ -1112,7 +1112,7 @@ struct Command {
   int (*run)(Context&);
 };
 
-// ---- campaign ... and schedule: campaigns as data (issue 29) --------------------------------------
+// ---- campaign ... and schedule: campaigns as data -------------------------------------------------
 
 void AddScaleChoice(CLI::App& sub, Args& a, const std::string& help) {
   sub.add_option("--scale", a.scale, help)->check(CLI::IsMember({"paper", "mini", "smoke"}));

@@ -1,4 +1,4 @@
-// Claim-driven rounds (issue 31): a campaign with claims run in rounds, each planned from the
+// Claim-driven rounds: a campaign with claims run in rounds, each planned from the
 // claims still undecided, until every claim is decided, the budget is spent or the look schedule
 // ends. This file is the decision core; it runs nothing (the caller runs a round's orders and hands
 // back what they gave, as ClaimRuns).

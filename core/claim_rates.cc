@@ -12,7 +12,7 @@ namespace sandswim {
 namespace {
 
 constexpr const char* kTableDir = "templates/calibration/";
-// Below this power a verdict at the design says so and what would help (issue 26: "power 12 % at
+// Below this power a verdict at the design says so and what would help ("power 12 % at
 // this design: add replicates"): a rule that holds less often than not when its claim is true
 // cannot tell a false claim from a true one by its "holds".
 constexpr double kLowPower = 0.5;

@@ -264,7 +264,7 @@ struct ClaimVerdict {
 
 // The version of the rules above. Bump it with any change to what a rule decides: the committed
 // calibration tables (templates/calibration/) record it, and a table of another version is not
-// quoted. 1: the rules of issue 26's first redesign; 2: the variance model at the fitted |U_z|,
+// quoted. 1: the rules' first version; 2: the variance model at the fitted |U_z|,
 // F5's x drift tested with its error over the beds; 3: a point over its K beds by the stated rule
 // of core/aggregate.h (the sign from the beds' summed drift, censored beds counted; censored points'
 // lower estimates in F2's growth and, up to the hinge, its flattening).

@@ -28,12 +28,12 @@
 namespace sandswim {
 
 // The smoke bed (6,683 particles) driven on one rank of this project's 2-core machine: 1.4-1.8e6
-// particle-steps/s with the other core busy (issue 30); bench_engine_rate measured 6.3e5-1.0e6
+// particle-steps/s with the other core busy; bench_engine_rate measured 6.3e5-1.0e6
 // while the machine's load average was 10-11. The error says how far a new host may differ; any
 // measured run replaces it.
 inline constexpr double kDefaultSecondsPerParticleStep = 6.5e-7;
 inline constexpr double kDefaultRateRelError = 0.3;
-// A smoke bed of 6,682 grains took 708-840 s on one rank (issue 30; README's three beds).
+// A smoke bed of 6,682 grains took 708-840 s on one rank (README's three beds).
 inline constexpr double kDefaultBedSecondsPerGrain = 0.115;
 // A fitted rate is never claimed better than this: the host's other work comes and goes.
 inline constexpr double kMinRateRelError = 0.1;
@@ -62,7 +62,7 @@ struct RankRate {
   int ranks = 1;
   EngineRate rate;
 };
-// One smoke run on 2 ranks did 1.42x the particle-steps per second of one rank (issue 30, this
+// One smoke run on 2 ranks did 1.42x the particle-steps per second of one rank (this
 // project's 2-core machine, both cores free for it). For a rank count nothing was measured on, each
 // doubling of ranks is taken to be this much faster; the guess's relative error is
 // kDefaultRateRelError, added to the rate's own.

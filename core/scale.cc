@@ -40,7 +40,7 @@ namespace {
 // engine (README "The baseline on three replicate beds", 2026-11): between-bed sd 0.0088 m/s of
 // -0.0530 sinking (17 %), 0.0038 of 0.0973 rising (4 %); the larger is taken for every point, since
 // three beds fix neither well. paper and mini have no replicate measurement: none.
-// Why a prior and not K = 3 beds by default for paper-58 (issue 26 item 6), measured on the truth
+// Why a prior and not K = 3 beds by default for paper-58, measured on the truth
 // engine (bench_claims_calibration, 300 campaigns a law): one-bed point intervals covered the true
 // U_z 71 %, 90 % with this prior, 97 % on three beds; but three beds triple the engine time (86.5 ->
 // 258.5 s simulated a campaign, the demo's ~6 h -> ~18 h at smoke). Since rules 3 (a point over its

@@ -43,7 +43,7 @@
 //   - 30 Hz, Omega = -80 (a 0.5 s run made for this study): a launch of +36 mm in the first
 //     0.10 s (period rates 0.19, 0.31, 0.50 m/s), then rates of -0.25 .. +0.32 m/s about a slow
 //     swing of z (about 0.3 s, +-15 mm) with no sign of the launch after 0.13 s;
-//   - 1 Hz (issue 26's real run): 15.6 mm in the first second, 1.0 mm in the second.
+//   - 1 Hz (a real smoke run of LIGGGHTS): 15.6 mm in the first second, 1.0 mm in the second.
 // So the settling lasts 0.1-0.35 s wherever it was seen: transient_s = 0.3 s, as whole periods
 // (the window's phase stays the drive's), at least one: 1 period at 1-3 Hz (unchanged), 2 at
 // 4-6 Hz, 3 at 8-10 Hz, 6 at 20 Hz, 9 at 30 Hz; two 0.25 s blocks for constant rotation.

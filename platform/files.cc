@@ -2,9 +2,13 @@
 
 #include <openssl/evp.h>
 #include <openssl/rand.h>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -73,6 +77,38 @@ Status WriteFileAtomically(const std::string& path, std::string_view bytes) {
     return Status::IOError("cannot rename into " + path + ": " + ec.message());
   }
   return Status::Ok();
+}
+
+Status PlaceFile(const std::string& path, std::string_view bytes, const std::string& from) {
+  namespace fs = std::filesystem;
+  if (from.empty()) return WriteFileAtomically(path, bytes);
+  const int fd = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::IOError("cannot open " + from + ": " + std::strerror(errno));
+  const bool synced = ::fsync(fd) == 0;
+  ::close(fd);
+  if (!synced) return Status::IOError("cannot sync " + from + " (disk full?)");
+  std::error_code ec;
+  const fs::path target(path);
+  if (target.has_parent_path()) {
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) return Status::IOError("cannot create " + target.parent_path().string() + ": " + ec.message());
+  }
+  if (::rename(from.c_str(), path.c_str()) == 0) return Status::Ok();
+  if (errno != EXDEV) return Status::IOError("cannot rename " + from + " into " + path + ": " + std::strerror(errno));
+  SANDSWIM_RETURN_IF_ERROR(WriteFileAtomically(path, bytes));
+  fs::remove(from, ec);
+  return Status::Ok();
+}
+
+Result<FileIdentity> IdentifyFile(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return Status::NotFound(path + " does not exist");
+  FileIdentity id;
+  id.device = static_cast<uint64_t>(st.st_dev);
+  id.inode = static_cast<uint64_t>(st.st_ino);
+  id.size = static_cast<int64_t>(st.st_size);
+  id.mtime_ns = static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
+  return id;
 }
 
 }  // namespace sandswim

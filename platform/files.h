@@ -5,6 +5,7 @@
 #ifndef SANDSWIM_PLATFORM_FILES_H_
 #define SANDSWIM_PLATFORM_FILES_H_
 
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -22,6 +23,27 @@ Result<std::string> ReadWholeFile(const std::string& path);
 // Writes `bytes` to `path` through a temporary file beside it (fsync, then rename), so a reader
 // never sees half a file; makes the directory if needed. IOError saying what failed.
 Status WriteFileAtomically(const std::string& path, std::string_view bytes);
+
+// Puts `bytes` at `path` as WriteFileAtomically does, but when `from` names a file that holds
+// exactly those bytes (an upload received into a scratch file on the same disk), that file is
+// synced and renamed into place: written once, never copied. `from` is gone afterwards. A rename
+// the file system refuses (another disk) falls back to writing `bytes`.
+Status PlaceFile(const std::string& path, std::string_view bytes, const std::string& from);
+
+// What tells one file from another at a path without reading it: a file renamed over it, or
+// rewritten, has another identity.
+struct FileIdentity {
+  uint64_t device = 0;
+  uint64_t inode = 0;
+  int64_t size = 0;
+  int64_t mtime_ns = 0;
+  bool operator==(const FileIdentity& o) const {
+    return device == o.device && inode == o.inode && size == o.size && mtime_ns == o.mtime_ns;
+  }
+  bool operator!=(const FileIdentity& o) const { return !(*this == o); }
+};
+// kNotFound when nothing is at `path`.
+Result<FileIdentity> IdentifyFile(const std::string& path);
 
 }  // namespace sandswim
 

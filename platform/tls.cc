@@ -254,7 +254,7 @@ Result<std::string> ParseFingerprint(const std::string& text_in, const std::stri
   return out;
 }
 
-std::string TlsDirIn(const std::string& data_dir) { return data_dir + "/tls"; }
+std::string SelfSignedCertificate(const std::string& tls_dir) { return tls_dir + "/cert.pem"; }
 
 Result<TlsFiles> CheckCertificateFiles(const std::string& cert_path, const std::string& key_path) {
   auto cert = ReadCertificate(cert_path);
@@ -274,7 +274,7 @@ Result<TlsFiles> CheckCertificateFiles(const std::string& cert_path, const std::
 }
 
 Result<TlsFiles> LoadOrCreateSelfSigned(const std::string& dir, const std::vector<std::string>& names) {
-  const std::string cert = dir + "/cert.pem", key = dir + "/key.pem";
+  const std::string cert = SelfSignedCertificate(dir), key = dir + "/key.pem";
   const bool have_cert = access(cert.c_str(), F_OK) == 0, have_key = access(key.c_str(), F_OK) == 0;
   if (have_cert && have_key) {
     auto files = CheckCertificateFiles(cert, key);

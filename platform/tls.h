@@ -50,8 +50,8 @@ struct TlsFiles {
   std::string fingerprint;
   bool created = false;  // made on this start
 };
-// DATA/tls.
-std::string TlsDirIn(const std::string& data_dir);
+// The self-signed certificate in a TLS directory (DataDir::Tls): TLS_DIR/cert.pem.
+std::string SelfSignedCertificate(const std::string& tls_dir);
 // Reads DIR/cert.pem and DIR/key.pem when both exist (the key must be a regular file of this user,
 // not a link, mode 0600 or 0400), else makes them. `names`: more host names or IP addresses the
 // certificate is for, besides localhost, 127.0.0.1 and ::1.

@@ -18,8 +18,6 @@
 
 namespace sandswim {
 
-std::string TokenFileIn(const std::string& data_dir) { return data_dir + "/token"; }
-
 Result<std::string> LoadToken(const std::string& token_file, const std::function<const char*(const char*)>& getenv) {
   if (!token_file.empty()) {
     std::ifstream in(token_file);

@@ -4,7 +4,7 @@
 // The daemon (sandswimd) takes its token from, in this order:
 //   1. --token-file FILE (LoadToken: the file's contents, surrounding whitespace trimmed);
 //   2. $SANDSWIM_TOKEN (trimmed);
-//   3. else DATA/token (TokenFileIn(--data)): read when it exists, else made on this first start
+//   3. else DATA/token (DataDir::Token): read when it exists, else made on this first start
 //      (GenerateToken: 32 random bytes from OpenSSL's RAND_bytes, 64 hex digits) and written with
 //      mode 0600 (LoadOrCreateTokenFile); later starts reuse it.
 // --no-token (loopback only) serves without one. A token the operator gives (1 or 2) must hold at
@@ -26,6 +26,7 @@
 #include <string>
 
 #include "core/status.h"
+#include "platform/data_dir.h"
 
 namespace sandswim {
 
@@ -33,9 +34,6 @@ namespace sandswim {
 inline constexpr const char* kDefaultDataDir = "./var/data";
 // Random bytes in a token the daemon makes (256 bits).
 inline constexpr int kGeneratedTokenBytes = 32;
-
-// DATA/token.
-std::string TokenFileIn(const std::string& data_dir);
 
 // `token_file`'s contents when it is set (an unreadable or empty file is an error naming
 // "--token-file"), else $SANDSWIM_TOKEN, else "". `getenv` is injectable for tests.
@@ -65,11 +63,11 @@ Status CheckPrivateFd(int fd, const std::string& path, const std::string& field)
 Result<TokenFile> LoadOrCreateTokenFile(const std::string& path);
 
 // The client's rule (see the top of this file). `server_host` is the host part of the daemon's
-// URL; `default_file` is TokenFileIn(kDefaultDataDir) unless a test says otherwise. Returns "" when
+// URL; `default_file` is DataDir(kDefaultDataDir).Token() unless a test says otherwise. Returns "" when
 // no token is found.
 Result<std::string> LoadClientToken(const std::string& token_file, const std::string& server_host,
                                     const std::function<const char*(const char*)>& getenv = std::getenv,
-                                    const std::string& default_file = TokenFileIn(kDefaultDataDir));
+                                    const std::string& default_file = DataDir(kDefaultDataDir).Token());
 
 // True for "localhost", 127.0.0.0/8 and ::1 (brackets allowed: "[::1]").
 bool IsLoopbackHost(const std::string& host);

@@ -1,6 +1,12 @@
-// sandswimd: wiring only. Flags -> Store, LeaseQueue, ApiServer, the periodic jobs
+// sandswimd: the process. Flags -> Store, LeaseQueue, ApiServer, the periodic jobs
 // (server/periodic.h: lease expiry, the Slurm pilot watch, the scheduler's nightly reruns and drift
-// reports) and the local-worker supervisor; SIGTERM/SIGINT stop them in reverse order.
+// reports) and the local-worker supervisor; SIGTERM/SIGINT stop them in reverse order. Before it
+// serves, it recovers what a stopped daemon left, in this order, each step a call into the module
+// that owns it: results of an older analysis analysed again (Store::ReanalyzeOldResults), the
+// scratch directories emptied (ClearScratchDirs: unfinished backups and uploads), the running
+// jobs' leases extended by the outage (LeaseQueue::ExtendLeasesAfterRestart), snapshot files no
+// run recorded removed (LeaseQueue::RemoveUnrecordedSnapshots). A step that fails ends the start,
+// saying what to check.
 #include <signal.h>
 #include <unistd.h>
 
@@ -14,6 +20,7 @@
 #include <CLI/CLI.hpp>
 
 #include "platform/clock.h"
+#include "platform/data_dir.h"
 #include "platform/engine_probe.h"
 #include "platform/tls.h"
 #include "platform/token.h"
@@ -186,7 +193,7 @@ sandswim::Result<DaemonToken> ResolveToken(const Flags& flags) {
         "*** --no-token: serving WITHOUT A TOKEN. Every process and user on this machine (and every web page "
         "your browser opens that gets past the Host and Origin checks) may read and change this daemon's "
         "studies. Drop --no-token to serve with the token in {} ***",
-        sandswim::TokenFileIn(flags.data));
+        sandswim::DataDir(flags.data).Token());
     return out;
   }
   if (!flags.token_file.empty() || env_set) {
@@ -200,7 +207,7 @@ sandswim::Result<DaemonToken> ResolveToken(const Flags& flags) {
     out.file = flags.token_file;
     return out;
   }
-  auto file = sandswim::LoadOrCreateTokenFile(sandswim::TokenFileIn(flags.data));
+  auto file = sandswim::LoadOrCreateTokenFile(sandswim::DataDir(flags.data).Token());
   if (!file.ok()) return file.status();
   out.token = file->token;
   out.file = file->path;
@@ -252,7 +259,7 @@ sandswim::Result<std::optional<sandswim::TlsFiles>> ResolveTls(const Flags& flag
   names.push_back(address.host);
   char host[256] = {0};
   if (gethostname(host, sizeof(host) - 1) == 0) names.push_back(host);
-  auto files = sandswim::LoadOrCreateSelfSigned(sandswim::TlsDirIn(flags.data), names);
+  auto files = sandswim::LoadOrCreateSelfSigned(sandswim::DataDir(flags.data).Tls(), names);
   if (!files.ok()) return files.status();
   spdlog::info("{} the self-signed certificate {} (key {}, mode 0600)", files->created ? "made" : "using",
                files->cert, files->key);
@@ -416,7 +423,7 @@ int main(int argc, char** argv) {
     return Die(stale.status(), "check that --data " + flags.data + " is writable");
   } else if (*stale > 0) {
     spdlog::info("removed {} unfinished backup or upload file(s) left by an earlier daemon in {} and {}", *stale,
-                 sandswim::BackupDir(flags.data), sandswim::UploadDir(flags.data));
+                 sandswim::DataDir(flags.data).Backups(), sandswim::DataDir(flags.data).Uploads());
   }
   sandswim::SystemClock clock;
   sandswim::LeaseQueueOptions lease_options;
@@ -526,7 +533,7 @@ int main(int argc, char** argv) {
                          "--max-ranks",
                          slots,
                          "--workdir",
-                         flags.data + "/worker"};
+                         sandswim::DataDir(flags.data).Worker()};
   // A token from SANDSWIM_TOKEN reaches the workers through the environment; one from a file, as
   // that file.
   if (!token->file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", token->file});

@@ -1,4 +1,4 @@
-// End to end over HTTPS (issue 27): the real sandswimd serving with a self-signed certificate it
+// End to end over HTTPS: the real sandswimd serving with a self-signed certificate it
 // makes itself (--tls self-signed), a real sandswim-worker that pins the certificate's fingerprint
 // and runs a smoke run with LIGGGHTS on the shared smoke bed (ctest's smoke_bed fixture, handed in
 // through the worker protocol, over HTTPS too), and a worker with a wrong fingerprint that is

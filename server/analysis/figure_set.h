@@ -26,8 +26,9 @@ namespace sandswim {
 // baseline pair stays together, as in the paper's Fig. 4).
 std::vector<std::string> TrajectoryBranches(const SweepAnalysis& analysis);
 
-// The figures of a sweep. InvalidArgument ("plot") from RenderPlot when nothing is finished (or,
-// for a branch, none of its runs).
+// The figures of a sweep, as plots to draw (nothing is drawn here). With nothing finished (or, for
+// a branch, none of its runs) the plot has no series, and drawing it (RenderPlot, FigureCache) is
+// InvalidArgument ("plot").
 // `branch`: "" every run; "rising" the runs at Omega < 0; "sinking" those at Omega > 0.
 Plot SweepTrajectoriesFigure(const SweepAnalysis& analysis, const std::string& branch = "");
 Plot SweepUzFigure(const SweepAnalysis& analysis);

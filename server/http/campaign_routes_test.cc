@@ -1,4 +1,4 @@
-// The campaigns resource served for real (issue 29): a campaign of one's own stored, versioned,
+// The campaigns resource served for real: a campaign of one's own stored, versioned,
 // run, scheduled and deleted over HTTP, every refusal naming its field and storing nothing.
 #include <stdlib.h>
 

@@ -30,6 +30,7 @@
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "platform/data_dir.h"
 #include "platform/http_status.h"
 #include "server/store/campaigns.h"
 #include "server/store/cost_model.h"
@@ -53,7 +54,7 @@ namespace {
 
 // Figures live next to the results, keyed by their data (FigureCache): never stale.
 FigureCache FiguresOf(const Deps& deps) {
-  return FigureCache((std::filesystem::path(deps.data_dir) / "figures").string(), deps.renderer);
+  return FigureCache(DataDir(deps.data_dir).Figures(), deps.renderer);
 }
 
 // The HTML report and SVG figures are documents of their own, made by the daemon: inline styles
@@ -200,7 +201,7 @@ Result<FoundSnapshot> FindSnapshot(const Call& c) {
   if (!run.ok()) return run.status();
   const std::vector<api::Snapshot>& snapshots = run->snapshots;
   for (const api::Snapshot& s : snapshots) {
-    if (s.idx == *n) return FoundSnapshot{*id, run->summary.point, s, SnapshotPath(c.deps.data_dir, *id, s.idx)};
+    if (s.idx == *n) return FoundSnapshot{*id, run->summary.point, s, DataDir(c.deps.data_dir).Snapshot(*id, s.idx)};
   }
   return Status::NotFound("run " + std::to_string(*id) + " has no snapshot " + std::to_string(*n) + " (it has " +
                           std::to_string(snapshots.size()) +

@@ -30,6 +30,7 @@
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "platform/data_dir.h"
 #include "platform/http_status.h"
 #include "server/store/campaigns.h"
 #include "server/store/cost_model.h"
@@ -53,7 +54,7 @@ namespace {
 // DATA/backups/ and streamed; the file is removed once sent. A POST: it writes a file and costs a
 // whole copy, which no link or image of another page may start.
 void PostBackup(Call& c) {
-  const std::string dir = BackupDir(c.deps.data_dir);
+  const std::string dir = DataDir(c.deps.data_dir).Backups();
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Fail(c, Status::IOError("cannot create " + dir + ": " + ec.message()));
@@ -162,13 +163,9 @@ const std::vector<Route>& OperationsRoutes() {
 
 }  // namespace routes
 
-std::string BackupDir(const std::string& data_dir) { return data_dir + "/backups"; }
-
-std::string UploadDir(const std::string& data_dir) { return data_dir + "/uploads"; }
-
 Result<int> ClearScratchDirs(const std::string& data_dir) {
   int removed = 0;
-  for (const std::string& dir : {BackupDir(data_dir), UploadDir(data_dir)}) {
+  for (const std::string& dir : {DataDir(data_dir).Backups(), DataDir(data_dir).Uploads()}) {
     std::error_code ec;
     if (!std::filesystem::exists(dir, ec)) continue;
     for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {

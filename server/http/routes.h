@@ -27,7 +27,8 @@
 // need none when Deps::public_reads. Wrong tokens are logged and slowed per peer
 // (FailedAuthThrottle; 429 when too many wait at once); a correct token is never slowed.
 // Body limits: JSON bodies at most Deps::max_json_body bytes, bed restart uploads at most
-// Deps::max_restart_body (streamed to a file under data_dir); past the limit: 413.
+// Deps::max_restart_body, and so are snapshot uploads (streamed to a file under DATA/uploads, then
+// renamed into place by the lease queue); past the limit: 413.
 //
 // Ownership: Deps points at objects the caller owns; they must outlive the server.
 // Thread safety: handlers run on httplib's thread pool; Store and LeaseQueue are thread-safe.
@@ -72,11 +73,9 @@ std::vector<RouteInfo> RouteTable();
 void RegisterRoutes(httplib::Server& server, Deps& deps);
 
 // Scratch directories under DATA hold only what a request in flight writes, removed when it ends:
-// POST /api/v1/backup's copy (DATA/backups/) and an upload's body before it is checked and stored
+// POST /api/v1/backup's copy (DATA/backups/) and an upload's body before it is checked and renamed into place
 // (DATA/uploads/: bed restarts, snapshots). A daemon that died mid-request leaves its file there:
 // the next start empties both, returning how many files it removed.
-std::string BackupDir(const std::string& data_dir);
-std::string UploadDir(const std::string& data_dir);
 Result<int> ClearScratchDirs(const std::string& data_dir);
 
 

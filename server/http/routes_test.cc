@@ -24,6 +24,7 @@
 #include "core/point.h"
 #include "core/result_table.h"
 #include "core/sweep.h"
+#include "platform/data_dir.h"
 #include "platform/http_status.h"
 #include "server/http/loopback_server_test_util.h"
 #include "server/http/result_rows.h"
@@ -632,7 +633,7 @@ TEST_F(RoutesTest, WritesFromPagesOfOtherSitesAreRefused) {
 TEST_F(RoutesTest, BackupIsAPostAndOptionsApprovesNoOtherOrigin) {
   auto get = client_->Get("/api/v1/backup");
   EXPECT_EQ(get->status, 404);
-  EXPECT_FALSE(std::filesystem::exists(BackupDir(deps_.data_dir))) << "nothing was copied";
+  EXPECT_FALSE(std::filesystem::exists(DataDir(deps_.data_dir).Backups())) << "nothing was copied";
   auto post = client_->Post("/api/v1/backup", "{}", "application/json");
   EXPECT_EQ(post->status, 200);
   EXPECT_EQ(post->get_header_value("Content-Type"), "application/vnd.sqlite3");
@@ -1140,8 +1141,8 @@ TEST_F(RoutesTest, AnUploadUnderAWrongLeaseIsRefusedBeforeItsBodyIsRead) {
   const std::string snapshot = put("/api/v1/leases/" + bogus + "/snapshots/0");
   EXPECT_THAT(snapshot, ::testing::StartsWith("HTTP/1.1 409")) << snapshot.substr(0, 400);
   std::error_code ec;
-  const bool any_upload = std::filesystem::exists(UploadDir(deps_.data_dir), ec) &&
-                          !std::filesystem::is_empty(UploadDir(deps_.data_dir), ec);
+  const bool any_upload = std::filesystem::exists(DataDir(deps_.data_dir).Uploads(), ec) &&
+                          !std::filesystem::is_empty(DataDir(deps_.data_dir).Uploads(), ec);
   EXPECT_FALSE(any_upload) << "a refused upload reached the disk";
   // The lease itself still uploads on its own bed's path.
   const std::string restart = "restart bytes";

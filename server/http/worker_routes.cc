@@ -31,6 +31,7 @@
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "platform/data_dir.h"
 #include "platform/http_status.h"
 #include "server/store/campaigns.h"
 #include "server/store/cost_model.h"
@@ -119,7 +120,8 @@ class MappedFile {
 };
 
 // A request body received into a temporary file under DATA/uploads, mapped read-only, and
-// removed when this goes: an upload of any size reaches its store without a copy in memory.
+// removed when this goes unless the lease queue renamed it into place: an upload of any size
+// reaches its store without a copy in memory or a second one on disk.
 struct Upload {
   std::filesystem::path temp;
   MappedFile mapped;
@@ -135,7 +137,7 @@ struct Upload {
 // drains what the client still sends for a moment, so that the answer reaches it, not a reset).
 bool ReceiveUpload(Call& c, const std::string& name, const std::string& what, Upload& upload) {
   static std::atomic<uint64_t> upload_counter{0};
-  std::filesystem::path dir = UploadDir(c.deps.data_dir);
+  std::filesystem::path dir = DataDir(c.deps.data_dir).Uploads();
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) {
@@ -204,7 +206,7 @@ void UploadBedRestart(Call& c) {
   }
   Upload upload;
   if (!ReceiveUpload(c, "bed-" + std::to_string(*id), "a bed restart", upload)) return;
-  Status s = c.deps.leases->PutBedRestart(token, upload.mapped.view(), sha256, c.deps.data_dir);
+  Status s = c.deps.leases->PutBedRestart(token, upload.mapped.view(), sha256, c.deps.data_dir, upload.temp.string());
   if (!s.ok()) return Fail(c, s);
   SendJson(c, 200, {{"bed_id", *id}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
 }
@@ -220,7 +222,8 @@ void UploadRunSnapshot(Call& c) {
   }
   Upload upload;
   if (!ReceiveUpload(c, "snapshot", "a snapshot", upload)) return;
-  Status s = c.deps.leases->PutRunSnapshot(PathToken(c), static_cast<int>(*n), upload.mapped.view(), sha256);
+  Status s = c.deps.leases->PutRunSnapshot(PathToken(c), static_cast<int>(*n), upload.mapped.view(), sha256,
+                                          upload.temp.string());
   if (!s.ok()) return Fail(c, s);
   SendJson(c, 200, {{"n", *n}, {"sha256", sha256}, {"bytes", upload.mapped.view().size()}});
 }

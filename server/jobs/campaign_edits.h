@@ -1,5 +1,5 @@
-// Campaign edits: a user's campaign checked and stored as a new version, or deleted (issue 29;
-// the REST API's PUT and DELETE /api/v1/campaigns/{name}). The versions themselves, and what
+// Campaign edits: a user's campaign checked and stored as a new version, or deleted (the
+// REST API's PUT and DELETE /api/v1/campaigns/{name}). The versions themselves, and what
 // "the campaign NAME" means, are the store's (server/store/campaigns.h); this is the checking in
 // front of them, so that nothing is stored that would be refused later:
 //   1. the name (core/campaign_definition.h CheckCampaignName), not a built-in campaign's

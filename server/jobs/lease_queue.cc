@@ -20,6 +20,7 @@
 #include "core/point.h"
 #include "core/scale.h"
 #include "core/trajectory.h"
+#include "platform/data_dir.h"
 #include "platform/files.h"
 #include "server/store/cost_model.h"
 
@@ -326,10 +327,13 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
 }
 
 Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, const api::Completion& c) {
+  // Snapshot files are read (if at all) before the write transaction, which other writers wait for.
+  Result<std::map<int, HashedFile>> snapshots = HashListedSnapshots(token, c);
+  if (!snapshots.ok()) return snapshots.status();
   return store_->db().WriteResult<api::CompletionReply>([&](Transaction& t) -> Result<api::CompletionReply> {
     const double now = clock_->Now();
     if (c.next) SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(*c.next, "next.slurm_job"));
-    Result<api::CompletionReply> reply = CompleteIn(t, token, c, now);
+    Result<api::CompletionReply> reply = CompleteIn(t, token, c, now, *snapshots);
     if (!reply.ok() || !c.next) return reply;
     if (reply->state == "duplicate") {
       // A retry: the reply to the first completion was lost, and with it the job it leased. That
@@ -346,8 +350,40 @@ Result<api::CompletionReply> LeaseQueue::Complete(const std::string& token, cons
   });
 }
 
+Result<std::map<int, LeaseQueue::HashedFile>> LeaseQueue::HashListedSnapshots(const std::string& token,
+                                                                               const api::Completion& c) {
+  std::map<int, HashedFile> out;
+  if (!c.ok || c.snapshots.empty() || options_.data_dir.empty()) return out;
+  int64_t run_id = 0;
+  {
+    Result<Transaction> t = store_->db().BeginRead();
+    if (!t.ok()) return t.status();
+    Result<LeaseRow> lease = jobs::FindLease(*t, token);
+    if (!lease.ok() || lease->kind != api::JobKind::kRun) return out;  // CompleteIn says why
+    run_id = lease->job_id;
+  }
+  const DataDir data(options_.data_dir);
+  for (const api::Snapshot& snap : c.snapshots) {
+    const std::string path = data.Snapshot(run_id, snap.idx);
+    Result<FileIdentity> now = IdentifyFile(path);
+    if (!now.ok()) continue;
+    {
+      std::lock_guard<std::mutex> lock(written_mu_);
+      auto it = written_snapshots_.find(path);
+      if (it != written_snapshots_.end() && it->second.identity == *now) {
+        out[snap.idx] = it->second;
+        continue;
+      }
+    }
+    Result<std::string> sha = Sha256OfFile(path);  // a file written before this daemon started
+    if (!sha.ok()) continue;
+    out[snap.idx] = HashedFile{*sha, *now};
+  }
+  return out;
+}
+
 Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::string& token, const api::Completion& c,
-                                                    double now) {
+                                                    double now, const std::map<int, HashedFile>& snapshots) {
   Result<LeaseRow> lease = jobs::FindLease(t, token);
   if (!lease.ok()) return lease.status();
   if (lease->completed) {
@@ -371,7 +407,7 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
   }
 
   Result<std::string> state =
-      c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now) : CompleteBed(t, id, c, now))
+      c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now, snapshots) : CompleteBed(t, id, c, now))
            : CompleteFailure(t, kind, id, *job, *c.failure, now);
   if (!state.ok()) return state.status();
   if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
@@ -388,7 +424,8 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
   return api::CompletionReply{*state};
 }
 
-Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now) {
+Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
+                                            const std::map<int, HashedFile>& snapshots) {
   const api::RunResult& r = *c.result;
   SANDSWIM_RETURN_IF_ERROR(jobs::PutResult(t, id, r, c.execution, now));
   if (c.trajectory) SANDSWIM_RETURN_IF_ERROR(jobs::PutTrajectory(t, id, *c.trajectory));
@@ -397,20 +434,26 @@ Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const ap
     const api::Snapshot& snap = c.snapshots[i];
     const std::string field = "snapshots[" + std::to_string(i) + "]";
     if (options_.data_dir.empty()) return Status::FailedPrecondition(field, "this daemon keeps no snapshots");
-    Result<std::string> sha = Sha256OfFile(SnapshotPath(options_.data_dir, id, snap.idx));
-    if (!sha.ok()) return Status::FailedPrecondition(field, "upload snapshot " + std::to_string(snap.idx) + " first");
-    if (*sha != Lower(snap.sha256))
-      return Status::FailedPrecondition(field + ".sha256", "differs from the uploaded snapshot's checksum " + *sha);
-    Statement ins = t.Prepare(
-        "INSERT OR REPLACE INTO snapshots (run_id, idx, fraction, t_s, step, grains, bytes, sha256) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
-    ins.Bind(1, id).Bind(2, static_cast<int64_t>(snap.idx)).Bind(3, snap.fraction).Bind(4, snap.t_s);
-    ins.Bind(5, snap.step).Bind(6, snap.grains).Bind(7, snap.bytes).Bind(8, *sha);
-    SANDSWIM_RETURN_IF_ERROR(ins.Run());
+    auto hashed = snapshots.find(snap.idx);
+    if (hashed == snapshots.end())
+      return Status::FailedPrecondition(field, "upload snapshot " + std::to_string(snap.idx) + " first");
+    // The file hashed is still the one there (a stat, not a read), else a newer upload replaced it.
+    Result<FileIdentity> there = IdentifyFile(DataDir(options_.data_dir).Snapshot(id, snap.idx));
+    if (!there.ok() || *there != hashed->second.identity) {
+      return Status::Unavailable("snapshot " + std::to_string(snap.idx) +
+                                 "'s file was replaced while this completion was read; send the completion again");
+    }
+    const std::string& sha = hashed->second.sha256;
+    if (sha != Lower(snap.sha256))
+      return Status::FailedPrecondition(field + ".sha256", "differs from the uploaded snapshot's checksum " + sha);
+    SANDSWIM_RETURN_IF_ERROR(jobs::PutSnapshot(t, id, snap, sha));
     kept.push_back(snap.idx);
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRunDone(t, id, r.sim_time_s, r.steps, now));
-  if (!options_.data_dir.empty()) RemoveSnapshotFiles(options_.data_dir, id, kept);
+  if (!options_.data_dir.empty()) {
+    RemoveSnapshotFiles(options_.data_dir, id, kept);
+    ForgetWrittenSnapshots(id);
+  }
   return std::string("done");
 }
 
@@ -514,14 +557,8 @@ Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart() {
   const double until = clock_->Now() + options_.ttl_s;
   Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
-  int64_t extended = 0;
-  for (const char* table : {"runs", "beds"}) {
-    Statement st = begun->Prepare(std::string("UPDATE ") + table +
-                                  " SET lease_expires_at = ? WHERE state = 'running' AND lease_expires_at < ?");
-    st.Bind(1, until).Bind(2, until);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    extended += begun->Changes();
-  }
+  Result<int64_t> extended = jobs::ExtendRunningLeases(*begun, until);
+  if (!extended.ok()) return extended.status();
   SANDSWIM_RETURN_IF_ERROR(begun->Commit());
   return extended;
 }
@@ -544,7 +581,7 @@ Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {
 }
 
 Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view bytes, const std::string& sha256,
-                                 const std::string& data_dir) {
+                                 const std::string& data_dir, const std::string& upload_file) {
   const std::string expected = Lower(sha256);
   const std::string actual = Sha256Hex(bytes);
   if (expected != actual) {
@@ -568,8 +605,8 @@ Status LeaseQueue::PutBedRestart(const std::string& token, std::string_view byte
     if (!found.ok()) return found.status();
     key = found->second;
   }
-  const std::string path = (std::filesystem::path(data_dir) / "beds" / (key + ".restart")).string();
-  SANDSWIM_RETURN_IF_ERROR(WriteFileAtomically(path, bytes));
+  const std::string path = DataDir(data_dir).BedRestart(key);
+  SANDSWIM_RETURN_IF_ERROR(PlaceFile(path, bytes, upload_file));
   const double now = clock_->Now();
   Result<Transaction> t = store_->db().Begin();
   if (!t.ok()) return t.status();
@@ -594,7 +631,7 @@ Status LeaseQueue::CheckUploadLease(const std::string& token, api::JobKind kind,
 }
 
 Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string_view bytes,
-                                  const std::string& sha256) {
+                                  const std::string& sha256, const std::string& upload_file) {
   if (options_.data_dir.empty()) return Status::FailedPrecondition("n", "this daemon keeps no snapshots");
   const std::string actual = Sha256Hex(bytes);
   if (Lower(sha256) != actual) {
@@ -609,11 +646,9 @@ Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string
     if (!t.ok()) return t.status();
     Result<LeaseRow> lease = CurrentUploadLease(*t, token, api::JobKind::kRun, options_.max_attempts);
     if (!lease.ok()) return lease.status();
-    Statement st = t->Prepare("SELECT snapshots FROM runs WHERE id = ?");
-    st.Bind(1, lease->job_id);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    Result<SnapshotFractions> asked = StoredSnapshotFractions(*row ? st.OptText(0) : std::nullopt);
+    Result<std::optional<std::string>> stored = jobs::SnapshotsAsked(*t, lease->job_id);
+    if (!stored.ok()) return stored.status();
+    Result<SnapshotFractions> asked = StoredSnapshotFractions(*stored);
     if (!asked.ok()) return asked.status();
     if (idx < 0 || static_cast<size_t>(idx) >= asked->size())
       return Status::InvalidArgument("n", "run " + std::to_string(lease->job_id) + " asked for " +
@@ -622,13 +657,27 @@ Status LeaseQueue::PutRunSnapshot(const std::string& token, int idx, std::string
   }
   // A lease lost while the bytes are written leaves a file its completion never lists: the next
   // attempt overwrites it, and an unlisted one goes when the run completes or the daemon starts.
-  return WriteFileAtomically(SnapshotPath(options_.data_dir, run_id, idx), bytes);
+  const std::string path = DataDir(options_.data_dir).Snapshot(run_id, idx);
+  SANDSWIM_RETURN_IF_ERROR(PlaceFile(path, bytes, upload_file));
+  Result<FileIdentity> written = IdentifyFile(path);
+  if (written.ok()) {
+    std::lock_guard<std::mutex> lock(written_mu_);
+    written_snapshots_[path] = HashedFile{actual, *written};
+  }
+  return Status::Ok();
+}
+
+void LeaseQueue::ForgetWrittenSnapshots(int64_t run_id) {
+  const std::string dir = DataDir(options_.data_dir).RunSnapshots(run_id) + "/";
+  std::lock_guard<std::mutex> lock(written_mu_);
+  for (auto it = written_snapshots_.lower_bound(dir); it != written_snapshots_.end() && it->first.rfind(dir, 0) == 0;)
+    it = written_snapshots_.erase(it);
 }
 
 Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
   namespace fs = std::filesystem;
   if (options_.data_dir.empty()) return int64_t{0};
-  const fs::path root = fs::path(options_.data_dir) / "snapshots";
+  const fs::path root = DataDir(options_.data_dir).Snapshots();
   std::error_code ec;
   if (!fs::is_directory(root, ec)) return int64_t{0};
   std::map<int64_t, std::vector<int>> recorded;
@@ -636,20 +685,12 @@ Result<int64_t> LeaseQueue::RemoveUnrecordedSnapshots() {
   {
     Result<Transaction> t = store_->db().BeginRead();
     if (!t.ok()) return t.status();
-    Statement st = t->Prepare("SELECT run_id, idx FROM snapshots");
-    while (true) {
-      Result<bool> row = st.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      recorded[st.Int(0)].push_back(static_cast<int>(st.Int(1)));
-    }
-    Statement live = t->Prepare("SELECT id FROM runs WHERE state = 'running'");
-    while (true) {
-      Result<bool> row = live.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      running.insert(live.Int(0));
-    }
+    Result<std::map<int64_t, std::vector<int>>> snapshots = jobs::RecordedSnapshots(*t);
+    if (!snapshots.ok()) return snapshots.status();
+    recorded = std::move(snapshots).value();
+    Result<std::set<int64_t>> live = jobs::RunningRunIds(*t);
+    if (!live.ok()) return live.status();
+    running = std::move(live).value();
   }
   int64_t removed = 0;
   for (const auto& entry : fs::directory_iterator(root, ec)) {

@@ -53,6 +53,8 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -63,6 +65,7 @@
 #include "core/snapshot.h"
 #include "core/status.h"
 #include "platform/clock.h"
+#include "platform/files.h"
 #include "server/store/job_table.h"
 #include "server/store/snapshot_files.h"
 #include "server/store/store.h"
@@ -73,7 +76,8 @@ struct LeaseQueueOptions {
   double ttl_s = 60;         // lease lifetime; each heartbeat extends it by this much
   int max_attempts = 3;      // leases a job gets before a failure or expiry is final
   double wall_budget_s = 0;  // passed to workers in every grant (0: the cost model's, server/store/cost_model.h WallBudget)
-  // Where runs' snapshots are kept (SnapshotPath); empty: snapshot uploads are refused.
+  // The data directory (platform/data_dir.h) whose snapshots/ keeps runs' snapshots; empty:
+  // snapshot uploads are refused.
   std::string data_dir;
 };
 
@@ -86,7 +90,7 @@ void to_json(nlohmann::json& j, const CancelSummary& c);
 struct BedFile {
   int64_t bed_id = 0;
   std::string key;
-  std::string path;  // absolute or as given by data_dir: <data>/beds/<key>.restart
+  std::string path;  // absolute or as given by data_dir: DataDir::BedRestart(key)
   std::string sha256;
 };
 
@@ -143,20 +147,27 @@ class LeaseQueue {
   Result<CancelSummary> Cancel(int64_t sweep_id);
 
   // Stores a bed's restart file uploaded under a current bed lease: checks SHA-256 of `bytes`
-  // against `sha256` (kInvalidArgument "X-Sha256" on mismatch), writes
-  // <data_dir>/beds/<key>.restart atomically (temp file + rename) and records path and checksum.
-  // The bed stays running until Complete(). kConflict when the token is not a current bed lease.
+  // against `sha256` (kInvalidArgument "X-Sha256" on mismatch), puts them at
+  // DataDir(data_dir).BedRestart(key) atomically and records path and checksum. `upload_file`: the
+  // file that holds `bytes` (an HTTP upload's, under DATA/uploads), renamed into place rather than
+  // written again (platform/files.h PlaceFile); "" writes `bytes`. The bed stays running until
+  // Complete(). kConflict when the token is not a current bed lease.
   Status PutBedRestart(const std::string& token, std::string_view bytes, const std::string& sha256,
-                       const std::string& data_dir);
+                       const std::string& data_dir, const std::string& upload_file = "");
 
   // Stores snapshot `idx` of a run, uploaded under the run's current lease before its completion
   // lists it: checks `bytes` against `sha256` (kInvalidArgument "X-Sha256"), that it is a whole
   // full-bed snapshot (core/snapshot.h ParseBedSnapshot: kInvalidArgument "body") and that idx is
-  // one the run asked for (kInvalidArgument "n"), then writes SnapshotPath atomically. Nothing is
-  // recorded until Complete() lists it (api::Completion::snapshots); a completion that lists a
-  // snapshot not uploaded, or uploaded with other bytes, is refused (kFailedPrecondition). kConflict
-  // when the token is not a current run lease; kFailedPrecondition when the queue has no data_dir.
-  Status PutRunSnapshot(const std::string& token, int idx, std::string_view bytes, const std::string& sha256);
+  // one the run asked for (kInvalidArgument "n"), then puts them at DataDir::Snapshot atomically
+  // (`upload_file`: as for PutBedRestart). Nothing is recorded until Complete() lists it
+  // (api::Completion::snapshots); a completion that lists a snapshot not uploaded, or uploaded with
+  // other bytes, is refused (kFailedPrecondition). The bytes are hashed here, once: the completion
+  // compares the checksum it lists with this one while the file is still the one written (same
+  // identity), and hashes a file only when the daemon has not seen it written (after a restart),
+  // before its transaction opens. kConflict when the token is not a current run lease;
+  // kFailedPrecondition when the queue has no data_dir.
+  Status PutRunSnapshot(const std::string& token, int idx, std::string_view bytes, const std::string& sha256,
+                        const std::string& upload_file = "");
 
   // The lease check of PutBedRestart / PutRunSnapshot alone, made before an upload's body is read
   // (a body is written to disk as it arrives): kConflict when `token` is not a current,
@@ -175,8 +186,17 @@ class LeaseQueue {
  private:
   // The bodies of Lease and Complete, inside a caller's transaction at time `now`.
   Result<std::optional<api::LeaseGrant>> LeaseIn(Transaction& t, const api::LeaseRequest& request, double now);
+  // A file's checksum as of its identity (platform/files.h).
+  struct HashedFile {
+    std::string sha256;
+    FileIdentity identity;
+  };
   Result<api::CompletionReply> CompleteIn(Transaction& t, const std::string& token, const api::Completion& c,
-                                          double now);
+                                          double now, const std::map<int, HashedFile>& snapshots);
+  // The checksums of the snapshot files an ok run completion lists, by idx, found before its write
+  // transaction: those PutRunSnapshot wrote (not read again), else hashed now. A listed file that
+  // is missing is left out (CompleteRun refuses it); so is everything when `token` is no run lease.
+  Result<std::map<int, HashedFile>> HashListedSnapshots(const std::string& token, const api::Completion& c);
   // LeaseIn's candidates: fill `g` and return true when a bed (a run) is leasable.
   Result<bool> NextBed(Transaction& t, api::LeaseGrant& g);
   Result<bool> NextRun(Transaction& t, api::LeaseGrant& g, double now);
@@ -188,7 +208,8 @@ class LeaseQueue {
   };
   static Result<RunDeck> MakeRunDeck(const jobs::QueuedRun& run);
   // CompleteIn's outcomes: the state the job ends in.
-  Result<std::string> CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now);
+  Result<std::string> CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
+                                  const std::map<int, HashedFile>& snapshots);
   Result<std::string> CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now);
   Result<std::string> CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const jobs::JobRow& job,
                                       const api::Failure& f, double now);
@@ -197,6 +218,10 @@ class LeaseQueue {
   Clock* clock_;
   LeaseQueueOptions options_;
   ProgressObserver progress_observer_;
+  // The checksum of each snapshot file PutRunSnapshot wrote, by path, until its run completes.
+  void ForgetWrittenSnapshots(int64_t run_id);  // its run completed: the files are recorded or gone
+  std::mutex written_mu_;
+  std::map<std::string, HashedFile> written_snapshots_;  // guarded by written_mu_
 };
 
 }  // namespace sandswim

@@ -1,5 +1,8 @@
 #include "server/jobs/lease_queue.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +20,8 @@
 #include "core/sweep.h"
 #include "core/trajectory.h"
 #include "platform/clock.h"
+#include "platform/data_dir.h"
+#include "platform/files.h"
 #include "server/store/cost_model.h"
 #include "server/store/store.h"
 #include "server/jobs/submission.h"
@@ -879,7 +884,7 @@ TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
   ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 0, first, Sha256Hex(first)).ok());
   // The daemon starting again meanwhile leaves a running run's uploads for its completion.
   EXPECT_EQ(*queue_->RemoveUnrecordedSnapshots(), 0);
-  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 0)));
+  EXPECT_TRUE(fs::exists(DataDir(options_.data_dir).Snapshot(g.id, 0)));
   api::Completion c = OkRun();
   c.snapshots = {api::Snapshot{0, 0, 0, 0, 2, static_cast<int64_t>(first.size()), Sha256Hex(first)},
                  api::Snapshot{1, 1, 0.3, 30000, 2, static_cast<int64_t>(last.size()), Sha256Hex(last)}};
@@ -908,17 +913,113 @@ TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
   EXPECT_EQ(read->step, 30000);
   // A stray upload (a run whose attempt never completed) goes at the daemon's next start; the
   // recorded ones stay, and so do a running run's (its worker may still complete it).
-  const std::string stray = SnapshotPath(options_.data_dir, g.id + 100, 0);
+  const std::string stray = DataDir(options_.data_dir).Snapshot(g.id + 100, 0);
   fs::create_directories(fs::path(stray).parent_path());
   std::ofstream(stray) << first;
   auto removed = queue_->RemoveUnrecordedSnapshots();
   ASSERT_TRUE(removed.ok());
   EXPECT_EQ(*removed, 1);
   EXPECT_FALSE(fs::exists(stray));
-  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 0)));
-  EXPECT_TRUE(fs::exists(SnapshotPath(options_.data_dir, g.id, 1)));
+  EXPECT_TRUE(fs::exists(DataDir(options_.data_dir).Snapshot(g.id, 0)));
+  EXPECT_TRUE(fs::exists(DataDir(options_.data_dir).Snapshot(g.id, 1)));
 }
 
+
+// An upload received into a file under DATA/uploads is renamed into place: the stored restart and
+// snapshot are that very file (same inode), and no second copy is left behind.
+TEST_F(LeaseQueueTest, UploadsAreRenamedIntoPlaceNotCopied) {
+  options_.data_dir = (dir_ / "data").string();
+  OpenStore();
+  const DataDir data(options_.data_dir);
+  nlohmann::json sweep = OmegaSignSweep();
+  sweep["axes"][0]["values"] = {-80};
+  sweep["snapshots"] = {0};
+  SubmitJson(sweep);
+  auto received = [&](const std::string& name, const std::string& bytes) {
+    const std::string path = data.Uploads() + "/" + name;
+    fs::create_directories(data.Uploads());
+    std::ofstream(path, std::ios::binary) << bytes;
+    return path;
+  };
+  api::LeaseGrant bed = MustLease("bed-worker");
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  const std::string restart = "restart bytes";
+  const std::string restart_upload = received("bed.part", restart);
+  const uint64_t restart_inode = IdentifyFile(restart_upload)->inode;
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, restart, Sha256Hex(restart), data.root(), restart_upload).ok());
+  api::Completion c;
+  c.ok = true;
+  c.bed_result = api::BedResult{};
+  c.bed_result->sha256 = Sha256Hex(restart);
+  ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
+  auto file = queue_->GetBedRestart(bed.id);
+  ASSERT_TRUE(file.ok()) << file.status().ToString();
+  EXPECT_EQ(file->path, data.BedRestart(file->key));
+  EXPECT_EQ(IdentifyFile(file->path)->inode, restart_inode);
+  EXPECT_FALSE(fs::exists(restart_upload));
+
+  api::LeaseGrant g = MustLease();
+  ASSERT_EQ(g.kind, api::JobKind::kRun);
+  const std::string dump = SnapshotDump(0);
+  const std::string dump_upload = received("snapshot.part", dump);
+  const uint64_t dump_inode = IdentifyFile(dump_upload)->inode;
+  ASSERT_TRUE(queue_->PutRunSnapshot(g.token, 0, dump, Sha256Hex(dump), dump_upload).ok());
+  EXPECT_EQ(IdentifyFile(data.Snapshot(g.id, 0))->inode, dump_inode);
+  EXPECT_FALSE(fs::exists(dump_upload));
+  EXPECT_TRUE(fs::is_empty(data.Uploads()));
+}
+
+// A snapshot is hashed once, when it is uploaded: the completion compares its checksum with that
+// one (the file is still the one written: a stat), not with a second read of the file. A file
+// the daemon did not see written (it started again since) is hashed before the completion's
+// transaction, and a replaced one is still caught.
+TEST_F(LeaseQueueTest, ASnapshotIsHashedWhenUploadedAndTheCompletionComparesWithThat) {
+  options_.data_dir = (dir_ / "data").string();
+  OpenStore();
+  const DataDir data(options_.data_dir);
+  nlohmann::json sweep = OmegaSignSweep();
+  sweep["axes"][0]["values"] = {-80, -60};
+  sweep["snapshots"] = {0};
+  SubmitJson(sweep);
+  PrepareBed();
+  const std::string dump = SnapshotDump(0);
+  api::Completion c = OkRun();
+  c.snapshots = {api::Snapshot{0, 0, 0, 0, 2, static_cast<int64_t>(dump.size()), Sha256Hex(dump)}};
+
+  // Written by PutRunSnapshot: its bytes are then changed behind the daemon's back with the file's
+  // size and time kept; the completion goes by the checksum taken at upload, so it never re-read it.
+  api::LeaseGrant first = MustLease();
+  ASSERT_TRUE(queue_->PutRunSnapshot(first.token, 0, dump, Sha256Hex(dump)).ok());
+  const std::string path = data.Snapshot(first.id, 0);
+  const FileIdentity before = *IdentifyFile(path);
+  {
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(0);
+    f.put('#');
+  }
+  const struct timespec times[2] = {{0, UTIME_OMIT},
+                                    {static_cast<time_t>(before.mtime_ns / 1000000000), before.mtime_ns % 1000000000}};
+  ASSERT_EQ(utimensat(AT_FDCWD, path.c_str(), times, 0), 0);
+  ASSERT_EQ(*IdentifyFile(path), before);
+  ASSERT_NE(*Sha256OfFile(path), Sha256Hex(dump));
+  auto done = queue_->Complete(first.token, c);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->state, "done");
+
+  // After a restart the daemon has seen no upload: it hashes the file, and a file replaced with
+  // other bytes is refused as before.
+  api::LeaseGrant second = MustLease();
+  ASSERT_TRUE(queue_->PutRunSnapshot(second.token, 0, dump, Sha256Hex(dump)).ok());
+  OpenStore();
+  ASSERT_TRUE(WriteFileAtomically(data.Snapshot(second.id, 0), SnapshotDump(30000)).ok());
+  auto refused = queue_->Complete(second.token, c);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().field(), "snapshots[0].sha256");
+  ASSERT_TRUE(WriteFileAtomically(data.Snapshot(second.id, 0), dump).ok());
+  auto after_restart = queue_->Complete(second.token, c);
+  ASSERT_TRUE(after_restart.ok()) << after_restart.status().ToString();
+  EXPECT_EQ(after_restart->state, "done");
+}
 
 // A daemon that was down longer than a lease TTL: at start-up the running jobs' leases run one TTL
 // from now, so their workers' next heartbeats land instead of the runs being leased again.

@@ -10,6 +10,7 @@
 #include "server/store/campaigns.h"
 #include "server/store/job_table.h"
 #include "server/store/rounds.h"
+#include "server/store/submission_table.h"
 
 namespace sandswim {
 namespace {
@@ -166,36 +167,25 @@ std::string Fingerprint(const SubmitRequest& req, const std::vector<SweepSpec>& 
 Result<std::optional<SubmitResult>> Replayed(Transaction& t, const SubmitRequest& req, const std::string& fingerprint) {
   using Out = std::optional<SubmitResult>;
   if (req.idempotency_key) {
-    Statement st = t.Prepare("SELECT fingerprint, response FROM submissions WHERE idempotency_key = ?");
-    st.Bind(1, *req.idempotency_key);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (*row) {
-      if (st.Text(0) != fingerprint) {
+    Result<std::optional<submissions::StoredSubmission>> stored =
+        submissions::FindByIdempotencyKey(t, *req.idempotency_key);
+    if (!stored.ok()) return stored.status();
+    if (*stored) {
+      if ((*stored)->fingerprint != fingerprint) {
         return Status(StatusCode::kConflict, "this Idempotency-Key was used with a different request",
                       "Idempotency-Key");
       }
-      Result<SubmitResult> prior = ResultFromJson(st.Text(1));
+      Result<SubmitResult> prior = ResultFromJson((*stored)->response);
       if (!prior.ok()) return prior.status();
       prior->replayed = true;
       return Out(std::move(prior).value());
     }
   }
   if (req.trigger == "schedule") {
-    Statement st = t.Prepare("SELECT id FROM campaign_runs WHERE campaign = ? AND due_time = ?");
-    st.Bind(1, *req.campaign).Bind(2, *req.due_time);
-    Result<bool> row = st.Step();
-    if (!row.ok()) return row.status();
-    if (*row) {
-      int64_t id = st.Int(0);
-      Statement s2 = t.Prepare(
-          "SELECT sub.response FROM sweeps s JOIN submissions sub ON sub.id = s.submission_id "
-          "WHERE s.campaign_run_id = ? LIMIT 1");
-      s2.Bind(1, id);
-      Result<bool> r2 = s2.Step();
-      if (!r2.ok()) return r2.status();
-      if (!*r2) return Status::Corruption("campaign run " + std::to_string(id) + " has no sweeps");
-      Result<SubmitResult> prior = ResultFromJson(s2.Text(0));
+    Result<std::optional<std::string>> response = submissions::ScheduledRunResponse(t, *req.campaign, *req.due_time);
+    if (!response.ok()) return response.status();
+    if (*response) {
+      Result<SubmitResult> prior = ResultFromJson(**response);
       if (!prior.ok()) return prior.status();
       prior->replayed = true;
       return Out(std::move(prior).value());
@@ -204,28 +194,18 @@ Result<std::optional<SubmitResult>> Replayed(Transaction& t, const SubmitRequest
   return Out();
 }
 
-Result<int64_t> InsertSubmission(Transaction& t, const SubmitRequest& req, const std::string& fingerprint, double now) {
-  Statement st = t.Prepare(
-      "INSERT INTO submissions (idempotency_key, fingerprint, response, created_at) "
-      "VALUES (?, ?, '{}', ?)");
-  st.Bind(1, req.idempotency_key).Bind(2, fingerprint).Bind(3, now);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
-  return t.LastInsertId();
-}
-
 // The campaign run's row, with the definition it runs: the campaign's version (0: built-in), its
 // resolved definition and that definition's SHA-256, so that its claims, report and drift read
 // what ran whatever the campaign becomes.
 Result<int64_t> InsertCampaignRun(Transaction& t, const SubmitRequest& req, const CatalogueEntry& campaign,
                                   const std::string& campaign_scale, double now) {
-  Statement st = t.Prepare(
-      "INSERT INTO campaign_runs (campaign, scale, trigger, due_time, created_at, campaign_version, definition, "
-      "definition_sha256) VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
-  st.Bind(1, *req.campaign).Bind(2, campaign_scale).Bind(3, req.trigger);
-  st.Bind(4, req.due_time).Bind(5, now).Bind(6, campaign.version);
-  st.Bind(7, campaign.definition.dump()).Bind(8, DefinitionSha256(campaign.definition));
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
-  const int64_t id = t.LastInsertId();
+  submissions::NewCampaignRun row{*req.campaign,      campaign_scale,
+                                  req.trigger,         req.due_time,
+                                  campaign.version,    campaign.definition.dump(),
+                                  DefinitionSha256(campaign.definition)};
+  Result<int64_t> inserted = submissions::InsertCampaignRun(t, row, now);
+  if (!inserted.ok()) return inserted.status();
+  const int64_t id = *inserted;
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.created", "campaign_run/" + std::to_string(id),
                                    {{"campaign", *req.campaign},
                                     {"trigger", req.trigger},
@@ -239,14 +219,11 @@ Result<std::vector<int64_t>> InsertSweeps(Transaction& t, const std::vector<Swee
                                           double now) {
   std::vector<int64_t> ids(sweeps.size());
   for (size_t i = 0; i < sweeps.size(); ++i) {
-    nlohmann::json spec = SweepToJson(sweeps[i]);
-    Statement st = t.Prepare(
-        "INSERT INTO sweeps (name, scale, spec, campaign_run_id, submission_id, force, created_at)"
-        " VALUES (?, ?, ?, ?, ?, ?, ?)");
-    st.Bind(1, sweeps[i].name).Bind(2, sweeps[i].scale).Bind(3, spec.dump());
-    st.Bind(4, campaign_run_id).Bind(5, submission_id).Bind(6, force).Bind(7, now);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-    ids[i] = t.LastInsertId();
+    submissions::NewSweep row{sweeps[i].name, sweeps[i].scale, SweepToJson(sweeps[i]).dump(), campaign_run_id,
+                              submission_id,  force};
+    Result<int64_t> id = submissions::InsertSweep(t, row, now);
+    if (!id.ok()) return id.status();
+    ids[i] = *id;
   }
   return ids;
 }
@@ -264,33 +241,18 @@ Result<SubmittedBed> UpsertBed(Transaction& t, const std::string& scale, const P
                                const std::string& engine_version, double now) {
   // engine_version: what the run keys on this bed were made with, so a deck rendered again
   // at lease time can be checked against its run's key (the bed key covers it too).
-  Statement ins = t.Prepare(
-      "INSERT INTO beds (key, scale, deck, state, created_at, engine_version, replicate, seed_pour1, seed_pour2) "
-      "VALUES (?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
-      "ON CONFLICT (key) DO UPDATE SET engine_version = excluded.engine_version "
-      "WHERE engine_version IS NULL");
-  ins.Bind(1, bed.key).Bind(2, scale).Bind(3, bed.deck).Bind(4, now);
-  ins.Bind(5, engine_version).Bind(6, static_cast<int64_t>(bed.replicate));
-  ins.Bind(7, static_cast<int64_t>(bed.seeds.pour1)).Bind(8, static_cast<int64_t>(bed.seeds.pour2));
-  SANDSWIM_RETURN_IF_ERROR(ins.Run());
-  Statement sel = t.Prepare("SELECT id, state, last_error_kind, last_error FROM beds WHERE key = ?");
-  sel.Bind(1, bed.key);
-  Result<bool> row = sel.Step();
+  SANDSWIM_RETURN_IF_ERROR(submissions::InsertBedIfNew(t, scale, bed, engine_version, now));
+  Result<submissions::BedByKey> row = submissions::FindBed(t, bed.key);
   if (!row.ok()) return row.status();
-  if (!*row) return Status::Internal("bed row vanished");
-  const int64_t bed_id = sel.Int(0);
-  if (sel.Text(1) == "failed" && sel.Text(2) == "not_equilibrated") {
+  const int64_t bed_id = row->id;
+  if (row->state == "failed" && row->last_error_kind == "not_equilibrated") {
     return SubmittedBed{bed_id, "bed " + std::to_string(bed_id) + " (" + scale + ", replicate " +
-                                    std::to_string(bed.replicate) + ") failed for good: " + sel.Text(3) +
+                                    std::to_string(bed.replicate) + ") failed for good: " + row->last_error +
                                     " Preparing it again would give the same bed, so it is not retried. "
                                     "Other replicates (\"replicates\") pour beds from other seeds."};
   }
-  if (sel.Text(1) == "failed") {
-    Statement up = t.Prepare(
-        "UPDATE beds SET state = 'queued', attempts = 0, lease_token = NULL, "
-        "lease_expires_at = NULL, last_error_kind = NULL, last_error = NULL WHERE id = ?");
-    up.Bind(1, bed_id);
-    SANDSWIM_RETURN_IF_ERROR(up.Run());
+  if (row->state == "failed") {
+    SANDSWIM_RETURN_IF_ERROR(submissions::RequeueFailedBed(t, bed_id));
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
   }
   return SubmittedBed{bed_id, std::nullopt};
@@ -305,14 +267,7 @@ Status ReuseRun(Transaction& t, int64_t run_id, const std::string& state, bool f
     return Status::Ok();
   }
   // The old result row (if any) stays until the new completion replaces it.
-  Statement up = t.Prepare(
-      "UPDATE runs SET state = 'queued', attempts = 0, lease_token = NULL, "
-      "lease_expires_at = NULL, worker = NULL, sim_time_s = NULL, so_z = NULL, "
-      "step = NULL, heartbeat_at = NULL, cancel_requested = 0, queued_at = ?, "
-      "started_at = NULL, finished_at = NULL, last_error_kind = NULL, last_error = NULL "
-      "WHERE id = ?");
-  up.Bind(1, now).Bind(2, run_id);
-  SANDSWIM_RETURN_IF_ERROR(up.Run());
+  SANDSWIM_RETURN_IF_ERROR(submissions::RequeueRun(t, run_id, now));
   SANDSWIM_RETURN_IF_ERROR(
       t.Event(now, "run.requeued", "run/" + std::to_string(run_id), {{"from", state}, {"force", force}}));
   ++out.runs_requeued;
@@ -324,61 +279,25 @@ Status ReuseRun(Transaction& t, int64_t run_id, const std::string& state, bool f
 Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>& bed_ids,
                  const std::map<std::string, int64_t>& id_by_name, bool force, double now,
                  std::map<int64_t, int64_t>& next_position, SubmitResult& out) {
-  // One prepared statement each, reused for every row (100,000 rows in one transaction).
-  Statement ins = t.Prepare(
-      "INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-      "run_duration_s, steps, state, created_at, queued_at, precision, snapshots, materials) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
-      "ON CONFLICT (key) DO NOTHING");
-  Statement sel = t.Prepare("SELECT id, state FROM runs WHERE key = ?");
-  Statement sr = t.Prepare(
-      "INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
-      "ON CONFLICT DO NOTHING");
+  submissions::RunRows rows(t);  // its statements prepared once for every row (100,000 in one transaction)
   for (const PlannedRun& r : g.plan.runs) {
+    Result<std::optional<int64_t>> inserted = rows.InsertIfNew(r, bed_ids.at(r.bed), now);
+    if (!inserted.ok()) return inserted.status();
     int64_t run_id = 0;
-    ins.Reset();
-    ins.Bind(1, r.key).Bind(2, bed_ids.at(r.bed)).Bind(3, ModeName(r.point.mode)).Bind(4, r.point.A);
-    ins.Bind(5, r.point.f).Bind(6, r.point.Omega).Bind(7, r.point.omega);
-    ins.Bind(8, AxisName(r.point.axis)).Bind(9, r.point.duration_s);
-    ins.Bind(10, r.run_duration_s).Bind(11, static_cast<int64_t>(r.steps));
-    ins.Bind(12, now).Bind(13, now);
-    if (r.precision) {
-      ins.Bind(14, PrecisionToJson(*r.precision).dump());
-    } else {
-      ins.BindNull(14);
-    }
-    if (auto text = SnapshotFractionsText(r.snapshots)) {
-      ins.Bind(15, *text);
-    } else {
-      ins.BindNull(15);
-    }
-    if (auto text = MaterialsText(r.point.materials)) {
-      ins.Bind(16, *text);
-    } else {
-      ins.BindNull(16);
-    }
-    SANDSWIM_RETURN_IF_ERROR(ins.Run());
-    if (t.Changes() == 1) {
-      run_id = t.LastInsertId();
+    if (*inserted) {
+      run_id = **inserted;
       ++out.runs_new;
     } else {
-      sel.Reset();
-      sel.Bind(1, r.key);
-      Result<bool> row = sel.Step();
-      if (!row.ok()) return row.status();
-      if (!*row) return Status::Internal("run row vanished");
-      run_id = sel.Int(0);
-      const std::string state = sel.Text(1);
-      sel.Reset();
-      SANDSWIM_RETURN_IF_ERROR(ReuseRun(t, run_id, state, force, now, out));
+      Result<submissions::RunRows::Existing> existing = rows.Find(r.key);
+      if (!existing.ok()) return existing.status();
+      run_id = existing->id;
+      SANDSWIM_RETURN_IF_ERROR(ReuseRun(t, run_id, existing->state, force, now, out));
     }
     ++out.runs;
     for (const std::string& name : r.sweeps) {
       auto it = id_by_name.find(name);
       if (it == id_by_name.end()) return Status::Internal("plan names unknown sweep " + name);
-      sr.Reset();
-      sr.Bind(1, it->second).Bind(2, run_id).Bind(3, next_position[it->second]++);
-      SANDSWIM_RETURN_IF_ERROR(sr.Run());
+      SANDSWIM_RETURN_IF_ERROR(rows.AddToSweep(it->second, run_id, next_position[it->second]++));
     }
   }
   return Status::Ok();
@@ -386,25 +305,9 @@ Status WriteRuns(Transaction& t, const ScalePlan& g, const std::vector<int64_t>&
 
 // Each new sweep's counts by state (sweep_counts, schema/003_perf.sql), from its membership rows,
 // in this transaction (one aggregate per sweep instead of a trigger per row), and its event.
-Status RecountSweeps(Transaction& t, const std::vector<int64_t>& sweep_ids) {
-  Statement recount = t.Prepare(
-      "UPDATE sweep_counts SET (queued, running, done, failed, cancelled) = ("
-      "SELECT COALESCE(SUM(r.state = 'queued'), 0), COALESCE(SUM(r.state = 'running'), 0), "
-      "COALESCE(SUM(r.state = 'done'), 0), COALESCE(SUM(r.state = 'failed'), 0), "
-      "COALESCE(SUM(r.state = 'cancelled'), 0) "
-      "FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE sr.sweep_id = ?1) "
-      "WHERE sweep_id = ?1");
-  for (int64_t id : sweep_ids) {
-    recount.Reset();
-    recount.Bind(1, id);
-    SANDSWIM_RETURN_IF_ERROR(recount.Run());
-  }
-  return Status::Ok();
-}
-
 Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const std::vector<int64_t>& sweep_ids,
                     std::map<int64_t, int64_t>& runs_of, double now) {
-  SANDSWIM_RETURN_IF_ERROR(RecountSweeps(t, sweep_ids));
+  SANDSWIM_RETURN_IF_ERROR(submissions::RecountSweeps(t, sweep_ids));
   for (size_t i = 0; i < sweeps.size(); ++i) {
     SANDSWIM_RETURN_IF_ERROR(
         t.Event(now, "sweep.submitted", "sweep/" + std::to_string(sweep_ids[i]),
@@ -419,10 +322,9 @@ Status FinishSweeps(Transaction& t, const std::vector<SweepSpec>& sweeps, const 
 Status CheckQueueCap(Transaction& t, int64_t cap, const SubmitResult& out) {
   const int64_t added = out.runs_new + out.runs_requeued - out.runs_failed_bed;
   if (added <= 0) return Status::Ok();
-  Statement st = t.Prepare("SELECT COUNT(*) FROM runs WHERE state IN ('queued', 'running')");
-  Result<bool> row = st.Step();
-  if (!row.ok()) return row.status();
-  const int64_t queued = st.Int(0);
+  Result<int64_t> counted = submissions::CountQueuedOrRunning(t);
+  if (!counted.ok()) return counted.status();
+  const int64_t queued = *counted;
   if (queued <= cap) return Status::Ok();
   return Status(StatusCode::kUnavailable,
                 std::to_string(queued - added) + " runs are queued or running and this submission would add " +
@@ -472,7 +374,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
   if (*replayed) return std::move(**replayed);
 
   SubmitResult out;
-  Result<int64_t> submission_id = InsertSubmission(t, req, fingerprint, now);
+  Result<int64_t> submission_id = submissions::Insert(t, req.idempotency_key, fingerprint, now);
   if (!submission_id.ok()) return submission_id.status();
   if (campaign) {
     Result<int64_t> id = InsertCampaignRun(t, req, *campaign, campaign_scale, now);
@@ -506,11 +408,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
   SANDSWIM_RETURN_IF_ERROR(CheckQueueCap(t, req.max_queued_runs, out));
   SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
   nlohmann::json response = out;
-  {
-    Statement st = t.Prepare("UPDATE submissions SET response = ? WHERE id = ?");
-    st.Bind(1, response.dump()).Bind(2, *submission_id);
-    SANDSWIM_RETURN_IF_ERROR(st.Run());
-  }
+  SANDSWIM_RETURN_IF_ERROR(submissions::SetResponse(t, *submission_id, response.dump()));
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
   return out;
 }
@@ -538,7 +436,7 @@ Status AddPlannedRuns(Transaction& t, const ScalePlan& g, const std::string& eng
 Status FinishAddedRuns(Transaction& t, const std::vector<int64_t>& sweep_ids, int64_t max_queued_runs,
                        const SubmitResult& out) {
   SANDSWIM_RETURN_IF_ERROR(CheckQueueCap(t, max_queued_runs, out));
-  return RecountSweeps(t, sweep_ids);
+  return submissions::RecountSweeps(t, sweep_ids);
 }
 
 }  // namespace sandswim

@@ -52,7 +52,7 @@ inline constexpr int64_t kMaxQueuedRuns = 200000;
 
 struct SubmitRequest {
   // Exactly one of: sweeps (non-empty), or campaign (a name: a campaign stored with
-  // Store::PutCampaign, else a builtin one such as "paper-58").
+  // PutCampaign (campaigns.h), else a builtin one such as "paper-58").
   std::vector<SweepSpec> sweeps;
   std::optional<std::string> campaign;
   std::optional<std::string> scale;  // campaign only: overrides the campaign's default scale

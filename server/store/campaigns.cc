@@ -91,7 +91,7 @@ Result<PutVersionResult> PutCampaignVersion(Store& store, const NewCampaignVersi
   if (!t.ok()) return t.status();
   PutVersionResult out;
   std::optional<int> current;
-  bool same_columns = false;  // the row's schedule (Store::PutCampaign sets it apart)
+  bool same_columns = false;  // the row's schedule (PutCampaign (campaigns.h) sets it apart)
   {
     Statement st = t->Prepare("SELECT version, schedule FROM campaigns WHERE name = ?");
     st.Bind(1, v.name);

@@ -1,6 +1,6 @@
 // Campaign catalogue: what "the campaign NAME" means to the daemon, in one place. A campaign is
 // the current version of the definition stored under NAME (a user's, PutCampaignVersion; or one
-// recorded by Store::PutCampaign) when there is one, else the built-in one compiled in
+// recorded by PutCampaign) when there is one, else the built-in one compiled in
 // (templates/campaigns/NAME.json, core/sweep.h BuiltinCampaign; version 0, never stored).
 // Submission, the scheduler, the drift reports and the REST routes all look campaigns up here.
 //

@@ -1,8 +1,10 @@
 // Database: the daemon's one SQLite file (sweeps, runs, beds, results, trajectories, events) as
 // an adapter: statements, transactions, group commit and migrations. Its .cc is the only file that
-// includes sqlite3.h. What the rows mean lives elsewhere: the read views of the REST API in
-// server/store/store.h (a Store holds the Database and reads through it), the writes in the modules that own them
-// (submission.h, lease_queue.h, scheduler.h, drift_report.h) through Transaction/Statement.
+// includes sqlite3.h. What the rows mean lives beside it in the store room (server/store/), the
+// only place with SQL text: the read views of the REST API in store.h (a Store holds the Database
+// and reads through it) and the tables the job flow writes through, each function inside its
+// caller's Transaction (job_table.h, submission_table.h, schedule_table.h, drift_table.h,
+// campaigns.h, cost_model.h).
 //
 // Opening it (Database::Open, through Store::Open) creates the file and its parent directory if needed, turns on WAL, foreign keys,
 // synchronous=NORMAL, temp_store=MEMORY (statement journals in memory: a file one cost 3 of every 4
@@ -13,9 +15,9 @@
 //
 // Writes go through a Transaction (BEGIN IMMEDIATE): every state change of the daemon is one
 // transaction, so a crash at any instant leaves a consistent file. A Transaction that is
-// destroyed without Commit() rolls back. Submission (submission.h) and the lease queue
-// (lease_queue.h) write their SQL through Transaction/Statement; the read queries are methods of
-// Store (server/store/store.h).
+// destroyed without Commit() rolls back. The modules that decide a change (submission, the lease
+// queue, the scheduler, drift reports: server/jobs/, server/analysis/) open the Transaction and
+// call the store room's tables inside it, so their decision and its rows commit together.
 //
 // Group commit: Write() runs a change in a write transaction that it shares with the changes other
 // threads hand to Write() at the same time. One of the callers (the leader) runs the queued

@@ -128,6 +128,18 @@ Result<std::vector<std::string>> SlurmJobsWithOpenLeases(Transaction& t) {
   return jobs;
 }
 
+Result<int64_t> ExtendRunningLeases(Transaction& t, double until) {
+  int64_t extended = 0;
+  for (api::JobKind kind : {api::JobKind::kRun, api::JobKind::kBed}) {
+    Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
+                             " SET lease_expires_at = ? WHERE state = 'running' AND lease_expires_at < ?");
+    st.Bind(1, until).Bind(2, until);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    extended += t.Changes();
+  }
+  return extended;
+}
+
 // ---- Jobs ---------------------------------------------------------------------------------------
 
 Result<JobRow> LoadJob(Transaction& t, api::JobKind kind, int64_t id, int default_max) {
@@ -401,6 +413,42 @@ Status MarkRunDone(Transaction& t, int64_t run_id, double sim_time_s, int64_t st
       "last_error_kind = NULL, last_error = NULL, sim_time_s = ?, step = ? WHERE id = ?");
   st.Bind(1, now).Bind(2, sim_time_s).Bind(3, steps).Bind(4, run_id);
   return st.Run();
+}
+
+// ---- Run snapshots ------------------------------------------------------------------------------
+
+Status PutSnapshot(Transaction& t, int64_t run_id, const api::Snapshot& s, const std::string& sha256) {
+  Statement st = t.Prepare(
+      "INSERT OR REPLACE INTO snapshots (run_id, idx, fraction, t_s, step, grains, bytes, sha256) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
+  st.Bind(1, run_id).Bind(2, static_cast<int64_t>(s.idx)).Bind(3, s.fraction).Bind(4, s.t_s);
+  st.Bind(5, s.step).Bind(6, s.grains).Bind(7, s.bytes).Bind(8, sha256);
+  return st.Run();
+}
+
+Result<std::optional<std::string>> SnapshotsAsked(Transaction& t, int64_t run_id) {
+  Statement st = t.Prepare("SELECT snapshots FROM runs WHERE id = ?");
+  st.Bind(1, run_id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return std::optional<std::string>();
+  return st.OptText(0);
+}
+
+Result<std::map<int64_t, std::vector<int>>> RecordedSnapshots(Transaction& t) {
+  std::map<int64_t, std::vector<int>> out;
+  Statement st = t.Prepare("SELECT run_id, idx FROM snapshots");
+  Status s = EachRow(st, [&](const Statement& r) { out[r.Int(0)].push_back(static_cast<int>(r.Int(1))); });
+  if (!s.ok()) return s;
+  return out;
+}
+
+Result<std::set<int64_t>> RunningRunIds(Transaction& t) {
+  std::set<int64_t> out;
+  Statement st = t.Prepare("SELECT id FROM runs WHERE state = 'running'");
+  Status s = EachRow(st, [&](const Statement& r) { out.insert(r.Int(0)); });
+  if (!s.ok()) return s;
+  return out;
 }
 
 // ---- Sweeps -------------------------------------------------------------------------------------

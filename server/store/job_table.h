@@ -1,7 +1,9 @@
 // Job table: the rows of the worker protocol -- beds and runs as jobs, and the leases granted on
-// them (tables beds, runs, leases, results, trajectories, run_logs, sweeps) -- read and written
-// inside a caller's Transaction. The lease queue (lease_queue.h) decides what happens to a job
-// (its state machine); every SQL statement it needs lives here, named after what it does.
+// them (tables beds, runs, leases, results, trajectories, run_logs, snapshots, sweeps) -- read and
+// written inside a caller's Transaction. The lease queue (server/jobs/lease_queue.h) decides what
+// happens to a job (its state machine); the SQL of its statements lives here, each named after what
+// it does, but for the wall budget a grant carries (cost_model.h WallBudget). The rows a submission
+// writes are submission_table.h's.
 //
 // Nothing here commits, counts or logs events: the caller's transaction does, so a state change
 // and its audit event stay one atomic change.
@@ -11,7 +13,9 @@
 #define SANDSWIM_SERVER_STORE_JOB_TABLE_H_
 
 #include <cstdint>
+#include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -58,6 +62,10 @@ Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, double now);
 
 // Slurm jobs that hold an open lease on a running job, sorted.
 Result<std::vector<std::string>> SlurmJobsWithOpenLeases(Transaction& t);
+
+// At the daemon's start: every running job's lease expires no sooner than `until` (the outage
+// does not count against it). Returns how many leases it extended.
+Result<int64_t> ExtendRunningLeases(Transaction& t, double until);
 
 // ---- Jobs (beds and runs) -----------------------------------------------------------------------
 
@@ -163,6 +171,18 @@ Status PutResult(Transaction& t, int64_t run_id, const api::RunResult& result, c
 Status PutTrajectory(Transaction& t, int64_t run_id, const api::Trajectory& trajectory);
 Status PutLogTail(Transaction& t, int64_t run_id, const std::string& log_tail);
 Status MarkRunDone(Transaction& t, int64_t run_id, double sim_time_s, int64_t steps, double now);
+
+// ---- Run snapshots (their files: snapshot_files.h) ----------------------------------------------
+
+// Records snapshot `s` of a run, its file's checksum `sha256` (replacing a record of the same idx).
+Status PutSnapshot(Transaction& t, int64_t run_id, const api::Snapshot& s, const std::string& sha256);
+// The snapshots a run's point asks for, as stored (core/deck.h StoredSnapshotFractions); nullopt
+// when it asks for none or the run does not exist.
+Result<std::optional<std::string>> SnapshotsAsked(Transaction& t, int64_t run_id);
+// The recorded snapshots' idx by run id.
+Result<std::map<int64_t, std::vector<int>>> RecordedSnapshots(Transaction& t);
+// The ids of the runs running now.
+Result<std::set<int64_t>> RunningRunIds(Transaction& t);
 
 // ---- Sweeps -------------------------------------------------------------------------------------
 

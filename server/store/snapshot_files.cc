@@ -5,18 +5,12 @@
 #include <iterator>
 #include <set>
 
+#include "platform/data_dir.h"
+
 namespace sandswim {
 
-std::string SnapshotDir(const std::string& data_dir, int64_t run_id) {
-  return (std::filesystem::path(data_dir) / "snapshots" / ("run-" + std::to_string(run_id))).string();
-}
-
-std::string SnapshotPath(const std::string& data_dir, int64_t run_id, int idx) {
-  return SnapshotDir(data_dir, run_id) + "/" + std::to_string(idx) + ".dump";
-}
-
 Result<BedSnapshot> ReadStoredSnapshot(const std::string& data_dir, int64_t run_id, int idx) {
-  const std::string path = SnapshotPath(data_dir, run_id, idx);
+  const std::string path = DataDir(data_dir).Snapshot(run_id, idx);
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     return Status::IOError("run " + std::to_string(run_id) + "'s snapshot file " + path +
@@ -30,11 +24,12 @@ Result<BedSnapshot> ReadStoredSnapshot(const std::string& data_dir, int64_t run_
 
 int RemoveSnapshotFiles(const std::string& data_dir, int64_t run_id, const std::vector<int>& keep) {
   namespace fs = std::filesystem;
-  const fs::path dir = SnapshotDir(data_dir, run_id);
+  const DataDir data(data_dir);
+  const fs::path dir = data.RunSnapshots(run_id);
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) return 0;
   std::set<std::string> kept;
-  for (int idx : keep) kept.insert(std::to_string(idx) + ".dump");
+  for (int idx : keep) kept.insert(fs::path(data.Snapshot(run_id, idx)).filename().string());
   int removed = 0;
   std::vector<fs::path> doomed;
   for (const auto& entry : fs::directory_iterator(dir, ec))

@@ -17,10 +17,8 @@
 
 namespace sandswim {
 
-// Where a run's snapshot `idx` is kept: <data_dir>/snapshots/run-<run_id>/<idx>.dump. Its
-// directory is SnapshotDir.
-std::string SnapshotDir(const std::string& data_dir, int64_t run_id);
-std::string SnapshotPath(const std::string& data_dir, int64_t run_id, int idx);
+// Where a run's snapshot `idx` is kept: DataDir::Snapshot (platform/data_dir.h),
+// DATA/snapshots/run-RUN_ID/IDX.dump.
 // A stored snapshot, read and parsed: IOError saying what to do when its file is missing,
 // Corruption when it no longer parses.
 Result<BedSnapshot> ReadStoredSnapshot(const std::string& data_dir, int64_t run_id, int idx);

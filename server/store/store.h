@@ -1,7 +1,11 @@
 // Store: the daemon's data as the REST API reads it. A Store holds the daemon's Database
 // (server/store/database.h: the SQLite adapter, transactions, group commit, migrations, db()) and
-// gives the read views of the API: values whose JSON shapes are those of the REST API, each read in one read
-// transaction. Writes belong to the modules that own them (submission.h, lease_queue.h, ...).
+// gives the read views of the API: values whose JSON shapes are those of the REST API, each read
+// in one read transaction. One write is its own: results stored by an older analysis, analysed
+// again at the daemon's start (ReanalyzeOldResults). The other rows are written through the store
+// room's tables by the modules that decide them: job_table.h (the lease queue),
+// submission_table.h (submission), schedule_table.h (the scheduler), drift_table.h (drift
+// reports), campaigns.h (campaigns and their versions).
 //
 // Thread safety: as Database: every read takes the connection's lock for its duration.
 #ifndef SANDSWIM_SERVER_STORE_STORE_H_

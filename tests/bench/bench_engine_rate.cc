@@ -1,5 +1,5 @@
-// bench_engine_rate: the engine's rate on a real prepared smoke bed, in particle-steps per second
-// (issue 30), and what the drive deck's chunk loop costs.
+// bench_engine_rate: the engine's rate on a real prepared smoke bed, in particle-steps per second,
+// and what the drive deck's chunk loop costs.
 //
 //   bench_engine_rate [--steps N] [--repeat R] [--json FILE]
 //

@@ -311,7 +311,7 @@ TEST_F(DashboardTest, OverviewShowsProgress) {
   EXPECT_THAT(UnexpectedErrors(*browser_), ::testing::IsEmpty());
 }
 
-// Issue 29: a campaign of one's own, written in the editor. The daemon's refusal names a field of
+// A campaign of one's own, written in the editor. The daemon's refusal names a field of
 // the definition (sweeps[1].axes[0].values), shown beside that line, and nothing is stored; fixed,
 // it is saved as version 1, its page shows it, a bad cron is refused beside the schedule, and
 // "Run now" starts a campaign run of that version.

@@ -30,13 +30,6 @@ MAY_SEE = {
     "dashboard": {"dashboard", "store"},
     "store": {"store"},
 }
-# Files whose SQL has not moved into the store room yet (issue 28's remaining part): each is a
-# known debt, listed so that no other file starts to hold SQL; take a file off when its
-# statements become Store methods or a store-side table's.
-SQL_NOT_YET_IN_STORE = {
-    "server/jobs/lease_queue.cc",
-    "server/jobs/submission.cc",
-}
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]', re.M)
 # SQL text: a string literal that opens with a statement's keyword.
 SQL = re.compile(r'"\s*(SELECT|INSERT|UPDATE|DELETE|BEGIN|COMMIT|ROLLBACK|SAVEPOINT|RELEASE|PRAGMA|CREATE|DROP|'
@@ -126,12 +119,9 @@ def check():
                 breaches.append(f"{p}: includes sqlite3.h outside server/store/: read and write through the Store")
             if inc == "httplib.h" and r != "http":
                 breaches.append(f"{p}: includes httplib.h outside server/http/: keep the HTTP library in server/http/")
-        if r != "store" and p not in SQL_NOT_YET_IN_STORE and SQL.search(text):
+        if r != "store" and SQL.search(text):
             breaches.append(f"{p}: holds SQL text outside server/store/: make it a Store method or a "
                             f"store-side table's")
-    for p in sorted(SQL_NOT_YET_IN_STORE):
-        if os.path.exists(os.path.join(ROOT, p)) and not SQL.search(read(p)):
-            breaches.append(f"{p}: holds no SQL any more: take it off SQL_NOT_YET_IN_STORE")
     for c in cycles(files):
         breaches.append("include cycle: " + " -> ".join(c) + ": split the shared declarations into their own header")
     for b in breaches:

@@ -119,7 +119,7 @@ TEST(TruthEngineDaemonTest, Paper58AtSmokeMatchesTheInProcessCalibration) {
   }
 }
 
-// A campaign of one's own through the real daemon and worker (issue 29): put -> run -> results ->
+// A campaign of one's own through the real daemon and worker: put -> run -> results ->
 // edit -> run again -> the drift report of the second run says the definition changed, and
 // compares nothing with a run of the other definition.
 TEST(TruthEngineDaemonTest, AnOwnCampaignEditedSaysItsDefinitionChanged) {

@@ -17,7 +17,7 @@ from urllib.parse import urlsplit
 from .errors import SandswimError
 
 DEFAULT_SERVER = "http://127.0.0.1:8640"  # platform/http_client.h kDefaultServer
-DEFAULT_TOKEN_FILE = os.path.join(".", "var", "data", "token")  # TokenFileIn(kDefaultDataDir)
+DEFAULT_TOKEN_FILE = os.path.join(".", "var", "data", "token")  # DataDir(kDefaultDataDir).Token() (platform/data_dir.h)
 
 
 def is_loopback_host(host: str) -> bool:
