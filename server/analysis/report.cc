@@ -10,6 +10,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
 #include "core/sweep.h"
@@ -369,8 +370,9 @@ std::string RenderReportHtml(const ReportInput& in) {
     for (const auto& [branch, svg] : s.trajectories_svg) {
       html += FigureHtml(svg, "fig-sweep-" + id + "-trajectories" + (branch.empty() ? "" : "-" + branch),
                          branch.empty() ? "Δz(t) of every finished run of sweep " + id
-                                        : "Δz(t) of the " + branch + " branch of sweep " + id + " (Ω " +
-                                              (branch == "rising" ? "<" : ">") + " 0)");
+                                        : "Δz(t) of the " + branch + " branch of sweep " + id + " (" +
+                                              std::string(OmegaSide(ParseBranch(branch).value_or(Branch::kSinking))) +
+                                              ")");
     }
     html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz",
                        "U_z of sweep " + id + " against " +
