@@ -6,6 +6,7 @@
 #include <random>
 #include <set>
 
+#include "core/job_state.h"
 #include "core/branch.h"
 #include "core/materials.h"
 #include "core/text.h"
@@ -126,7 +127,7 @@ std::vector<PointInfo> PointsOf(const ClaimInput& in, const std::vector<std::str
     double sum = 0, ss = 0, se2 = 0, xd = 0, xd2 = 0, amp = 0, xamp = 0;
     int namp = 0, nx = 0, nxd = 0;
     for (const ClaimRun* r : p.runs) {
-      if (r->state != "done" || !r->result) {
+      if (!InState(r->state, JobState::kDone) || !r->result) {
         p.all_measured = false;
         continue;
       }

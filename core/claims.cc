@@ -11,6 +11,7 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit.h>
 
+#include "core/job_state.h"
 #include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
@@ -282,12 +283,12 @@ BedEvidence AssessRun(const ClaimRun& r) {
   BedEvidence b;
   b.run = &r;
   const std::string id = "run " + std::to_string(r.run_id);
-  if (r.state == "failed" || r.state == "cancelled") {
+  if (InState(r.state, JobState::kFailed) || InState(r.state, JobState::kCancelled)) {
     b.state = BedState::kFailed;
     b.detail = id + " " + r.state + (r.failure.empty() ? "" : " (" + r.failure + ")");
     return b;
   }
-  if (r.state != "done" || !r.result) {
+  if (!InState(r.state, JobState::kDone) || !r.result) {
     b.detail = id + " " + r.state;
     return b;
   }
@@ -794,7 +795,7 @@ ClaimPart BeyondPart(const Claim& c, const ClaimSweep& s, double beyond) {
     const bool rising = BranchOf(r.point) == Branch::kRising;
     ClaimFigure f;
     f.name = "run " + std::to_string(r.run_id) + ": " + Label(r.point) + ", replicate " + std::to_string(r.replicate);
-    if (r.state != "done" || !r.result) {
+    if (!InState(r.state, JobState::kDone) || !r.result) {
       f.verdict = Verdict::kInconclusive;
       f.note = r.state + (r.failure.empty() ? "" : ": " + r.failure);
       ++unknown;
@@ -1356,7 +1357,7 @@ void EvaluateGrainCount(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   int prepared = 0;
   std::string pending;
   for (const ClaimBed& bed : in.beds) {
-    if (bed.state != "done" || !bed.grains || scale == nullptr) {
+    if (!InState(bed.state, JobState::kDone) || !bed.grains || scale == nullptr) {
       pending += (pending.empty() ? "" : ", ") + std::string("bed ") + std::to_string(bed.id) + " " + bed.state;
       continue;
     }
@@ -1476,7 +1477,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   if (const ClaimSweep* s = FindSweep(in, fastest)) {
     for (const ClaimRun& r : s->runs) {
       ++runs;
-      if (r.state != "done" || !r.result) continue;
+      if (!InState(r.state, JobState::kDone) || !r.result) continue;
       drifts.push_back(r.result->x_drift);
       ClaimFigure f;
       f.name = "x drift, run " + std::to_string(r.run_id) + " (replicate " + std::to_string(r.replicate) + ")";
@@ -1529,7 +1530,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
         const ClaimSweep* s = FindSweep(in, name);
         if (s == nullptr) continue;
         for (const ClaimRun& r : s->runs) {
-          if (r.state != "done" || !r.result) {
+          if (!InState(r.state, JobState::kDone) || !r.result) {
             ++*unfinished;
             continue;
           }

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "core/job_state.h"
 #include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
@@ -185,9 +186,9 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
     int failed = 0, unfinished = 0, inconclusive = 0;
     for (const DriftPoint& p : drift->rows) {
       if (p.point != point) continue;
-      if (p.state == "failed" || p.state == "cancelled") {
+      if (InState(p.state, JobState::kFailed) || InState(p.state, JobState::kCancelled)) {
         ++failed;
-      } else if (p.state != "done") {
+      } else if (!InState(p.state, JobState::kDone)) {
         ++unfinished;
       } else {
         ++inconclusive;

@@ -22,6 +22,7 @@
 #include <httplib.h>
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
+#include "core/job_state.h"
 #include "core/aggregate.h"
 #include "core/result_fields.h"
 #include "core/result_table.h"
@@ -79,7 +80,7 @@ ReplicateValue ReplicateOf(const ResultRow& row) {
   v.replicate = row.replicate;
   v.bed_id = row.bed_id;
   v.state = row.state;
-  if (row.state == "done" && row.result) {  // a requeued run's old result is not averaged
+  if (InState(row.state, JobState::kDone) && row.result) {  // a requeued run's old result is not averaged
     const api::RunResult& r = row.result->result;
     v.conclusive = r.conclusive;
     v.uz = r.uz;

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "core/deck.h"
+#include "core/job_state.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "core/text.h"
@@ -101,21 +102,27 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   return r;
 }
 
+// A count of rows in `state` (a state column's text, core/job_state.h); another text counts nowhere.
 void AddState(RunCounts& c, const std::string& state, int64_t n) {
-  if (state == "queued")
-    c.queued += n;
-  else if (state == "running")
-    c.running += n;
-  else if (state == "done")
-    c.done += n;
-  else if (state == "failed")
-    c.failed += n;
-  else if (state == "cancelled")
-    c.cancelled += n;
-}
-
-bool IsRunState(const std::string& s) {
-  return s == "queued" || s == "running" || s == "done" || s == "failed" || s == "cancelled";
+  std::optional<JobState> s = ParseJobState(state);
+  if (!s) return;
+  switch (*s) {
+    case JobState::kQueued:
+      c.queued += n;
+      break;
+    case JobState::kRunning:
+      c.running += n;
+      break;
+    case JobState::kDone:
+      c.done += n;
+      break;
+    case JobState::kFailed:
+      c.failed += n;
+      break;
+    case JobState::kCancelled:
+      c.cancelled += n;
+      break;
+  }
 }
 
 template <typename T>
@@ -496,9 +503,8 @@ Result<SweepInfo> Store::GetSweep(int64_t id) {
 }
 
 Result<RunPage> Store::ListRuns(const RunFilter& f) {
-  if (f.state && !IsRunState(*f.state)) {
-    return Status::InvalidArgument("state",
-                                   "'" + *f.state + "' is not one of queued, running, done, failed, cancelled");
+  if (f.state && !ParseJobState(*f.state)) {
+    return Status::InvalidArgument("state", "'" + *f.state + "' is not one of " + std::string(JobStateNames()));
   }
   int limit = std::clamp(f.limit, 1, 1000);
   Result<Transaction> t = db_->BeginRead();
