@@ -1,5 +1,6 @@
 #include "cli/format.h"
 
+#include "core/job_state.h"
 #include "core/claims.h"
 #include "core/materials.h"
 
@@ -114,10 +115,10 @@ std::string Colorize(const std::string& text, const std::string& code, bool colo
 }
 
 std::string StateColor(const std::string& state) {
-  if (state == "done") return "32";
-  if (state == "failed") return "31";
-  if (state == "running") return "33";
-  if (state == "cancelled") return "2";
+  if (InState(state, JobState::kDone)) return "32";
+  if (InState(state, JobState::kFailed)) return "31";
+  if (InState(state, JobState::kRunning)) return "33";
+  if (InState(state, JobState::kCancelled)) return "2";
   return "";
 }
 
@@ -206,7 +207,8 @@ std::optional<double> Snapshot::eta_s() const {
   if (counts.finished()) return 0.0;
   // Nothing running: a time only while a bed is prepared or a prepared bed's runs wait for a slot
   // (the workers busy with other beds of the campaign); with the bed unstarted, a worker may lack.
-  if (!eta || (counts.running == 0 && waiting_bed_state != "running" && waiting_bed_state != "done"))
+  if (!eta || (counts.running == 0 && !InState(waiting_bed_state, JobState::kRunning) &&
+               !InState(waiting_bed_state, JobState::kDone)))
     return std::nullopt;
   return eta->s;
 }
@@ -220,14 +222,14 @@ std::string EtaText(const Snapshot& s) {
     std::string text = "ETA " + FormatDuration(*eta);
     if (s.eta->rel_error > 0) text += " ± " + FormatDuration(*eta * s.eta->rel_error);
     if (s.counts.running == 0)
-      text += s.waiting_bed_state == "done" ? " (none of its runs has started: they wait for a free worker)"
+      text += InState(s.waiting_bed_state, JobState::kDone) ? " (none of its runs has started: they wait for a free worker)"
                                             : " (preparing the granular bed first)";
     return text;
   }
   if (s.counts.running == 0) {
     // Runs start only once their bed is prepared (minutes at smoke): say so, not "no worker".
-    if (s.waiting_bed_state == "running") return "ETA unknown (preparing the granular bed first)";
-    if (s.waiting_bed_state == "queued") return "ETA unknown (the bed waits for a worker: is one running?)";
+    if (InState(s.waiting_bed_state, JobState::kRunning)) return "ETA unknown (preparing the granular bed first)";
+    if (InState(s.waiting_bed_state, JobState::kQueued)) return "ETA unknown (the bed waits for a worker: is one running?)";
     return "ETA unknown (no run in flight: is a worker running?)";
   }
   return "ETA unknown (the daemon gives none: older than its cost model?)";
@@ -377,7 +379,7 @@ std::string RenderRunsTable(const json& runs, const RenderOptions& options) {
       std::string state = Str(r, "state");
       json progress = r.value("progress", json::object());
       std::string progress_text = "-";
-      if (state == "running" || state == "done") {
+      if (InState(state, JobState::kRunning) || InState(state, JobState::kDone)) {
         progress_text = NumCell(progress, "sim_time_s", 4) + "/" + NumCell(r, "run_duration_s", 4) + " s";
       }
       std::string worker = Str(r, "worker");
@@ -403,7 +405,7 @@ std::string RenderRunDetail(const json& run, const RenderOptions& options) {
   std::string worker = Str(run, "worker");
   out << "  attempts:  " << Str(run, "attempts", "0") << (worker.empty() ? "" : ", last on " + worker) << "\n";
   json progress = run.value("progress", json::object());
-  if (state == "running") {
+  if (InState(state, JobState::kRunning)) {
     RunInFlight r;
     r.sim_time_s = Num(progress, "sim_time_s").value_or(0);
     r.duration_s = Num(run, "run_duration_s").value_or(0);

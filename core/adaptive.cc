@@ -6,6 +6,8 @@
 #include <random>
 #include <set>
 
+#include "core/job_state.h"
+#include "core/branch.h"
 #include "core/materials.h"
 #include "core/text.h"
 #include "core/trajectory.h"
@@ -32,6 +34,8 @@ const char* ActionKindName(ActionKind kind) {
 }
 
 namespace {
+
+bool IsRising(const Point& p) { return BranchOf(p) == Branch::kRising; }
 
 double BaseMaxDuration(const Point& p, const Scale& scale) { return RunDuration(p, scale.default_precision); }
 
@@ -123,7 +127,7 @@ std::vector<PointInfo> PointsOf(const ClaimInput& in, const std::vector<std::str
     double sum = 0, ss = 0, se2 = 0, xd = 0, xd2 = 0, amp = 0, xamp = 0;
     int namp = 0, nx = 0, nxd = 0;
     for (const ClaimRun* r : p.runs) {
-      if (r->state != "done" || !r->result) {
+      if (!InState(r->state, JobState::kDone) || !r->result) {
         p.all_measured = false;
         continue;
       }
@@ -279,7 +283,7 @@ ClaimInput WithDraw(const ClaimInput& in, const AdaptiveAction& a, const std::ve
       // A new point: its neighbours' values along the swept f, interpolated.
       const PointInfo *lo = nullptr, *hi = nullptr;
       for (const PointInfo& p : points) {
-        if (p.measured == 0 || (p.point.Omega < 0) != (o.point.Omega < 0) || p.point.mode != o.point.mode) continue;
+        if (p.measured == 0 || IsRising(p.point) != IsRising(o.point) || p.point.mode != o.point.mode) continue;
         if (p.point.f < o.point.f && (!lo || p.point.f > lo->point.f)) lo = &p;
         if (p.point.f > o.point.f && (!hi || p.point.f < hi->point.f)) hi = &p;
       }
@@ -444,12 +448,12 @@ std::vector<AdaptiveAction> Candidates(const AdaptiveState& state, const Claim& 
   if (claim.kind() == "interior_maximum") {
     std::vector<const PointInfo*> rising;
     for (const PointInfo& p : points)
-      if (p.point.Omega < 0 && p.measured > 0) rising.push_back(&p);
+      if (IsRising(p.point) && p.measured > 0) rising.push_back(&p);
     std::vector<double> declared;
     for (const AdaptiveSweep& s : state.sweeps)
       if (std::find(sweeps.begin(), sweeps.end(), s.name) != sweeps.end())
         for (const Point& p : s.points)
-          if (p.Omega < 0) declared.push_back(p.f);
+          if (IsRising(p)) declared.push_back(p.f);
     if (rising.size() >= 3 && !declared.empty()) {
       const double f_min = *std::min_element(declared.begin(), declared.end());
       const double f_max = *std::max_element(declared.begin(), declared.end());
@@ -457,7 +461,7 @@ std::vector<AdaptiveAction> Candidates(const AdaptiveState& state, const Claim& 
                                                 [](const PointInfo* a, const PointInfo* b) { return a->mean < b->mean; });
       std::vector<double> fs;
       for (const PointInfo& p : points)
-        if (p.point.Omega < 0) fs.push_back(p.point.f);
+        if (IsRising(p.point)) fs.push_back(p.point.f);
       std::sort(fs.begin(), fs.end());
       auto it = std::lower_bound(fs.begin(), fs.end(), peak->point.f);
       std::vector<double> new_f;

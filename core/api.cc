@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "core/result_fields.h"
+
 namespace sandswim::api {
 namespace {
 
@@ -19,79 +21,32 @@ void GetOptional(const nlohmann::json& j, const char* name, std::optional<T>& v)
     v.reset();
 }
 
+// A report's fields are the result's that the run makes (core/result_fields.h), under their names.
+bool InReport(const ResultField& f) {
+  return f.origin == ResultOrigin::kAnalysis || f.origin == ResultOrigin::kRun;
+}
+
 }  // namespace
 
 void to_json(nlohmann::json& j, const RunResult& r) {
-  j = nlohmann::json{{"uz_stderr_note", r.uz_stderr_note},
-                     {"uz_blocks", r.uz_blocks},
-                     {"block_s", r.block_s},
-                     {"block_kind", r.block_kind},
-                     {"window_t0", r.window_t0},
-                     {"window_t1", r.window_t1},
-                     {"window_end", r.window_end},
-                     {"conclusive", r.conclusive},
-                     {"inconclusive_reason", r.inconclusive_reason},
-                     {"dz", r.dz},
-                     {"dz_rate", r.dz_rate},
-                     {"z_osc_amplitude", r.z_osc_amplitude},
-                     {"x_drift", r.x_drift},
-                     {"trending", r.trending},
-                     {"trend_note", r.trend_note},
-                     {"broke_surface", r.broke_surface},
-                     {"near_floor", r.near_floor},
-                     {"stop_reason", r.stop_reason},
-                     {"stop_note", r.stop_note},
-                     {"sim_time_s", r.sim_time_s},
-                     {"steps", r.steps},
-                     {"grains", r.grains},
-                     {"z0", r.z0},
-                     {"analysis", r.analysis},
-                     {"analysed_from", r.analysed_from}};
-  PutOptional(j, "uz", r.uz);
-  PutOptional(j, "uz_stderr", r.uz_stderr);
-  PutOptional(j, "uz_ci95", r.uz_ci95);
-  PutOptional(j, "precision_met", r.precision_met);
-  PutOptional(j, "x_osc_amplitude", r.x_osc_amplitude);
-  PutOptional(j, "trend_slope", r.trend_slope);
-  PutOptional(j, "trend_slope_se", r.trend_slope_se);
-  PutOptional(j, "trend_p", r.trend_p);
+  j = nlohmann::json::object();
+  const StoredResult s{r, {}, {}, 0};
+  for (const ResultField& f : ResultFields()) {
+    if (!InReport(f)) continue;
+    nlohmann::json v = f.get(s);
+    if (!v.is_null()) j[f.name] = std::move(v);  // an absent optional field is left out
+  }
 }
 
 void from_json(const nlohmann::json& j, RunResult& r) {
-  GetOptional(j, "uz", r.uz);
-  GetOptional(j, "uz_stderr", r.uz_stderr);
-  GetOptional(j, "uz_ci95", r.uz_ci95);
-  r.uz_stderr_note = j.value("uz_stderr_note", "");
-  r.uz_blocks = j.value("uz_blocks", 0);
-  r.block_s = j.value("block_s", 0.0);
-  r.block_kind = j.value("block_kind", "");
-  r.window_t0 = j.value("window_t0", 0.0);
-  r.window_t1 = j.value("window_t1", 0.0);
-  r.window_end = j.value("window_end", "");
-  r.conclusive = j.value("conclusive", false);
-  r.inconclusive_reason = j.value("inconclusive_reason", "");
-  r.dz = j.value("dz", 0.0);
-  r.dz_rate = j.value("dz_rate", 0.0);
-  r.z_osc_amplitude = j.value("z_osc_amplitude", 0.0);
-  r.x_drift = j.value("x_drift", 0.0);
-  GetOptional(j, "x_osc_amplitude", r.x_osc_amplitude);
-  GetOptional(j, "trend_slope", r.trend_slope);
-  GetOptional(j, "trend_slope_se", r.trend_slope_se);
-  GetOptional(j, "trend_p", r.trend_p);
-  r.trending = j.value("trending", false);
-  r.trend_note = j.value("trend_note", "");
-  r.broke_surface = j.value("broke_surface", false);
-  r.near_floor = j.value("near_floor", false);
-  r.stop_reason = j.value("stop_reason", "");
-  r.stop_note = j.value("stop_note", "");
-  GetOptional(j, "precision_met", r.precision_met);
-  r.sim_time_s = j.value("sim_time_s", 0.0);
-  r.steps = j.value("steps", int64_t{0});
-  r.grains = j.value("grains", int64_t{0});
-  r.z0 = j.value("z0", 0.0);
-  // A result without "analysis" was made by a worker that predates it: the old estimator.
-  r.analysis = j.value("analysis", 1);
-  r.analysed_from = j.value("analysed_from", "dump");
+  StoredResult s;  // a key the report lacks keeps RunResult's default, or the field's `absent`
+  for (const ResultField& f : ResultFields()) {
+    if (!InReport(f)) continue;
+    auto it = j.find(f.name);
+    if (it != j.end()) f.set(s, *it);
+    else if (!f.absent.is_null()) f.set(s, f.absent);
+  }
+  r = std::move(s.result);
 }
 
 void to_json(nlohmann::json& j, const BedResult& b) {

@@ -11,6 +11,8 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit.h>
 
+#include "core/job_state.h"
+#include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
 #include "core/text.h"
@@ -281,12 +283,12 @@ BedEvidence AssessRun(const ClaimRun& r) {
   BedEvidence b;
   b.run = &r;
   const std::string id = "run " + std::to_string(r.run_id);
-  if (r.state == "failed" || r.state == "cancelled") {
+  if (InState(r.state, JobState::kFailed) || InState(r.state, JobState::kCancelled)) {
     b.state = BedState::kFailed;
     b.detail = id + " " + r.state + (r.failure.empty() ? "" : " (" + r.failure + ")");
     return b;
   }
-  if (r.state != "done" || !r.result) {
+  if (!InState(r.state, JobState::kDone) || !r.result) {
     b.detail = id + " " + r.state;
     return b;
   }
@@ -699,7 +701,7 @@ std::vector<double> FittedWeights(const std::vector<const PointView*>& points,
 int ExpectedSign(const std::string& expect, const Point& p) {
   if (expect == "rise") return 1;
   if (expect == "sink") return -1;
-  return p.Omega < 0 ? 1 : p.Omega > 0 ? -1 : 0;
+  return ExpectedUzSign(BranchOf(p));
 }
 
 // The sign a point's beds show at the family-wise level over m points (Bonferroni: BedsSign at
@@ -790,10 +792,10 @@ ClaimPart BeyondPart(const Claim& c, const ClaimSweep& s, double beyond) {
   std::string detail;
   for (const ClaimRun& r : s.runs) {
     if (!(std::fabs(r.point.Omega) > beyond)) continue;
-    const bool rising = r.point.Omega < 0;
+    const bool rising = BranchOf(r.point) == Branch::kRising;
     ClaimFigure f;
     f.name = "run " + std::to_string(r.run_id) + ": " + Label(r.point) + ", replicate " + std::to_string(r.replicate);
-    if (r.state != "done" || !r.result) {
+    if (!InState(r.state, JobState::kDone) || !r.result) {
       f.verdict = Verdict::kInconclusive;
       f.note = r.state + (r.failure.empty() ? "" : ": " + r.failure);
       ++unknown;
@@ -801,7 +803,7 @@ ClaimPart BeyondPart(const Claim& c, const ClaimSweep& s, double beyond) {
       f.value = r.result->sim_time_s;
       f.unit = "s simulated";
       f.note = "stop: " + r.result->stop_reason + (r.result->stop_note.empty() ? "" : " (" + r.result->stop_note + ")");
-      if (BoundaryReached(*r.result) == (rising ? 1 : -1)) {
+      if (BoundaryReached(*r.result) == ExpectedUzSign(BranchOf(r.point))) {
         f.verdict = Verdict::kHolds;
         ++reached;
       } else if (r.result->stop_reason == "duration" && r.result->sim_time_s >= min_duration - 1e-9) {
@@ -844,11 +846,11 @@ void EvaluateSaturation(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   const double fraction = Param(c, "reached_fraction", 0.95);
   const int min_points = static_cast<int>(Param(c, "min_points", 4));
   const double k = -std::log(1 - fraction);
-  for (const char* branch : {"rising", "sinking"}) {
-    const bool rising = std::string(branch) == "rising";
-    const int sign = rising ? 1 : -1;
-    const std::string grows = std::string(branch) + ": |U_z| grows with |Omega|";
-    const std::string saturates = std::string(branch) + ": saturates (the growth flattens within the swept |Omega|)";
+  for (const Branch side : {Branch::kRising, Branch::kSinking}) {
+    const std::string branch(BranchName(side));
+    const int sign = ExpectedUzSign(side);
+    const std::string grows = branch + ": |U_z| grows with |Omega|";
+    const std::string saturates = branch + ": saturates (the growth flattens within the swept |Omega|)";
     // The branch's points with evidence on every bed, by |Omega|; x = log2 |Omega| (the sweep
     // doubles |Omega|), y = |U_z| the paper's way (sign * U_z). A censored point enters with its
     // lower estimate (core/aggregate.h uz_low), which is low where the point is fast: in "grows"
@@ -861,7 +863,7 @@ void EvaluateSaturation(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
     std::vector<const PointView*> points;
     int censored = 0, low = 0;
     for (const PointView& p : all) {
-      if (p.point.Omega == 0 || (p.point.Omega < 0) != rising) continue;
+      if (BranchOf(p.point) != side) continue;
       if (p.has_interval()) {
         points.push_back(&p);
       } else if (p.is_censored() && p.uz_low && p.sign == sign) {
@@ -1049,15 +1051,16 @@ void EvaluateLinear(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   const bool with_break = c.rule.contains("sinking_linear_to_A");
   const double brk = Param(c, "sinking_linear_to_A", 0), tol = Param(c, "break_tolerance_m", 0.015);
   const double intercept_tol = Param(c, "intercept_tolerance", 0.5);
-  for (const char* branch : {"rising", "sinking"}) {
-    const bool rising = std::string(branch) == "rising";
+  for (const Branch side : {Branch::kRising, Branch::kSinking}) {
+    const std::string branch(BranchName(side));
+    const bool rising = side == Branch::kRising;
     if (!rising && !with_break) continue;
     ClaimPart part;
     part.name = rising ? "rising: U_z = C3 A over the swept A"
                        : "sinking: linear in A up to A = " + Num(brk) + " m, not past " + Num(brk + tol) + " m";
     std::vector<const PointView*> points, lower, upper;
     for (const PointView& x : all)
-      if (x.has_interval() && x.point.Omega != 0 && (x.point.Omega < 0) == rising && x.point.A > 0)
+      if (x.has_interval() && BranchOf(x.point) == side && x.point.A > 0)
         points.push_back(&x);
     std::sort(points.begin(), points.end(),
               [](const PointView* a, const PointView* b) { return a->point.A < b->point.A; });
@@ -1096,7 +1099,7 @@ void EvaluateLinear(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
     const std::string of = std::to_string(fitted.size()) + " points up to A = " + Num(fitted.back()->point.A) + " m";
     part.figures.push_back(PFigure("the line against U_z = a + b A + c A^2 (" + std::string(branch) + ")", test.p,
                                    "F test, 2 and " + std::to_string(test.full->dof()) + " dof, " + of));
-    const int sign = rising ? 1 : -1;
+    const int sign = ExpectedUzSign(side);
     const double lo = c3 - t * c3_se, hi = c3 + t * c3_se;
     const std::string c3_text =
         "C3 = " + WithError(c3, c3_se) + " 1/s, 95 % interval [" + Num(lo, 3) + ", " + Num(hi, 3) + "]";
@@ -1222,7 +1225,7 @@ void EvaluateInteriorMaximum(const Claim& c, const ClaimInput& in, ClaimVerdict&
   const std::vector<PointView> all = PointsOf(in, {name});
   std::vector<const PointView*> rising;
   for (const PointView& p : all) {
-    if (p.point.Omega < 0) rising.push_back(&p);
+    if (BranchOf(p.point) == Branch::kRising) rising.push_back(&p);
   }
   std::sort(rising.begin(), rising.end(), [](const PointView* a, const PointView* b) { return a->point.f < b->point.f; });
   std::vector<PointView> mine;
@@ -1354,7 +1357,7 @@ void EvaluateGrainCount(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   int prepared = 0;
   std::string pending;
   for (const ClaimBed& bed : in.beds) {
-    if (bed.state != "done" || !bed.grains || scale == nullptr) {
+    if (!InState(bed.state, JobState::kDone) || !bed.grains || scale == nullptr) {
       pending += (pending.empty() ? "" : ", ") + std::string("bed ") + std::to_string(bed.id) + " " + bed.state;
       continue;
     }
@@ -1474,7 +1477,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   if (const ClaimSweep* s = FindSweep(in, fastest)) {
     for (const ClaimRun& r : s->runs) {
       ++runs;
-      if (r.state != "done" || !r.result) continue;
+      if (!InState(r.state, JobState::kDone) || !r.result) continue;
       drifts.push_back(r.result->x_drift);
       ClaimFigure f;
       f.name = "x drift, run " + std::to_string(r.run_id) + " (replicate " + std::to_string(r.replicate) + ")";
@@ -1527,7 +1530,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
         const ClaimSweep* s = FindSweep(in, name);
         if (s == nullptr) continue;
         for (const ClaimRun& r : s->runs) {
-          if (r.state != "done" || !r.result) {
+          if (!InState(r.state, JobState::kDone) || !r.result) {
             ++*unfinished;
             continue;
           }

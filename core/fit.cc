@@ -17,6 +17,7 @@
 #include <gsl/gsl_multifit_nlinear.h>
 #include <gsl/gsl_vector.h>
 
+#include "core/branch.h"
 #include "core/sweep.h"
 #include "core/trajectory.h"
 
@@ -89,15 +90,16 @@ bool Differ(double a, double b) { return std::fabs(a - b) > kSame * std::max({1.
 
 // Splits samples by the sign of Omega: rising (Omega < 0) first, then sinking (Omega > 0).
 // Omega = 0 belongs to neither branch (eq. 8 and 9 are stated per direction of rotation).
-std::vector<std::pair<std::string, std::vector<SweepSample>>> Branches(const std::vector<SweepSample>& samples) {
+std::vector<std::pair<Branch, std::vector<SweepSample>>> Branches(const std::vector<SweepSample>& samples) {
   std::vector<SweepSample> rising, sinking;
   for (const SweepSample& s : samples) {
-    if (s.point.Omega < 0) rising.push_back(s);
-    if (s.point.Omega > 0) sinking.push_back(s);
+    const Branch b = BranchOf(s.point);
+    if (b == Branch::kRising) rising.push_back(s);
+    if (b == Branch::kSinking) sinking.push_back(s);
   }
-  std::vector<std::pair<std::string, std::vector<SweepSample>>> out;
-  if (!rising.empty()) out.emplace_back("rising", std::move(rising));
-  if (!sinking.empty()) out.emplace_back("sinking", std::move(sinking));
+  std::vector<std::pair<Branch, std::vector<SweepSample>>> out;
+  if (!rising.empty()) out.emplace_back(Branch::kRising, std::move(rising));
+  if (!sinking.empty()) out.emplace_back(Branch::kSinking, std::move(sinking));
   return out;
 }
 
@@ -470,11 +472,11 @@ SweepFits FitSweep(const std::vector<SweepSample>& samples, const FitChoice& cho
     }
   }
   if (fits.choice.kind == FitKind::kNone) return fits;
-  for (auto& [name, branch] : Branches(conclusive)) {
+  for (auto& [side, branch] : Branches(conclusive)) {
     BranchFit b;
-    b.branch = name;
+    b.branch = BranchName(side);
     b.points = static_cast<int>(branch.size());
-    const int sign = name == "rising" ? 1 : -1;
+    const int sign = ExpectedUzSign(side);
     std::vector<double> x, y, e;
     for (const SweepSample& s : branch) {
       x.push_back(ParamOf(s.point, fits.choice.param));
@@ -566,6 +568,8 @@ void to_json(nlohmann::json& j, const FastestRise& f) {
 
 void to_json(nlohmann::json& j, const BranchFit& b) {
   j = {{"branch", b.branch}, {"points", b.points}, {"error", b.error}};
+  // The side of Omega its points are on (core/branch.h), so that a client need not know the rule.
+  j["omega_sign"] = OmegaSign(ParseBranch(b.branch).value_or(Branch::kNone));
   if (b.saturation) j["saturation"] = *b.saturation;
   if (b.linear) j["linear"] = *b.linear;
   if (b.fastest_rise) j["fastest_rise"] = *b.fastest_rise;

@@ -258,6 +258,9 @@ TEST(FitSweepTest, FitsEachBranchOfAnOmegaSweepAndChecksTheSigns) {
   ASSERT_EQ(fits.branches.size(), 2u);
   EXPECT_EQ(fits.branches[0].branch, "rising");
   EXPECT_EQ(fits.branches[1].branch, "sinking");
+  // The JSON says each branch's side of Omega = 0 (the dashboard draws the fit there).
+  EXPECT_EQ(nlohmann::json(fits.branches[0])["omega_sign"], -1);
+  EXPECT_EQ(nlohmann::json(fits.branches[1])["omega_sign"], 1);
   for (const BranchFit& b : fits.branches) {
     ASSERT_TRUE(b.saturation.has_value()) << b.error;
     EXPECT_EQ(b.points, 8);

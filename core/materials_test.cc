@@ -17,7 +17,7 @@ using nlohmann::json;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-const Scale& Smoke() { return *FindScale("smoke"); }
+const Scale& SmokeScale() { return *FindScale("smoke"); }
 
 // The baseline rising drive at smoke with `extra` fields in its base and `axes`.
 json Sweep(const json& extra, const json& axes = json::array()) {
@@ -57,7 +57,7 @@ TEST(MaterialsTest, DefaultsAreTable1AndLeaveEverythingAsItWas) {
   ASSERT_TRUE(plain.ok() && named.ok()) << named.status().ToString();
   EXPECT_EQ(plain->runs[0].key, named->runs[0].key);
   EXPECT_EQ(plain->beds[0].key, named->beds[0].key);
-  EXPECT_EQ(plain->beds[0].deck, RenderBedDeck(Smoke()));
+  EXPECT_EQ(plain->beds[0].deck, RenderBedDeck(SmokeScale()));
   EXPECT_EQ(PointToJson(named->runs[0].point), PointToJson(plain->runs[0].point));
   EXPECT_FALSE(PlannedRunToJson(plain->runs[0]).contains("dt_s"));
   EXPECT_THAT(plain->runs[0].deck, Not(HasSubstr("Materials not Table 1's")));
@@ -139,7 +139,7 @@ TEST(MaterialsTest, ADensitySweepOfTheSoPlansOneBed) {
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   EXPECT_EQ(plan->runs.size(), 16u);
   ASSERT_EQ(plan->beds.size(), 1u);
-  EXPECT_EQ(plan->beds[0].deck, RenderBedDeck(Smoke()));  // Table 1's bed, shared with the paper's points
+  EXPECT_EQ(plan->beds[0].deck, RenderBedDeck(SmokeScale()));  // Table 1's bed, shared with the paper's points
   std::set<std::string> keys;
   for (const PlannedRun& r : plan->runs) {
     EXPECT_EQ(r.bed, 0);
@@ -169,8 +169,8 @@ TEST(MaterialsTest, BedParametersPourBedsOfTheirOwnAndShareThem) {
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   ASSERT_EQ(plan->beds.size(), 4u);
   EXPECT_EQ(plan->runs.size(), 8u);
-  EXPECT_EQ(plan->beds[0].deck, RenderBedDeck(Smoke(), 0));
-  EXPECT_EQ(plan->beds[1].deck, RenderBedDeck(Smoke(), 1));
+  EXPECT_EQ(plan->beds[0].deck, RenderBedDeck(SmokeScale(), 0));
+  EXPECT_EQ(plan->beds[1].deck, RenderBedDeck(SmokeScale(), 1));
   EXPECT_EQ(plan->beds[2].materials.d_grain, 0.025);
   EXPECT_EQ(plan->beds[2].replicate, 0);
   EXPECT_THAT(plan->beds[2].deck, HasSubstr("radius constant 0.0125"));
@@ -190,7 +190,7 @@ TEST(MaterialsTest, BedParametersPourBedsOfTheirOwnAndShareThem) {
   for (const MaterialField& f : MaterialFields()) {
     Materials m;
     m.*f.member = kTable1.*f.member * 0.9;
-    const bool changes = RenderBedDeck(Smoke(), 0, m) != RenderBedDeck(Smoke());
+    const bool changes = RenderBedDeck(SmokeScale(), 0, m) != RenderBedDeck(SmokeScale());
     EXPECT_EQ(changes, f.role == MaterialRole::kBed) << f.name;
   }
 }
@@ -227,7 +227,7 @@ TEST(MaterialsTest, TheStepIsInTheDecksAndTheCostModelCountsIt) {
   EXPECT_THAT(r.deck, HasSubstr("timestep        3.1e-06\n"));
   EXPECT_THAT(r.deck, HasSubstr("# Time step 3.1e-06 s: " + std::string(kTimeStepRule) + ".\n"));
   EXPECT_THAT(stiff->beds[0].deck, HasSubstr("timestep        3.1e-06\n"));
-  EXPECT_EQ(DriveFacts(r.point, Smoke()).dt, 3.1e-6);
+  EXPECT_EQ(DriveFacts(r.point, SmokeScale()).dt, 3.1e-6);
   EXPECT_EQ(PlannedRunToJson(r)["dt_s"], 3.1e-6);
   // The same physical time in more steps, up to whole chunks of 100 steps.
   const double t = table1->runs[0].run_duration_s;
@@ -243,7 +243,7 @@ TEST(MaterialsTest, TheStepIsInTheDecksAndTheCostModelCountsIt) {
 }
 
 TEST(MaterialsTest, TheBoxFollowsTheSoAndTheGrains) {
-  const Scale& smoke = Smoke();
+  const Scale& smoke = SmokeScale();
   const Box same = BoxFor(smoke, kTable1);
   EXPECT_EQ(same.x_len, smoke.x_len);
   EXPECT_EQ(same.y_len, smoke.y_len);
@@ -278,10 +278,10 @@ TEST(MaterialsTest, TheBoxFollowsTheSoAndTheGrains) {
 }
 
 TEST(MaterialsTest, CapsOnGrainsAndStepNameTheFieldAndAScale) {
-  EXPECT_EQ(EstimatedGrains(Smoke()), 6682);
+  EXPECT_EQ(EstimatedGrains(SmokeScale()), 6682);
   Materials fine;
   fine.d_grain = 0.014;  // (0.02 / 0.014)^3 = 2.9 x the grains
-  EXPECT_NEAR(EstimatedGrains(Smoke(), fine) / 6682, 2.9, 0.05);
+  EXPECT_NEAR(EstimatedGrains(SmokeScale(), fine) / 6682, 2.9, 0.05);
   auto smoke_fine = ParseSweep(Sweep({{"grain_diameter", 0.012}}));
   ASSERT_FALSE(smoke_fine.ok());
   EXPECT_EQ(smoke_fine.status().code(), StatusCode::kFailedPrecondition);

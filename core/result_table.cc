@@ -1,53 +1,20 @@
 #include "core/result_table.h"
 
+#include "core/result_fields.h"
+
 namespace sandswim {
 
 const std::vector<std::string>& ResultColumns() {
-  static const std::vector<std::string> kColumns = {"run_id",
-                                                    "key",
-                                                    "state",
-                                                    "mode",
-                                                    "A",
-                                                    "f",
-                                                    "Omega",
-                                                    "omega",
-                                                    "axis",
-                                                    "duration_s",
-                                                    "run_duration_s",
-                                                    "replicate",
-                                                    "bed_id",
-                                                    "Uz_text",
-                                                    "Uz",
-                                                    "Uz_stderr",
-                                                    "Uz_ci95",
-                                                    "Uz_blocks",
-                                                    "block_s",
-                                                    "block_kind",
-                                                    "window_t0",
-                                                    "window_t1",
-                                                    "window_end",
-                                                    "conclusive",
-                                                    "inconclusive_reason",
-                                                    "trending",
-                                                    "trend_p",
-                                                    "trend_slope",
-                                                    "trend_slope_se",
-                                                    "trend_note",
-                                                    "dz",
-                                                    "dz_rate",
-                                                    "z_osc_amplitude",
-                                                    "x_osc_amplitude",
-                                                    "x_drift",
-                                                    "broke_surface",
-                                                    "near_floor",
-                                                    "stop_reason",
-                                                    "stop_note",
-                                                    "precision_met",
-                                                    "sim_time_s",
-                                                    "grains",
-                                                    "analysis",
-                                                    "analysed_from",
-                                                    "engine_version"};
+  static const std::vector<std::string> kColumns = [] {
+    // The run's and its point's, then its U_z as text, then the stored result's (ResultFields).
+    std::vector<std::string> columns = {"run_id", "key",        "state",          "mode",      "A",      "f",
+                                        "Omega",  "omega",      "axis",           "duration_s", "run_duration_s",
+                                        "replicate", "bed_id", "Uz_text"};
+    for (const ResultField& f : ResultFields()) {
+      if (!f.row_key.empty()) columns.push_back(f.row_key);
+    }
+    return columns;
+  }();
   return kColumns;
 }
 

@@ -15,7 +15,9 @@
 
 namespace sandswim {
 
-// The columns of a result row, in order (a campaign run's rows add "sweeps" at the end). A row's
+// The columns of a result row, in order: the run's and its point's, "Uz_text", then the row keys
+// of the stored result's fields (core/result_fields.h; a campaign run's rows add "sweeps" at the
+// end). A row's
 // JSON object carries these, and its point's materials where they are not Table 1's (its point's
 // JSON, core/sweep.h PointToJson: a Table 1 row is what it always was).
 const std::vector<std::string>& ResultColumns();

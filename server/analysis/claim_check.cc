@@ -5,6 +5,7 @@
 #include <set>
 #include <utility>
 
+#include "core/job_state.h"
 #include "server/store/campaigns.h"
 
 namespace sandswim {
@@ -93,7 +94,7 @@ ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultR
     run.replicate = row.replicate;
     run.state = row.state;
     // A requeued run's old result is not its result.
-    if (row.state == "done" && row.result) run.result = row.result->result;
+    if (InState(row.state, JobState::kDone) && row.result) run.result = row.result->result;
     if (auto f = failures.find(row.run_id); f != failures.end()) run.failure = f->second;
     sweep.runs.push_back(std::move(run));
   }
@@ -131,7 +132,7 @@ Result<ClaimInput> InputOf(Store& store, const CampaignRunInfo& campaign_run,
     b.id = bed->id;
     b.replicate = bed->replicate;
     b.state = bed->state;
-    if (bed->state == "done" && bed->result) {
+    if (InState(bed->state, JobState::kDone) && bed->result) {
       b.grains = bed->result->grains;
       b.bed_height = bed->result->bed_height;
     }

@@ -7,6 +7,7 @@
 #include <set>
 #include <utility>
 
+#include "core/job_state.h"
 #include "core/aggregate.h"
 #include "core/drift.h"
 #include "core/scale.h"
@@ -196,7 +197,7 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
       p.run_id = row.run_id;
       p.key = row.key;
       p.state = row.state;
-      if (row.state == "done" && row.result) {
+      if (InState(row.state, JobState::kDone) && row.result) {
         p.uz = row.result->result.uz;
         p.uz_stderr = row.result->result.uz_stderr;
         p.uz_ci95 = row.result->result.uz_ci95;

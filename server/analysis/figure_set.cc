@@ -8,6 +8,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
 #include "core/sweep.h"
@@ -23,23 +24,24 @@ std::vector<std::string> TrajectoryBranches(const SweepAnalysis& a) {
   // stays on one plot.
   std::set<std::tuple<double, double, double>> rising, sinking;
   for (const RunTrajectory& r : a.runs) {
-    if (r.point.mode != Mode::kOscillatory || r.point.Omega == 0) continue;
-    (r.point.Omega < 0 ? rising : sinking).insert({r.point.A, r.point.f, std::fabs(r.point.Omega)});
+    if (r.point.mode != Mode::kOscillatory || BranchOf(r.point) == Branch::kNone) continue;
+    (BranchOf(r.point) == Branch::kRising ? rising : sinking).insert({r.point.A, r.point.f, std::fabs(r.point.Omega)});
   }
-  if (!rising.empty() && !sinking.empty() && std::max(rising.size(), sinking.size()) > 1) return {"rising", "sinking"};
+  if (!rising.empty() && !sinking.empty() && std::max(rising.size(), sinking.size()) > 1)
+    return {std::string(BranchName(Branch::kRising)), std::string(BranchName(Branch::kSinking))};
   return {""};
 }
 
 Plot SweepTrajectoriesFigure(const SweepAnalysis& a, const std::string& branch) {
+  // A name that is not a branch's (the route refuses one) draws the sinking branch, as it did.
+  const Branch side = ParseBranch(branch).value_or(Branch::kSinking);
   std::vector<RunTrajectory> runs;
   for (const RunTrajectory& r : a.runs) {
-    if (branch.empty() ||
-        (r.point.mode == Mode::kOscillatory && (branch == "rising" ? r.point.Omega < 0 : r.point.Omega > 0)))
-      runs.push_back(r);
+    if (branch.empty() || (r.point.mode == Mode::kOscillatory && BranchOf(r.point) == side)) runs.push_back(r);
   }
-  const std::string what = branch.empty()       ? "Δz(t) of every run"
-                           : branch == "rising" ? "Δz(t), rising branch (Ω < 0)"
-                                                : "Δz(t), sinking branch (Ω > 0)";
+  const std::string what = branch.empty() ? std::string("Δz(t) of every run")
+                                          : "Δz(t), " + std::string(BranchName(side)) + " branch (" +
+                                                std::string(OmegaSide(side)) + ")";
   return SweepTrajectoriesPlot(
       "sweep " + std::to_string(a.info.id) + " " + PlplotLiteral(a.info.name) + " (" + a.info.scale + "): " + what,
       runs, a.fits.choice.param);

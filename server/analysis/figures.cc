@@ -21,6 +21,7 @@
 
 #include <plplot.h>
 
+#include "core/branch.h"
 #include "core/keys.h"
 #include "core/materials.h"
 #include "core/text.h"
@@ -736,17 +737,15 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
                  : param == "f" ? "f (Hz)"
                                 : "Ω (rad/s)";
   auto x_of = [&](const Point& p) { return SweptValue(p, param); };
-  for (const char* branch : {"rising", "sinking"}) {
-    Series s{std::string(branch) + " (Ω " + (std::string(branch) == "rising" ? "< 0" : "> 0") + ")",
+  for (const Branch branch : {Branch::kRising, Branch::kSinking}) {
+    Series s{std::string(BranchName(branch)) + " (" + std::string(OmegaSide(branch)) + ")",
              {},
              {},
              {},
              true,
              false};
     for (const SweepSample& sample : samples) {
-      bool rising = sample.point.Omega < 0;
-      if (!sample.conclusive || sample.uz_stderr <= 0 || sample.point.Omega == 0 ||
-          rising != (std::string(branch) == "rising")) {
+      if (!sample.conclusive || sample.uz_stderr <= 0 || BranchOf(sample.point) != branch) {
         continue;
       }
       s.x.push_back(x_of(sample.point));
@@ -767,7 +766,7 @@ Plot SweepUzPlot(const std::string& title, const std::vector<SweepSample>& sampl
   // Points of neither branch (Omega = 0, or other modes): one series of their own.
   Series other{"Ω = 0 or other drive", {}, {}, {}, true, false};
   for (const SweepSample& sample : samples) {
-    if (!sample.conclusive || sample.uz_stderr <= 0 || sample.point.Omega != 0) continue;
+    if (!sample.conclusive || sample.uz_stderr <= 0 || BranchOf(sample.point) != Branch::kNone) continue;
     other.x.push_back(x_of(sample.point));
     other.y.push_back(sample.uz);
     other.y_err.push_back(sample.uz_ci95);

@@ -10,6 +10,8 @@
 #include <sstream>
 #include <tuple>
 
+#include "core/job_state.h"
+#include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
 #include "core/sweep.h"
@@ -184,9 +186,9 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
     int failed = 0, unfinished = 0, inconclusive = 0;
     for (const DriftPoint& p : drift->rows) {
       if (p.point != point) continue;
-      if (p.state == "failed" || p.state == "cancelled") {
+      if (InState(p.state, JobState::kFailed) || InState(p.state, JobState::kCancelled)) {
         ++failed;
-      } else if (p.state != "done") {
+      } else if (!InState(p.state, JobState::kDone)) {
         ++unfinished;
       } else {
         ++inconclusive;
@@ -369,8 +371,9 @@ std::string RenderReportHtml(const ReportInput& in) {
     for (const auto& [branch, svg] : s.trajectories_svg) {
       html += FigureHtml(svg, "fig-sweep-" + id + "-trajectories" + (branch.empty() ? "" : "-" + branch),
                          branch.empty() ? "Δz(t) of every finished run of sweep " + id
-                                        : "Δz(t) of the " + branch + " branch of sweep " + id + " (Ω " +
-                                              (branch == "rising" ? "<" : ">") + " 0)");
+                                        : "Δz(t) of the " + branch + " branch of sweep " + id + " (" +
+                                              std::string(OmegaSide(ParseBranch(branch).value_or(Branch::kSinking))) +
+                                              ")");
     }
     html += FigureHtml(s.uz_svg, "fig-sweep-" + id + "-uz",
                        "U_z of sweep " + id + " against " +

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "core/job_state.h"
 #include "core/aggregate.h"
 #include "core/scale.h"
 #include "core/sweep.h"
@@ -36,7 +37,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         v.run_id = b->run_id;
         v.replicate = b->replicate;
         v.state = b->state;
-        if (b->state == "done" && b->result) {
+        if (InState(b->state, JobState::kDone) && b->result) {
           if (first_done == nullptr) first_done = b;
           v.conclusive = b->result->result.conclusive;
           v.uz = b->result->result.uz;
@@ -63,7 +64,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         a.samples.push_back(std::move(sample));
       }
     }
-    if (row.state != "done" || !row.result) continue;
+    if (!InState(row.state, JobState::kDone) || !row.result) continue;
     if (beds.size() > 1) continue;  // its sample is the aggregate
     const api::RunResult& r = row.result->result;
     SweepSample sample;
@@ -109,7 +110,7 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   SweepAnalysis a = AnalyzeSweepResults(*info, *rows);
   // Every finished run's trajectory, on every bed.
   for (const ResultRow& row : *rows) {
-    if (row.state != "done" || !row.result) continue;
+    if (!InState(row.state, JobState::kDone) || !row.result) continue;
     auto run = store.GetRun(row.run_id);
     if (!run.ok()) return run.status();
     if (run->trajectory && !run->trajectory->t.empty())

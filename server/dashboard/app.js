@@ -418,9 +418,6 @@ function followRows(table) {
   });
 }
 
-// A fit branch's side of Omega = 0: the rising branch is Omega < 0 (Sec. 3.2), the sinking one > 0.
-const branchSign = name => (/ris|neg/.test(name) ? -1 : 1);
-
 // U_z against the swept parameter, per sweep: the point aggregates (over replicate beds) with their
 // 95 % intervals, and the fitted law when the daemon fitted one.
 async function sweepUzPlot(el, sweep) {
@@ -441,7 +438,7 @@ async function sweepUzPlot(el, sweep) {
   for (const b of (fits && fits.branches) || []) {
     const lo = Math.min(...x), hi = Math.max(...x), grid = Array.from({ length: 60 }, (_, i) => lo + (hi - lo) * i / 59);
     if (b.saturation && param === 'Omega') {
-      const s = b.saturation, xs = grid.filter(v => (branchSign(b.branch) < 0 ? v < 0 : v > 0));
+      const s = b.saturation, xs = grid.filter(v => (b.omega_sign < 0 ? v < 0 : v > 0));  // its side of Omega = 0, as the daemon says
       curves.push({ label: `fit (${b.branch}): C1=${num(s.C1)}±${num(s.C1_stderr)} m/s`, x: xs, y: xs.map(v => s.sign * s.C1 * (1 - Math.exp(-s.C2 * Math.abs(v)))) });
     }
     if (b.linear && param === 'A') {

@@ -19,7 +19,7 @@ LiveFeed::LiveFeed(Store* store, Clock* clock, double tick_s, int max_streams, i
                    int max_streams_per_client)
     : store_(store),
       clock_(clock),
-      tick_(tick_s),
+      tick_s_(tick_s),
       max_streams_(max_streams),
       sweeps_(sweeps),
       campaign_runs_(campaign_runs),
@@ -95,10 +95,10 @@ std::string LiveFeed::BuildContentOrThrow() {
 
 std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::Current() {
   std::lock_guard<std::mutex> build(build_mu_);
-  const auto now = std::chrono::steady_clock::now();
+  const double now = clock_->Monotonic();
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (current_ && now - built_at_ < tick_) return current_;
+    if (current_ && now - built_at_ < tick_s_) return current_;
   }
   std::string content = BuildContent();
   builds_.fetch_add(1);
@@ -136,7 +136,9 @@ std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::WaitNewer(uint64_t version, 
     std::shared_ptr<const Snapshot> snap = Current();
     if (snap->version > version || stopped() || Steady::now() >= deadline) return snap;
     std::unique_lock<std::mutex> lock(mu_);
-    const Steady::time_point until = std::min(deadline, Steady::now() + std::chrono::duration_cast<Steady::duration>(tick_));
+    // The wait is real time (a condition variable's); whether a tick has passed is the clock's (Current).
+    const Steady::time_point until =
+        std::min(deadline, Steady::now() + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(tick_s_)));
     changed_.wait_until(lock, until, [&] { return stopped() || (current_ && current_->version > version); });
   }
 }
@@ -167,13 +169,13 @@ void LiveFeed::CloseStream(const std::string& client) {
 }
 
 void LiveFeed::RecordBeat(int64_t run_id, double sim_time_s, double so_z) {
-  const auto now = std::chrono::steady_clock::now();
+  const double now = clock_->Monotonic();
   std::lock_guard<std::mutex> lock(mu_);
   // Trails of runs that stopped beating end, whether or not a page asked for a snapshot since.
-  if (now - last_idle_sweep_ > kTrailIdle) {
+  if (!last_idle_sweep_ || now - *last_idle_sweep_ > kTrailIdleS) {
     last_idle_sweep_ = now;
     for (auto it = trails_.begin(); it != trails_.end();) {
-      it = now - it->second.last_beat > kTrailIdle ? trails_.erase(it) : std::next(it);
+      it = now - it->second.last_beat > kTrailIdleS ? trails_.erase(it) : std::next(it);
     }
   }
   Trail& trail = trails_[run_id];

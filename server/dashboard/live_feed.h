@@ -29,6 +29,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -50,7 +51,7 @@ class LiveFeed {
   };
   struct Trail {
     std::vector<double> t, z;  // simulated time (s) and the SO's z (m), one point per heartbeat
-    std::chrono::steady_clock::time_point last_beat;
+    double last_beat = 0;  // the clock's monotonic time (s) of its last beat
   };
 
   // Shown: the newest `sweeps` sweeps and `campaign_runs` campaign runs, and up to 1,000 running
@@ -76,7 +77,8 @@ class LiveFeed {
   int open_streams() const { return streams_.load(); }
 
   // From a heartbeat the lease queue accepted. A beat earlier than the trail's last starts the
-  // trail again (the run's next attempt); a trail no beat reached for kTrailIdle ends.
+  // trail again (the run's next attempt); a trail no beat reached for kTrailIdleS ends (checked
+  // at a beat, at most once per kTrailIdleS).
   void RecordBeat(int64_t run_id, double sim_time_s, double so_z);
   // The run's trail so far (empty when it is not running or no beat came since the daemon started).
   Trail TrailOf(int64_t run_id) const;
@@ -86,7 +88,7 @@ class LiveFeed {
 
   uint64_t builds() const { return builds_.load(); }  // snapshots built (for tests and benchmarks)
   static constexpr size_t kMaxTrailPoints = 4096;     // past it, every other point is dropped
-  static constexpr std::chrono::minutes kTrailIdle{10};
+  static constexpr double kTrailIdleS = 600;  // a trail no beat reached for this long (s) ends
 
  private:
   std::string BuildContent();  // the snapshot without version and time; "" when it cannot
@@ -95,19 +97,19 @@ class LiveFeed {
 
   Store* store_;
   Clock* clock_;
-  const std::chrono::duration<double> tick_;
+  const double tick_s_;
   const int max_streams_, sweeps_, campaign_runs_, max_streams_per_client_;
 
   std::mutex build_mu_;  // one builder at a time
   mutable std::mutex mu_;
   std::condition_variable changed_;
   std::shared_ptr<const Snapshot> current_;
-  std::chrono::steady_clock::time_point built_at_;
+  double built_at_ = 0;  // the clock's monotonic time of the last build
   std::string last_content_;
   std::atomic<int> engine_slots_{0};
   uint64_t version_ = 0;
   std::map<int64_t, Trail> trails_;
-  std::chrono::steady_clock::time_point last_idle_sweep_;
+  std::optional<double> last_idle_sweep_;  // monotonic; unset before the first beat
 
   std::atomic<bool> stopped_{false};
   std::atomic<int> streams_{0};

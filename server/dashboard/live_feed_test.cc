@@ -49,7 +49,8 @@ TEST_F(LiveFeedTest, ManyReadersShareOneBuildPerTick) {
 TEST_F(LiveFeedTest, AnUnchangedBoardKeepsItsVersion) {
   LiveFeed feed(store_.get(), &clock_, /*tick_s=*/0.01);
   const uint64_t v = feed.Current()->version;
-  auto later = feed.WaitNewer(v, /*wait_s=*/0.1);  // several ticks, nothing changes
+  clock_.Advance(0.02);                            // ticks pass (the feed's clock says when)
+  auto later = feed.WaitNewer(v, /*wait_s=*/0.1);  // a rebuild, and nothing changes
   EXPECT_EQ(later->version, v);
   EXPECT_GE(feed.builds(), 2u);
   feed.Stop();
@@ -79,6 +80,28 @@ TEST_F(LiveFeedTest, TrailsKeepNewerBeatsAndThinOut) {
   // No such run is running: the next snapshot drops its trail.
   feed.Current();
   EXPECT_TRUE(feed.TrailOf(9).t.empty());
+}
+
+// A trail no beat reached for ten minutes ends at the next beat of any run; a quieter one stays.
+TEST_F(LiveFeedTest, ATrailNoBeatReachedForTenMinutesEnds) {
+  LiveFeed feed(store_.get(), &clock_);
+  feed.RecordBeat(1, 0.1, 0.001);
+  feed.RecordBeat(2, 0.1, 0.002);
+  clock_.Advance(300);
+  feed.RecordBeat(2, 0.2, 0.003);  // run 2 beats again five minutes on; run 1 has gone quiet
+  EXPECT_EQ(feed.TrailOf(1).t.size(), 1u) << "five minutes quiet: kept";
+  clock_.Advance(LiveFeed::kTrailIdleS - 300 + 1);  // run 1: ten minutes and a second; run 2: five
+  feed.RecordBeat(3, 0.1, 0.004);
+  EXPECT_TRUE(feed.TrailOf(1).t.empty()) << "ten minutes without a beat: the trail ends";
+  EXPECT_EQ(feed.TrailOf(2).t.size(), 2u);
+  EXPECT_EQ(feed.TrailOf(3).t.size(), 1u);
+  clock_.Set(clock_.Now() - 3600);  // a wall clock set back an hour does not move the rule
+  clock_.Advance(300);
+  feed.RecordBeat(3, 0.2, 0.005);
+  clock_.Advance(LiveFeed::kTrailIdleS - 300 + 1);  // run 2: over ten minutes quiet; run 3: five
+  feed.RecordBeat(3, 0.3, 0.006);
+  EXPECT_TRUE(feed.TrailOf(2).t.empty());
+  EXPECT_EQ(feed.TrailOf(3).t.size(), 3u);
 }
 
 TEST_F(LiveFeedTest, StreamsAreCapped) {

@@ -24,6 +24,7 @@
 #include <httplib.h>
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
+#include "core/branch.h"
 #include "core/aggregate.h"
 #include "core/result_table.h"
 #include "core/snapshot.h"
@@ -99,7 +100,7 @@ void GetSweepTrajectoriesFigure(Call& c) {
     return Fail(c, Status::FailedPrecondition("id", "no finished run of this sweep has a trajectory"));
   // ?branch=rising|sinking: the runs of one branch (the paper's panels a and b).
   const std::string branch = c.req.has_param("branch") ? c.req.get_param_value("branch") : "";
-  if (c.req.has_param("branch") && branch != "rising" && branch != "sinking")
+  if (c.req.has_param("branch") && !ParseBranch(branch))
     return Fail(c, Status::InvalidArgument("branch", "must be rising (Omega < 0) or sinking (Omega > 0)"));
   Plot plot = SweepTrajectoriesFigure(*a, branch);
   if (plot.series.empty()) {

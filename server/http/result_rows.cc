@@ -22,8 +22,10 @@
 #include <httplib.h>
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
+#include "core/job_state.h"
 #include "core/aggregate.h"
 #include "core/materials.h"
+#include "core/result_fields.h"
 #include "core/result_table.h"
 #include "core/snapshot.h"
 #include "core/sweep.h"
@@ -61,39 +63,10 @@ json ResultRowJson(const ResultRow& row, ResultsOf of) {
   j["replicate"] = row.replicate;
   j["bed_id"] = row.bed_id;
   if (row.result) {
-    const api::RunResult& r = row.result->result;
-    j["Uz_text"] = DescribeUz(r, false);
-    if (r.uz) j["Uz"] = *r.uz;
-    if (r.uz_stderr) j["Uz_stderr"] = *r.uz_stderr;
-    if (r.uz_ci95) j["Uz_ci95"] = *r.uz_ci95;
-    j["Uz_blocks"] = r.uz_blocks;
-    j["block_s"] = r.block_s;
-    j["block_kind"] = r.block_kind;
-    j["window_t0"] = r.window_t0;
-    j["window_t1"] = r.window_t1;
-    j["window_end"] = r.window_end;
-    j["conclusive"] = r.conclusive;
-    j["inconclusive_reason"] = r.inconclusive_reason;
-    j["trending"] = r.trending;
-    if (r.trend_p) j["trend_p"] = *r.trend_p;
-    if (r.trend_slope) j["trend_slope"] = *r.trend_slope;
-    if (r.trend_slope_se) j["trend_slope_se"] = *r.trend_slope_se;
-    j["trend_note"] = r.trend_note;
-    j["dz"] = r.dz;
-    j["dz_rate"] = r.dz_rate;
-    j["analysis"] = r.analysis;
-    j["analysed_from"] = r.analysed_from;
-    j["z_osc_amplitude"] = r.z_osc_amplitude;
-    if (r.x_osc_amplitude) j["x_osc_amplitude"] = *r.x_osc_amplitude;
-    j["x_drift"] = r.x_drift;
-    j["broke_surface"] = r.broke_surface;
-    j["near_floor"] = r.near_floor;
-    j["stop_reason"] = r.stop_reason;
-    j["stop_note"] = r.stop_note;
-    j["precision_met"] = r.precision_met ? json(*r.precision_met) : json(nullptr);
-    j["sim_time_s"] = r.sim_time_s;
-    j["grains"] = r.grains;
-    j["engine_version"] = row.result->execution.engine_version;
+    j["Uz_text"] = DescribeUz(row.result->result, false);
+    for (const ResultField& f : ResultFields()) {
+      if (!f.row_key.empty()) j[f.row_key] = f.get(*row.result);
+    }
   }
   if (of == ResultsOf::kCampaignRun) j["sweeps"] = row.sweeps;
   return j;
@@ -108,7 +81,7 @@ ReplicateValue ReplicateOf(const ResultRow& row) {
   v.replicate = row.replicate;
   v.bed_id = row.bed_id;
   v.state = row.state;
-  if (row.state == "done" && row.result) {  // a requeued run's old result is not averaged
+  if (InState(row.state, JobState::kDone) && row.result) {  // a requeued run's old result is not averaged
     const api::RunResult& r = row.result->result;
     v.conclusive = r.conclusive;
     v.uz = r.uz;

@@ -745,7 +745,7 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   json trail = Body(client_->Get(trail_path.c_str()));
   EXPECT_EQ(trail["t"], json({0.1})) << trail.dump();
   EXPECT_EQ(trail["z"], json({0.001})) << trail.dump();
-  std::this_thread::sleep_for(std::chrono::milliseconds(80));  // a tick (0.05 s) later
+  clock_.Advance(0.08);  // a tick (0.05 s) later, by the feed's clock
   json board = Body(client_->Get("/api/v1/live"));
   ASSERT_EQ(board["running"].size(), 1u) << board.dump();
   EXPECT_EQ(board["running"][0]["id"], run.id);
@@ -762,7 +762,7 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   done.log_tail = "Loop time of 1.0\n";
   auto completed = Post("/api/v1/leases/" + run.token + "/complete", json(done).dump());
   ASSERT_EQ(completed->status, 200) << completed->body;
-  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  clock_.Advance(0.08);  // a tick (0.05 s) later
   EXPECT_TRUE(Body(client_->Get("/api/v1/live"))["running"].empty());
   EXPECT_TRUE(Body(client_->Get(trail_path.c_str()))["t"].empty()) << "trails end with their run";
   EXPECT_EQ(Body(completed)["state"], "done");
@@ -1011,11 +1011,11 @@ TEST_F(RoutesTest, LiveSnapshotVersionsAndStreamLimit) {
   ASSERT_EQ(first->status, 200) << first->body;
   const std::string etag = first->get_header_value("ETag");
   ASSERT_FALSE(etag.empty());
-  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  clock_.Advance(0.08);  // a tick (0.05 s) later
   auto same = client_->Get("/api/v1/live", {{"If-None-Match", etag}});
   EXPECT_EQ(same->status, 304) << "nothing changed: " << same->body;
   SubmitExample();
-  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  clock_.Advance(0.08);  // a tick (0.05 s) later
   auto changed = client_->Get("/api/v1/live", {{"If-None-Match", etag}});
   ASSERT_EQ(changed->status, 200);
   json board = Body(changed);
@@ -1046,7 +1046,10 @@ TEST_F(RoutesTest, LiveSnapshotVersionsAndStreamLimit) {
   EXPECT_THAT(Body(refused)["detail"].get<std::string>(), HasSubstr("poll GET /api/v1/live"));
   // A change reaches both streams as a new event.
   SubmitExample();
-  for (int i = 0; i < 100 && events.load() < 4; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  for (int i = 0; i < 100 && events.load() < 4; ++i) {
+    clock_.Advance(0.05);  // a tick, by the feed's clock: the streams' next look rebuilds
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the stream threads' turn
+  }
   EXPECT_GE(events.load(), 4) << "each stream: the snapshot at connection, then the change";
   live_->Stop();  // streams end; the readers return
   for (std::thread& t : readers) t.join();

@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 
+#include "core/job_state.h"
 #include "core/point.h"
 #include "core/precision.h"
 
@@ -230,7 +231,7 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
       const double grains = r.OptInt(6) && *r.OptInt(6) > 0 ? static_cast<double>(*r.OptInt(6))
                                                               : EstimatedGrains(scale ? *scale : *smoke);
       WorkLeft w;
-      w.running = r.Text(0) == "running";
+      w.running = InState(r.Text(0), JobState::kRunning);
       w.particles = grains + 1;
       w.steps = r.Int(1);
       w.steps_done = r.Int(2);
@@ -238,10 +239,10 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
       w.min_steps = EarliestTargetStep(r, w.steps);
       left.push_back(w);
       const std::string bed_state = r.Text(5);
-      if (bed_state == "queued" || bed_state == "running") {
+      if (InState(bed_state, JobState::kQueued) || InState(bed_state, JobState::kRunning)) {
         WorkLeft b;
         b.kind = WorkLeft::Kind::kBed;
-        b.running = bed_state == "running";
+        b.running = InState(bed_state, JobState::kRunning);
         b.particles = grains;
         b.elapsed_s = b.running ? r.Double(8) : 0;
         beds[r.Int(4)] = b;

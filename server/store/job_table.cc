@@ -4,6 +4,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "server/store/result_columns.h"
+
 namespace sandswim::jobs {
 namespace {
 
@@ -372,27 +374,7 @@ Status PutResult(Transaction& t, int64_t run_id, const api::RunResult& r, const 
   Result<bool> row = key.Step();
   if (!row.ok()) return row.status();
   // A forced rerun replaces the old result here, in the same transaction as the state.
-  Statement st = t.Prepare(
-      "INSERT OR REPLACE INTO results (run_id, uz, uz_stderr, window_t0, window_t1, dz, "
-      "z_osc_amplitude, x_drift, broke_surface, near_floor, stop_reason, sim_time_s, steps, "
-      "grains, z0, engine_version, host, ranks, launcher, wall_s, cpu_s, key, created_at, "
-      "lease_to_start_s, uz_ci95, uz_stderr_note, uz_blocks, block_s, window_end, conclusive, "
-      "inconclusive_reason, dz_rate, analysis, block_kind, stop_note, precision_met, x_osc_amplitude, "
-      "trend_slope, trend_slope_se, trend_p, trending, trend_note) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-      "?, ?, ?, ?, ?, ?, ?, ?)");
-  st.Bind(1, run_id).Bind(2, r.uz).Bind(3, r.uz_stderr).Bind(4, r.window_t0).Bind(5, r.window_t1);
-  st.Bind(6, r.dz).Bind(7, r.z_osc_amplitude).Bind(8, r.x_drift).Bind(9, r.broke_surface);
-  st.Bind(10, r.near_floor).Bind(11, r.stop_reason).Bind(12, r.sim_time_s).Bind(13, r.steps);
-  st.Bind(14, r.grains).Bind(15, r.z0).Bind(16, e.engine_version).Bind(17, e.host);
-  st.Bind(18, e.ranks).Bind(19, e.launcher).Bind(20, e.wall_s).Bind(21, e.cpu_s);
-  st.Bind(22, key.Text(0)).Bind(23, now).Bind(24, e.lease_to_start_s);
-  st.Bind(25, r.uz_ci95).Bind(26, r.uz_stderr_note).Bind(27, r.uz_blocks).Bind(28, r.block_s);
-  st.Bind(29, r.window_end).Bind(30, r.conclusive).Bind(31, r.inconclusive_reason).Bind(32, r.dz_rate);
-  st.Bind(33, r.analysis).Bind(34, r.block_kind).Bind(35, r.stop_note).Bind(36, r.precision_met);
-  st.Bind(37, r.x_osc_amplitude).Bind(38, r.trend_slope).Bind(39, r.trend_slope_se).Bind(40, r.trend_p);
-  st.Bind(41, r.trending).Bind(42, r.trend_note);
-  return st.Run();
+  return InsertResult(t, run_id, StoredResult{r, e, key.Text(0), now});
 }
 
 Status PutTrajectory(Transaction& t, int64_t run_id, const api::Trajectory& trajectory) {

@@ -6,37 +6,44 @@
 #include <filesystem>
 #include <map>
 #include <set>
+#include <string_view>
 #include <tuple>
 #include <utility>
 
 #include "core/deck.h"
+#include "core/job_state.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 #include "core/text.h"
 #include "core/trajectory.h"
+#include "server/store/result_columns.h"
 
 namespace sandswim {
 namespace {
 
-// Columns of a run summary, shared by ListRuns, GetRun and SweepResults.
-constexpr const char* kRunColumns =
+// How many columns a list names (its commas, plus one).
+constexpr int ColumnCount(std::string_view list) {
+  int n = 1;
+  for (char ch : list) n += ch == ',';
+  return n;
+}
+
+// Columns of a run summary, shared by ListRuns, GetRun and the live board; the run's result
+// follows them (RunColumns, ReadResult at kRunColumnCount).
+constexpr std::string_view kRunColumns =
     "r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
     "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
-    "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, res.uz, r.last_error_kind, "
-    "r.last_error, res.uz_stderr, res.uz_blocks, res.block_kind, res.block_s, res.conclusive, res.analysis, "
-    "res.run_id, r.precision, r.snapshots, r.materials";
-constexpr int kRunColumnCount = 35;
-constexpr int kRunMaterialsColumn = 34;
+    "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, r.last_error_kind, r.last_error, "
+    "r.precision, r.snapshots, r.materials";
+constexpr int kRunColumnCount = ColumnCount(kRunColumns);
+constexpr int kRunMaterialsColumn = kRunColumnCount - 1;
 
-constexpr const char* kResultColumns =
-    "res.uz, res.uz_stderr, res.window_t0, res.window_t1, res.dz, res.z_osc_amplitude, "
-    "res.x_drift, res.broke_surface, res.near_floor, res.stop_reason, res.sim_time_s, res.steps, "
-    "res.grains, res.z0, res.engine_version, res.host, res.ranks, res.launcher, res.wall_s, "
-    "res.cpu_s, res.key, res.created_at, res.lease_to_start_s, res.uz_ci95, res.uz_stderr_note, "
-    "res.uz_blocks, res.block_s, res.window_end, res.conclusive, res.inconclusive_reason, res.dz_rate, "
-    "res.analysis, res.block_kind, res.analysed_from, res.stop_note, res.precision_met, res.x_osc_amplitude, "
-    "res.trend_slope, res.trend_slope_se, res.trend_p, res.trending, res.trend_note";
-constexpr int kResultColumnCount = 42;
+// kRunColumns, then the run's result (a query joins `results res`), then what a query adds.
+const std::string& RunColumns() {
+  static const std::string kColumns = std::string(kRunColumns) + ", " + ResultSelectList();
+  return kColumns;
+}
+int RunColumnsCount() { return kRunColumnCount + static_cast<int>(ResultFields().size()); }
 
 // The snapshots table's rows of one run, by idx (schema/010_snapshots.sql).
 Result<std::vector<api::Snapshot>> SnapshotsIn(Transaction& t, int64_t run_id) {
@@ -61,6 +68,7 @@ Result<Point> PointFromRow(const Statement& st, int c, int materials) {
                      st.Double(c + 6), st.OptText(materials));
 }
 
+// A row of RunColumns().
 Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   RunSummary r;
   r.id = st.Int(0);
@@ -81,94 +89,43 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   r.created_at = st.Double(19);
   r.started_at = st.OptDouble(20);
   r.finished_at = st.OptDouble(21);
-  r.uz = st.OptDouble(22);
-  if (!st.IsNull(23)) r.last_error = api::Failure{st.Text(23), st.Text(24)};
-  Result<std::optional<PrecisionTarget>> precision = StoredPrecision(st.OptText(32));
+  if (!st.IsNull(22)) r.last_error = api::Failure{st.Text(22), st.Text(23)};
+  Result<std::optional<PrecisionTarget>> precision = StoredPrecision(st.OptText(24));
   if (!precision.ok())
     return Status(precision.status().code(), "run " + std::to_string(r.id) + ": " + precision.status().reason());
   r.precision = *precision;
-  Result<SnapshotFractions> snapshots = StoredSnapshotFractions(st.OptText(33));
+  Result<SnapshotFractions> snapshots = StoredSnapshotFractions(st.OptText(25));
   if (!snapshots.ok())
     return Status(snapshots.status().code(), "run " + std::to_string(r.id) + ": " + snapshots.status().reason());
   r.snapshots = *snapshots;
-  if (!st.IsNull(31)) {  // a result row exists
-    api::RunResult res;
-    res.uz = r.uz;
-    res.uz_stderr = st.OptDouble(25);
-    res.uz_blocks = static_cast<int>(st.Int(26));
-    res.block_kind = st.Text(27);
-    res.block_s = st.Double(28);
-    res.conclusive = st.Int(29) != 0;
-    res.analysis = static_cast<int>(st.Int(30));
-    r.uz_text = DescribeUz(res);
+  if (std::optional<StoredResult> res = ReadResult(st, kRunColumnCount)) {
+    r.uz = res->result.uz;
+    r.uz_text = DescribeUz(res->result);
   }
   return r;
 }
 
-std::optional<StoredResult> ResultFromRow(const Statement& st, int c) {
-  if (st.IsNull(c + 20)) return std::nullopt;  // res.key: NOT NULL in every result row
-  StoredResult s;
-  api::RunResult& r = s.result;
-  r.uz = st.OptDouble(c);
-  r.uz_stderr = st.OptDouble(c + 1);
-  r.window_t0 = st.Double(c + 2);
-  r.window_t1 = st.Double(c + 3);
-  r.dz = st.Double(c + 4);
-  r.z_osc_amplitude = st.Double(c + 5);
-  r.x_drift = st.Double(c + 6);
-  r.broke_surface = st.Int(c + 7) != 0;
-  r.near_floor = st.Int(c + 8) != 0;
-  r.stop_reason = st.Text(c + 9);
-  r.sim_time_s = st.Double(c + 10);
-  r.steps = st.Int(c + 11);
-  r.grains = st.Int(c + 12);
-  r.z0 = st.Double(c + 13);
-  s.execution.engine_version = st.Text(c + 14);
-  s.execution.host = st.Text(c + 15);
-  s.execution.ranks = static_cast<int>(st.Int(c + 16));
-  s.execution.launcher = st.Text(c + 17);
-  s.execution.wall_s = st.Double(c + 18);
-  s.execution.cpu_s = st.Double(c + 19);
-  s.key = st.Text(c + 20);
-  s.created_at = st.Double(c + 21);
-  s.execution.lease_to_start_s = st.OptDouble(c + 22).value_or(0);
-  r.uz_ci95 = st.OptDouble(c + 23);
-  r.uz_stderr_note = st.Text(c + 24);
-  r.uz_blocks = static_cast<int>(st.Int(c + 25));
-  r.block_s = st.Double(c + 26);
-  r.window_end = st.Text(c + 27);
-  r.conclusive = st.Int(c + 28) != 0;
-  r.inconclusive_reason = st.Text(c + 29);
-  r.dz_rate = st.Double(c + 30);
-  r.analysis = static_cast<int>(st.Int(c + 31));
-  r.block_kind = st.Text(c + 32);
-  r.analysed_from = st.Text(c + 33);
-  r.stop_note = st.Text(c + 34);
-  if (!st.IsNull(c + 35)) r.precision_met = st.Int(c + 35) != 0;
-  r.x_osc_amplitude = st.OptDouble(c + 36);
-  r.trend_slope = st.OptDouble(c + 37);
-  r.trend_slope_se = st.OptDouble(c + 38);
-  r.trend_p = st.OptDouble(c + 39);
-  r.trending = st.Int(c + 40) != 0;
-  r.trend_note = st.Text(c + 41);
-  return s;
-}
-
+// A count of rows in `state` (a state column's text, core/job_state.h); another text counts nowhere.
 void AddState(RunCounts& c, const std::string& state, int64_t n) {
-  if (state == "queued")
-    c.queued += n;
-  else if (state == "running")
-    c.running += n;
-  else if (state == "done")
-    c.done += n;
-  else if (state == "failed")
-    c.failed += n;
-  else if (state == "cancelled")
-    c.cancelled += n;
-}
-
-bool IsRunState(const std::string& s) {
-  return s == "queued" || s == "running" || s == "done" || s == "failed" || s == "cancelled";
+  std::optional<JobState> s = ParseJobState(state);
+  if (!s) return;
+  switch (*s) {
+    case JobState::kQueued:
+      c.queued += n;
+      break;
+    case JobState::kRunning:
+      c.running += n;
+      break;
+    case JobState::kDone:
+      c.done += n;
+      break;
+    case JobState::kFailed:
+      c.failed += n;
+      break;
+    case JobState::kCancelled:
+      c.cancelled += n;
+      break;
+  }
 }
 
 template <typename T>
@@ -252,20 +209,6 @@ void to_json(nlohmann::json& j, const SweepPage& p) {
 void to_json(nlohmann::json& j, const Progress& p) {
   j = nlohmann::json{{"sim_time_s", p.sim_time_s}, {"so_z", p.so_z}, {"step", p.step}};
   PutOpt(j, "heartbeat_at", p.heartbeat_at);
-}
-
-void to_json(nlohmann::json& j, const StoredResult& r) {
-  j = r.result;
-  j["uz_text"] = DescribeUz(r.result);
-  j["engine_version"] = r.execution.engine_version;
-  j["host"] = r.execution.host;
-  j["ranks"] = r.execution.ranks;
-  j["launcher"] = r.execution.launcher;
-  j["wall_s"] = r.execution.wall_s;
-  j["cpu_s"] = r.execution.cpu_s;
-  j["lease_to_start_s"] = r.execution.lease_to_start_s;
-  j["key"] = r.key;
-  j["created_at"] = r.created_at;
 }
 
 void to_json(nlohmann::json& j, const RunSummary& r) {
@@ -475,12 +418,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
     Reanalysis counts;
     Status s = db_->Write([&](Transaction& t) {
       counts = {};
-      Statement fresh = t.Prepare(
-          "UPDATE results SET uz = ?, uz_stderr = ?, uz_ci95 = ?, uz_stderr_note = ?, uz_blocks = ?, "
-          "block_s = ?, window_t0 = ?, window_t1 = ?, window_end = ?, conclusive = ?, inconclusive_reason = ?, "
-          "dz_rate = ?, z_osc_amplitude = ?, analysis = ?, block_kind = ?, analysed_from = ?, stop_note = ?, "
-          "precision_met = ?, x_osc_amplitude = ?, trend_slope = ?, trend_slope_se = ?, trend_p = ?, trending = ?, "
-          "trend_note = ? WHERE run_id = ?");
+      Statement fresh = t.Prepare(UpdateAnalysedFieldsSql());
       Statement kept = t.Prepare(
           "UPDATE results SET analysed_from = 'unreadable', conclusive = 0, inconclusive_reason = ? "
           "WHERE run_id = ?");
@@ -509,15 +447,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
           ++counts.kept_old;
           continue;
         }
-        fresh.Reset();
-        fresh.Bind(1, r->uz).Bind(2, r->uz_stderr).Bind(3, r->uz_ci95).Bind(4, r->uz_stderr_note);
-        fresh.Bind(5, r->uz_blocks).Bind(6, r->block_s).Bind(7, r->window_t0).Bind(8, r->window_t1);
-        fresh.Bind(9, r->window_end).Bind(10, r->conclusive).Bind(11, r->inconclusive_reason);
-        fresh.Bind(12, r->dz_rate).Bind(13, r->z_osc_amplitude).Bind(14, r->analysis).Bind(15, r->block_kind);
-        fresh.Bind(16, r->analysed_from).Bind(17, r->stop_note).Bind(18, r->precision_met);
-        fresh.Bind(19, r->x_osc_amplitude).Bind(20, r->trend_slope).Bind(21, r->trend_slope_se);
-        fresh.Bind(22, r->trend_p).Bind(23, r->trending).Bind(24, r->trend_note).Bind(25, o.run_id);
-        SANDSWIM_RETURN_IF_ERROR(fresh.Run());
+        SANDSWIM_RETURN_IF_ERROR(UpdateAnalysedFields(fresh, o.run_id, *r));
         ++counts.reanalysed;
       }
       return Status::Ok();
@@ -575,14 +505,13 @@ Result<SweepInfo> Store::GetSweep(int64_t id) {
 }
 
 Result<RunPage> Store::ListRuns(const RunFilter& f) {
-  if (f.state && !IsRunState(*f.state)) {
-    return Status::InvalidArgument("state",
-                                   "'" + *f.state + "' is not one of queued, running, done, failed, cancelled");
+  if (f.state && !ParseJobState(*f.state)) {
+    return Status::InvalidArgument("state", "'" + *f.state + "' is not one of " + std::string(JobStateNames()));
   }
   int limit = std::clamp(f.limit, 1, 1000);
   Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
-  std::string sql = std::string("SELECT ") + kRunColumns + " FROM ";
+  std::string sql = "SELECT " + RunColumns() + " FROM ";
   sql += f.sweep_id ? "sweep_runs sr JOIN runs r ON r.id = sr.run_id " : "runs r ";
   sql += "LEFT JOIN results res ON res.run_id = r.id WHERE r.id > ?1";
   if (f.sweep_id) sql += " AND sr.sweep_id = ?2";
@@ -614,8 +543,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
   RunDetail d;
   {
     Statement st = t->Prepare(
-        std::string("SELECT ") + kRunColumns + ", d.deck, b.key, b.state, " + kResultColumns +
-        ", tr.data, lg.log_tail, b.scale FROM runs r " + "JOIN beds b ON b.id = r.bed_id " +
+        "SELECT " + RunColumns() + ", d.deck, b.key, b.state, tr.data, lg.log_tail, b.scale FROM runs r " + "JOIN beds b ON b.id = r.bed_id " +
         "LEFT JOIN run_decks d ON d.run_id = r.id " + "LEFT JOIN results res ON res.run_id = r.id " +
         "LEFT JOIN trajectories tr ON tr.run_id = r.id " + "LEFT JOIN run_logs lg ON lg.run_id = r.id WHERE r.id = ?");
     st.Bind(1, id);
@@ -625,12 +553,12 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     Result<RunSummary> summary = RunSummaryFromRow(st);
     if (!summary.ok()) return summary.status();
     d.summary = std::move(summary).value();
-    int c = kRunColumnCount;
+    const int c = RunColumnsCount();
     d.deck = st.Text(c);
     if (st.IsNull(c)) {
       // Not stored since migration 3: the deck is a pure function of the point and the scale
       // (the lease queue renders the same bytes and checks them against the run's key).
-      const Scale* scale = FindScale(st.Text(c + 3 + kResultColumnCount + 2));
+      const Scale* scale = FindScale(st.Text(c + 5));
       if (scale == nullptr) return Status::Corruption("run " + std::to_string(id) + "'s bed has an unknown scale");
       try {
         d.deck = RenderDriveDeck(d.summary.point, *scale, d.summary.precision, d.summary.snapshots);
@@ -640,9 +568,9 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     }
     d.bed_key = st.Text(c + 1);
     d.bed_state = st.Text(c + 2);
-    d.result = ResultFromRow(st, c + 3);
-    if (!st.IsNull(c + 3 + kResultColumnCount)) {
-      nlohmann::json tj = ParseJsonOr(st.Text(c + 3 + kResultColumnCount), nullptr);
+    d.result = ReadResult(st, kRunColumnCount);
+    if (!st.IsNull(c + 3)) {
+      nlohmann::json tj = ParseJsonOr(st.Text(c + 3), nullptr);
       if (tj.is_object()) {
         try {
           d.trajectory = tj.get<api::Trajectory>();
@@ -651,7 +579,7 @@ Result<RunDetail> Store::GetRun(int64_t id) {
         }
       }
     }
-    d.log_tail = st.Text(c + 3 + kResultColumnCount + 1);
+    d.log_tail = st.Text(c + 4);
   }
   Statement st = t->Prepare("SELECT sweep_id FROM sweep_runs WHERE run_id = ? ORDER BY sweep_id");
   st.Bind(1, id);
@@ -743,29 +671,31 @@ Result<std::vector<BedView>> Store::ListBeds() {
 
 namespace {
 
-// The columns of a result row (ResultRowFromRow), then whatever a query adds after them.
+// The columns of a result row (ResultRowFromRow): the run's, then its result, then whatever a
+// query adds after them (from kResultRowColumnCount() on).
+constexpr std::string_view kResultRowRunColumns =
+    "r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
+    "r.run_duration_s, r.bed_id, b.replicate, r.materials";
+constexpr int kResultRowRunColumnCount = ColumnCount(kResultRowRunColumns);
 const std::string& ResultRowColumns() {
-  static const std::string kColumns =
-      std::string("r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
-                  "r.run_duration_s, ") +
-      kResultColumns + ", r.bed_id, b.replicate, r.materials";
+  static const std::string kColumns = std::string(kResultRowRunColumns) + ", " + ResultSelectList();
   return kColumns;
 }
-constexpr int kResultRowColumnCount = 14 + kResultColumnCount;
+const int kResultRowColumnCount = kResultRowRunColumnCount + static_cast<int>(ResultFields().size());
 
 Result<ResultRow> ResultRowFromRow(const Statement& st) {
   ResultRow r;
   r.run_id = st.Int(0);
   r.key = st.Text(1);
   r.state = st.Text(2);
-  Result<Point> point = PointFromRow(st, 3, 13 + kResultColumnCount);
+  Result<Point> point = PointFromRow(st, 3, 13);
   if (!point.ok())
     return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
   r.point = *point;
   r.run_duration_s = st.Double(10);
-  r.result = ResultFromRow(st, 11);
-  r.bed_id = st.Int(11 + kResultColumnCount);
-  r.replicate = static_cast<int>(st.Int(12 + kResultColumnCount));
+  r.bed_id = st.Int(11);
+  r.replicate = static_cast<int>(st.Int(12));
+  r.result = ReadResult(st, kResultRowRunColumnCount);
   return r;
 }
 
@@ -1119,7 +1049,7 @@ Result<LiveBoard> Store::ReadLiveBoard(int sweeps, int campaign_runs, int runnin
     if (*started) board.campaign_run_started_at[c.id] = **started;
   }
   {
-    Statement st = t->Prepare(std::string("SELECT ") + kRunColumns +
+    Statement st = t->Prepare("SELECT " + RunColumns() +
                               " FROM runs r LEFT JOIN results res ON res.run_id = r.id WHERE r.state = 'running' "
                               "ORDER BY r.id LIMIT ?");
     st.Bind(1, running);

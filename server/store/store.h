@@ -23,6 +23,7 @@
 #include "core/api.h"
 #include "core/deck.h"
 #include "core/point.h"
+#include "core/result_fields.h"
 #include "core/status.h"
 #include "server/store/database.h"
 
@@ -65,16 +66,8 @@ struct Progress {
 };
 void to_json(nlohmann::json& j, const Progress& p);
 
-// A run's result row: the measured figures plus how it was executed.
-struct StoredResult {
-  api::RunResult result;
-  api::Execution execution;
-  std::string key;  // the run key the result was computed under
-  double created_at = 0;
-};
-// The RunResult fields flat, plus "engine_version","host","ranks","launcher","wall_s","cpu_s",
-// "lease_to_start_s" (0 for results stored before migration 4), "key","created_at".
-void to_json(nlohmann::json& j, const StoredResult& r);
+// A run's result row: StoredResult (core/result_fields.h, every field described once), its JSON
+// the fields under their names plus "uz_text".
 
 struct RunSummary {
   int64_t id = 0;

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <memory>
 #include <random>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -17,6 +18,7 @@
 #include "platform/clock.h"
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
+#include "server/store/result_columns.h"
 
 namespace sandswim {
 namespace {
@@ -502,6 +504,93 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   EXPECT_EQ(store->GetSweep(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->SweepResults(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->db().CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
+}
+
+// Each field of a run's result gets a value no other field has (its position in the description
+// shows in it), so that a read from a shifted column cannot pass.
+StoredResult EveryFieldSet() {
+  StoredResult s;
+  const std::vector<ResultField>& fields = ResultFields();
+  for (size_t i = 0; i < fields.size(); ++i) {
+    switch (fields[i].type) {
+      case ResultType::kReal:
+        fields[i].set(s, 0.125 * static_cast<double>(i + 1));
+        break;
+      case ResultType::kInteger:
+        fields[i].set(s, static_cast<int64_t>(100 + i));
+        break;
+      case ResultType::kBool:
+        fields[i].set(s, true);
+        break;
+      case ResultType::kText:
+        fields[i].set(s, "text of " + fields[i].name);
+        break;
+    }
+  }
+  s.result.analysed_from = "trajectory";  // the column's CHECK: one of dump, trajectory, unreadable
+  return s;
+}
+
+TEST_F(StoreTest, ResultFieldsAreTheResultsTable) {
+  auto store = MustOpen();
+  auto t = store->db().BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("PRAGMA table_info(results)");
+  std::set<std::string> columns;
+  while (*st.Step()) columns.insert(st.Text(1));
+  std::set<std::string> described = {"run_id"};
+  for (const ResultField& f : ResultFields()) EXPECT_TRUE(described.insert(f.name).second) << f.name << " twice";
+  EXPECT_EQ(columns, described) << "a results column without a field in core/result_fields.h, or a field "
+                                   "without its migration";
+}
+
+TEST_F(StoreTest, EveryResultFieldIsStoredAndReadBackInItsOwnColumn) {
+  auto store = MustOpen();
+  auto req = ParseSubmitRequest(Sweep("two", 2));
+  auto sub = Submit(*store, *req, "engine", 1.7e9);
+  ASSERT_TRUE(sub.ok()) << sub.status().ToString();
+  auto runs = store->ListRuns({});
+  ASSERT_TRUE(runs.ok() && runs->runs.size() == 2u);
+  const StoredResult full = EveryFieldSet();
+  StoredResult bare;  // every optional field absent
+  bare.key = "bare";
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t.ok());
+    Status s = InsertResult(*t, runs->runs[0].id, full);
+    ASSERT_TRUE(s.ok()) << s.ToString();
+    s = InsertResult(*t, runs->runs[1].id, bare);
+    ASSERT_TRUE(s.ok()) << s.ToString();
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto rows = store->SweepResults(sub->sweep_ids[0]);
+  ASSERT_TRUE(rows.ok() && rows->size() == 2u);
+  for (int i : {0, 1}) {
+    const StoredResult& want = i == 0 ? full : bare;
+    auto run = store->GetRun(runs->runs[i].id);
+    ASSERT_TRUE(run.ok() && run->result && (*rows)[i].result) << i;
+    for (const ResultField& f : ResultFields()) {
+      EXPECT_EQ(f.get(*run->result), f.get(want)) << f.name << " of run " << i << " (GetRun)";
+      EXPECT_EQ(f.get(*(*rows)[i].result), f.get(want)) << f.name << " of run " << i << " (SweepResults)";
+    }
+  }
+  auto listed = store->ListRuns({});
+  ASSERT_TRUE(listed.ok());
+  EXPECT_EQ(listed->runs[0].uz, full.result.uz);
+  EXPECT_EQ(listed->runs[0].uz_text, DescribeUz(full.result));
+  // The re-analysis's UPDATE rewrites what the analysis makes and nothing else.
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t.ok());
+    Statement update = t->Prepare(UpdateAnalysedFieldsSql());
+    ASSERT_TRUE(UpdateAnalysedFields(update, runs->runs[0].id, bare.result).ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto run = store->GetRun(runs->runs[0].id);
+  ASSERT_TRUE(run.ok() && run->result);
+  for (const ResultField& f : ResultFields()) {
+    EXPECT_EQ(f.get(*run->result), f.get(f.origin == ResultOrigin::kAnalysis ? bare : full)) << f.name;
+  }
 }
 
 TEST_F(StoreTest, CampaignsRoundTrip) {

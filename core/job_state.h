@@ -1,0 +1,35 @@
+// JobState: where a bed or a run is in its life (SPEC.md "run"), and its one spelling as text:
+// the database's state column, the REST API's JSON and the CLI's filters keep these strings.
+//
+//   queued -> running -> done | failed        (a lease expiring or a retry: running -> queued)
+//   queued | running -> cancelled              (runs only: no live sweep wants it any more)
+//
+// Thread safety: pure functions.
+#ifndef SANDSWIM_CORE_JOB_STATE_H_
+#define SANDSWIM_CORE_JOB_STATE_H_
+
+#include <array>
+#include <optional>
+#include <string_view>
+
+namespace sandswim {
+
+enum class JobState { kQueued, kRunning, kDone, kFailed, kCancelled };
+
+inline constexpr std::array<JobState, 5> kJobStates = {JobState::kQueued, JobState::kRunning, JobState::kDone,
+                                                        JobState::kFailed, JobState::kCancelled};
+
+// "queued" | "running" | "done" | "failed" | "cancelled".
+std::string_view JobStateName(JobState s);
+// The inverse of JobStateName; nullopt for any other text.
+std::optional<JobState> ParseJobState(std::string_view text);
+// "queued, running, done, failed, cancelled": for messages that list what a state may be.
+std::string_view JobStateNames();
+// Whether a state column's text is `s` (a text that is no state is in none).
+inline bool InState(std::string_view text, JobState s) { return text == JobStateName(s); }
+// done, failed and cancelled: nothing more happens to the job.
+bool IsFinished(JobState s);
+
+}  // namespace sandswim
+
+#endif  // SANDSWIM_CORE_JOB_STATE_H_
