@@ -87,6 +87,18 @@ Result<LeaseRow> CurrentUploadLease(Transaction& t, const std::string& token, ap
 Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
                                 const std::string& kind_text, const std::string& message, bool retryable, double now) {
   bool retry = retryable && job.attempts < job.max_attempts;
+  if (retry && kind == api::JobKind::kRun) {
+    // A run whose every sweep was cancelled while it ran (its worker was told to stop, and then
+    // lost: the lease expired) is not run again: it is cancelled, its attempt uncounted.
+    Result<bool> wanted = jobs::RunWanted(t, id);
+    if (!wanted.ok()) return wanted.status();
+    if (!*wanted) {
+      SANDSWIM_RETURN_IF_ERROR(jobs::MarkReleased(t, kind, id, /*wanted=*/false, now));
+      SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.cancelled", Subject(kind, id),
+                                       {{"kind", kind_text}, {"message", message + "; its sweeps were cancelled"}}));
+      return std::string("cancelled");
+    }
+  }
   std::string state = retry ? "queued" : "failed";
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRetriedOrFailed(t, kind, id, state, kind_text, message, now));
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"), Subject(kind, id),

@@ -658,6 +658,34 @@ TEST_F(LeaseQueueTest, ReleasedRunOfACancelledSweepIsCancelled) {
   EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
 }
 
+// A run whose sweep was cancelled while it ran, and whose worker then vanished (the stop it was
+// told never arrived; the lease expired), is cancelled, not run again; a run a live sweep still
+// wants is queued again with none of the lost attempt's progress (it looked 91 % done while queued,
+// and its ETA said minutes where the whole run was left).
+TEST_F(LeaseQueueTest, AnExpiredRunOfACancelledSweepIsCancelledAndARequeuedOneStartsAgain) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  ASSERT_TRUE(queue_->Heartbeat(g.token, {0.9, 0.05, 90000}).ok());
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  clock_.Advance(61);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(RunState(g.id), "cancelled");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+
+  SubmitJson(OmegaSignSweep("again"));  // its runs are wanted again (requeued by the submission)
+  api::LeaseGrant w = MustLease();
+  ASSERT_TRUE(queue_->Heartbeat(w.token, {0.9, 0.05, 90000}).ok());
+  EXPECT_EQ(store_->GetRun(w.id)->summary.progress.sim_time_s, 0.9);
+  clock_.Advance(61);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(RunState(w.id), "queued");
+  auto run = store_->GetRun(w.id);
+  EXPECT_EQ(run->summary.progress.sim_time_s, 0);
+  EXPECT_EQ(run->summary.progress.step, 0);
+  EXPECT_FALSE(run->summary.progress.heartbeat_at.has_value());
+}
+
 TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

@@ -192,7 +192,12 @@ Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, const 
   std::string sql = std::string("UPDATE ") + Table(kind) +
                     " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
                     "last_error = ?, finished_at = CASE WHEN ? = 'failed' THEN ? ELSE NULL END";
-  if (kind == api::JobKind::kRun) sql += ", queued_at = ?6";
+  // A run queued again starts again: the last attempt's progress is not this attempt's (it made a
+  // queued run look 91 % done, and its ETA minutes where hours were left).
+  if (kind == api::JobKind::kRun) {
+    sql += ", queued_at = ?6";
+    if (state == "queued") sql += ", sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
+  }
   sql += " WHERE id = ?7";
   Statement st = t.Prepare(sql);
   st.Bind(1, state).Bind(2, error_kind).Bind(3, message).Bind(4, state).Bind(5, now);
@@ -237,7 +242,7 @@ Status MarkReleased(Transaction& t, api::JobKind kind, int64_t id, bool wanted, 
                             : " SET state = 'cancelled', attempts = MAX(attempts - 1, 0), lease_expires_at = NULL, "
                               "finished_at = ?1, last_error_kind = 'cancelled', "
                               "last_error = 'its sweeps were cancelled while it ran'");
-  if (kind == api::JobKind::kRun && wanted) sql += ", queued_at = ?1";
+  if (kind == api::JobKind::kRun && wanted) sql += ", queued_at = ?1, sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
   sql += " WHERE id = ?2";
   Statement st = t.Prepare(sql);
   if (kind == api::JobKind::kRun) st.Bind(1, now);
