@@ -1406,6 +1406,52 @@ void EvaluateGrainCount(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
 
 // ---- modes --------------------------------------------------------------------------------------
 
+// A point's U_z as a comparison sees it: a measured point both ways, a censored one (every bed
+// measured or censored, the beds agreeing on a sign) one way only: its lower estimate uz_low
+// (core/aggregate.h: the mean over the K beds of the measured U_i and the censored beds' sign *
+// bound, each term at most its bed's |U_z|) bounds U_z from below when it rises and from above
+// when it sinks. The estimate's spread: the measured beds' own errors, sqrt(sum se_i^2) / K, and
+// the scatter between beds, which a censored bed cannot measure, from the scale's bed prior r,
+// (r |uz_low|)^2 / K; its 95 % half-width with Student's t at the fewest degrees of freedom of
+// the measured beds (normal when every bed is censored: the prior is a stated model). No prior
+// (a scale without one): no spread, so no comparison.
+struct Reach {
+  double v = 0, se = 0, ci95 = 0;
+  bool lower = true, upper = true;  // the sides of U_z it bounds
+  bool censored = false;
+};
+
+std::string CensoredWithoutSpread(const PointView& p, double bed_prior) {
+  if (!p.uz_low || p.sign == 0) return "its beds do not agree on a sign";
+  if (!(bed_prior > 0)) return "the scale has no bed prior to spread its lower estimate";
+  return "";
+}
+
+std::optional<Reach> ReachOf(const PointView& p, double bed_prior) {
+  Reach r;
+  if (p.has_interval()) {
+    r.v = p.uz;
+    r.se = p.se;
+    r.ci95 = p.ci95;
+    return r;
+  }
+  if (!p.is_censored() || !CensoredWithoutSpread(p, bed_prior).empty()) return std::nullopt;
+  const int k = std::max(1, p.agg.replicates);
+  double within = 0, dof = 1e9;
+  for (const ReplicateValue& b : p.agg.values) {
+    if (b.censored != 0 || !b.uz_stderr || !b.uz_ci95) continue;
+    within += *b.uz_stderr * *b.uz_stderr;
+    dof = std::min(dof, DofOfInterval(*b.uz_stderr, *b.uz_ci95));
+  }
+  r.censored = true;
+  r.v = *p.uz_low;
+  r.se = std::sqrt(within / (k * k) + bed_prior * bed_prior * r.v * r.v / k);
+  r.ci95 = (dof >= 1e7 ? gsl_cdf_ugaussian_Pinv(0.975) : gsl_cdf_tdist_Pinv(0.975, dof)) * r.se;
+  r.lower = p.sign > 0;
+  r.upper = p.sign < 0;
+  return r;
+}
+
 void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   std::vector<PointView> rises = PointsOf(in, SweepList(c, "rises"));
   AddMissing(rises, v.missing, Need::kSign);
@@ -1422,32 +1468,45 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   AddMissing(rivals, v.missing);
   ClaimPart fast;
   fast.name = fastest + " rises fastest";
-  if (best.empty() || !best[0].has_interval()) {
-    fast.reason = fastest + " has no conclusive U_z with an error";
+  const double prior = BedPrior(in.scale);
+  const std::optional<Reach> b = best.empty() ? std::nullopt : ReachOf(best[0], prior);
+  if (!b) {
+    fast.reason = fastest + " has no conclusive U_z with an error" +
+                  (best.empty() || !best[0].is_censored() ? std::string()
+                                                          : " (censored, and " + CensoredWithoutSpread(best[0], prior) + ")");
   } else {
-    const PointView& b = best[0];
     fast.figures.push_back(UzFigure(best[0]));
     const int m = static_cast<int>(rivals.size());
-    int faster = 0;
+    int faster = 0, bounded = 0;
     std::string slower;
     for (const PointView& r : rivals) {
       ClaimFigure f = UzFigure(r);
-      if (r.has_interval()) {
-        const double diff = b.uz - r.uz, half = std::hypot(b.ci95, r.ci95);
-        const double wide = std::hypot(FamilyHalfWidth(b, m), FamilyHalfWidth(r, m));
-        if (diff > half) {
+      if (const std::optional<Reach> o = ReachOf(r, prior)) {
+        const double diff = b->v - o->v, half = std::hypot(b->ci95, o->ci95);
+        const double wide = std::hypot(FamilyHalfWidth(b->se, b->ci95, m), FamilyHalfWidth(o->se, o->ci95, m));
+        // Faster is shown only from a lower side of the fastest and an upper side of the rival;
+        // slower only from the rival's lower side and the fastest's upper side (a censored rate
+        // is a lower estimate of |U_z|: it bounds one side only).
+        if (b->lower && o->upper && diff > half) {
           f.verdict = Verdict::kHolds;
           ++faster;
-        } else if (diff < -wide) {
+          if (b->censored || o->censored) ++bounded;
+        } else if (o->lower && b->upper && -diff > wide) {
           f.verdict = Verdict::kDiffers;
           slower += (slower.empty() ? "" : ", ") + r.sweep;
         } else {
           f.verdict = Verdict::kInconclusive;
         }
-        f.note = fastest + " minus this: " + Num(diff, 3) + " m/s (combined 95 % half-width " + Num(half, 3) + ")";
+        f.note = fastest + " minus this: " + Num(diff, 3) + " m/s (combined 95 % half-width " + Num(half, 3) + ")" +
+                 (b->censored || o->censored ? "; " + std::string(b->censored ? fastest : r.sweep) +
+                                                   "'s is a lower estimate of |U_z| (censored), with the bed prior's spread"
+                                             : "");
       }
       fast.figures.push_back(std::move(f));
     }
+    const std::string of_bounded =
+        bounded == 0 ? std::string()
+                     : " (" + std::to_string(bounded) + " of them by a censored run's lower estimate)";
     if (!slower.empty()) {
       fast.verdict = Verdict::kDiffers;
       fast.reason = fastest + " rises slower than " + slower + " beyond their intervals (family-wise over " +
@@ -1456,10 +1515,10 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
       fast.verdict = Verdict::kHolds;
       fast.reason = fastest + " rises faster than each of the " + std::to_string(m) +
                     " other mode(s), beyond their "
-                    "combined 95 % half-widths";
+                    "combined 95 % half-widths" + of_bounded;
     } else {
       fast.reason = fastest + " is faster than " + std::to_string(faster) + " of " + std::to_string(m) +
-                    " other mode(s) beyond their intervals";
+                    " other mode(s) beyond their intervals" + of_bounded;
     }
   }
   v.parts.push_back(std::move(fast));

@@ -106,7 +106,12 @@
 //                     differs when outside, inconclusive with no prepared bed.
 //   modes             Sec. 3.1 (Fig. 2): parts "rises" (sign rule, expect rise, on `rises`),
 //                     "fastest" (`fastest`'s U_z above each of `fastest_among` by more than the
-//                     combined half-widths, Bonferroni over them for differs), "stays near x"
+//                     combined half-widths, Bonferroni over them for differs; a censored point
+//                     enters one-sided with its lower estimate of |U_z| (core/aggregate.h uz_low),
+//                     spread by the measured beds' errors and the scale's bed prior: a rising one
+//                     can show it is faster, never slower, so a censored fastest mode can hold and
+//                     a censored rival can refute; no bed prior at the scale: it compares with
+//                     nothing), "stays near x"
 //                     (the mean x drift of `fastest` over its K beds, its 95 % t interval from the
 //                     beds' scatter, within +- `x_within_m` holds, wholly beyond differs; one bed
 //                     gives no error: inconclusive), "z oscillates
@@ -267,8 +272,9 @@ struct ClaimVerdict {
 // quoted. 1: the rules' first version; 2: the variance model at the fitted |U_z|,
 // F5's x drift tested with its error over the beds; 3: a point over its K beds by the stated rule
 // of core/aggregate.h (the sign from the beds' summed drift, censored beds counted; censored points'
-// lower estimates in F2's growth and, up to the hinge, its flattening).
-inline constexpr int kClaimRulesVersion = 3;
+// lower estimates in F2's growth and, up to the hinge, its flattening); 4: censored points enter
+// F5's "fastest" one-sided with their lower estimate.
+inline constexpr int kClaimRulesVersion = 4;
 
 // One verdict per claim, in the claims' order.
 std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const ClaimInput& input);

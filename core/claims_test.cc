@@ -677,6 +677,75 @@ void CensorAt(ClaimSweep& sweep, double omega, double bound, double t = 1.0) {
   }
 }
 
+// "Rises fastest" with censored runs: a fastest mode cut short at the surface is faster than a
+// rival when its lower estimate, spread by the scale's bed prior, clears the rival's interval; it is
+// never "slower" on a lower estimate; a censored rival whose lower estimate clears the fastest's
+// interval family-wise makes it "differs"; on a scale without a bed prior a censored point compares
+// with nothing.
+TEST(ClaimsTest, CensoredModesEnterRisesFastestOneSided) {
+  const Claim f5 = ClaimOf(R"({"id": "F5", "title": "t", "source": "s", "paper": {"text": "p"}, "rule": {
+    "kind": "modes", "rises": ["vib"], "fastest": "rot-x", "fastest_among": ["vib", "rot-x", "rot-y"], "x_within_m": 0.02,
+    "z_osc_with": ["rot-x"], "z_osc_without": ["vib", "rot-y"]}})");
+  auto censor = [](ClaimSweep& sweep, double bound) {
+    api::RunResult& res = *sweep.runs[0].result;
+    res.uz.reset();
+    res.uz_stderr.reset();
+    res.uz_ci95.reset();
+    res.uz_blocks = 0;
+    res.conclusive = false;
+    res.inconclusive_reason = "no whole period before the surface's clearance";
+    res.z_osc_amplitude = 0;
+    res.stop_reason = res.window_end = "surface";
+    res.sim_time_s = 1.0;
+    res.dz = bound * 1.0 + sweep.runs[0].point.A;
+  };
+  auto build = [&](double fastest, double vib, double rot_y) {
+    Synth s;
+    s.input.scale = "smoke";
+    Point v;
+    v.mode = Mode::kVibration;
+    v.A = 0.03;
+    v.f = 3;
+    v.duration_s = 4;
+    s.Sweep("vib", {{v, vib}}, 5e-4);
+    s.Sweep("rot-x", {{VibRot(RotationAxis::kX), fastest}}, 5e-4);
+    s.Sweep("rot-y", {{VibRot(RotationAxis::kY), rot_y}}, 5e-4);
+    return s;
+  };
+  auto fastest_part = [&](const Synth& s) { return Evaluate(f5, s.input).parts.at(1); };
+
+  // Before: a censored fastest mode had "no conclusive U_z with an error". Its bound 0.10 m/s,
+  // spread by smoke's 17 % prior (95 %: +-0.033), clears rivals at 0.02 and 0.01 m/s.
+  Synth s = build(0.10, 0.02, 0.01);
+  censor(s.input.sweeps[1], 0.10);
+  ClaimPart part = fastest_part(s);
+  EXPECT_EQ(part.verdict, Verdict::kHolds) << part.reason;
+  EXPECT_THAT(part.reason, HasSubstr("by a censored run's lower estimate"));
+  // A lower estimate near a rival's rate: the fastest may still be faster, never shown slower.
+  s = build(0.10, 0.08, 0.01);
+  censor(s.input.sweeps[1], 0.03);
+  part = fastest_part(s);
+  EXPECT_EQ(part.verdict, Verdict::kInconclusive) << part.reason;
+  // A censored rival clearly faster than the measured fastest mode: differs.
+  s = build(0.01, 0.20, 0.005);
+  censor(s.input.sweeps[0], 0.20);
+  part = fastest_part(s);
+  EXPECT_EQ(part.verdict, Verdict::kDiffers) << part.reason;
+  EXPECT_THAT(part.reason, HasSubstr("slower than vib"));
+  // A censored rival slower than the fastest by its lower estimate says nothing about its rate.
+  s = build(0.10, 0.02, 0.01);
+  censor(s.input.sweeps[0], 0.02);
+  part = fastest_part(s);
+  EXPECT_EQ(part.verdict, Verdict::kInconclusive) << part.reason;
+  // A scale without a bed prior: the lower estimate has no spread, no comparison.
+  s = build(0.10, 0.02, 0.01);
+  s.input.scale = "paper";
+  censor(s.input.sweeps[1], 0.10);
+  part = fastest_part(s);
+  EXPECT_EQ(part.verdict, Verdict::kInconclusive) << part.reason;
+  EXPECT_THAT(part.reason, HasSubstr("no bed prior"));
+}
+
 // A censored point enters "grows" with its lower estimate (before, it was dropped and the branch
 // had too few points), and "the growth flattens" only up to the hinge (past it a low value would
 // fake a flattening); it is still listed as missing a rate.
