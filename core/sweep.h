@@ -73,7 +73,7 @@ Result<SweepSpec> ParseSweep(const nlohmann::json& j);
 // ("axes[0].values[3]: A = 0.2 m needs ..."). Fails with ResourceExhausted past `max_points`.
 Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points = kMaxRunsPerSubmission);
 
-// A campaign run in rounds (core/adaptive.h; issue 31): round 1 is the campaign's points on one bed,
+// A campaign run in rounds (core/adaptive.h): round 1 is the campaign's points on one bed,
 // each later round is planned by the daemon from the claims still undecided, until every claim is
 // decided, `max_rounds` rounds have run (the fixed look schedule the error rates are measured at)
 // or `budget_core_h` core-hours of engine time (the cost model's) are spent. Absent: the fixed

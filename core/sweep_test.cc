@@ -676,7 +676,7 @@ TEST(CampaignTest, BadCampaignsNameTheField) {
 }
 
 // A submission of several sweeps past the cap names the sweep that passes it and says what the
-// sweeps before it took (issue 27: it said "more than 0 points (at most 0 runs)").
+// sweeps before it took (it once said "more than 0 points (at most 0 runs)").
 TEST(SweepTest, ASweepPastWhatIsLeftOfTheCapSaysWhatTheSweepsBeforeItTook) {
   auto sweep = [](const std::string& name, double sign, int fs) {
     json values = json::array();

@@ -1,4 +1,4 @@
-// RoundDriver: runs adaptive campaign runs (issue 31; a campaign with "adaptive", core/sweep.h
+// RoundDriver: runs adaptive campaign runs (a campaign with "adaptive", core/sweep.h
 // AdaptiveSettings) in rounds, on the daemon's scheduler tick. The decisions are core/adaptive.h's;
 // this is the part that reads the store and writes to it.
 //

@@ -1,4 +1,4 @@
-// The rounds of adaptive campaign runs (issue 31; schema/015_campaign_rounds.sql): one row per
+// The rounds of adaptive campaign runs (schema/015_campaign_rounds.sql): one row per
 // round (what it added and why, core-hours planned and spent, the claims' states after it, why
 // the campaign run stopped) and the verdicts frozen at their first deciding look. The driver that
 // writes them is server/jobs/rounds.h; GET /api/v1/campaign-runs/{id} and `sandswim status cr:ID`

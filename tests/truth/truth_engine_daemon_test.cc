@@ -247,7 +247,7 @@ TEST(TruthEngineDaemonTest, AnOwnCampaignThroughTheCli) {
       << out;
 }
 
-// An adaptive campaign (issue 31) through the real daemon and worker on the truth engine: the
+// An adaptive campaign through the real daemon and worker on the truth engine: the
 // sign of a slow rise (rotation alone), which one bed at the scale's target leaves open. Round 1 runs,
 // the daemon's scheduler tick looks at the claim and plans round 2 with its reason, round 2 runs,
 // and the rounds stop with a reason; a claim decided is frozen at the round whose look decided it.
