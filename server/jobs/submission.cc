@@ -333,6 +333,30 @@ Status CheckQueueCap(Transaction& t, int64_t cap, const SubmitResult& out) {
                 "queue");
 }
 
+
+// One scale's plan into the store: its beds (upserted), its runs (WriteRuns), and the runs on a
+// bed that failed for good failed now, saying why, rather than waiting for it for ever. A
+// submission and a round of an adaptive campaign run (AddPlannedRuns) write their plans alike.
+Status WritePlan(Transaction& t, const ScalePlan& g, const std::string& engine_version, bool force, double now,
+                 const std::map<std::string, int64_t>& sweep_ids, std::map<int64_t, int64_t>& next_position,
+                 SubmitResult& out) {
+  std::vector<int64_t> bed_ids;
+  std::vector<SubmittedBed> failed_beds;
+  for (const PlannedBed& bed : g.plan.beds) {
+    Result<SubmittedBed> b = UpsertBed(t, g.scale, bed, engine_version, now);
+    if (!b.ok()) return b.status();
+    bed_ids.push_back(b->id);
+    if (b->failed_for_good) failed_beds.push_back(*b);
+  }
+  SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, sweep_ids, force, now, next_position, out));
+  for (const SubmittedBed& b : failed_beds) {
+    Result<int64_t> n = jobs::FailRunsOfBed(t, b.id, *b.failed_for_good, now);
+    if (!n.ok()) return n.status();
+    out.runs_failed_bed += *n;
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::string& engine_version, double now) {
@@ -388,23 +412,8 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
   for (size_t i = 0; i < sweeps.size(); ++i) id_by_name[sweeps[i].name] = out.sweep_ids[i];
 
   std::map<int64_t, int64_t> next_position;
-  for (const ScalePlan& g : *planned) {
-    std::vector<int64_t> bed_ids;
-    std::vector<SubmittedBed> failed_beds;
-    for (const PlannedBed& bed : g.plan.beds) {
-      Result<SubmittedBed> b = UpsertBed(t, g.scale, bed, engine_version, now);
-      if (!b.ok()) return b.status();
-      bed_ids.push_back(b->id);
-      if (b->failed_for_good) failed_beds.push_back(*b);
-    }
-    SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, id_by_name, req.force, now, next_position, out));
-    // Runs on a bed that failed for good fail now, saying why, rather than wait for it for ever.
-    for (const SubmittedBed& b : failed_beds) {
-      Result<int64_t> n = jobs::FailRunsOfBed(t, b.id, *b.failed_for_good, now);
-      if (!n.ok()) return n.status();
-      out.runs_failed_bed += *n;
-    }
-  }
+  for (const ScalePlan& g : *planned)
+    SANDSWIM_RETURN_IF_ERROR(WritePlan(t, g, engine_version, req.force, now, id_by_name, next_position, out));
   SANDSWIM_RETURN_IF_ERROR(CheckQueueCap(t, req.max_queued_runs, out));
   SANDSWIM_RETURN_IF_ERROR(FinishSweeps(t, sweeps, out.sweep_ids, next_position, now));
   nlohmann::json response = out;
@@ -416,21 +425,7 @@ Result<SubmitResult> Submit(Store& store, const SubmitRequest& req, const std::s
 Status AddPlannedRuns(Transaction& t, const ScalePlan& g, const std::string& engine_version, double now,
                       const std::map<std::string, int64_t>& sweep_ids, std::map<int64_t, int64_t>& next_position,
                       SubmitResult& out) {
-  std::vector<int64_t> bed_ids;
-  std::vector<SubmittedBed> failed_beds;
-  for (const PlannedBed& bed : g.plan.beds) {
-    Result<SubmittedBed> b = UpsertBed(t, g.scale, bed, engine_version, now);
-    if (!b.ok()) return b.status();
-    bed_ids.push_back(b->id);
-    if (b->failed_for_good) failed_beds.push_back(*b);
-  }
-  SANDSWIM_RETURN_IF_ERROR(WriteRuns(t, g, bed_ids, sweep_ids, /*force=*/false, now, next_position, out));
-  for (const SubmittedBed& b : failed_beds) {
-    Result<int64_t> n = jobs::FailRunsOfBed(t, b.id, *b.failed_for_good, now);
-    if (!n.ok()) return n.status();
-    out.runs_failed_bed += *n;
-  }
-  return Status::Ok();
+  return WritePlan(t, g, engine_version, /*force=*/false, now, sweep_ids, next_position, out);
 }
 
 Status FinishAddedRuns(Transaction& t, const std::vector<int64_t>& sweep_ids, int64_t max_queued_runs,
