@@ -238,6 +238,13 @@ std::string RatesHtml(const std::optional<ClaimRates>& r) {
          (r->advice.empty() ? std::string() : " &mdash; " + Escape(r->advice)) + "</small>";
 }
 
+// " (frozen at round 2)" for a claim an adaptive run's look decided (claim_check.h).
+std::string FrozenHtml(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen) {
+  auto it = frozen.find(v.claim.id);
+  if (it == frozen.end()) return "";
+  return " <small class=\"frozen\">(frozen at round " + std::to_string(it->second.round) + ")</small>";
+}
+
 // The first section: every claim, its verdict, the numbers behind it, the paper's, side by side.
 std::string ClaimsHtml(const ReportInput& in) {
   std::string html = "<h2 id=\"claims\">Claims</h2>\n";
@@ -255,6 +262,11 @@ std::string ClaimsHtml(const ReportInput& in) {
           "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive. Beside "
           "each verdict, its rule's error rates at this design as the truth engine measured them (false holds, "
           "false differs: upper 95 % bounds; power: estimate and interval)." +
+          (RunsInRounds(in.campaign_run)
+               ? std::string(" This campaign ran in rounds: a claim decided at the look after a round is shown as it "
+                             "was frozen there, never as a later look reads it; only the claims still open show "
+                             "the current evaluation (the rounds: below).")
+               : std::string()) +
           (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
           "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
   for (const ClaimVerdict& v : in.claims) {
@@ -285,7 +297,7 @@ std::string ClaimsHtml(const ReportInput& in) {
     html += "<tr id=\"claim-" + Escape(v.claim.id) + "\"><td><b>" + Escape(v.claim.id) + "</b> " +
             Escape(v.claim.title) + "<br><small>" + Escape(v.claim.source) + "; rule: " + Escape(v.claim.kind()) +
             "</small></td><td>" + VerdictHtml(v.verdict) + (v.scale.empty() ? "" : " at " + Escape(v.scale)) +
-            RatesHtml(v.rates) + "</td><td>" + measured + "</td><td>" +
+            FrozenHtml(v, in.frozen_claims) + RatesHtml(v.rates) + "</td><td>" + measured + "</td><td>" +
             PaperHtml(v.claim.paper) + "</td></tr>\n";
   }
   return html + "</table>\n";
@@ -424,6 +436,7 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
   if (claims.ok()) {
     in.claims = std::move(claims->verdicts);
     in.claims_note = claims->note;
+    in.frozen_claims = std::move(claims->frozen);
   } else {
     in.claims_note = "the claims could not be checked: " + claims.status().ToString();
     in.problems.push_back(in.claims_note);

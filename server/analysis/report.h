@@ -16,6 +16,7 @@
 #define SANDSWIM_SERVER_ANALYSIS_REPORT_H_
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,6 +29,7 @@
 #include "server/analysis/figure_cache.h"
 #include "server/analysis/figure_set.h"
 #include "server/analysis/sweep_analysis.h"
+#include "server/store/rounds.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -67,6 +69,9 @@ struct ReportInput {
   // The campaign's claims and their verdicts (server/analysis/claim_check.h): the report's first section.
   std::vector<ClaimVerdict> claims;
   std::string claims_note;  // e.g. where the claims come from, or why there are none
+  // An adaptive campaign run's verdicts frozen at their deciding look (claim_check.h; `claims`
+  // shows them already): each says at which round.
+  std::map<std::string, rounds::FrozenVerdict> frozen_claims;
   // The drive modes side by side (ModesFigure): "" when the campaign run has none.
   std::string modes_x_svg, modes_z_svg;
   // Every snapshot the campaign run's runs took, by run and idx (empty: none asked for them).
