@@ -164,7 +164,7 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   std::vector<Claim> claims;
   nlohmann::json definition;
   SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run, out, claims, definition));
-  out.adaptive = RunsInRounds(campaign_run);
+  out.adaptive = rounds::RunsInRounds(campaign_run);
   if (claims.empty()) return out;
   Result<ClaimInput> found = InputOf(store, campaign_run, analyses);
   if (!found.ok()) return found.status();
@@ -179,11 +179,6 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
     ShowFrozenVerdicts(out.verdicts, out.frozen);
   }
   return out;
-}
-
-bool RunsInRounds(const CampaignRunInfo& campaign_run) {
-  const nlohmann::json& d = campaign_run.definition;
-  return d.is_object() && d.contains("adaptive") && d["adaptive"].is_object();
 }
 
 void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts, const std::map<std::string, rounds::FrozenVerdict>& frozen) {

@@ -78,8 +78,6 @@ Result<ClaimLook> LookAtClaims(Store& store, const CampaignRunInfo& campaign_run
 void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts, const std::map<std::string, rounds::FrozenVerdict>& frozen);
 // "holds at smoke (frozen at round 2)"; VerdictAtScale for a claim not frozen.
 std::string FrozenVerdictText(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen);
-// Whether a campaign run's recorded definition runs in rounds ("adaptive" is an object).
-bool RunsInRounds(const CampaignRunInfo& campaign_run);
 
 // The pure part: what the claims see of one sweep -- its analysis's samples and fits, and every
 // run of its result rows with its state, result and last error (`failures`: run id -> "kind:

@@ -262,7 +262,7 @@ std::string ClaimsHtml(const ReportInput& in) {
           "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive. Beside "
           "each verdict, its rule's error rates at this design as the truth engine measured them (false holds, "
           "false differs: upper 95 % bounds; power: estimate and interval)." +
-          (RunsInRounds(in.campaign_run)
+          (rounds::RunsInRounds(in.campaign_run)
                ? std::string(" This campaign ran in rounds: a claim decided at the look after a round is shown as it "
                              "was frozen there, never as a later look reads it; only the claims still open show "
                              "the current evaluation (the rounds: below).")
