@@ -17,6 +17,7 @@
 #include <httplib.h>
 
 #include "core/keys.h"
+#include "core/text.h"
 #include "platform/clock.h"
 #include "server/analysis/claim_check.h"
 #include "server/jobs/lease_queue.h"
@@ -641,11 +642,40 @@ TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
   EXPECT_THAT(f2_html, HasSubstr("<span class=\"differs\">differs</span> at smoke <small class=\"frozen\">(frozen at round 1)"));
   EXPECT_THAT(f2_html, ::testing::Not(HasSubstr("needs 5")));
   EXPECT_THAT(*html, HasSubstr("This campaign ran in rounds"));
+  // Its rounds follow the claims, one row a round as GET /api/v1/campaign-runs/{id} has them.
+  const json rounds = json::parse(client_->Get(("/api/v1/campaign-runs/" + std::to_string(id)).c_str())->body)["rounds"];
+  ASSERT_GE(rounds.size(), 1u);
+  const size_t section = html->find("<h2 id=\"rounds\">");
+  ASSERT_NE(section, std::string::npos);
+  EXPECT_LT(f2_row, section);
+  EXPECT_LT(section, html->find("<nav>"));
+  EXPECT_THAT(*html, HasSubstr("<a href=\"#rounds\">Rounds</a>"));
+  for (const json& r : rounds) {
+    const std::string id_attr = "<tr id=\"round-" + std::to_string(r["round"].get<int>()) + "\">";
+    const size_t at = html->find(id_attr);
+    ASSERT_NE(at, std::string::npos) << id_attr;
+    const std::string row = html->substr(at, html->find("</tr>", at) - at);
+    EXPECT_THAT(row, HasSubstr(Num(r["core_h_planned"].get<double>(), 3)));
+    EXPECT_EQ(row.find("<li>") == std::string::npos, r["actions"].empty()) << row;
+  }
+  const std::string first = html->substr(html->find("<tr id=\"round-1\">"));
+  EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("every declared point once"));
+  // After round 1's look (stored then: the later freezing of F2 is not in it), F1 frozen there.
+  EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("F1 holds (frozen at round 1)"));
+  EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("F2 inconclusive"));
+  if (rounds.back()["stop_reason"].is_string()) {
+    EXPECT_THAT(*html, HasSubstr("<p id=\"rounds-stop\"><b>Stopped after round"));
+  } else {
+    EXPECT_THAT(*html, HasSubstr("runs; the daemon looks at the claims once its runs are done"));
+  }
 
   // A fixed-design run is unchanged: its current verdicts, no frozen fields.
   auto fixed = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());
   ASSERT_EQ(fixed->status, 200);
   EXPECT_EQ(json::parse(fixed->body)["adaptive"], false);
+  auto fixed_html = CampaignReport(*store_, figures, campaign_run_, clock_.Now());
+  ASSERT_TRUE(fixed_html.ok());
+  EXPECT_EQ(fixed_html->find("id=\"rounds\""), std::string::npos);
 }
 
 // paper-58 recorded in the store before its file stated claims: the built-in file's claims, said so.
