@@ -181,7 +181,8 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   return out;
 }
 
-void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts, const std::map<std::string, rounds::FrozenVerdict>& frozen) {
+void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts,
+                        const std::map<std::string, rounds::FrozenVerdict>& frozen) {
   for (ClaimVerdict& v : verdicts) {
     auto it = frozen.find(v.claim.id);
     if (it == frozen.end()) continue;

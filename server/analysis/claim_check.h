@@ -75,7 +75,8 @@ Result<ClaimLook> LookAtClaims(Store& store, const CampaignRunInfo& campaign_run
 // same verdict with every round's runs); when it differs, they go (they are a later look's, which
 // does not count), and the reason says which look decided it. Rates (the rule's at this design)
 // stay. Claims not in `frozen` are left as evaluated.
-void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts, const std::map<std::string, rounds::FrozenVerdict>& frozen);
+void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts,
+                        const std::map<std::string, rounds::FrozenVerdict>& frozen);
 // "holds at smoke (frozen at round 2)"; VerdictAtScale for a claim not frozen.
 std::string FrozenVerdictText(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen);
 

@@ -316,13 +316,16 @@ std::string RoundsHtml(const ReportInput& in) {
                      "planned the next round for those still open. Core-hours at the cost model's rates: planned "
                      "prices each run at its maximum length, spent counts the simulated time done runs took.</p>\n";
   if (!in.rounds.is_array() || in.rounds.empty()) {
-    return html + "<p class=\"none\">Round 1 (what was submitted) is recorded at the daemon's next scheduler tick.</p>\n";
+    return html +
+           "<p class=\"none\">Round 1 (what was submitted) is recorded at the daemon's next scheduler tick.</p>\n";
   }
-  html += "<table id=\"rounds-table\"><tr><th>round</th><th>state</th><th>what it added, and why</th><th>core-h planned</th>"
-          "<th>core-h spent</th><th>budget left</th><th>the claims after it</th></tr>\n";
+  html +=
+      "<table id=\"rounds-table\"><tr><th>round</th><th>state</th><th>what it added, and why</th><th>core-h "
+      "planned</th><th>core-h spent</th><th>budget left</th><th>the claims after it</th></tr>\n";
   for (const nlohmann::json& r : in.rounds) {
     const bool stopped = r.value("stop_reason", nlohmann::json()).is_string();
-    const char* state = stopped ? "stopped" : r.value("finished_at", nlohmann::json()).is_number() ? "finished" : "running";
+    const bool looked = r.value("finished_at", nlohmann::json()).is_number();
+    const char* state = stopped ? "stopped" : looked ? "finished" : "running";
     std::string added;
     for (const nlohmann::json& a : r.value("actions", nlohmann::json::array()))
       added += "<li>" + Escape(a.value("reason", std::string())) + "</li>";
@@ -341,7 +344,8 @@ std::string RoundsHtml(const ReportInput& in) {
     }
     html += "<tr id=\"round-" + std::to_string(r.value("round", 0)) + "\"><td>" + std::to_string(r.value("round", 0)) +
             "</td><td>" + state + "</td><td>" + (added.empty() ? "nothing" : "<ul>" + added + "</ul>") + "</td><td>" +
-            h(r.value("core_h_planned", nlohmann::json())) + "</td><td>" + h(r.value("core_h_spent", nlohmann::json())) +
+            h(r.value("core_h_planned", nlohmann::json())) + "</td><td>" +
+            h(r.value("core_h_spent", nlohmann::json())) +
             "</td><td>" + h(r.value("budget_left_core_h", nlohmann::json())) + "</td><td>" + after + "</td></tr>\n";
   }
   html += "</table>\n";

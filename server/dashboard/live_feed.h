@@ -96,7 +96,8 @@ class LiveFeed {
   std::string BuildContent();  // the snapshot without version and time; "" when it cannot
   std::string BuildContentOrThrow();
   nlohmann::json EtaOf(EtaScope scope, int64_t id);  // EtaJson, null when it cannot be read
-  nlohmann::json RoundsOf(int64_t campaign_run_id);   // an adaptive run's {"rounds","looks","stopped"}, null when unread
+  // An adaptive campaign run's {"rounds","looks","stopped"}; null when it cannot be read.
+  nlohmann::json RoundsOf(int64_t campaign_run_id);
 
   Store* store_;
   Clock* clock_;

@@ -6,7 +6,8 @@
 // GET /api/v1/campaign-runs/{id}.
 //
 // Screenshots: build/tests/browser/output/dashboard-rounds.png (the rounds) and
-// dashboard-rounds-claims.png (the claims, frozen ones with their round).
+// dashboard-rounds-claims.png (the claims, frozen ones with their round), and the report's rounds,
+// dashboard-rounds-report.png.
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -85,7 +86,8 @@ TEST(RoundsPageTest, TheCampaignRunPageFollowsItsRoundsUntilTheyStop) {
   std::unique_ptr<ChildProcess> worker =
       StartWorker(daemon, dir + "/worker", 2, {"--launcher", "direct", "--engine", SANDSWIM_TRUTH_ENGINE_PATH});
   // The page follows the rounds through the live feed until they stop: no reload.
-  const bool stopped = browser.WaitUntil("/Stopped after round/.test(document.querySelector('#rounds-stop').textContent)", 400);
+  const bool stopped =
+      browser.WaitUntil("/Stopped after round/.test(document.querySelector('#rounds-stop').textContent)", 400);
   worker->Stop();
   const json info = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id));
   ASSERT_TRUE(stopped) << browser.Text("#rounds") << "\n" << info.dump(1);
@@ -112,27 +114,31 @@ TEST(RoundsPageTest, TheCampaignRunPageFollowsItsRoundsUntilTheyStop) {
     ASSERT_TRUE(r["claims_after"].is_array()) << r.dump();
     for (const json& c : r["claims_after"]) {
       std::string state = c["claim"].get<std::string>() + " " + c["verdict"].get<std::string>();
-      if (c.contains("frozen_at_round")) state += " (frozen at round " + std::to_string(c["frozen_at_round"].get<int>()) + ")";
+      if (c.contains("frozen_at_round"))
+        state += " (frozen at round " + std::to_string(c["frozen_at_round"].get<int>()) + ")";
       EXPECT_THAT(text, HasSubstr(state)) << text;
     }
   }
   EXPECT_THAT(browser.Text("#rounds-stop"), HasSubstr(rounds.back()["stop_reason"].get<std::string>()));
   // The runs table, read again at the last look: the campaign run's runs as they are now.
   const json results = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id) + "/results");
-  ASSERT_TRUE(browser.WaitUntil("document.querySelectorAll('#runs tbody tr').length === " +
-                                    std::to_string(results["results"].size()) +
-                                    " && ![...document.querySelectorAll('#runs tbody td[data-key=state]')]"
-                                    ".some(td => /queued|running/.test(td.textContent))",
-                                20))
-      << browser.Text("#runs") << "\n" << results.dump(1);
+  ASSERT_TRUE(browser.WaitUntil(
+      "document.querySelectorAll('#runs tbody tr').length === " + std::to_string(results["results"].size()) +
+          " && ![...document.querySelectorAll('#runs tbody td[data-key=state]')]"
+          ".some(td => /queued|running/.test(td.textContent))",
+      20))
+      << browser.Text("#runs") << "\n"
+      << results.dump(1);
   // The claims table, drawn again after the last look, shows each frozen verdict with its round.
   const json claims = daemon.Get("/api/v1/campaign-runs/" + std::to_string(id) + "/claims");
   ASSERT_EQ(claims["adaptive"], true) << claims.dump();
   bool any_frozen = false;
   for (const json& c : claims["claims"]) {
-    ASSERT_TRUE(browser.WaitUntil("!!document.querySelector('#claims-table') && document.querySelector('#claims-table')"
-                                  ".textContent.includes(" + c["verdict_text"].dump() + ")",
-                                  20))
+    ASSERT_TRUE(
+        browser.WaitUntil("!!document.querySelector('#claims-table') && document.querySelector('#claims-table')"
+                          ".textContent.includes(" +
+                              c["verdict_text"].dump() + ")",
+                          20))
         << c["verdict_text"] << " not in " << browser.Text("#claims");
     if (c["frozen_at_round"].is_number()) {
       any_frozen = true;
@@ -144,6 +150,18 @@ TEST(RoundsPageTest, TheCampaignRunPageFollowsItsRoundsUntilTheyStop) {
   browser.Screenshot(out + "/dashboard-rounds-claims.png");
   browser.Script("document.querySelector('#rounds').scrollIntoView(); return 0;");
   browser.Screenshot(out + "/dashboard-rounds.png");
+
+  // The report's rounds section, as the daemon serves it (its link on the page).
+  browser.Navigate(daemon.url() + "/api/v1/campaign-runs/" + std::to_string(id) +
+                   "/report?access_token=" + kRoundsToken);
+  ASSERT_TRUE(browser.WaitUntil("!!document.querySelector('#rounds-table')", 30)) << browser.Text("body");
+  EXPECT_EQ(browser.Script("return document.querySelectorAll('#rounds-table tr[id^=round-]').length;").get<size_t>(),
+            rounds.size());
+  EXPECT_THAT(browser.Text("#rounds-stop"), HasSubstr(rounds.back()["stop_reason"].get<std::string>()));
+  browser.Script("document.querySelector('#rounds').scrollIntoView(); return 0;");
+  browser.Screenshot(out + "/dashboard-rounds-report.png");
+  browser.Navigate(daemon.url() + page);
+  ASSERT_TRUE(browser.WaitUntil("!!document.querySelector('#rounds-table')", 20)) << browser.Text("#main");
 
   // Every server string of a round is escaped: markup in a reason, a claim, a verdict or the stop
   // reason is shown as text, never made into elements or run.
