@@ -229,4 +229,9 @@ Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, 
   return t.Changes();
 }
 
+bool RunsInRounds(const CampaignRunInfo& campaign_run) {
+  const json& d = campaign_run.definition;
+  return d.is_object() && d.contains("adaptive") && d["adaptive"].is_object();
+}
+
 }  // namespace sandswim::rounds

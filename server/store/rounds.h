@@ -91,6 +91,10 @@ Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64
 // (the run and its result stay, for any other sweep that has it). Returns the memberships removed.
 Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id);
 
+// Whether a campaign run runs in rounds: its recorded definition has an "adaptive" object. The
+// claims shown (server/analysis/claim_check.h) and the live feed (server/dashboard) ask it.
+bool RunsInRounds(const CampaignRunInfo& campaign_run);
+
 }  // namespace sandswim::rounds
 
 #endif  // SANDSWIM_SERVER_STORE_ROUNDS_H_
