@@ -151,14 +151,18 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
 
   Result<ClaimLook> look = look_(*store_, *info);
   if (!look.ok()) return look.status();
+  // A cancelled sweep stops the rounds at once, busy runs or not (they may be shared with another
+  // campaign run's live sweep and run on).
+  Result<int64_t> cancelled_sweeps = rounds::CancelledSweeps(*store_, campaign_run_id);
+  if (!cancelled_sweeps.ok()) return cancelled_sweeps.status();
   int cancelled = 0;
   for (const ClaimSweep& s : look->input.sweeps)
     for (const ClaimRun& r : s.runs) {
-      if (Busy(r.state)) return Out();
+      if (Busy(r.state) && *cancelled_sweeps == 0) return Out();
       cancelled += r.state == "cancelled";
     }
   for (const ClaimBed& b : look->input.beds)
-    if (Busy(b.state)) return Out();
+    if (Busy(b.state) && *cancelled_sweeps == 0) return Out();
 
   // The look after round `last.round`.
   Result<std::map<std::string, rounds::FrozenVerdict>> frozen_rows = rounds::FrozenVerdicts(*store_, campaign_run_id);
@@ -183,11 +187,12 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   AdaptiveOptions options = options_.adaptive;
   options.max_rounds = settings.max_rounds;
   AdaptiveRound next;
-  if (cancelled > 0) {
+  if (*cancelled_sweeps > 0 || cancelled > 0) {
     next.round = last.round + 1;
     next.stop = true;
-    next.stop_reason = std::to_string(cancelled) + " of its runs were cancelled: its rounds stop there (submit the "
-                                                    "campaign again to start anew)";
+    next.stop_reason = (*cancelled_sweeps > 0 ? std::to_string(*cancelled_sweeps) + " of its sweeps"
+                                              : std::to_string(cancelled) + " of its runs") +
+                       " were cancelled: its rounds stop there (submit the campaign again to start anew)";
   } else {
     next = PlanNextRound(state, settings.budget_core_h, *cost, options);
   }
@@ -208,6 +213,18 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   }
 
   Status written = store_->db().Write([&](Transaction& t) -> Status {
+    // A cancel between the look and this write stops the rounds too: nothing is added to a
+    // cancelled sweep.
+    if (!next.stop) {
+      Result<int64_t> now_cancelled = rounds::CancelledSweeps(t, campaign_run_id);
+      if (!now_cancelled.ok()) return now_cancelled.status();
+      if (*now_cancelled > 0) {
+        next.stop = true;
+        next.stop_reason = std::to_string(*now_cancelled) +
+                           " of its sweeps were cancelled: its rounds stop there (submit the campaign again to "
+                           "start anew)";
+      }
+    }
     SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, spent_now, after,
                                                  next.stop ? std::optional<std::string>(next.stop_reason) : std::nullopt));
     SANDSWIM_RETURN_IF_ERROR(rounds::FreezeVerdicts(t, campaign_run_id, last.round, now, state.frozen));

@@ -217,6 +217,34 @@ TEST_F(RoundsTest, ARoundIsPlannedOnceWithItsReasonAndSurvivesARestart) {
   EXPECT_TRUE(open->empty());
 }
 
+// Cancelling the campaign run's sweeps stops its rounds even when none of its runs ends cancelled
+// (here every run had finished): no next round is planned into a cancelled sweep.
+TEST_F(RoundsTest, CancelledSweepsStopTheRoundsThoughNoRunWasCancelled) {
+  auto saved = SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now());
+  ASSERT_TRUE(saved.ok()) << saved.status().ToString();
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);  // round 1 leaves S1 open: round 2 would be planned
+  auto info = store_->GetCampaignRun(id);
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  ASSERT_FALSE(info->sweep_ids.empty());
+  for (int64_t sweep : info->sweep_ids) {
+    auto cancelled = queue_->Cancel(sweep);
+    ASSERT_TRUE(cancelled.ok()) << cancelled.status().ToString();
+    EXPECT_EQ(cancelled->cancelled, 0);  // every run had finished: none ends cancelled
+  }
+  const int64_t runs_before = *store_->db().CountRows("runs");
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_TRUE((*step)->stopped) << (*step)->text;
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 1u);
+  ASSERT_TRUE(rows[0].stop_reason.has_value());
+  EXPECT_THAT(*rows[0].stop_reason, HasSubstr("sweeps were cancelled"));
+  EXPECT_EQ(*store_->db().CountRows("runs"), runs_before);
+}
+
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {
   auto saved = SaveCampaign(*store_, "mine", Adaptive(1e-4), kEngine, clock_.Now());
   ASSERT_FALSE(saved.ok());

@@ -221,6 +221,20 @@ Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64
   return out;
 }
 
+Result<int64_t> CancelledSweeps(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare("SELECT COUNT(*) FROM sweeps WHERE campaign_run_id = ? AND cancelled_at IS NOT NULL");
+  st.Bind(1, campaign_run_id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return *row ? st.Int(0) : 0;
+}
+
+Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return CancelledSweeps(*t, campaign_run_id);
+}
+
 Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id) {
   Statement st = t.Prepare(
       "DELETE FROM sweep_runs WHERE run_id = ? AND sweep_id IN (SELECT id FROM sweeps WHERE campaign_run_id = ?)");

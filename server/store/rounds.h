@@ -87,6 +87,11 @@ struct SweepSlot {
   int64_t next_position = 0;
 };
 Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id);
+// How many of the campaign run's sweeps are cancelled (cancelling is how its owner stops it: its
+// runs may all have finished, or be shared with another campaign run's live sweep, so no run of
+// it need end `cancelled`).
+Result<int64_t> CancelledSweeps(Transaction& t, int64_t campaign_run_id);
+Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id);
 // A longer run replaces `run_id` in the campaign run's sweeps: its membership of them is removed
 // (the run and its result stay, for any other sweep that has it). Returns the memberships removed.
 Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id);
