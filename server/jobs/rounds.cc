@@ -14,24 +14,37 @@ namespace {
 
 using nlohmann::json;
 
-bool Busy(const std::string& state) { return state == "queued" || state == "running"; }
+std::string CoreHText(double h) { return Num(h, 3) + " core-h"; }
 
-// Core-hours the campaign run's runs and beds took as they ran, at the rates in `cost`: each done
-// run's simulated time, each prepared bed. Runs two sweeps share count once.
-double SpentCoreHours(const ClaimInput& input, const AdaptiveCost& cost) {
-  double h = 0;
-  std::set<int64_t> seen;
-  const Point* any = nullptr;
-  for (const ClaimSweep& s : input.sweeps)
-    for (const ClaimRun& r : s.runs) {
-      if (any == nullptr) any = &r.point;
-      if (!seen.insert(r.run_id).second || !r.result) continue;
-      h += cost.RunCoreHours(r.point, r.result->sim_time_s);
-    }
-  if (any != nullptr)
-    for (const ClaimBed& b : input.beds)
-      if (b.state == "done") h += cost.BedCoreHours(*any);
-  return h;
+// What an ended run or bed of the campaign run is charged, at the rates in `cost`: a prepared bed
+// its cost; a done run its simulated time; a failed or cancelled one the simulated time its last
+// heartbeat reached. A run that ended without a heartbeat is charged nothing when it never ran
+// (no lease: cancelled while queued, or its bed failed), and its whole planned length when it ran:
+// the most it can have simulated, so the budget stays a hard limit. (The wall time its lease
+// allowed is no price: it is wall time, not simulated time, and a lease is mostly unused.)
+rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost) {
+  rounds::Charge c;
+  c.kind = j.kind;
+  c.id = j.id;
+  c.ended_at = j.ended_at;
+  c.state = j.state;
+  if (j.kind == "bed") {
+    c.priced_by = "bed";
+    c.core_h = cost.BedCoreHours(j.point);
+    return c;
+  }
+  if (j.sim_time_s) {
+    c.priced_by = j.state == "done" ? "result" : "heartbeat";
+    c.sim_time_s = std::max(0.0, *j.sim_time_s);
+  } else if (j.attempts == 0) {
+    c.priced_by = "never ran";
+    c.sim_time_s = 0.0;
+  } else {
+    c.priced_by = "planned length";
+    c.sim_time_s = j.run_duration_s;
+  }
+  c.core_h = *c.sim_time_s > 0 ? cost.RunCoreHours(j.point, *c.sim_time_s) : 0.0;
+  return c;
 }
 
 // The claims' states after a look: a frozen one as it was decided (and at which round), an open
@@ -149,20 +162,35 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   const rounds::RoundRow& last = stored->back();
   if (last.stop_reason || last.finished_at) return Out();
 
-  Result<ClaimLook> look = look_(*store_, *info);
-  if (!look.ok()) return look.status();
-  // A cancelled sweep stops the rounds at once, busy runs or not (they may be shared with another
-  // campaign run's live sweep and run on).
+  // Cheap checks before anything is analysed. A cancelled sweep stops the rounds at once, busy
+  // runs or not (they may be shared with another campaign run's live sweep and run on); else the
+  // look waits until none of its runs or beds is queued or running.
   Result<int64_t> cancelled_sweeps = rounds::CancelledSweeps(*store_, campaign_run_id);
   if (!cancelled_sweeps.ok()) return cancelled_sweeps.status();
+  if (*cancelled_sweeps == 0) {
+    Result<int64_t> busy = rounds::BusyJobs(*store_, campaign_run_id);
+    if (!busy.ok()) return busy.status();
+    if (*busy > 0) return Out();
+  }
+
+  Result<ClaimLook> look = look_(*store_, *info);
+  if (!look.ok()) return look.status();
   int cancelled = 0;
   for (const ClaimSweep& s : look->input.sweeps)
-    for (const ClaimRun& r : s.runs) {
-      if (Busy(r.state) && *cancelled_sweeps == 0) return Out();
-      cancelled += r.state == "cancelled";
-    }
-  for (const ClaimBed& b : look->input.beds)
-    if (Busy(b.state) && *cancelled_sweeps == 0) return Out();
+    for (const ClaimRun& r : s.runs) cancelled += r.state == "cancelled";
+
+  // The ledger: what ended since the last look is charged once; the budget left is the budget less
+  // every charge so far (a replaced or failed run stays charged).
+  Result<std::vector<rounds::EndedJob>> ended = rounds::UnchargedEndedJobs(*store_, campaign_run_id);
+  if (!ended.ok()) return ended.status();
+  std::vector<rounds::Charge> charges;
+  double charging = 0;
+  for (const rounds::EndedJob& j : *ended) {
+    charges.push_back(Price(j, *cost));
+    charging += charges.back().core_h;
+  }
+  Result<double> charged_before = rounds::ChargedCoreHours(*store_, campaign_run_id);
+  if (!charged_before.ok()) return charged_before.status();
 
   // The look after round `last.round`.
   Result<std::map<std::string, rounds::FrozenVerdict>> frozen_rows = rounds::FrozenVerdicts(*store_, campaign_run_id);
@@ -179,22 +207,31 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   state.sweeps = AdaptiveSweepsOf(declared);
   state.input = look->input;
   state.rounds_done = last.round;
-  state.spent_core_h = SpentCoreHours(look->input, *cost);
-  double spent_before = 0;
-  for (const rounds::RoundRow& r : *stored) spent_before += r.core_h_spent.value_or(0);
-  const double spent_now = std::max(0.0, state.spent_core_h - spent_before);
+  state.spent_core_h = *charged_before + charging;
 
   AdaptiveOptions options = options_.adaptive;
   options.max_rounds = settings.max_rounds;
   AdaptiveRound next;
+  next.round = last.round + 1;
   if (*cancelled_sweeps > 0 || cancelled > 0) {
-    next.round = last.round + 1;
     next.stop = true;
     next.stop_reason = (*cancelled_sweeps > 0 ? std::to_string(*cancelled_sweeps) + " of its sweeps"
                                               : std::to_string(cancelled) + " of its runs") +
                        " were cancelled: its rounds stop there (submit the campaign again to start anew)";
+  } else if (state.spent_core_h >= settings.budget_core_h) {
+    next.stop = true;
+    next.stop_reason = "the budget is spent: its runs and beds were charged " + CoreHText(state.spent_core_h) +
+                       " of the " + CoreHText(settings.budget_core_h) + " budgeted";
   } else {
     next = PlanNextRound(state, settings.budget_core_h, *cost, options);
+    // The planner keeps within what is left; a round that would not is refused here too.
+    if (!next.stop && next.core_h > settings.budget_core_h - state.spent_core_h + 1e-12) {
+      next.stop = true;
+      next.stop_reason = "the budget is spent: round " + std::to_string(next.round) + " would need " +
+                         CoreHText(next.core_h) + " and " + CoreHText(settings.budget_core_h - state.spent_core_h) +
+                         " is left";
+      next.actions.clear();
+    }
   }
   const json after = StatesAfter(look->claims, state.frozen, frozen_round);
   const double left = settings.budget_core_h - state.spent_core_h;
@@ -225,7 +262,9 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
                            "start anew)";
       }
     }
-    SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, spent_now, after,
+    Result<double> spent_now = rounds::AddCharges(t, campaign_run_id, last.round, now, charges);
+    if (!spent_now.ok()) return spent_now.status();
+    SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, *spent_now, after,
                                                  next.stop ? std::optional<std::string>(next.stop_reason) : std::nullopt));
     SANDSWIM_RETURN_IF_ERROR(rounds::FreezeVerdicts(t, campaign_run_id, last.round, now, state.frozen));
     if (next.stop) return Status::Ok();

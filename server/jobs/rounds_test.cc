@@ -1,12 +1,14 @@
 // The daemon's rounds (server/jobs/rounds.h) over a real SQLite store, the lease queue and the
 // claims' own look (LookAtClaims), with synthetic results: a sign claim that round 1 leaves open
 // gets a round 2 with its reason, stored once however often or by however many daemons the pass
-// runs, and the rounds stop with a reason; a budget below round 1 is refused at PUT and at
-// submission, naming the field and what it needs.
+// runs, and the rounds stop with a reason; cancelled sweeps stop them; what was spent is a ledger
+// (failed and replaced runs stay charged, each ending once) and stops them at the budget; a budget
+// below round 1 is refused at PUT and at submission, naming the field and what it needs.
 #include "server/jobs/rounds.h"
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <memory>
 
 #include <gmock/gmock.h>
@@ -97,6 +99,20 @@ class RoundsTest : public ::testing::Test {
       } else {
         auto run = store_->GetRun(grant.id);
         EXPECT_TRUE(run.ok());
+        if (fails_ && fails_(run->summary.point)) {
+          // A failure for good (lost atoms are never retried), after a heartbeat when one is set.
+          if (fail_heartbeat_s_ >= 0) {
+            api::Heartbeat beat;
+            beat.sim_time_s = fail_heartbeat_s_;
+            EXPECT_TRUE(queue_->Heartbeat(grant.token, beat).ok());
+          }
+          c.ok = false;
+          c.failure = api::Failure{"lost_atoms", "atoms were lost (test)"};
+          clock_.Advance(1);
+          auto reply = queue_->Complete(grant.token, c);
+          EXPECT_TRUE(reply.ok()) << reply.status().ToString();
+          continue;
+        }
         const bool rises = run->summary.point.Omega < 0;
         api::RunResult r;
         r.uz = rises ? 0.004 : -0.01;
@@ -131,8 +147,16 @@ class RoundsTest : public ::testing::Test {
     return sub.ok() ? sub->campaign_run_id.value_or(0) : 0;
   }
 
+  double Charged(int64_t id) {
+    auto h = rounds::ChargedCoreHours(*store_, id);
+    EXPECT_TRUE(h.ok()) << h.status().ToString();
+    return h.ok() ? *h : -1;
+  }
+
   fs::path dir_;
   FakeClock clock_;
+  std::function<bool(const Point&)> fails_;  // runs at these points fail for good
+  double fail_heartbeat_s_ = -1;             // after a heartbeat at this simulated time (< 0: none)
   std::unique_ptr<Store> store_;
   std::unique_ptr<LeaseQueue> queue_;
   std::unique_ptr<RoundDriver> driver_;
@@ -243,6 +267,105 @@ TEST_F(RoundsTest, CancelledSweepsStopTheRoundsThoughNoRunWasCancelled) {
   ASSERT_TRUE(rows[0].stop_reason.has_value());
   EXPECT_THAT(*rows[0].stop_reason, HasSubstr("sweeps were cancelled"));
   EXPECT_EQ(*store_->db().CountRows("runs"), runs_before);
+}
+
+// What a campaign run spent is a ledger: a done run is charged its simulated time, a failed one the
+// time its last heartbeat reached, a bed once; a look taken twice charges nothing more, and a run
+// that leaves the campaign run's sweeps (a longer one replaced it) stays charged.
+TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndKeepsReplacedAndFailedRuns) {
+  const double budget = 50;
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(budget), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  fails_ = [](const Point& p) { return p.Omega > 0; };
+  fail_heartbeat_s_ = 0.4;
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 1);
+  auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  const ClaimRun* done = nullptr;
+  const ClaimRun* failed = nullptr;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) (r.state == "done" ? done : failed) = &r;
+  ASSERT_NE(done, nullptr);
+  ASSERT_NE(failed, nullptr);
+  ASSERT_EQ(failed->state, "failed");
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  const double expected = cost->RunCoreHours(done->point, 1) + cost->RunCoreHours(failed->point, 0.4) +
+                          cost->BedCoreHours(done->point);
+  ASSERT_GT(cost->RunCoreHours(failed->point, 0.4), 0);
+
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_TRUE(rows[0].core_h_spent.has_value());
+  EXPECT_NEAR(*rows[0].core_h_spent, expected, 1e-9 * expected);
+  EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
+  // The next round, if any, was planned within what the ledger left.
+  if (rows.size() > 1) EXPECT_LE(rows[1].core_h_planned, budget - Charged(id) + 1e-12);
+
+  // The same look again, from a second daemon, and the same endings charged again: nothing more.
+  EXPECT_FALSE(NewDriver()->Step(id, clock_.Now())->has_value());
+  auto ended = rounds::UnchargedEndedJobs(*store_, id);
+  ASSERT_TRUE(ended.ok());
+  EXPECT_TRUE(ended->empty());
+  std::vector<rounds::Charge> again{{"run", done->run_id, 0, "done", 1.0, "result", 1.0}};
+  Status added = store_->db().Write([&](Transaction& t) -> Status {
+    Statement st = t.Prepare("SELECT finished_at FROM runs WHERE id = ?");
+    st.Bind(1, done->run_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    again[0].ended_at = st.Double(0);
+    Result<double> h = rounds::AddCharges(t, id, 1, clock_.Now(), again);
+    if (!h.ok()) return h.status();
+    EXPECT_EQ(*h, 0.0);
+    return Status::Ok();
+  });
+  ASSERT_TRUE(added.ok()) << added.ToString();
+  EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
+
+  // A longer run replaces the done one in the campaign run's sweeps: it stays charged.
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) -> Status {
+                    Result<int64_t> n = rounds::LeaveCampaignRunSweeps(t, id, done->run_id);
+                    if (!n.ok()) return n.status();
+                    EXPECT_EQ(*n, 1);
+                    return Status::Ok();
+                  })
+                  .ok());
+  EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
+  ended = rounds::UnchargedEndedJobs(*store_, id);
+  ASSERT_TRUE(ended.ok());
+  EXPECT_TRUE(ended->empty());
+}
+
+// The ledger, not the planner's hopes, decides when the budget is spent: with its charges at the
+// budget, the rounds stop, saying so, and nothing is added.
+TEST_F(RoundsTest, TheRoundsStopWhenTheLedgerReachesTheBudget) {
+  const double budget = 50;
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(budget), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);  // round 1 leaves S1 open: round 2 would be planned
+  // An ending charged at an earlier look (say, at rates since revised) has used up the budget.
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) -> Status {
+                    return rounds::AddCharges(t, id, 1, clock_.Now(),
+                                              {{"bed", 1000000, 1, "done", std::nullopt, "bed", budget}})
+                        .status();
+                  })
+                  .ok());
+  const int64_t runs_before = *store_->db().CountRows("runs");
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_TRUE((*step)->stopped) << (*step)->text;
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 1u);
+  ASSERT_TRUE(rows[0].stop_reason.has_value());
+  EXPECT_THAT(*rows[0].stop_reason, HasSubstr("the budget is spent"));
+  EXPECT_EQ(*store_->db().CountRows("runs"), runs_before);
+  EXPECT_GT(Charged(id), budget);  // round 1's runs and bed were charged on top
 }
 
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {

@@ -1,6 +1,7 @@
 // The rounds of adaptive campaign runs (schema/015_campaign_rounds.sql): one row per
 // round (what it added and why, core-hours planned and spent, the claims' states after it, why
-// the campaign run stopped) and the verdicts frozen at their first deciding look. The driver that
+// the campaign run stopped) and the verdicts frozen at their first deciding look; and what the
+// campaign run has spent, a ledger of charged runs and beds (schema/016_campaign_run_charges.sql). The driver that
 // writes them is server/jobs/rounds.h; GET /api/v1/campaign-runs/{id} and `sandswim status cr:ID`
 // read them.
 //
@@ -80,6 +81,44 @@ Status FinishRound(Transaction& t, int64_t campaign_run_id, int round, double no
 // Stores the verdicts `frozen` holds that are not stored yet, as frozen at `round`.
 Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double now,
                       const std::map<std::string, Verdict>& frozen);
+
+// ---- What a campaign run spent: the ledger ---------------------------------------------------
+
+// A run or bed of the campaign run (a member of its sweeps, or a run a longer one replaced there)
+// that has ended and whose ending is not charged yet: what pricing it needs.
+struct EndedJob {
+  std::string kind;   // "run" | "bed"
+  int64_t id = 0;
+  double ended_at = 0;  // its finished_at (0 when none was recorded)
+  std::string state;    // done | failed | cancelled
+  int attempts = 0;     // runs: leases it was granted (0: it never ran)
+  std::optional<double> sim_time_s;  // runs: done, its result's; else its last heartbeat's (NULL: none)
+  double run_duration_s = 0;         // runs: its planned length at the scale
+  Point point;                       // a run's point; a bed's: the point of one of its runs here
+};
+Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaign_run_id);
+Result<std::vector<EndedJob>> UnchargedEndedJobs(Store& store, int64_t campaign_run_id);
+
+struct Charge {
+  std::string kind;  // "run" | "bed"
+  int64_t id = 0;
+  double ended_at = 0;
+  std::string state;
+  std::optional<double> sim_time_s;
+  std::string priced_by;  // "result", "heartbeat", "planned length", "never ran", "bed"
+  double core_h = 0;
+};
+// Stores the charges at the look after `round`; an ending charged already is not charged again.
+// Returns the core-hours newly charged.
+Result<double> AddCharges(Transaction& t, int64_t campaign_run_id, int round, double now,
+                          const std::vector<Charge>& charges);
+// The sum of the campaign run's charges: what it has spent (0 with none).
+Result<double> ChargedCoreHours(Transaction& t, int64_t campaign_run_id);
+Result<double> ChargedCoreHours(Store& store, int64_t campaign_run_id);
+
+// How many runs of the campaign run's sweeps, and beds under them, are queued or running: a look
+// waits for 0 (one cheap query, before anything is analysed).
+Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id);
 
 // The campaign run's sweeps by name, and each one's next membership position.
 struct SweepSlot {
