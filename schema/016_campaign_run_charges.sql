@@ -20,3 +20,20 @@ CREATE TABLE campaign_run_charges (
   charged_at      REAL NOT NULL,
   PRIMARY KEY (campaign_run_id, kind, job_id, ended_at)
 );
+
+-- A longer run that took a point's place on a bed in the campaign run's sweeps (a round's
+-- "longer" action): the run it replaced, and where. At the look after its round the replacement
+-- is settled: done, it stands ('replaced'); failed or cancelled, the point's earlier run goes back
+-- to its place and the failed one leaves the sweep ('restored'), so a failed longer run never
+-- costs the point its measurement. Both runs stay in the campaign run's ledger.
+CREATE TABLE campaign_run_replacements (
+  campaign_run_id INTEGER NOT NULL REFERENCES campaign_runs (id),
+  round           INTEGER NOT NULL,        -- the round that ordered the longer run
+  sweep_id        INTEGER NOT NULL REFERENCES sweeps (id),
+  position        INTEGER NOT NULL,        -- the replaced run's position in that sweep
+  old_run_id      INTEGER NOT NULL REFERENCES runs (id),
+  new_run_id      INTEGER NOT NULL REFERENCES runs (id),
+  outcome         TEXT CHECK (outcome IN ('replaced', 'restored')),  -- NULL: not settled yet
+  settled_at      REAL,
+  PRIMARY KEY (campaign_run_id, round, sweep_id, old_run_id)
+);

@@ -173,6 +173,11 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     if (*busy > 0) return Out();
   }
 
+  // Longer runs that ended: a failed one gives its point's place back to the earlier run, before
+  // the claims are looked at (stored at once: the look below reads the sweeps as they are now).
+  SANDSWIM_RETURN_IF_ERROR(store_->db().Write(
+      [&](Transaction& t) { return rounds::SettleReplacements(t, campaign_run_id, now).status(); }));
+
   Result<ClaimLook> look = look_(*store_, *info);
   if (!look.ok()) return look.status();
   int cancelled = 0;
@@ -287,12 +292,13 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     }
     SubmitResult added;
     for (size_t i = 0; i < plans.size(); ++i) {
-      if (replaced[i]) {
-        Result<int64_t> left_sweeps = rounds::LeaveCampaignRunSweeps(t, campaign_run_id, *replaced[i]);
-        if (!left_sweeps.ok()) return left_sweeps.status();
-      }
       SANDSWIM_RETURN_IF_ERROR(
           AddPlannedRuns(t, plans[i], options_.engine_version, now, ids, next_position, added));
+      if (replaced[i]) {
+        Result<int64_t> n = rounds::ReplaceInCampaignRunSweeps(t, campaign_run_id, next.round, *replaced[i],
+                                                               plans[i].plan.runs.front().key);
+        if (!n.ok()) return n.status();
+      }
     }
     return FinishAddedRuns(t, sweep_ids, options_.max_queued_runs, added);
   });

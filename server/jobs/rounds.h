@@ -10,7 +10,9 @@
 //   2. a campaign run with a cancelled sweep stops (cancelling is how its owner stops it; no run of
 //      it need end cancelled). Else, while any run or bed of it is queued or running (one cheap
 //      query, server/store/rounds.h BusyJobs), nothing more happens: nothing is analysed;
-//   3. else the claims are looked at (`look`: server/analysis/claim_check.h LookAtClaims, the data
+//   3. else the longer runs of the last round that failed (or were cancelled) give their points'
+//      places back to the runs they replaced (server/store/rounds.h SettleReplacements: a failed
+//      longer run never costs a point its earlier measurement), then the claims are looked at (`look`: server/analysis/claim_check.h LookAtClaims, the data
 //      the verdicts shown are decided on), the verdicts each decides are frozen
 //      (FreezeDecisions: never looked at again), every run and bed that ended since the last look
 //      is charged to the campaign run's ledger (server/store/rounds.h UnchargedEndedJobs, Price
@@ -23,7 +25,8 @@
 //      claims' states after it, the stop reason), the verdicts frozen at it, the next round's row
 //      and its runs (added to the campaign run's sweeps: a new bed is the next replicate index, a
 //      new point joins its sweep, a longer run takes its point's place on that bed in the campaign
-//      run's sweeps). A charge is never deleted: a run that a longer one replaced stays charged.
+//      run's sweeps, recorded as a replacement until it is settled at the next look). A charge is
+//      never deleted: a run that a longer one replaced, and a failed longer run, stay charged.
 // Restart-safe: everything it knows is in the store. A daemon stopped anywhere in a pass either
 // committed the round or did not; the next pass (of this daemon or the next) continues from what
 // is stored. Two passes that plan the same round from the same store cannot both store it (the

@@ -9,7 +9,9 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
+#include <set>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -71,9 +73,10 @@ class RoundsTest : public ::testing::Test {
     queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_);
     driver_ = NewDriver();
   }
-  std::unique_ptr<RoundDriver> NewDriver() {
+  std::unique_ptr<RoundDriver> NewDriver(int max_beds = AdaptiveOptions{}.max_beds) {
     RoundDriverOptions options;
     options.engine_version = kEngine;
+    options.adaptive.max_beds = max_beds;
     return std::make_unique<RoundDriver>(store_.get(), &LookAtClaims, options);
   }
   // Works off the queue: beds, then runs; U_z by the run's Omega, with the standard error
@@ -270,9 +273,9 @@ TEST_F(RoundsTest, CancelledSweepsStopTheRoundsThoughNoRunWasCancelled) {
 }
 
 // What a campaign run spent is a ledger: a done run is charged its simulated time, a failed one the
-// time its last heartbeat reached, a bed once; a look taken twice charges nothing more, and a run
-// that leaves the campaign run's sweeps (a longer one replaced it) stays charged.
-TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndKeepsReplacedAndFailedRuns) {
+// time its last heartbeat reached, a bed once; a look taken twice charges nothing more. (A run a
+// longer one replaced stays charged: ADoneLongerRunStandsAndTheRunItReplacedStaysCharged.)
+TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) {
   const double budget = 50;
   ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(budget), kEngine, clock_.Now()).ok());
   const int64_t id = Submit("mine");
@@ -324,19 +327,6 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndKeepsReplacedAndFailedRuns) 
   ASSERT_TRUE(added.ok()) << added.ToString();
   EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
 
-  // A longer run replaces the done one in the campaign run's sweeps: it stays charged.
-  ASSERT_TRUE(store_->db()
-                  .Write([&](Transaction& t) -> Status {
-                    Result<int64_t> n = rounds::LeaveCampaignRunSweeps(t, id, done->run_id);
-                    if (!n.ok()) return n.status();
-                    EXPECT_EQ(*n, 1);
-                    return Status::Ok();
-                  })
-                  .ok());
-  EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
-  ended = rounds::UnchargedEndedJobs(*store_, id);
-  ASSERT_TRUE(ended.ok());
-  EXPECT_TRUE(ended->empty());
 }
 
 // The ledger, not the planner's hopes, decides when the budget is spent: with its charges at the
@@ -366,6 +356,120 @@ TEST_F(RoundsTest, TheRoundsStopWhenTheLedgerReachesTheBudget) {
   EXPECT_THAT(*rows[0].stop_reason, HasSubstr("the budget is spent"));
   EXPECT_EQ(*store_->db().CountRows("runs"), runs_before);
   EXPECT_GT(Charged(id), budget);  // round 1's runs and bed were charged on top
+}
+
+// One bed a point at most: round 2 lengthens the unclear run, which takes its point's place on that
+// bed. When the longer run fails for good, the point's earlier run goes back to its place (its
+// measurement stands) and the failed one leaves the sweep; both stay charged. (Two rounds at most,
+// so that the look after round 2 plans nothing more.)
+TEST_F(RoundsTest, AFailedLongerRunGivesThePointsPlaceBackToItsEarlierRun) {
+  driver_ = NewDriver(/*max_beds=*/1);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50, /*max_rounds=*/2), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto runs_of = [&]() {
+    std::map<int64_t, std::string> out;
+    auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+    EXPECT_TRUE(look.ok());
+    if (look.ok())
+      for (const ClaimRun& r : look->input.sweeps.at(0).runs) out[r.run_id] = r.state;
+    return out;
+  };
+  const std::map<int64_t, std::string> first = runs_of();
+  ASSERT_EQ(first.size(), 2u);
+
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  ASSERT_FALSE((*step)->stopped) << (*step)->text;
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 2u);
+  ASSERT_EQ(rows[1].actions.at(0)["kind"], "longer") << rows[1].actions.dump();
+  const size_t lengthened = rows[1].actions[0]["runs"].size();
+  ASSERT_GE(lengthened, 1u);
+  // The longer runs took their points' places: the sweep holds them and the runs they replaced left it.
+  std::map<int64_t, std::string> during = runs_of();
+  EXPECT_EQ(during.size(), 2u);
+  int replaced = 0;
+  for (const auto& [run, state] : first) replaced += during.count(run) == 0;
+  EXPECT_EQ(replaced, static_cast<int>(lengthened));
+  const double charged_before = Charged(id);
+
+  // Every longer run fails for good, after a heartbeat at 0.5 s.
+  fails_ = [](const Point&) { return true; };
+  fail_heartbeat_s_ = 0.5;
+  EXPECT_EQ(CompleteAll(3e-4), 0);
+  step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_TRUE((*step)->stopped) << (*step)->text;
+  // The point's earlier runs are back, done: the sweep is round 1's again.
+  EXPECT_EQ(runs_of(), first);
+  // Both stay charged: the failed longer runs at the time they reached, on top of round 1's.
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  double longer = 0;
+  for (const auto& [run, state] : during) {
+    if (first.count(run)) continue;
+    auto r = store_->GetRun(run);
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->summary.state, "failed");
+    longer += cost->RunCoreHours(r->summary.point, 0.5);
+  }
+  ASSERT_GT(longer, 0);
+  EXPECT_NEAR(Charged(id), charged_before + longer, 1e-9 * Charged(id));
+  EXPECT_NEAR(*Rounds(id)[1].core_h_spent, longer, 1e-9 * longer);
+  // Settled once: a second pass puts nothing back again.
+  auto again = store_->db().WriteResult<int64_t>(
+      [&](Transaction& t) { return rounds::SettleReplacements(t, id, clock_.Now()); });
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(*again, 0);
+}
+
+// The same, when the longer run is done: it stands in its point's place, and the run it replaced
+// stays out of the sweep and in the ledger.
+TEST_F(RoundsTest, ADoneLongerRunStandsAndTheRunItReplacedStaysCharged) {
+  driver_ = NewDriver(/*max_beds=*/1);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50, /*max_rounds=*/2), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  std::set<int64_t> first;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) first.insert(r.run_id);
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_EQ(Rounds(id).size(), 2u);
+  ASSERT_EQ(Rounds(id)[1].actions.at(0)["kind"], "longer");
+  const double charged_before = Charged(id);
+  look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  std::set<int64_t> during;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) during.insert(r.run_id);
+
+  const int done = CompleteAll(/*rise_se=*/3e-4);
+  EXPECT_GE(done, 1);
+  step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  std::set<int64_t> after;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) {
+    after.insert(r.run_id);
+    EXPECT_EQ(r.state, "done");
+  }
+  EXPECT_EQ(after, during);
+  EXPECT_NE(after, first);
+  // Round 1's charges stand; the longer runs were charged their simulated time (1 s each here).
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  double longer = 0;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs)
+    if (!first.count(r.run_id)) longer += cost->RunCoreHours(r.point, 1);
+  EXPECT_GT(longer, 0);
+  EXPECT_NEAR(Charged(id), charged_before + longer, 1e-9 * Charged(id));
 }
 
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {

@@ -4,6 +4,7 @@
 
 #include "core/scale.h"
 #include "server/store/cost_model.h"
+#include "server/store/submission_table.h"
 
 namespace sandswim::rounds {
 namespace {
@@ -208,12 +209,12 @@ Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double
 
 namespace {
 
-// The campaign run's runs, as ?1 names it: members of its sweeps, and runs a longer one replaced
-// there (they left its sweeps, not its ledger).
+// The campaign run's runs, as ?1 names it: members of its sweeps, and both runs of each
+// replacement there (a replaced run, or a failed longer one, leaves its sweeps, not its ledger).
 constexpr char kMyRuns[] =
     "WITH mine(run_id) AS (SELECT sr.run_id FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
-    "WHERE s.campaign_run_id = ?1 UNION SELECT job_id FROM campaign_run_charges WHERE campaign_run_id = ?1 "
-    "AND kind = 'run') ";
+    "WHERE s.campaign_run_id = ?1 UNION SELECT old_run_id FROM campaign_run_replacements WHERE campaign_run_id = ?1 "
+    "UNION SELECT new_run_id FROM campaign_run_replacements WHERE campaign_run_id = ?1) ";
 
 }  // namespace
 
@@ -351,12 +352,80 @@ Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id) {
   return CancelledSweeps(*t, campaign_run_id);
 }
 
-Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id) {
-  Statement st = t.Prepare(
+Result<int64_t> ReplaceInCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int round, int64_t old_run_id,
+                                           const std::string& new_run_key) {
+  Statement find = t.Prepare("SELECT id FROM runs WHERE key = ?");
+  find.Bind(1, new_run_key);
+  Result<bool> row = find.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Internal("the longer run " + new_run_key + " was not written before it replaced run " +
+                                     std::to_string(old_run_id));
+  const int64_t new_run_id = find.Int(0);
+  if (new_run_id == old_run_id) return int64_t{0};
+  Statement record = t.Prepare(
+      "INSERT INTO campaign_run_replacements (campaign_run_id, round, sweep_id, position, old_run_id, new_run_id) "
+      "SELECT ?1, ?2, sr.sweep_id, sr.position, ?3, ?4 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+      "WHERE s.campaign_run_id = ?1 AND sr.run_id = ?3 ON CONFLICT DO NOTHING");
+  record.Bind(1, campaign_run_id).Bind(2, round).Bind(3, old_run_id).Bind(4, new_run_id);
+  SANDSWIM_RETURN_IF_ERROR(record.Run());
+  Statement leave = t.Prepare(
       "DELETE FROM sweep_runs WHERE run_id = ? AND sweep_id IN (SELECT id FROM sweeps WHERE campaign_run_id = ?)");
-  st.Bind(1, run_id).Bind(2, campaign_run_id);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  leave.Bind(1, old_run_id).Bind(2, campaign_run_id);
+  SANDSWIM_RETURN_IF_ERROR(leave.Run());
   return t.Changes();
+}
+
+Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, double now) {
+  struct Pending {
+    int round;
+    int64_t sweep_id, position, old_run_id, new_run_id;
+    std::string state;
+  };
+  std::vector<Pending> pending;
+  {
+    Statement st = t.Prepare(
+        "SELECT p.round, p.sweep_id, p.position, p.old_run_id, p.new_run_id, r.state FROM campaign_run_replacements p "
+        "JOIN runs r ON r.id = p.new_run_id WHERE p.campaign_run_id = ? AND p.outcome IS NULL "
+        "AND r.state IN ('done', 'failed', 'cancelled')");
+    st.Bind(1, campaign_run_id);
+    for (;;) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      pending.push_back({static_cast<int>(st.Int(0)), st.Int(1), st.Int(2), st.Int(3), st.Int(4), st.Text(5)});
+    }
+  }
+  if (pending.empty()) return int64_t{0};
+  Statement settle = t.Prepare(
+      "UPDATE campaign_run_replacements SET outcome = ?, settled_at = ? WHERE campaign_run_id = ? AND round = ? "
+      "AND sweep_id = ? AND old_run_id = ?");
+  Statement back = t.Prepare("INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) ON CONFLICT DO NOTHING");
+  Statement out = t.Prepare("DELETE FROM sweep_runs WHERE sweep_id = ? AND run_id = ?");
+  int64_t restored = 0;
+  std::vector<int64_t> sweeps;
+  for (const Pending& p : pending) {
+    const bool stands = p.state == "done";
+    if (!stands) {
+      back.Reset();
+      back.Bind(1, p.sweep_id).Bind(2, p.old_run_id).Bind(3, p.position);
+      SANDSWIM_RETURN_IF_ERROR(back.Run());
+      out.Reset();
+      out.Bind(1, p.sweep_id).Bind(2, p.new_run_id);
+      SANDSWIM_RETURN_IF_ERROR(out.Run());
+      ++restored;
+      sweeps.push_back(p.sweep_id);
+      SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.replacement_restored",
+                                       "campaign_run/" + std::to_string(campaign_run_id),
+                                       {{"round", p.round}, {"sweep", p.sweep_id}, {"run", p.old_run_id},
+                                        {"longer_run", p.new_run_id}, {"longer_run_state", p.state}}));
+    }
+    settle.Reset();
+    settle.Bind(1, stands ? "replaced" : "restored").Bind(2, now).Bind(3, campaign_run_id).Bind(4, p.round);
+    settle.Bind(5, p.sweep_id).Bind(6, p.old_run_id);
+    SANDSWIM_RETURN_IF_ERROR(settle.Run());
+  }
+  if (!sweeps.empty()) SANDSWIM_RETURN_IF_ERROR(submissions::RecountSweeps(t, sweeps));
+  return restored;
 }
 
 }  // namespace sandswim::rounds
