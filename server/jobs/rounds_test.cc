@@ -472,6 +472,58 @@ TEST_F(RoundsTest, ADoneLongerRunStandsAndTheRunItReplacedStaysCharged) {
   EXPECT_NEAR(Charged(id), charged_before + longer, 1e-9 * Charged(id));
 }
 
+// A busy campaign run is not analysed: while any of its runs or beds is queued or running, a pass
+// asks one cheap query and does not look at the claims (it used to analyse the whole campaign on
+// every scheduler tick).
+TEST_F(RoundsTest, ABusyCampaignRunIsNotAnalysed) {
+  int looks = 0;
+  RoundDriverOptions options;
+  options.engine_version = kEngine;
+  RoundDriver counting(
+      store_.get(),
+      [&looks](Store& store, const CampaignRunInfo& info) {
+        ++looks;
+        return LookAtClaims(store, info);
+      },
+      options);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  for (int i = 0; i < 3; ++i) {
+    auto pass = counting.Tick(clock_.Now());
+    ASSERT_TRUE(pass.ok());
+    EXPECT_TRUE(pass->steps.empty());
+  }
+  EXPECT_EQ(looks, 0);  // its bed and runs are queued
+  // The bed is leased (running), then prepared; its runs are still queued.
+  auto bed = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(bed.ok() && bed->has_value());
+  ASSERT_EQ((*bed)->kind, api::JobKind::kBed);
+  ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
+  EXPECT_EQ(looks, 0);
+  const std::string bytes = "restart " + (*bed)->key;
+  ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion c;
+  c.ok = true;
+  c.execution.host = "host";
+  c.execution.engine_version = kEngine;
+  c.bed_result = api::BedResult{};
+  c.bed_result->grains = 3700;
+  c.bed_result->bed_height = 0.22;
+  c.bed_result->sha256 = Sha256Hex(bytes);
+  ASSERT_TRUE(queue_->Complete((*bed)->token, c).ok());
+  ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
+  EXPECT_EQ(looks, 0);
+  // Once every run has ended: one look, which plans round 2; then none while round 2 runs.
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto pass = counting.Tick(clock_.Now());
+  ASSERT_TRUE(pass.ok());
+  EXPECT_EQ(pass->steps.size(), 1u);
+  EXPECT_EQ(looks, 1);
+  ASSERT_EQ(Rounds(id).size(), 2u);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
+  EXPECT_EQ(looks, 1);
+}
+
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {
   auto saved = SaveCampaign(*store_, "mine", Adaptive(1e-4), kEngine, clock_.Now());
   ASSERT_FALSE(saved.ok());
