@@ -7,6 +7,8 @@
 -- One row per ended attempt charged: a run is charged when it ends done (its simulated time),
 -- failed or cancelled (the simulated time it reached); a bed when it is prepared. A run queued
 -- again and ended again has a new finished_at, so it is charged again; the same ending never twice.
+-- A run or bed that had ended before the campaign run was submitted (reused by its key, as a
+-- nightly rerun reuses unchanged runs) is recorded at 0 core-h: it cost this campaign run nothing.
 CREATE TABLE campaign_run_charges (
   campaign_run_id INTEGER NOT NULL REFERENCES campaign_runs (id),
   kind            TEXT NOT NULL CHECK (kind IN ('run', 'bed')),
@@ -14,7 +16,8 @@ CREATE TABLE campaign_run_charges (
   ended_at        REAL NOT NULL,           -- the job's finished_at when it was charged
   state           TEXT NOT NULL,           -- done | failed | cancelled
   sim_time_s      REAL,                    -- runs: the simulated time charged; beds: NULL
-  priced_by       TEXT NOT NULL,           -- how: 'result', 'heartbeat', 'planned length', 'never ran', 'bed'
+  priced_by       TEXT NOT NULL,           -- how: 'result', 'heartbeat', 'planned length', 'never ran', 'bed',
+                                           -- 'stored before' (ended before the campaign run: 0)
   core_h          REAL NOT NULL,           -- at the cost model's rates at the look
   round           INTEGER NOT NULL,        -- the round whose look charged it
   charged_at      REAL NOT NULL,

@@ -16,18 +16,26 @@ using nlohmann::json;
 
 std::string CoreHText(double h) { return Num(h, 3) + " core-h"; }
 
-// What an ended run or bed of the campaign run is charged, at the rates in `cost`: a prepared bed
-// its cost; a done run its simulated time; a failed or cancelled one the simulated time its last
-// heartbeat reached. A run that ended without a heartbeat is charged nothing when it never ran
-// (no lease: cancelled while queued, or its bed failed), and its whole planned length when it ran:
-// the most it can have simulated, so the budget stays a hard limit. (The wall time its lease
-// allowed is no price: it is wall time, not simulated time, and a lease is mostly unused.)
-rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost) {
+// What an ended run or bed of the campaign run (created at `created_at`) is charged, at the rates
+// in `cost`: a prepared bed its cost; a done run its simulated time; a failed or cancelled one the
+// simulated time its last heartbeat reached. A run that ended without a heartbeat is charged
+// nothing when it never ran (no lease: cancelled while queued, or its bed failed), and its whole
+// planned length when it ran: the most it can have simulated, so the budget stays a hard limit.
+// (The wall time its lease allowed is no price: it is wall time, not simulated time, and a lease
+// is mostly unused.) A run or bed that had ended before the campaign run was submitted (found
+// stored by its key: a nightly rerun's unchanged runs) cost it nothing and is charged 0.
+rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost, double created_at) {
   rounds::Charge c;
   c.kind = j.kind;
   c.id = j.id;
   c.ended_at = j.ended_at;
   c.state = j.state;
+  if (j.ended_at < created_at) {
+    c.priced_by = "stored before";
+    c.core_h = 0;
+    if (j.kind == "run") c.sim_time_s = 0.0;
+    return c;
+  }
   if (j.kind == "bed") {
     c.priced_by = "bed";
     c.core_h = cost.BedCoreHours(j.point);
@@ -191,7 +199,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   std::vector<rounds::Charge> charges;
   double charging = 0;
   for (const rounds::EndedJob& j : *ended) {
-    charges.push_back(Price(j, *cost));
+    charges.push_back(Price(j, *cost, info->created_at));
     charging += charges.back().core_h;
   }
   Result<double> charged_before = rounds::ChargedCoreHours(*store_, campaign_run_id);

@@ -524,6 +524,42 @@ TEST_F(RoundsTest, ABusyCampaignRunIsNotAnalysed) {
   EXPECT_EQ(looks, 1);
 }
 
+// A rerun of an adaptive campaign (the nightly scheduler submits it again, as here) starts from
+// what is stored: its round 1 and the rounds the stored results lead it to again find their runs
+// stored by key, cost it nothing (the ledger charges what ended before it was submitted at 0), and
+// it decides as the first did without a new run; its budget stays for what is still open.
+TEST_F(RoundsTest, ARerunReplaysItsStoredRoundsFreeOfCharge) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t first = Submit("mine");
+  ASSERT_TRUE(driver_->Step(first, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  for (int i = 0; i < 4 && !Rounds(first).back().stop_reason; ++i) {
+    ASSERT_TRUE(driver_->Tick(clock_.Now()).ok());
+    CompleteAll(3e-4);
+  }
+  ASSERT_TRUE(Rounds(first).back().stop_reason.has_value());
+  ASSERT_GE(Rounds(first).size(), 2u);
+  EXPECT_GT(Charged(first), 0);
+  const int64_t runs = *store_->db().CountRows("runs");
+
+  clock_.Advance(86400);
+  const int64_t rerun = Submit("mine");
+  ASSERT_NE(rerun, first);
+  for (int i = 0; i < 4 && (Rounds(rerun).empty() || !Rounds(rerun).back().stop_reason); ++i) {
+    auto pass = driver_->Tick(clock_.Now());
+    ASSERT_TRUE(pass.ok());
+    for (const auto& [cr, why] : pass->errors) ADD_FAILURE() << cr << ": " << why.ToString();
+    EXPECT_EQ(CompleteAll(3e-4), 0);  // nothing to run: every run it orders is stored
+  }
+  std::vector<rounds::RoundRow> rows = Rounds(rerun);
+  ASSERT_TRUE(rows.back().stop_reason.has_value());
+  EXPECT_THAT(*rows.back().stop_reason, HasSubstr("decided"));
+  EXPECT_EQ(rows.size(), Rounds(first).size());
+  EXPECT_EQ(*store_->db().CountRows("runs"), runs);
+  EXPECT_EQ(Charged(rerun), 0.0);
+  for (const rounds::RoundRow& r : rows) EXPECT_EQ(r.core_h_spent.value_or(-1), 0.0);
+}
+
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {
   auto saved = SaveCampaign(*store_, "mine", Adaptive(1e-4), kEngine, clock_.Now());
   ASSERT_FALSE(saved.ok());

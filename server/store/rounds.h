@@ -105,7 +105,7 @@ struct Charge {
   double ended_at = 0;
   std::string state;
   std::optional<double> sim_time_s;
-  std::string priced_by;  // "result", "heartbeat", "planned length", "never ran", "bed"
+  std::string priced_by;  // "result", "heartbeat", "planned length", "never ran", "bed", "stored before"
   double core_h = 0;
 };
 // Stores the charges at the look after `round`; an ending charged already is not charged again.
