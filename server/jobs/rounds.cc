@@ -149,13 +149,12 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   const AdaptiveSettings& settings = *campaign->adaptive;
   std::vector<SweepSpec> declared = campaign->sweeps;
   for (SweepSpec& s : declared) s.scale = info->scale;
-  Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
-  if (!cost.ok()) return cost.status();
-
   Result<std::vector<rounds::RoundRow>> stored = rounds::ListRounds(*store_, campaign_run_id);
   if (!stored.ok()) return stored.status();
   if (stored->empty()) {
     // Round 1 is what was submitted: its row says so and what it was planned to cost.
+    Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
+    if (!cost.ok()) return cost.status();
     const AdaptiveRound first = FirstRound(AdaptiveSweepsOf(declared), *cost);
     rounds::RoundRow row;
     row.campaign_run_id = campaign_run_id;
@@ -180,6 +179,8 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     if (!busy.ok()) return busy.status();
     if (*busy > 0) return Out();
   }
+  Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
+  if (!cost.ok()) return cost.status();
 
   // Longer runs that ended: a failed one gives its point's place back to the earlier run, before
   // the claims are looked at (stored at once: the look below reads the sweeps as they are now).
