@@ -33,9 +33,15 @@
 // round's look is taken once: server/store/rounds.h FinishRound), so no round is stored twice.
 // A campaign run some of whose runs or sweeps were cancelled stops, saying so.
 //
-// Left for later: nightly reruns of an adaptive campaign plan from scratch (each campaign run has
-// rounds of its own); a longer run starts from its beginning (continuing from the restart written
-// at the end of the shorter one is not done).
+// A rerun of an adaptive campaign (the nightly scheduler's) has rounds of its own, planned again
+// from round 1; the runs it orders again are found stored by key and charged 0 (they ended before
+// it was submitted), so it replays the earlier rounds at no cost and spends where claims are open.
+//
+// Left for later: a rerun's round 1 does not take in the earlier nights' later rounds directly; a
+// retried run is charged for its last attempt only (an earlier attempt's progress is cleared when
+// it is queued again); the planner may order again a longer run that failed; a longer run starts
+// from its beginning (continuing from the restart written at the end of the shorter one is not
+// done).
 //
 // Thread safety: Tick() from one thread at a time (the scheduler's); the Store is thread-safe.
 #ifndef SANDSWIM_SERVER_JOBS_ROUNDS_H_
