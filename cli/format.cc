@@ -274,7 +274,7 @@ std::string RenderRounds(const json& adaptive, const json& rounds) {
   std::string out = "rounds";
   if (adaptive.is_object()) {
     out += " (budget " + h(adaptive.value("budget_core_h", json())) + " core-h, at most " +
-           std::to_string(adaptive.value("max_rounds", 4)) + " rounds)";
+           h(adaptive.value("max_rounds", json())) + " rounds)";
   }
   out += ":\n";
   for (const json& r : rounds) {

@@ -171,36 +171,123 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   const ClaimInput& input = *found;
   out.verdicts = EvaluateClaims(claims, input);
   out.design = DesignOf(campaign_run.campaign, definition, claims, input);
-  AttachClaimRates(out.verdicts, out.design);
-  if (out.adaptive) {
-    Result<std::map<std::string, rounds::FrozenVerdict>> frozen = rounds::FrozenVerdicts(store, campaign_run.id);
-    if (!frozen.ok()) return frozen.status();
-    out.frozen = std::move(frozen).value();
-    ShowFrozenVerdicts(out.verdicts, out.frozen);
+  if (!out.adaptive) {
+    AttachClaimRates(out.verdicts, out.design);
+    out.design_text = DescribeDesign(out.design);
+    return out;
   }
+  // An adaptive run's verdicts come from a sequence of looks, at beds that vary by point: the
+  // single-look tables (keyed by the same definition and K) are not its rates.
+  Result<std::vector<rounds::RoundRow>> rows = rounds::ListRounds(store, campaign_run.id);
+  if (!rows.ok()) return rows.status();
+  out.rounds_so_far = RoundsSoFarOf(*rows);
+  out.design_text = DescribeAdaptiveDesign(out.design, input, out.rounds_so_far);
+  AttachAdaptiveRates(out.verdicts, out.design_text);
+  Result<std::map<std::string, rounds::FrozenVerdict>> frozen = rounds::FrozenVerdicts(store, campaign_run.id);
+  if (!frozen.ok()) return frozen.status();
+  out.frozen = std::move(frozen).value();
+  out.current = ShowFrozenVerdicts(out.verdicts, out.frozen, out.rounds_so_far);
   return out;
 }
 
-void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts,
-                        const std::map<std::string, rounds::FrozenVerdict>& frozen) {
+RoundsSoFar RoundsSoFarOf(const std::vector<rounds::RoundRow>& rows) {
+  RoundsSoFar so_far;
+  // Round 1 is what was submitted: before its row is written (at the first look), it is running.
+  if (rows.empty()) {
+    so_far.rounds = 1;
+    so_far.next_look = 1;
+    return so_far;
+  }
+  so_far.rounds = rows.back().round;
+  if (rows.back().stop_reason) {
+    so_far.stopped_after = rows.back().round;
+  } else {
+    so_far.next_look = rows.back().finished_at ? rows.back().round + 1 : rows.back().round;
+  }
+  return so_far;
+}
+
+std::string DescribeAdaptiveDesign(const DesignKey& key, const ClaimInput& input, const RoundsSoFar& so_far) {
+  // Beds a point ran on, by sweep and point as the claims name it.
+  std::map<std::pair<std::string, std::string>, std::set<int>> beds;
+  for (const ClaimSweep& s : input.sweeps)
+    for (const ClaimRun& r : s.runs) beds[{s.name, DescribeClaimPoint(r.point)}].insert(r.replicate);
+  size_t fewest = 0, most = 0;
+  for (const auto& [point, b] : beds) {
+    fewest = fewest == 0 ? b.size() : std::min(fewest, b.size());
+    most = std::max(most, b.size());
+  }
+  std::string text = key.campaign + " at " + key.scale + ", adaptive: in rounds (" + std::to_string(so_far.rounds) +
+                     (so_far.rounds == 1 ? " round" : " rounds") + " so far), beds vary by point (";
+  text += fewest == most ? std::to_string(most) + (most == 1 ? " bed a point so far" : " beds a point so far")
+                         : std::to_string(fewest) + " to " + std::to_string(most) + " beds a point";
+  return text + "), rules " + std::to_string(key.rules_version) + ", analysis " + std::to_string(key.analysis_version);
+}
+
+ClaimRates AdaptiveClaimRates(const std::string& design_text) {
+  ClaimRates r;
+  r.calibrated = false;
+  r.design = design_text;
+  r.text = kAdaptiveRatesText;
+  return r;
+}
+
+void AttachAdaptiveRates(std::vector<ClaimVerdict>& verdicts, const std::string& design_text) {
+  const ClaimRates rates = AdaptiveClaimRates(design_text);
   for (ClaimVerdict& v : verdicts) {
+    v.rates = rates;
+    for (ClaimPart& p : v.parts) p.rates = rates;
+  }
+}
+
+namespace {
+
+// "with all 3 rounds' runs" ("with round 1's runs" for one).
+std::string WithRoundsRuns(int rounds) {
+  return rounds <= 1 ? "with round 1's runs" : "with all " + std::to_string(rounds) + " rounds' runs";
+}
+
+}  // namespace
+
+std::map<std::string, Verdict> ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts,
+                                                  const std::map<std::string, rounds::FrozenVerdict>& frozen,
+                                                  const RoundsSoFar& so_far) {
+  std::map<std::string, Verdict> current;
+  for (ClaimVerdict& v : verdicts) {
+    current[v.claim.id] = v.verdict;
+    const std::string reads = VerdictName(v.verdict);
     auto it = frozen.find(v.claim.id);
-    if (it == frozen.end()) continue;
+    if (it == frozen.end()) {
+      // Open: only a look decides, so a decision read between looks is not one yet.
+      if (v.verdict == Verdict::kInconclusive) continue;
+      v.verdict = Verdict::kInconclusive;
+      const std::string when =
+          so_far.next_look ? "only the look after a round decides (the next look: after round " +
+                                 std::to_string(*so_far.next_look) + ")"
+                           : "only the look after a round decides, and none is to come (the rounds stopped after "
+                             "round " + std::to_string(so_far.stopped_after) + ")";
+      v.reason = "reads " + reads + " with the runs so far; " + when + ": " + v.reason;
+      continue;
+    }
     const rounds::FrozenVerdict& f = it->second;
     const std::string look = "the look after round " + std::to_string(f.round);
     if (v.verdict == f.verdict) {
-      v.reason = std::string(VerdictName(f.verdict)) + " since " + look + " (frozen there): " + v.reason;
+      v.reason = std::string(VerdictName(f.verdict)) + " since " + look +
+                 " (frozen there); what follows is the current evaluation " + WithRoundsRuns(so_far.rounds) +
+                 ", not the numbers of that look: " + v.reason;
       continue;
     }
     // A later evaluation reads it otherwise: its numbers are not the decision's, so none are shown.
     v.verdict = f.verdict;
-    v.reason = std::string("decided (") + VerdictName(f.verdict) + ") at " + look +
-               " and frozen there; a decided claim is not judged again with later rounds' runs, so that its "
-               "error rates hold for the whole sequence of looks. The numbers of that look are not kept: the "
-               "rounds' table shows the claims' states after each look";
+    v.reason = std::string("decided (") + VerdictName(f.verdict) + ") at " + look + " and frozen there; " +
+               WithRoundsRuns(so_far.rounds) + " it now reads " + reads +
+               ", which does not count (frozen): a decided claim is not judged again with later rounds' runs, so "
+               "that the procedure's error rates hold for the whole sequence of looks. The numbers of that look are "
+               "not kept: the rounds' table shows the claims' states after each look";
     v.parts.clear();
     v.missing.clear();
   }
+  return current;
 }
 
 std::string FrozenVerdictText(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen) {
@@ -233,10 +320,14 @@ nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
       j["frozen_at_round"] = it == c.frozen.end() ? nlohmann::json(nullptr) : nlohmann::json(it->second.round);
       j["frozen_at"] = it == c.frozen.end() ? nlohmann::json(nullptr) : nlohmann::json(it->second.frozen_at);
       j["verdict_text"] = FrozenVerdictText(v, c.frozen);
+      auto now = c.current.find(v.claim.id);
+      j["current_verdict"] = now == c.current.end() ? nlohmann::json(nullptr) : nlohmann::json(VerdictName(now->second));
     }
     claims.push_back(std::move(j));
   }
   const VerdictCounts n = CountVerdicts(c.verdicts);
+  nlohmann::json design = DesignKeyToJson(c.design);
+  if (c.adaptive) design["adaptive"] = true;
   const nlohmann::json counts = {{"holds", n.holds}, {"differs", n.differs}, {"inconclusive", n.inconclusive}};
   return {{"campaign_run_id", c.campaign_run.id},
           {"campaign", c.campaign_run.campaign},
@@ -245,8 +336,8 @@ nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
           {"note", c.note},
           {"adaptive", c.adaptive},
           {"counts", counts},
-          {"design", DesignKeyToJson(c.design)},
-          {"design_text", DescribeDesign(c.design)},
+          {"design", design},
+          {"design_text", c.design_text.empty() ? DescribeDesign(c.design) : c.design_text},
           {"claims", claims}};
 }
 

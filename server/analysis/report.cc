@@ -264,8 +264,10 @@ std::string ClaimsHtml(const ReportInput& in) {
           "false differs: upper 95 % bounds; power: estimate and interval)." +
           (rounds::RunsInRounds(in.campaign_run)
                ? std::string(" This campaign ran in rounds: a claim decided at the look after a round is shown as it "
-                             "was frozen there, never as a later look reads it; only the claims still open show "
-                             "the current evaluation (the rounds: below).")
+                             "was frozen there, never as a later look reads it; a claim still open is inconclusive "
+                             "until a look decides it, whatever the runs so far read. The error rates of such a "
+                             "sequence of looks are the adaptive procedure's, measured by tests/bench/bench_adaptive, "
+                             "not the single-look tables' (the rounds are in the next section).")
                : std::string()) +
           (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
           "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
@@ -307,11 +309,13 @@ std::string ClaimsHtml(const ReportInput& in) {
 // planned and spent, the budget left after it, each claim's state after its look -- and why they
 // stopped (the same as the dashboard's table and `sandswim status cr:ID`).
 std::string RoundsHtml(const ReportInput& in) {
-  if (!in.adaptive.is_object()) return "";
+  if (!rounds::RunsInRounds(in.campaign_run)) return "";
   auto h = [](const nlohmann::json& v) { return v.is_number() ? Num(v.get<double>(), 3) : std::string("&ndash;"); };
+  if (!in.rounds_problem.empty())
+    return "<h2 id=\"rounds\">Rounds</h2>\n<p class=\"none\">" + Escape(in.rounds_problem) + ".</p>\n";
   std::string html = "<h2 id=\"rounds\">Rounds</h2>\n<p>This campaign ran in rounds: a budget of " +
                      h(in.adaptive.value("budget_core_h", nlohmann::json())) + " core-h, at most " +
-                     std::to_string(in.adaptive.value("max_rounds", 4)) +
+                     h(in.adaptive.value("max_rounds", nlohmann::json())) +
                      " rounds. After each round the daemon looked at the claims, froze each one decided, and "
                      "planned the next round for those still open. Core-hours at the cost model's rates: planned "
                      "prices each run at its maximum length, spent counts the simulated time done runs took.</p>\n";
@@ -393,7 +397,7 @@ std::string RenderReportHtml(const ReportInput& in) {
   html += ClaimsHtml(in);
   html += RoundsHtml(in);
   html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n";
-  if (in.adaptive.is_object()) html += "<li><a href=\"#rounds\">Rounds</a></li>\n";
+  if (rounds::RunsInRounds(in.campaign_run)) html += "<li><a href=\"#rounds\">Rounds</a></li>\n";
   if (!in.modes_z_svg.empty()) html += "<li><a href=\"#modes\">Drive modes side by side</a></li>\n";
   if (!in.snapshots.empty()) html += "<li><a href=\"#bed\">The bed: slices through the SO</a></li>\n";
   html += "<li><a href=\"#fits\">Fits</a></li>\n";
@@ -500,11 +504,16 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
     in.claims_note = "the claims could not be checked: " + claims.status().ToString();
     in.problems.push_back(in.claims_note);
   }
+  // The rounds' read failing costs their section, like the claims' (RoundsHtml says so there).
+  in.adaptive = rounds::AdaptiveSettingsJson(*cr);
   if (rounds::RunsInRounds(*cr)) {
-    in.adaptive = cr->definition["adaptive"];
-    auto rows = rounds::ListRounds(store, campaign_run_id);
-    if (!rows.ok()) return rows.status();
-    in.rounds = rounds::RoundsToJson(*rows, in.adaptive.value("budget_core_h", 0.0));
+    auto rounds = rounds::RoundsReply(store, *cr);
+    if (rounds.ok()) {
+      in.rounds = (*rounds)["rounds"];
+    } else {
+      in.rounds_problem = "the rounds could not be read: " + rounds.status().ToString();
+      in.problems.push_back(in.rounds_problem);
+    }
   }
   auto draw = [&](const std::string& name, const Plot& plot) -> std::string {
     auto svg = figures.Get(name, plot, ImageFormat::kSvg);

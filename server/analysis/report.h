@@ -74,11 +74,12 @@ struct ReportInput {
   // An adaptive campaign run's verdicts frozen at their deciding look (claim_check.h; `claims`
   // shows them already): each says at which round.
   std::map<std::string, rounds::FrozenVerdict> frozen_claims;
-  // An adaptive campaign run's settings (its definition's "adaptive") and rounds as GET
-  // /api/v1/campaign-runs/{id} has them (rounds::RoundsToJson): the section after the claims.
-  // Null: the run has a fixed design, and the report no rounds section.
+  // An adaptive campaign run's settings (defaults filled in) and rounds as GET
+  // /api/v1/campaign-runs/{id} has them (rounds::RoundsReply): the section after the claims.
+  // Null: the run has a fixed design (rounds::RunsInRounds), and the report no rounds section.
   nlohmann::json adaptive;
   nlohmann::json rounds = nlohmann::json::array();
+  std::string rounds_problem;  // "the rounds could not be read: ...": said in place of the section
   // The drive modes side by side (ModesFigure): "" when the campaign run has none.
   std::string modes_x_svg, modes_z_svg;
   // Every snapshot the campaign run's runs took, by run and idx (empty: none asked for them).

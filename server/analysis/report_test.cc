@@ -551,9 +551,10 @@ TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) 
 }
 
 // An adaptive campaign run (the daemon's rounds, server/jobs/rounds.h) shows each claim as the
-// look that decided it froze it -- in GET .../claims and in the report -- and the current
-// evaluation only for the claims still open. A frozen verdict that a later evaluation reads
-// otherwise keeps the frozen one, without the later look's numbers.
+// look that decided it froze it -- in GET .../claims and in the report -- and an open claim as
+// inconclusive until a look decides it. A frozen verdict that the current evaluation reads
+// otherwise keeps the frozen one, says what the runs now read, and shows none of their numbers.
+// Every verdict is quoted the adaptive procedure's rates, never a single-look table's.
 TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
   StoredCampaign campaign;
   campaign.name = "tiny-rounds";
@@ -565,7 +566,7 @@ TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
      "rule": {"kind": "sign", "sweeps": ["baseline", "omega"], "expect": "against_Omega"}},
     {"id": "F2", "title": "saturates", "source": "Fig. 6", "paper": {"text": "eq. 8 fits well"},
      "rule": {"kind": "saturation", "sweep": "omega", "reached_fraction": 0.5, "min_points": 4}}])");
-  definition["adaptive"] = {{"budget_core_h", 1000}, {"max_rounds", 3}};
+  definition["adaptive"] = {{"budget_core_h", 1000}};  // max_rounds: the default
   campaign.definition = definition;
   ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
   SubmitRequest request;
@@ -574,8 +575,22 @@ TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
   ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
   const int64_t id = *submitted->campaign_run_id;
   RunAll();
+  StartServer();
+  const std::string path = "/api/v1/campaign-runs/" + std::to_string(id) + "/claims";
+
+  // Round 1's runs are done, its look not taken: F1 reads holds, and is not decided yet.
+  json reply = json::parse(client_->Get(path.c_str())->body);
+  ASSERT_EQ(reply["claims"].size(), 2u);
+  EXPECT_EQ(reply["claims"][0]["verdict"], "inconclusive") << reply["claims"][0].dump();
+  EXPECT_EQ(reply["claims"][0]["current_verdict"], "holds");
+  EXPECT_THAT(reply["claims"][0]["reason"].get<std::string>(),
+              HasSubstr("reads holds with the runs so far; only the look after a round decides (the next look: "
+                        "after round 1)"));
+  EXPECT_EQ(reply["counts"]["holds"], 0);
+  EXPECT_EQ(reply["counts"]["inconclusive"], 2);
+
   // The daemon's look after round 1: F1 is decided and frozen there, F2 (growth shown, its
-  // flattening not: "needs 5") stays open.
+  // flattening not: "needs 5") stays open; no action can add the points it needs, so the rounds stop.
   RoundDriverOptions options;
   options.engine_version = kReportEngine;
   RoundDriver driver(store_.get(), &LookAtClaims, options);
@@ -588,46 +603,66 @@ TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
   ASSERT_EQ(frozen->count("F2"), 0u) << (*step)->text;
   EXPECT_EQ(frozen->at("F1").round, 1);
 
-  StartServer();
-  const std::string path = "/api/v1/campaign-runs/" + std::to_string(id) + "/claims";
   auto r = client_->Get(path.c_str());
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;
-  json reply = json::parse(r->body);
+  reply = json::parse(r->body);
   EXPECT_EQ(reply["adaptive"], true);
+  EXPECT_THAT(reply["design_text"].get<std::string>(), HasSubstr("tiny-rounds at smoke, adaptive: in rounds (1 round so far), beds vary by point (1 bed a point so far)"));
+  EXPECT_EQ(reply["design"]["adaptive"], true);
   ASSERT_EQ(reply["claims"].size(), 2u);
   const json& f1 = reply["claims"][0];
   EXPECT_EQ(f1["verdict"], "holds") << f1.dump();
+  EXPECT_EQ(f1["current_verdict"], "holds");
   EXPECT_EQ(f1["frozen_at_round"], 1);
   EXPECT_TRUE(f1["frozen_at"].is_number());
   EXPECT_EQ(f1["verdict_text"], "holds at smoke (frozen at round 1)");
-  // Agreeing with the look that froze it: the numbers behind it stay, the reason says since when.
+  // Agreeing with the look that froze it: the numbers behind it stay, said to be the current
+  // evaluation's, not that look's.
   EXPECT_FALSE(f1["parts"].empty());
-  EXPECT_THAT(f1["reason"].get<std::string>(), HasSubstr("since the look after round 1"));
+  EXPECT_THAT(f1["reason"].get<std::string>(),
+              HasSubstr("holds since the look after round 1 (frozen there); what follows is the current evaluation "
+                        "with round 1's runs, not the numbers of that look"));
+  // The single-look tables are not its rates: the procedure's are bench_adaptive's, said so.
+  for (const json& v : reply["claims"]) {
+    EXPECT_EQ(v["rates"]["calibrated"], false) << v.dump();
+    EXPECT_EQ(v["rates"]["text"], kAdaptiveRatesText);
+    EXPECT_FALSE(v["rates"].contains("false_holds"));
+    for (const json& p : v["parts"]) EXPECT_EQ(p["rates"]["text"], kAdaptiveRatesText) << p.dump();
+  }
   const json& f2 = reply["claims"][1];
   EXPECT_EQ(f2["verdict"], "inconclusive");
+  EXPECT_EQ(f2["current_verdict"], "inconclusive");
   EXPECT_TRUE(f2["frozen_at_round"].is_null());
   EXPECT_EQ(f2["verdict_text"], "inconclusive at smoke");
   EXPECT_THAT(f2["reason"].get<std::string>(), HasSubstr("needs 5"));  // the current evaluation
 
-  // F2 frozen as differing at round 1, as the driver stores a frozen verdict, while every
-  // evaluation now reads it inconclusive: the frozen verdict is shown, the later numbers are not.
-  ASSERT_TRUE(store_->db()
-                  .Write([&](Transaction& t) {
-                    return rounds::FreezeVerdicts(t, id, 1, clock_.Now(), {{"F2", Verdict::kDiffers}});
-                  })
-                  .ok());
+  // The same campaign's points submitted again (the fixture's campaign, forced) run the runs this
+  // campaign run shares with it again, and Omega = 80's fail this time: F1 with every run now reads
+  // inconclusive, which does not undo the verdict its deciding look froze.
+  SubmitRequest again;
+  again.campaign = "tiny";
+  again.force = true;
+  auto resubmitted = Submit(*store_, again, kReportEngine, clock_.Now());
+  ASSERT_TRUE(resubmitted.ok()) << resubmitted.status().ToString();
+  ASSERT_GT(resubmitted->runs_requeued, 0);
+  fail_omega_ = 80;
+  RunAll();
   reply = json::parse(client_->Get(path.c_str())->body);
-  const json& f2_frozen = reply["claims"][1];
-  EXPECT_EQ(f2_frozen["verdict"], "differs") << f2_frozen.dump();
-  EXPECT_EQ(f2_frozen["verdict_text"], "differs at smoke (frozen at round 1)");
-  EXPECT_THAT(f2_frozen["reason"].get<std::string>(), HasSubstr("decided (differs) at the look after round 1"));
-  EXPECT_THAT(f2_frozen["reason"].get<std::string>(), ::testing::Not(HasSubstr("needs 5")));
-  EXPECT_TRUE(f2_frozen["parts"].empty());
-  EXPECT_TRUE(f2_frozen.contains("rates"));  // the rule's rates at this design stay
+  const json& f1_now = reply["claims"][0];
+  EXPECT_EQ(f1_now["verdict"], "holds") << f1_now.dump();
+  EXPECT_EQ(f1_now["current_verdict"], "inconclusive");
+  EXPECT_EQ(f1_now["verdict_text"], "holds at smoke (frozen at round 1)");
+  EXPECT_THAT(f1_now["reason"].get<std::string>(),
+              HasSubstr("decided (holds) at the look after round 1 and frozen there; with round 1's runs it now "
+                        "reads inconclusive, which does not count (frozen)"));
+  EXPECT_THAT(f1_now["reason"].get<std::string>(), ::testing::Not(HasSubstr("deck_error")));
+  EXPECT_TRUE(f1_now["parts"].empty());
+  EXPECT_TRUE(f1_now["missing"].empty());
+  EXPECT_EQ(f1_now["rates"]["text"], kAdaptiveRatesText);
   EXPECT_EQ(reply["counts"]["holds"], 1);
-  EXPECT_EQ(reply["counts"]["differs"], 1);
-  EXPECT_EQ(reply["counts"]["inconclusive"], 0);
+  EXPECT_EQ(reply["counts"]["differs"], 0);
+  EXPECT_EQ(reply["counts"]["inconclusive"], 1);
 
   // The report says the same.
   FigureCache figures(dir_ + "/data/figures");
@@ -640,18 +675,24 @@ TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
   const std::string f2_html = html->substr(f2_row, html->find("</tr>", f2_row) - f2_row);
   const std::string frozen_1 = " at smoke <small class=\"frozen\">(frozen at round 1)";
   EXPECT_THAT(f1_html, HasSubstr("<span class=\"holds\">holds</span>" + frozen_1));
-  EXPECT_THAT(f2_html, HasSubstr("<span class=\"differs\">differs</span>" + frozen_1));
-  EXPECT_THAT(f2_html, ::testing::Not(HasSubstr("needs 5")));
+  EXPECT_THAT(f1_html, HasSubstr("it now reads inconclusive, which does not count (frozen)"));
+  EXPECT_THAT(f1_html, HasSubstr("not the single-look tables"));
+  EXPECT_THAT(f2_html, HasSubstr("<span class=\"inconclusive\">inconclusive</span> at smoke<"));
+  EXPECT_THAT(f2_html, HasSubstr("needs 5"));
   EXPECT_THAT(*html, HasSubstr("This campaign ran in rounds"));
+  EXPECT_THAT(*html, ::testing::Not(HasSubstr("(the rounds: below)")));
   // Its rounds follow the claims, one row a round as GET /api/v1/campaign-runs/{id} has them.
   const std::string run_path = "/api/v1/campaign-runs/" + std::to_string(id);
-  const json rounds = json::parse(client_->Get(run_path.c_str())->body)["rounds"];
-  ASSERT_GE(rounds.size(), 1u);
+  const json run = json::parse(client_->Get(run_path.c_str())->body);
+  EXPECT_EQ(run["adaptive"]["max_rounds"], AdaptiveSettings().max_rounds);  // the default, served
+  const json rounds = run["rounds"];
+  ASSERT_EQ(rounds.size(), 1u);
   const size_t section = html->find("<h2 id=\"rounds\">");
   ASSERT_NE(section, std::string::npos);
   EXPECT_LT(f2_row, section);
   EXPECT_LT(section, html->find("<nav>"));
   EXPECT_THAT(*html, HasSubstr("<a href=\"#rounds\">Rounds</a>"));
+  EXPECT_THAT(*html, HasSubstr("at most " + std::to_string(AdaptiveSettings().max_rounds) + " rounds."));
   for (const json& r : rounds) {
     const std::string id_attr = "<tr id=\"round-" + std::to_string(r["round"].get<int>()) + "\">";
     const size_t at = html->find(id_attr);
@@ -662,14 +703,25 @@ TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
   }
   const std::string first = html->substr(html->find("<tr id=\"round-1\">"));
   EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("every declared point once"));
-  // After round 1's look (stored then: the later freezing of F2 is not in it), F1 frozen there.
+  // After round 1's look, F1 frozen there, F2 open; no action could decide F2, so they stopped.
   EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("F1 holds (frozen at round 1)"));
   EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("F2 inconclusive"));
-  if (rounds.back()["stop_reason"].is_string()) {
-    EXPECT_THAT(*html, HasSubstr("<p id=\"rounds-stop\"><b>Stopped after round"));
-  } else {
-    EXPECT_THAT(*html, HasSubstr("runs; the daemon looks at the claims once its runs are done"));
-  }
+  ASSERT_TRUE(rounds.back()["stop_reason"].is_string()) << rounds.dump();
+  EXPECT_THAT(*html, HasSubstr("<p id=\"rounds-stop\"><b>Stopped after round 1:</b> "));
+
+  // Rounds that cannot be read cost their section (and the claims, which read them), never the report.
+  ASSERT_TRUE(store_->db()
+                  .Write([](Transaction& t) { return t.Exec("ALTER TABLE campaign_rounds RENAME TO campaign_rounds_gone"); })
+                  .ok());
+  auto broken = CampaignReport(*store_, figures, id, clock_.Now());
+  ASSERT_TRUE(broken.ok()) << broken.status().ToString();
+  const size_t gone = broken->find("<h2 id=\"rounds\">");
+  ASSERT_NE(gone, std::string::npos);
+  EXPECT_THAT(broken->substr(gone, 300), HasSubstr("the rounds could not be read"));
+  EXPECT_THAT(broken->substr(0, broken->find("<h2")), HasSubstr("the rounds could not be read"));  // the problems
+  ASSERT_TRUE(store_->db()
+                  .Write([](Transaction& t) { return t.Exec("ALTER TABLE campaign_rounds_gone RENAME TO campaign_rounds"); })
+                  .ok());
 
   // A fixed-design run is unchanged: its current verdicts, no frozen fields.
   auto fixed = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());

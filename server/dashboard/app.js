@@ -504,7 +504,7 @@ async function rerunCampaign(name) {
 function roundsHtml(adaptive, rounds) {
   const h = v => (typeof v === 'number' ? esc(num(v)) : '–');
   const a = adaptive || {};
-  let html = `<p>Budget ${h(a.budget_core_h)} core-h, at most ${esc(a.max_rounds ?? 4)} rounds. Core-hours at the cost model's ` +
+  let html = `<p>Budget ${h(a.budget_core_h)} core-h, at most ${h(a.max_rounds)} rounds. Core-hours at the cost model's ` +
     `rates: planned prices each run at its maximum length, spent counts the simulated time done runs took.</p>`;
   if (!rounds || !rounds.length) {
     return html + '<p class="muted" id="rounds-stop">Round 1 (what was submitted) is recorded at the daemon\'s next scheduler tick.</p>';
@@ -558,10 +558,12 @@ async function campaignRunPage(id) {
     const mine = (snap.campaign_runs || []).find(c => c.id === id);
     if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.eta);
     if (!info.adaptive || !mine || !mine.rounds || roundsKey(mine.rounds) === roundsSeen) return;
-    roundsSeen = roundsKey(mine.rounds);
+    const seen = roundsKey(mine.rounds);
     // A look also changes its runs: a new round's join the table, a longer run takes its point's place.
+    // Seen only once read: a failed read is tried again at the next live message.
     Promise.all([get(`/api/v1/campaign-runs/${id}`), getResults(`/api/v1/campaign-runs/${id}/results`)]).then(([now, rows]) => {
       if (!current(generation)) return;
+      roundsSeen = seen;
       $('#rounds').innerHTML = roundsHtml(now.adaptive, now.rounds);
       table.setRows(rows.results || []);
       showClaims();
@@ -577,7 +579,7 @@ async function campaignRunPage(id) {
     const parts = v => (v.parts || []).length ? `<details class="parts"><summary>${v.parts.length} part(s)</summary><ul>` +
       v.parts.map(p => `<li><span class="state verdict-${esc(p.verdict)}">${esc(p.verdict)}</span> ${esc(p.name)}: ${esc(p.reason)}${rates(p.rates)}</li>`).join('') + '</ul></details>' : '';
     $('#claims').innerHTML = `<p>${n.holds || 0} hold · ${n.differs || 0} differ · ${n.inconclusive || 0} inconclusive. ${esc(c.note || '')}` +
-      `${c.design_text ? ` Error rates at this design: ${esc(c.design_text)}, measured on the truth engine.` : ''}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>error rates at this design</th><th>why</th></tr></thead><tbody>` +
+      `${!c.design_text ? '' : c.adaptive ? ` Design: ${esc(c.design_text)}; an open claim is inconclusive until a look decides it.` : ` Error rates at this design: ${esc(c.design_text)}, measured on the truth engine.`}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>error rates at this design</th><th>why</th></tr></thead><tbody>` +
       (c.claims || []).map(v => `<tr><td title="${esc(v.paper && v.paper.text)}"><b>${esc(v.id)}</b> ${esc(v.title)}</td>` +
         `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td class="wrap">${rates(v.rates)}</td><td class="wrap">${esc(v.reason)}${parts(v)}</td></tr>`).join('') + '</tbody></table>';
   }).catch(e => { if (current(generation)) $('#claims').textContent = `No verdicts: ${e.message}`; });

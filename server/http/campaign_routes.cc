@@ -304,15 +304,10 @@ void GetCampaignRun(Call& c) {
   reply["last_drift"] = drift->has_value() ? json(**drift) : json(nullptr);
   reply["eta"] = EtaJson(*eta);
   // Its rounds (server/jobs/rounds.h) when its definition runs in rounds; else none.
-  reply["adaptive"] = nullptr;
-  reply["rounds"] = json::array();
-  if (info->definition.is_object() && info->definition.contains("adaptive") &&
-      info->definition["adaptive"].is_object()) {
-    auto rows = rounds::ListRounds(*c.deps.store, *id);
-    if (!rows.ok()) return Fail(c, rows.status());
-    reply["adaptive"] = info->definition["adaptive"];
-    reply["rounds"] = rounds::RoundsToJson(*rows, info->definition["adaptive"].value("budget_core_h", 0.0));
-  }
+  auto rounds = rounds::RoundsReply(*c.deps.store, *info);
+  if (!rounds.ok()) return Fail(c, rounds.status());
+  reply["adaptive"] = (*rounds)["adaptive"];
+  reply["rounds"] = (*rounds)["rounds"];
   SendJson(c, 200, reply);
 }
 

@@ -433,4 +433,20 @@ bool RunsInRounds(const CampaignRunInfo& campaign_run) {
   return d.is_object() && d.contains("adaptive") && d["adaptive"].is_object();
 }
 
+json AdaptiveSettingsJson(const CampaignRunInfo& campaign_run) {
+  if (!RunsInRounds(campaign_run)) return nullptr;
+  json settings = campaign_run.definition["adaptive"];
+  if (!settings.contains("max_rounds")) settings["max_rounds"] = AdaptiveSettings().max_rounds;
+  return settings;
+}
+
+Result<json> RoundsReply(Store& store, const CampaignRunInfo& campaign_run) {
+  json reply{{"adaptive", AdaptiveSettingsJson(campaign_run)}, {"rounds", json::array()}};
+  if (reply["adaptive"].is_null()) return reply;
+  Result<std::vector<RoundRow>> rows = ListRounds(store, campaign_run.id);
+  if (!rows.ok()) return rows.status();
+  reply["rounds"] = RoundsToJson(*rows, reply["adaptive"].value("budget_core_h", 0.0));
+  return reply;
+}
+
 }  // namespace sandswim::rounds

@@ -146,6 +146,15 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
 // claims shown (server/analysis/claim_check.h) and the live feed (server/dashboard) ask it.
 bool RunsInRounds(const CampaignRunInfo& campaign_run);
 
+// An adaptive campaign run's settings as its definition states them, with the defaults filled in
+// (core/sweep.h AdaptiveSettings): {"budget_core_h","max_rounds"}; null for a fixed design.
+nlohmann::json AdaptiveSettingsJson(const CampaignRunInfo& campaign_run);
+
+// What GET /api/v1/campaign-runs/{id} and the report show of a campaign run's rounds:
+// {"adaptive": AdaptiveSettingsJson, "rounds": RoundsToJson (the campaign's budget; [] for a
+// fixed design)}.
+Result<nlohmann::json> RoundsReply(Store& store, const CampaignRunInfo& campaign_run);
+
 }  // namespace sandswim::rounds
 
 #endif  // SANDSWIM_SERVER_STORE_ROUNDS_H_
