@@ -4,7 +4,7 @@
 
 namespace sandswim::cli {
 
-Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, const WatchClock& clock,
+Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, Clock& clock,
                        std::ostream& out) {
   RenderOptions render;
   render.color = options.color;
@@ -17,7 +17,7 @@ Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOp
     if (!fetched.ok()) return fetched.status();
     Snapshot s = std::move(*fetched);
     bool finished = s.counts.finished();
-    double now = clock.now();
+    double now = clock.Monotonic();
     if (options.tty) {
       std::string frame = RenderWatchFrame(s, render);
       if (frame_lines > 0) out << "\x1b[" << frame_lines << "F\x1b[J";
@@ -32,7 +32,7 @@ Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOp
       }
     }
     if (finished) return s;
-    clock.sleep(options.interval_s);
+    clock.SleepFor(options.interval_s);
   }
 }
 

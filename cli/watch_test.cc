@@ -14,20 +14,24 @@ using json = nlohmann::json;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
-// A sweep that goes queued -> running -> done over `phases` polls; each sleep is one phase.
+// A sweep that goes queued -> running -> done over `phases` polls; each sleep of its clock (a
+// FakeClock's: it moves by the time slept) is one phase.
 struct Scenario {
+  class PhaseClock : public FakeClock {
+   public:
+    explicit PhaseClock(Scenario* s) : s_(s) {}
+    void SleepFor(double seconds) override {
+      FakeClock::SleepFor(seconds);
+      if (s_->phase + 1 < s_->phases.size()) s_->phases[++s_->phase](s_->client);
+    }
+
+   private:
+    Scenario* s_;
+  };
   FakeClient client;
-  double now = 0;
   size_t phase = 0;
   std::vector<std::function<void(FakeClient&)>> phases;
-
-  WatchClock Clock() {
-    return WatchClock{[this] { return now; },
-                      [this](double s) {
-                        now += s;
-                        if (phase + 1 < phases.size()) phases[++phase](client);
-                      }};
-  }
+  PhaseClock clock{this};
 };
 
 json MakeRun(int64_t id, const std::string& state, double sim_time = 0, double started = 0, double finished = 0) {
@@ -79,7 +83,7 @@ TEST(WatchTest, PipedWritesOneLinePerChangeAtMostEveryInterval) {
   WatchOptions options;
   options.interval_s = 1;
   options.line_interval_s = 5;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
   ASSERT_TRUE(last.ok()) << last.status().ToString();
   EXPECT_EQ(last->counts.done, 2);
   // First poll (t=0) and the final line; the changes in between came faster than 5 s.
@@ -97,7 +101,7 @@ TEST(WatchTest, PipedRepeatsNothingThatDidNotChange) {
   s->phases.push_back([](FakeClient& c) { Phase(c, {MakeRun(1, "done", 4, 0, 10)}); });
   s->phases[0](s->client);
   std::ostringstream out;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
   ASSERT_TRUE(last.ok());
   std::string text = out.str();
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 2);
@@ -108,7 +112,7 @@ TEST(WatchTest, TerminalRedrawsInPlace) {
   std::ostringstream out;
   WatchOptions options;
   options.tty = true;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
   ASSERT_TRUE(last.ok());
   std::string text = out.str();
   // Frame 1 has 3 lines (title, counts, one run); the cursor goes back up over them.
@@ -121,7 +125,7 @@ TEST(WatchTest, TerminalRedrawsInPlace) {
 TEST(WatchTest, ReportsFailuresInTheLastSnapshot) {
   auto s = TwoRunScenario(/*one_fails=*/true);
   std::ostringstream out;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
   ASSERT_TRUE(last.ok());
   EXPECT_EQ(last->counts.failed, 1);
   ASSERT_EQ(last->failed.size(), 1u);
@@ -131,9 +135,8 @@ TEST(WatchTest, ReportsFailuresInTheLastSnapshot) {
 TEST(WatchTest, DaemonErrorEndsTheWatch) {
   FakeClient client;  // knows no sweep
   std::ostringstream out;
-  double now = 0;
-  auto last = Watch(client, Target{Target::Kind::kSweep, 5}, WatchOptions{},
-                    WatchClock{[&] { return now; }, [&](double s) { now += s; }}, out);
+  FakeClock clock;
+  auto last = Watch(client, Target{Target::Kind::kSweep, 5}, WatchOptions{}, clock, out);
   ASSERT_FALSE(last.ok());
   EXPECT_EQ(last.status().code(), StatusCode::kNotFound);
 }
