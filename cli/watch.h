@@ -5,9 +5,13 @@
 // new frame (RenderWatchFrame) is written. When piped, it writes RenderWatchLine() lines: only
 // when the line changed, at most one every `line_interval_s`, and always the final one.
 //
+// Each refresh reads the daemon's progress board (GET /api/v1/live, the dashboard's; an unchanged
+// one is a 304): one request whatever the number of runs, two more while runs wait for a bed. A
+// target the board does not show (older than its newest sweeps) is followed through its own
+// routes (snapshot.h FetchSnapshotFromBoard). The ETA is the daemon's.
+//
 // Time is the injected clock's (platform/clock.h): its monotonic time spaces the piped lines and
-// its sleep the refreshes, so tests run on a FakeClock without waiting. The done runs' wall times
-// (for the ETA) are fetched again only when the done count changed.
+// its sleep the refreshes, so tests run on a FakeClock without waiting.
 //
 // Thread safety: call from one thread.
 #ifndef SANDSWIM_CLI_WATCH_H_

@@ -18,7 +18,8 @@
 // Snapshot JSON: {"version", "time" (the daemon's clock, s), "runs": counts,
 //   "sweeps": [{id, name, scale, campaign_run_id?, cancelled, counts, runs, created_at, started_at?}],
 //   "campaign_runs": [{id, campaign, scale, trigger, created_at, sweeps, counts, started_at?}],
-//   "running": [{id, state, point, run_duration_s, progress, worker, attempts, started_at?, trail_points}]}
+//   "running": [{id, state, point, run_duration_s, progress, worker, attempts, started_at?, trail_points,
+//                sweeps (the ids of the sweeps it is in)}]}
 //
 // Thread safety: every member is safe from any thread.
 #ifndef SANDSWIM_SERVER_LIVE_FEED_H_

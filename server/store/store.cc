@@ -1062,6 +1062,20 @@ Result<LiveBoard> Store::ReadLiveBoard(int sweeps, int campaign_runs, int runnin
       board.running.push_back(std::move(run).value());
     }
   }
+  if (!board.running.empty()) {
+    // A run is in one sweep, or in several of a campaign run: the board says which, so a page or
+    // `sandswim watch` shows a sweep's runs in flight without asking for them.
+    Statement st = t->Prepare(
+        "SELECT sr.run_id, sr.sweep_id FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE r.state = 'running' "
+        "AND r.id <= ? ORDER BY sr.run_id, sr.sweep_id");
+    st.Bind(1, board.running.back().id);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      board.running_sweeps[st.Int(0)].push_back(st.Int(1));
+    }
+  }
   Statement st = t->Prepare("SELECT state, COUNT(*) FROM runs GROUP BY state");
   while (true) {
     Result<bool> row = st.Step();

@@ -225,6 +225,7 @@ struct LiveBoard {
   std::vector<SweepInfo> sweeps;               // newest first
   std::vector<CampaignRunInfo> campaign_runs;  // newest first
   std::vector<RunSummary> running;             // by id
+  std::map<int64_t, std::vector<int64_t>> running_sweeps;  // the sweeps of each run in `running`, ascending
   std::map<int64_t, double> sweep_started_at;         // unfinished sweeps whose runs have started
   std::map<int64_t, double> campaign_run_started_at;  // the same, for campaign runs
   RunCounts runs;                                     // every run, by state
