@@ -149,6 +149,20 @@ class HttpDaemonClient : public DaemonClient {
 
   Result<json> CostModel() override { return Get("/api/v1/cost-model"); }
 
+  // With the last answer's ETag: an unchanged board is a 304 and the last one is returned.
+  Result<json> Live() override {
+    const std::string path = "/api/v1/live";
+    httplib::Headers headers;
+    if (!live_etag_.empty()) headers.emplace("If-None-Match", live_etag_);
+    httplib::Result res = http_.Get(path.c_str(), headers);
+    if (res && res->status == 304 && !live_last_.is_null()) return live_last_;
+    Result<json> reply = Answer(res, "GET", path);
+    if (!reply.ok()) return reply;
+    live_etag_ = res->get_header_value("ETag");
+    live_last_ = *reply;
+    return reply;
+  }
+
   Result<json> CampaignDrift(const std::string& name, const std::string& scale) override {
     std::string path = "/api/v1/campaigns/" + httplib::detail::encode_query_param(name) + "/drift";
     if (!scale.empty()) path += "?scale=" + httplib::detail::encode_query_param(scale);
@@ -355,6 +369,8 @@ class HttpDaemonClient : public DaemonClient {
   ClientOptions options_;
   std::unique_ptr<httplib::Client> client_;
   httplib::Client& http_ = *client_;
+  std::string live_etag_;  // of the last board (Live), and the board itself
+  json live_last_;
 };
 
 }  // namespace

@@ -55,6 +55,10 @@ class DaemonClient {
   virtual Result<nlohmann::json> ListRuns(const RunQuery& query) = 0;
   virtual Result<nlohmann::json> GetRun(int64_t id) = 0;
   virtual Result<nlohmann::json> GetCampaignRun(int64_t id) = 0;
+  // GET /api/v1/live: the daemon's progress board (server/dashboard/live_feed.h), one request for
+  // the counts, ETAs and runs in flight of the newest sweeps and campaign runs. Unavailable from a
+  // client or daemon without one.
+  virtual Result<nlohmann::json> Live() { return Status::Unavailable("this client cannot read the progress board"); }
   virtual Result<nlohmann::json> CampaignRunResults(int64_t id) = 0;  // as SweepResults
   // GET /api/v1/campaign-runs/{id}/claims: the verdict of each claim the campaign states.
   virtual Result<nlohmann::json> CampaignRunClaims(int64_t id) {

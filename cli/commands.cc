@@ -92,6 +92,7 @@ class Context {
     return term == nullptr || std::string(term) != "dumb";
   }
   RenderOptions OutRender() const { return RenderOptions{ColorFor(env.out_is_tty)}; }
+  Clock& clock() { return env.clock != nullptr ? *env.clock : system_clock_; }
 
   // The REST client, made on first use (offline commands never make one).
   Result<DaemonClient*> Client() {
@@ -105,6 +106,7 @@ class Context {
 
  private:
   std::unique_ptr<DaemonClient> client_;
+  SystemClock system_clock_;
 };
 
 int Fail(Context& c, const Status& s, int code = kExitError) {
@@ -244,7 +246,7 @@ int WaitAndReport(Context& c, DaemonClient& client, const std::vector<Target>& t
   bool failed = false;
   json all = json::array();
   for (const Target& t : targets) {
-    auto last = Watch(client, t, options, WatchClock{c.env.now, c.env.sleep}, c.err());
+    auto last = Watch(client, t, options, c.clock(), c.err());
     if (!last.ok()) return Fail(c, last.status());
     failed = failed || last->counts.failed > 0;
     auto rows = FetchResults(client, t);
@@ -485,7 +487,7 @@ int RunWatch(Context& c) {
   options.tty = c.env.out_is_tty;
   options.color = c.ColorFor(c.env.out_is_tty);
   options.interval_s = c.args.interval_s;
-  auto last = Watch(**client, *target, options, WatchClock{c.env.now, c.env.sleep}, c.out());
+  auto last = Watch(**client, *target, options, c.clock(), c.out());
   if (!last.ok()) return Fail(c, last.status());
   return last->counts.failed > 0 ? kExitRunsFailed : kExitOk;
 }

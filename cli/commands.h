@@ -25,6 +25,7 @@
 
 #include "cli/client.h"
 #include "core/status.h"
+#include "platform/clock.h"
 #include "platform/slurm.h"
 
 namespace sandswim::cli {
@@ -41,8 +42,7 @@ struct Environment {
   bool out_is_tty = false;
   bool err_is_tty = false;
   std::function<const char*(const char*)> getenv;
-  std::function<double()> now;        // monotonic seconds
-  std::function<void(double)> sleep;  // seconds
+  Clock* clock = nullptr;  // watch's time and sleep (tests: a FakeClock; nullptr: the system's)
   // Makes the REST client (tests: a fake).
   std::function<std::unique_ptr<DaemonClient>(const ClientOptions&)> make_client;
   // The LIGGGHTS version string for `expand` when --engine-version is not given.

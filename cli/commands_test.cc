@@ -31,6 +31,7 @@ struct Harness {
   std::unique_ptr<FakeClient> last;  // a copy of the fake as the command left it
   std::function<void(FakeClient&)> fill;
   std::function<Status(const std::string& command, const std::string& path)> editor;
+  FakeClock clock;  // watch's: its sleeps move it, none waits
 
   int Run(std::vector<const char*> args, bool tty) {
     Environment env;
@@ -43,8 +44,7 @@ struct Harness {
       auto it = vars.find(name);
       return it == vars.end() ? nullptr : it->second.c_str();
     };
-    env.now = [] { return 0.0; };
-    env.sleep = [](double) {};
+    env.clock = &clock;
     env.make_client = [this](const ClientOptions&) {
       auto client = std::make_unique<FakeClient>();
       if (fill) fill(*client);

@@ -33,6 +33,8 @@ class FakeClient : public DaemonClient {
   std::vector<std::pair<std::string, nlohmann::json>> run_requests;  // every RunCampaign: name, body
   nlohmann::json run_reply = {{"campaign_run_id", 7}, {"ids", {3, 4}}, {"runs", 2}, {"runs_new", 2}};
   Status schedule_refusal;  // PutSchedule answers it when set
+  bool serves_board = true;  // Live() answers (else NotFound, as a daemon from before the board)
+  int live_calls = 0;
 
   // Called as the client is destroyed (at the end of RunCli), so a test can keep what it recorded.
   std::function<void(const FakeClient&)> on_close;
@@ -87,6 +89,34 @@ class FakeClient : public DaemonClient {
   }
   Result<nlohmann::json> CampaignRunResults(int64_t id) override {
     return nlohmann::json{{"id", id}, {"results", nlohmann::json::array()}};
+  }
+  // The progress board as the daemon builds it from the sweeps, campaign runs and runs above: a
+  // running run without "sweeps" is shown in every sweep (as ListRuns ignores the sweep).
+  Result<nlohmann::json> Live() override {
+    ++live_calls;
+    if (!serves_board) return Status::NotFound("no route GET /api/v1/live");
+    nlohmann::json board = {{"sweeps", nlohmann::json::array()},
+                            {"campaign_runs", nlohmann::json::array()},
+                            {"running", nlohmann::json::array()}};
+    std::vector<int64_t> all_sweeps;
+    for (const auto& [id, s] : sweeps) {
+      nlohmann::json j = s;
+      j["id"] = id;
+      board["sweeps"].push_back(j);
+      all_sweeps.push_back(id);
+    }
+    for (const auto& [id, c] : campaign_runs) {
+      nlohmann::json j = c;
+      j["id"] = id;
+      board["campaign_runs"].push_back(j);
+    }
+    for (const auto& r : runs) {
+      if (r.value("state", "") != "running") continue;
+      nlohmann::json j = r;
+      if (!j.contains("sweeps")) j["sweeps"] = all_sweeps;
+      board["running"].push_back(j);
+    }
+    return board;
   }
   Result<nlohmann::json> CampaignRunClaims(int64_t id) override {
     auto it = claims.find(id);

@@ -3,13 +3,12 @@
 #include <signal.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cstdlib>
 #include <iostream>
-#include <thread>
 
 #include "cli/client.h"
 #include "cli/commands.h"
+#include "platform/clock.h"
 #include "platform/engine_probe.h"
 
 int main(int argc, char** argv) {
@@ -21,8 +20,8 @@ int main(int argc, char** argv) {
   env.out_is_tty = isatty(STDOUT_FILENO) == 1;
   env.err_is_tty = isatty(STDERR_FILENO) == 1;
   env.getenv = [](const char* name) { return static_cast<const char*>(std::getenv(name)); };
-  env.now = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
-  env.sleep = [](double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); };
+  sandswim::SystemClock clock;
+  env.clock = &clock;
   env.make_client = [](const sandswim::ClientOptions& o) { return sandswim::cli::NewDaemonClient(o); };
   env.probe_engine = [] { return sandswim::ProbeEngineVersion(); };
   return sandswim::cli::RunCli(argc, argv, env);

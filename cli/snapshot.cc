@@ -30,6 +30,29 @@ std::optional<Snapshot::DaemonEta> EtaFrom(const json& j) {
   return Snapshot::DaemonEta{(*it)["s"].get<double>(), NumOr(*it, "rel_error", 0), it->value("basis", "")};
 }
 
+// A running run as GET /api/v1/runs and the progress board list it.
+RunInFlight InFlight(const json& run) {
+  const json progress = run.value("progress", json::object());
+  RunInFlight r;
+  r.id = run.value("id", int64_t{0});
+  r.point = FormatPoint(run.value("point", json::object()));
+  r.sim_time_s = NumOr(progress, "sim_time_s", 0);
+  r.duration_s = NumOr(run, "run_duration_s", 0);
+  r.so_z = NumOr(progress, "so_z", 0);
+  r.worker = run.value("worker", "");
+  return r;
+}
+
+std::string SweepTitle(int64_t id, const json& sweep) {
+  return "sweep " + std::to_string(id) + " " + sweep.value("name", "") + " (scale " + sweep.value("scale", "?") +
+         (sweep.value("cancelled", false) ? ", cancelled" : "") + ")";
+}
+
+std::string CampaignRunTitle(int64_t id, const json& run) {
+  return "campaign run cr:" + std::to_string(id) + " " + run.value("campaign", "") + " (scale " +
+         run.value("scale", "?") + ", " + run.value("trigger", "manual") + ")";
+}
+
 // Adds the runs of one sweep (running and failed) to the snapshot, skipping run ids already seen
 // (campaign runs share runs between sweeps).
 Status AddRuns(DaemonClient& client, int64_t sweep_id, Snapshot& s, std::set<int64_t>& seen) {
@@ -42,24 +65,22 @@ Status AddRuns(DaemonClient& client, int64_t sweep_id, Snapshot& s, std::set<int
     for (const json& run : *runs) {
       int64_t id = run.value("id", int64_t{0});
       if (!seen.insert(id).second) continue;
-      const std::string point = FormatPoint(run.value("point", json::object()));
       if (std::string(state) == "running") {
-        json progress = run.value("progress", json::object());
-        RunInFlight r;
-        r.id = id;
-        r.point = point;
-        r.sim_time_s = NumOr(progress, "sim_time_s", 0);
-        r.duration_s = NumOr(run, "run_duration_s", 0);
-        r.so_z = NumOr(progress, "so_z", 0);
-        r.worker = run.value("worker", "");
-        s.running.push_back(r);
+        s.running.push_back(InFlight(run));
       } else {
-        s.failed.push_back({id, point, FailureReason(run)});
+        s.failed.push_back({id, FormatPoint(run.value("point", json::object())), FailureReason(run)});
       }
     }
   }
   return Status::Ok();
 }
+
+// When runs are queued and none runs: the state of the bed the first queued run of `sweep_ids`
+// waits for (two small requests).
+Status AddWaitingBedState(DaemonClient& client, const std::vector<int64_t>& sweep_ids, Snapshot& s);
+
+// Runs in flight the progress board lists at most (server/dashboard/live_feed.cc).
+constexpr size_t kBoardRunning = 1000;
 
 }  // namespace
 
@@ -97,16 +118,14 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target) {
   if (target.kind == Target::Kind::kSweep) {
     auto sweep = client.GetSweep(target.id);
     if (!sweep.ok()) return sweep.status();
-    s.title = "sweep " + std::to_string(target.id) + " " + sweep->value("name", "") + " (scale " +
-              sweep->value("scale", "?") + (sweep->value("cancelled", false) ? ", cancelled" : "") + ")";
+    s.title = SweepTitle(target.id, *sweep);
     s.counts = CountsFromJson(sweep->value("counts", json::object()));
     s.eta = EtaFrom(*sweep);
     sweep_ids.push_back(target.id);
   } else {
     auto run = client.GetCampaignRun(target.id);
     if (!run.ok()) return run.status();
-    s.title = "campaign run cr:" + std::to_string(target.id) + " " + run->value("campaign", "") + " (scale " +
-              run->value("scale", "?") + ", " + run->value("trigger", "manual") + ")";
+    s.title = CampaignRunTitle(target.id, *run);
     s.counts = CountsFromJson(run->value("counts", json::object()));
     s.eta = EtaFrom(*run);
     s.adaptive = run->value("adaptive", json());
@@ -119,24 +138,94 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target) {
   for (int64_t sweep_id : sweep_ids) {
     SANDSWIM_RETURN_IF_ERROR(AddRuns(client, sweep_id, s, seen));
   }
-  if (s.counts.running == 0 && s.counts.queued > 0) {
-    // Two small requests, only while nothing runs: the first queued run names its bed's state.
-    for (int64_t sweep_id : sweep_ids) {
-      RunQuery query;
-      query.sweep = sweep_id;
-      query.state = "queued";
-      query.limit = 1;
-      auto runs = client.ListRuns(query);
-      if (!runs.ok()) return runs.status();
-      if (runs->empty()) continue;
-      auto run = client.GetRun((*runs)[0].value("id", int64_t{0}));
-      if (!run.ok()) return run.status();
-      s.waiting_bed_state = run->value("bed_state", "");
-      break;
-    }
-  }
+  SANDSWIM_RETURN_IF_ERROR(AddWaitingBedState(client, sweep_ids, s));
   return s;
 }
+
+Result<Snapshot> FetchSnapshotFromBoard(DaemonClient& client, const Target& target, bool* board_usable) {
+  if (*board_usable) {
+    Result<json> board = client.Live();
+    if (board.ok()) {
+      std::vector<int64_t> sweep_ids;
+      Result<std::optional<Snapshot>> view = SnapshotFromBoard(*board, target, &sweep_ids);
+      if (view.ok() && view->has_value()) {
+        Snapshot s = std::move(**view);
+        SANDSWIM_RETURN_IF_ERROR(AddWaitingBedState(client, sweep_ids, s));
+        return s;
+      }
+    }
+    // No board (an older daemon, or none served), or not the target on it (older than the sweeps
+    // it lists): the target's own routes from now on.
+    *board_usable = false;
+  }
+  return FetchSnapshot(client, target);
+}
+
+Result<std::optional<Snapshot>> SnapshotFromBoard(const json& board, const Target& target,
+                                                  std::vector<int64_t>* target_sweeps) {
+  try {
+    Snapshot s;
+    std::set<int64_t> sweep_ids;
+    const char* list = target.kind == Target::Kind::kSweep ? "sweeps" : "campaign_runs";
+    const json listed = board.value(list, json::array());
+    const json* entry = nullptr;
+    for (const json& e : listed) {
+      if (e.value("id", int64_t{0}) == target.id) entry = &e;
+    }
+    if (entry == nullptr) return std::optional<Snapshot>();
+    if (target.kind == Target::Kind::kSweep) {
+      s.title = SweepTitle(target.id, *entry);
+      sweep_ids.insert(target.id);
+    } else {
+      s.title = CampaignRunTitle(target.id, *entry);
+      for (const json& id : entry->value("sweeps", json::array())) sweep_ids.insert(id.get<int64_t>());
+    }
+    s.counts = CountsFromJson(entry->value("counts", json::object()));
+    s.eta = EtaFrom(*entry);
+    const json running = board.value("running", json::array());
+    for (const json& run : running) {
+      auto in = run.find("sweeps");
+      if (in == run.end() || !in->is_array()) return std::optional<Snapshot>();  // a board from before "sweeps"
+      for (const json& id : *in) {
+        if (sweep_ids.count(id.get<int64_t>())) {
+          s.running.push_back(InFlight(run));
+          break;
+        }
+      }
+    }
+    // The board lists at most kBoardRunning runs in flight: past it, some of the target's may be missing.
+    if (static_cast<int64_t>(s.running.size()) < s.counts.running && running.size() >= kBoardRunning) {
+      return std::optional<Snapshot>();
+    }
+    if (target_sweeps != nullptr) target_sweeps->assign(sweep_ids.begin(), sweep_ids.end());
+    return std::optional<Snapshot>(std::move(s));
+  } catch (const json::exception& e) {
+    return Status::Corruption(std::string("the daemon's progress board is unreadable: ") + e.what());
+  }
+}
+
+namespace {
+
+Status AddWaitingBedState(DaemonClient& client, const std::vector<int64_t>& sweep_ids, Snapshot& s) {
+  if (s.counts.running != 0 || s.counts.queued == 0) return Status::Ok();
+  // Two small requests, only while nothing runs: the first queued run names its bed's state.
+  for (int64_t sweep_id : sweep_ids) {
+    RunQuery query;
+    query.sweep = sweep_id;
+    query.state = "queued";
+    query.limit = 1;
+    auto runs = client.ListRuns(query);
+    if (!runs.ok()) return runs.status();
+    if (runs->empty()) continue;
+    auto run = client.GetRun((*runs)[0].value("id", int64_t{0}));
+    if (!run.ok()) return run.status();
+    s.waiting_bed_state = run->value("bed_state", "");
+    break;
+  }
+  return Status::Ok();
+}
+
+}  // namespace
 
 Result<json> FetchResults(DaemonClient& client, const Target& target) {
   auto reply =

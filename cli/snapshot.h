@@ -12,7 +12,9 @@
 #define SANDSWIM_CLI_SNAPSHOT_H_
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "cli/client.h"
 #include "cli/format.h"
@@ -33,8 +35,23 @@ Result<Target> ParseTarget(const std::string& text, const std::string& field = "
 // A run id ("12"); InvalidArgument naming `field` otherwise.
 Result<int64_t> ParseId(const std::string& text, const std::string& field);
 
-// Counts, runs in flight, failures and the daemon's ETA of a sweep or campaign run.
+// Counts, runs in flight, failures and the daemon's ETA of a sweep or campaign run, from its own
+// routes: 1 + 2 x its sweeps requests (runs in flight and failures by sweep), 2 more while runs
+// wait for a bed.
 Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target);
+
+// The target as the daemon's progress board (GET /api/v1/live) shows it: title, counts, the
+// daemon's ETA and the runs in flight (failures are not on the board: `failed` stays empty, the
+// count is in `counts`). nullopt when the board does not show it (older than the newest sweeps and
+// campaign runs the board lists, a board from before running runs named their sweeps, or more runs
+// in flight than the board lists). `target_sweeps`, when given, receives the target's sweep ids.
+Result<std::optional<Snapshot>> SnapshotFromBoard(const nlohmann::json& board, const Target& target,
+                                                  std::vector<int64_t>* target_sweeps = nullptr);
+
+// What `watch` looks at each refresh, in one request (two more while runs wait for a bed): the
+// board (SnapshotFromBoard) while `*board_usable`; when it shows no board or not the target,
+// sets *board_usable false and FetchSnapshot from then on. REQUIRES: board_usable != nullptr.
+Result<Snapshot> FetchSnapshotFromBoard(DaemonClient& client, const Target& target, bool* board_usable);
 
 // The results of a sweep or campaign run, as the daemon sends them: {"id", "results": [one row a
 // run], "aggregates": [one a point, over its replicate beds]} ("aggregates" is [] from a daemon

@@ -4,20 +4,21 @@
 
 namespace sandswim::cli {
 
-Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, const WatchClock& clock,
+Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, Clock& clock,
                        std::ostream& out) {
   RenderOptions render;
   render.color = options.color;
   int frame_lines = 0;    // tty: lines of the frame on screen
   std::string last_line;  // piped: the last line written
   double last_line_at = -1e300;
+  bool board_usable = true;  // the daemon's progress board shows the target
 
   while (true) {
-    auto fetched = FetchSnapshot(client, target);
+    auto fetched = FetchSnapshotFromBoard(client, target, &board_usable);
     if (!fetched.ok()) return fetched.status();
     Snapshot s = std::move(*fetched);
     bool finished = s.counts.finished();
-    double now = clock.now();
+    double now = clock.Monotonic();
     if (options.tty) {
       std::string frame = RenderWatchFrame(s, render);
       if (frame_lines > 0) out << "\x1b[" << frame_lines << "F\x1b[J";
@@ -31,8 +32,12 @@ Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOp
         last_line_at = now;
       }
     }
-    if (finished) return s;
-    clock.sleep(options.interval_s);
+    if (finished) {
+      // The board counts failures but does not list them: the last snapshot names them (once).
+      if (board_usable && s.counts.failed > 0) return FetchSnapshot(client, target);
+      return s;
+    }
+    clock.SleepFor(options.interval_s);
   }
 }
 

@@ -5,8 +5,13 @@
 // new frame (RenderWatchFrame) is written. When piped, it writes RenderWatchLine() lines: only
 // when the line changed, at most one every `line_interval_s`, and always the final one.
 //
-// The clock and the sleep are injected (WatchClock) so tests run without waiting. The done runs'
-// wall times (for the ETA) are fetched again only when the done count changed.
+// Each refresh reads the daemon's progress board (GET /api/v1/live, the dashboard's; an unchanged
+// one is a 304): one request whatever the number of runs, two more while runs wait for a bed. A
+// target the board does not show (older than its newest sweeps) is followed through its own
+// routes (snapshot.h FetchSnapshotFromBoard). The ETA is the daemon's.
+//
+// Time is the injected clock's (platform/clock.h): its monotonic time spaces the piped lines and
+// its sleep the refreshes, so tests run on a FakeClock without waiting.
 //
 // Thread safety: call from one thread.
 #ifndef SANDSWIM_CLI_WATCH_H_
@@ -19,6 +24,7 @@
 #include "cli/format.h"
 #include "cli/snapshot.h"
 #include "core/status.h"
+#include "platform/clock.h"
 
 namespace sandswim::cli {
 
@@ -29,14 +35,9 @@ struct WatchOptions {
   double line_interval_s = 5.0;  // piped: at most one line this often
 };
 
-struct WatchClock {
-  std::function<double()> now;        // seconds, monotonic
-  std::function<void(double)> sleep;  // seconds
-};
-
 // Follows `target` until it is finished; returns the last snapshot (the caller decides the exit
 // code from its counts). Errors from the daemon end the watch.
-Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, const WatchClock& clock,
+Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, Clock& clock,
                        std::ostream& out);
 
 }  // namespace sandswim::cli

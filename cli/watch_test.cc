@@ -1,9 +1,13 @@
 #include "cli/watch.h"
 
+#include <map>
+#include <mutex>
 #include <sstream>
+#include <thread>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <httplib.h>
 
 #include "cli/fake_client_test_util.h"
 
@@ -14,20 +18,24 @@ using json = nlohmann::json;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
-// A sweep that goes queued -> running -> done over `phases` polls; each sleep is one phase.
+// A sweep that goes queued -> running -> done over `phases` polls; each sleep of its clock (a
+// FakeClock's: it moves by the time slept) is one phase.
 struct Scenario {
+  class PhaseClock : public FakeClock {
+   public:
+    explicit PhaseClock(Scenario* s) : s_(s) {}
+    void SleepFor(double seconds) override {
+      FakeClock::SleepFor(seconds);
+      if (s_->phase + 1 < s_->phases.size()) s_->phases[++s_->phase](s_->client);
+    }
+
+   private:
+    Scenario* s_;
+  };
   FakeClient client;
-  double now = 0;
   size_t phase = 0;
   std::vector<std::function<void(FakeClient&)>> phases;
-
-  WatchClock Clock() {
-    return WatchClock{[this] { return now; },
-                      [this](double s) {
-                        now += s;
-                        if (phase + 1 < phases.size()) phases[++phase](client);
-                      }};
-  }
+  PhaseClock clock{this};
 };
 
 json MakeRun(int64_t id, const std::string& state, double sim_time = 0, double started = 0, double finished = 0) {
@@ -79,7 +87,7 @@ TEST(WatchTest, PipedWritesOneLinePerChangeAtMostEveryInterval) {
   WatchOptions options;
   options.interval_s = 1;
   options.line_interval_s = 5;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
   ASSERT_TRUE(last.ok()) << last.status().ToString();
   EXPECT_EQ(last->counts.done, 2);
   // First poll (t=0) and the final line; the changes in between came faster than 5 s.
@@ -97,7 +105,7 @@ TEST(WatchTest, PipedRepeatsNothingThatDidNotChange) {
   s->phases.push_back([](FakeClient& c) { Phase(c, {MakeRun(1, "done", 4, 0, 10)}); });
   s->phases[0](s->client);
   std::ostringstream out;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
   ASSERT_TRUE(last.ok());
   std::string text = out.str();
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 2);
@@ -108,7 +116,7 @@ TEST(WatchTest, TerminalRedrawsInPlace) {
   std::ostringstream out;
   WatchOptions options;
   options.tty = true;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
   ASSERT_TRUE(last.ok());
   std::string text = out.str();
   // Frame 1 has 3 lines (title, counts, one run); the cursor goes back up over them.
@@ -121,7 +129,7 @@ TEST(WatchTest, TerminalRedrawsInPlace) {
 TEST(WatchTest, ReportsFailuresInTheLastSnapshot) {
   auto s = TwoRunScenario(/*one_fails=*/true);
   std::ostringstream out;
-  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->Clock(), out);
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
   ASSERT_TRUE(last.ok());
   EXPECT_EQ(last->counts.failed, 1);
   ASSERT_EQ(last->failed.size(), 1u);
@@ -131,11 +139,165 @@ TEST(WatchTest, ReportsFailuresInTheLastSnapshot) {
 TEST(WatchTest, DaemonErrorEndsTheWatch) {
   FakeClient client;  // knows no sweep
   std::ostringstream out;
-  double now = 0;
-  auto last = Watch(client, Target{Target::Kind::kSweep, 5}, WatchOptions{},
-                    WatchClock{[&] { return now; }, [&](double s) { now += s; }}, out);
+  FakeClock clock;
+  auto last = Watch(client, Target{Target::Kind::kSweep, 5}, WatchOptions{}, clock, out);
   ASSERT_FALSE(last.ok());
   EXPECT_EQ(last.status().code(), StatusCode::kNotFound);
+}
+
+// A daemon on loopback whose progress board shows campaign run cr:7 (three sweeps, `done` runs
+// done, one more running for three polls, then done), among 50 other sweeps. It counts every
+// request by path and answers an unchanged board's If-None-Match with 304.
+class BoardDaemon {
+ public:
+  explicit BoardDaemon(int done) : done_(done) {
+    server_.Get("/api/v1/live", [this](const httplib::Request& req, httplib::Response& res) {
+      std::lock_guard<std::mutex> lock(mu_);
+      const int phase = std::min(live_requests_++, 4);
+      const int version = std::min(phase, 3) == 2 ? 1 : std::min(phase, 3);  // phases 1 and 2 alike
+      const std::string etag = "\"live-" + std::to_string(version) + "\"";
+      res.set_header("ETag", etag);
+      if (req.get_header_value("If-None-Match") == etag) {
+        ++not_modified_;
+        res.status = 304;
+        return;
+      }
+      res.set_content(Board(version).dump(), "application/json");
+    });
+    server_.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response&) {
+      std::lock_guard<std::mutex> lock(mu_);
+      ++requests_[req.path];
+      return httplib::Server::HandlerResponse::Unhandled;
+    });
+    port_ = server_.bind_to_any_port("127.0.0.1");
+    thread_ = std::thread([this] { server_.listen_after_bind(); });
+  }
+  ~BoardDaemon() {
+    server_.stop();
+    thread_.join();
+  }
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+  std::map<std::string, int> requests() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return requests_;
+  }
+  int not_modified() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return not_modified_;
+  }
+
+ private:
+  // Version 0..2: one run in flight (at 1, 2, 2 s of 4); 3: all done.
+  json Board(int version) const {
+    const bool finished = version == 3;
+    json counts = {{"queued", 0}, {"running", finished ? 0 : 1}, {"done", done_ + (finished ? 1 : 0)},
+                   {"failed", 0}, {"cancelled", 0}};
+    json board = {{"version", version + 1}, {"time", 1.7e9}, {"runs", counts}};
+    board["campaign_runs"] = json::array({{{"id", 7},
+                                           {"campaign", "paper-58"},
+                                           {"scale", "smoke"},
+                                           {"trigger", "manual"},
+                                           {"sweeps", {1, 2, 3}},
+                                           {"counts", counts}}});
+    if (!finished) board["campaign_runs"][0]["eta"] = {{"s", 120}, {"rel_error", 0.2}, {"basis", "3 runs"}};
+    board["sweeps"] = json::array();
+    for (int id = 53; id >= 1; --id) {
+      board["sweeps"].push_back({{"id", id}, {"name", "s" + std::to_string(id)}, {"scale", "smoke"}, {"counts", counts}});
+    }
+    board["running"] = json::array();
+    if (!finished) {
+      json run = MakeRun(900, "running", version == 0 ? 1.0 : 2.0);
+      run["sweeps"] = {2};
+      board["running"].push_back(run);
+      json other = MakeRun(901, "running", 1.0);  // another campaign's
+      other["sweeps"] = {40};
+      board["running"].push_back(other);
+    }
+    return board;
+  }
+
+  const int done_;
+  httplib::Server server_;
+  int port_ = 0;
+  std::thread thread_;
+  std::mutex mu_;
+  int live_requests_ = 0;
+  int not_modified_ = 0;
+  std::map<std::string, int> requests_;
+};
+
+// However many runs a campaign has done, a refresh of watch is one request (the board), never a
+// request per run or per sweep; an unchanged board is a 304.
+TEST(WatchTest, ARefreshIsOneRequestForTheBoardWhateverTheRunsDone) {
+  std::map<int, std::map<std::string, int>> by_done;
+  for (int done : {10, 5000}) {
+    BoardDaemon daemon(done);
+    ClientOptions o;
+    o.server = daemon.url();
+    o.token = "t";
+    std::unique_ptr<DaemonClient> client = NewDaemonClient(o);
+    std::ostringstream out;
+    FakeClock clock;  // a refresh a second of it
+    auto last = Watch(*client, Target{Target::Kind::kCampaignRun, 7}, WatchOptions{}, clock, out);
+    const int refreshes = 1 + static_cast<int>(clock.Monotonic());
+    ASSERT_TRUE(last.ok()) << last.status().ToString();
+    EXPECT_EQ(last->counts.done, done + 1);
+    EXPECT_EQ(daemon.requests(), (std::map<std::string, int>{{"/api/v1/live", refreshes}})) << done << " runs done";
+    EXPECT_EQ(refreshes, 4);
+    EXPECT_EQ(daemon.not_modified(), 1) << "the unchanged board came as a 304";
+    EXPECT_EQ(out.str(), "campaign run cr:7 paper-58 (scale smoke, manual): " + std::to_string(done) + "/" +
+                             std::to_string(done + 1) + " done, 1 running, 0 queued, 0 failed, 0 cancelled; ETA 2m00s ± 24s\n"
+                             "campaign run cr:7 paper-58 (scale smoke, manual): " + std::to_string(done + 1) + "/" +
+                             std::to_string(done + 1) + " done, 0 running, 0 queued, 0 failed, 0 cancelled; finished\n");
+    by_done[done] = daemon.requests();
+  }
+  EXPECT_EQ(by_done[10], by_done[5000]);
+}
+
+// The board's runs in flight are the target's (by the sweeps each is in), with the title, counts
+// and ETA the target's own routes give; a target the board does not list is no snapshot.
+TEST(SnapshotTest, TheBoardShowsTheTargetsRunsInFlight) {
+  FakeClient client;
+  client.campaign_runs[3] = {
+      {"id", 3},          {"campaign", "paper-58"},
+      {"scale", "smoke"}, {"trigger", "manual"},
+      {"sweeps", {1, 2}}, {"counts", {{"queued", 0}, {"running", 1}, {"done", 0}, {"failed", 0}, {"cancelled", 0}}},
+      {"eta", {{"s", 60}, {"rel_error", 0.1}, {"basis", "b"}}}};
+  json mine = MakeRun(1, "running", 2.0), theirs = MakeRun(2, "running", 1.0);
+  mine["sweeps"] = {2};
+  theirs["sweeps"] = {9};
+  client.runs = {mine, theirs};
+  auto board = client.Live();
+  ASSERT_TRUE(board.ok());
+  std::vector<int64_t> sweeps;
+  auto view = SnapshotFromBoard(*board, Target{Target::Kind::kCampaignRun, 3}, &sweeps);
+  ASSERT_TRUE(view.ok()) << view.status().ToString();
+  ASSERT_TRUE(view->has_value());
+  auto routes = FetchSnapshot(client, Target{Target::Kind::kCampaignRun, 3});
+  ASSERT_TRUE(routes.ok());
+  const Snapshot& s = **view;
+  EXPECT_EQ(s.title, routes->title);
+  EXPECT_EQ(s.counts.running, 1);
+  ASSERT_EQ(s.running.size(), 1u);
+  EXPECT_EQ(s.running[0].id, 1);
+  EXPECT_EQ(s.running[0].sim_time_s, 2.0);
+  ASSERT_TRUE(s.eta.has_value());
+  EXPECT_EQ(s.eta->s, 60);
+  EXPECT_EQ(sweeps, (std::vector<int64_t>{1, 2}));
+  auto absent = SnapshotFromBoard(*board, Target{Target::Kind::kSweep, 77});
+  ASSERT_TRUE(absent.ok());
+  EXPECT_FALSE(absent->has_value());
+}
+
+// A daemon without the board (or a target older than it shows) is followed through its own routes.
+TEST(WatchTest, WithoutTheBoardWatchFollowsTheTargetsRoutes) {
+  auto s = TwoRunScenario(/*one_fails=*/false);
+  s->client.serves_board = false;
+  std::ostringstream out;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  EXPECT_EQ(last->counts.done, 2);
+  EXPECT_EQ(s->client.live_calls, 1) << "asked once, then not again";
 }
 
 TEST(SnapshotTest, ParsesTargets) {

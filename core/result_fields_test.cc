@@ -42,7 +42,9 @@ TEST(ResultFieldsTest, NamesAndRowKeysAreEachUsedOnce) {
   std::set<std::string> names, row_keys;
   for (const ResultField& f : ResultFields()) {
     EXPECT_TRUE(names.insert(f.name).second) << f.name;
-    if (!f.row_key.empty()) EXPECT_TRUE(row_keys.insert(f.row_key).second) << f.row_key;
+    if (!f.row_key.empty()) {
+      EXPECT_TRUE(row_keys.insert(f.row_key).second) << f.row_key;
+    }
   }
   // A field of the report is a member of RunResult; the others are not reported by a worker.
   EXPECT_EQ(names.count("uz"), 1u);

@@ -501,7 +501,7 @@ int main(int argc, char** argv) {
   // reports (at once, then every tick).
   sandswim::slurm::ProcessSlurmCommands slurm_commands(/*timeout_s=*/20);
   sandswim::PilotWatch pilot_watch(&leases, &slurm_commands, &clock);
-  sandswim::PeriodicJobs periodic;
+  sandswim::PeriodicJobs periodic(&clock);
   periodic.Add("lease expiry", 1, [&] { ExpireLeases(leases, flags.db); });
   periodic.Add("pilot watch", flags.slurm_check_s, [&, warned = false]() mutable { WatchPilots(pilot_watch, warned); });
   periodic.Add(

@@ -1,6 +1,5 @@
 #include "server/periodic.h"
 
-#include <chrono>
 #include <utility>
 
 namespace sandswim {
@@ -35,14 +34,14 @@ std::vector<std::string> PeriodicJobs::names() const {
 }
 
 void PeriodicJobs::Loop(const Job& job) {
-  const auto period = std::chrono::duration<double>(job.period_s);
+  const std::function<bool()> stopping = [this] { return stopping_; };
   std::unique_lock<std::mutex> lock(mu_);
-  if (!job.run_at_start && cv_.wait_for(lock, period, [this] { return stopping_; })) return;
+  if (!job.run_at_start && clock_->WaitFor(cv_, lock, job.period_s, stopping)) return;
   while (!stopping_) {
     lock.unlock();
     job.fn();
     lock.lock();
-    if (cv_.wait_for(lock, period, [this] { return stopping_; })) return;
+    if (clock_->WaitFor(cv_, lock, job.period_s, stopping)) return;
   }
 }
 

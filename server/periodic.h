@@ -7,6 +7,7 @@
 // the previous call returned, until Stop(). A call is never interrupted: Stop() wakes the waiting
 // threads and joins them once their current call has returned. A job reports its own errors (the
 // function logs them); the facility only keeps the rhythm. A period <= 0 disables the job.
+// Periods are the clock's monotonic time (platform/clock.h): a FakeClock drives them in tests.
 //
 // Thread safety: Add() and Start() from one thread before Stop(); Stop() from any thread, once
 // (the destructor calls it). Each job's function runs on its own thread, never twice at once.
@@ -20,11 +21,14 @@
 #include <thread>
 #include <vector>
 
+#include "platform/clock.h"
+
 namespace sandswim {
 
 class PeriodicJobs {
  public:
-  PeriodicJobs() = default;
+  // REQUIRES: `clock`, when given, outlives the jobs; nullptr: the system's clock.
+  explicit PeriodicJobs(Clock* clock = nullptr) : clock_(clock != nullptr ? clock : &system_clock_) {}
   ~PeriodicJobs();
   PeriodicJobs(const PeriodicJobs&) = delete;
   PeriodicJobs& operator=(const PeriodicJobs&) = delete;
@@ -47,6 +51,8 @@ class PeriodicJobs {
   };
   void Loop(const Job& job);
 
+  SystemClock system_clock_;
+  Clock* clock_;
   std::vector<Job> jobs_;
   std::vector<std::thread> threads_;
   std::mutex mu_;

@@ -9,6 +9,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "platform/clock.h"
+
 namespace sandswim {
 namespace {
 
@@ -36,30 +38,43 @@ class CallCounter {
   int calls_ = 0;
 };
 
-TEST(PeriodicJobsTest, AJobRunsAgainAndAgainUntilStopped) {
+// Time is a FakeClock's: a job's thread waits in the clock (AwaitWaiting sees it there) until
+// the test moves time past its period.
+TEST(PeriodicJobsTest, AJobRunsOncePerPeriodOfItsClockUntilStopped) {
+  FakeClock clock;
   CallCounter counter;
-  PeriodicJobs jobs;
-  jobs.Add("often", 0.001, [&] { counter.Called(); });
+  PeriodicJobs jobs(&clock);
+  jobs.Add("minutely", 60, [&] { counter.Called(); });
   jobs.Start();
-  ASSERT_TRUE(counter.WaitFor(3));
+  for (int n = 1; n <= 3; ++n) {
+    ASSERT_TRUE(clock.AwaitWaiting(1)) << "call " << n;
+    clock.Advance(59.5);  // not yet a period since the last call returned
+    clock.Advance(0.5);
+    ASSERT_TRUE(counter.WaitFor(n)) << "call " << n;
+  }
+  ASSERT_TRUE(clock.AwaitWaiting(1));
+  EXPECT_EQ(counter.calls(), 3);  // each period's call, none before its period ended
   jobs.Stop();
-  const int after_stop = counter.calls();
+  EXPECT_EQ(clock.waiting(), 0);
   // Fifty periods later a job that outlived Stop() would have run again.
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  EXPECT_EQ(counter.calls(), after_stop);
+  clock.Advance(50 * 60);
+  EXPECT_EQ(counter.calls(), 3);
   jobs.Stop();  // idempotent
-  EXPECT_EQ(counter.calls(), after_stop);
+  EXPECT_EQ(counter.calls(), 3);
 }
 
 TEST(PeriodicJobsTest, RunAtStartRunsBeforeTheFirstPeriodAndStopDoesNotWaitForTheNext) {
+  FakeClock clock;
   CallCounter counter;
-  PeriodicJobs jobs;
+  PeriodicJobs jobs(&clock);
   jobs.Add(
       "nightly", 3600, [&] { counter.Called(); }, /*run_at_start=*/true);
   jobs.Add("hourly", 3600, [&] { ADD_FAILURE() << "ran before its first period"; });
   jobs.Start();
   ASSERT_TRUE(counter.WaitFor(1));
-  jobs.Stop();  // returns although both jobs wait for an hour
+  ASSERT_TRUE(clock.AwaitWaiting(2));  // both wait for their hour
+  clock.Advance(3599);
+  jobs.Stop();  // returns although both jobs wait for another second
   EXPECT_EQ(counter.calls(), 1);
 }
 

@@ -3,20 +3,16 @@
 #include <httplib.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <sstream>
-#include <thread>
 
 #include "platform/tls.h"
 
 namespace sandswim::worker {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 // One HTTP exchange's outcome: a response, or Unavailable when there was none.
 struct Exchange {
@@ -29,28 +25,26 @@ bool Retryable(const Status& s) { return DaemonTrouble(s); }
 
 }  // namespace
 
-HttpServerClient::HttpServerClient(ClientOptions options, const std::atomic<bool>* stopping)
-    : options_(std::move(options)), stopping_(stopping) {}
+HttpServerClient::HttpServerClient(ClientOptions options, const std::atomic<bool>* stopping, Clock* clock)
+    : options_(std::move(options)), stopping_(stopping), clock_(clock != nullptr ? clock : &system_clock_) {}
 
 namespace {
 
 // Runs `call` until it succeeds, fails for good, `retry_for_s` passes or `stopping` is set. The
 // wait between tries doubles from 0.2 s up to `max_backoff_s`.
 template <typename F>
-auto WithRetries(double retry_for_s, double max_backoff_s, const std::atomic<bool>* stopping, F call)
+auto WithRetries(Clock& clock, double retry_for_s, double max_backoff_s, const std::atomic<bool>* stopping, F call)
     -> decltype(call()) {
-  const auto deadline =
-      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(retry_for_s));
+  const double deadline = clock.Monotonic() + retry_for_s;
   double backoff = 0.2;
   while (true) {
     auto r = call();
-    if (r.ok() || !Retryable(r.status()) || Clock::now() >= deadline) return r;
+    if (r.ok() || !Retryable(r.status()) || clock.Monotonic() >= deadline) return r;
     // Sleep in small steps so a shutdown is not held up by a long backoff.
-    const auto wake =
-        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(backoff));
-    while (Clock::now() < wake) {
+    const double wake = clock.Monotonic() + backoff;
+    for (double left = backoff; left > 0; left = wake - clock.Monotonic()) {
       if (stopping != nullptr && stopping->load()) return r;
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      clock.SleepFor(std::min(left, 0.05));
     }
     backoff = std::min(backoff * 2, max_backoff_s);
   }
@@ -128,7 +122,7 @@ Result<api::CompletionReply> HttpServerClient::Release(const std::string& token,
 
 Status HttpServerClient::DownloadBed(const api::BedRef& bed, const std::string& dest_path) {
   const std::string path = bed.url.empty() ? "/api/v1/beds/" + std::to_string(bed.id) + "/restart" : bed.url;
-  auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
+  auto r = WithRetries(*clock_, options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     std::ofstream out(dest_path, std::ios::binary | std::ios::trunc);
     if (!out) return Status::IOError("cannot write " + dest_path);
     auto cli = MakeClient(options_);
@@ -171,7 +165,7 @@ Status HttpServerClient::UploadBed(int64_t bed_id, const std::string& token, con
 
 Status HttpServerClient::PutWithChecksum(const std::string& url, const std::string& bytes, const std::string& sha256,
                                          const char* content_type, const std::string& what) {
-  auto r = WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
+  auto r = WithRetries(*clock_, options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<bool> {
     auto cli = MakeClient(options_);
     Exchange ex = FromResult(*cli, options_.server, cli->Put(url, httplib::Headers{{"X-Sha256", sha256}}, bytes, content_type), what);
     if (!ex.status.ok()) return ex.status;
@@ -193,7 +187,7 @@ Status HttpServerClient::UploadSnapshot(const std::string& token, int idx, const
 Result<api::CompletionReply> HttpServerClient::Complete(const std::string& token, const api::Completion& completion) {
   const std::string path = "/api/v1/leases/" + token + "/complete";
   const std::string body = api::ToJsonText(nlohmann::json(completion));
-  return WithRetries(options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<api::CompletionReply> {
+  return WithRetries(*clock_, options_.retry_for_s, max_backoff_s_.load(), stopping_, [&]() -> Result<api::CompletionReply> {
     auto cli = MakeClient(options_);
     Exchange ex = FromResult(*cli, options_.server, cli->Post(path, body, "application/json"), "POST complete");
     if (!ex.status.ok()) return ex.status;

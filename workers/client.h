@@ -23,6 +23,7 @@
 
 #include "core/api.h"
 #include "core/status.h"
+#include "platform/clock.h"
 #include "platform/http_client.h"
 
 namespace sandswim::worker {
@@ -56,8 +57,9 @@ inline constexpr double kMaxRetryBackoffS = 10.0;
 
 class HttpServerClient : public ServerClient {
  public:
-  // `stopping`, when set and true, ends retries early (the worker is shutting down).
-  explicit HttpServerClient(ClientOptions options, const std::atomic<bool>* stopping = nullptr);
+  // `stopping`, when set and true, ends retries early (the worker is shutting down). `clock` times
+  // the retries (nullptr: the system's). REQUIRES: `stopping` and `clock` outlive the client.
+  explicit HttpServerClient(ClientOptions options, const std::atomic<bool>* stopping = nullptr, Clock* clock = nullptr);
 
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest& request) override;
   Result<api::HeartbeatReply> Heartbeat(const std::string& token, const api::Heartbeat& beat) override;
@@ -80,6 +82,8 @@ class HttpServerClient : public ServerClient {
 
   ClientOptions options_;
   const std::atomic<bool>* stopping_;
+  SystemClock system_clock_;
+  Clock* clock_;  // the one given, or system_clock_
   std::atomic<double> max_backoff_s_{kMaxRetryBackoffS};
 };
 

@@ -15,6 +15,8 @@
 
 #include <gtest/gtest.h>
 
+#include "platform/clock.h"
+
 namespace sandswim::worker {
 namespace {
 
@@ -108,13 +110,32 @@ TEST(ClientTest, CompleteRetriesWhileTheDaemonAnswers503) {
     auto c = nlohmann::json::parse(req.body).get<api::Completion>();
     res.set_content(nlohmann::json{{"state", c.ok ? "done" : "failed"}}.dump(), "application/json");
   });
-  HttpServerClient client(ClientOptionsFor(d.url()));
+  FakeClock clock;  // the waits between tries move it; nothing waits in real time
+  HttpServerClient client(ClientOptionsFor(d.url()), nullptr, &clock);
   api::Completion c;
   c.ok = true;
   auto reply = client.Complete("t1", c);
   ASSERT_TRUE(reply.ok()) << reply.status().ToString();
   EXPECT_EQ(reply->state, "done");
   EXPECT_EQ(calls.load(), 3);
+  EXPECT_NEAR(clock.Monotonic(), 0.2 + 0.4, 1e-9);  // the backoff doubles from 0.2 s
+}
+
+// A daemon that answers 503 for good: the completion is tried until retry_for_s (5 s) of the
+// clock has passed, the wait doubling (0.2, 0.4, 0.8, 1.6, 3.2 s), and then reported Unavailable.
+TEST(ClientTest, RetriesEndWhenRetryForHasPassed) {
+  FakeDaemon d;
+  std::atomic<int> calls{0};
+  d.server().Post(R"(/api/v1/leases/([^/]+)/complete)", [&](const httplib::Request&, httplib::Response& res) {
+    ++calls;
+    res.status = 503;
+  });
+  FakeClock clock;
+  HttpServerClient client(ClientOptionsFor(d.url()), nullptr, &clock);
+  auto reply = client.Complete("t1", api::Completion{});
+  EXPECT_EQ(reply.status().code(), StatusCode::kUnavailable) << reply.status().ToString();
+  EXPECT_EQ(calls.load(), 6);  // at 0, 0.2, 0.6, 1.4, 3.0 and 6.2 s
+  EXPECT_NEAR(clock.Monotonic(), 6.2, 1e-9);
 }
 
 // Engine text that is not valid UTF-8 (LIGGGHTS has printed stray bytes after an ERROR line)

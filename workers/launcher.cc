@@ -21,9 +21,9 @@
 namespace sandswim::worker {
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using SteadyClock = std::chrono::steady_clock;  // the engine process's own time (its wall_s, its waits)
 
-double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double Seconds(SteadyClock::duration d) { return std::chrono::duration<double>(d).count(); }
 
 // argv[0] resolved on PATH in the parent, so the child only calls async-signal-safe functions.
 std::string FindOnPath(const std::string& name) {
@@ -48,7 +48,7 @@ std::string FindOnPath(const std::string& name) {
 
 class ChildProcess : public EngineProcess {
  public:
-  ChildProcess(pid_t pid, int pidfd) : pid_(pid), pidfd_(pidfd), start_(Clock::now()) {}
+  ChildProcess(pid_t pid, int pidfd) : pid_(pid), pidfd_(pidfd), start_(SteadyClock::now()) {}
   pid_t pid() const override { return pid_; }
   ~ChildProcess() override {
     if (!reaped_) Stop(0.0);
@@ -60,11 +60,11 @@ class ChildProcess : public EngineProcess {
     if (TryReap()) return true;
     if (seconds <= 0) return false;
     const auto deadline =
-        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+        SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(seconds));
     if (pidfd_ >= 0) {
       // The pidfd becomes readable when the child exits: no polling delay, no busy loop.
       while (true) {
-        double left = Seconds(deadline - Clock::now());
+        double left = Seconds(deadline - SteadyClock::now());
         if (left <= 0) return TryReap();
         struct pollfd p {
           pidfd_, POLLIN, 0
@@ -77,8 +77,8 @@ class ChildProcess : public EngineProcess {
     // Without pidfd (old kernels): poll with growing sleeps.
     auto nap = std::chrono::microseconds(500);
     while (!TryReap()) {
-      if (Clock::now() >= deadline) return false;
-      std::this_thread::sleep_for(std::min<Clock::duration>(nap, deadline - Clock::now()));
+      if (SteadyClock::now() >= deadline) return false;
+      std::this_thread::sleep_for(std::min<SteadyClock::duration>(nap, deadline - SteadyClock::now()));
       nap = std::min(nap * 2, std::chrono::microseconds(50000));
     }
     return true;
@@ -107,7 +107,7 @@ class ChildProcess : public EngineProcess {
     } while (r < 0 && errno == EINTR);
     if (r == 0) return false;
     reaped_ = true;
-    status_.wall_s = Seconds(Clock::now() - start_);
+    status_.wall_s = Seconds(SteadyClock::now() - start_);
     if (r < 0) {  // somebody else reaped it (should not happen): report what we know
       status_.exit_code = -1;
       return true;
@@ -120,7 +120,7 @@ class ChildProcess : public EngineProcess {
 
   pid_t pid_;
   int pidfd_;
-  Clock::time_point start_;
+  SteadyClock::time_point start_;
   bool reaped_ = false;
   ExitStatus status_;
 };

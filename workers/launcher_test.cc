@@ -19,7 +19,7 @@
 namespace sandswim::worker {
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using SteadyClock = std::chrono::steady_clock;
 
 LaunchSpec Sh(const std::string& script, const std::string& cwd = "") {
   LaunchSpec spec;
@@ -79,9 +79,9 @@ TEST(LauncherTest, StopEndsTheWholeGroupWithinTheGrace) {
     if (sleeper == 0) usleep(10000);
   }
   ASSERT_GT(sleeper, 0);
-  const auto t0 = Clock::now();
+  const auto t0 = SteadyClock::now();
   (*proc)->Stop(5);
-  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 4.0);
+  EXPECT_LT(std::chrono::duration<double>(SteadyClock::now() - t0).count(), 4.0);
   EXPECT_EQ((*proc)->exit_status().signal, SIGTERM);
   // The grandchild got SIGTERM too (it may linger a moment as a zombie of init).
   bool gone = false;
@@ -101,9 +101,9 @@ TEST_P(LauncherModes, ProcessIgnoringSigtermGetsSigkill) {
   auto proc = launcher.Start(Mode(Sh("trap '' TERM; touch ready; while :; do sleep 0.05; done", dir)));
   ASSERT_TRUE(proc.ok());
   for (int i = 0; i < 200 && access((dir + "/ready").c_str(), F_OK) != 0; ++i) usleep(10000);
-  const auto t0 = Clock::now();
+  const auto t0 = SteadyClock::now();
   (*proc)->Stop(0.3);
-  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  const double took = std::chrono::duration<double>(SteadyClock::now() - t0).count();
   EXPECT_EQ((*proc)->exit_status().signal, SIGKILL);
   EXPECT_GE(took, 0.29);
   EXPECT_LT(took, 3.0);
@@ -229,8 +229,8 @@ TEST(LauncherTest, SingleProcessEngineDiesWithAWorkerKilledBySigkill) {
     while (true) pause();
   }
   pid_t engine = 0;
-  const auto deadline = Clock::now() + std::chrono::seconds(20);
-  while ((engine = ReadPid(dir + "/engine.pid")) == 0 && Clock::now() < deadline) {
+  const auto deadline = SteadyClock::now() + std::chrono::seconds(20);
+  while ((engine = ReadPid(dir + "/engine.pid")) == 0 && SteadyClock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   if (engine <= 0) {
@@ -242,8 +242,8 @@ TEST(LauncherTest, SingleProcessEngineDiesWithAWorkerKilledBySigkill) {
   EXPECT_EQ(getpgid(engine), engine);  // the leader of its own group
   kill(worker, SIGKILL);
   ASSERT_EQ(waitpid(worker, nullptr, 0), worker);
-  const auto gone_by = Clock::now() + std::chrono::seconds(10);
-  while (Alive(engine) && Clock::now() < gone_by) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const auto gone_by = SteadyClock::now() + std::chrono::seconds(10);
+  while (Alive(engine) && SteadyClock::now() < gone_by) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   EXPECT_FALSE(Alive(engine)) << "the engine outlived its worker";
   if (Alive(engine)) kill(engine, SIGKILL);
 }
@@ -281,8 +281,8 @@ TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
     if (engine > 0 && Alive(engine)) kill(engine, SIGKILL);
   }};
   // Wait (bounded) for the engine to have started its rank.
-  const auto deadline = Clock::now() + std::chrono::seconds(20);
-  while (ReadPid(dir + "/rank.pid") == 0 && Clock::now() < deadline) {
+  const auto deadline = SteadyClock::now() + std::chrono::seconds(20);
+  while (ReadPid(dir + "/rank.pid") == 0 && SteadyClock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   rank = ReadPid(dir + "/rank.pid");
@@ -297,8 +297,8 @@ TEST(LauncherTest, EngineDiesWithAWorkerKilledBySigkill) {
   ASSERT_EQ(waitpid(worker, &st, 0), worker);
   reaped = true;
   ASSERT_TRUE(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL);
-  const auto gone_by = Clock::now() + std::chrono::seconds(10);
-  while ((Alive(rank) || Alive(engine)) && Clock::now() < gone_by) {
+  const auto gone_by = SteadyClock::now() + std::chrono::seconds(10);
+  while ((Alive(rank) || Alive(engine)) && SteadyClock::now() < gone_by) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   EXPECT_FALSE(Alive(engine)) << "the engine outlived its worker";

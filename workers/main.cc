@@ -8,12 +8,12 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 
+#include "platform/clock.h"
 #include "platform/slurm.h"
 #include "platform/tls.h"
 #include "platform/token.h"
@@ -130,7 +130,9 @@ int main(int argc, char** argv) {
   client_options.token = *token;
   client_options.tls = *tls;
   client_options.connect_timeout_s = 5;
-  HttpServerClient client(client_options, &stopping);
+  sandswim::SystemClock clock;
+  options.clock = &clock;
+  HttpServerClient client(client_options, &stopping, &clock);
   GuardedLauncher launcher;
   // Inside a Slurm allocation, the worker stops leasing runs that would outlast it.
   sandswim::slurm::ProcessSlurmCommands slurm_commands;
@@ -138,10 +140,9 @@ int main(int argc, char** argv) {
   std::mutex deadline_mu;
   if (const char* job = getenv("SLURM_JOB_ID"); job != nullptr && *job != '\0') {
     options.slurm_job = job;  // the daemon frees this job's leases as soon as Slurm no longer runs it
-    const auto t0 = std::chrono::steady_clock::now();
-    deadline = std::make_unique<sandswim::slurm::AllocationDeadline>(slurm_commands, job, [t0] {
-      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    });
+    const double t0 = clock.Monotonic();
+    deadline = std::make_unique<sandswim::slurm::AllocationDeadline>(slurm_commands, job,
+                                                                     [&clock, t0] { return clock.Monotonic() - t0; });
     options.allocation_seconds_left = [&] {
       std::lock_guard<std::mutex> lock(deadline_mu);
       return deadline->SecondsLeft();

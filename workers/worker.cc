@@ -3,7 +3,6 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -22,10 +21,6 @@
 
 namespace sandswim::worker {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr int kLogTailLines = 40;
 constexpr char kEngineOutputFile[] = "engine.out";
@@ -172,6 +167,7 @@ std::string JobName(const api::LeaseGrant& g) {
 
 Worker::Worker(WorkerOptions options, ServerClient& client, Launcher& launcher)
     : options_(std::move(options)),
+      clock_(options_.clock != nullptr ? options_.clock : &system_clock_),
       client_(client),
       launcher_(launcher),
       beds_(options_.workdir + "/beds",
@@ -192,7 +188,7 @@ void Worker::RequestStop() {
 
 bool Worker::Idle(double seconds) {
   std::unique_lock<std::mutex> lock(mu_);
-  cv_.wait_for(lock, std::chrono::duration<double>(seconds), [this] { return stopping_.load(); });
+  clock_->WaitFor(cv_, lock, seconds, [this] { return stopping_.load(); });
   return !stopping_;
 }
 
@@ -254,8 +250,7 @@ int Worker::TakeIdleSlots(const api::LeaseGrant& grant) {
   if (widen_refused_) return 0;
   // A slot whose lease is on its way holds its core: wait for that lease (one round trip) to
   // say whether it brought a job, or the core would idle through this one for nothing.
-  cv_.wait_for(lock, std::chrono::duration<double>(kLeaseInFlightWaitS),
-               [this] { return stopping_.load() || leasing_ == 0; });
+  clock_->WaitFor(cv_, lock, kLeaseInFlightWaitS, [this] { return stopping_.load() || leasing_ == 0; });
   const int extra = std::min(Slots() - slots_in_use_, options_.max_ranks / ranks - 1);
   if (extra <= 0) return 0;
   slots_in_use_ += extra;
@@ -286,7 +281,7 @@ void Worker::RunOnSlot(const api::LeaseGrant& grant, std::optional<api::LeaseGra
 
 void Worker::SlotLoop() {
   double backoff = 0.5;
-  auto idle_since = Clock::now();
+  auto idle_since = clock_->Monotonic();
   // A job leased together with the previous completion (one round trip per job); its slot is
   // still held.
   std::optional<api::LeaseGrant> next;
@@ -299,7 +294,7 @@ void Worker::SlotLoop() {
         ++stats_.leased;
       }
       RunOnSlot(grant, &next);
-      idle_since = Clock::now();
+      idle_since = clock_->Monotonic();
       continue;
     }
     // A slot whose core is lent to a wider job leases nothing until that job ends. The core is
@@ -347,7 +342,7 @@ void Worker::SlotLoop() {
     }
     RunOnSlot(**lease, &next);
     if (options_.once) break;
-    idle_since = Clock::now();
+    idle_since = clock_->Monotonic();
   }
   if (next) {
     // Leased with the last completion just as the worker stopped: give it straight back.
@@ -363,7 +358,7 @@ struct Worker::Job {
   const api::LeaseGrant& grant;
   std::optional<api::LeaseGrant>* next;
   std::string name;
-  Clock::time_point leased_at;
+  double leased_at;  // the clock's monotonic time
   int ranks = 1;  // MPI ranks the engine runs on
   api::Completion completion;
 };
@@ -444,7 +439,7 @@ void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>
 }
 
 void Worker::RunJob(const api::LeaseGrant& grant, std::optional<api::LeaseGrant>* next, int ranks, int* lent) {
-  Job job{grant, next, JobName(grant), Clock::now(), ranks > 0 ? ranks : options_.ranks, {}};
+  Job job{grant, next, JobName(grant), clock_->Monotonic(), ranks > 0 ? ranks : options_.ranks, {}};
   spdlog::info("{}: leased ({} steps, wall budget {} s, {} rank(s))", job.name, grant.steps, grant.wall_budget_s,
                job.ranks);
   job.completion.execution.host = options_.host;
@@ -606,9 +601,9 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
     return facts;
   }
   std::unique_ptr<EngineProcess> proc = std::move(*started);
-  const auto start = Clock::now();
+  const double start = clock_->Monotonic();
   const double hb_every = std::max(0.001, std::min(options_.heartbeat_every_s, grant.ttl_s / 3));
-  auto next_beat = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+  double next_beat = start + hb_every;
   bool stop_asked = false;  // the control file asks the deck to end the run
   int64_t last_step = -1;   // the furthest step seen, and when it was first seen
   auto moved_at = start;
@@ -621,7 +616,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
   bool runnable_since_move = false;
   while (true) {
     // Wake for the next heartbeat, and at least every 0.25 s to notice a stop request.
-    double until_beat = std::chrono::duration<double>(next_beat - Clock::now()).count();
+    const double until_beat = next_beat - clock_->Monotonic();
     if (proc->WaitFor(std::clamp(until_beat, 0.0, 0.25))) break;
     if (stopping_) {
       proc->Stop(options_.stop_grace_s);
@@ -634,13 +629,13 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
       proc->Stop(options_.stop_grace_s);
       break;
     }
-    if (Clock::now() >= next_beat) {
+    if (clock_->Monotonic() >= next_beat) {
       const api::Heartbeat beat = progress.Read();
       std::optional<TreeCpu> cpu_now;
       const bool moved = beat.step > last_step;
       if (moved) {
         last_step = beat.step;
-        moved_at = Clock::now();
+        moved_at = clock_->Monotonic();
         cpu_at_move = engine_cpu();
         runnable_since_move = false;
       } else if (options_.stall_after_s > 0 && (cpu_now = engine_cpu()) && cpu_now->runnable) {
@@ -653,7 +648,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
         spdlog::warn("{}: the engine's simulated time stood still for {:.0f} s while it had {:.1f} CPU-s: the machine "
                      "is busy with other work, so it is not counted as hung (waiting another {:.0f} s)",
                      job.name, stood_s, cpu_now->cpu_s - cpu_at_move->cpu_s, options_.stall_after_s);
-        moved_at = Clock::now();
+        moved_at = clock_->Monotonic();
         cpu_at_move = cpu_now;
         runnable_since_move = false;
       } else if (!moved && options_.stall_after_s > 0 && stood_s > options_.stall_after_s) {
@@ -695,7 +690,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
       } else {
         spdlog::warn("{}: heartbeat failed ({}); the job keeps running", job.name, reply.status().ToString());
       }
-      next_beat = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hb_every));
+      next_beat = clock_->Monotonic() + hb_every;
     }
   }
   const ExitStatus exit_status = proc->exit_status();
@@ -713,7 +708,7 @@ std::optional<ExitFacts> Worker::Supervise(Job& job, const RunDir& dir, const Dr
 bool Worker::StoppedWithTheWorker() {
   if (!stopping_ && options_.stop_settle_s > 0) {
     std::unique_lock<std::mutex> lock(mu_);
-    cv_.wait_for(lock, std::chrono::duration<double>(options_.stop_settle_s), [this] { return stopping_.load(); });
+    clock_->WaitFor(cv_, lock, options_.stop_settle_s, [this] { return stopping_.load(); });
   }
   return stopping_;
 }

@@ -60,6 +60,7 @@
 #include "core/api.h"
 #include "core/deck.h"
 #include "core/engine_log.h"
+#include "platform/clock.h"
 #include "platform/process_cpu.h"
 #include "workers/client.h"
 #include "workers/launcher.h"
@@ -105,6 +106,9 @@ struct WorkerOptions {
   // is not in an allocation. Called before every lease.
   std::function<Result<std::optional<double>>()> allocation_seconds_left;
   double end_margin_s = 300;  // a run's expected wall time before this worker has done one
+  // Time for heartbeats, budgets, stalls, idle polls and backoff (the engine's own waits are the
+  // Launcher's); nullptr: the system's. REQUIRES: outlives the Worker.
+  Clock* clock = nullptr;
 };
 
 struct WorkerStats {
@@ -174,10 +178,14 @@ class Worker {
   void Fail(Job& job, const RunDir* dir, const std::string& kind, const std::string& message);
   // Sleeps up to `seconds`, less when asked to stop. False when stopping.
   bool Idle(double seconds);
+  // Seconds of the clock's monotonic time since `t` (one of its readings).
+  double Since(double t) { return clock_->Monotonic() - t; }
   // False (and logs why, once) when the next run would not finish inside the allocation.
   bool RunFitsAllocation();
 
   WorkerOptions options_;
+  SystemClock system_clock_;
+  Clock* clock_;  // options_.clock, or system_clock_
   ServerClient& client_;
   Launcher& launcher_;
   BedCache beds_;

@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <fstream>
 #include <mutex>
 #include <sstream>
@@ -32,6 +33,7 @@ class QueueClient : public ServerClient {
   std::vector<std::string> released;  // tokens
   std::vector<std::string> completed;
   std::atomic<bool> leased{false};
+  std::condition_variable leased_cv;  // notified on every lease
 
   Result<std::optional<api::LeaseGrant>> Lease(const api::LeaseRequest&) override {
     std::lock_guard<std::mutex> l(mu);
@@ -50,6 +52,7 @@ class QueueClient : public ServerClient {
     g.A_m = drive.ok() ? drive->A : 0;
     g.z_floor_m = drive.ok() ? drive->z_floor : std::nullopt;
     leased = true;
+    leased_cv.notify_all();
     return std::optional<api::LeaseGrant>(g);
   }
   Result<api::HeartbeatReply> Heartbeat(const std::string&, const api::Heartbeat&) override {
@@ -131,11 +134,9 @@ TEST(WorkerAllocationTest, NoLeaseWhenTheAllocationEndsBeforeARunWouldFinish) {
 
 // Waits for the worker's first lease, at most `limit`: a worker that never leases fails the test
 // (and is stopped by it) instead of hanging it.
-bool LeasedWithin(const QueueClient& client, std::chrono::milliseconds limit) {
-  auto deadline = std::chrono::steady_clock::now() + limit;
-  while (!client.leased && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  return client.leased;
+bool LeasedWithin(QueueClient& client, std::chrono::milliseconds limit) {
+  std::unique_lock<std::mutex> l(client.mu);
+  return client.leased_cv.wait_for(l, limit, [&] { return client.leased.load(); });
 }
 
 TEST(WorkerAllocationTest, LeasesWhileTheAllocationHasRoom) {

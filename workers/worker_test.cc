@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <deque>
 #include <fstream>
 #include <functional>
@@ -18,6 +20,7 @@
 #include "core/dump_reader.h"
 #include "core/keys.h"
 #include "core/trajectory.h"
+#include "platform/clock.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim::worker {
@@ -32,6 +35,14 @@ void WriteFile(const std::string& path, const std::string& text) {
 
 constexpr char kBedBytes[] = "pretend restart bytes";
 
+// The clock of tests that run several slots on threads of their own (their fakes then take real
+// time); the others give the worker, client and launcher one FakeClock, which the fake engine's
+// waits move.
+Clock* RealClock() {
+  static SystemClock clock;
+  return &clock;
+}
+
 // The daemon, scripted.
 class FakeClient : public ServerClient {
  public:
@@ -41,6 +52,8 @@ class FakeClient : public ServerClient {
   std::vector<api::Completion> completions;
   std::vector<std::string> uploads;  // sha256 of each upload
   bool cancel_on_beat = false;
+  size_t cancel_from_beat = 0;  // > 0: answer cancel from this beat on (1: the first)
+  std::condition_variable beat_cv;  // notified on every heartbeat
   bool conflict_on_beat = false;
   std::string bed_bytes = kBedBytes;
   std::atomic<int> downloads{0};
@@ -48,7 +61,8 @@ class FakeClient : public ServerClient {
   int granted_by_lease = 0;           // grants handed out by Lease() (not with a completion)
   std::vector<std::string> released;  // tokens handed back
   std::function<void()> on_complete;  // runs inside Complete (e.g. a stop request arriving then)
-  std::vector<std::chrono::steady_clock::time_point> completed_at;
+  Clock* clock = RealClock();
+  std::vector<double> completed_at;  // the clock's monotonic time of each completion
   std::vector<api::LeaseGrant> granted;  // by Lease()
   bool requeue_released = false;         // a released grant is leasable again
   // Runs at the start of the n-th Lease() call (from 0), before it looks at `grants`: holds a
@@ -70,9 +84,10 @@ class FakeClient : public ServerClient {
   Result<api::HeartbeatReply> Heartbeat(const std::string&, const api::Heartbeat& beat) override {
     std::lock_guard<std::mutex> l(mu);
     beats.push_back(beat);
+    beat_cv.notify_all();
     if (conflict_on_beat) return Status::Conflict("lease lost");
     api::HeartbeatReply r;
-    r.cancel = cancel_on_beat;
+    r.cancel = cancel_on_beat || (cancel_from_beat > 0 && beats.size() >= cancel_from_beat);
     return r;
   }
   Status DownloadBed(const api::BedRef&, const std::string& dest) override {
@@ -88,7 +103,7 @@ class FakeClient : public ServerClient {
   Result<api::CompletionReply> Complete(const std::string&, const api::Completion& c) override {
     std::lock_guard<std::mutex> l(mu);
     completions.push_back(c);
-    completed_at.push_back(std::chrono::steady_clock::now());
+    completed_at.push_back(clock->Monotonic());
     if (on_complete) on_complete();
     api::CompletionReply reply{c.ok ? "done" : "failed"};
     if (piggyback && c.next && !grants.empty()) {
@@ -96,6 +111,11 @@ class FakeClient : public ServerClient {
       grants.pop_front();
     }
     return reply;
+  }
+  // False when `n` heartbeats have not come within 10 s of real time.
+  bool WaitForBeats(size_t n) {
+    std::unique_lock<std::mutex> l(mu);
+    return beat_cv.wait_for(l, std::chrono::seconds(10), [&] { return beats.size() >= n; });
   }
   Result<api::CompletionReply> Release(const std::string& token, const std::string&) override {
     std::lock_guard<std::mutex> l(mu);
@@ -113,22 +133,18 @@ class FakeClient : public ServerClient {
 class FakeProcess : public EngineProcess {
  public:
   // `stops` outlives the process (the worker destroys it when the job ends): tests read it.
-  FakeProcess(bool runs_until_stopped, std::atomic<int>* stops, double runs_for_s = 0, int exit_code = 0)
-      : running_(runs_until_stopped),
-        stops_(stops),
-        until_(std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                      std::chrono::duration<double>(runs_for_s))) {
+  FakeProcess(Clock* clock, bool runs_until_stopped, std::atomic<int>* stops, double runs_for_s = 0, int exit_code = 0)
+      : clock_(clock), running_(runs_until_stopped), stops_(stops), until_(clock->Monotonic() + runs_for_s) {
     status_.exit_code = exit_code;
   }
   pid_t pid() const override { return 0; }
+  // Waits on the clock: a FakeClock moves by the time waited.
   bool WaitFor(double seconds) override {
     if (!running_) {
-      std::this_thread::sleep_until(std::min(
-          until_, std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                         std::chrono::duration<double>(seconds))));
-      return std::chrono::steady_clock::now() >= until_;
+      clock_->SleepFor(std::min(seconds, until_ - clock_->Monotonic()));
+      return clock_->Monotonic() >= until_;
     }
-    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(seconds, 0.005)));
+    clock_->SleepFor(std::min(seconds, 0.005));
     return !running_;
   }
   void Stop(double) override {
@@ -139,9 +155,10 @@ class FakeProcess : public EngineProcess {
   ExitStatus exit_status() const override { return status_; }
 
  private:
+  Clock* clock_;
   std::atomic<bool> running_;
   std::atomic<int>* stops_;
-  std::chrono::steady_clock::time_point until_;  // exits by itself then (runs_for_s)
+  double until_;  // the clock's monotonic time it exits by itself at (runs_for_s)
   ExitStatus status_;
 };
 
@@ -149,6 +166,7 @@ class FakeLauncher : public Launcher {
  public:
   std::map<std::string, std::string> files;  // written into the run directory at start
   bool runs_until_stopped = false;
+  Clock* clock = RealClock();
   double runs_for_s = 0;  // wall time a process takes before it exits by itself
   bool missing = false;
   // mpirun with more ranks than this (0: any) exits at once with Open MPI's refusal, as it does
@@ -156,7 +174,7 @@ class FakeLauncher : public Launcher {
   int refuses_above_ranks = 0;
   std::mutex mu;
   std::vector<LaunchSpec> started;
-  std::vector<std::chrono::steady_clock::time_point> started_at;
+  std::vector<double> started_at;  // the clock's monotonic time of each start
   std::atomic<int> stops{0};  // Stop() calls on any process this launcher started
   size_t Started() {
     std::lock_guard<std::mutex> l(mu);
@@ -167,7 +185,7 @@ class FakeLauncher : public Launcher {
     if (missing) return Status::Unavailable("'liggghts' not found on PATH or not executable");
     std::lock_guard<std::mutex> l(mu);
     started.push_back(spec);
-    started_at.push_back(std::chrono::steady_clock::now());
+    started_at.push_back(clock->Monotonic());
     int np = 1;
     for (size_t i = 0; i + 1 < spec.argv.size(); ++i)
       if (spec.argv[i] == "-np") np = std::stoi(spec.argv[i + 1]);
@@ -175,10 +193,10 @@ class FakeLauncher : public Launcher {
       WriteFile(spec.cwd + "/" + spec.output_file,
                 "There are not enough slots available in the system to satisfy the " + std::to_string(np) +
                     "\nslots that were requested by the application:\n");
-      return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(false, &stops, 0, 1));
+      return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(clock, false, &stops, 0, 1));
     }
     for (const auto& [name, text] : files) WriteFile(spec.cwd + "/" + name, text);
-    return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(runs_until_stopped, &stops, runs_for_s));
+    return std::unique_ptr<EngineProcess>(std::make_unique<FakeProcess>(clock, runs_until_stopped, &stops, runs_for_s));
   }
 };
 
@@ -221,6 +239,15 @@ WorkerOptions WorkerOptionsFor(const std::string& workdir) {
   o.idle_poll_s = 0.01;
   o.launcher = LauncherKind::kDirect;
   o.keep_run_dirs = true;
+  return o;
+}
+
+// Puts the worker, its daemon and its engine on one FakeClock: a job's heartbeats, budgets and
+// stalls then happen in the time the fake engine's waits move, with no real wait.
+WorkerOptions OnClock(FakeClock* clock, FakeClient& client, FakeLauncher& launcher, WorkerOptions o) {
+  client.clock = clock;
+  launcher.clock = clock;
+  o.clock = clock;
   return o;
 }
 
@@ -325,8 +352,11 @@ TEST(WorkerTest, CancelStopsTheEngineAndCompletesAsCancelled) {
   client.cancel_on_beat = true;
   FakeLauncher launcher;
   launcher.runs_until_stopped = true;
-  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
+  FakeClock clock;
+  Worker worker(OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker"))), client, launcher);
   worker.RunJob(RunGrant());
+  EXPECT_EQ(client.beats.size(), 1u);  // the first beat's reply stops it
+  EXPECT_NEAR(clock.Monotonic(), 0.01, 0.006);  // at the first beat (heartbeat_every_s)
   ASSERT_EQ(launcher.started.size(), 1u);
   EXPECT_GT(launcher.stops.load(), 0);
   ASSERT_EQ(client.completions.size(), 1u);
@@ -338,7 +368,8 @@ TEST(WorkerTest, LeaseLossStopsTheEngineWithoutCompleting) {
   client.conflict_on_beat = true;
   FakeLauncher launcher;
   launcher.runs_until_stopped = true;
-  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
+  FakeClock clock;
+  Worker worker(OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker"))), client, launcher);
   worker.RunJob(RunGrant());
   EXPECT_GT(launcher.stops.load(), 0);
   EXPECT_TRUE(client.completions.empty());
@@ -354,20 +385,12 @@ TEST(WorkerTest, HeartbeatsCarryTheSoZFromTheGrowingDump) {
   size_t cut = 0;
   for (int i = 0; i < 51; ++i) cut = dump.find("ITEM: TIMESTEP", cut + 1);
   launcher.files = {{"so.dump", dump.substr(0, cut + 40)}};
-  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
-  std::thread stopper([&] {
-    for (int i = 0; i < 1000; ++i) {
-      {
-        std::lock_guard<std::mutex> l(client.mu);
-        if (client.beats.size() >= 2) break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    client.cancel_on_beat = true;
-  });
+  client.cancel_from_beat = 3;
+  FakeClock clock;
+  Worker worker(OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker"))), client, launcher);
   worker.RunJob(RunGrant());
-  stopper.join();
-  ASSERT_FALSE(client.beats.empty());
+  ASSERT_EQ(client.beats.size(), 3u);
+  EXPECT_EQ(client.beats[2].step, client.beats[0].step);  // the dump did not grow
   const api::Heartbeat& b = client.beats.front();
   EXPECT_EQ(b.step, 5000);
   EXPECT_DOUBLE_EQ(b.sim_time_s, 5000 * 1e-5);
@@ -382,8 +405,12 @@ TEST(WorkerTest, WallBudgetStopsTheEngineAsTimeout) {
   launcher.runs_until_stopped = true;
   api::LeaseGrant g = RunGrant();
   g.wall_budget_s = 0.05;
-  Worker worker(WorkerOptionsFor(testing::TempDir("worker")), client, launcher);
+  FakeClock clock;
+  Worker worker(OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker"))), client, launcher);
   worker.RunJob(g);
+  // Stopped once the budget had passed, at the first look after it (the fake engine waits 5 ms at a time).
+  EXPECT_GT(clock.Monotonic(), 0.05);
+  EXPECT_LT(clock.Monotonic(), 0.05 + 0.006);
   EXPECT_GT(launcher.stops.load(), 0);
   ASSERT_EQ(client.completions.size(), 1u);
   EXPECT_EQ(client.completions[0].failure->kind, "timeout");
@@ -395,10 +422,15 @@ TEST(WorkerTest, AHungEngineIsStoppedAsStalled) {
   FakeClient client;
   FakeLauncher launcher;
   launcher.runs_until_stopped = true;
-  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  FakeClock clock;
+  WorkerOptions o = OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker")));
   o.stall_after_s = 0.05;
   Worker worker(o, client, launcher);
   worker.RunJob(RunGrant());
+  // The first heartbeat (at 0.01 s) sees step 0; standing still from then, the engine is stopped
+  // at the first heartbeat (every 0.01 s) after stall_after_s.
+  EXPECT_GT(clock.Monotonic(), 0.01 + 0.05);
+  EXPECT_LT(clock.Monotonic(), 0.01 + 0.05 + 0.015);
   EXPECT_GT(launcher.stops.load(), 0);
   ASSERT_EQ(client.completions.size(), 1u);
   ASSERT_TRUE(client.completions[0].failure.has_value());
@@ -413,17 +445,17 @@ TEST(WorkerTest, AHungEngineIsStoppedAsStalled) {
 TEST(WorkerTest, AStarvedEngineIsNotStoppedAsStalled) {
   FakeClient client;
   FakeLauncher launcher;
-  launcher.runs_for_s = 0.4;  // then exits by itself (without output: it fails, but not as stalled)
-  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  launcher.runs_for_s = 2;  // forty stall times; then exits by itself (without output: it fails, but not as stalled)
+  FakeClock clock;
+  WorkerOptions o = OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker")));
   o.stall_after_s = 0.05;
   o.heartbeat_every_s = 0.01;
-  const auto t0 = std::chrono::steady_clock::now();
-  o.engine_cpu = [t0](pid_t) -> std::optional<TreeCpu> {
-    double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return TreeCpu{0.1 * wall, /*runnable=*/true, 1};
+  o.engine_cpu = [&clock](pid_t) -> std::optional<TreeCpu> {
+    return TreeCpu{0.1 * clock.Monotonic(), /*runnable=*/true, 1};
   };
   Worker worker(o, client, launcher);
   worker.RunJob(RunGrant());
+  EXPECT_GE(clock.Monotonic(), 2.0);  // it ran until it exited
   EXPECT_EQ(launcher.stops.load(), 0);
   ASSERT_EQ(client.completions.size(), 1u);
   if (client.completions[0].failure) {
@@ -432,8 +464,8 @@ TEST(WorkerTest, AStarvedEngineIsNotStoppedAsStalled) {
 }
 
 TEST(WorkerTest, ASleepingOrSpinningEngineIsStoppedAsStalled) {
-  const auto t0 = std::chrono::steady_clock::now();
-  auto wall = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  FakeClock clock;
+  auto wall = [&clock] { return clock.Monotonic(); };
   const std::function<std::optional<TreeCpu>(pid_t)> sleeping = [](pid_t) {
     return std::optional<TreeCpu>(TreeCpu{0.01, /*runnable=*/false, 1});
   };
@@ -444,12 +476,14 @@ TEST(WorkerTest, ASleepingOrSpinningEngineIsStoppedAsStalled) {
     FakeClient client;
     FakeLauncher launcher;
     launcher.runs_until_stopped = true;
-    WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+    WorkerOptions o = OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker")));
     o.stall_after_s = 0.05;
     o.heartbeat_every_s = 0.01;
     o.engine_cpu = probe;
+    const double started = clock.Monotonic();
     Worker worker(o, client, launcher);
     worker.RunJob(RunGrant());
+    EXPECT_LT(clock.Monotonic() - started, 0.01 + 0.05 + 0.015);  // as AHungEngineIsStoppedAsStalled
     ASSERT_EQ(client.completions.size(), 1u);
     ASSERT_TRUE(client.completions[0].failure.has_value());
     EXPECT_EQ(client.completions[0].failure->kind, "stalled");
@@ -554,13 +588,7 @@ TEST(WorkerTest, StopRequestStopsRunningJobsWithoutCompleting) {
   o.slots = 2;
   Worker worker(o, client, launcher);
   std::thread run([&] { worker.Run(); });
-  for (int i = 0; i < 1000; ++i) {
-    {
-      std::lock_guard<std::mutex> l(client.mu);
-      if (!client.beats.empty()) break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
+  EXPECT_TRUE(client.WaitForBeats(1));
   worker.RequestStop();
   run.join();
   ASSERT_EQ(launcher.started.size(), 1u);
@@ -629,7 +657,8 @@ TEST(WorkerTest, NextJobIsAskedForOnlyWhenItFitsTheAllocation) {
   launcher.files = {{"log.liggghts", Fixture("drive_omega_minus80.log")},
                     {"so.dump", Fixture("so_omega_minus80.dump")}};
   launcher.runs_for_s = 0.3;
-  WorkerOptions o = WorkerOptionsFor(testing::TempDir("worker"));
+  FakeClock clock;
+  WorkerOptions o = OnClock(&clock, client, launcher, WorkerOptionsFor(testing::TempDir("worker")));
   o.end_margin_s = 0.01;
   o.allocation_seconds_left = []() -> Result<std::optional<double>> { return std::optional<double>(0.2); };
   Worker worker(o, client, launcher);

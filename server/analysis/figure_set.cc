@@ -128,7 +128,7 @@ std::optional<Plot> ModesFigure(const CampaignRunInfo& cr, const std::vector<Swe
 }
 
 Result<Plot> RunFigure(Store& store, int64_t run_id) {
-  auto run = store.GetRun(run_id);
+  auto run = store.GetRun(run_id, Store::Deck::kLeftOut);
   if (!run.ok()) return run.status();
   if (!run->trajectory || run->trajectory->t.empty()) {
     return Status::FailedPrecondition(

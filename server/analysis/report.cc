@@ -531,7 +531,7 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
     for (const SweepAnalysis& a : analyses) {
       for (const RunTrajectory& t : a.runs) {
         if (!seen.insert(t.run_id).second) continue;
-        auto run = store.GetRun(t.run_id);
+        auto run = store.GetRun(t.run_id, Store::Deck::kLeftOut);
         if (!run.ok()) return run.status();
         for (const api::Snapshot& meta : run->snapshots) {
           ReportSnapshot snap{t.run_id, PointLabel(t.point, ""), meta, ""};

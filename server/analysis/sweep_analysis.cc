@@ -108,13 +108,14 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   auto rows = store.SweepResults(sweep_id);
   if (!rows.ok()) return rows.status();
   SweepAnalysis a = AnalyzeSweepResults(*info, *rows);
-  // Every finished run's trajectory, on every bed.
+  // Every finished run's trajectory, on every bed, in one read.
+  auto trajectories = store.SweepTrajectories(sweep_id);
+  if (!trajectories.ok()) return trajectories.status();
   for (const ResultRow& row : *rows) {
     if (!InState(row.state, JobState::kDone) || !row.result) continue;
-    auto run = store.GetRun(row.run_id);
-    if (!run.ok()) return run.status();
-    if (run->trajectory && !run->trajectory->t.empty())
-      a.runs.push_back({row.run_id, row.point, *run->trajectory, row.replicate});
+    auto trajectory = trajectories->find(row.run_id);
+    if (trajectory != trajectories->end() && !trajectory->second.t.empty())
+      a.runs.push_back({row.run_id, row.point, std::move(trajectory->second), row.replicate});
   }
   return a;
 }

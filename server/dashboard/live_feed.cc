@@ -96,6 +96,8 @@ std::string LiveFeed::BuildContentOrThrow() {
     for (const RunSummary& r : board->running) {
       running_ids.insert(r.id);
       json j = r;
+      auto sweeps = board->running_sweeps.find(r.id);
+      j["sweeps"] = sweeps == board->running_sweeps.end() ? std::vector<int64_t>() : sweeps->second;
       auto it = trails_.find(r.id);
       j["trail_points"] = it == trails_.end() ? 0 : it->second.t.size();
       running.push_back(std::move(j));

@@ -20,7 +20,8 @@
 //   "campaign_runs": [{id, campaign, scale, trigger, created_at, sweeps, counts, started_at?,
 //     rounds? (an adaptive one, server/jobs/rounds.h: {"rounds", "looks", "stopped"}, so that its
 //     page asks for its rounds again only when the daemon has planned or looked)}],
-//   "running": [{id, state, point, run_duration_s, progress, worker, attempts, started_at?, trail_points}]}
+//   "running": [{id, state, point, run_duration_s, progress, worker, attempts, started_at?, trail_points,
+//                sweeps (the ids of the sweeps it is in)}]}
 //
 // Thread safety: every member is safe from any thread.
 #ifndef SANDSWIM_SERVER_LIVE_FEED_H_

@@ -198,7 +198,7 @@ Result<FoundSnapshot> FindSnapshot(const Call& c) {
   if (!id.ok()) return id.status();
   auto n = ParseInt(c.req.matches[2].str(), "n", 0, 1000);
   if (!n.ok()) return n.status();
-  auto run = c.deps.store->GetRun(*id);
+  auto run = c.deps.store->GetRun(*id, Store::Deck::kLeftOut);
   if (!run.ok()) return run.status();
   const std::vector<api::Snapshot>& snapshots = run->snapshots;
   for (const api::Snapshot& s : snapshots) {

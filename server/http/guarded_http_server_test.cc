@@ -443,8 +443,12 @@ TEST_F(GuardedHttpServerReserveTest, ANewcomerTakesTheSlotOfTheReservesOldestSil
     char byte;
     const bool gone = recv(held[i], &byte, 1, MSG_DONTWAIT) == 0;
     closed += gone ? 1 : 0;
-    if (i < 42) EXPECT_FALSE(gone) << "connection " << i << " was not in the reserve";
-    if (i >= 42 && i < 52) EXPECT_TRUE(gone) << "connection " << i << ": the reserve's oldest go first";
+    if (i < 42) {
+      EXPECT_FALSE(gone) << "connection " << i << " was not in the reserve";
+    }
+    if (i >= 42 && i < 52) {
+      EXPECT_TRUE(gone) << "connection " << i << ": the reserve's oldest go first";
+    }
   }
   EXPECT_EQ(closed, 10);
   for (int fd : held) close(fd);

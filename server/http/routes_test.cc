@@ -751,6 +751,7 @@ TEST_F(RoutesTest, WorkerProtocolRoundTrip) {
   EXPECT_EQ(board["running"][0]["id"], run.id);
   EXPECT_EQ(board["running"][0]["progress"]["sim_time_s"], 0.1);
   EXPECT_EQ(board["running"][0]["trail_points"], 1);
+  EXPECT_EQ(board["running"][0]["sweeps"], json::array({sweep})) << "the sweeps it is in, for watch";
 
   api::Completion done;
   done.ok = true;

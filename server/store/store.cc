@@ -537,7 +537,7 @@ Result<RunPage> Store::ListRuns(const RunFilter& f) {
   return page;
 }
 
-Result<RunDetail> Store::GetRun(int64_t id) {
+Result<RunDetail> Store::GetRun(int64_t id, Deck deck) {
   Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
   RunDetail d;
@@ -554,8 +554,11 @@ Result<RunDetail> Store::GetRun(int64_t id) {
     if (!summary.ok()) return summary.status();
     d.summary = std::move(summary).value();
     const int c = RunColumnsCount();
-    d.deck = st.Text(c);
-    if (st.IsNull(c)) {
+    if (deck == Deck::kLeftOut) {
+      // d.deck stays "".
+    } else if (!st.IsNull(c)) {
+      d.deck = st.Text(c);
+    } else {
       // Not stored since migration 3: the deck is a pure function of the point and the scale
       // (the lease queue renders the same bytes and checks them against the run's key).
       const Scale* scale = FindScale(st.Text(c + 5));
@@ -593,6 +596,31 @@ Result<RunDetail> Store::GetRun(int64_t id) {
   if (!snapshots.ok()) return snapshots.status();
   d.snapshots = std::move(snapshots).value();
   return d;
+}
+
+Result<std::map<int64_t, api::Trajectory>> Store::SweepTrajectories(int64_t sweep_id) {
+  Result<Transaction> t = db_->BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT tr.run_id, tr.data FROM sweep_runs sr JOIN trajectories tr ON tr.run_id = sr.run_id "
+      "WHERE sr.sweep_id = ?");
+  st.Bind(1, sweep_id);
+  std::map<int64_t, api::Trajectory> out;
+  while (true) {
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    const int64_t run_id = st.Int(0);
+    // As GetRun reads it: a stored value that is not an object is no trajectory.
+    nlohmann::json tj = ParseJsonOr(st.Text(1), nullptr);
+    if (!tj.is_object()) continue;
+    try {
+      out[run_id] = tj.get<api::Trajectory>();
+    } catch (const nlohmann::json::exception&) {
+      return Status::Corruption("trajectory of run " + std::to_string(run_id) + " does not parse");
+    }
+  }
+  return out;
 }
 
 namespace {
@@ -1060,6 +1088,20 @@ Result<LiveBoard> Store::ReadLiveBoard(int sweeps, int campaign_runs, int runnin
       Result<RunSummary> run = RunSummaryFromRow(st);
       if (!run.ok()) return run.status();
       board.running.push_back(std::move(run).value());
+    }
+  }
+  if (!board.running.empty()) {
+    // A run is in one sweep, or in several of a campaign run: the board says which, so a page or
+    // `sandswim watch` shows a sweep's runs in flight without asking for them.
+    Statement st = t->Prepare(
+        "SELECT sr.run_id, sr.sweep_id FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id WHERE r.state = 'running' "
+        "AND r.id <= ? ORDER BY sr.run_id, sr.sweep_id");
+    st.Bind(1, board.running.back().id);
+    while (true) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      board.running_sweeps[st.Int(0)].push_back(st.Int(1));
     }
   }
   Statement st = t->Prepare("SELECT state, COUNT(*) FROM runs GROUP BY state");

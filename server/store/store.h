@@ -225,6 +225,7 @@ struct LiveBoard {
   std::vector<SweepInfo> sweeps;               // newest first
   std::vector<CampaignRunInfo> campaign_runs;  // newest first
   std::vector<RunSummary> running;             // by id
+  std::map<int64_t, std::vector<int64_t>> running_sweeps;  // the sweeps of each run in `running`, ascending
   std::map<int64_t, double> sweep_started_at;         // unfinished sweeps whose runs have started
   std::map<int64_t, double> campaign_run_started_at;  // the same, for campaign runs
   RunCounts runs;                                     // every run, by state
@@ -246,7 +247,14 @@ class Store {
   Result<SweepPage> ListSweeps(int64_t after_id = 0, int limit = 100);
   Result<SweepInfo> GetSweep(int64_t id);
   Result<RunPage> ListRuns(const RunFilter& filter);
-  Result<RunDetail> GetRun(int64_t id);
+  // A run with its deck (GET /api/v1/runs/{id} shows it) or without (RunDetail::deck ""). A deck
+  // is rendered on each read (a pure function of the point and the scale, not stored since
+  // migration 3): the reads that do not show it -- figures, snapshots, reports -- leave it out.
+  enum class Deck { kRendered, kLeftOut };
+  Result<RunDetail> GetRun(int64_t id, Deck deck = Deck::kRendered);
+  // The stored trajectory of every run of the sweep that has one, by run id, in one read: what
+  // the sweep's analysis draws (no run read, no deck, log or snapshot list per run).
+  Result<std::map<int64_t, api::Trajectory>> SweepTrajectories(int64_t sweep_id);
   Result<BedView> GetBed(int64_t id);
   // Every bed, by id.
   Result<std::vector<BedView>> ListBeds();

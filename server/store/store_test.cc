@@ -18,6 +18,7 @@
 #include "platform/clock.h"
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
+#include "server/store/job_table.h"
 #include "server/store/result_columns.h"
 
 namespace sandswim {
@@ -500,10 +501,53 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   EXPECT_EQ(j["state"], "queued");
   EXPECT_EQ(j["point"]["mode"], "oscillatory");
   EXPECT_TRUE(j.contains("deck"));
+  // Without the deck: no render, the rest the same.
+  auto lean = store->GetRun(runs->runs[0].id, Store::Deck::kLeftOut);
+  ASSERT_TRUE(lean.ok()) << lean.status().ToString();
+  EXPECT_TRUE(lean->deck.empty());
+  nlohmann::json lean_json = *lean;
+  j.erase("deck");
+  lean_json.erase("deck");
+  EXPECT_EQ(lean_json, j);
   EXPECT_EQ(store->GetRun(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->GetSweep(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->SweepResults(12345).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store->db().CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
+}
+
+// A sweep's trajectories in one read: each of its runs that has one, by run id, none of another
+// sweep's.
+TEST_F(StoreTest, SweepTrajectoriesAreItsRunsStoredTrajectories) {
+  auto store = MustOpen();
+  auto first = Submit(*store, *ParseSubmitRequest(Sweep("first", 3)), "engine", 1.7e9);
+  nlohmann::json second_spec = Sweep("second", 1);
+  second_spec["base"]["A"] = 0.02;  // a run of its own, not one of the first sweep's
+  auto second = Submit(*store, *ParseSubmitRequest(second_spec), "engine", 1.7e9);
+  ASSERT_TRUE(first.ok() && second.ok());
+  auto rows = store->SweepResults(first->sweep_ids[0]);
+  auto other = store->SweepResults(second->sweep_ids[0]);
+  ASSERT_TRUE(rows.ok() && rows->size() == 3u && other.ok() && other->size() == 1u);
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t.ok());
+    for (int i : {0, 2}) {
+      const double v = 0.5 * (i + 1);
+      ASSERT_TRUE(jobs::PutTrajectory(*t, (*rows)[i].run_id, api::Trajectory{{0, v}, {0, 0}, {0, 0}, {0, -v}}).ok());
+    }
+    ASSERT_TRUE(jobs::PutTrajectory(*t, (*other)[0].run_id, api::Trajectory{{0, 9}, {0, 0}, {0, 0}, {0, 9}}).ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto trajectories = store->SweepTrajectories(first->sweep_ids[0]);
+  ASSERT_TRUE(trajectories.ok()) << trajectories.status().ToString();
+  ASSERT_EQ(trajectories->size(), 2u);
+  for (int i : {0, 2}) {
+    const int64_t id = (*rows)[i].run_id;
+    ASSERT_EQ(trajectories->count(id), 1u) << i;
+    auto run = store->GetRun(id, Store::Deck::kLeftOut);
+    ASSERT_TRUE(run.ok() && run->trajectory);
+    EXPECT_EQ(nlohmann::json(trajectories->at(id)), nlohmann::json(*run->trajectory)) << "as GetRun reads it";
+  }
+  EXPECT_TRUE(store->SweepTrajectories(12345)->empty());
 }
 
 // Each field of a run's result gets a value no other field has (its position in the description
