@@ -48,11 +48,6 @@ nlohmann::json DesignKeyToJson(const DesignKey& k) {
           {"bed_sd_rel", k.bed_sd_rel}};
 }
 
-double BedPriorOf(const std::string& scale, int beds) {
-  const Scale* s = FindScale(scale);
-  return beds == 1 && s != nullptr && s->bed_sd_rel ? *s->bed_sd_rel : 0.0;
-}
-
 Result<DesignKey> DesignKeyFromJson(const nlohmann::json& j) {
   if (!j.is_object()) return Status::InvalidArgument("key", "must be an object");
   DesignKey k;

@@ -8,8 +8,8 @@
 // analysis sees it (a content hash of its sweeps, claims' ids and rules and precision target; not
 // its name, descriptions, schedule, snapshots or replicates), the scale, K (replicate beds per
 // point), the claims' rules version (core/claims.h kClaimRulesVersion), the run analysis's
-// version (core/api.h kAnalysisVersion) and, at K = 1, the scale's bed-to-bed prior
-// (core/scale.h Scale::bed_sd_rel) that one-bed points' errors include. A verdict is quoted the rates of a table whose key is
+// version (core/api.h kAnalysisVersion) and the scale's bed-to-bed prior (core/scale.h
+// Scale::bed_sd_rel) that one-bed points' errors and, at any K, censored points' spread include. A verdict is quoted the rates of a table whose key is
 // equal in every field, never another design's: without one it says "not calibrated at this
 // design" and how to calibrate it.
 //
@@ -45,15 +45,14 @@ struct DesignKey {
   int beds = 1;  // K
   int rules_version = kClaimRulesVersion;
   int analysis_version = api::kAnalysisVersion;
-  // The bed-to-bed prior a one-bed point's error includes (BedPriorOf; 0 with K >= 2 or none).
+  // The scale's bed-to-bed prior (core/scale.h BedPriorOf): a one-bed point's error includes it,
+  // and at every K a censored point's lower estimate is spread by it (F5's "fastest").
   double bed_sd_rel = 0;
   bool operator==(const DesignKey& o) const {
     return definition_hash == o.definition_hash && scale == o.scale && beds == o.beds &&
            rules_version == o.rules_version && analysis_version == o.analysis_version && bed_sd_rel == o.bed_sd_rel;
   }
 };
-// The prior that applies at (scale, K): the scale's Scale::bed_sd_rel at K = 1, else 0.
-double BedPriorOf(const std::string& scale, int beds);
 nlohmann::json DesignKeyToJson(const DesignKey& k);
 Result<DesignKey> DesignKeyFromJson(const nlohmann::json& j);
 // "paper-58 at smoke, K = 1 bed, rules 2, analysis 3"

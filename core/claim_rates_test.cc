@@ -87,9 +87,9 @@ TEST(ClaimRatesTest, AnotherDesignIsNeverQuoted) {
   const ClaimRates with_prior = RatesFor("F9", "P", prior, tables);
   EXPECT_FALSE(with_prior.calibrated);
   EXPECT_THAT(with_prior.text, HasSubstr("bed prior"));
-  EXPECT_EQ(BedPriorOf("smoke", 1), 0.17);
-  EXPECT_EQ(BedPriorOf("smoke", 3), 0.0);
-  EXPECT_EQ(BedPriorOf("paper", 1), 0.0);
+  EXPECT_EQ(BedPriorOf("smoke"), 0.17);
+  EXPECT_EQ(BedPriorOf("paper"), 0.0);
+  EXPECT_EQ(BedPriorOf("no-such-scale"), 0.0);
   DesignKey other = Key();
   other.definition_hash = "def";
   const ClaimRates r = RatesFor("F9", "P", other, tables);

@@ -417,11 +417,6 @@ const ClaimSweep* FindSweep(const ClaimInput& in, const std::string& name) {
 }
 
 // Every point of the sweeps, each once (a point two sweeps share is the first sweep's), in order.
-double BedPrior(const std::string& scale) {
-  const Scale* s = FindScale(scale);
-  return s && s->bed_sd_rel ? *s->bed_sd_rel : 0.0;
-}
-
 std::vector<PointView> PointsOf(const ClaimInput& in, const std::vector<std::string>& sweeps) {
   std::vector<PointView> out;
   std::set<DriveId> seen;
@@ -452,7 +447,7 @@ std::vector<PointView> PointsOf(const ClaimInput& in, const std::vector<std::str
     }
     for (PointView& p : mine) {
       if (!seen.insert(DriveIdOf(p.point)).second) continue;
-      Assess(p, BedPrior(in.scale));
+      Assess(p, BedPriorOf(in.scale));
       out.push_back(std::move(p));
     }
   }
@@ -1468,7 +1463,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   AddMissing(rivals, v.missing);
   ClaimPart fast;
   fast.name = fastest + " rises fastest";
-  const double prior = BedPrior(in.scale);
+  const double prior = BedPriorOf(in.scale);
   const std::optional<Reach> b = best.empty() ? std::nullopt : ReachOf(best[0], prior);
   if (!b) {
     fast.reason = fastest + " has no conclusive U_z with an error" +

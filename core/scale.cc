@@ -116,6 +116,11 @@ const Scale* FindScale(std::string_view name) {
   return nullptr;
 }
 
+double BedPriorOf(std::string_view scale) {
+  const Scale* s = FindScale(scale);
+  return s != nullptr && s->bed_sd_rel ? *s->bed_sd_rel : 0.0;
+}
+
 Status FitsScale(const Point& p, const Scale& scale) {
   const Materials& m = p.materials;
   const Box box = BoxFor(scale, m);

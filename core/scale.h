@@ -65,6 +65,8 @@ double EstimatedGrains(const Scale& scale, const Materials& m = kTable1);
 // paper, mini, smoke, in that order (largest first).
 const std::vector<Scale>& AllScales();
 const Scale* FindScale(std::string_view name);
+// The scale's bed-to-bed prior, Scale::bed_sd_rel (0: an unknown scale, or none measured).
+double BedPriorOf(std::string_view scale);
 
 // Refuses a point the scale's box cannot hold ("A": "needs L_y >= ...; scale 'mini' takes it"),
 // whose bed would pass the scale's max_grains ("grain_diameter" or "so_diameter"), or whose time

@@ -307,7 +307,7 @@ DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition
   for (const ClaimSweep& s : input.sweeps)
     for (const ClaimRun& r : s.runs) beds = std::max(beds, r.replicate + 1);
   key.beds = beds;
-  key.bed_sd_rel = BedPriorOf(key.scale, beds);
+  key.bed_sd_rel = BedPriorOf(key.scale);
   return key;
 }
 

@@ -377,13 +377,13 @@ void from_json(const json& j, DriftReport& r) {
 void CompareWithPrevious(DriftReport& report, const DriftReport* previous, CronZone zone) {
   const bool fixed = report.tolerance_mps > 0;
   report.rule = kDriftRuleVersion;
-  const Scale* scale = FindScale(report.scale);
+  const double bed_prior = BedPriorOf(report.scale);
   // The decision over a point's beds (core/drift.h): each pair a run with itself the night before.
   auto decide = [&](std::vector<DriftBedPair> beds) {
     DriftTest test;
     test.beds = std::move(beds);
     test.tolerance_mps = report.tolerance_mps;
-    test.bed_sd_rel = scale != nullptr ? scale->bed_sd_rel.value_or(0) : 0;
+    test.bed_sd_rel = bed_prior;
     return DecideDrift(test);
   };
   std::map<std::string, const DriftPoint*> before;

@@ -47,9 +47,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         values.push_back(v);
       }
       if (first_done != nullptr) {  // a point none of whose beds has finished is not a sample yet
-        const Scale* scale = FindScale(info.scale);
-        const ReplicateAggregate agg =
-            AggregateReplicates(values, scale && scale->bed_sd_rel ? *scale->bed_sd_rel : 0.0);
+        const ReplicateAggregate agg = AggregateReplicates(values, BedPriorOf(info.scale));
         SweepSample sample;
         sample.point = row.point;
         sample.run_id = first_done->run_id;
@@ -75,7 +73,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
     sample.has_uz = r.uz.has_value();
     sample.uz_stderr = r.uz_stderr.value_or(0);
     sample.uz_ci95 = r.uz_ci95.value_or(0);
-    if (const Scale* scale = FindScale(info.scale); scale && scale->bed_sd_rel && sample.conclusive) {
+    if (const double prior = BedPriorOf(info.scale); prior > 0 && sample.conclusive) {
       // One bed: the point's error adds the scale's bed-to-bed prior (core/aggregate.h), as the
       // claims' points do; the run's own error stays in its result.
       ReplicateValue v;
@@ -85,7 +83,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
       v.uz = r.uz;
       v.uz_stderr = r.uz_stderr;
       v.uz_ci95 = r.uz_ci95;
-      const ReplicateAggregate one = AggregateReplicates({v}, *scale->bed_sd_rel);
+      const ReplicateAggregate one = AggregateReplicates({v}, prior);
       sample.uz_stderr = one.uz_stderr.value_or(sample.uz_stderr);
       sample.uz_ci95 = one.uz_ci95.value_or(sample.uz_ci95);
     }

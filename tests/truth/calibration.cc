@@ -97,7 +97,7 @@ DesignKey Calibrator::Key() const {
   k.definition_hash = definition.ok() ? CampaignDefinitionHash(*definition, campaign_.claims) : std::string();
   k.scale = design_.scale;
   k.beds = static_cast<int>(plan_.beds.size());
-  k.bed_sd_rel = BedPriorOf(k.scale, k.beds);
+  k.bed_sd_rel = BedPriorOf(k.scale);
   return k;
 }
 
