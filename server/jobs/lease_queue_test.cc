@@ -686,6 +686,56 @@ TEST_F(LeaseQueueTest, AnExpiredRunOfACancelledSweepIsCancelledAndARequeuedOneSt
   EXPECT_FALSE(run->summary.progress.heartbeat_at.has_value());
 }
 
+// The same on the run's last attempt: its retries used up, a cancelled sweep's run whose lease
+// expires ends cancelled (its sweeps no longer want it), not failed (a run still wanted fails:
+// ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails).
+TEST_F(LeaseQueueTest, AnExpiredLastAttemptOfACancelledSweepIsCancelledNotFailed) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  for (int attempt = 2; attempt <= 3; ++attempt) {
+    clock_.Advance(61);
+    ASSERT_EQ(*queue_->ExpireLeases(), 1);
+    g = MustLease();
+    ASSERT_EQ(g.attempt, attempt);
+  }
+  api::LeaseGrant other = MustLease("w2");  // the sweep's other run, on its first attempt
+  ASSERT_NE(other.id, g.id);
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  clock_.Advance(61);
+  EXPECT_EQ(*queue_->ExpireLeases(), 2);
+  auto run = store_->GetRun(g.id);
+  EXPECT_EQ(run->summary.state, "cancelled");
+  ASSERT_TRUE(run->summary.last_error.has_value());
+  EXPECT_EQ(run->summary.last_error->kind, "cancelled");
+  EXPECT_EQ(RunState(other.id), "cancelled");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
+// A grant whose reply was lost is taken back when its worker asks again; when every sweep of its
+// run was cancelled meanwhile, the run is cancelled, not queued again, and nothing else is leased.
+TEST_F(LeaseQueueTest, AnUnreceivedGrantOfACancelledSweepIsCancelledNotQueuedAgain) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant first = MustLease();
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w1", "host", 1};
+  auto lost = queue_->Complete(first.token, c);
+  ASSERT_TRUE(lost.ok() && lost->next.has_value());
+  const api::LeaseGrant unreceived = *lost->next;
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  EXPECT_EQ(RunState(unreceived.id), "running");  // asked to stop at a heartbeat that never comes
+  auto again = queue_->Complete(first.token, c);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->state, "duplicate");
+  EXPECT_FALSE(again->next.has_value());
+  auto run = store_->GetRun(unreceived.id);
+  EXPECT_EQ(run->summary.state, "cancelled");
+  EXPECT_EQ(run->summary.attempts, 0);  // the unreceived grant did not count
+  EXPECT_EQ(queue_->Heartbeat(unreceived.token, {}).status().code(), StatusCode::kConflict);
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
 TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

@@ -107,11 +107,21 @@ Result<std::optional<GrantRef>> OpenNextGrant(Transaction& t, const std::string&
   return std::optional<GrantRef>(GrantRef{find.Text(0), KindOf(find.Text(1)), find.Int(2)});
 }
 
-Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, double now) {
-  Statement st = t.Prepare(std::string("UPDATE ") + Table(grant.kind) +
-                           " SET state = 'queued', attempts = attempts - 1, lease_token = NULL, "
-                           "lease_expires_at = NULL WHERE id = ? AND state = 'running' AND lease_token = ?");
+Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, bool wanted, double now) {
+  const bool run = grant.kind == api::JobKind::kRun;
+  std::string sql = std::string("UPDATE ") + Table(grant.kind) +
+                    " SET attempts = attempts - 1, lease_token = NULL, lease_expires_at = NULL";
+  if (wanted || !run) {
+    sql += ", state = 'queued'";
+    if (run) sql += ", queued_at = ?3, sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
+  } else {
+    sql += ", state = 'cancelled', finished_at = ?3, last_error_kind = 'cancelled', "
+           "last_error = 'its sweeps were cancelled before its worker received it'";
+  }
+  sql += " WHERE id = ?1 AND state = 'running' AND lease_token = ?2";
+  Statement st = t.Prepare(sql);
   st.Bind(1, grant.job_id).Bind(2, grant.token);
+  if (run) st.Bind(3, now);
   SANDSWIM_RETURN_IF_ERROR(st.Run());
   if (t.Changes() == 0) return false;
   SANDSWIM_RETURN_IF_ERROR(CloseLease(t, grant.token, now, "unreceived"));

@@ -56,9 +56,10 @@ struct GrantRef {
   int64_t job_id = 0;
 };
 Result<std::optional<GrantRef>> OpenNextGrant(Transaction& t, const std::string& token);
-// Puts that job back in the queue as if never leased (attempt uncounted) and closes its lease as
+// Puts that job back in the queue as if never leased (attempt uncounted; a run with no progress),
+// or, a run no live sweep wants (`wanted` false, RunWanted), cancels it, and closes its lease as
 // "unreceived" -- when it is still running under that grant. False when it has moved on.
-Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, double now);
+Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, bool wanted, double now);
 
 // Slurm jobs that hold an open lease on a running job, sorted.
 Result<std::vector<std::string>> SlurmJobsWithOpenLeases(Transaction& t);
