@@ -77,6 +77,37 @@ EngineRate BedRateOnRanks(const std::vector<RankRate>& by_ranks, int ranks);
 // half the default's error. Samples with no work or no time are left out; none left: `fallback`.
 EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fallback, const std::string& basis);
 
+// ---- The machine's current share -------------------------------------------------------------
+
+// How far back the running runs' progress is read to say what share of the machine they get now.
+inline constexpr double kShareWindowS = 600;
+// A run's stretch in a window counts once it spans this long (a heartbeat's step is a dump's).
+inline constexpr double kMinShareStretchS = 120;
+
+// The running runs' rate now against the cost model's: `factor` = their wall seconds per
+// particle-step over the last window / the model's (3: they run at a third of their usual rate),
+// from every live running run's stretch in the window, pooled (total wall over total work). The
+// share may move again: its relative error is how much it moved, |ln(factor / factor_before)|,
+// factor_before from the window before (or, before there is one, from the runs' attempts so far).
+struct Share {
+  bool measured = false;  // false: no running run spans kMinShareStretchS in the window
+  double factor = 1;
+  int engines = 0;        // the runs it rests on
+  double window_s = 0;    // the longest stretch it rests on
+  std::optional<double> factor_before;
+  std::string before_basis;  // "the 10 min before" | "their attempts so far"
+  double rel_error = 0;   // |ln(factor / factor_before)|
+};
+// `recent`: each live running run's stretch in the last window (particle-steps done, wall time);
+// `before`: the window before it, where the run has one; `so_far`: each run's whole attempt. The
+// ETA's rates are AtShare(model rate, share).
+Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<RateSample>& before,
+                   const std::vector<RateSample>& so_far, const EngineRate& model, double window_s);
+// `rate` at the current share: s_per_unit x factor, its error widened by the share's (in
+// quadrature), its basis saying what it used ("2 engines at 0.31 of their usual rate over the last
+// 10 min ..."). Unmeasured: `rate` unchanged.
+EngineRate AtShare(const EngineRate& rate, const Share& share);
+
 // ---- Before work: what a plan costs ------------------------------------------------------------
 
 struct PlanCost {

@@ -342,7 +342,7 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
       if (!wanted.ok()) return wanted.status();
       reply.cancel = !*wanted;
     } else {
-      SANDSWIM_RETURN_IF_ERROR(jobs::ExtendBedLease(t, lease->job_id, now + options_.ttl_s));
+      SANDSWIM_RETURN_IF_ERROR(jobs::ExtendBedLease(t, lease->job_id, now + options_.ttl_s, now));
     }
     return reply;
   });

@@ -736,6 +736,60 @@ TEST_F(LeaseQueueTest, AnUnreceivedGrantOfACancelledSweepIsCancelledNotQueuedAga
   EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
 }
 
+// The ETA follows the machine's share now: two runs heartbeat every 10 s for 15 minutes at one
+// pace; then either the same pace (a steady machine) or a third of it (builds took the cores).
+// After a window (10 minutes) at the new pace, the ETA is the time the runs' steps left take at
+// that pace -- three times as long for the slowed engines -- where the cost model's rate alone (their
+// attempts so far, mostly at the old pace) said less than half of that.
+TEST_F(LeaseQueueTest, TheEtaFollowsTheEnginesCurrentShare) {
+  for (const int slow_by : {1, 3}) {
+    SCOPED_TRACE("slowed by " + std::to_string(slow_by));
+    TearDown();
+    SetUp();
+    const int64_t sweep = SubmitJson(OmegaSignSweep());
+    PrepareBed();
+    std::vector<api::LeaseGrant> runs = {MustLease("w1"), MustLease("w2")};
+    ASSERT_EQ(runs[0].kind, api::JobKind::kRun);
+    const int64_t steps = runs[0].steps;
+    ASSERT_EQ(runs[1].steps, steps);
+    int64_t step = 0;
+    auto drive = [&](double seconds, int64_t per_beat) {
+      for (double t = 0; t < seconds; t += 10) {
+        clock_.Advance(10);
+        step += per_beat;
+        for (const api::LeaseGrant& g : runs) ASSERT_TRUE(queue_->Heartbeat(g.token, {0, 0, step}).ok());
+      }
+    };
+    auto eta = [&] {
+      auto e = ReadEta(*store_, EtaScope::kSweep, sweep, clock_.Now(), 2);
+      EXPECT_TRUE(e.ok() && e->has_value());
+      return e.ok() && e->has_value() ? **e : Eta{};
+    };
+    const int64_t fast = steps / 400;  // steps a beat: the whole run in 4,000 s
+    drive(900, fast);
+    const Eta before = eta();
+    EXPECT_NEAR(before.seconds / ((steps - step) * 10.0 / fast), 1, 0.03);
+    const double finish_before = clock_.Now() + before.seconds;
+    drive(660, fast / slow_by);
+    const Eta after = eta();
+    const double truth = (steps - step) * 10.0 / (fast / slow_by);
+    EXPECT_NEAR(after.seconds / truth, 1, 0.05) << after.basis;
+    if (slow_by == 1) {
+      EXPECT_NEAR(clock_.Now() + after.seconds, finish_before, 0.03 * before.seconds);  // the finish stays
+      EXPECT_LT(after.rel_error, 0.2);
+      EXPECT_NE(after.basis.find("at 1.00 of that rate over the last 10 min"), std::string::npos) << after.basis;
+    } else {
+      EXPECT_GT(after.seconds / before.seconds, 2.5);
+      EXPECT_GT(after.rel_error, 0.8);  // the share moved from 1 to 1/3 in 20 minutes
+      EXPECT_NE(after.basis.find("now 2 engines at 0.4"), std::string::npos) << after.basis;  // of the pooled rate
+      // The cost model's rate alone: the runs' attempts so far, 1.6x faster than now.
+      auto model = ReadCostModel(*store_, clock_.Now());
+      ASSERT_TRUE(model.ok());
+      EXPECT_GT(model->share.factor, 2);
+    }
+  }
+}
+
 TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

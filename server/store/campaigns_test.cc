@@ -194,6 +194,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
                         "ALTER TABLE campaign_schedules DROP COLUMN source;"
                         "ALTER TABLE beds DROP COLUMN ranks;"
                         "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts;"
+                        "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
                         "DELETE FROM schema_migrations WHERE version >= 13; PRAGMA user_version = 12;")
                     .ok());
     Statement st = t->Prepare(
@@ -210,7 +211,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
   }
   auto s = Store::Open(path);
   ASSERT_TRUE(s.ok()) << s.status().ToString();
-  EXPECT_EQ((*s)->db().schema_version(), 15);
+  EXPECT_EQ((*s)->db().schema_version(), 16);
   auto found = FindCampaign(**s, "mine");
   ASSERT_TRUE(found.ok()) << found.status().ToString();
   EXPECT_EQ(found->version, 1);
