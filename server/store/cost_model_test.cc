@@ -123,14 +123,17 @@ TEST_F(CostModelTest, OnlyRunningJobsThatHeartbeatAreEngines) {
   Run(2, "running", 100000, 40000, 0, 400);      // silent for 630 s
   Run(3, "running", 100000, 0, 1020, 0);         // granted 10 s ago, no heartbeat yet
   Run(4, "running", 100000, 0, 900, 0);          // granted 130 s ago, never heartbeated
+  // Beds likewise, by their heartbeat_at.
+  Exec("INSERT INTO beds (id, key, scale, state, created_at, started_at, heartbeat_at, deck) VALUES "
+       "(2, 'b2', 'smoke', 'running', 0, 0, 1029, ''), (3, 'b3', 'smoke', 'running', 0, 0, 500, '')");
   auto model = ReadCostModel(*store_, 1030);
   ASSERT_TRUE(model.ok()) << model.status().ToString();
-  EXPECT_EQ(model->engines_in_flight, 2);
-  EXPECT_EQ(model->silent_jobs, 2);
+  EXPECT_EQ(model->engines_in_flight, 3);
+  EXPECT_EQ(model->silent_jobs, 3);
   auto eta = ReadEta(*store_, EtaScope::kSweep, 1, 1030, 1);
   ASSERT_TRUE(eta.ok()) << eta.status().ToString();
   ASSERT_TRUE(eta->has_value());
-  EXPECT_NE((*eta)->basis.find("; 2 engines (2 running jobs without a heartbeat for 60 s not counted)"),
+  EXPECT_NE((*eta)->basis.find("; 3 engines (3 running jobs without a heartbeat for 60 s not counted)"),
             std::string::npos)
       << (*eta)->basis;
 }
