@@ -786,6 +786,11 @@ TEST_F(LeaseQueueTest, TheEtaFollowsTheEnginesCurrentShare) {
       auto model = ReadCostModel(*store_, clock_.Now());
       ASSERT_TRUE(model.ok());
       EXPECT_GT(model->share.factor, 2);
+      const nlohmann::json j = *model;  // GET /api/v1/cost-model
+      EXPECT_EQ(j["share"]["engines"], 2);
+      EXPECT_NEAR(j["share"]["factor"].get<double>(), model->share.factor, 1e-12);
+      EXPECT_EQ(j["engines_in_flight"], 2);
+      EXPECT_EQ(j["engines_silent"], 0);
     }
   }
 }

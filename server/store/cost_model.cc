@@ -248,11 +248,19 @@ void to_json(json& j, const CostModelView& v) {
     r["ranks"] = b.ranks;
     beds.push_back(std::move(r));
   }
+  json share = {{"measured", v.share.measured},
+                {"factor", v.share.factor},
+                {"rel_error", v.share.rel_error},
+                {"engines", v.share.engines},
+                {"window_s", v.share.window_s}};
+  if (v.share.factor_before) share["factor_before"] = *v.share.factor_before;
   j = {{"run_rate", v.run_rate},
        {"bed_rate", v.bed_rate},
        {"bed_rates", beds},
        {"hosts", hosts},
-       {"engines_in_flight", v.engines_in_flight}};
+       {"engines_in_flight", v.engines_in_flight},
+       {"engines_silent", v.silent_jobs},
+       {"share", share}};
 }
 
 Result<CostModelView> ReadCostModel(Store& store, double now) {

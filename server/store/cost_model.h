@@ -58,7 +58,8 @@ struct CostModelView {
   Share share;
 };
 // {"run_rate":{...},"bed_rate":{...},"bed_rates":[{"ranks",...rate}],"hosts":[{"host","ranks",...rate}],
-//  "engines_in_flight"}; a rate: {"s_per_unit","rel_error","samples","basis"}.
+//  "engines_in_flight","engines_silent","share":{"measured","factor","factor_before"?,"rel_error","engines",
+//  "window_s"}}; a rate: {"s_per_unit","rel_error","samples","basis"}.
 void to_json(nlohmann::json& j, const CostModelView& v);
 void to_json(nlohmann::json& j, const EngineRate& r);
 

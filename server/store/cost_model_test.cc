@@ -130,6 +130,7 @@ TEST_F(CostModelTest, OnlyRunningJobsThatHeartbeatAreEngines) {
   ASSERT_TRUE(model.ok()) << model.status().ToString();
   EXPECT_EQ(model->engines_in_flight, 3);
   EXPECT_EQ(model->silent_jobs, 3);
+  EXPECT_EQ(nlohmann::json(*model)["engines_silent"], 3);
   auto eta = ReadEta(*store_, EtaScope::kSweep, 1, 1030, 1);
   ASSERT_TRUE(eta.ok()) << eta.status().ToString();
   ASSERT_TRUE(eta->has_value());
