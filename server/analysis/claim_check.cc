@@ -164,6 +164,7 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   std::vector<Claim> claims;
   nlohmann::json definition;
   SANDSWIM_RETURN_IF_ERROR(FindClaims(store, campaign_run, out, claims, definition));
+  out.adaptive = rounds::RunsInRounds(campaign_run);
   if (claims.empty()) return out;
   Result<ClaimInput> found = InputOf(store, campaign_run, analyses);
   if (!found.ok()) return found.status();
@@ -171,7 +172,41 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
   out.verdicts = EvaluateClaims(claims, input);
   out.design = DesignOf(campaign_run.campaign, definition, claims, input);
   AttachClaimRates(out.verdicts, out.design);
+  if (out.adaptive) {
+    Result<std::map<std::string, rounds::FrozenVerdict>> frozen = rounds::FrozenVerdicts(store, campaign_run.id);
+    if (!frozen.ok()) return frozen.status();
+    out.frozen = std::move(frozen).value();
+    ShowFrozenVerdicts(out.verdicts, out.frozen);
+  }
   return out;
+}
+
+void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts,
+                        const std::map<std::string, rounds::FrozenVerdict>& frozen) {
+  for (ClaimVerdict& v : verdicts) {
+    auto it = frozen.find(v.claim.id);
+    if (it == frozen.end()) continue;
+    const rounds::FrozenVerdict& f = it->second;
+    const std::string look = "the look after round " + std::to_string(f.round);
+    if (v.verdict == f.verdict) {
+      v.reason = std::string(VerdictName(f.verdict)) + " since " + look + " (frozen there): " + v.reason;
+      continue;
+    }
+    // A later evaluation reads it otherwise: its numbers are not the decision's, so none are shown.
+    v.verdict = f.verdict;
+    v.reason = std::string("decided (") + VerdictName(f.verdict) + ") at " + look +
+               " and frozen there; a decided claim is not judged again with later rounds' runs, so that its "
+               "error rates hold for the whole sequence of looks. The numbers of that look are not kept: the "
+               "rounds' table shows the claims' states after each look";
+    v.parts.clear();
+    v.missing.clear();
+  }
+}
+
+std::string FrozenVerdictText(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen) {
+  auto it = frozen.find(v.claim.id);
+  if (it == frozen.end()) return VerdictAtScale(v);
+  return VerdictAtScale(v) + " (frozen at round " + std::to_string(it->second.round) + ")";
 }
 
 DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition, const std::vector<Claim>& claims,
@@ -191,7 +226,16 @@ DesignKey DesignOf(const std::string& campaign, const nlohmann::json& definition
 
 nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
   nlohmann::json claims = nlohmann::json::array();
-  for (const ClaimVerdict& v : c.verdicts) claims.push_back(ClaimVerdictToJson(v));
+  for (const ClaimVerdict& v : c.verdicts) {
+    nlohmann::json j = ClaimVerdictToJson(v);
+    if (c.adaptive) {
+      auto it = c.frozen.find(v.claim.id);
+      j["frozen_at_round"] = it == c.frozen.end() ? nlohmann::json(nullptr) : nlohmann::json(it->second.round);
+      j["frozen_at"] = it == c.frozen.end() ? nlohmann::json(nullptr) : nlohmann::json(it->second.frozen_at);
+      j["verdict_text"] = FrozenVerdictText(v, c.frozen);
+    }
+    claims.push_back(std::move(j));
+  }
   const VerdictCounts n = CountVerdicts(c.verdicts);
   const nlohmann::json counts = {{"holds", n.holds}, {"differs", n.differs}, {"inconclusive", n.inconclusive}};
   return {{"campaign_run_id", c.campaign_run.id},
@@ -199,6 +243,7 @@ nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
           {"scale", c.campaign_run.scale},
           {"claims_source", c.claims_source},
           {"note", c.note},
+          {"adaptive", c.adaptive},
           {"counts", counts},
           {"design", DesignKeyToJson(c.design)},
           {"design_text", DescribeDesign(c.design)},

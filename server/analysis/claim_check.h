@@ -12,6 +12,13 @@
 // Every verdict carries its rule's error rates at the campaign run's design (DesignOf,
 // core/claim_rates.h AttachClaimRates), or says it is not calibrated there.
 //
+// An adaptive campaign run (its definition has "adaptive": the daemon runs it in rounds,
+// server/jobs/rounds.h) shows each claim decided at a look as it was FROZEN there
+// (server/store/rounds.h FrozenVerdicts): a later evaluation, with later rounds' runs, never
+// replaces it -- deciding at the first deciding look and never again is what keeps the verdicts'
+// error rates for the whole sequence of looks. Only the claims still open show the current
+// evaluation. A fixed-design run shows the current evaluation of every claim.
+//
 // Thread safety: free functions over a thread-safe Store.
 #ifndef SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_
 #define SANDSWIM_SERVER_ANALYSIS_CLAIM_CHECK_H_
@@ -28,6 +35,7 @@
 #include "core/claims.h"
 #include "core/status.h"
 #include "server/analysis/sweep_analysis.h"
+#include "server/store/rounds.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -38,9 +46,15 @@ struct CampaignRunClaims {
   std::string note;           // e.g. why the claims come from the built-in file
   std::vector<ClaimVerdict> verdicts;
   DesignKey design;  // what the verdicts' error rates are looked up by (core/claim_rates.h)
+  // Whether the campaign run runs in rounds, and its verdicts frozen so far, by claim id (already
+  // applied to `verdicts` by ShowFrozenVerdicts).
+  bool adaptive = false;
+  std::map<std::string, rounds::FrozenVerdict> frozen;
 };
-// {"campaign_run_id","campaign","scale","claims_source","note","counts":{"holds","differs",
-//  "inconclusive"},"design":DesignKeyToJson,"design_text","claims":[ClaimVerdictToJson...]}
+// {"campaign_run_id","campaign","scale","claims_source","note","adaptive","counts":{"holds",
+//  "differs","inconclusive"},"design":DesignKeyToJson,"design_text","claims":[ClaimVerdictToJson
+//  ..., and for an adaptive run "frozen_at_round" (null while open), "frozen_at" (unix s, null
+//  while open), "verdict_text" "holds at smoke (frozen at round 2)"]}
 nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c);
 
 // NotFound for an unknown campaign run.
@@ -55,6 +69,16 @@ Result<CampaignRunClaims> CheckClaims(Store& store, const CampaignRunInfo& campa
 // (server/jobs/rounds.h) look through this, so that a round is planned from the same data the
 // verdicts shown are decided on.
 Result<ClaimLook> LookAtClaims(Store& store, const CampaignRunInfo& campaign_run);
+
+// The pure part of showing an adaptive run's verdicts: each claim in `frozen` takes its frozen
+// verdict. When the current evaluation agrees, its reason, parts and figures stay (they back the
+// same verdict with every round's runs); when it differs, they go (they are a later look's, which
+// does not count), and the reason says which look decided it. Rates (the rule's at this design)
+// stay. Claims not in `frozen` are left as evaluated.
+void ShowFrozenVerdicts(std::vector<ClaimVerdict>& verdicts,
+                        const std::map<std::string, rounds::FrozenVerdict>& frozen);
+// "holds at smoke (frozen at round 2)"; VerdictAtScale for a claim not frozen.
+std::string FrozenVerdictText(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen);
 
 // The pure part: what the claims see of one sweep -- its analysis's samples and fits, and every
 // run of its result rows with its state, result and last error (`failures`: run id -> "kind:

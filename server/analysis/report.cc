@@ -238,6 +238,13 @@ std::string RatesHtml(const std::optional<ClaimRates>& r) {
          (r->advice.empty() ? std::string() : " &mdash; " + Escape(r->advice)) + "</small>";
 }
 
+// " (frozen at round 2)" for a claim an adaptive run's look decided (claim_check.h).
+std::string FrozenHtml(const ClaimVerdict& v, const std::map<std::string, rounds::FrozenVerdict>& frozen) {
+  auto it = frozen.find(v.claim.id);
+  if (it == frozen.end()) return "";
+  return " <small class=\"frozen\">(frozen at round " + std::to_string(it->second.round) + ")</small>";
+}
+
 // The first section: every claim, its verdict, the numbers behind it, the paper's, side by side.
 std::string ClaimsHtml(const ReportInput& in) {
   std::string html = "<h2 id=\"claims\">Claims</h2>\n";
@@ -255,6 +262,11 @@ std::string ClaimsHtml(const ReportInput& in) {
           "error; a claim never holds while a point it needs is missing, and lack of power is inconclusive. Beside "
           "each verdict, its rule's error rates at this design as the truth engine measured them (false holds, "
           "false differs: upper 95 % bounds; power: estimate and interval)." +
+          (rounds::RunsInRounds(in.campaign_run)
+               ? std::string(" This campaign ran in rounds: a claim decided at the look after a round is shown as it "
+                             "was frozen there, never as a later look reads it; only the claims still open show "
+                             "the current evaluation (the rounds: below).")
+               : std::string()) +
           (in.claims_note.empty() ? std::string() : " " + Escape(in.claims_note) + ".") +
           "</p>\n<table><tr><th>claim</th><th>verdict</th><th>measured here</th><th>the paper</th></tr>\n";
   for (const ClaimVerdict& v : in.claims) {
@@ -285,10 +297,67 @@ std::string ClaimsHtml(const ReportInput& in) {
     html += "<tr id=\"claim-" + Escape(v.claim.id) + "\"><td><b>" + Escape(v.claim.id) + "</b> " +
             Escape(v.claim.title) + "<br><small>" + Escape(v.claim.source) + "; rule: " + Escape(v.claim.kind()) +
             "</small></td><td>" + VerdictHtml(v.verdict) + (v.scale.empty() ? "" : " at " + Escape(v.scale)) +
-            RatesHtml(v.rates) + "</td><td>" + measured + "</td><td>" +
+            FrozenHtml(v, in.frozen_claims) + RatesHtml(v.rates) + "</td><td>" + measured + "</td><td>" +
             PaperHtml(v.claim.paper) + "</td></tr>\n";
   }
   return html + "</table>\n";
+}
+
+// An adaptive campaign run's rounds: one row a round -- its state, what it added and why, core-h
+// planned and spent, the budget left after it, each claim's state after its look -- and why they
+// stopped (the same as the dashboard's table and `sandswim status cr:ID`).
+std::string RoundsHtml(const ReportInput& in) {
+  if (!in.adaptive.is_object()) return "";
+  auto h = [](const nlohmann::json& v) { return v.is_number() ? Num(v.get<double>(), 3) : std::string("&ndash;"); };
+  std::string html = "<h2 id=\"rounds\">Rounds</h2>\n<p>This campaign ran in rounds: a budget of " +
+                     h(in.adaptive.value("budget_core_h", nlohmann::json())) + " core-h, at most " +
+                     std::to_string(in.adaptive.value("max_rounds", 4)) +
+                     " rounds. After each round the daemon looked at the claims, froze each one decided, and "
+                     "planned the next round for those still open. Core-hours at the cost model's rates: planned "
+                     "prices each run at its maximum length, spent counts the simulated time done runs took.</p>\n";
+  if (!in.rounds.is_array() || in.rounds.empty()) {
+    return html +
+           "<p class=\"none\">Round 1 (what was submitted) is recorded at the daemon's next scheduler tick.</p>\n";
+  }
+  html +=
+      "<table id=\"rounds-table\"><tr><th>round</th><th>state</th><th>what it added, and why</th><th>core-h "
+      "planned</th><th>core-h spent</th><th>budget left</th><th>the claims after it</th></tr>\n";
+  for (const nlohmann::json& r : in.rounds) {
+    const bool stopped = r.value("stop_reason", nlohmann::json()).is_string();
+    const bool looked = r.value("finished_at", nlohmann::json()).is_number();
+    const char* state = stopped ? "stopped" : looked ? "finished" : "running";
+    std::string added;
+    for (const nlohmann::json& a : r.value("actions", nlohmann::json::array()))
+      added += "<li>" + Escape(a.value("reason", std::string())) + "</li>";
+    std::string after = "<span class=\"none\">after its runs are done</span>";
+    if (r.value("claims_after", nlohmann::json()).is_array()) {
+      after.clear();
+      for (const nlohmann::json& c : r["claims_after"]) {
+        const std::string verdict = c.value("verdict", std::string("inconclusive"));
+        after += (after.empty() ? "" : "<br>") + std::string("<span class=\"") + Escape(verdict) + "\">" +
+                 Escape(c.value("claim", std::string("?"))) + " " + Escape(verdict) +
+                 (c.value("frozen_at_round", nlohmann::json()).is_number()
+                      ? " (frozen at round " + std::to_string(c["frozen_at_round"].get<int>()) + ")"
+                      : std::string()) +
+                 "</span>";
+      }
+    }
+    html += "<tr id=\"round-" + std::to_string(r.value("round", 0)) + "\"><td>" + std::to_string(r.value("round", 0)) +
+            "</td><td>" + state + "</td><td>" + (added.empty() ? "nothing" : "<ul>" + added + "</ul>") + "</td><td>" +
+            h(r.value("core_h_planned", nlohmann::json())) + "</td><td>" +
+            h(r.value("core_h_spent", nlohmann::json())) +
+            "</td><td>" + h(r.value("budget_left_core_h", nlohmann::json())) + "</td><td>" + after + "</td></tr>\n";
+  }
+  html += "</table>\n";
+  const nlohmann::json& last = in.rounds.back();
+  if (last.value("stop_reason", nlohmann::json()).is_string()) {
+    html += "<p id=\"rounds-stop\"><b>Stopped after round " + std::to_string(last.value("round", 0)) + ":</b> " +
+            Escape(last["stop_reason"].get<std::string>()) + "</p>\n";
+  } else {
+    html += "<p id=\"rounds-stop\" class=\"none\">Round " + std::to_string(last.value("round", 0)) +
+            " runs; the daemon looks at the claims once its runs are done.</p>\n";
+  }
+  return html;
 }
 
 }  // namespace
@@ -322,7 +391,9 @@ std::string RenderReportHtml(const ReportInput& in) {
     html += "</ul></div>\n";
   }
   html += ClaimsHtml(in);
+  html += RoundsHtml(in);
   html += "<nav><h2>Contents</h2><ul>\n<li><a href=\"#claims\">Claims</a></li>\n";
+  if (in.adaptive.is_object()) html += "<li><a href=\"#rounds\">Rounds</a></li>\n";
   if (!in.modes_z_svg.empty()) html += "<li><a href=\"#modes\">Drive modes side by side</a></li>\n";
   if (!in.snapshots.empty()) html += "<li><a href=\"#bed\">The bed: slices through the SO</a></li>\n";
   html += "<li><a href=\"#fits\">Fits</a></li>\n";
@@ -424,9 +495,16 @@ Result<std::string> CampaignReport(Store& store, FigureCache& figures, int64_t c
   if (claims.ok()) {
     in.claims = std::move(claims->verdicts);
     in.claims_note = claims->note;
+    in.frozen_claims = std::move(claims->frozen);
   } else {
     in.claims_note = "the claims could not be checked: " + claims.status().ToString();
     in.problems.push_back(in.claims_note);
+  }
+  if (rounds::RunsInRounds(*cr)) {
+    in.adaptive = cr->definition["adaptive"];
+    auto rows = rounds::ListRounds(store, campaign_run_id);
+    if (!rows.ok()) return rows.status();
+    in.rounds = rounds::RoundsToJson(*rows, in.adaptive.value("budget_core_h", 0.0));
   }
   auto draw = [&](const std::string& name, const Plot& plot) -> std::string {
     auto svg = figures.Get(name, plot, ImageFormat::kSvg);

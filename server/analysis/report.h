@@ -4,7 +4,9 @@
 // campaign's claims (claim_check.h).
 //
 // The report opens with the campaign's claims (core/claims.h): each with its verdict, the numbers
-// behind it and what the paper reports, side by side; a campaign without claims says so.
+// behind it and what the paper reports, side by side; a campaign without claims says so. An
+// adaptive campaign run's claims are shown as their deciding look froze them, and its rounds
+// follow (one row a round, as the dashboard shows them: server/jobs/rounds.h).
 //
 // The HTML is one file: no external stylesheet, script, font or image; every internal link is an
 // anchor ("#sweep-12", "#run-40") of an element in the same page, and the figures are inline
@@ -16,6 +18,7 @@
 #define SANDSWIM_SERVER_ANALYSIS_REPORT_H_
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,6 +31,7 @@
 #include "server/analysis/figure_cache.h"
 #include "server/analysis/figure_set.h"
 #include "server/analysis/sweep_analysis.h"
+#include "server/store/rounds.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -67,6 +71,14 @@ struct ReportInput {
   // The campaign's claims and their verdicts (server/analysis/claim_check.h): the report's first section.
   std::vector<ClaimVerdict> claims;
   std::string claims_note;  // e.g. where the claims come from, or why there are none
+  // An adaptive campaign run's verdicts frozen at their deciding look (claim_check.h; `claims`
+  // shows them already): each says at which round.
+  std::map<std::string, rounds::FrozenVerdict> frozen_claims;
+  // An adaptive campaign run's settings (its definition's "adaptive") and rounds as GET
+  // /api/v1/campaign-runs/{id} has them (rounds::RoundsToJson): the section after the claims.
+  // Null: the run has a fixed design, and the report no rounds section.
+  nlohmann::json adaptive;
+  nlohmann::json rounds = nlohmann::json::array();
   // The drive modes side by side (ModesFigure): "" when the campaign run has none.
   std::string modes_x_svg, modes_z_svg;
   // Every snapshot the campaign run's runs took, by run and idx (empty: none asked for them).

@@ -17,14 +17,17 @@
 #include <httplib.h>
 
 #include "core/keys.h"
+#include "core/text.h"
 #include "platform/clock.h"
 #include "server/analysis/claim_check.h"
 #include "server/jobs/lease_queue.h"
+#include "server/jobs/rounds.h"
 #include "server/http/loopback_server_test_util.h"
 #include "server/analysis/plot_renderer.h"
 #include "server/http/routes.h"
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
+#include "server/store/rounds.h"
 
 namespace sandswim {
 namespace {
@@ -545,6 +548,136 @@ TEST_F(ReportTest, TheReportOpensWithEveryClaimAndTheRouteAnswersTheirVerdicts) 
   EXPECT_TRUE(json::parse(none->body)["claims"].empty());
   EXPECT_EQ(json::parse(none->body)["claims_source"], "none");
   EXPECT_EQ(client_->Get("/api/v1/campaign-runs/999/claims")->status, 404);
+}
+
+// An adaptive campaign run (the daemon's rounds, server/jobs/rounds.h) shows each claim as the
+// look that decided it froze it -- in GET .../claims and in the report -- and the current
+// evaluation only for the claims still open. A frozen verdict that a later evaluation reads
+// otherwise keeps the frozen one, without the later look's numbers.
+TEST_F(ReportTest, AnAdaptiveRunShowsEachClaimAsItsDecidingLookFrozeIt) {
+  StoredCampaign campaign;
+  campaign.name = "tiny-rounds";
+  json definition = json::parse(kCampaign);
+  definition["name"] = "tiny-rounds";
+  definition.erase("drift_tolerance_mps");
+  definition["claims"] = json::parse(R"([
+    {"id": "F1", "title": "Omega < 0 rises, Omega > 0 sinks", "source": "Sec. 3.2", "paper": {"text": "signs"},
+     "rule": {"kind": "sign", "sweeps": ["baseline", "omega"], "expect": "against_Omega"}},
+    {"id": "F2", "title": "saturates", "source": "Fig. 6", "paper": {"text": "eq. 8 fits well"},
+     "rule": {"kind": "saturation", "sweep": "omega", "reached_fraction": 0.5, "min_points": 4}}])");
+  definition["adaptive"] = {{"budget_core_h", 1000}, {"max_rounds", 3}};
+  campaign.definition = definition;
+  ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
+  SubmitRequest request;
+  request.campaign = "tiny-rounds";
+  auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
+  ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+  const int64_t id = *submitted->campaign_run_id;
+  RunAll();
+  // The daemon's look after round 1: F1 is decided and frozen there, F2 (growth shown, its
+  // flattening not: "needs 5") stays open.
+  RoundDriverOptions options;
+  options.engine_version = kReportEngine;
+  RoundDriver driver(store_.get(), &LookAtClaims, options);
+  auto step = driver.Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  auto frozen = rounds::FrozenVerdicts(*store_, id);
+  ASSERT_TRUE(frozen.ok());
+  ASSERT_EQ(frozen->count("F1"), 1u);
+  ASSERT_EQ(frozen->count("F2"), 0u) << (*step)->text;
+  EXPECT_EQ(frozen->at("F1").round, 1);
+
+  StartServer();
+  const std::string path = "/api/v1/campaign-runs/" + std::to_string(id) + "/claims";
+  auto r = client_->Get(path.c_str());
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  json reply = json::parse(r->body);
+  EXPECT_EQ(reply["adaptive"], true);
+  ASSERT_EQ(reply["claims"].size(), 2u);
+  const json& f1 = reply["claims"][0];
+  EXPECT_EQ(f1["verdict"], "holds") << f1.dump();
+  EXPECT_EQ(f1["frozen_at_round"], 1);
+  EXPECT_TRUE(f1["frozen_at"].is_number());
+  EXPECT_EQ(f1["verdict_text"], "holds at smoke (frozen at round 1)");
+  // Agreeing with the look that froze it: the numbers behind it stay, the reason says since when.
+  EXPECT_FALSE(f1["parts"].empty());
+  EXPECT_THAT(f1["reason"].get<std::string>(), HasSubstr("since the look after round 1"));
+  const json& f2 = reply["claims"][1];
+  EXPECT_EQ(f2["verdict"], "inconclusive");
+  EXPECT_TRUE(f2["frozen_at_round"].is_null());
+  EXPECT_EQ(f2["verdict_text"], "inconclusive at smoke");
+  EXPECT_THAT(f2["reason"].get<std::string>(), HasSubstr("needs 5"));  // the current evaluation
+
+  // F2 frozen as differing at round 1, as the driver stores a frozen verdict, while every
+  // evaluation now reads it inconclusive: the frozen verdict is shown, the later numbers are not.
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) {
+                    return rounds::FreezeVerdicts(t, id, 1, clock_.Now(), {{"F2", Verdict::kDiffers}});
+                  })
+                  .ok());
+  reply = json::parse(client_->Get(path.c_str())->body);
+  const json& f2_frozen = reply["claims"][1];
+  EXPECT_EQ(f2_frozen["verdict"], "differs") << f2_frozen.dump();
+  EXPECT_EQ(f2_frozen["verdict_text"], "differs at smoke (frozen at round 1)");
+  EXPECT_THAT(f2_frozen["reason"].get<std::string>(), HasSubstr("decided (differs) at the look after round 1"));
+  EXPECT_THAT(f2_frozen["reason"].get<std::string>(), ::testing::Not(HasSubstr("needs 5")));
+  EXPECT_TRUE(f2_frozen["parts"].empty());
+  EXPECT_TRUE(f2_frozen.contains("rates"));  // the rule's rates at this design stay
+  EXPECT_EQ(reply["counts"]["holds"], 1);
+  EXPECT_EQ(reply["counts"]["differs"], 1);
+  EXPECT_EQ(reply["counts"]["inconclusive"], 0);
+
+  // The report says the same.
+  FigureCache figures(dir_ + "/data/figures");
+  auto html = CampaignReport(*store_, figures, id, clock_.Now());
+  ASSERT_TRUE(html.ok()) << html.status().ToString();
+  const size_t f1_row = html->find("id=\"claim-F1\""), f2_row = html->find("id=\"claim-F2\"");
+  ASSERT_NE(f1_row, std::string::npos);
+  ASSERT_NE(f2_row, std::string::npos);
+  const std::string f1_html = html->substr(f1_row, f2_row - f1_row);
+  const std::string f2_html = html->substr(f2_row, html->find("</tr>", f2_row) - f2_row);
+  const std::string frozen_1 = " at smoke <small class=\"frozen\">(frozen at round 1)";
+  EXPECT_THAT(f1_html, HasSubstr("<span class=\"holds\">holds</span>" + frozen_1));
+  EXPECT_THAT(f2_html, HasSubstr("<span class=\"differs\">differs</span>" + frozen_1));
+  EXPECT_THAT(f2_html, ::testing::Not(HasSubstr("needs 5")));
+  EXPECT_THAT(*html, HasSubstr("This campaign ran in rounds"));
+  // Its rounds follow the claims, one row a round as GET /api/v1/campaign-runs/{id} has them.
+  const std::string run_path = "/api/v1/campaign-runs/" + std::to_string(id);
+  const json rounds = json::parse(client_->Get(run_path.c_str())->body)["rounds"];
+  ASSERT_GE(rounds.size(), 1u);
+  const size_t section = html->find("<h2 id=\"rounds\">");
+  ASSERT_NE(section, std::string::npos);
+  EXPECT_LT(f2_row, section);
+  EXPECT_LT(section, html->find("<nav>"));
+  EXPECT_THAT(*html, HasSubstr("<a href=\"#rounds\">Rounds</a>"));
+  for (const json& r : rounds) {
+    const std::string id_attr = "<tr id=\"round-" + std::to_string(r["round"].get<int>()) + "\">";
+    const size_t at = html->find(id_attr);
+    ASSERT_NE(at, std::string::npos) << id_attr;
+    const std::string row = html->substr(at, html->find("</tr>", at) - at);
+    EXPECT_THAT(row, HasSubstr(Num(r["core_h_planned"].get<double>(), 3)));
+    EXPECT_EQ(row.find("<li>") == std::string::npos, r["actions"].empty()) << row;
+  }
+  const std::string first = html->substr(html->find("<tr id=\"round-1\">"));
+  EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("every declared point once"));
+  // After round 1's look (stored then: the later freezing of F2 is not in it), F1 frozen there.
+  EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("F1 holds (frozen at round 1)"));
+  EXPECT_THAT(first.substr(0, first.find("</tr>")), HasSubstr("F2 inconclusive"));
+  if (rounds.back()["stop_reason"].is_string()) {
+    EXPECT_THAT(*html, HasSubstr("<p id=\"rounds-stop\"><b>Stopped after round"));
+  } else {
+    EXPECT_THAT(*html, HasSubstr("runs; the daemon looks at the claims once its runs are done"));
+  }
+
+  // A fixed-design run is unchanged: its current verdicts, no frozen fields.
+  auto fixed = client_->Get(("/api/v1/campaign-runs/" + std::to_string(campaign_run_) + "/claims").c_str());
+  ASSERT_EQ(fixed->status, 200);
+  EXPECT_EQ(json::parse(fixed->body)["adaptive"], false);
+  auto fixed_html = CampaignReport(*store_, figures, campaign_run_, clock_.Now());
+  ASSERT_TRUE(fixed_html.ok());
+  EXPECT_EQ(fixed_html->find("id=\"rounds\""), std::string::npos);
 }
 
 // paper-58 recorded in the store before its file stated claims: the built-in file's claims, said so.

@@ -496,6 +496,39 @@ async function rerunCampaign(name) {
   } catch (e) { say(refusal(e)); }
 }
 
+// The rounds of an adaptive campaign run (server/jobs/rounds.h; `adaptive` and `rounds` of GET
+// /api/v1/campaign-runs/{id}), as `sandswim status cr:ID` prints them: one row a round -- its
+// state, what it added and why, core-h planned and spent, the budget left after it, each claim's
+// state after its look (a decided one frozen at the round whose look decided it) -- and why the
+// rounds stopped. Every server string is escaped.
+function roundsHtml(adaptive, rounds) {
+  const h = v => (typeof v === 'number' ? esc(num(v)) : '–');
+  const a = adaptive || {};
+  let html = `<p>Budget ${h(a.budget_core_h)} core-h, at most ${esc(a.max_rounds ?? 4)} rounds. Core-hours at the cost model's ` +
+    `rates: planned prices each run at its maximum length, spent counts the simulated time done runs took.</p>`;
+  if (!rounds || !rounds.length) {
+    return html + '<p class="muted" id="rounds-stop">Round 1 (what was submitted) is recorded at the daemon\'s next scheduler tick.</p>';
+  }
+  const after = r => Array.isArray(r.claims_after)
+    ? r.claims_after.map(c => `<span class="state verdict-${esc(c.verdict)}" data-claim="${esc(c.claim)}">${esc(c.claim)} ${esc(c.verdict)}` +
+      `${c.frozen_at_round !== undefined && c.frozen_at_round !== null ? ` (frozen at round ${esc(c.frozen_at_round)})` : ''}</span>`).join(' ')
+    : '<span class="muted">after its runs are done</span>';
+  html += '<table id="rounds-table"><thead><tr><th>round</th><th>state</th><th>what it added, and why</th><th>core-h planned</th>' +
+    '<th>core-h spent</th><th>budget left</th><th>the claims after it</th></tr></thead><tbody>' +
+    rounds.map(r => {
+      const state = r.stop_reason ? 'stopped' : typeof r.finished_at === 'number' ? 'finished' : 'running';
+      const added = (r.actions || []).map(x => `<li>${esc(x.reason)}</li>`).join('');
+      return `<tr data-round="${esc(r.round)}"><td class="num">${esc(r.round)}</td><td>${stateBadge(state)}</td>` +
+        `<td class="wrap">${added ? `<ul class="reasons">${added}</ul>` : '<span class="muted">nothing</span>'}</td>` +
+        `<td class="num">${h(r.core_h_planned)}</td><td class="num">${h(r.core_h_spent)}</td><td class="num">${h(r.budget_left_core_h)}</td>` +
+        `<td class="wrap">${after(r)}</td></tr>`;
+    }).join('') + '</tbody></table>';
+  const last = rounds[rounds.length - 1];
+  return html + (typeof last.stop_reason === 'string'
+    ? `<p id="rounds-stop"><b>Stopped after round ${esc(last.round)}:</b> ${esc(last.stop_reason)}</p>`
+    : `<p id="rounds-stop" class="muted">Round ${esc(last.round)} runs; the daemon looks at the claims once its runs are done.</p>`);
+}
+
 async function campaignRunPage(id) {
   document.title = `campaign run ${id} · sandswim`;
   const generation = nav.generation;
@@ -508,17 +541,35 @@ async function campaignRunPage(id) {
       ${info.last_drift && info.last_drift.summary ? `<dt>drift</dt><dd class="wrap" id="drift">${esc(info.last_drift.summary)}</dd>` : ''}
       <dt>report</dt><dd><a href="${esc(authed(`/api/v1/campaign-runs/${id}/report`))}">the HTML report</a> · <a href="${esc(authed(`/api/v1/campaign-runs/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
     <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
+    ${info.adaptive ? `<section class="card"><h2>Rounds</h2><div id="rounds">${roundsHtml(info.adaptive, info.rounds)}</div></section>` : ''}
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
     <section class="card"><h2>U_z against the swept parameter</h2><div id="uz-plots" class="grid2"></div>
       <h2>Figures</h2><div id="figures" class="grid2"></div></section>`;
   const table = dataTable($('#runs'), resultColumns(true, results), results.results || [], { filterPlaceholder: 'filter runs (e.g. "Omega done", "inconclusive")', rowId: r => r.run_id });
   performance.mark('runs-table');  // the page's first render with its runs (tests/bench/bench_dashboard.cc)
   followRows(table);
+  // An adaptive run's rounds as the live feed counts them: when the daemon has planned a round or
+  // taken a look, the page reads them (and the claims, which a look may have frozen) again.
+  const roundsKey = r => `${r.rounds} rounds, ${r.looks} looks${r.stopped ? ', stopped' : ''}`;
+  const list = info.rounds || [];
+  let roundsSeen = roundsKey({ rounds: list.length, looks: list.filter(r => typeof r.finished_at === 'number').length,
+    stopped: list.some(r => typeof r.stop_reason === 'string') });
   onLive(snap => {
     const mine = (snap.campaign_runs || []).find(c => c.id === id);
     if (mine) $('#progress').innerHTML = progressHtml(mine.counts, mine.eta);
+    if (!info.adaptive || !mine || !mine.rounds || roundsKey(mine.rounds) === roundsSeen) return;
+    roundsSeen = roundsKey(mine.rounds);
+    // A look also changes its runs: a new round's join the table, a longer run takes its point's place.
+    Promise.all([get(`/api/v1/campaign-runs/${id}`), getResults(`/api/v1/campaign-runs/${id}/results`)]).then(([now, rows]) => {
+      if (!current(generation)) return;
+      $('#rounds').innerHTML = roundsHtml(now.adaptive, now.rounds);
+      table.setRows(rows.results || []);
+      showClaims();
+    }).catch(e => { if (current(generation)) $('#rounds-stop').textContent = `The rounds could not be read again: ${e.message}`; });
   });
-  get(`/api/v1/campaign-runs/${id}/claims`).then(c => {
+  // The claims' verdicts: drawn again after each look of an adaptive run's rounds.
+  const showClaims = () => get(`/api/v1/campaign-runs/${id}/claims`).then(c => {
+    if (!current(generation)) return;
     $('#claims').classList.remove('muted');
     const n = c.counts || {};
     // A verdict's error rates at this design (core/claim_rates.h), or "not calibrated at this design".
@@ -529,7 +580,8 @@ async function campaignRunPage(id) {
       `${c.design_text ? ` Error rates at this design: ${esc(c.design_text)}, measured on the truth engine.` : ''}</p><table id="claims-table"><thead><tr><th>claim</th><th>verdict</th><th>error rates at this design</th><th>why</th></tr></thead><tbody>` +
       (c.claims || []).map(v => `<tr><td title="${esc(v.paper && v.paper.text)}"><b>${esc(v.id)}</b> ${esc(v.title)}</td>` +
         `<td><span class="state verdict-${esc(v.verdict)}">${esc(v.verdict_text || v.verdict)}</span></td><td class="wrap">${rates(v.rates)}</td><td class="wrap">${esc(v.reason)}${parts(v)}</td></tr>`).join('') + '</tbody></table>';
-  }).catch(e => { $('#claims').textContent = `No verdicts: ${e.message}`; });
+  }).catch(e => { if (current(generation)) $('#claims').textContent = `No verdicts: ${e.message}`; });
+  showClaims();
   const plots = $('#uz-plots'), figures = $('#figures');
   for (const sid of info.sweeps) {
     const sweep = await get(`/api/v1/sweeps/${sid}`);

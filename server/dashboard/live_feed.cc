@@ -10,6 +10,7 @@
 
 #include "core/api.h"
 #include "server/store/cost_model.h"
+#include "server/store/rounds.h"
 
 namespace sandswim {
 
@@ -48,6 +49,22 @@ json LiveFeed::EtaOf(EtaScope scope, int64_t id) {
   return j;
 }
 
+// How far an adaptive campaign run's rounds are: rounds planned, looks taken, whether they stopped.
+json LiveFeed::RoundsOf(int64_t campaign_run_id) {
+  Result<std::vector<rounds::RoundRow>> rows = rounds::ListRounds(*store_, campaign_run_id);
+  if (!rows.ok()) {
+    spdlog::warn("live feed: no rounds of campaign run {} ({})", campaign_run_id, rows.status().ToString());
+    return nullptr;
+  }
+  int looks = 0;
+  bool stopped = false;
+  for (const rounds::RoundRow& r : *rows) {
+    looks += r.finished_at.has_value();
+    stopped = stopped || r.stop_reason.has_value();
+  }
+  return {{"rounds", rows->size()}, {"looks", looks}, {"stopped", stopped}};
+}
+
 std::string LiveFeed::BuildContentOrThrow() {
   Result<LiveBoard> board = store_->ReadLiveBoard(sweeps_, campaign_runs_, 1000);
   if (!board.ok()) {
@@ -69,6 +86,7 @@ std::string LiveFeed::BuildContentOrThrow() {
       j["started_at"] = it->second;
     }
     if (c.counts.queued + c.counts.running > 0) j["eta"] = EtaOf(EtaScope::kCampaignRun, c.id);
+    if (rounds::RunsInRounds(c)) j["rounds"] = RoundsOf(c.id);
     campaign_runs.push_back(std::move(j));
   }
   json running = json::array();

@@ -17,7 +17,9 @@
 //
 // Snapshot JSON: {"version", "time" (the daemon's clock, s), "runs": counts,
 //   "sweeps": [{id, name, scale, campaign_run_id?, cancelled, counts, runs, created_at, started_at?}],
-//   "campaign_runs": [{id, campaign, scale, trigger, created_at, sweeps, counts, started_at?}],
+//   "campaign_runs": [{id, campaign, scale, trigger, created_at, sweeps, counts, started_at?,
+//     rounds? (an adaptive one, server/jobs/rounds.h: {"rounds", "looks", "stopped"}, so that its
+//     page asks for its rounds again only when the daemon has planned or looked)}],
 //   "running": [{id, state, point, run_duration_s, progress, worker, attempts, started_at?, trail_points}]}
 //
 // Thread safety: every member is safe from any thread.
@@ -94,6 +96,8 @@ class LiveFeed {
   std::string BuildContent();  // the snapshot without version and time; "" when it cannot
   std::string BuildContentOrThrow();
   nlohmann::json EtaOf(EtaScope scope, int64_t id);  // EtaJson, null when it cannot be read
+  // An adaptive campaign run's {"rounds","looks","stopped"}; null when it cannot be read.
+  nlohmann::json RoundsOf(int64_t campaign_run_id);
 
   Store* store_;
   Clock* clock_;

@@ -9,6 +9,11 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "server/jobs/submission.h"
+#include "server/store/campaigns.h"
+#include "server/store/rounds.h"
 
 namespace sandswim {
 namespace {
@@ -131,6 +136,59 @@ TEST_F(LiveFeedTest, StreamsAreCappedPerClient) {
   EXPECT_TRUE(feed.OpenStream("127.0.0.1"));
   for (const char* client : {"127.0.0.1", "127.0.0.1", "127.0.0.2"}) feed.CloseStream(client);
   EXPECT_EQ(feed.open_streams(), 0);
+}
+
+// An adaptive campaign run carries how far its rounds are -- planned, looked at, stopped -- so that
+// its page reads them again only when the daemon has planned a round or taken a look; a
+// fixed-design campaign run carries nothing of the kind.
+TEST_F(LiveFeedTest, AnAdaptiveCampaignRunSaysHowFarItsRoundsAre) {
+  using nlohmann::json;
+  json definition = json::parse(R"({"description": "signs", "scale": "smoke",
+    "sweeps": [{"name": "signs", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 2},
+                "axes": [{"param": "Omega", "values": [-80, 80]}]}]})");
+  int64_t ids[2] = {0, 0};
+  for (int adaptive = 0; adaptive < 2; ++adaptive) {
+    StoredCampaign c;
+    c.name = adaptive ? "in-rounds" : "fixed";
+    c.definition = definition;
+    c.definition["name"] = c.name;
+    if (adaptive) {
+      c.definition["claims"] = json::parse(R"([{"id": "S1", "title": "signs", "source": "test", "paper": {"text": "t"},
+        "rule": {"kind": "sign", "sweeps": ["signs"], "expect": "against_Omega"}}])");
+      c.definition["adaptive"] = {{"budget_core_h", 1000}, {"max_rounds", 2}};
+    }
+    ASSERT_TRUE(PutCampaign(*store_, c).ok());
+    SubmitRequest request;
+    request.campaign = c.name;
+    auto submitted = Submit(*store_, request, "LIGGGHTS (Version live test)", clock_.Now());
+    ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+    ids[adaptive] = *submitted->campaign_run_id;
+  }
+  LiveFeed feed(store_.get(), &clock_, /*tick_s=*/0.01);
+  auto rounds_of = [&](int64_t id) {
+    clock_.Advance(0.02);
+    const json snap = json::parse(feed.Current()->json);
+    for (const json& c : snap["campaign_runs"])
+      if (c["id"] == id) return c.contains("rounds") ? c["rounds"] : json("absent");
+    return json("not shown");
+  };
+  EXPECT_EQ(rounds_of(ids[0]), "absent");
+  EXPECT_EQ(rounds_of(ids[1]), json({{"rounds", 0}, {"looks", 0}, {"stopped", false}}));
+  rounds::RoundRow first;
+  first.campaign_run_id = ids[1];
+  first.round = 1;
+  first.planned_at = clock_.Now();
+  ASSERT_TRUE(store_->db().Write([&](Transaction& t) { return rounds::InsertRound(t, first); }).ok());
+  const uint64_t before = feed.Current()->version;
+  EXPECT_EQ(rounds_of(ids[1]), json({{"rounds", 1}, {"looks", 0}, {"stopped", false}}));
+  EXPECT_GT(feed.Current()->version, before) << "a page hears of a planned round";
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) {
+                    return rounds::FinishRound(t, ids[1], 1, clock_.Now(), 0.5, json::array(),
+                                               std::string("every claim runs can decide is decided"));
+                  })
+                  .ok());
+  EXPECT_EQ(rounds_of(ids[1]), json({{"rounds", 1}, {"looks", 1}, {"stopped", true}}));
 }
 
 }  // namespace

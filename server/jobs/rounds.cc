@@ -14,24 +14,45 @@ namespace {
 
 using nlohmann::json;
 
-bool Busy(const std::string& state) { return state == "queued" || state == "running"; }
+std::string CoreHText(double h) { return Num(h, 3) + " core-h"; }
 
-// Core-hours the campaign run's runs and beds took as they ran, at the rates in `cost`: each done
-// run's simulated time, each prepared bed. Runs two sweeps share count once.
-double SpentCoreHours(const ClaimInput& input, const AdaptiveCost& cost) {
-  double h = 0;
-  std::set<int64_t> seen;
-  const Point* any = nullptr;
-  for (const ClaimSweep& s : input.sweeps)
-    for (const ClaimRun& r : s.runs) {
-      if (any == nullptr) any = &r.point;
-      if (!seen.insert(r.run_id).second || !r.result) continue;
-      h += cost.RunCoreHours(r.point, r.result->sim_time_s);
-    }
-  if (any != nullptr)
-    for (const ClaimBed& b : input.beds)
-      if (b.state == "done") h += cost.BedCoreHours(*any);
-  return h;
+// What an ended run or bed of the campaign run (created at `created_at`) is charged, at the rates
+// in `cost`: a prepared bed its cost; a done run its simulated time; a failed or cancelled one the
+// simulated time its last heartbeat reached. A run that ended without a heartbeat is charged
+// nothing when it never ran (no lease: cancelled while queued, or its bed failed), and its whole
+// planned length when it ran: the most it can have simulated, so the budget stays a hard limit.
+// (The wall time its lease allowed is no price: it is wall time, not simulated time, and a lease
+// is mostly unused.) A run or bed that had ended before the campaign run was submitted (found
+// stored by its key: a nightly rerun's unchanged runs) cost it nothing and is charged 0.
+rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost, double created_at) {
+  rounds::Charge c;
+  c.kind = j.kind;
+  c.id = j.id;
+  c.ended_at = j.ended_at;
+  c.state = j.state;
+  if (j.ended_at < created_at) {
+    c.priced_by = "stored before";
+    c.core_h = 0;
+    if (j.kind == "run") c.sim_time_s = 0.0;
+    return c;
+  }
+  if (j.kind == "bed") {
+    c.priced_by = "bed";
+    c.core_h = cost.BedCoreHours(j.point);
+    return c;
+  }
+  if (j.sim_time_s) {
+    c.priced_by = j.state == "done" ? "result" : "heartbeat";
+    c.sim_time_s = std::max(0.0, *j.sim_time_s);
+  } else if (j.attempts == 0) {
+    c.priced_by = "never ran";
+    c.sim_time_s = 0.0;
+  } else {
+    c.priced_by = "planned length";
+    c.sim_time_s = j.run_duration_s;
+  }
+  c.core_h = *c.sim_time_s > 0 ? cost.RunCoreHours(j.point, *c.sim_time_s) : 0.0;
+  return c;
 }
 
 // The claims' states after a look: a frozen one as it was decided (and at which round), an open
@@ -128,13 +149,12 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   const AdaptiveSettings& settings = *campaign->adaptive;
   std::vector<SweepSpec> declared = campaign->sweeps;
   for (SweepSpec& s : declared) s.scale = info->scale;
-  Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
-  if (!cost.ok()) return cost.status();
-
   Result<std::vector<rounds::RoundRow>> stored = rounds::ListRounds(*store_, campaign_run_id);
   if (!stored.ok()) return stored.status();
   if (stored->empty()) {
     // Round 1 is what was submitted: its row says so and what it was planned to cost.
+    Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
+    if (!cost.ok()) return cost.status();
     const AdaptiveRound first = FirstRound(AdaptiveSweepsOf(declared), *cost);
     rounds::RoundRow row;
     row.campaign_run_id = campaign_run_id;
@@ -149,16 +169,42 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   const rounds::RoundRow& last = stored->back();
   if (last.stop_reason || last.finished_at) return Out();
 
+  // Cheap checks before anything is analysed. A cancelled sweep stops the rounds at once, busy
+  // runs or not (they may be shared with another campaign run's live sweep and run on); else the
+  // look waits until none of its runs or beds is queued or running.
+  Result<int64_t> cancelled_sweeps = rounds::CancelledSweeps(*store_, campaign_run_id);
+  if (!cancelled_sweeps.ok()) return cancelled_sweeps.status();
+  if (*cancelled_sweeps == 0) {
+    Result<int64_t> busy = rounds::BusyJobs(*store_, campaign_run_id);
+    if (!busy.ok()) return busy.status();
+    if (*busy > 0) return Out();
+  }
+  Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
+  if (!cost.ok()) return cost.status();
+
+  // Longer runs that ended: a failed one gives its point's place back to the earlier run, before
+  // the claims are looked at (stored at once: the look below reads the sweeps as they are now).
+  SANDSWIM_RETURN_IF_ERROR(store_->db().Write(
+      [&](Transaction& t) { return rounds::SettleReplacements(t, campaign_run_id, now).status(); }));
+
   Result<ClaimLook> look = look_(*store_, *info);
   if (!look.ok()) return look.status();
   int cancelled = 0;
   for (const ClaimSweep& s : look->input.sweeps)
-    for (const ClaimRun& r : s.runs) {
-      if (Busy(r.state)) return Out();
-      cancelled += r.state == "cancelled";
-    }
-  for (const ClaimBed& b : look->input.beds)
-    if (Busy(b.state)) return Out();
+    for (const ClaimRun& r : s.runs) cancelled += r.state == "cancelled";
+
+  // The ledger: what ended since the last look is charged once; the budget left is the budget less
+  // every charge so far (a replaced or failed run stays charged).
+  Result<std::vector<rounds::EndedJob>> ended = rounds::UnchargedEndedJobs(*store_, campaign_run_id);
+  if (!ended.ok()) return ended.status();
+  std::vector<rounds::Charge> charges;
+  double charging = 0;
+  for (const rounds::EndedJob& j : *ended) {
+    charges.push_back(Price(j, *cost, info->created_at));
+    charging += charges.back().core_h;
+  }
+  Result<double> charged_before = rounds::ChargedCoreHours(*store_, campaign_run_id);
+  if (!charged_before.ok()) return charged_before.status();
 
   // The look after round `last.round`.
   Result<std::map<std::string, rounds::FrozenVerdict>> frozen_rows = rounds::FrozenVerdicts(*store_, campaign_run_id);
@@ -175,21 +221,31 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   state.sweeps = AdaptiveSweepsOf(declared);
   state.input = look->input;
   state.rounds_done = last.round;
-  state.spent_core_h = SpentCoreHours(look->input, *cost);
-  double spent_before = 0;
-  for (const rounds::RoundRow& r : *stored) spent_before += r.core_h_spent.value_or(0);
-  const double spent_now = std::max(0.0, state.spent_core_h - spent_before);
+  state.spent_core_h = *charged_before + charging;
 
   AdaptiveOptions options = options_.adaptive;
   options.max_rounds = settings.max_rounds;
   AdaptiveRound next;
-  if (cancelled > 0) {
-    next.round = last.round + 1;
+  next.round = last.round + 1;
+  if (*cancelled_sweeps > 0 || cancelled > 0) {
     next.stop = true;
-    next.stop_reason = std::to_string(cancelled) + " of its runs were cancelled: its rounds stop there (submit the "
-                                                    "campaign again to start anew)";
+    next.stop_reason = (*cancelled_sweeps > 0 ? std::to_string(*cancelled_sweeps) + " of its sweeps"
+                                              : std::to_string(cancelled) + " of its runs") +
+                       " were cancelled: its rounds stop there (submit the campaign again to start anew)";
+  } else if (state.spent_core_h >= settings.budget_core_h) {
+    next.stop = true;
+    next.stop_reason = "the budget is spent: its runs and beds were charged " + CoreHText(state.spent_core_h) +
+                       " of the " + CoreHText(settings.budget_core_h) + " budgeted";
   } else {
     next = PlanNextRound(state, settings.budget_core_h, *cost, options);
+    // The planner keeps within what is left; a round that would not is refused here too.
+    if (!next.stop && next.core_h > settings.budget_core_h - state.spent_core_h + 1e-12) {
+      next.stop = true;
+      next.stop_reason = "the budget is spent: round " + std::to_string(next.round) + " would need " +
+                         CoreHText(next.core_h) + " and " + CoreHText(settings.budget_core_h - state.spent_core_h) +
+                         " is left";
+      next.actions.clear();
+    }
   }
   const json after = StatesAfter(look->claims, state.frozen, frozen_round);
   const double left = settings.budget_core_h - state.spent_core_h;
@@ -208,7 +264,21 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   }
 
   Status written = store_->db().Write([&](Transaction& t) -> Status {
-    SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, spent_now, after,
+    // A cancel between the look and this write stops the rounds too: nothing is added to a
+    // cancelled sweep.
+    if (!next.stop) {
+      Result<int64_t> now_cancelled = rounds::CancelledSweeps(t, campaign_run_id);
+      if (!now_cancelled.ok()) return now_cancelled.status();
+      if (*now_cancelled > 0) {
+        next.stop = true;
+        next.stop_reason = std::to_string(*now_cancelled) +
+                           " of its sweeps were cancelled: its rounds stop there (submit the campaign again to "
+                           "start anew)";
+      }
+    }
+    Result<double> spent_now = rounds::AddCharges(t, campaign_run_id, last.round, now, charges);
+    if (!spent_now.ok()) return spent_now.status();
+    SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, *spent_now, after,
                                                  next.stop ? std::optional<std::string>(next.stop_reason) : std::nullopt));
     SANDSWIM_RETURN_IF_ERROR(rounds::FreezeVerdicts(t, campaign_run_id, last.round, now, state.frozen));
     if (next.stop) return Status::Ok();
@@ -231,12 +301,13 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     }
     SubmitResult added;
     for (size_t i = 0; i < plans.size(); ++i) {
-      if (replaced[i]) {
-        Result<int64_t> left_sweeps = rounds::LeaveCampaignRunSweeps(t, campaign_run_id, *replaced[i]);
-        if (!left_sweeps.ok()) return left_sweeps.status();
-      }
       SANDSWIM_RETURN_IF_ERROR(
           AddPlannedRuns(t, plans[i], options_.engine_version, now, ids, next_position, added));
+      if (replaced[i]) {
+        Result<int64_t> n = rounds::ReplaceInCampaignRunSweeps(t, campaign_run_id, next.round, *replaced[i],
+                                                               plans[i].plan.runs.front().key);
+        if (!n.ok()) return n.status();
+      }
     }
     return FinishAddedRuns(t, sweep_ids, options_.max_queued_runs, added);
   });

@@ -7,28 +7,41 @@
 // it at PUT and at submission). On each tick, for every adaptive campaign run that has not
 // stopped (server/store/rounds.h OpenAdaptiveCampaignRuns):
 //   1. round 1's row is stored if it is not yet (what was submitted, and its planned cost);
-//   2. while any run or bed of the campaign run is queued or running, nothing more happens;
-//   3. else the claims are looked at (`look`: server/analysis/claim_check.h LookAtClaims, the data
+//   2. a campaign run with a cancelled sweep stops (cancelling is how its owner stops it; no run of
+//      it need end cancelled). Else, while any run or bed of it is queued or running (one cheap
+//      query, server/store/rounds.h BusyJobs), nothing more happens: nothing is analysed;
+//   3. else the longer runs of the last round that failed (or were cancelled) give their points'
+//      places back to the runs they replaced (server/store/rounds.h SettleReplacements: a failed
+//      longer run never costs a point its earlier measurement), then the claims are looked at (`look`: server/analysis/claim_check.h LookAtClaims, the data
 //      the verdicts shown are decided on), the verdicts each decides are frozen
-//      (FreezeDecisions: never looked at again), what was spent is counted (each done run's
-//      simulated time and each prepared bed at the cost model's rates now; a failed run counts
-//      nothing, its time is not known), and PlanNextRound plans the next round or says why
-//      none follows (every claim decided, max_rounds rounds run, the budget spent, nothing left
-//      that could decide);
-//   4. in ONE transaction: the round's look (finished_at, core-h spent, the claims' states after
-//      it, the stop reason), the verdicts frozen at it, the next round's row and its runs (added
-//      to the campaign run's sweeps: a new bed is the next replicate index, a new point joins its
-//      sweep, a longer run takes its point's place on that bed in the campaign run's sweeps).
+//      (FreezeDecisions: never looked at again), every run and bed that ended since the last look
+//      is charged to the campaign run's ledger (server/store/rounds.h UnchargedEndedJobs, Price
+//      in rounds.cc: a done run its simulated time, a failed or cancelled one the time its last
+//      heartbeat reached, a bed once, at the cost model's rates now), and the budget left is the
+//      budget less the ledger: at 0 the rounds stop, else PlanNextRound plans the next round
+//      within it or says why none follows (every claim decided, max_rounds rounds run, nothing
+//      left that could decide);
+//   4. in ONE transaction: the charges, the round's look (finished_at, core-h charged at it, the
+//      claims' states after it, the stop reason), the verdicts frozen at it, the next round's row
+//      and its runs (added to the campaign run's sweeps: a new bed is the next replicate index, a
+//      new point joins its sweep, a longer run takes its point's place on that bed in the campaign
+//      run's sweeps, recorded as a replacement until it is settled at the next look). A charge is
+//      never deleted: a run that a longer one replaced, and a failed longer run, stay charged.
 // Restart-safe: everything it knows is in the store. A daemon stopped anywhere in a pass either
 // committed the round or did not; the next pass (of this daemon or the next) continues from what
 // is stored. Two passes that plan the same round from the same store cannot both store it (the
 // round's look is taken once: server/store/rounds.h FinishRound), so no round is stored twice.
-// A campaign run some of whose runs were cancelled stops, saying so (cancelling is how its
-// owner stops it).
+// A campaign run some of whose runs or sweeps were cancelled stops, saying so.
 //
-// Left for later: nightly reruns of an adaptive campaign plan from scratch (each campaign run has
-// rounds of its own); a longer run starts from its beginning (continuing from the restart written
-// at the end of the shorter one is not done).
+// A rerun of an adaptive campaign (the nightly scheduler's) has rounds of its own, planned again
+// from round 1; the runs it orders again are found stored by key and charged 0 (they ended before
+// it was submitted), so it replays the earlier rounds at no cost and spends where claims are open.
+//
+// Left for later: a rerun's round 1 does not take in the earlier nights' later rounds directly; a
+// retried run is charged for its last attempt only (an earlier attempt's progress is cleared when
+// it is queued again); the planner may order again a longer run that failed; a longer run starts
+// from its beginning (continuing from the restart written at the end of the shorter one is not
+// done).
 //
 // Thread safety: Tick() from one thread at a time (the scheduler's); the Store is thread-safe.
 #ifndef SANDSWIM_SERVER_JOBS_ROUNDS_H_

@@ -1,13 +1,17 @@
 // The daemon's rounds (server/jobs/rounds.h) over a real SQLite store, the lease queue and the
 // claims' own look (LookAtClaims), with synthetic results: a sign claim that round 1 leaves open
 // gets a round 2 with its reason, stored once however often or by however many daemons the pass
-// runs, and the rounds stop with a reason; a budget below round 1 is refused at PUT and at
-// submission, naming the field and what it needs.
+// runs, and the rounds stop with a reason; cancelled sweeps stop them; what was spent is a ledger
+// (failed and replaced runs stay charged, each ending once) and stops them at the budget; a budget
+// below round 1 is refused at PUT and at submission, naming the field and what it needs.
 #include "server/jobs/rounds.h"
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
+#include <map>
 #include <memory>
+#include <set>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -69,9 +73,10 @@ class RoundsTest : public ::testing::Test {
     queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_);
     driver_ = NewDriver();
   }
-  std::unique_ptr<RoundDriver> NewDriver() {
+  std::unique_ptr<RoundDriver> NewDriver(int max_beds = AdaptiveOptions{}.max_beds) {
     RoundDriverOptions options;
     options.engine_version = kEngine;
+    options.adaptive.max_beds = max_beds;
     return std::make_unique<RoundDriver>(store_.get(), &LookAtClaims, options);
   }
   // Works off the queue: beds, then runs; U_z by the run's Omega, with the standard error
@@ -97,6 +102,20 @@ class RoundsTest : public ::testing::Test {
       } else {
         auto run = store_->GetRun(grant.id);
         EXPECT_TRUE(run.ok());
+        if (fails_ && fails_(run->summary.point)) {
+          // A failure for good (lost atoms are never retried), after a heartbeat when one is set.
+          if (fail_heartbeat_s_ >= 0) {
+            api::Heartbeat beat;
+            beat.sim_time_s = fail_heartbeat_s_;
+            EXPECT_TRUE(queue_->Heartbeat(grant.token, beat).ok());
+          }
+          c.ok = false;
+          c.failure = api::Failure{"lost_atoms", "atoms were lost (test)"};
+          clock_.Advance(1);
+          auto reply = queue_->Complete(grant.token, c);
+          EXPECT_TRUE(reply.ok()) << reply.status().ToString();
+          continue;
+        }
         const bool rises = run->summary.point.Omega < 0;
         api::RunResult r;
         r.uz = rises ? 0.004 : -0.01;
@@ -131,8 +150,16 @@ class RoundsTest : public ::testing::Test {
     return sub.ok() ? sub->campaign_run_id.value_or(0) : 0;
   }
 
+  double Charged(int64_t id) {
+    auto h = rounds::ChargedCoreHours(*store_, id);
+    EXPECT_TRUE(h.ok()) << h.status().ToString();
+    return h.ok() ? *h : -1;
+  }
+
   fs::path dir_;
   FakeClock clock_;
+  std::function<bool(const Point&)> fails_;  // runs at these points fail for good
+  double fail_heartbeat_s_ = -1;             // after a heartbeat at this simulated time (< 0: none)
   std::unique_ptr<Store> store_;
   std::unique_ptr<LeaseQueue> queue_;
   std::unique_ptr<RoundDriver> driver_;
@@ -215,6 +242,322 @@ TEST_F(RoundsTest, ARoundIsPlannedOnceWithItsReasonAndSurvivesARestart) {
   auto open = rounds::OpenAdaptiveCampaignRuns(*store_);
   ASSERT_TRUE(open.ok());
   EXPECT_TRUE(open->empty());
+}
+
+// Cancelling the campaign run's sweeps stops its rounds even when none of its runs ends cancelled
+// (here every run had finished): no next round is planned into a cancelled sweep.
+TEST_F(RoundsTest, CancelledSweepsStopTheRoundsThoughNoRunWasCancelled) {
+  auto saved = SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now());
+  ASSERT_TRUE(saved.ok()) << saved.status().ToString();
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);  // round 1 leaves S1 open: round 2 would be planned
+  auto info = store_->GetCampaignRun(id);
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  ASSERT_FALSE(info->sweep_ids.empty());
+  for (int64_t sweep : info->sweep_ids) {
+    auto cancelled = queue_->Cancel(sweep);
+    ASSERT_TRUE(cancelled.ok()) << cancelled.status().ToString();
+    EXPECT_EQ(cancelled->cancelled, 0);  // every run had finished: none ends cancelled
+  }
+  const int64_t runs_before = *store_->db().CountRows("runs");
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_TRUE((*step)->stopped) << (*step)->text;
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 1u);
+  ASSERT_TRUE(rows[0].stop_reason.has_value());
+  EXPECT_THAT(*rows[0].stop_reason, HasSubstr("sweeps were cancelled"));
+  EXPECT_EQ(*store_->db().CountRows("runs"), runs_before);
+}
+
+// What a campaign run spent is a ledger: a done run is charged its simulated time, a failed one the
+// time its last heartbeat reached, a bed once; a look taken twice charges nothing more. (A run a
+// longer one replaced stays charged: ADoneLongerRunStandsAndTheRunItReplacedStaysCharged.)
+TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) {
+  const double budget = 50;
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(budget), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  fails_ = [](const Point& p) { return p.Omega > 0; };
+  fail_heartbeat_s_ = 0.4;
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 1);
+  auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  const ClaimRun* done = nullptr;
+  const ClaimRun* failed = nullptr;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) (r.state == "done" ? done : failed) = &r;
+  ASSERT_NE(done, nullptr);
+  ASSERT_NE(failed, nullptr);
+  ASSERT_EQ(failed->state, "failed");
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  const double expected = cost->RunCoreHours(done->point, 1) + cost->RunCoreHours(failed->point, 0.4) +
+                          cost->BedCoreHours(done->point);
+  ASSERT_GT(cost->RunCoreHours(failed->point, 0.4), 0);
+
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_TRUE(rows[0].core_h_spent.has_value());
+  EXPECT_NEAR(*rows[0].core_h_spent, expected, 1e-9 * expected);
+  EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
+  // The next round, if any, was planned within what the ledger left.
+  if (rows.size() > 1) EXPECT_LE(rows[1].core_h_planned, budget - Charged(id) + 1e-12);
+
+  // The same look again, from a second daemon, and the same endings charged again: nothing more.
+  EXPECT_FALSE(NewDriver()->Step(id, clock_.Now())->has_value());
+  auto ended = rounds::UnchargedEndedJobs(*store_, id);
+  ASSERT_TRUE(ended.ok());
+  EXPECT_TRUE(ended->empty());
+  std::vector<rounds::Charge> again{{"run", done->run_id, 0, "done", 1.0, "result", 1.0}};
+  Status added = store_->db().Write([&](Transaction& t) -> Status {
+    Statement st = t.Prepare("SELECT finished_at FROM runs WHERE id = ?");
+    st.Bind(1, done->run_id);
+    Result<bool> row = st.Step();
+    if (!row.ok()) return row.status();
+    again[0].ended_at = st.Double(0);
+    Result<double> h = rounds::AddCharges(t, id, 1, clock_.Now(), again);
+    if (!h.ok()) return h.status();
+    EXPECT_EQ(*h, 0.0);
+    return Status::Ok();
+  });
+  ASSERT_TRUE(added.ok()) << added.ToString();
+  EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
+
+}
+
+// The ledger, not the planner's hopes, decides when the budget is spent: with its charges at the
+// budget, the rounds stop, saying so, and nothing is added.
+TEST_F(RoundsTest, TheRoundsStopWhenTheLedgerReachesTheBudget) {
+  const double budget = 50;
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(budget), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);  // round 1 leaves S1 open: round 2 would be planned
+  // An ending charged at an earlier look (say, at rates since revised) has used up the budget.
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) -> Status {
+                    return rounds::AddCharges(t, id, 1, clock_.Now(),
+                                              {{"bed", 1000000, 1, "done", std::nullopt, "bed", budget}})
+                        .status();
+                  })
+                  .ok());
+  const int64_t runs_before = *store_->db().CountRows("runs");
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_TRUE((*step)->stopped) << (*step)->text;
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 1u);
+  ASSERT_TRUE(rows[0].stop_reason.has_value());
+  EXPECT_THAT(*rows[0].stop_reason, HasSubstr("the budget is spent"));
+  EXPECT_EQ(*store_->db().CountRows("runs"), runs_before);
+  EXPECT_GT(Charged(id), budget);  // round 1's runs and bed were charged on top
+}
+
+// One bed a point at most: round 2 lengthens the unclear run, which takes its point's place on that
+// bed. When the longer run fails for good, the point's earlier run goes back to its place (its
+// measurement stands) and the failed one leaves the sweep; both stay charged. (Two rounds at most,
+// so that the look after round 2 plans nothing more.)
+TEST_F(RoundsTest, AFailedLongerRunGivesThePointsPlaceBackToItsEarlierRun) {
+  driver_ = NewDriver(/*max_beds=*/1);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50, /*max_rounds=*/2), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto runs_of = [&]() {
+    std::map<int64_t, std::string> out;
+    auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+    EXPECT_TRUE(look.ok());
+    if (look.ok())
+      for (const ClaimRun& r : look->input.sweeps.at(0).runs) out[r.run_id] = r.state;
+    return out;
+  };
+  const std::map<int64_t, std::string> first = runs_of();
+  ASSERT_EQ(first.size(), 2u);
+
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  ASSERT_FALSE((*step)->stopped) << (*step)->text;
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 2u);
+  ASSERT_EQ(rows[1].actions.at(0)["kind"], "longer") << rows[1].actions.dump();
+  const size_t lengthened = rows[1].actions[0]["runs"].size();
+  ASSERT_GE(lengthened, 1u);
+  // The longer runs took their points' places: the sweep holds them and the runs they replaced left it.
+  std::map<int64_t, std::string> during = runs_of();
+  EXPECT_EQ(during.size(), 2u);
+  int replaced = 0;
+  for (const auto& [run, state] : first) replaced += during.count(run) == 0;
+  EXPECT_EQ(replaced, static_cast<int>(lengthened));
+  const double charged_before = Charged(id);
+
+  // Every longer run fails for good, after a heartbeat at 0.5 s.
+  fails_ = [](const Point&) { return true; };
+  fail_heartbeat_s_ = 0.5;
+  EXPECT_EQ(CompleteAll(3e-4), 0);
+  step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_TRUE((*step)->stopped) << (*step)->text;
+  // The point's earlier runs are back, done: the sweep is round 1's again.
+  EXPECT_EQ(runs_of(), first);
+  // Both stay charged: the failed longer runs at the time they reached, on top of round 1's.
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  double longer = 0;
+  for (const auto& [run, state] : during) {
+    if (first.count(run)) continue;
+    auto r = store_->GetRun(run);
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->summary.state, "failed");
+    longer += cost->RunCoreHours(r->summary.point, 0.5);
+  }
+  ASSERT_GT(longer, 0);
+  EXPECT_NEAR(Charged(id), charged_before + longer, 1e-9 * Charged(id));
+  EXPECT_NEAR(*Rounds(id)[1].core_h_spent, longer, 1e-9 * longer);
+  // Settled once: a second pass puts nothing back again.
+  auto again = store_->db().WriteResult<int64_t>(
+      [&](Transaction& t) { return rounds::SettleReplacements(t, id, clock_.Now()); });
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(*again, 0);
+}
+
+// The same, when the longer run is done: it stands in its point's place, and the run it replaced
+// stays out of the sweep and in the ledger.
+TEST_F(RoundsTest, ADoneLongerRunStandsAndTheRunItReplacedStaysCharged) {
+  driver_ = NewDriver(/*max_beds=*/1);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50, /*max_rounds=*/2), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  std::set<int64_t> first;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) first.insert(r.run_id);
+  auto step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_EQ(Rounds(id).size(), 2u);
+  ASSERT_EQ(Rounds(id)[1].actions.at(0)["kind"], "longer");
+  const double charged_before = Charged(id);
+  look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  std::set<int64_t> during;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) during.insert(r.run_id);
+
+  const int done = CompleteAll(/*rise_se=*/3e-4);
+  EXPECT_GE(done, 1);
+  step = driver_->Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  std::set<int64_t> after;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) {
+    after.insert(r.run_id);
+    EXPECT_EQ(r.state, "done");
+  }
+  EXPECT_EQ(after, during);
+  EXPECT_NE(after, first);
+  // Round 1's charges stand; the longer runs were charged their simulated time (1 s each here).
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  double longer = 0;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs)
+    if (!first.count(r.run_id)) longer += cost->RunCoreHours(r.point, 1);
+  EXPECT_GT(longer, 0);
+  EXPECT_NEAR(Charged(id), charged_before + longer, 1e-9 * Charged(id));
+}
+
+// A busy campaign run is not analysed: while any of its runs or beds is queued or running, a pass
+// asks one cheap query and does not look at the claims (it used to analyse the whole campaign on
+// every scheduler tick).
+TEST_F(RoundsTest, ABusyCampaignRunIsNotAnalysed) {
+  int looks = 0;
+  RoundDriverOptions options;
+  options.engine_version = kEngine;
+  RoundDriver counting(
+      store_.get(),
+      [&looks](Store& store, const CampaignRunInfo& info) {
+        ++looks;
+        return LookAtClaims(store, info);
+      },
+      options);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  for (int i = 0; i < 3; ++i) {
+    auto pass = counting.Tick(clock_.Now());
+    ASSERT_TRUE(pass.ok());
+    EXPECT_TRUE(pass->steps.empty());
+  }
+  EXPECT_EQ(looks, 0);  // its bed and runs are queued
+  // The bed is leased (running), then prepared; its runs are still queued.
+  auto bed = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(bed.ok() && bed->has_value());
+  ASSERT_EQ((*bed)->kind, api::JobKind::kBed);
+  ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
+  EXPECT_EQ(looks, 0);
+  const std::string bytes = "restart " + (*bed)->key;
+  ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  api::Completion c;
+  c.ok = true;
+  c.execution.host = "host";
+  c.execution.engine_version = kEngine;
+  c.bed_result = api::BedResult{};
+  c.bed_result->grains = 3700;
+  c.bed_result->bed_height = 0.22;
+  c.bed_result->sha256 = Sha256Hex(bytes);
+  ASSERT_TRUE(queue_->Complete((*bed)->token, c).ok());
+  ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
+  EXPECT_EQ(looks, 0);
+  // Once every run has ended: one look, which plans round 2; then none while round 2 runs.
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto pass = counting.Tick(clock_.Now());
+  ASSERT_TRUE(pass.ok());
+  EXPECT_EQ(pass->steps.size(), 1u);
+  EXPECT_EQ(looks, 1);
+  ASSERT_EQ(Rounds(id).size(), 2u);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
+  EXPECT_EQ(looks, 1);
+}
+
+// A rerun of an adaptive campaign (the nightly scheduler submits it again, as here) starts from
+// what is stored: its round 1 and the rounds the stored results lead it to again find their runs
+// stored by key, cost it nothing (the ledger charges what ended before it was submitted at 0), and
+// it decides as the first did without a new run; its budget stays for what is still open.
+TEST_F(RoundsTest, ARerunReplaysItsStoredRoundsFreeOfCharge) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t first = Submit("mine");
+  ASSERT_TRUE(driver_->Step(first, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  for (int i = 0; i < 4 && !Rounds(first).back().stop_reason; ++i) {
+    ASSERT_TRUE(driver_->Tick(clock_.Now()).ok());
+    CompleteAll(3e-4);
+  }
+  ASSERT_TRUE(Rounds(first).back().stop_reason.has_value());
+  ASSERT_GE(Rounds(first).size(), 2u);
+  EXPECT_GT(Charged(first), 0);
+  const int64_t runs = *store_->db().CountRows("runs");
+
+  clock_.Advance(86400);
+  const int64_t rerun = Submit("mine");
+  ASSERT_NE(rerun, first);
+  for (int i = 0; i < 4 && (Rounds(rerun).empty() || !Rounds(rerun).back().stop_reason); ++i) {
+    auto pass = driver_->Tick(clock_.Now());
+    ASSERT_TRUE(pass.ok());
+    for (const auto& [cr, why] : pass->errors) ADD_FAILURE() << cr << ": " << why.ToString();
+    EXPECT_EQ(CompleteAll(3e-4), 0);  // nothing to run: every run it orders is stored
+  }
+  std::vector<rounds::RoundRow> rows = Rounds(rerun);
+  ASSERT_TRUE(rows.back().stop_reason.has_value());
+  EXPECT_THAT(*rows.back().stop_reason, HasSubstr("decided"));
+  EXPECT_EQ(rows.size(), Rounds(first).size());
+  EXPECT_EQ(*store_->db().CountRows("runs"), runs);
+  EXPECT_EQ(Charged(rerun), 0.0);
+  for (const rounds::RoundRow& r : rows) EXPECT_EQ(r.core_h_spent.value_or(-1), 0.0);
 }
 
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {

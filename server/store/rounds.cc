@@ -4,6 +4,7 @@
 
 #include "core/scale.h"
 #include "server/store/cost_model.h"
+#include "server/store/submission_table.h"
 
 namespace sandswim::rounds {
 namespace {
@@ -206,6 +207,122 @@ Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double
   return Status::Ok();
 }
 
+namespace {
+
+// The campaign run's runs, as ?1 names it: members of its sweeps, and both runs of each
+// replacement there (a replaced run, or a failed longer one, leaves its sweeps, not its ledger).
+constexpr char kMyRuns[] =
+    "WITH mine(run_id) AS (SELECT sr.run_id FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+    "WHERE s.campaign_run_id = ?1 UNION SELECT old_run_id FROM campaign_run_replacements WHERE campaign_run_id = ?1 "
+    "UNION SELECT new_run_id FROM campaign_run_replacements WHERE campaign_run_id = ?1) ";
+
+}  // namespace
+
+Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaign_run_id) {
+  std::vector<EndedJob> out;
+  Statement runs = t.Prepare(
+      std::string(kMyRuns) +
+      "SELECT r.id, r.state, COALESCE(r.finished_at, 0), r.attempts, "
+      "CASE WHEN r.state = 'done' THEN COALESCE(res.sim_time_s, r.sim_time_s) ELSE r.sim_time_s END, "
+      "r.run_duration_s, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, r.materials "
+      "FROM runs r JOIN mine m ON m.run_id = r.id LEFT JOIN results res ON res.run_id = r.id "
+      "WHERE r.state IN ('done', 'failed', 'cancelled') AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c "
+      "WHERE c.campaign_run_id = ?1 AND c.kind = 'run' AND c.job_id = r.id AND c.ended_at = COALESCE(r.finished_at, 0)) "
+      "ORDER BY r.id");
+  runs.Bind(1, campaign_run_id);
+  for (;;) {
+    Result<bool> row = runs.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    EndedJob j;
+    j.kind = "run";
+    j.id = runs.Int(0);
+    j.state = runs.Text(1);
+    j.ended_at = runs.Double(2);
+    j.attempts = static_cast<int>(runs.Int(3));
+    j.sim_time_s = runs.OptDouble(4);
+    j.run_duration_s = runs.Double(5);
+    Result<Point> p = StoredPoint(runs.Text(6), runs.Text(7), runs.Double(8), runs.Double(9), runs.Double(10),
+                                  runs.Double(11), runs.Double(12), runs.OptText(13));
+    if (!p.ok()) return Status(p.status().code(), "run " + std::to_string(j.id) + ": " + p.status().reason());
+    j.point = *p;
+    out.push_back(std::move(j));
+  }
+  // A prepared bed, priced by the materials of one of its runs here (its grains follow them).
+  Statement beds = t.Prepare(
+      std::string(kMyRuns) +
+      "SELECT b.id, COALESCE(b.finished_at, 0), r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, "
+      "r.materials FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
+      "WHERE r2.bed_id = b.id) WHERE b.state = 'done' AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c "
+      "WHERE c.campaign_run_id = ?1 AND c.kind = 'bed' AND c.job_id = b.id) ORDER BY b.id");
+  beds.Bind(1, campaign_run_id);
+  for (;;) {
+    Result<bool> row = beds.Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    EndedJob j;
+    j.kind = "bed";
+    j.id = beds.Int(0);
+    j.state = "done";
+    j.ended_at = beds.Double(1);
+    Result<Point> p = StoredPoint(beds.Text(2), beds.Text(3), beds.Double(4), beds.Double(5), beds.Double(6),
+                                  beds.Double(7), beds.Double(8), beds.OptText(9));
+    if (!p.ok()) return Status(p.status().code(), "bed " + std::to_string(j.id) + ": " + p.status().reason());
+    j.point = *p;
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+Result<std::vector<EndedJob>> UnchargedEndedJobs(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return UnchargedEndedJobs(*t, campaign_run_id);
+}
+
+Result<double> AddCharges(Transaction& t, int64_t campaign_run_id, int round, double now,
+                          const std::vector<Charge>& charges) {
+  Statement st = t.Prepare(
+      "INSERT INTO campaign_run_charges (campaign_run_id, kind, job_id, ended_at, state, sim_time_s, priced_by, core_h, "
+      "round, charged_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
+  double added = 0;
+  for (const Charge& c : charges) {
+    st.Reset();
+    st.Bind(1, campaign_run_id).Bind(2, c.kind).Bind(3, c.id).Bind(4, c.ended_at).Bind(5, c.state);
+    st.Bind(6, c.sim_time_s).Bind(7, c.priced_by).Bind(8, c.core_h).Bind(9, round).Bind(10, now);
+    SANDSWIM_RETURN_IF_ERROR(st.Run());
+    if (t.Changes() == 1) added += c.core_h;
+  }
+  return added;
+}
+
+Result<double> ChargedCoreHours(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare("SELECT COALESCE(SUM(core_h), 0) FROM campaign_run_charges WHERE campaign_run_id = ?");
+  st.Bind(1, campaign_run_id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return *row ? st.Double(0) : 0.0;
+}
+
+Result<double> ChargedCoreHours(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return ChargedCoreHours(*t, campaign_run_id);
+}
+
+Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  Statement st = t->Prepare(
+      "SELECT COUNT(*) FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id JOIN runs r ON r.id = sr.run_id "
+      "JOIN beds b ON b.id = r.bed_id WHERE s.campaign_run_id = ? "
+      "AND (r.state IN ('queued', 'running') OR b.state IN ('queued', 'running'))");
+  st.Bind(1, campaign_run_id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return *row ? st.Int(0) : 0;
+}
+
 Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id) {
   Statement st = t.Prepare(
       "SELECT s.name, s.id, COALESCE((SELECT MAX(position) + 1 FROM sweep_runs sr WHERE sr.sweep_id = s.id), 0) "
@@ -221,12 +338,99 @@ Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64
   return out;
 }
 
-Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id) {
-  Statement st = t.Prepare(
+Result<int64_t> CancelledSweeps(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare("SELECT COUNT(*) FROM sweeps WHERE campaign_run_id = ? AND cancelled_at IS NOT NULL");
+  st.Bind(1, campaign_run_id);
+  Result<bool> row = st.Step();
+  if (!row.ok()) return row.status();
+  return *row ? st.Int(0) : 0;
+}
+
+Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return CancelledSweeps(*t, campaign_run_id);
+}
+
+Result<int64_t> ReplaceInCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int round, int64_t old_run_id,
+                                           const std::string& new_run_key) {
+  Statement find = t.Prepare("SELECT id FROM runs WHERE key = ?");
+  find.Bind(1, new_run_key);
+  Result<bool> row = find.Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return Status::Internal("the longer run " + new_run_key + " was not written before it replaced run " +
+                                     std::to_string(old_run_id));
+  const int64_t new_run_id = find.Int(0);
+  if (new_run_id == old_run_id) return int64_t{0};
+  Statement record = t.Prepare(
+      "INSERT INTO campaign_run_replacements (campaign_run_id, round, sweep_id, position, old_run_id, new_run_id) "
+      "SELECT ?1, ?2, sr.sweep_id, sr.position, ?3, ?4 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+      "WHERE s.campaign_run_id = ?1 AND sr.run_id = ?3 ON CONFLICT DO NOTHING");
+  record.Bind(1, campaign_run_id).Bind(2, round).Bind(3, old_run_id).Bind(4, new_run_id);
+  SANDSWIM_RETURN_IF_ERROR(record.Run());
+  Statement leave = t.Prepare(
       "DELETE FROM sweep_runs WHERE run_id = ? AND sweep_id IN (SELECT id FROM sweeps WHERE campaign_run_id = ?)");
-  st.Bind(1, run_id).Bind(2, campaign_run_id);
-  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  leave.Bind(1, old_run_id).Bind(2, campaign_run_id);
+  SANDSWIM_RETURN_IF_ERROR(leave.Run());
   return t.Changes();
+}
+
+Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, double now) {
+  struct Pending {
+    int round;
+    int64_t sweep_id, position, old_run_id, new_run_id;
+    std::string state;
+  };
+  std::vector<Pending> pending;
+  {
+    Statement st = t.Prepare(
+        "SELECT p.round, p.sweep_id, p.position, p.old_run_id, p.new_run_id, r.state FROM campaign_run_replacements p "
+        "JOIN runs r ON r.id = p.new_run_id WHERE p.campaign_run_id = ? AND p.outcome IS NULL "
+        "AND r.state IN ('done', 'failed', 'cancelled')");
+    st.Bind(1, campaign_run_id);
+    for (;;) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      pending.push_back({static_cast<int>(st.Int(0)), st.Int(1), st.Int(2), st.Int(3), st.Int(4), st.Text(5)});
+    }
+  }
+  if (pending.empty()) return int64_t{0};
+  Statement settle = t.Prepare(
+      "UPDATE campaign_run_replacements SET outcome = ?, settled_at = ? WHERE campaign_run_id = ? AND round = ? "
+      "AND sweep_id = ? AND old_run_id = ?");
+  Statement back = t.Prepare("INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) ON CONFLICT DO NOTHING");
+  Statement out = t.Prepare("DELETE FROM sweep_runs WHERE sweep_id = ? AND run_id = ?");
+  int64_t restored = 0;
+  std::vector<int64_t> sweeps;
+  for (const Pending& p : pending) {
+    const bool stands = p.state == "done";
+    if (!stands) {
+      back.Reset();
+      back.Bind(1, p.sweep_id).Bind(2, p.old_run_id).Bind(3, p.position);
+      SANDSWIM_RETURN_IF_ERROR(back.Run());
+      out.Reset();
+      out.Bind(1, p.sweep_id).Bind(2, p.new_run_id);
+      SANDSWIM_RETURN_IF_ERROR(out.Run());
+      ++restored;
+      sweeps.push_back(p.sweep_id);
+      SANDSWIM_RETURN_IF_ERROR(t.Event(now, "campaign_run.replacement_restored",
+                                       "campaign_run/" + std::to_string(campaign_run_id),
+                                       {{"round", p.round}, {"sweep", p.sweep_id}, {"run", p.old_run_id},
+                                        {"longer_run", p.new_run_id}, {"longer_run_state", p.state}}));
+    }
+    settle.Reset();
+    settle.Bind(1, stands ? "replaced" : "restored").Bind(2, now).Bind(3, campaign_run_id).Bind(4, p.round);
+    settle.Bind(5, p.sweep_id).Bind(6, p.old_run_id);
+    SANDSWIM_RETURN_IF_ERROR(settle.Run());
+  }
+  if (!sweeps.empty()) SANDSWIM_RETURN_IF_ERROR(submissions::RecountSweeps(t, sweeps));
+  return restored;
+}
+
+bool RunsInRounds(const CampaignRunInfo& campaign_run) {
+  const json& d = campaign_run.definition;
+  return d.is_object() && d.contains("adaptive") && d["adaptive"].is_object();
 }
 
 }  // namespace sandswim::rounds

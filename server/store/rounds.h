@@ -1,6 +1,7 @@
 // The rounds of adaptive campaign runs (schema/015_campaign_rounds.sql): one row per
 // round (what it added and why, core-hours planned and spent, the claims' states after it, why
-// the campaign run stopped) and the verdicts frozen at their first deciding look. The driver that
+// the campaign run stopped) and the verdicts frozen at their first deciding look; and what the
+// campaign run has spent, a ledger of charged runs and beds (schema/016_campaign_run_charges.sql). The driver that
 // writes them is server/jobs/rounds.h; GET /api/v1/campaign-runs/{id} and `sandswim status cr:ID`
 // read them.
 //
@@ -81,15 +82,69 @@ Status FinishRound(Transaction& t, int64_t campaign_run_id, int round, double no
 Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double now,
                       const std::map<std::string, Verdict>& frozen);
 
+// ---- What a campaign run spent: the ledger ---------------------------------------------------
+
+// A run or bed of the campaign run (a member of its sweeps, or a run a longer one replaced there)
+// that has ended and whose ending is not charged yet: what pricing it needs.
+struct EndedJob {
+  std::string kind;   // "run" | "bed"
+  int64_t id = 0;
+  double ended_at = 0;  // its finished_at (0 when none was recorded)
+  std::string state;    // done | failed | cancelled
+  int attempts = 0;     // runs: leases it was granted (0: it never ran)
+  std::optional<double> sim_time_s;  // runs: done, its result's; else its last heartbeat's (NULL: none)
+  double run_duration_s = 0;         // runs: its planned length at the scale
+  Point point;                       // a run's point; a bed's: the point of one of its runs here
+};
+Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaign_run_id);
+Result<std::vector<EndedJob>> UnchargedEndedJobs(Store& store, int64_t campaign_run_id);
+
+struct Charge {
+  std::string kind;  // "run" | "bed"
+  int64_t id = 0;
+  double ended_at = 0;
+  std::string state;
+  std::optional<double> sim_time_s;
+  std::string priced_by;  // "result", "heartbeat", "planned length", "never ran", "bed", "stored before"
+  double core_h = 0;
+};
+// Stores the charges at the look after `round`; an ending charged already is not charged again.
+// Returns the core-hours newly charged.
+Result<double> AddCharges(Transaction& t, int64_t campaign_run_id, int round, double now,
+                          const std::vector<Charge>& charges);
+// The sum of the campaign run's charges: what it has spent (0 with none).
+Result<double> ChargedCoreHours(Transaction& t, int64_t campaign_run_id);
+Result<double> ChargedCoreHours(Store& store, int64_t campaign_run_id);
+
+// How many runs of the campaign run's sweeps, and beds under them, are queued or running: a look
+// waits for 0 (one cheap query, before anything is analysed).
+Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id);
+
 // The campaign run's sweeps by name, and each one's next membership position.
 struct SweepSlot {
   int64_t id = 0;
   int64_t next_position = 0;
 };
 Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id);
-// A longer run replaces `run_id` in the campaign run's sweeps: its membership of them is removed
-// (the run and its result stay, for any other sweep that has it). Returns the memberships removed.
-Result<int64_t> LeaveCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int64_t run_id);
+// How many of the campaign run's sweeps are cancelled (cancelling is how its owner stops it: its
+// runs may all have finished, or be shared with another campaign run's live sweep, so no run of
+// it need end `cancelled`).
+Result<int64_t> CancelledSweeps(Transaction& t, int64_t campaign_run_id);
+Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id);
+// A longer run (its key `new_run_key`, written already) takes `old_run_id`'s place in the campaign
+// run's sweeps: each membership of the old run there is recorded as a replacement of the round
+// (schema/016: campaign_run_replacements) and removed (the run and its result stay, for any
+// other sweep that has it, and in the ledger). Returns the memberships replaced.
+Result<int64_t> ReplaceInCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int round, int64_t old_run_id,
+                                           const std::string& new_run_key);
+// Settles the replacements whose longer run has ended: done, it stands; failed or cancelled, the
+// replaced run goes back to its place and the longer one leaves the sweep, so the point keeps its
+// earlier measurement. The sweeps' counts are redone. Returns how many were put back. Once each.
+Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, double now);
+
+// Whether a campaign run runs in rounds: its recorded definition has an "adaptive" object. The
+// claims shown (server/analysis/claim_check.h) and the live feed (server/dashboard) ask it.
+bool RunsInRounds(const CampaignRunInfo& campaign_run);
 
 }  // namespace sandswim::rounds
 

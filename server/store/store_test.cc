@@ -134,7 +134,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
                         "ALTER TABLE campaign_runs DROP COLUMN definition_sha256;"
                         "ALTER TABLE campaign_schedules DROP COLUMN source;"
                         "DROP TABLE snapshots;"
-                        "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts;"
+                        "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts; DROP TABLE campaign_run_charges; DROP TABLE campaign_run_replacements;"
                         "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2; ALTER TABLE beds DROP COLUMN ranks;"
@@ -171,7 +171,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
   }
   auto store = MustOpen();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->db().schema_version(), 16);
+  EXPECT_EQ(store->db().schema_version(), static_cast<int>(Migrations().size()));  // every migration applied
   EXPECT_EQ(*store->db().CountRows("results"), kOld);
   auto before = store->GetRun(without);
   ASSERT_TRUE(before->result.has_value());

@@ -1,4 +1,4 @@
--- sandswim schema, migration 16 (to be numbered 17 after the rounds' migration 16): what the ETA
+-- sandswim schema, migration 17: what the ETA
 -- needs to follow the machine's current share (server/store/cost_model.h).
 --   run_progress    a running run's progress marks: its step at a heartbeat, at most one a
 --                   kProgressMarkS (job_table.h RecordProgress), marks older than
