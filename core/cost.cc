@@ -96,6 +96,8 @@ Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<Rate
   if (!(now > 0)) return share;
   share.measured = true;
   share.factor = now / model.s_per_unit;
+  share.scale = std::sqrt(share.factor);
+  share.rel_error = std::abs(std::log(share.factor)) / 2;
   share.engines = engines;
   share.window_s = std::min(longest, window_s);
   double then = PooledSecondsPerUnit(before, kMinShareStretchS, nullptr, nullptr);
@@ -106,7 +108,7 @@ Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<Rate
   }
   if (then > 0) {
     share.factor_before = then / model.s_per_unit;
-    share.rel_error = std::abs(std::log(now / then));
+    share.rel_error = std::hypot(share.rel_error, std::log(now / then));
   }
   return share;
 }
@@ -114,17 +116,19 @@ Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<Rate
 EngineRate AtShare(const EngineRate& rate, const Share& share) {
   if (!share.measured) return rate;
   EngineRate r = rate;
-  r.s_per_unit = rate.s_per_unit * share.factor;
+  r.s_per_unit = rate.s_per_unit * share.scale;
   r.rel_error = std::hypot(rate.rel_error, share.rel_error);
   char text[200];
   std::snprintf(text, sizeof text, "; now %d engine%s at %.2f of that rate over the last %s", share.engines,
                 share.engines == 1 ? "" : "s", 1 / share.factor, Minutes(share.window_s).c_str());
   r.basis += text;
   if (share.factor_before) {
-    std::snprintf(text, sizeof text, " (%.2f over %s: ± %.0f %% for the change)", 1 / *share.factor_before,
-                  share.before_basis.c_str(), 100 * share.rel_error);
+    std::snprintf(text, sizeof text, " (%.2f over %s)", 1 / *share.factor_before, share.before_basis.c_str());
     r.basis += text;
   }
+  std::snprintf(text, sizeof text, "; taken halfway: %.2f, ± %.0f %% for the share", 1 / share.scale,
+                100 * share.rel_error);
+  r.basis += text;
   return r;
 }
 

@@ -250,6 +250,7 @@ void to_json(json& j, const CostModelView& v) {
   }
   json share = {{"measured", v.share.measured},
                 {"factor", v.share.factor},
+                {"scale", v.share.scale},
                 {"rel_error", v.share.rel_error},
                 {"engines", v.share.engines},
                 {"window_s", v.share.window_s}};
@@ -336,7 +337,7 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
   // Beds on this machine get the share its runs get now.
   EngineRate bed_rate = model->bed_rate;
   if (model->share.measured) {
-    bed_rate.s_per_unit *= model->share.factor;
+    bed_rate.s_per_unit *= model->share.scale;
     bed_rate.rel_error = std::hypot(bed_rate.rel_error, model->share.rel_error);
     bed_rate.basis += ", at the runs' share now";
   }
