@@ -63,6 +63,75 @@ EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fal
   return r;
 }
 
+namespace {
+
+// Total wall over total work of the samples that did work; 0 when none did.
+double PooledSecondsPerUnit(const std::vector<RateSample>& samples, double min_wall_s, int* used, double* longest) {
+  double work = 0, wall = 0;
+  for (const RateSample& s : samples) {
+    if (!(s.work > 0) || !(s.wall_s >= min_wall_s) || !std::isfinite(s.work) || !std::isfinite(s.wall_s)) continue;
+    work += s.work;
+    wall += s.wall_s;
+    if (used) ++*used;
+    if (longest) *longest = std::max(*longest, s.wall_s);
+  }
+  return work > 0 ? wall / work : 0;
+}
+
+std::string Minutes(double s) {
+  char out[32];
+  std::snprintf(out, sizeof out, "%.0f min", std::max(1.0, std::round(s / 60)));
+  return out;
+}
+
+}  // namespace
+
+Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<RateSample>& before,
+                   const std::vector<RateSample>& so_far, const EngineRate& model, double window_s) {
+  Share share;
+  if (!(model.s_per_unit > 0)) return share;
+  int engines = 0;
+  double longest = 0;
+  const double now = PooledSecondsPerUnit(recent, kMinShareStretchS, &engines, &longest);
+  if (!(now > 0)) return share;
+  share.measured = true;
+  share.factor = now / model.s_per_unit;
+  share.scale = std::sqrt(share.factor);
+  share.rel_error = std::abs(std::log(share.factor)) / 2;
+  share.engines = engines;
+  share.window_s = std::min(longest, window_s);
+  double then = PooledSecondsPerUnit(before, kMinShareStretchS, nullptr, nullptr);
+  share.before_basis = "the " + Minutes(window_s) + " before";
+  if (!(then > 0)) {
+    then = PooledSecondsPerUnit(so_far, 0, nullptr, nullptr);
+    share.before_basis = "their attempts so far";
+  }
+  if (then > 0) {
+    share.factor_before = then / model.s_per_unit;
+    share.rel_error = std::hypot(share.rel_error, std::log(now / then));
+  }
+  return share;
+}
+
+EngineRate AtShare(const EngineRate& rate, const Share& share) {
+  if (!share.measured) return rate;
+  EngineRate r = rate;
+  r.s_per_unit = rate.s_per_unit * share.scale;
+  r.rel_error = std::hypot(rate.rel_error, share.rel_error);
+  char text[200];
+  std::snprintf(text, sizeof text, "; now %d engine%s at %.2f of that rate over the last %s", share.engines,
+                share.engines == 1 ? "" : "s", 1 / share.factor, Minutes(share.window_s).c_str());
+  r.basis += text;
+  if (share.factor_before) {
+    std::snprintf(text, sizeof text, " (%.2f over %s)", 1 / *share.factor_before, share.before_basis.c_str());
+    r.basis += text;
+  }
+  std::snprintf(text, sizeof text, "; taken halfway: %.2f, ± %.0f %% for the share", 1 / share.scale,
+                100 * share.rel_error);
+  r.basis += text;
+  return r;
+}
+
 double PlanCost::WallSeconds(int slots) const {
   slots = std::max(slots, 1);
   // Beds share the slots with each other first; their runs then share every slot.

@@ -77,6 +77,46 @@ EngineRate BedRateOnRanks(const std::vector<RankRate>& by_ranks, int ranks);
 // half the default's error. Samples with no work or no time are left out; none left: `fallback`.
 EngineRate FitRate(const std::vector<RateSample>& samples, const EngineRate& fallback, const std::string& basis);
 
+// ---- The machine's current share -------------------------------------------------------------
+
+// How far back the running runs' progress is read to say what share of the machine they get now.
+inline constexpr double kShareWindowS = 600;
+// A run's stretch in a window counts once it spans this long (a heartbeat's step is a dump's).
+inline constexpr double kMinShareStretchS = 120;
+
+// The running runs' rate now against the cost model's: `factor` = their wall seconds per
+// particle-step over the last window / the model's (3: they run at a third of their usual rate),
+// from every live running run's stretch in the window, pooled (total wall over total work).
+//
+// The rule (chosen by its error on the real record, tests/bench/eta_replay.py): the ETA's rates are
+// the model's times `scale` = sqrt(factor), halfway (geometrically) between the long-run rate and
+// the last window's, because the share of a loaded machine moves within minutes and neither end
+// foretells the next hour alone. Its relative error, added in quadrature to the rate's, is
+// hypot(|ln factor| / 2, |ln(factor / factor_before)|): how far the truth may lie toward either end,
+// and how much the share moved from the window before (or, before there is one, from the runs'
+// attempts so far). On five runs of the density-ratio campaign it erred by 24 % (median; the long
+// average 31 %, the last window alone 29 %) and its 1 sigma held the truth 65 % of the time (13 %,
+// 46 %).
+struct Share {
+  bool measured = false;  // false: no running run spans kMinShareStretchS in the window
+  double factor = 1;
+  double scale = 1;       // sqrt(factor): what the rates are multiplied by
+  int engines = 0;        // the runs it rests on
+  double window_s = 0;    // the longest stretch it rests on
+  std::optional<double> factor_before;
+  std::string before_basis;  // "the 10 min before" | "their attempts so far"
+  double rel_error = 0;   // hypot(|ln factor| / 2, |ln(factor / factor_before)|)
+};
+// `recent`: each live running run's stretch in the last window (particle-steps done, wall time);
+// `before`: the window before it, where the run has one; `so_far`: each run's whole attempt. The
+// ETA's rates are AtShare(model rate, share).
+Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<RateSample>& before,
+                   const std::vector<RateSample>& so_far, const EngineRate& model, double window_s);
+// `rate` at the current share: s_per_unit x scale, its error widened by the share's (in
+// quadrature), its basis saying what it used ("2 engines at 0.31 of that rate over the last 10
+// min ...; taken halfway: 0.56"). Unmeasured: `rate` unchanged.
+EngineRate AtShare(const EngineRate& rate, const Share& share);
+
 // ---- Before work: what a plan costs ------------------------------------------------------------
 
 struct PlanCost {

@@ -32,6 +32,43 @@ TEST(CostTest, FitRateFallsBackWithoutUsableSamples) {
   EXPECT_DOUBLE_EQ(r.s_per_unit, kDefaultSecondsPerParticleStep);
 }
 
+// The share now: the running runs' pooled rate over the window against the model's; its error
+// how far it moved from the window before (else from the runs' attempts so far).
+TEST(CostTest, TheShareNowScalesTheRateAndItsChangeWidensTheError) {
+  const EngineRate model{1e-6, 0.1, 5, "measured: 5 done runs"};
+  // Two runs at a third of the model's rate over 10 min; the 10 min before at the model's.
+  const std::vector<RateSample> recent = {{2e8, 600}, {1e8, 300}}, before = {{6e8, 600}, {6e8, 600}};
+  const Share share = CurrentShare(recent, before, {}, model, kShareWindowS);
+  ASSERT_TRUE(share.measured);
+  EXPECT_NEAR(share.factor, 3, 1e-12);
+  EXPECT_EQ(share.engines, 2);
+  ASSERT_TRUE(share.factor_before.has_value());
+  EXPECT_NEAR(*share.factor_before, 1, 1e-12);
+  // Taken halfway: a third of the rate now, the model's before; the truth may lie toward either.
+  EXPECT_NEAR(share.scale, std::sqrt(3.0), 1e-12);
+  EXPECT_NEAR(share.rel_error, std::hypot(std::log(3.0) / 2, std::log(3.0)), 1e-12);
+  const EngineRate now = AtShare(model, share);
+  EXPECT_GT(now.s_per_unit, model.s_per_unit);
+  EXPECT_LT(now.s_per_unit, 3e-6);
+  EXPECT_NEAR(now.rel_error, std::hypot(0.1, share.rel_error), 1e-12);
+  EXPECT_EQ(now.basis,
+            "measured: 5 done runs; now 2 engines at 0.33 of that rate over the last 10 min (1.00 over the 10 min "
+            "before); taken halfway: 0.58, ± 123 % for the share");
+  // A steady share: the rate as it was, the error the model's.
+  const Share steady = CurrentShare({{6e8, 600}}, {{6e8, 600}}, {}, model, kShareWindowS);
+  EXPECT_NEAR(steady.factor, 1, 1e-12);
+  EXPECT_NEAR(AtShare(model, steady).rel_error, 0.1, 1e-12);
+  // No window before: the attempts so far; stretches too short to say anything: unmeasured.
+  const Share young = CurrentShare({{2e8, 400}}, {}, {{4e8, 500}}, model, kShareWindowS);
+  ASSERT_TRUE(young.factor_before.has_value());
+  EXPECT_NEAR(*young.factor_before, 1.25, 1e-12);
+  EXPECT_EQ(young.before_basis, "their attempts so far");
+  const Share none = CurrentShare({{1e6, kMinShareStretchS / 2}}, {}, {}, model, kShareWindowS);
+  EXPECT_FALSE(none.measured);
+  EXPECT_EQ(AtShare(model, none).s_per_unit, model.s_per_unit);
+  EXPECT_EQ(AtShare(model, none).basis, model.basis);
+}
+
 TEST(CostTest, EstimatedGrainsScaleWithTheBedsVolume) {
   EXPECT_DOUBLE_EQ(EstimatedGrains(*FindScale("smoke")), 6682);
   // The paper's box holds about 7e4 grains (core/scale.cc), mini about 1.5e4: within 35 %.

@@ -87,9 +87,12 @@ Result<LeaseRow> CurrentUploadLease(Transaction& t, const std::string& token, ap
 Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
                                 const std::string& kind_text, const std::string& message, bool retryable, double now) {
   bool retry = retryable && job.attempts < job.max_attempts;
-  if (retry && kind == api::JobKind::kRun) {
+  // A lease the daemon reclaimed says nothing of the run itself (its worker vanished).
+  const bool lost = kind_text == "lease_expired" || kind_text == "pilot_gone";
+  if ((retry || lost) && kind == api::JobKind::kRun) {
     // A run whose every sweep was cancelled while it ran (its worker was told to stop, and then
-    // lost: the lease expired) is not run again: it is cancelled, its attempt uncounted.
+    // lost: the lease expired) is not run again, nor failed when that was its last attempt: it is
+    // cancelled, its attempt uncounted.
     Result<bool> wanted = jobs::RunWanted(t, id);
     if (!wanted.ok()) return wanted.status();
     if (!*wanted) {
@@ -117,12 +120,21 @@ Status TakeBackUnreceivedGrant(Transaction& t, const std::string& token, double 
   Result<std::optional<jobs::GrantRef>> grant = jobs::OpenNextGrant(t, token);
   if (!grant.ok()) return grant.status();
   if (!*grant) return Status::Ok();
-  Result<bool> taken = jobs::TakeBackGrant(t, **grant, now);
+  // A run whose sweeps were all cancelled since is cancelled, not queued again (as a released or
+  // expired one is).
+  bool wanted = true;
+  if ((*grant)->kind == api::JobKind::kRun) {
+    Result<bool> live = jobs::RunWanted(t, (*grant)->job_id);
+    if (!live.ok()) return live.status();
+    wanted = *live;
+  }
+  Result<bool> taken = jobs::TakeBackGrant(t, **grant, wanted, now);
   if (!taken.ok()) return taken.status();
   if (!*taken) return Status::Ok();  // it has moved on (expired, heartbeated, ...)
-  return t.Event(
-      now, std::string(Noun((*grant)->kind)) + ".requeued", Subject((*grant)->kind, (*grant)->job_id),
-      {{"kind", "unreceived"}, {"message", "leased with a completion whose reply was lost; the worker asked again"}});
+  const std::string message = "leased with a completion whose reply was lost; the worker asked again";
+  return t.Event(now, std::string(Noun((*grant)->kind)) + (wanted ? ".requeued" : ".cancelled"),
+                 Subject((*grant)->kind, (*grant)->job_id),
+                 {{"kind", "unreceived"}, {"message", wanted ? message : message + "; its sweeps were cancelled"}});
 }
 
 // Running jobs whose lease is lost -- expired before `now` or, when `slurm_job` is set, granted to
@@ -330,7 +342,7 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
       if (!wanted.ok()) return wanted.status();
       reply.cancel = !*wanted;
     } else {
-      SANDSWIM_RETURN_IF_ERROR(jobs::ExtendBedLease(t, lease->job_id, now + options_.ttl_s));
+      SANDSWIM_RETURN_IF_ERROR(jobs::ExtendBedLease(t, lease->job_id, now + options_.ttl_s, now));
     }
     return reply;
   });

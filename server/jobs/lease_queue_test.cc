@@ -686,6 +686,122 @@ TEST_F(LeaseQueueTest, AnExpiredRunOfACancelledSweepIsCancelledAndARequeuedOneSt
   EXPECT_FALSE(run->summary.progress.heartbeat_at.has_value());
 }
 
+// The same on the run's last attempt: its retries used up, a cancelled sweep's run whose lease
+// expires ends cancelled (its sweeps no longer want it), not failed (a run still wanted fails:
+// ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails).
+TEST_F(LeaseQueueTest, AnExpiredLastAttemptOfACancelledSweepIsCancelledNotFailed) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant g = MustLease();
+  for (int attempt = 2; attempt <= 3; ++attempt) {
+    clock_.Advance(61);
+    ASSERT_EQ(*queue_->ExpireLeases(), 1);
+    g = MustLease();
+    ASSERT_EQ(g.attempt, attempt);
+  }
+  api::LeaseGrant other = MustLease("w2");  // the sweep's other run, on its first attempt
+  ASSERT_NE(other.id, g.id);
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  clock_.Advance(61);
+  EXPECT_EQ(*queue_->ExpireLeases(), 2);
+  auto run = store_->GetRun(g.id);
+  EXPECT_EQ(run->summary.state, "cancelled");
+  ASSERT_TRUE(run->summary.last_error.has_value());
+  EXPECT_EQ(run->summary.last_error->kind, "cancelled");
+  EXPECT_EQ(RunState(other.id), "cancelled");
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
+// A grant whose reply was lost is taken back when its worker asks again; when every sweep of its
+// run was cancelled meanwhile, the run is cancelled, not queued again, and nothing else is leased.
+TEST_F(LeaseQueueTest, AnUnreceivedGrantOfACancelledSweepIsCancelledNotQueuedAgain) {
+  int64_t sweep = SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant first = MustLease();
+  api::Completion c = OkRun();
+  c.next = api::LeaseRequest{"w1", "host", 1};
+  auto lost = queue_->Complete(first.token, c);
+  ASSERT_TRUE(lost.ok() && lost->next.has_value());
+  const api::LeaseGrant unreceived = *lost->next;
+  ASSERT_TRUE(queue_->Cancel(sweep).ok());
+  EXPECT_EQ(RunState(unreceived.id), "running");  // asked to stop at a heartbeat that never comes
+  auto again = queue_->Complete(first.token, c);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->state, "duplicate");
+  EXPECT_FALSE(again->next.has_value());
+  auto run = store_->GetRun(unreceived.id);
+  EXPECT_EQ(run->summary.state, "cancelled");
+  EXPECT_EQ(run->summary.attempts, 0);  // the unreceived grant did not count
+  EXPECT_EQ(queue_->Heartbeat(unreceived.token, {}).status().code(), StatusCode::kConflict);
+  EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
+}
+
+// The ETA follows the machine's share now: two runs heartbeat every 10 s for 15 minutes at one
+// pace; then either the same pace (a steady machine) or a third of it (builds took the cores).
+// After a window (10 minutes) at the new pace, the ETA is the time the runs' steps left take at
+// that pace -- three times as long for the slowed engines -- where the cost model's rate alone (their
+// attempts so far, mostly at the old pace) said less than half of that.
+TEST_F(LeaseQueueTest, TheEtaFollowsTheEnginesCurrentShare) {
+  for (const int slow_by : {1, 3}) {
+    SCOPED_TRACE("slowed by " + std::to_string(slow_by));
+    TearDown();
+    SetUp();
+    const int64_t sweep = SubmitJson(OmegaSignSweep());
+    PrepareBed();
+    std::vector<api::LeaseGrant> runs = {MustLease("w1"), MustLease("w2")};
+    ASSERT_EQ(runs[0].kind, api::JobKind::kRun);
+    const int64_t steps = runs[0].steps;
+    ASSERT_EQ(runs[1].steps, steps);
+    int64_t step = 0;
+    auto drive = [&](double seconds, int64_t per_beat) {
+      for (double t = 0; t < seconds; t += 10) {
+        clock_.Advance(10);
+        step += per_beat;
+        for (const api::LeaseGrant& g : runs) ASSERT_TRUE(queue_->Heartbeat(g.token, {0, 0, step}).ok());
+      }
+    };
+    auto eta = [&] {
+      auto e = ReadEta(*store_, EtaScope::kSweep, sweep, clock_.Now(), 2);
+      EXPECT_TRUE(e.ok() && e->has_value());
+      return e.ok() && e->has_value() ? **e : Eta{};
+    };
+    const int64_t fast = steps / 400;  // steps a beat: the whole run in 4,000 s
+    drive(900, fast);
+    const Eta before = eta();
+    EXPECT_NEAR(before.seconds / ((steps - step) * 10.0 / fast), 1, 0.03);
+    const double finish_before = clock_.Now() + before.seconds;
+    drive(660, fast / slow_by);
+    const Eta after = eta();
+    const double truth = (steps - step) * 10.0 / (fast / slow_by);
+    if (slow_by == 1) {
+      EXPECT_NEAR(after.seconds / truth, 1, 0.05) << after.basis;
+      EXPECT_NEAR(clock_.Now() + after.seconds, finish_before, 0.03 * before.seconds);  // the finish stays
+      EXPECT_LT(after.rel_error, 0.2);
+      EXPECT_NE(after.basis.find("at 1.00 of that rate over the last 10 min"), std::string::npos) << after.basis;
+    } else {
+      auto model = ReadCostModel(*store_, clock_.Now());
+      ASSERT_TRUE(model.ok());
+      // The cost model's rate alone (the done runs and the attempts so far) is faster than the
+      // engines are now: its ETA falls short of the truth by the factor.
+      EXPECT_GT(model->share.factor, 2);
+      const double model_alone = truth / model->share.factor;
+      // The rule promises: the estimate moves from the model's toward the truth, and its stated
+      // 1 sigma widens to cover the truth.
+      EXPECT_GT(after.seconds, model_alone * 1.2) << after.basis;
+      EXPECT_LT(after.seconds, truth) << after.basis;
+      EXPECT_LE(std::abs(truth - after.seconds), after.rel_error * after.seconds) << after.basis;
+      EXPECT_NE(after.basis.find("now 2 engines at 0.4"), std::string::npos) << after.basis;  // of the pooled rate
+      EXPECT_NE(after.basis.find("taken halfway"), std::string::npos) << after.basis;
+      const nlohmann::json j = *model;  // GET /api/v1/cost-model
+      EXPECT_EQ(j["share"]["engines"], 2);
+      EXPECT_NEAR(j["share"]["factor"].get<double>(), model->share.factor, 1e-12);
+      EXPECT_NEAR(j["share"]["scale"].get<double>(), std::sqrt(model->share.factor), 1e-12);
+      EXPECT_EQ(j["engines_in_flight"], 2);
+      EXPECT_EQ(j["engines_silent"], 0);
+    }
+  }
+}
+
 TEST_F(LeaseQueueTest, ReleaseOfALeaseNoLongerHeldConflicts) {
   SubmitJson(OmegaSignSweep());
   PrepareBed();

@@ -194,6 +194,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
                         "ALTER TABLE campaign_schedules DROP COLUMN source;"
                         "ALTER TABLE beds DROP COLUMN ranks;"
                         "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts; DROP TABLE campaign_run_charges; DROP TABLE campaign_run_replacements;"
+                        "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
                         "DELETE FROM schema_migrations WHERE version >= 13; PRAGMA user_version = 12;")
                     .ok());
     Statement st = t->Prepare(

@@ -8,6 +8,7 @@
 #include "core/job_state.h"
 #include "core/point.h"
 #include "core/precision.h"
+#include "server/store/job_table.h"
 
 namespace sandswim {
 namespace {
@@ -50,6 +51,49 @@ std::string Plural(int n, const char* what) { return std::to_string(n) + " " + w
 
 namespace {
 
+// The live running runs' stretches for core/cost.h CurrentShare, from their progress marks of
+// this attempt: the last kShareWindowS before their newest heartbeat, the window before that, and
+// their attempt so far.
+Result<Share> ReadShare(Transaction& t, double now, const EngineRate& model) {
+  struct Running {
+    int64_t id, step;
+    double heartbeat_at, started_at, particles;
+  };
+  std::vector<Running> running;
+  {
+    Statement st = t.Prepare(
+        "SELECT r.id, r.step, r.heartbeat_at, r.started_at, b.grains + 1.0 FROM runs r JOIN beds b ON b.id = r.bed_id "
+        "WHERE r.state = 'running' AND r.step > 0 AND b.grains > 0 AND r.heartbeat_at >= ?1 AND r.started_at IS NOT "
+        "NULL");
+    st.Bind(1, now - kLiveEngineS);
+    Status s = StepAll(st, [&](const Statement& r) {
+      running.push_back({r.Int(0), r.Int(1), r.Double(2), r.Double(3), r.Double(4)});
+    });
+    if (!s.ok()) return s;
+  }
+  std::vector<RateSample> recent, before, so_far;
+  for (const Running& run : running) {
+    so_far.push_back({static_cast<double>(run.step) * run.particles, run.heartbeat_at - run.started_at});
+    std::vector<std::pair<double, int64_t>> marks;  // (at, step), oldest first
+    Statement st = t.Prepare(
+        "SELECT at, step FROM run_progress WHERE run_id = ?1 AND at >= ?2 AND at <= ?3 AND at >= ?4 ORDER BY at");
+    st.Bind(1, run.id).Bind(2, run.started_at).Bind(3, run.heartbeat_at);
+    st.Bind(4, run.heartbeat_at - 2 * kShareWindowS - jobs::kProgressMarkS);
+    Status s = StepAll(st, [&](const Statement& r) { marks.emplace_back(r.Double(0), r.Int(1)); });
+    if (!s.ok()) return s;
+    // The oldest mark at or after `from`.
+    auto first_after = [&](double from) {
+      return std::find_if(marks.begin(), marks.end(), [&](const auto& m) { return m.first >= from; });
+    };
+    auto a = first_after(run.heartbeat_at - kShareWindowS);
+    if (a == marks.end()) continue;
+    recent.push_back({static_cast<double>(run.step - a->second) * run.particles, run.heartbeat_at - a->first});
+    auto b = first_after(a->first - kShareWindowS);
+    if (b != a) before.push_back({static_cast<double>(a->second - b->second) * run.particles, a->first - b->first});
+  }
+  return CurrentShare(recent, before, so_far, model, kShareWindowS);
+}
+
 Result<CostModelView> ReadIn(Transaction& t, double now) {
   CostModelView v;
   {
@@ -75,14 +119,20 @@ Result<CostModelView> ReadIn(Transaction& t, double now) {
   v.bed_rates = std::move(bed_rates).value();
   v.bed_rate = BedRateOnRanks(v.bed_rates, 1);
   {
-    Statement st = t.Prepare(
-        "SELECT (SELECT COUNT(*) FROM runs WHERE state = 'running') + (SELECT COUNT(*) FROM beds WHERE state = "
-        "'running')");
+    // Running jobs, and of them those whose last heartbeat (or grant) is fresh: the engines.
+    const std::string live = "MAX(COALESCE(heartbeat_at, 0), COALESCE(started_at, 0)) >= ?1";
+    Statement st = t.Prepare("SELECT (SELECT COUNT(*) FROM runs WHERE state = 'running') + (SELECT COUNT(*) FROM beds "
+                             "WHERE state = 'running'), (SELECT COUNT(*) FROM runs WHERE state = 'running' AND " +
+                             live + ") + (SELECT COUNT(*) FROM beds WHERE state = 'running' AND " + live + ")");
+    st.Bind(1, now - kLiveEngineS);
     Result<bool> r = st.Step();
     if (!r.ok()) return r.status();
-    v.engines_in_flight = static_cast<int>(st.Int(0));
+    v.engines_in_flight = static_cast<int>(st.Int(1));
+    v.silent_jobs = static_cast<int>(st.Int(0) - st.Int(1));
   }
-  (void)now;
+  Result<Share> share = ReadShare(t, now, v.run_rate);
+  if (!share.ok()) return share.status();
+  v.share = *share;
   return v;
 }
 
@@ -198,11 +248,20 @@ void to_json(json& j, const CostModelView& v) {
     r["ranks"] = b.ranks;
     beds.push_back(std::move(r));
   }
+  json share = {{"measured", v.share.measured},
+                {"factor", v.share.factor},
+                {"scale", v.share.scale},
+                {"rel_error", v.share.rel_error},
+                {"engines", v.share.engines},
+                {"window_s", v.share.window_s}};
+  if (v.share.factor_before) share["factor_before"] = *v.share.factor_before;
   j = {{"run_rate", v.run_rate},
        {"bed_rate", v.bed_rate},
        {"bed_rates", beds},
        {"hosts", hosts},
-       {"engines_in_flight", v.engines_in_flight}};
+       {"engines_in_flight", v.engines_in_flight},
+       {"engines_silent", v.silent_jobs},
+       {"share", share}};
 }
 
 Result<CostModelView> ReadCostModel(Store& store, double now) {
@@ -275,8 +334,21 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
     share.sd = fractions.size() > 1 ? std::sqrt(ss / static_cast<double>(fractions.size() - 1)) : 0.5 * mean;
   }
   const int slots = std::max({model->engines_in_flight, min_slots, 1});
-  std::optional<Eta> eta = EstimateEta(left, model->run_rate, model->bed_rate, share, slots);
-  if (eta) eta->basis += "; " + Plural(slots, "engine");
+  // Beds on this machine get the share its runs get now.
+  EngineRate bed_rate = model->bed_rate;
+  if (model->share.measured) {
+    bed_rate.s_per_unit *= model->share.scale;
+    bed_rate.rel_error = std::hypot(bed_rate.rel_error, model->share.rel_error);
+    bed_rate.basis += ", at the runs' share now";
+  }
+  std::optional<Eta> eta = EstimateEta(left, AtShare(model->run_rate, model->share), bed_rate, share, slots);
+  if (eta) {
+    eta->basis += "; " + Plural(slots, "engine");
+    if (model->silent_jobs > 0) {
+      eta->basis += " (" + Plural(model->silent_jobs, "running job") + " without a heartbeat for " +
+                    std::to_string(static_cast<int>(kLiveEngineS)) + " s not counted)";
+    }
+  }
   return eta;
 }
 

@@ -32,6 +32,12 @@ namespace sandswim {
 inline constexpr int kRateWindow = 50;
 // A running run counts once it has run this long (before, its wall time is mostly the engine's start).
 inline constexpr double kMinProgressSampleS = 20;
+// A running job (run or bed) counts as an engine while it heartbeats: its last heartbeat (before
+// its first, its grant) at most this old. A worker heartbeats every 5 s (at most a third of the
+// lease's TTL, 60 s by default), so 12 beats missed; a job whose worker died keeps its lease
+// longer after a daemon restart (the outage does not count against it: LeaseQueue::
+// ExtendLeasesAfterRestart) and counted as an engine before this rule ("4 engines" on 2 slots).
+inline constexpr double kLiveEngineS = 60;
 
 struct HostRate {
   std::string host;
@@ -44,10 +50,16 @@ struct CostModelView {
   EngineRate run_rate;          // pooled for the ETA (see above), per particle-step
   EngineRate bed_rate;          // done beds on one rank, per grain (BedRateOnRanks(bed_rates, 1))
   std::vector<RankRate> bed_rates;  // done beds, per rank count, by ranks
-  int engines_in_flight = 0;    // runs and beds running now
+  int engines_in_flight = 0;    // runs and beds running now that heartbeat (kLiveEngineS)
+  int silent_jobs = 0;          // running ones that do not (their leases not yet expired)
+  // The live running runs' rate over the last kShareWindowS against run_rate (core/cost.h
+  // CurrentShare, from their progress marks: job_table.h RecordProgress). The ETA's rates are
+  // AtShare(run_rate, share) and AtShare(bed_rate, share): the machine's share as it is now.
+  Share share;
 };
 // {"run_rate":{...},"bed_rate":{...},"bed_rates":[{"ranks",...rate}],"hosts":[{"host","ranks",...rate}],
-//  "engines_in_flight"}; a rate: {"s_per_unit","rel_error","samples","basis"}.
+//  "engines_in_flight","engines_silent","share":{"measured","factor","factor_before"?,"rel_error","engines",
+//  "window_s"}}; a rate: {"s_per_unit","rel_error","samples","basis"}.
 void to_json(nlohmann::json& j, const CostModelView& v);
 void to_json(nlohmann::json& j, const EngineRate& r);
 
@@ -72,7 +84,9 @@ Result<double> WallBudget(Transaction& t, bool bed, int64_t bed_id, int64_t step
 
 enum class EtaScope { kSweep, kCampaignRun };
 // The ETA of what is left of a sweep or a campaign run, over max(engines in flight, min_slots)
-// engines (sandswimd passes its local workers). nullopt when nothing is left.
+// engines (sandswimd passes its local workers; a running job counts only while it heartbeats),
+// at the cost model's rates scaled to the current share (CostModelView::share). nullopt when
+// nothing is left.
 Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, double now, int min_slots);
 
 // {"s","rel_error","low_s","high_s","basis"} (a 1-sigma band), or null.

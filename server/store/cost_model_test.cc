@@ -88,7 +88,7 @@ TEST_F(CostModelTest, RatesComeFromDoneRunsAndRunningProgress) {
   Run(4, "queued", 100000, 0, 0, 0);
   Result(1, 100000, 100);  // 1e8 particle-steps in 100 s
   Result(2, 50000, 50);
-  auto model = ReadCostModel(*store_, 2000);
+  auto model = ReadCostModel(*store_, 1030);  // its last heartbeat 5 s ago: an engine
   ASSERT_TRUE(model.ok()) << model.status().ToString();
   ASSERT_EQ(model->hosts.size(), 1u);
   EXPECT_EQ(model->hosts[0].host, "h");
@@ -112,6 +112,31 @@ TEST_F(CostModelTest, RatesComeFromDoneRunsAndRunningProgress) {
   EXPECT_DOUBLE_EQ(j["s"].get<double>(), 75);
   EXPECT_LT(j["low_s"].get<double>(), 75);
   EXPECT_GT(j["high_s"].get<double>(), 75);
+}
+
+// A running job counts as an engine only while it heartbeats: after a daemon restart a run whose
+// worker died still holds a lease (extended over the outage) but no fresh heartbeat; a run just
+// granted has none yet but its grant is fresh.
+TEST_F(CostModelTest, OnlyRunningJobsThatHeartbeatAreEngines) {
+  Bed("done");
+  Run(1, "running", 100000, 25000, 1000, 1025);  // beat 5 s ago
+  Run(2, "running", 100000, 40000, 0, 400);      // silent for 630 s
+  Run(3, "running", 100000, 0, 1020, 0);         // granted 10 s ago, no heartbeat yet
+  Run(4, "running", 100000, 0, 900, 0);          // granted 130 s ago, never heartbeated
+  // Beds likewise, by their heartbeat_at.
+  Exec("INSERT INTO beds (id, key, scale, state, created_at, started_at, heartbeat_at, deck) VALUES "
+       "(2, 'b2', 'smoke', 'running', 0, 0, 1029, ''), (3, 'b3', 'smoke', 'running', 0, 0, 500, '')");
+  auto model = ReadCostModel(*store_, 1030);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_EQ(model->engines_in_flight, 3);
+  EXPECT_EQ(model->silent_jobs, 3);
+  EXPECT_EQ(nlohmann::json(*model)["engines_silent"], 3);
+  auto eta = ReadEta(*store_, EtaScope::kSweep, 1, 1030, 1);
+  ASSERT_TRUE(eta.ok()) << eta.status().ToString();
+  ASSERT_TRUE(eta->has_value());
+  EXPECT_NE((*eta)->basis.find("; 3 engines (3 running jobs without a heartbeat for 60 s not counted)"),
+            std::string::npos)
+      << (*eta)->basis;
 }
 
 // A queued run with a precision target ends between its earliest target stop and its deck's end:

@@ -107,11 +107,21 @@ Result<std::optional<GrantRef>> OpenNextGrant(Transaction& t, const std::string&
   return std::optional<GrantRef>(GrantRef{find.Text(0), KindOf(find.Text(1)), find.Int(2)});
 }
 
-Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, double now) {
-  Statement st = t.Prepare(std::string("UPDATE ") + Table(grant.kind) +
-                           " SET state = 'queued', attempts = attempts - 1, lease_token = NULL, "
-                           "lease_expires_at = NULL WHERE id = ? AND state = 'running' AND lease_token = ?");
+Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, bool wanted, double now) {
+  const bool run = grant.kind == api::JobKind::kRun;
+  std::string sql = std::string("UPDATE ") + Table(grant.kind) +
+                    " SET attempts = attempts - 1, lease_token = NULL, lease_expires_at = NULL";
+  if (wanted || !run) {
+    sql += ", state = 'queued'";
+    if (run) sql += ", queued_at = ?3, sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
+  } else {
+    sql += ", state = 'cancelled', finished_at = ?3, last_error_kind = 'cancelled', "
+           "last_error = 'its sweeps were cancelled before its worker received it'";
+  }
+  sql += " WHERE id = ?1 AND state = 'running' AND lease_token = ?2";
+  Statement st = t.Prepare(sql);
   st.Bind(1, grant.job_id).Bind(2, grant.token);
+  if (run) st.Bind(3, now);
   SANDSWIM_RETURN_IF_ERROR(st.Run());
   if (t.Changes() == 0) return false;
   SANDSWIM_RETURN_IF_ERROR(CloseLease(t, grant.token, now, "unreceived"));
@@ -264,9 +274,9 @@ Result<std::optional<QueuedBed>> NextQueuedBed(Transaction& t) {
       QueuedBed{st.Int(0), st.Text(1), st.Text(2), static_cast<int>(st.Int(3)), st.OptText(4)});
 }
 
-Status ExtendBedLease(Transaction& t, int64_t bed_id, double expires_at) {
-  Statement st = t.Prepare("UPDATE beds SET lease_expires_at = ? WHERE id = ?");
-  st.Bind(1, expires_at).Bind(2, bed_id);
+Status ExtendBedLease(Transaction& t, int64_t bed_id, double expires_at, double now) {
+  Statement st = t.Prepare("UPDATE beds SET lease_expires_at = ?, heartbeat_at = ? WHERE id = ?");
+  st.Bind(1, expires_at).Bind(2, now).Bind(3, bed_id);
   return st.Run();
 }
 
@@ -360,7 +370,17 @@ Status RecordProgress(Transaction& t, int64_t run_id, double expires_at, const a
       "heartbeat_at = ? WHERE id = ?");
   st.Bind(1, expires_at).Bind(2, beat.sim_time_s).Bind(3, beat.so_z);
   st.Bind(4, beat.step).Bind(5, now).Bind(6, run_id);
-  return st.Run();
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  Statement mark = t.Prepare(
+      "INSERT OR REPLACE INTO run_progress (run_id, at, step) SELECT ?1, ?2, ?3 WHERE NOT EXISTS "
+      "(SELECT 1 FROM run_progress WHERE run_id = ?1 AND at > ?2 - ?4)");
+  mark.Bind(1, run_id).Bind(2, now).Bind(3, beat.step).Bind(4, kProgressMarkS);
+  SANDSWIM_RETURN_IF_ERROR(mark.Run());
+  if (t.Changes() == 0) return Status::Ok();
+  // The table holds the last kProgressHorizonS of every run's marks: a few dozen rows a running run.
+  Statement old = t.Prepare("DELETE FROM run_progress WHERE at < ?1");
+  old.Bind(1, now - kProgressHorizonS);
+  return old.Run();
 }
 
 Result<bool> RunWanted(Transaction& t, int64_t run_id) {

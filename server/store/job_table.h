@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/api.h"
+#include "core/cost.h"
 #include "core/status.h"
 #include "server/store/database.h"
 
@@ -56,9 +57,10 @@ struct GrantRef {
   int64_t job_id = 0;
 };
 Result<std::optional<GrantRef>> OpenNextGrant(Transaction& t, const std::string& token);
-// Puts that job back in the queue as if never leased (attempt uncounted) and closes its lease as
+// Puts that job back in the queue as if never leased (attempt uncounted; a run with no progress),
+// or, a run no live sweep wants (`wanted` false, RunWanted), cancels it, and closes its lease as
 // "unreceived" -- when it is still running under that grant. False when it has moved on.
-Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, double now);
+Result<bool> TakeBackGrant(Transaction& t, const GrantRef& grant, bool wanted, double now);
 
 // Slurm jobs that hold an open lease on a running job, sorted.
 Result<std::vector<std::string>> SlurmJobsWithOpenLeases(Transaction& t);
@@ -116,7 +118,9 @@ struct QueuedBed {
 };
 Result<std::optional<QueuedBed>> NextQueuedBed(Transaction& t);
 
-Status ExtendBedLease(Transaction& t, int64_t bed_id, double expires_at);
+// A bed's heartbeat: its lease extended to `expires_at`, its heartbeat_at now (a running job counts
+// as an engine while it heartbeats: cost_model.h kLiveEngineS).
+Status ExtendBedLease(Transaction& t, int64_t bed_id, double expires_at, double now);
 
 struct BedRow {
   std::string key;
@@ -160,7 +164,12 @@ Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t);
 
 // A run whose deck cannot be made (or no longer matches its key): failed with "deck_error".
 Status FailRunDeck(Transaction& t, int64_t run_id, const std::string& why, double now);
-// A heartbeat: the lease extended to `expires_at` and the progress recorded.
+// A heartbeat: the lease extended to `expires_at` and the progress recorded; and a progress mark
+// (run_progress: its step now) when its newest is kProgressMarkS old or more, marks older than
+// kProgressHorizonS removed then. The cost model reads the running runs' rate over the last
+// kShareWindowS from them (cost_model.h: the ETA follows the machine's current share).
+inline constexpr double kProgressMarkS = 60;
+inline constexpr double kProgressHorizonS = 3 * kShareWindowS;
 Status RecordProgress(Transaction& t, int64_t run_id, double expires_at, const api::Heartbeat& beat, double now);
 // Whether some sweep that is not cancelled still wants the run (runs may be shared).
 Result<bool> RunWanted(Transaction& t, int64_t run_id);

@@ -136,6 +136,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
                         "ALTER TABLE campaign_schedules DROP COLUMN source;"
                         "DROP TABLE snapshots;"
                         "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts; DROP TABLE campaign_run_charges; DROP TABLE campaign_run_replacements;"
+                        "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2; ALTER TABLE beds DROP COLUMN ranks;"
                         "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "

@@ -1,0 +1,196 @@
+#!/usr/bin/env python3
+"""Replays candidate ETA rate rules on a real daemon's record and prints each rule's error rates.
+
+The record: a status log (`sandswim status CR` every few minutes, each reading headed
+"=== ISO-time epoch", as /work/realrun/eta-log.sh writes it), the daemon's log (when each run was
+leased and completed) and a copy of its database (the done runs' results: steps, grains, wall time).
+For every run whose end is known, at every reading more than --horizon seconds before that end, each
+rule predicts the wall time the run needs to reach the step it really ended at (so the replay
+measures the rate rule, not the guess of where a run stops) and states a relative 1-sigma error.
+The truth is the time it really took. Printed per rule: predictions, median |error|, the share
+within +-25 %, and how often the truth lay within the stated 1 sigma (|truth - pred| <= err x pred).
+
+The rules (core/cost.h names: M = the cost model's pooled rate with its FitRate error e_M, f = the
+live running runs' pooled wall per particle-step over the last 10 minutes / M's, f_b = the same for
+the 10 minutes before, or their attempts so far):
+  old        M, e_M                                    (main before issue 30)
+  a          M, hypot(e_M, |ln f|)                     (the old point, the share's pull as error)
+  b          the running runs' pooled rate over their attempts so far, hypot(e_M, |ln(f x M / b)|)
+  c          M x sqrt(f), hypot(e_M, |ln f| / 2, |ln(f / f_b)|)   (the ETA's rule: core/cost.h Share)
+  d          M x f, hypot(e_M, |ln(f / f_b)|)          (the last 10 minutes alone)
+A rule is chosen for the smallest median error among those whose 1 sigma holds the truth at least
+~60 % of the time. Readings of two runs at once share one machine: their errors are not independent.
+
+Usage: eta_replay.py --status eta.log --daemon-log sandswimd.log --db copy.db
+"""
+import argparse
+import datetime
+import math
+import re
+import sqlite3
+import statistics
+
+DT = 1e-5  # s of simulated time per step (the smoke decks: 200000 steps for 2 s)
+WINDOW = 600.0
+MIN_STRETCH = 120.0  # core/cost.h kMinShareStretchS
+RUNNING_MIN_WALL = 20.0  # a running run joins the model once it has run this long
+MIN_REL = 0.1  # core/cost.h kMinRateRelError
+
+
+def parse_time(text):
+    return datetime.datetime.strptime(text, "%Y-%m-%d %H:%M:%S.%f").replace(
+        tzinfo=datetime.timezone.utc).timestamp()
+
+
+def read_daemon_log(path):
+    leases, completed = {}, {}
+    pat = re.compile(r"^\[(\S+ \S+)\] \[info\] run (\d+) attempt \d+: (leased|completed \(done\))")
+    for line in open(path, encoding="utf-8", errors="replace"):
+        m = pat.match(line)
+        if not m:
+            continue
+        at, run = parse_time(m.group(1)), int(m.group(2))
+        if m.group(3) == "leased":
+            leases.setdefault(run, []).append(at)
+        else:
+            completed[run] = at
+    return leases, completed
+
+
+def read_status(path):
+    readings = []
+    run_pat = re.compile(r"^\s+run (\d+)\s+\[.*?\]\s+\d+%\s+([0-9.]+)/")
+    for line in open(path, encoding="utf-8", errors="replace"):
+        if line.startswith("=== "):
+            readings.append((float(line.split()[2]), {}))
+        else:
+            m = run_pat.match(line)
+            if m and readings:
+                readings[-1][1][int(m.group(1))] = round(float(m.group(2)) / DT)
+    return readings
+
+
+def fit_rate(samples):
+    """core/cost.cc FitRate: pooled wall/work, error = spread of log rates / sqrt(n), >= MIN_REL."""
+    samples = [(w, s) for w, s in samples if w > 0 and s > 0]
+    if not samples:
+        return None, None
+    rate = sum(s for _, s in samples) / sum(w for w, _ in samples)
+    logs = [math.log(s / w) for w, s in samples]
+    if len(logs) == 1:
+        return rate, max(MIN_REL, 0.25)
+    return rate, max(MIN_REL, statistics.stdev(logs) / math.sqrt(len(logs)))
+
+
+def pooled(samples, min_wall=0.0):
+    samples = [(w, s) for w, s in samples if w > 0 and s >= min_wall]
+    return sum(s for _, s in samples) / sum(w for w, _ in samples) if samples else None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--status", required=True)
+    ap.add_argument("--daemon-log", required=True)
+    ap.add_argument("--db", required=True)
+    ap.add_argument("--horizon", type=float, default=300, help="predict only this long before a run's end")
+    ap.add_argument("--slack", type=float, default=30, help="a reading this much older than a window still opens it")
+    ap.add_argument("--per-run", action="store_true")
+    ap.add_argument("--runs", help="only these runs' predictions, e.g. 49,50,51")
+    args = ap.parse_args()
+
+    leases, completed = read_daemon_log(args.daemon_log)
+    readings = read_status(args.status)
+    db = sqlite3.connect(args.db)
+    results = {r: (steps * (grains + 1.0), wall) for r, steps, grains, wall in db.execute(
+        "SELECT run_id, steps, grains, wall_s FROM results WHERE wall_s > 0")}
+    final_step = {r: s for r, s in db.execute("SELECT run_id, steps FROM results")}
+    particles = {r: g + 1.0 for r, g in db.execute(
+        "SELECT r.id, b.grains FROM runs r JOIN beds b ON b.id = r.bed_id WHERE b.grains > 0")}
+
+    def started(run, at):
+        past = [t for t in leases.get(run, []) if t <= at]
+        return past[-1] if past else None
+
+    def step_at(run, at):
+        """The run's step at the newest reading at or before `at` within the attempt live at `at`."""
+        for t, runs in reversed(readings):
+            if t <= at and run in runs:
+                return t, runs[run]
+        return None
+
+    def stretch(run, begin, end, start):
+        """(work, wall) from the oldest reading at or after `begin` - slack to the reading at `end`."""
+        first = None
+        for t, runs in readings:
+            if t >= begin - args.slack and t >= start and t <= end and run in runs:
+                first = (t, runs[run])
+                break
+        if first is None or first[0] >= end:
+            return None
+        last = step_at(run, end)
+        return ((last[1] - first[1]) * particles[run], end - first[0]), first[0]
+
+    rules = ["old", "a", "b", "c", "d"]
+    preds = {r: [] for r in rules}
+    for t, runs in readings:
+        live = {run: step for run, step in runs.items() if started(run, t) is not None and run in particles}
+        done = [results[r] for r, at in completed.items() if at < t and r in results]
+        so_far = [(step * particles[run], t - started(run, t)) for run, step in live.items()]
+        model, e_model = fit_rate(done + [s for s in so_far if s[1] >= RUNNING_MIN_WALL])
+        if model is None:
+            continue
+        recent, before = [], []
+        for run in live:
+            got = stretch(run, t - WINDOW, t, started(run, t))
+            if got is None:
+                continue
+            recent.append(got[0])
+            prior = stretch(run, got[1] - WINDOW, got[1], started(run, t))
+            if prior is not None:
+                before.append(prior[0])
+        now = pooled(recent, MIN_STRETCH)
+        then = pooled(before, MIN_STRETCH) or pooled(so_far)
+        attempt = pooled(so_far)
+        f = now / model if now else 1.0
+        change = abs(math.log(now / then)) if now and then else 0.0
+        est = {
+            "old": (model, e_model),
+            "a": (model, math.hypot(e_model, abs(math.log(f)))),
+            "b": (attempt, math.hypot(e_model, abs(math.log(now / attempt)) if now else 0.0)) if attempt else
+                 (model, e_model),
+            "c": (model * math.sqrt(f), math.hypot(e_model, abs(math.log(f)) / 2, change)),
+            "d": (model * f, math.hypot(e_model, change)),
+        }
+        for run, step in live.items():
+            if args.runs and str(run) not in args.runs.split(","):
+                continue
+            if run not in completed or run not in final_step or completed[run] <= t:
+                continue
+            truth = completed[run] - t
+            if truth <= args.horizon:
+                continue
+            work = (final_step[run] - step) * particles[run]
+            for rule, (rate, err) in est.items():
+                pred = work * rate
+                preds[rule].append((run, t, pred, truth, err))
+
+    print("rule  predictions  median|err|  within25%  covered1sigma  median_stated  median|ln(pred/truth)|")
+    for rule in rules:
+        rows = preds[rule]
+        errs = [abs(p / tr - 1) for _, _, p, tr, _ in rows]
+        within = sum(e <= 0.25 for e in errs)
+        covered = sum(abs(tr - p) <= e * p for _, _, p, tr, e in rows)
+        print(f"{rule:5} {len(rows):11d}  {100 * statistics.median(errs):10.1f}%  {within:4d} ({100 * within / len(rows):3.0f}%)"
+              f"  {covered:4d} ({100 * covered / len(rows):3.0f}%)  {100 * statistics.median(e for *_, e in rows):8.0f}%"
+              f"  {statistics.median(abs(math.log(p / tr)) for _, _, p, tr, _ in rows):10.3f}")
+        if args.per_run:
+            for run in sorted({r for r, *_ in rows}):
+                sub = [x for x in rows if x[0] == run]
+                e = [abs(p / tr - 1) for _, _, p, tr, _ in sub]
+                c = sum(abs(tr - p) <= s * p for _, _, p, tr, s in sub)
+                print(f"        run {run}: {len(sub)} predictions, median |err| {100 * statistics.median(e):.0f}%, "
+                      f"covered {c}")
+
+
+if __name__ == "__main__":
+    main()
