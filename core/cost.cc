@@ -93,7 +93,8 @@ Share CurrentShare(const std::vector<RateSample>& recent, const std::vector<Rate
   int engines = 0;
   double longest = 0;
   const double now = PooledSecondsPerUnit(recent, kMinShareStretchS, &engines, &longest);
-  if (!(now > 0)) return share;
+  // A factor that is not a finite positive number (an overflowing or degenerate pool) is no share.
+  if (!(now > 0) || !std::isfinite(now / model.s_per_unit)) return share;
   share.measured = true;
   share.factor = now / model.s_per_unit;
   share.scale = std::sqrt(share.factor);

@@ -17,10 +17,13 @@ using nlohmann::json;
 std::string CoreHText(double h) { return Num(h, 3) + " core-h"; }
 
 // What an ended run or bed of the campaign run (created at `created_at`) is charged, at the rates
-// in `cost`: a prepared bed its cost; a done run its simulated time; a failed or cancelled one the
-// simulated time its last heartbeat reached. A run that ended without a heartbeat is charged
-// nothing when it never ran (no lease: cancelled while queued, or its bed failed), and its whole
-// planned length when it ran: the most it can have simulated, so the budget stays a hard limit.
+// in `cost`: a prepared or failed bed its cost (per ending: a bed requeued and prepared again is
+// charged twice); a done run its simulated time; a failed or cancelled one the simulated time its
+// last heartbeat reached. A run with no positive simulated time (no heartbeat, or a heartbeat
+// that carried none: core/api.h's sim_time_s defaults to 0) is charged nothing when it never ran
+// (no lease: cancelled while queued, or its bed failed), and its whole planned length when it
+// ran: the most its last attempt can have simulated. The budget is not a hard limit: the earlier
+// attempts of a retried or handed-back run are not charged (their progress is cleared on requeue).
 // (The wall time its lease allowed is no price: it is wall time, not simulated time, and a lease
 // is mostly unused.) A run or bed that had ended before the campaign run was submitted (found
 // stored by its key: a nightly rerun's unchanged runs) cost it nothing and is charged 0.
@@ -41,9 +44,9 @@ rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost, double
     c.core_h = cost.BedCoreHours(j.point);
     return c;
   }
-  if (j.sim_time_s) {
+  if (j.sim_time_s && *j.sim_time_s > 0) {
     c.priced_by = j.state == "done" ? "result" : "heartbeat";
-    c.sim_time_s = std::max(0.0, *j.sim_time_s);
+    c.sim_time_s = *j.sim_time_s;
   } else if (j.attempts == 0) {
     c.priced_by = "never ran";
     c.sim_time_s = 0.0;
@@ -111,12 +114,14 @@ Result<ScalePlan> PlanOrder(const RunOrder& o, const std::string& scale, const s
   return out;
 }
 
-// The run a longer order replaces: the point's run on that bed in the campaign run's sweeps.
+// The run a longer order replaces: the point's run on that bed in the order's sweep (the longer
+// run joins only that sweep).
 std::optional<int64_t> ReplacedRun(const ClaimInput& input, const RunOrder& o) {
   const DriveId id = DriveIdOf(o.point);
   for (const ClaimSweep& s : input.sweeps)
-    for (const ClaimRun& r : s.runs)
-      if (r.replicate == o.replicate && DriveIdOf(r.point) == id) return r.run_id;
+    if (s.name == o.sweep)
+      for (const ClaimRun& r : s.runs)
+        if (r.replicate == o.replicate && DriveIdOf(r.point) == id) return r.run_id;
   return std::nullopt;
 }
 
@@ -169,16 +174,15 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   const rounds::RoundRow& last = stored->back();
   if (last.stop_reason || last.finished_at) return Out();
 
-  // Cheap checks before anything is analysed. A cancelled sweep stops the rounds at once, busy
-  // runs or not (they may be shared with another campaign run's live sweep and run on); else the
-  // look waits until none of its runs or beds is queued or running.
+  // Cheap check before anything is analysed: the look waits until none of its runs or beds is
+  // queued or running, a cancelled sweep's too, so that the last look charges every run that ran
+  // (a run still running when its sweep was cancelled would otherwise never be charged; the
+  // cancel check inside the write below keeps runs from being added meanwhile).
+  Result<int64_t> busy = rounds::BusyJobs(*store_, campaign_run_id);
+  if (!busy.ok()) return busy.status();
+  if (*busy > 0) return Out();
   Result<int64_t> cancelled_sweeps = rounds::CancelledSweeps(*store_, campaign_run_id);
   if (!cancelled_sweeps.ok()) return cancelled_sweeps.status();
-  if (*cancelled_sweeps == 0) {
-    Result<int64_t> busy = rounds::BusyJobs(*store_, campaign_run_id);
-    if (!busy.ok()) return busy.status();
-    if (*busy > 0) return Out();
-  }
   Result<AdaptiveCost> cost = rounds::AdaptiveCostNow(*store_, info->scale, now);
   if (!cost.ok()) return cost.status();
 
@@ -253,6 +257,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   // Plans of the next round's runs, before the transaction (nothing to refuse inside it but the cap).
   std::vector<ScalePlan> plans;
   std::vector<std::optional<int64_t>> replaced;
+  std::vector<std::string> order_sweep;
   if (!next.stop) {
     for (const AdaptiveAction& a : next.actions)
       for (const RunOrder& o : a.runs) {
@@ -260,6 +265,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
         if (!plan.ok()) return plan.status().WithFieldPrefix("round " + std::to_string(next.round) + " (" + a.claim + ")");
         plans.push_back(std::move(plan).value());
         replaced.push_back(o.replaces ? ReplacedRun(look->input, o) : std::nullopt);
+        order_sweep.push_back(o.sweep);
       }
   }
 
@@ -305,7 +311,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
           AddPlannedRuns(t, plans[i], options_.engine_version, now, ids, next_position, added));
       if (replaced[i]) {
         Result<int64_t> n = rounds::ReplaceInCampaignRunSweeps(t, campaign_run_id, next.round, *replaced[i],
-                                                               plans[i].plan.runs.front().key);
+                                                               plans[i].plan.runs.front().key, order_sweep[i]);
         if (!n.ok()) return n.status();
       }
     }

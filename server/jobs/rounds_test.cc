@@ -329,6 +329,123 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) 
 
 }
 
+// A heartbeat that carried no simulated time (api::Heartbeat's sim_time_s defaults to 0) is no
+// measure: a run that failed after it is charged its planned length, as one with no heartbeat.
+TEST_F(RoundsTest, AFailedRunWhoseHeartbeatSaidZeroIsChargedItsPlannedLength) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  fails_ = [](const Point& p) { return p.Omega > 0; };
+  fail_heartbeat_s_ = 0;
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 1);
+  auto ended = rounds::UnchargedEndedJobs(*store_, id);
+  ASSERT_TRUE(ended.ok()) << ended.status().ToString();
+  const rounds::EndedJob* failed = nullptr;
+  for (const rounds::EndedJob& j : *ended)
+    if (j.kind == "run" && j.state == "failed") failed = &j;
+  ASSERT_NE(failed, nullptr);
+  ASSERT_GT(failed->attempts, 0);
+  ASSERT_GT(failed->run_duration_s, 0);
+  const double planned = failed->run_duration_s;
+  const int64_t failed_id = failed->id;
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  auto t = store_->db().BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("SELECT priced_by, sim_time_s FROM campaign_run_charges WHERE kind = 'run' AND job_id = ?");
+  st.Bind(1, failed_id);
+  auto row = st.Step();
+  ASSERT_TRUE(row.ok() && *row);
+  EXPECT_EQ(st.Text(0), "planned length");
+  EXPECT_DOUBLE_EQ(st.Double(1), planned);
+}
+
+// A bed is charged per ending, failed or prepared: one that failed, was requeued and then prepared
+// is charged for each ending (its cost was spent each time).
+TEST_F(RoundsTest, ABedIsChargedPerEndingFailedOrPrepared) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto beds_uncharged = [&](const std::string& state) {
+    auto ended = rounds::UnchargedEndedJobs(*store_, id);
+    EXPECT_TRUE(ended.ok()) << ended.status().ToString();
+    int n = 0;
+    if (!ended.ok()) return -1;
+    for (const rounds::EndedJob& j : *ended) n += j.kind == "bed" && j.state == state;
+    return n;
+  };
+  EXPECT_EQ(beds_uncharged("done"), 1);
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  EXPECT_EQ(beds_uncharged("done"), 0);
+  // The charged bed's ending as it would be had it failed later, then been prepared again later still
+  // (round 2's beds, if any, are not yet prepared).
+  ASSERT_TRUE(store_->db()
+                  .Write([](Transaction& t) {
+                    return t.Exec("UPDATE beds SET state = 'failed', finished_at = finished_at + 10 "
+                                  "WHERE id IN (SELECT job_id FROM campaign_run_charges WHERE kind = 'bed')");
+                  })
+                  .ok());
+  EXPECT_EQ(beds_uncharged("failed"), 1);
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) -> Status {
+                    auto ended = rounds::UnchargedEndedJobs(t, id);
+                    if (!ended.ok()) return ended.status();
+                    std::vector<rounds::Charge> charges;
+                    for (const rounds::EndedJob& j : *ended)
+                      if (j.kind == "bed") charges.push_back({"bed", j.id, j.ended_at, j.state, std::nullopt, "bed", 1});
+                    return rounds::AddCharges(t, id, 2, clock_.Now(), charges).status();
+                  })
+                  .ok());
+  EXPECT_EQ(beds_uncharged("failed"), 0);
+  ASSERT_TRUE(store_->db()
+                  .Write([](Transaction& t) {
+                    return t.Exec("UPDATE beds SET state = 'done', finished_at = finished_at + 10 "
+                                  "WHERE id IN (SELECT job_id FROM campaign_run_charges WHERE kind = 'bed')");
+                  })
+                  .ok());
+  EXPECT_EQ(beds_uncharged("done"), 1);
+}
+
+// A longer run joins only its order's sweep: the run it replaces leaves that sweep and stays in the
+// campaign run's other sweeps that share it.
+TEST_F(RoundsTest, AReplacementLeavesOnlyTheOrdersSweep) {
+  json twice = Adaptive(50);
+  json other = twice["sweeps"][0];
+  other["name"] = "signs_again";
+  twice["sweeps"].push_back(other);
+  ASSERT_TRUE(SaveCampaign(*store_, "twice", twice, kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("twice");
+  auto members = [&](const std::string& sweep, int64_t run) {
+    auto t = store_->db().BeginRead();
+    EXPECT_TRUE(t.ok());
+    Statement st = t->Prepare(
+        "SELECT COUNT(*) FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+        "WHERE s.campaign_run_id = ? AND s.name = ? AND sr.run_id = ?");
+    st.Bind(1, id).Bind(2, sweep).Bind(3, run);
+    auto row = st.Step();
+    EXPECT_TRUE(row.ok() && *row);
+    return st.Int(0);
+  };
+  std::vector<std::pair<int64_t, std::string>> runs;  // id, key
+  {
+    auto t = store_->db().BeginRead();
+    ASSERT_TRUE(t.ok());
+    Statement st = t->Prepare("SELECT id, key FROM runs ORDER BY id");
+    for (auto row = st.Step(); row.ok() && *row; row = st.Step()) runs.emplace_back(st.Int(0), st.Text(1));
+  }
+  ASSERT_EQ(runs.size(), 2u);  // the two sweeps share their runs
+  const int64_t old_run = runs[0].first;
+  ASSERT_EQ(members("signs", old_run), 1);
+  ASSERT_EQ(members("signs_again", old_run), 1);
+  auto n = store_->db().WriteResult<int64_t>([&](Transaction& t) {
+    return rounds::ReplaceInCampaignRunSweeps(t, id, 2, old_run, runs[1].second, "signs");
+  });
+  ASSERT_TRUE(n.ok()) << n.status().ToString();
+  EXPECT_EQ(*n, 1);
+  EXPECT_EQ(members("signs", old_run), 0);
+  EXPECT_EQ(members("signs_again", old_run), 1);
+}
+
 // The ledger, not the planner's hopes, decides when the budget is spent: with its charges at the
 // budget, the rounds stop, saying so, and nothing is added.
 TEST_F(RoundsTest, TheRoundsStopWhenTheLedgerReachesTheBudget) {

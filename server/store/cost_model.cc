@@ -334,12 +334,13 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
     share.sd = fractions.size() > 1 ? std::sqrt(ss / static_cast<double>(fractions.size() - 1)) : 0.5 * mean;
   }
   const int slots = std::max({model->engines_in_flight, min_slots, 1});
-  // Beds on this machine get the share its runs get now.
+  // Beds on this machine are assumed to get the share its runs get now (no bed's share is measured:
+  // beds do not heartbeat their progress), and the basis says so.
   EngineRate bed_rate = model->bed_rate;
   if (model->share.measured) {
     bed_rate.s_per_unit *= model->share.scale;
     bed_rate.rel_error = std::hypot(bed_rate.rel_error, model->share.rel_error);
-    bed_rate.basis += ", at the runs' share now";
+    bed_rate.basis += ", assumed the runs' share now (a bed's is not measured)";
   }
   std::optional<Eta> eta = EstimateEta(left, AtShare(model->run_rate, model->share), bed_rate, share, slots);
   if (eta) {
@@ -356,8 +357,10 @@ json EtaJson(const std::optional<Eta>& eta) {
   if (!eta) return nullptr;
   return {{"s", eta->seconds},
           {"rel_error", eta->rel_error},
-          {"low_s", eta->seconds * std::max(0.0, 1 - eta->rel_error)},
-          {"high_s", eta->seconds * (1 + eta->rel_error)},
+          // rel_error is a half-range on a log scale (the share's |ln factor| / 2): the band is s / e^r
+          // to s * e^r, never below 0 and as wide on either side in ratio.
+          {"low_s", eta->seconds / std::exp(eta->rel_error)},
+          {"high_s", eta->seconds * std::exp(eta->rel_error)},
           {"basis", eta->basis}};
 }
 

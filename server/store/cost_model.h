@@ -89,7 +89,8 @@ enum class EtaScope { kSweep, kCampaignRun };
 // nothing is left.
 Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, double now, int min_slots);
 
-// {"s","rel_error","low_s","high_s","basis"} (a 1-sigma band), or null.
+// {"s","rel_error","low_s","high_s","basis"} (a 1-sigma band on a log scale: low_s = s / e^rel_error,
+// high_s = s * e^rel_error), or null.
 nlohmann::json EtaJson(const std::optional<Eta>& eta);
 
 }  // namespace sandswim

@@ -112,6 +112,12 @@ TEST_F(CostModelTest, RatesComeFromDoneRunsAndRunningProgress) {
   EXPECT_DOUBLE_EQ(j["s"].get<double>(), 75);
   EXPECT_LT(j["low_s"].get<double>(), 75);
   EXPECT_GT(j["high_s"].get<double>(), 75);
+  // The band is a log-scale half-range: as wide on either side in ratio, never below 0.
+  EXPECT_NEAR(j["low_s"].get<double>() * j["high_s"].get<double>(), 75.0 * 75.0, 1e-6);
+  EXPECT_NEAR(j["high_s"].get<double>() / 75, std::exp((*eta)->rel_error), 1e-12);
+  Eta wide = **eta;
+  wide.rel_error = 1.5;
+  EXPECT_GT(EtaJson(wide)["low_s"].get<double>(), 0);
 }
 
 // A running job counts as an engine only while it heartbeats: after a daemon restart a run whose

@@ -373,13 +373,15 @@ Status RecordProgress(Transaction& t, int64_t run_id, double expires_at, const a
   SANDSWIM_RETURN_IF_ERROR(st.Run());
   Statement mark = t.Prepare(
       "INSERT OR REPLACE INTO run_progress (run_id, at, step) SELECT ?1, ?2, ?3 WHERE NOT EXISTS "
-      "(SELECT 1 FROM run_progress WHERE run_id = ?1 AND at > ?2 - ?4)");
+      "(SELECT 1 FROM run_progress WHERE run_id = ?1 AND at > ?2 - ?4 AND at <= ?2)");
   mark.Bind(1, run_id).Bind(2, now).Bind(3, beat.step).Bind(4, kProgressMarkS);
   SANDSWIM_RETURN_IF_ERROR(mark.Run());
   if (t.Changes() == 0) return Status::Ok();
   // The table holds the last kProgressHorizonS of every run's marks: a few dozen rows a running run.
-  Statement old = t.Prepare("DELETE FROM run_progress WHERE at < ?1");
-  old.Bind(1, now - kProgressHorizonS);
+  // Marks from ahead of now (a clock that went back) go too: they would block new marks (the NOT
+  // EXISTS above ignores them) and date the progress wrongly.
+  Statement old = t.Prepare("DELETE FROM run_progress WHERE at < ?1 OR at > ?2");
+  old.Bind(1, now - kProgressHorizonS).Bind(2, now);
   return old.Run();
 }
 

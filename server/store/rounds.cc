@@ -248,13 +248,15 @@ Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaig
     j.point = *p;
     out.push_back(std::move(j));
   }
-  // A prepared bed, priced by the materials of one of its runs here (its grains follow them).
+  // A prepared or failed bed (per ending: one that failed, was requeued and was prepared is
+  // charged for both), priced by the materials of one of its runs here (its grains follow them).
   Statement beds = t.Prepare(
       std::string(kMyRuns) +
       "SELECT b.id, COALESCE(b.finished_at, 0), r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, "
-      "r.materials FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
-      "WHERE r2.bed_id = b.id) WHERE b.state = 'done' AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c "
-      "WHERE c.campaign_run_id = ?1 AND c.kind = 'bed' AND c.job_id = b.id) ORDER BY b.id");
+      "r.materials, b.state FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
+      "WHERE r2.bed_id = b.id) WHERE b.state IN ('done', 'failed') AND NOT EXISTS (SELECT 1 FROM "
+      "campaign_run_charges c WHERE c.campaign_run_id = ?1 AND c.kind = 'bed' AND c.job_id = b.id "
+      "AND c.ended_at = COALESCE(b.finished_at, 0)) ORDER BY b.id");
   beds.Bind(1, campaign_run_id);
   for (;;) {
     Result<bool> row = beds.Step();
@@ -263,7 +265,7 @@ Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaig
     EndedJob j;
     j.kind = "bed";
     j.id = beds.Int(0);
-    j.state = "done";
+    j.state = beds.Text(10);
     j.ended_at = beds.Double(1);
     Result<Point> p = StoredPoint(beds.Text(2), beds.Text(3), beds.Double(4), beds.Double(5), beds.Double(6),
                                   beds.Double(7), beds.Double(8), beds.OptText(9));
@@ -353,7 +355,7 @@ Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id) {
 }
 
 Result<int64_t> ReplaceInCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int round, int64_t old_run_id,
-                                           const std::string& new_run_key) {
+                                           const std::string& new_run_key, const std::string& sweep) {
   Statement find = t.Prepare("SELECT id FROM runs WHERE key = ?");
   find.Bind(1, new_run_key);
   Result<bool> row = find.Step();
@@ -365,12 +367,13 @@ Result<int64_t> ReplaceInCampaignRunSweeps(Transaction& t, int64_t campaign_run_
   Statement record = t.Prepare(
       "INSERT INTO campaign_run_replacements (campaign_run_id, round, sweep_id, position, old_run_id, new_run_id) "
       "SELECT ?1, ?2, sr.sweep_id, sr.position, ?3, ?4 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
-      "WHERE s.campaign_run_id = ?1 AND sr.run_id = ?3 ON CONFLICT DO NOTHING");
-  record.Bind(1, campaign_run_id).Bind(2, round).Bind(3, old_run_id).Bind(4, new_run_id);
+      "WHERE s.campaign_run_id = ?1 AND s.name = ?5 AND sr.run_id = ?3 ON CONFLICT DO NOTHING");
+  record.Bind(1, campaign_run_id).Bind(2, round).Bind(3, old_run_id).Bind(4, new_run_id).Bind(5, sweep);
   SANDSWIM_RETURN_IF_ERROR(record.Run());
   Statement leave = t.Prepare(
-      "DELETE FROM sweep_runs WHERE run_id = ? AND sweep_id IN (SELECT id FROM sweeps WHERE campaign_run_id = ?)");
-  leave.Bind(1, old_run_id).Bind(2, campaign_run_id);
+      "DELETE FROM sweep_runs WHERE run_id = ? AND sweep_id IN (SELECT id FROM sweeps WHERE campaign_run_id = ? "
+      "AND name = ?)");
+  leave.Bind(1, old_run_id).Bind(2, campaign_run_id).Bind(3, sweep);
   SANDSWIM_RETURN_IF_ERROR(leave.Run());
   return t.Changes();
 }

@@ -132,11 +132,12 @@ Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64
 Result<int64_t> CancelledSweeps(Transaction& t, int64_t campaign_run_id);
 Result<int64_t> CancelledSweeps(Store& store, int64_t campaign_run_id);
 // A longer run (its key `new_run_key`, written already) takes `old_run_id`'s place in the campaign
-// run's sweeps: each membership of the old run there is recorded as a replacement of the round
-// (schema/016: campaign_run_replacements) and removed (the run and its result stay, for any
-// other sweep that has it, and in the ledger). Returns the memberships replaced.
+// run's sweep named `sweep` (the one the longer run joined): that membership of the old run is
+// recorded as a replacement of the round (schema/016: campaign_run_replacements) and removed (the
+// run and its result stay, in the campaign run's other sweeps, any other sweep that has it, and
+// in the ledger). Returns the memberships replaced (0 or 1).
 Result<int64_t> ReplaceInCampaignRunSweeps(Transaction& t, int64_t campaign_run_id, int round, int64_t old_run_id,
-                                           const std::string& new_run_key);
+                                           const std::string& new_run_key, const std::string& sweep);
 // Settles the replacements whose longer run has ended: done, it stands; failed or cancelled, the
 // replaced run goes back to its place and the longer one leaves the sweep, so the point keeps its
 // earlier measurement. The sweeps' counts are redone. Returns how many were put back. Once each.

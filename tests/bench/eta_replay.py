@@ -8,7 +8,9 @@ For every run whose end is known, at every reading more than --horizon seconds b
 rule predicts the wall time the run needs to reach the step it really ended at (so the replay
 measures the rate rule, not the guess of where a run stops) and states a relative 1-sigma error.
 The truth is the time it really took. Printed per rule: predictions, median |error|, the share
-within +-25 %, and how often the truth lay within the stated 1 sigma (|truth - pred| <= err x pred).
+within +-25 %, and how often the truth lay within the stated 1 sigma. The stated error r is a
+half-range on a log scale (the share's |ln f| / 2), and the ETA's band is pred / e^r .. pred x e^r
+(server/store/cost_model.cc EtaJson), so the truth is covered when |ln(truth / pred)| <= r.
 
 The rules (core/cost.h names: M = the cost model's pooled rate with its FitRate error e_M, f = the
 live running runs' pooled wall per particle-step over the last 10 minutes / M's, f_b = the same for
@@ -19,9 +21,13 @@ the 10 minutes before, or their attempts so far):
   c          M x sqrt(f), hypot(e_M, |ln f| / 2, |ln(f / f_b)|)   (the ETA's rule: core/cost.h Share)
   d          M x f, hypot(e_M, |ln(f / f_b)|)          (the last 10 minutes alone)
 A rule is chosen for the smallest median error among those whose 1 sigma holds the truth at least
-~60 % of the time. Readings of two runs at once share one machine: their errors are not independent.
+60 % of the time (CHOSEN_MIN_COVERAGE; none qualifying: the best covered). Readings of two runs at
+once share one machine: their errors are not independent.
 
-Usage: eta_replay.py --status eta.log --daemon-log sandswimd.log --db copy.db
+--leave-one-out: for each run, the rule is chosen on the other runs and scored on that run alone,
+so the score is out of sample (the table above it is in-sample: chosen and scored on the same runs).
+
+Usage: eta_replay.py --status eta.log --daemon-log sandswimd.log --db copy.db [--leave-one-out]
 """
 import argparse
 import datetime
@@ -35,6 +41,7 @@ WINDOW = 600.0
 MIN_STRETCH = 120.0  # core/cost.h kMinShareStretchS
 RUNNING_MIN_WALL = 20.0  # a running run joins the model once it has run this long
 MIN_REL = 0.1  # core/cost.h kMinRateRelError
+CHOSEN_MIN_COVERAGE = 0.6  # a rule's 1 sigma must hold the truth this often to be chosen
 
 
 def parse_time(text):
@@ -96,6 +103,8 @@ def main():
     ap.add_argument("--slack", type=float, default=30, help="a reading this much older than a window still opens it")
     ap.add_argument("--per-run", action="store_true")
     ap.add_argument("--runs", help="only these runs' predictions, e.g. 49,50,51")
+    ap.add_argument("--leave-one-out", action="store_true",
+                    help="also choose the rule on all runs but one and score it on that one, for each run")
     args = ap.parse_args()
 
     leases, completed = read_daemon_log(args.daemon_log)
@@ -177,19 +186,67 @@ def main():
     print("rule  predictions  median|err|  within25%  covered1sigma  median_stated  median|ln(pred/truth)|")
     for rule in rules:
         rows = preds[rule]
-        errs = [abs(p / tr - 1) for _, _, p, tr, _ in rows]
-        within = sum(e <= 0.25 for e in errs)
-        covered = sum(abs(tr - p) <= e * p for _, _, p, tr, e in rows)
-        print(f"{rule:5} {len(rows):11d}  {100 * statistics.median(errs):10.1f}%  {within:4d} ({100 * within / len(rows):3.0f}%)"
-              f"  {covered:4d} ({100 * covered / len(rows):3.0f}%)  {100 * statistics.median(e for *_, e in rows):8.0f}%"
-              f"  {statistics.median(abs(math.log(p / tr)) for _, _, p, tr, _ in rows):10.3f}")
+        if not rows:
+            print(f"{rule:5} {0:11d}  (no predictions)")
+            continue
+        m = score(rows)
+        print(f"{rule:5} {m['n']:11d}  {100 * m['median_err']:10.1f}%  {m['within']:4d} ({100 * m['within'] / m['n']:3.0f}%)"
+              f"  {m['covered']:4d} ({100 * m['coverage']:3.0f}%)  {100 * m['median_stated']:8.0f}%"
+              f"  {m['median_ln']:10.3f}")
         if args.per_run:
             for run in sorted({r for r, *_ in rows}):
-                sub = [x for x in rows if x[0] == run]
-                e = [abs(p / tr - 1) for _, _, p, tr, _ in sub]
-                c = sum(abs(tr - p) <= s * p for _, _, p, tr, s in sub)
-                print(f"        run {run}: {len(sub)} predictions, median |err| {100 * statistics.median(e):.0f}%, "
-                      f"covered {c}")
+                sub = score([x for x in rows if x[0] == run])
+                print(f"        run {run}: {sub['n']} predictions, median |err| {100 * sub['median_err']:.0f}%, "
+                      f"covered {sub['covered']}")
+    chosen = choose({rule: preds[rule] for rule in rules})
+    if chosen[1]:
+        print(f"chosen in-sample (the smallest median |err| among rules covering >= {100 * CHOSEN_MIN_COVERAGE:.0f} %): "
+              f"{chosen[0]}")
+    else:
+        print(f"no rule covers >= {100 * CHOSEN_MIN_COVERAGE:.0f} % in-sample; the best covered: {chosen[0] or 'none'}")
+
+    if args.leave_one_out:
+        runs = sorted({r for rows in preds.values() for r, *_ in rows})
+        print("\nleave one run out: the rule chosen on the other runs, scored on the run left out")
+        print("left_out  chosen  meets_criterion_on_others  predictions  median|err|  within25%  covered1sigma")
+        pooled_rows = []
+        for out in runs:
+            train = {rule: [x for x in preds[rule] if x[0] != out] for rule in rules}
+            rule, meets = choose(train)
+            if rule is None:
+                print(f"run {out:4d}  none")
+                continue
+            test = [x for x in preds[rule] if x[0] == out]
+            pooled_rows.extend(test)
+            m = score(test)
+            print(f"run {out:4d}  {rule:6}  {'yes' if meets else 'no':25}  {m['n']:11d}  {100 * m['median_err']:10.1f}%"
+                  f"  {m['within']:4d} ({100 * m['within'] / m['n']:3.0f}%)  {m['covered']:4d} ({100 * m['coverage']:3.0f}%)")
+        if pooled_rows:
+            m = score(pooled_rows)
+            print(f"all held-out predictions: {m['n']}, median |err| {100 * m['median_err']:.1f}%, within 25 % "
+                  f"{100 * m['within'] / m['n']:.0f}%, covered by 1 sigma {100 * m['coverage']:.0f}%")
+
+
+def score(rows):
+    """The error rates of (run, t, pred, truth, err) rows; coverage on a log scale."""
+    errs = [abs(p / tr - 1) for _, _, p, tr, _ in rows]
+    covered = sum(abs(math.log(tr / p)) <= e for _, _, p, tr, e in rows)
+    return {"n": len(rows), "median_err": statistics.median(errs), "within": sum(e <= 0.25 for e in errs),
+            "covered": covered, "coverage": covered / len(rows),
+            "median_stated": statistics.median(e for *_, e in rows),
+            "median_ln": statistics.median(abs(math.log(p / tr)) for _, _, p, tr, _ in rows)}
+
+
+def choose(preds_by_rule):
+    """(rule, meets): the smallest median error among rules covering >= CHOSEN_MIN_COVERAGE; when none
+    does, the best-covered rule and meets = False."""
+    scored = {rule: score(rows) for rule, rows in preds_by_rule.items() if rows}
+    if not scored:
+        return None, False
+    ok = [r for r, m in scored.items() if m["coverage"] >= CHOSEN_MIN_COVERAGE]
+    if ok:
+        return min(ok, key=lambda r: scored[r]["median_err"]), True
+    return max(scored, key=lambda r: scored[r]["coverage"]), False
 
 
 if __name__ == "__main__":
