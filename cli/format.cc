@@ -203,6 +203,12 @@ double RunInFlight::fraction() const {
   return std::clamp(sim_time_s / duration_s, 0.0, 1.0);
 }
 
+std::optional<Snapshot::DaemonEta::Band> Snapshot::DaemonEta::band() const {
+  if (high_s > 0 && low_s >= 0 && low_s <= high_s) return Band{low_s, high_s};
+  if (rel_error > 0 && std::isfinite(rel_error)) return Band{s / std::exp(rel_error), s * std::exp(rel_error)};
+  return std::nullopt;
+}
+
 std::optional<double> Snapshot::eta_s() const {
   if (counts.finished()) return 0.0;
   // Nothing running: a time only while a bed is prepared or a prepared bed's runs wait for a slot
@@ -220,7 +226,8 @@ std::string EtaText(const Snapshot& s) {
   auto eta = s.eta_s();
   if (eta) {
     std::string text = "ETA " + FormatDuration(*eta);
-    if (s.eta->rel_error > 0) text += " ± " + FormatDuration(*eta * s.eta->rel_error);
+    // The band as the daemon gives it (on a log scale, so not symmetric): "ETA 58m (50m-67m)".
+    if (auto band = s.eta->band()) text += " (" + FormatDuration(band->low_s) + "-" + FormatDuration(band->high_s) + ")";
     if (s.counts.running == 0)
       text += InState(s.waiting_bed_state, JobState::kDone) ? " (none of its runs has started: they wait for a free worker)"
                                             : " (preparing the granular bed first)";
@@ -334,6 +341,10 @@ json SnapshotToJson(const Snapshot& s) {
           {"finished", s.counts.finished()}};
   if (eta && s.eta) {
     j["eta_rel_error"] = s.eta->rel_error;
+    if (auto band = s.eta->band()) {
+      j["eta_low_s"] = band->low_s;
+      j["eta_high_s"] = band->high_s;
+    }
     j["eta_basis"] = s.eta->basis;
   }
   if (!s.rounds.empty()) {

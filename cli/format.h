@@ -107,10 +107,18 @@ struct Snapshot {
   std::vector<RunInFlight> running;
   std::vector<RunFailure> failed;
   // The daemon's ETA (server/store/cost_model.h: the work left at the measured engine rates), with its
-  // relative 1-sigma error and what it rests on; absent from a daemon older than the cost model.
+  // relative 1-sigma error, the band the daemon gives (low_s..high_s, s/e^r..s*e^r: 0 when it gives
+  // none) and what it rests on; absent from a daemon older than the cost model.
   struct DaemonEta {
     double s = 0, rel_error = 0;
     std::string basis;
+    double low_s = 0, high_s = 0;
+    // The band to show: the daemon's, or s/e^r..s*e^r from rel_error when it sent none (an older
+    // daemon); nullopt when it has no error to give.
+    struct Band {
+      double low_s, high_s;
+    };
+    std::optional<Band> band() const;
   };
   std::optional<DaemonEta> eta;
   // When runs are queued and none runs: the state of the bed they wait for ("queued",
@@ -135,7 +143,7 @@ std::string RenderRounds(const nlohmann::json& adaptive, const nlohmann::json& r
 // A `watch` frame on a terminal: title, counts + ETA, one progress line per running run.
 std::string RenderWatchFrame(const Snapshot& s, const RenderOptions& options);
 // {"title","counts":{...},"running":[{"id","point","sim_time_s","duration_s","so_z","worker"}],
-//  "failed":[{"id","point","reason"}],"eta_s": number|null,"eta_rel_error"?,"eta_basis"?,"finished": bool}
+//  "failed":[{"id","point","reason"}],"eta_s": number|null,"eta_rel_error"?,"eta_low_s"?,"eta_high_s"?,"eta_basis"?,"finished": bool}
 nlohmann::json SnapshotToJson(const Snapshot& s);
 // The one line `watch` prints when piped: "sweep 3 ...: 5/8 done, 1 running, 2 queued, 0 failed,
 // 0 cancelled; ETA 3m20s".

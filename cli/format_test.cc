@@ -8,6 +8,7 @@ namespace {
 
 using json = nlohmann::json;
 using ::testing::HasSubstr;
+using ::testing::EndsWith;
 using ::testing::Not;
 
 json TwoResultRows() {
@@ -73,11 +74,11 @@ TEST(FormatTest, ProgressBar) {
 TEST(FormatTest, EtaIsTheDaemonsWhileWorkMoves) {
   Snapshot s;
   s.counts.queued = 3;
-  s.eta = Snapshot::DaemonEta{600, 0.25, "measured: 2 done runs"};
+  s.eta = Snapshot::DaemonEta{600, 0.25, "measured: 2 done runs", 467, 770};
   EXPECT_FALSE(s.eta_s().has_value()) << "nothing in flight, no bed being prepared";
   s.waiting_bed_state = "running";
   EXPECT_EQ(s.eta_s(), 600.0);
-  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 10m00s ± 2m30s (preparing the granular bed first)"));
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 10m00s (7m47s-12m50s) (preparing the granular bed first)"));
   s.counts = {0, 0, 3, 0, 0};
   EXPECT_EQ(s.eta_s(), 0.0);
   s.counts = {1, 1, 0, 0, 0};
@@ -192,7 +193,7 @@ Snapshot SampleSnapshot() {
   s.counts = {2, 1, 5, 1, 0};
   s.running.push_back({7, "oscillatory A=0.03 f=3 Omega=-80 T=5s", 2.5, 5.0, 0.4321, "node1:12"});
   s.failed.push_back({9, "oscillatory A=0.03 f=3 Omega=80 T=5s", "engine_error: ERROR: Lost atoms"});
-  s.eta = Snapshot::DaemonEta{300, 0.2, "measured: 2 done runs; 1 engine"};
+  s.eta = Snapshot::DaemonEta{300, 0.2, "measured: 2 done runs; 1 engine", 246, 366};
   return s;
 }
 
@@ -200,7 +201,7 @@ TEST(FormatTest, StatusGolden) {
   EXPECT_EQ(RenderStatus(SampleSnapshot(), {}),
             "sweep 3 omega-sign (scale smoke)\n"
             "  runs: 9 (2 queued, 1 running, 5 done, 1 failed, 0 cancelled)\n"
-            "  ETA 5m00s ± 1m00s\n"
+            "  ETA 5m00s (4m06s-6m06s)\n"
             "    (measured: 2 done runs; 1 engine)\n"
             "in flight:\n"
             "  run 7  [##########..........]  50%  2.5/5 s  z=0.4321 m  oscillatory A=0.03 f=3 Omega=-80 T=5s"
@@ -239,6 +240,20 @@ TEST(FormatTest, StatusShowsTheRoundsOfAnAdaptiveCampaignRun) {
   EXPECT_EQ(RenderRounds(nullptr, nlohmann::json::array()), "");  // the fixed design: no lines
 }
 
+// The band is the daemon's (a log-scale band, not symmetric about the ETA), printed as it comes; from
+// a daemon that sends only rel_error the same band is computed; with no error, no band.
+TEST(FormatTest, EtaPrintsTheDaemonsBand) {
+  Snapshot s;
+  s.counts = {0, 1, 0, 0, 0};
+  s.eta = Snapshot::DaemonEta{3480, 0.15, "b", 3000, 4020};
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 58m00s (50m00s-1h07m)"));
+  s.eta = Snapshot::DaemonEta{3480, 0.15, "b"};  // 3480/e^0.15 = 2995, 3480*e^0.15 = 4043
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 58m00s (49m55s-1h07m)"));
+  s.eta = Snapshot::DaemonEta{3480, 0, "b"};
+  EXPECT_THAT(RenderWatchLine(s), EndsWith("ETA 58m00s"));
+  EXPECT_FALSE(SnapshotToJson(s).contains("eta_low_s"));
+}
+
 // While the bed is prepared nothing runs; the ETA says so instead of asking for a worker.
 TEST(FormatTest, EtaNamesTheBedWhileNothingRuns) {
   Snapshot s;
@@ -252,13 +267,13 @@ TEST(FormatTest, EtaNamesTheBedWhileNothingRuns) {
   EXPECT_THAT(RenderWatchLine(s), HasSubstr("no run in flight: is a worker running?"));
   // The daemon's estimate, while its workers prepare the campaign's other beds.
   s.eta = Snapshot::DaemonEta{600, 0.2, "test"};
-  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 10m00s ± 2m00s (none of its runs has started: they wait for a free worker)"));
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr("ETA 10m00s (8m11s-12m13s) (none of its runs has started: they wait for a free worker)"));
 }
 
 TEST(FormatTest, WatchLineAndFrame) {
   Snapshot s = SampleSnapshot();
   EXPECT_EQ(RenderWatchLine(s),
-            "sweep 3 omega-sign (scale smoke): 5/9 done, 1 running, 2 queued, 1 failed, 0 cancelled; ETA 5m00s ± 1m00s");
+            "sweep 3 omega-sign (scale smoke): 5/9 done, 1 running, 2 queued, 1 failed, 0 cancelled; ETA 5m00s (4m06s-6m06s)");
   std::string frame = RenderWatchFrame(s, {});
   EXPECT_THAT(frame, HasSubstr("[##########..........]  50%"));
   EXPECT_THAT(frame, Not(HasSubstr("\x1b[")));
@@ -275,6 +290,8 @@ TEST(FormatTest, SnapshotJson) {
   EXPECT_EQ(j["failed"][0]["reason"], "engine_error: ERROR: Lost atoms");
   EXPECT_DOUBLE_EQ(j["eta_s"].get<double>(), 300);
   EXPECT_DOUBLE_EQ(j["eta_rel_error"].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(j["eta_low_s"].get<double>(), 246);
+  EXPECT_DOUBLE_EQ(j["eta_high_s"].get<double>(), 366);
   EXPECT_EQ(j["eta_basis"], "measured: 2 done runs; 1 engine");
   EXPECT_EQ(j["finished"], false);
 }

@@ -27,7 +27,8 @@ std::string FailureReason(const json& run) {
 std::optional<Snapshot::DaemonEta> EtaFrom(const json& j) {
   auto it = j.find("eta");
   if (it == j.end() || !it->is_object() || !(*it)["s"].is_number()) return std::nullopt;
-  return Snapshot::DaemonEta{(*it)["s"].get<double>(), NumOr(*it, "rel_error", 0), it->value("basis", "")};
+  return Snapshot::DaemonEta{(*it)["s"].get<double>(), NumOr(*it, "rel_error", 0), it->value("basis", ""),
+                             NumOr(*it, "low_s", 0), NumOr(*it, "high_s", 0)};
 }
 
 // A running run as GET /api/v1/runs and the progress board list it.

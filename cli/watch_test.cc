@@ -199,7 +199,8 @@ class BoardDaemon {
                                            {"trigger", "manual"},
                                            {"sweeps", {1, 2, 3}},
                                            {"counts", counts}}});
-    if (!finished) board["campaign_runs"][0]["eta"] = {{"s", 120}, {"rel_error", 0.2}, {"basis", "3 runs"}};
+    if (!finished) board["campaign_runs"][0]["eta"] = {
+        {"s", 120}, {"rel_error", 0.2}, {"low_s", 98.2}, {"high_s", 146.6}, {"basis", "3 runs"}};
     board["sweeps"] = json::array();
     for (int id = 53; id >= 1; --id) {
       board["sweeps"].push_back({{"id", id}, {"name", "s" + std::to_string(id)}, {"scale", "smoke"}, {"counts", counts}});
@@ -246,7 +247,7 @@ TEST(WatchTest, ARefreshIsOneRequestForTheBoardWhateverTheRunsDone) {
     EXPECT_EQ(refreshes, 4);
     EXPECT_EQ(daemon.not_modified(), 1) << "the unchanged board came as a 304";
     EXPECT_EQ(out.str(), "campaign run cr:7 paper-58 (scale smoke, manual): " + std::to_string(done) + "/" +
-                             std::to_string(done + 1) + " done, 1 running, 0 queued, 0 failed, 0 cancelled; ETA 2m00s ± 24s\n"
+                             std::to_string(done + 1) + " done, 1 running, 0 queued, 0 failed, 0 cancelled; ETA 2m00s (1m38s-2m27s)\n"
                              "campaign run cr:7 paper-58 (scale smoke, manual): " + std::to_string(done + 1) + "/" +
                              std::to_string(done + 1) + " done, 0 running, 0 queued, 0 failed, 0 cancelled; finished\n");
     by_done[done] = daemon.requests();

@@ -22,6 +22,26 @@ std::string ExecutableDir() {
   return exe.parent_path().string();
 }
 
+std::string HostName() {
+  char host[256] = {0};
+  gethostname(host, sizeof(host) - 1);
+  return host;
+}
+
+namespace {
+constexpr const char* kLocalMark = ":local-";
+}  // namespace
+
+std::string LocalWorkerName(const std::string& host, pid_t daemon_pid) {
+  return host + kLocalMark + std::to_string(daemon_pid);
+}
+
+bool IsLocalWorkerName(const std::string& worker, const std::string& host) {
+  const std::string prefix = host + kLocalMark;
+  if (worker.size() <= prefix.size() || worker.compare(0, prefix.size(), prefix) != 0) return false;
+  return worker.find_first_not_of("0123456789", prefix.size()) == std::string::npos;
+}
+
 namespace {
 
 std::string DescribeExit(int status) {

@@ -34,11 +34,22 @@ struct LocalWorkersOptions {
   double min_backoff_s = 1;       // delay before restarting a worker that died
   double max_backoff_s = 60;
   double healthy_after_s = 30;  // a worker that lived this long resets its backoff
-  double grace_s = 10;          // SIGTERM -> SIGKILL
+  // SIGTERM -> SIGKILL. Longer than the worker's own grace for its engines (workers/worker.h
+  // stop_grace_s, 10 s) plus a hand-back, so a worker that is stopping its engines is not killed
+  // before it hands their jobs back.
+  double grace_s = 30;
 };
 
 // The directory of the running executable (/proc/self/exe), where sandswim-worker is installed.
 std::string ExecutableDir();
+
+// This machine's host name (gethostname), as workers name their host.
+std::string HostName();
+// The name sandswimd gives its local worker (sandswim-worker --name): "<host>:local-<daemon pid>".
+// A lease held under such a name on this host was a local worker's of this daemon or of an earlier
+// one on the same database: one home for the rule both sides read (main.cc, at start and at stop).
+std::string LocalWorkerName(const std::string& host, pid_t daemon_pid);
+bool IsLocalWorkerName(const std::string& worker, const std::string& host);
 
 class LocalWorkers {
  public:

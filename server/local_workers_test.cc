@@ -41,6 +41,19 @@ TEST(LocalWorkersTest, StartsEveryWorkerWithItsCommandLine) {
   EXPECT_EQ(processes.last_argv, Options(3).argv);
 }
 
+// The daemon's local worker is named "<host>:local-<daemon pid>"; only such a name on this host reads
+// as a local worker's (a worker elsewhere, or one named by hand, is not handed back for free).
+TEST(LocalWorkersTest, LocalWorkerNames) {
+  EXPECT_EQ(LocalWorkerName("vm", 2519), "vm:local-2519");
+  EXPECT_TRUE(IsLocalWorkerName(LocalWorkerName("vm", 2519), "vm"));
+  EXPECT_FALSE(IsLocalWorkerName("vm:local-2519", "vm2"));
+  EXPECT_FALSE(IsLocalWorkerName("node:local-2519", "vm"));
+  EXPECT_FALSE(IsLocalWorkerName("vm:2519", "vm"));
+  EXPECT_FALSE(IsLocalWorkerName("vm:local-", "vm"));
+  EXPECT_FALSE(IsLocalWorkerName("vm:local-25x", "vm"));
+  EXPECT_FALSE(HostName().empty());
+}
+
 TEST(LocalWorkersTest, RefusesAMissingWorkerBinary) {
   FakeClock clock;
   FakeSubprocesses processes(&clock);

@@ -432,12 +432,24 @@ int main(int argc, char** argv) {
   lease_options.wall_budget_s = flags.wall_budget_s;
   lease_options.data_dir = flags.data;
   sandswim::LeaseQueue leases(store->get(), &clock, lease_options);
-  if (auto extended = leases.ExtendLeasesAfterRestart(); !extended.ok()) {
+  // This daemon's local worker is named for it; one of an earlier daemon (stopped or killed) held
+  // its leases under such a name on this host, and died with it unless it heartbeats again.
+  const std::string host = sandswim::HostName();
+  const std::string local_worker = sandswim::LocalWorkerName(host, getpid());
+  if (auto extended = leases.ExtendLeasesAfterRestart(
+          [&host](const std::string& worker) { return sandswim::IsLocalWorkerName(worker, host); });
+      !extended.ok()) {
     return Die(extended.status(), "check that --db " + flags.db + " is writable");
   } else if (*extended > 0) {
     spdlog::info("{} job(s) were running when the daemon stopped: their leases run {} s from now, so their "
                  "workers can carry on (a worker that died meanwhile is reclaimed then)",
                  *extended, flags.lease_ttl_s);
+  }
+  if (size_t left = leases.LeasesLeftByStoppedDaemon(); left > 0) {
+    spdlog::info("{} of the running job(s) were leased by the local workers of the daemon that stopped: unless a "
+                 "heartbeat comes within {} s they are handed back, their attempts uncounted (the daemon stopping "
+                 "was not their fault)",
+                 left, flags.lease_ttl_s);
   }
   if (auto unrecorded = leases.RemoveUnrecordedSnapshots(); !unrecorded.ok()) {
     return Die(unrecorded.status(), "check that --data " + flags.data + " is readable and writable");
@@ -533,7 +545,9 @@ int main(int argc, char** argv) {
                          "--max-ranks",
                          slots,
                          "--workdir",
-                         sandswim::DataDir(flags.data).Worker()};
+                         sandswim::DataDir(flags.data).Worker(),
+                         "--name",
+                         local_worker};
   // A token from SANDSWIM_TOKEN reaches the workers through the environment; one from a file, as
   // that file.
   if (!token->file.empty()) worker_options.argv.insert(worker_options.argv.end(), {"--token-file", token->file});
@@ -558,6 +572,16 @@ int main(int argc, char** argv) {
   workers.RequestStop();
   if (supervisor.joinable()) supervisor.join();
   workers.Stop();
+  // The local worker hands its jobs back as it stops; what it could not (killed after the grace, or
+  // its hand-back lost) the daemon hands back for it, rather than let the leases expire and count an
+  // attempt against runs that did nothing wrong.
+  if (auto handed = leases.HandBackLeasesOf(local_worker, "the daemon stopped, and its local worker with it");
+      !handed.ok()) {
+    spdlog::error("handing back the local worker's jobs: {}; their leases will expire instead", handed.status().ToString());
+  } else if (*handed > 0) {
+    spdlog::info("handed back {} job(s) the local worker left running; they are queued again, attempts uncounted",
+                 *handed);
+  }
   periodic.Stop();
   live.Stop();  // open dashboard streams end, so the server's threads can
   server.Stop();

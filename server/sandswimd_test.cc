@@ -2,7 +2,8 @@
 // token on a first start and reuses it, refuses a weak token and --no-token beyond loopback, logs
 // and slows wrong tokens, refuses a Host that is not its own, and survives SIGKILL with a run leased — after a
 // restart on the same file nothing is lost (the lease, the bed, the Idempotency-Key) and nothing
-// is doubled (no second run, no second result).
+// is doubled (no second run, no second result); its local worker's runs are handed back, not
+// charged an attempt, whether it stops (SIGTERM) or dies (SIGKILL).
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
@@ -15,6 +16,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gmock/gmock.h>
@@ -102,6 +104,7 @@ class Daemon {
   }
 
   int port() const { return port_; }
+  pid_t pid() const { return pid_; }
   // What it printed on stdout up to its "listening on" line.
   const std::string& printed() const { return stdout_; }
 
@@ -336,6 +339,92 @@ TEST_F(SandswimdTest, SigkillWithARunLeasedLosesNothingAndDoublesNothing) {
 
   // SIGTERM is a clean exit.
   int status = second.Kill(SIGTERM);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+}
+
+// Stopping the daemon stops its local worker; dying (SIGKILL), the daemon takes it down too. Either
+// way the runs that worker held were not at fault: SIGTERM hands them back as the daemon stops, and
+// after a SIGKILL the next daemon hands them back once their leases run out without a heartbeat --
+// queued again, attempts uncounted. A worker of its own (any other name) that goes silent still
+// costs its run an attempt. The leases are taken here over HTTP under the name the daemon gives its
+// local worker (server/local_workers.h LocalWorkerName: "<host>:local-<daemon pid>"), so the test
+// needs no engine; the daemon process, its signals and its restarts are the real ones.
+TEST_F(SandswimdTest, ItsLocalWorkersRunsAreHandedBackWhetherItStopsOrDies) {
+  char host_buffer[256] = {0};
+  gethostname(host_buffer, sizeof host_buffer - 1);
+  const std::string host = host_buffer;
+  auto flags_with_ttl = [&](const std::string& ttl) {
+    std::vector<std::string> f = Flags();
+    for (size_t i = 0; i + 1 < f.size(); ++i)
+      if (f[i] == "--lease-ttl") f[i + 1] = ttl;
+    return f;
+  };
+  auto lease = [](httplib::Client& c, const std::string& worker) {
+    auto r = c.Post("/api/v1/leases", json{{"worker", worker}, {"host", "h"}}.dump(), "application/json");
+    EXPECT_EQ(r->status, 200) << r->body;
+    return Parse(r)["lease"].get<api::LeaseGrant>();
+  };
+  auto run_of = [](httplib::Client& c, int64_t id) { return Parse(c.Get(("/api/v1/runs/" + std::to_string(id)).c_str())); };
+
+  Daemon first;
+  ASSERT_FALSE(first.Start(flags_with_ttl("600"), Log()).has_value());
+  httplib::Client a("127.0.0.1", first.port());
+  ASSERT_EQ(a.Post("/api/v1/sweeps", kDaemonExampleSweep, "application/json")->status, 201);
+  auto bed = lease(a, "w1");
+  ASSERT_EQ(bed.kind, api::JobKind::kBed);
+  const std::string restart = "a bed restart";
+  ASSERT_EQ(a.Put(("/api/v1/beds/" + std::to_string(bed.id) + "/restart?token=" + bed.token).c_str(),
+                  {{"X-Sha256", Sha256Hex(restart)}}, restart, "application/octet-stream")
+                ->status,
+            200);
+  api::Completion bed_done;
+  bed_done.ok = true;
+  bed_done.bed_result = api::BedResult{
+      3700, 0, 0.22, true, 1e-4, Sha256Hex(restart), 13, std::nullopt, std::nullopt, std::nullopt, std::nullopt};
+  ASSERT_EQ(
+      a.Post(("/api/v1/leases/" + bed.token + "/complete").c_str(), json(bed_done).dump(), "application/json")->status,
+      200);
+  auto local = lease(a, host + ":local-" + std::to_string(first.pid()));
+  ASSERT_EQ(local.kind, api::JobKind::kRun);
+
+  // SIGTERM: the daemon hands back what its local worker left.
+  int status = first.Kill(SIGTERM);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  // (A lease outlives a restart by at least the new TTL, never less than it had: 10 s here, so the
+  // leases below hold until the SIGKILL however slow the machine, and run out soon after.)
+  Daemon second;
+  ASSERT_FALSE(second.Start(flags_with_ttl("10"), Log()).has_value());
+  httplib::Client b("127.0.0.1", second.port());
+  EXPECT_EQ(run_of(b, local.id)["state"], "queued");
+  EXPECT_EQ(run_of(b, local.id)["attempts"], 0);
+
+  // SIGKILL: the next daemon hands them back once their leases run out unheard.
+  auto local2 = lease(b, host + ":local-" + std::to_string(second.pid()));
+  ASSERT_EQ(local2.id, local.id);
+  auto remote = lease(b, "node7:4242");
+  ASSERT_EQ(remote.kind, api::JobKind::kRun);
+  ASSERT_NE(remote.id, local.id);
+  second.Kill(SIGKILL);
+  Daemon third;
+  ASSERT_FALSE(third.Start(flags_with_ttl("2"), Log()).has_value());
+  httplib::Client c("127.0.0.1", third.port());
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while ((run_of(c, local.id)["state"] == "running" || run_of(c, remote.id)["state"] == "running") &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the daemon's own lease expiry, every second
+  }
+  json handed = run_of(c, local.id), expired = run_of(c, remote.id);
+  EXPECT_EQ(handed["state"], "queued");
+  EXPECT_EQ(handed["attempts"], 0) << handed.dump();
+  EXPECT_EQ(expired["state"], "queued");
+  EXPECT_EQ(expired["attempts"], 1) << expired.dump();
+  EXPECT_EQ(expired["last_error"]["kind"], "lease_expired");
+  std::ifstream log(Log());
+  std::stringstream text;
+  text << log.rdbuf();
+  EXPECT_THAT(text.str(), HasSubstr("handed back 1 job(s) the local worker left running"));
+  EXPECT_THAT(text.str(), HasSubstr("1 of the running job(s) were leased by the local workers of the daemon that stopped"));
+  status = third.Kill(SIGTERM);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
 }
 

@@ -65,8 +65,17 @@ function pointText(p) {
   return parts.join(' ');
 }
 
+// The ETA's band as the daemon gives it (low_s..high_s: s/e^r..s*e^r, a log-scale band, not
+// symmetric), or computed so from rel_error when a daemon sends none; '' without an error.
+function etaBandText(eta) {
+  let low = eta.low_s, high = eta.high_s;
+  const r = eta.rel_error || 0;
+  if (!(typeof high === 'number' && high > 0) && r > 0) { low = eta.s / Math.exp(r); high = eta.s * Math.exp(r); }
+  return typeof high === 'number' && high > 0 ? ` (${duration(low)} – ${duration(high)})` : '';
+}
+
 // Counts -> a bar and a line of text with the daemon's ETA (server/store/cost_model.h: what is left at
-// the engine rates it measured, from the first heartbeats; ± its 1-sigma error; its basis on hover).
+// the engine rates it measured, from the first heartbeats; its 1-sigma band; its basis on hover).
 function progressHtml(counts, eta) {
   const c = Object.assign({ done: 0, running: 0, queued: 0, failed: 0, cancelled: 0 }, counts || {});
   const total = c.done + c.running + c.queued + c.failed + c.cancelled;
@@ -75,7 +84,7 @@ function progressHtml(counts, eta) {
   let etaText = '';
   if (remaining > 0) {
     etaText = eta && typeof eta.s === 'number'
-      ? ` · <span data-role="eta" title="${esc(eta.basis || '')}">ETA ${duration(eta.s)} ± ${duration(eta.s * (eta.rel_error || 0))}</span>`
+      ? ` · <span data-role="eta" title="${esc(eta.basis || '')}">ETA ${duration(eta.s)}${etaBandText(eta)}</span>`
       : ' · ETA unknown';
   }
   return `<div class="progress" title="${c.done} done, ${c.running} running, ${c.queued} queued, ${c.failed} failed">` +

@@ -114,6 +114,38 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
   return state;
 }
 
+// Hands a running job back unfinished under its current lease `token` (Release, and the daemon's own
+// hand-backs: see LeaseQueue::HandBackLeasesOf): queued again with the attempt uncounted, or
+// cancelled when no live sweep wants the run -- unless it was handed back max_attempts times
+// before: then it counts ("released"). The lease closes as "released". Returns the job's state.
+Result<std::string> HandBackIn(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
+                               const std::string& token, const std::string& reason, double now) {
+  Result<int64_t> released_before = jobs::CountRelease(t, kind, id);
+  if (!released_before.ok()) return released_before.status();
+  SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, "released"));
+  if (*released_before >= job.max_attempts) {
+    // Handed back this often, the job does not fit where it is leased (a run longer than any
+    // allocation): from now on a hand-back is an attempt, so the job ends failed, not leased for ever.
+    return RetryOrFail(t, kind, id, job, "released",
+                       "handed back " + std::to_string(*released_before + 1) + " times (" + reason +
+                           "): it never finished where it was leased; give the pilots a longer --time",
+                       /*retryable=*/true, now);
+  }
+  // A run that no live sweep wants any more (its sweep was cancelled while it ran) is cancelled,
+  // as Cancel() does with queued runs, rather than queued again.
+  bool wanted = true;
+  if (kind == api::JobKind::kRun) {
+    Result<bool> live = jobs::RunWanted(t, id);
+    if (!live.ok()) return live.status();
+    wanted = *live;
+  }
+  // Otherwise back to the queue as if this lease had never been granted: the attempt is not counted.
+  SANDSWIM_RETURN_IF_ERROR(jobs::MarkReleased(t, kind, id, wanted, now));
+  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (wanted ? ".released" : ".cancelled"),
+                                   Subject(kind, id), {{"reason", reason}, {"attempts", job.attempts - 1}}));
+  return std::string(wanted ? "queued" : "cancelled");
+}
+
 // The job leased together with the completion of `token` (leases.next_token), put back in the
 // queue as if never leased (attempt uncounted) when it is still running under that grant.
 Status TakeBackUnreceivedGrant(Transaction& t, const std::string& token, double now) {
@@ -143,15 +175,28 @@ Status TakeBackUnreceivedGrant(Transaction& t, const std::string& token, double 
 // A Slurm job's leases are only reclaimed when they were granted at or before `asked_at` (when
 // Slurm was asked) and their worker has been silent for at least `silent_s` (no heartbeat since
 // now - silent_s): a worker that still heartbeats is alive, whatever squeue said.
+// `left_by_stopped_daemon`: whether an expired lease is one a local worker of an earlier daemon held
+// and never heartbeated since this daemon started (LeaseQueue::ExtendLeasesAfterRestart): it is handed
+// back free (HandBackIn), the attempt uncounted -- the daemon stopping was not the job's fault.
 Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std::string& slurm_job = "",
-                          double asked_at = 0, double silent_s = 0, double ttl_s = 0) {
-  int64_t expired = 0;
+                          double asked_at = 0, double silent_s = 0, double ttl_s = 0,
+                          const std::function<bool(const std::string& token)>& left_by_stopped_daemon = {}) {
+  int64_t expired = 0, handed_back = 0;
   for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
     Result<std::vector<jobs::LostLease>> rows =
         slurm_job.empty() ? jobs::ExpiredLeases(t, kind, now, default_max)
                           : jobs::SlurmJobLeases(t, kind, slurm_job, now - silent_s + ttl_s, asked_at, default_max);
     if (!rows.ok()) return rows.status();
     for (const jobs::LostLease& e : *rows) {
+      if (slurm_job.empty() && left_by_stopped_daemon && left_by_stopped_daemon(e.job.lease_token)) {
+        Result<std::string> state =
+            HandBackIn(t, kind, e.id, e.job, e.job.lease_token,
+                       "its worker " + e.worker + " was a local worker of the daemon that stopped, and did not come back",
+                       now);
+        if (!state.ok()) return state.status();
+        ++handed_back;
+        continue;
+      }
       Result<std::string> state =
           slurm_job.empty()
               ? RetryOrFail(t, kind, e.id, e.job, "lease_expired",
@@ -166,7 +211,7 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
     }
   }
   if (expired > 0) SANDSWIM_RETURN_IF_ERROR(t.Count(slurm_job.empty() ? "expirations" : "pilots_gone", expired));
-  return expired;
+  return expired + handed_back;
 }
 
 }  // namespace
@@ -188,7 +233,8 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
                                                            double now) {
   using Out = std::optional<api::LeaseGrant>;
   SANDSWIM_RETURN_IF_ERROR(CheckLeaseRequest(request, "slurm_job"));
-  Result<int64_t> expired = ReclaimIn(t, now, options_.max_attempts);
+  Result<int64_t> expired =
+      ReclaimIn(t, now, options_.max_attempts, "", 0, 0, 0, [this](const std::string& token) { return LeftByStoppedDaemon(token); });
   if (!expired.ok()) return expired.status();
 
   api::LeaseGrant g;
@@ -347,6 +393,12 @@ Result<api::HeartbeatReply> LeaseQueue::Heartbeat(const std::string& token, cons
     return reply;
   });
   if (reply.ok() && run_id && progress_observer_) progress_observer_(*run_id, beat);
+  if (reply.ok()) {
+    // Its worker is alive after all (a local worker that outlived its daemon): from now on its
+    // lease expires as any other's.
+    std::lock_guard<std::mutex> lock(left_mu_);
+    left_by_stopped_daemon_.erase(token);
+  }
   return reply;
 }
 
@@ -523,35 +575,10 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   Result<JobRow> job = jobs::LoadJob(t, kind, id, options_.max_attempts);
   if (!job.ok()) return job.status();
   SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
-  Result<int64_t> released_before = jobs::CountRelease(t, kind, id);
-  if (!released_before.ok()) return released_before.status();
-  SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, "released"));
-  if (*released_before >= job->max_attempts) {
-    // Handed back this often, the job does not fit where it is leased (a run longer than any
-    // allocation): from now on a hand-back is an attempt, so the job ends failed, not leased for ever.
-    Result<std::string> state =
-        RetryOrFail(t, kind, id, *job, "released",
-                    "handed back " + std::to_string(*released_before + 1) + " times (" + reason +
-                        "): it never finished where it was leased; give the pilots a longer --time",
-                    /*retryable=*/true, now);
-    if (!state.ok()) return state.status();
-    SANDSWIM_RETURN_IF_ERROR(t.Commit());
-    return api::CompletionReply{*state};
-  }
-  // A run that no live sweep wants any more (its sweep was cancelled while it ran) is cancelled,
-  // as Cancel() does with queued runs, rather than queued again.
-  bool wanted = true;
-  if (kind == api::JobKind::kRun) {
-    Result<bool> live = jobs::RunWanted(t, id);
-    if (!live.ok()) return live.status();
-    wanted = *live;
-  }
-  // Otherwise back to the queue as if this lease had never been granted: the attempt is not counted.
-  SANDSWIM_RETURN_IF_ERROR(jobs::MarkReleased(t, kind, id, wanted, now));
-  SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (wanted ? ".released" : ".cancelled"),
-                                   Subject(kind, id), {{"reason", reason}, {"attempts", job->attempts - 1}}));
+  Result<std::string> state = HandBackIn(t, kind, id, *job, token, reason, now);
+  if (!state.ok()) return state.status();
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
-  return api::CompletionReply{wanted ? "queued" : "cancelled"};
+  return api::CompletionReply{*state};
 }
 
 Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
@@ -571,20 +598,62 @@ Result<int64_t> LeaseQueue::ExpireLeases() {
   const double now = clock_->Now();
   Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
-  Result<int64_t> n = ReclaimIn(*begun, now, options_.max_attempts);
+  Result<int64_t> n = ReclaimIn(*begun, now, options_.max_attempts, "", 0, 0, 0,
+                                [this](const std::string& token) { return LeftByStoppedDaemon(token); });
   if (!n.ok()) return n.status();
   SANDSWIM_RETURN_IF_ERROR(begun->Commit());
   return n;
 }
 
-Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart() {
+Result<int64_t> LeaseQueue::ExtendLeasesAfterRestart(const std::function<bool(const std::string& worker)>& local_of_earlier_daemon) {
   const double until = clock_->Now() + options_.ttl_s;
   Result<Transaction> begun = store_->db().Begin();
   if (!begun.ok()) return begun.status();
   Result<int64_t> extended = jobs::ExtendRunningLeases(*begun, until);
   if (!extended.ok()) return extended.status();
+  std::set<std::string> left;
+  if (local_of_earlier_daemon) {
+    for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
+      Result<std::vector<jobs::LostLease>> running = jobs::RunningLeases(*begun, kind, options_.max_attempts);
+      if (!running.ok()) return running.status();
+      for (const jobs::LostLease& e : *running) {
+        if (local_of_earlier_daemon(e.worker)) left.insert(e.job.lease_token);
+      }
+    }
+  }
   SANDSWIM_RETURN_IF_ERROR(begun->Commit());
+  std::lock_guard<std::mutex> lock(left_mu_);
+  left_by_stopped_daemon_ = std::move(left);
   return extended;
+}
+
+size_t LeaseQueue::LeasesLeftByStoppedDaemon() {
+  std::lock_guard<std::mutex> lock(left_mu_);
+  return left_by_stopped_daemon_.size();
+}
+
+bool LeaseQueue::LeftByStoppedDaemon(const std::string& token) {
+  std::lock_guard<std::mutex> lock(left_mu_);
+  return left_by_stopped_daemon_.count(token) > 0;
+}
+
+Result<int64_t> LeaseQueue::HandBackLeasesOf(const std::string& worker, const std::string& reason) {
+  const double now = clock_->Now();
+  Result<Transaction> begun = store_->db().Begin();
+  if (!begun.ok()) return begun.status();
+  int64_t handed = 0;
+  for (api::JobKind kind : {api::JobKind::kBed, api::JobKind::kRun}) {
+    Result<std::vector<jobs::LostLease>> running = jobs::RunningLeases(*begun, kind, options_.max_attempts);
+    if (!running.ok()) return running.status();
+    for (const jobs::LostLease& e : *running) {
+      if (e.worker != worker) continue;
+      Result<std::string> state = HandBackIn(*begun, kind, e.id, e.job, e.job.lease_token, reason, now);
+      if (!state.ok()) return state.status();
+      ++handed;
+    }
+  }
+  SANDSWIM_RETURN_IF_ERROR(begun->Commit());
+  return handed;
 }
 
 Result<CancelSummary> LeaseQueue::Cancel(int64_t sweep_id) {

@@ -36,7 +36,9 @@
 //              failed. A run no live sweep wants any more becomes cancelled. Releasing a token
 //              again answers "duplicate".
 //   ExpireLeases  running jobs past their lease expiry go back to queued (the attempt stays
-//              counted) or, at max_attempts, to failed with kind "lease_expired".
+//              counted) or, at max_attempts, to failed with kind "lease_expired" -- except a lease
+//              an earlier daemon's local worker held and never heartbeated after the restart: it
+//              is handed back as by Release (ExtendLeasesAfterRestart says why).
 //   ReclaimSlurmJob  the same, before the expiry, for the leases of a Slurm job that is gone and
 //              whose worker has been silent for half the TTL (kind "pilot_gone"); the daemon's
 //              PilotWatch asks Slurm which jobs are gone.
@@ -56,6 +58,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -124,7 +127,8 @@ class LeaseQueue {
   // completed or was released.
   Result<api::CompletionReply> Release(const std::string& token, const std::string& reason);
 
-  // Reclaims every lease that expired before the clock's now. Returns how many.
+  // Reclaims every lease that expired before the clock's now. Returns how many. A lease left by a
+  // local worker of an earlier daemon (see ExtendLeasesAfterRestart) is handed back instead.
   Result<int64_t> ExpireLeases();
   // At start-up, before serving: while the daemon was down no worker could heartbeat, so the
   // outage must not count against their leases. Every running job's lease is extended to at
@@ -132,7 +136,23 @@ class LeaseQueue {
   // died meanwhile is reclaimed one TTL after the start. Without it, a daemon down for longer
   // than a TTL would re-queue runs whose engines are still running: a second execution (the
   // crash trials, tests/crash_trials_test.cc, catch that). Returns how many leases it extended.
-  Result<int64_t> ExtendLeasesAfterRestart();
+  // `local_of_earlier_daemon(worker)`: whether a worker name is a local worker of an earlier daemon
+  // (server/local_workers.h IsLocalWorkerName). Such a lease that expires without one heartbeat
+  // after this start is handed back as Release does, its attempt uncounted: that worker died with
+  // its daemon (stopped, or killed), which was not the job's fault. One that heartbeats is alive
+  // and from then on expires, counted, as any other. (Kept in memory: a second restart within a
+  // TTL finds the same leases again by their workers' names.)
+  Result<int64_t> ExtendLeasesAfterRestart(
+      const std::function<bool(const std::string& worker)>& local_of_earlier_daemon = {});
+  // How many leases ExtendLeasesAfterRestart found left by an earlier daemon's local workers that
+  // have not heartbeated since.
+  size_t LeasesLeftByStoppedDaemon();
+
+  // Hands back, as Release does (attempt uncounted; counted after max_attempts hand-backs), every
+  // running job leased to `worker`. For the daemon's shutdown: once its local worker is stopped
+  // (and killed if it ignored SIGTERM), whatever that worker could not hand back itself. Returns
+  // how many jobs it handed back. REQUIRES: that worker is dead.
+  Result<int64_t> HandBackLeasesOf(const std::string& worker, const std::string& reason);
 
   // The Slurm jobs (LeaseRequest::slurm_job) that hold a lease on a running job now, sorted.
   Result<std::vector<std::string>> RunningSlurmJobs();
@@ -197,6 +217,9 @@ class LeaseQueue {
   // transaction: those PutRunSnapshot wrote (not read again), else hashed now. A listed file that
   // is missing is left out (CompleteRun refuses it); so is everything when `token` is no run lease.
   Result<std::map<int, HashedFile>> HashListedSnapshots(const std::string& token, const api::Completion& c);
+  // Whether `token` is a lease ExtendLeasesAfterRestart found left by an earlier daemon's local
+  // worker and no heartbeat has come under it since.
+  bool LeftByStoppedDaemon(const std::string& token);
   // LeaseIn's candidates: fill `g` and return true when a bed (a run) is leasable.
   Result<bool> NextBed(Transaction& t, api::LeaseGrant& g);
   Result<bool> NextRun(Transaction& t, api::LeaseGrant& g, double now);
@@ -222,6 +245,8 @@ class LeaseQueue {
   void ForgetWrittenSnapshots(int64_t run_id);  // its run completed: the files are recorded or gone
   std::mutex written_mu_;
   std::map<std::string, HashedFile> written_snapshots_;  // guarded by written_mu_
+  std::mutex left_mu_;
+  std::set<std::string> left_by_stopped_daemon_;  // lease tokens; guarded by left_mu_
 };
 
 }  // namespace sandswim

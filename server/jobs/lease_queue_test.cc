@@ -1187,3 +1187,79 @@ TEST_F(LeaseQueueTest, LeasesRunOneTtlAfterARestart) {
 }
 
 }  // namespace sandswim
+
+namespace sandswim {
+
+// The daemon stopped (or was killed) and its local worker with it: at the next start, the leases that
+// worker held are handed back when they expire without a heartbeat -- queued again, attempts
+// uncounted -- while a lease of any other worker that went silent expires counted, as before. A
+// local worker that outlived its daemon and heartbeats keeps its lease, and from then on is
+// counted like any other if it goes silent.
+TEST_F(LeaseQueueTest, LeasesOfAStoppedDaemonsLocalWorkerAreHandedBackNotCounted) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant local = MustLease("host:local-100");
+  api::LeaseGrant remote = MustLease("node7:4242");
+  ASSERT_NE(local.id, remote.id);
+  clock_.Advance(options_.ttl_s * 5);
+  OpenStore();
+  auto extended =
+      queue_->ExtendLeasesAfterRestart([](const std::string& worker) { return worker.rfind("host:local-", 0) == 0; });
+  ASSERT_TRUE(extended.ok()) << extended.status().ToString();
+  EXPECT_EQ(*extended, 2);
+  EXPECT_EQ(queue_->LeasesLeftByStoppedDaemon(), 1u);
+  EXPECT_EQ(*queue_->ExpireLeases(), 0) << "each lease runs one TTL after the start";
+  clock_.Advance(options_.ttl_s + 1);
+  EXPECT_EQ(*queue_->ExpireLeases(), 2);
+  auto handed = store_->GetRun(local.id);
+  EXPECT_EQ(handed->summary.state, "queued");
+  EXPECT_EQ(handed->summary.attempts, 0) << "the daemon stopping was not the run's fault";
+  auto expired = store_->GetRun(remote.id);
+  EXPECT_EQ(expired->summary.state, "queued");
+  EXPECT_EQ(expired->summary.attempts, 1);
+  ASSERT_TRUE(expired->summary.last_error.has_value());
+  EXPECT_EQ(expired->summary.last_error->kind, "lease_expired");
+  EXPECT_EQ(store_->GetMetrics()->expirations, 1) << "a hand-back is no expiration";
+  EXPECT_EQ(queue_->Heartbeat(local.token, {}).status().code(), StatusCode::kConflict);
+
+  // A local worker that outlived its daemon heartbeats: alive, its lease is its own again.
+  api::LeaseGrant again = MustLease("host:local-100");
+  const int leased_attempts = store_->GetRun(again.id)->summary.attempts;
+  clock_.Advance(1);
+  OpenStore();
+  ASSERT_TRUE(queue_->ExtendLeasesAfterRestart([](const std::string& w) { return w.rfind("host:local-", 0) == 0; }).ok());
+  ASSERT_TRUE(queue_->Heartbeat(again.token, {0.1, 0, 100}).ok());
+  EXPECT_EQ(queue_->LeasesLeftByStoppedDaemon(), 0u);
+  clock_.Advance(options_.ttl_s + 1);
+  EXPECT_EQ(*queue_->ExpireLeases(), 1);
+  EXPECT_EQ(store_->GetRun(again.id)->summary.attempts, leased_attempts) << "silent after heartbeating: counted";
+}
+
+// A daemon that stops hands back what its (now stopped) local worker still held: attempt uncounted,
+// every other worker's lease untouched; and, as for any hand-back, not for ever.
+TEST_F(LeaseQueueTest, TheDaemonHandsBackItsStoppedLocalWorkersJobs) {
+  SubmitJson(OmegaSignSweep());
+  PrepareBed();
+  api::LeaseGrant local = MustLease("host:local-7");
+  api::LeaseGrant other = MustLease("node7:4242");
+  auto handed = queue_->HandBackLeasesOf("host:local-7", "the daemon stopped");
+  ASSERT_TRUE(handed.ok()) << handed.status().ToString();
+  EXPECT_EQ(*handed, 1);
+  EXPECT_EQ(RunState(local.id), "queued");
+  EXPECT_EQ(store_->GetRun(local.id)->summary.attempts, 0);
+  EXPECT_EQ(RunState(other.id), "running");
+  EXPECT_EQ(queue_->Complete(local.token, OkRun())->state, "duplicate");
+  EXPECT_EQ(*queue_->HandBackLeasesOf("host:local-7", "again"), 0);
+  // Handed back max_attempts times, a run's hand-backs count (Release's rule): no endless loop of a
+  // run whose every attempt brings the daemon down.
+  std::string state = "queued";
+  for (int i = 0; i < 10 && state == "queued"; ++i) {
+    api::LeaseGrant g = MustLease("host:local-7");
+    ASSERT_EQ(g.id, local.id);
+    ASSERT_EQ(*queue_->HandBackLeasesOf("host:local-7", "the daemon stopped"), 1);
+    state = RunState(local.id);
+  }
+  EXPECT_EQ(state, "failed");
+}
+
+}  // namespace sandswim

@@ -177,6 +177,11 @@ Result<std::vector<LostLease>> ExpiredLeases(Transaction& t, api::JobKind kind, 
   return LostLeases(st, default_max);
 }
 
+Result<std::vector<LostLease>> RunningLeases(Transaction& t, api::JobKind kind, int default_max) {
+  Statement st = t.Prepare(std::string(kLostColumns) + Table(kind) + " j WHERE j.state = 'running' ORDER BY j.id");
+  return LostLeases(st, default_max);
+}
+
 Result<std::vector<LostLease>> SlurmJobLeases(Transaction& t, api::JobKind kind, const std::string& slurm_job,
                                               double expiring_by, double asked_at, int default_max) {
   Statement st = t.Prepare(std::string(kLostColumns) + Table(kind) +

@@ -88,6 +88,8 @@ struct LostLease {
   std::string worker;
 };
 Result<std::vector<LostLease>> ExpiredLeases(Transaction& t, api::JobKind kind, double now, int default_max);
+// Every running job of `kind` with its lease (token, worker), oldest id first.
+Result<std::vector<LostLease>> RunningLeases(Transaction& t, api::JobKind kind, int default_max);
 Result<std::vector<LostLease>> SlurmJobLeases(Transaction& t, api::JobKind kind, const std::string& slurm_job,
                                               double expiring_by, double asked_at, int default_max);
 

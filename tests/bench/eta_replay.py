@@ -27,10 +27,26 @@ once share one machine: their errors are not independent.
 --leave-one-out: for each run, the rule is chosen on the other runs and scored on that run alone,
 so the score is out of sample (the table above it is in-sample: chosen and scored on the same runs).
 
+--campaign-sweep S: the campaign-level score (the ETA as `status` printed it, not a replayed rule).
+Each logged ETA of the campaign run that sweep S belongs to predicts when all the campaign run's
+work left ends. When the campaign run did not finish (cancelled), that end never came, so the
+score is on sweep S, which finished: the logged ETA times S's share of the work left (in run
+equivalents: a queued run of S counts 1, a running one the part of its expected length still to
+go -- expected as the daemon does, the mean length of the campaign run's runs done by then, before
+any the middle of its target's range; the range's lower end is read as min_periods / f), so
+S's predicted end = t + ETA x share, its band the logged band times the same share. That share
+is right when the ETA is the work left over the engines, as it is until the last runs (the
+"never less than the longest run" floor): near S's end the split is cruder. The truth: when S's
+last run finished. Printed: median |error| (of the time left), the share within +-25 %, and how
+often the truth lay inside the band (s / e^r .. s x e^r, r read from "± d" as d / s, or the band
+printed as "(low-high)").
+
 Usage: eta_replay.py --status eta.log --daemon-log sandswimd.log --db copy.db [--leave-one-out]
+       eta_replay.py --status eta.log --db copy.db --campaign-sweep 3 [--per-reading]
 """
 import argparse
 import datetime
+import json
 import math
 import re
 import sqlite3
@@ -94,10 +110,151 @@ def pooled(samples, min_wall=0.0):
     return sum(s for _, s in samples) / sum(w for w, _ in samples) if samples else None
 
 
+def parse_duration(text):
+    """FormatDuration's "5h00m", "58m18s", "45s", "1d02h" -> seconds."""
+    units = {"d": 86400, "h": 3600, "m": 60, "s": 1}
+    parts = re.findall(r"(\d+)([dhms])", text)
+    return sum(int(n) * units[u] for n, u in parts) if parts else None
+
+
+def read_campaign_status(path):
+    """Readings of `status CR`: (t, title, eta_s, low_s, high_s, {run: sim_time_s}); eta None when none."""
+    readings = []
+    eta_pm = re.compile(r"^\s+ETA (\S+) ± (\S+)")
+    eta_band = re.compile(r"^\s+ETA (\S+) \((\S+)-(\S+)\)")
+    run_pat = re.compile(r"^\s+run (\d+)\s+\[.*?\]\s+\d+%\s+([0-9.]+)/")
+    for line in open(path, encoding="utf-8", errors="replace"):
+        if line.startswith("=== "):
+            readings.append({"t": float(line.split()[2]), "title": "", "eta": None, "running": {}})
+            continue
+        if not readings:
+            continue
+        r = readings[-1]
+        if not r["title"] and line.strip():
+            r["title"] = line.strip()
+        m = re.search(r"(\d+) engines?\)", line)
+        if m and "engines" not in r:
+            r["engines"] = int(m.group(1))
+        m = eta_band.match(line)
+        if m:
+            r["eta"] = (parse_duration(m.group(1)), parse_duration(m.group(2)), parse_duration(m.group(3)))
+            continue
+        m = eta_pm.match(line)
+        if m:
+            s, d = parse_duration(m.group(1)), parse_duration(m.group(2))
+            rel = d / s if s else 0.0
+            r["eta"] = (s, s / math.exp(rel), s * math.exp(rel))
+            continue
+        m = run_pat.match(line)
+        if m:
+            r["running"][int(m.group(1))] = float(m.group(2))
+    return readings
+
+
+def campaign_sweep_score(args):
+    db = sqlite3.connect(args.db)
+    (campaign_run,) = db.execute("SELECT campaign_run_id FROM sweeps WHERE id = ?", (args.campaign_sweep,)).fetchone()
+    runs = {}  # id -> (sweep, state, finished_at, final sim time, deck end, earliest stop)
+    for rid, sweep, state, fin, sim, dur, prec, f in db.execute(
+            "SELECT r.id, sr.sweep_id, r.state, r.finished_at, r.sim_time_s, r.run_duration_s, r.precision, r.f "
+            "FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id JOIN sweeps s ON s.id = sr.sweep_id "
+            "WHERE s.campaign_run_id = ?", (campaign_run,)):
+        earliest = dur
+        if prec:
+            p = json.loads(prec)
+            if p.get("min_periods") and f:
+                earliest = min(dur, p["min_periods"] / f)
+        runs[rid] = (sweep, state, fin, sim, dur, earliest)
+    mine = {r for r, v in runs.items() if v[0] == args.campaign_sweep}
+    if any(runs[r][1] != "done" for r in mine):
+        raise SystemExit(f"sweep {args.campaign_sweep} did not finish: no truth to score against")
+    truth_end = max(runs[r][2] for r in mine)
+    rows, implied = [], []
+    for rd in read_campaign_status(args.status):
+        if f"cr:{campaign_run} " not in rd["title"] or not rd["eta"] or rd["eta"][0] is None:
+            continue
+        t = rd["t"]
+        if t >= truth_end:
+            continue
+        done = [v for v in runs.values() if v[1] == "done" and v[2] is not None and v[2] < t]
+        expected = (statistics.mean(v[3] for v in done) if done else None)
+
+        def left(rid, sim):
+            v = runs[rid]
+            end = expected if expected else (v[5] + v[4]) / 2
+            if sim < end:
+                return (end - sim) / end
+            return (v[4] - sim) / 2 / end  # outlived the expectation: the middle of the rest
+
+        running = {r: sim for r, sim in rd["running"].items() if r in runs}
+        done_ids = {r for r, v in runs.items() if v[1] == "done" and v[2] is not None and v[2] < t}
+        # Queued: neither done by t nor running at t (runs cancelled later were queued or running then).
+        queued = [r for r in runs if r not in done_ids and r not in running]
+        w_all = len(queued) + sum(left(r, sim) for r, sim in running.items())
+        w_mine = len([r for r in queued if r in mine]) + sum(left(r, sim) for r, sim in running.items() if r in mine)
+        if w_all <= 0 or w_mine <= 0:
+            continue
+        share = w_mine / w_all
+        s, low, high = (x * share for x in rd["eta"])
+        truth = truth_end - t
+        rows.append((t, s, low, high, truth, share))
+        if rd.get("engines"):
+            implied.append(rd["eta"][0] * rd["engines"] / w_all)
+    if not rows:
+        print("no readings to score")
+        return
+
+    def report(label, sub):
+        if not sub:
+            print(f"{label}: no readings")
+            return
+        errs = [abs(s / tr - 1) for _, s, _, _, tr, _ in sub]
+        covered = sum(lo <= tr <= hi for _, _, lo, hi, tr, _ in sub)
+        signed = statistics.median(s / tr - 1 for _, s, _, _, tr, _ in sub)
+        print(f"{label}: {len(sub)} readings, median |error| {100 * statistics.median(errs):.1f}% "
+              f"(median signed {100 * signed:+.1f}%), within 25 % {sum(e <= 0.25 for e in errs)} "
+              f"({100 * sum(e <= 0.25 for e in errs) / len(sub):.0f}%), truth inside the band {covered} "
+              f"({100 * covered / len(sub):.0f}%)")
+
+    print(f"campaign run cr:{campaign_run}, scored on sweep {args.campaign_sweep} ({len(mine)} runs), which ended "
+          f"{datetime.datetime.fromtimestamp(truth_end, datetime.timezone.utc):%Y-%m-%d %H:%M:%S} UTC")
+    report("all readings", rows)
+    # What the ETA rested on, against what happened: the wall time of one run on one engine it
+    # implied (ETA x engines / run equivalents left), and each done run's last attempt.
+    lengths = []
+    for rid, started, fin in db.execute(
+            "SELECT r.id, r.started_at, r.finished_at FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+            "JOIN sweeps s ON s.id = sr.sweep_id WHERE s.campaign_run_id = ? AND r.state = 'done' ORDER BY r.id",
+            (campaign_run,)):
+        lengths.append(f"{rid}: {(fin - started) / 60:.0f}")
+    if implied:
+        print(f"one run on one engine, as the ETA implied: median {statistics.median(implied) / 60:.0f} min "
+              f"(range {min(implied) / 60:.0f}-{max(implied) / 60:.0f}); the done runs' last attempts took (min) "
+              + ", ".join(lengths))
+    if args.after:
+        report(f"readings from {args.after} on", [r for r in rows if r[0] >= parse_iso(args.after)])
+        report(f"readings before {args.after}", [r for r in rows if r[0] < parse_iso(args.after)])
+    if args.per_reading:
+        print("reading (UTC)         share  predicted_left  band              truth_left  error")
+        for t, s, lo, hi, tr, share in rows:
+            when = datetime.datetime.fromtimestamp(t, datetime.timezone.utc)
+            print(f"{when:%Y-%m-%d %H:%M}  {share:5.2f}  {s / 60:10.0f} min  {lo / 60:5.0f}-{hi / 60:<5.0f} min  "
+                  f"{tr / 60:7.0f} min  {100 * (s / tr - 1):+5.0f}%")
+
+
+def parse_iso(text):
+    return datetime.datetime.strptime(text, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=datetime.timezone.utc).timestamp()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--status", required=True)
-    ap.add_argument("--daemon-log", required=True)
+    ap.add_argument("--daemon-log")
+    ap.add_argument("--campaign-sweep", type=int,
+                    help="score the logged campaign ETA on this finished sweep of its campaign run (see above)")
+    ap.add_argument("--per-reading", action="store_true", help="with --campaign-sweep: one line per reading")
+    ap.add_argument("--after", help="with --campaign-sweep: also score readings from this time (e.g. "
+                                    "2026-11-27T02:27:52Z, after an outage) and before it apart")
     ap.add_argument("--db", required=True)
     ap.add_argument("--horizon", type=float, default=300, help="predict only this long before a run's end")
     ap.add_argument("--slack", type=float, default=30, help="a reading this much older than a window still opens it")
@@ -106,6 +263,10 @@ def main():
     ap.add_argument("--leave-one-out", action="store_true",
                     help="also choose the rule on all runs but one and score it on that one, for each run")
     args = ap.parse_args()
+    if args.campaign_sweep is not None:
+        return campaign_sweep_score(args)
+    if not args.daemon_log:
+        ap.error("--daemon-log is required (except with --campaign-sweep)")
 
     leases, completed = read_daemon_log(args.daemon_log)
     readings = read_status(args.status)
