@@ -11,6 +11,7 @@
 #include <httplib.h>
 
 #include "cli/fake_client_test_util.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim::cli {
 namespace {
@@ -421,6 +422,54 @@ TEST(SnapshotTest, RunsInFlightAreGroupedBySweep) {
   EXPECT_EQ(ids(**view), ids(*routes));
   const std::string frame = RenderWatchFrame(**view, RenderOptions{});
   EXPECT_LT(frame.find("run 12"), frame.find("run 10")) << frame;
+}
+
+// The daemon's own board (tests/fixtures/live_board.json: GET /api/v1/live recorded, and checked
+// against what the route serves by server_tests' RoutesTest.TheLiveBoardIsTheOneRecordedForTheCli):
+// campaign run cr:1 of sweeps 1 (Omega -80, 80) and 2 (Omega 80, 120), the Omega 80 run in both,
+// its three runs in flight.
+TEST(SnapshotTest, ReadsTheDaemonsRecordedBoard) {
+  const json board = json::parse(sandswim::testing::Fixture("live_board.json"), nullptr, false);
+  ASSERT_TRUE(board.is_object()) << "tests/fixtures/live_board.json";
+  auto ids = [](const Snapshot& s) {
+    std::vector<int64_t> out;
+    for (const RunInFlight& r : s.running) out.push_back(r.id);
+    return out;
+  };
+  std::vector<int64_t> sweeps;
+  auto cr = SnapshotFromBoard(board, Target{Target::Kind::kCampaignRun, 1}, &sweeps);
+  ASSERT_TRUE(cr.ok()) << cr.status().ToString();
+  ASSERT_TRUE(cr->has_value());
+  const Snapshot& s = **cr;
+  EXPECT_EQ(s.title, "campaign run cr:1 shared-omega (scale smoke, manual)");
+  EXPECT_EQ(s.counts.running, 3);
+  EXPECT_EQ(s.counts.total(), 3);
+  EXPECT_EQ(sweeps, (std::vector<int64_t>{1, 2}));
+  EXPECT_EQ(ids(s), (std::vector<int64_t>{1, 2, 3}));
+  ASSERT_EQ(s.running.size(), 3u);
+  EXPECT_EQ(s.running[1].sim_time_s, 0.5);
+  EXPECT_EQ(s.running[1].duration_s, 2.0);
+  EXPECT_EQ(s.running[1].worker, "w2:1");
+  EXPECT_EQ(s.running[1].point, "oscillatory A=0.03 f=3 Omega=80 T=2s");
+  ASSERT_TRUE(s.eta.has_value()) << "the campaign run's ETA";
+  EXPECT_GT(s.eta->s, 0);
+  EXPECT_GT(s.eta->rel_error, 0);
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr(": 0/3 done, 3 running, 0 queued, 0 failed, 0 cancelled; ETA "));
+
+  // Each sweep: its own runs in flight, the shared one in both.
+  auto low = SnapshotFromBoard(board, Target{Target::Kind::kSweep, 1});
+  auto high = SnapshotFromBoard(board, Target{Target::Kind::kSweep, 2});
+  ASSERT_TRUE(low.ok() && low->has_value() && high.ok() && high->has_value());
+  EXPECT_EQ(ids(**low), (std::vector<int64_t>{1, 2}));
+  EXPECT_EQ(ids(**high), (std::vector<int64_t>{2, 3}));
+  EXPECT_EQ((*high)->title, "sweep 2 high (scale smoke)");
+
+  // Not on it: sweep 3 may be newer than the board; nothing is older than sweep 1.
+  BoardMiss miss = BoardMiss::kNone;
+  auto newer = SnapshotFromBoard(board, Target{Target::Kind::kSweep, 3}, nullptr, &miss);
+  ASSERT_TRUE(newer.ok());
+  EXPECT_FALSE(newer->has_value());
+  EXPECT_EQ(miss, BoardMiss::kThisRefresh);
 }
 
 TEST(SnapshotTest, ParsesTargets) {
