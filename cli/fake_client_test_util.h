@@ -34,7 +34,12 @@ class FakeClient : public DaemonClient {
   nlohmann::json run_reply = {{"campaign_run_id", 7}, {"ids", {3, 4}}, {"runs", 2}, {"runs_new", 2}};
   Status schedule_refusal;  // PutSchedule answers it when set
   bool serves_board = true;  // Live() answers (else NotFound, as a daemon from before the board)
+  std::vector<Status> live_refusals;  // Live() answers these first, one a call
+  // Live() hands its board to this first (a test's stale or odd board).
+  std::function<void(nlohmann::json&)> edit_board;
   int live_calls = 0;
+  Status runs_refusal;  // ListRuns answers it when set
+  int route_calls = 0;  // GetSweep, GetCampaignRun and ListRuns: the target's own routes
 
   // Called as the client is destroyed (at the end of RunCli), so a test can keep what it recorded.
   std::function<void(const FakeClient&)> on_close;
@@ -60,6 +65,7 @@ class FakeClient : public DaemonClient {
     return all;
   }
   Result<nlohmann::json> GetSweep(int64_t id) override {
+    ++route_calls;
     auto it = sweeps.find(id);
     if (it == sweeps.end()) return Status::NotFound("no sweep " + std::to_string(id));
     return it->second;
@@ -68,13 +74,24 @@ class FakeClient : public DaemonClient {
     return nlohmann::json{{"id", id}, {"results", nlohmann::json::array()}};
   }
   Result<nlohmann::json> CancelSweep(int64_t id) override { return GetSweep(id); }
+  // By state and by sweep: a run is in the sweeps its "sweeps" names (none without it), as
+  // GET /api/v1/runs?sweep= finds it through the daemon's sweep membership.
   Result<nlohmann::json> ListRuns(const RunQuery& query) override {
+    ++route_calls;
+    if (!runs_refusal.ok()) return runs_refusal;
     nlohmann::json out = nlohmann::json::array();
     for (const auto& r : runs) {
       if (query.state && r.value("state", "") != *query.state) continue;
+      if (query.sweep && !InSweep(r, *query.sweep)) continue;
       out.push_back(r);
     }
     return out;
+  }
+  static bool InSweep(const nlohmann::json& run, int64_t sweep) {
+    for (const auto& id : run.value("sweeps", nlohmann::json::array())) {
+      if (id == sweep) return true;
+    }
+    return false;
   }
   Result<nlohmann::json> GetRun(int64_t id) override {
     for (const auto& r : runs) {
@@ -83,6 +100,7 @@ class FakeClient : public DaemonClient {
     return Status::NotFound("no run " + std::to_string(id));
   }
   Result<nlohmann::json> GetCampaignRun(int64_t id) override {
+    ++route_calls;
     auto it = campaign_runs.find(id);
     if (it == campaign_runs.end()) return Status::NotFound("no campaign run " + std::to_string(id));
     return it->second;
@@ -90,20 +108,24 @@ class FakeClient : public DaemonClient {
   Result<nlohmann::json> CampaignRunResults(int64_t id) override {
     return nlohmann::json{{"id", id}, {"results", nlohmann::json::array()}};
   }
-  // The progress board as the daemon builds it from the sweeps, campaign runs and runs above: a
-  // running run without "sweeps" is shown in every sweep (as ListRuns ignores the sweep).
+  // The progress board as the daemon builds it from the sweeps, campaign runs and runs above
+  // (server/dashboard/live_feed.h): each running run as it is, with the "sweeps" it names (a run
+  // without them makes a board from before running runs named their sweeps).
   Result<nlohmann::json> Live() override {
     ++live_calls;
     if (!serves_board) return Status::NotFound("no route GET /api/v1/live");
+    if (!live_refusals.empty()) {
+      Status refusal = live_refusals.front();
+      live_refusals.erase(live_refusals.begin());
+      return refusal;
+    }
     nlohmann::json board = {{"sweeps", nlohmann::json::array()},
                             {"campaign_runs", nlohmann::json::array()},
                             {"running", nlohmann::json::array()}};
-    std::vector<int64_t> all_sweeps;
     for (const auto& [id, s] : sweeps) {
       nlohmann::json j = s;
       j["id"] = id;
       board["sweeps"].push_back(j);
-      all_sweeps.push_back(id);
     }
     for (const auto& [id, c] : campaign_runs) {
       nlohmann::json j = c;
@@ -111,11 +133,9 @@ class FakeClient : public DaemonClient {
       board["campaign_runs"].push_back(j);
     }
     for (const auto& r : runs) {
-      if (r.value("state", "") != "running") continue;
-      nlohmann::json j = r;
-      if (!j.contains("sweeps")) j["sweeps"] = all_sweeps;
-      board["running"].push_back(j);
+      if (r.value("state", "") == "running") board["running"].push_back(r);
     }
+    if (edit_board) edit_board(board);
     return board;
   }
   Result<nlohmann::json> CampaignRunClaims(int64_t id) override {

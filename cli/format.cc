@@ -260,13 +260,15 @@ std::string RenderStatus(const Snapshot& s, const RenderOptions& options) {
       out += "  " + InFlightLine(r) + (r.worker.empty() ? "" : "  on " + r.worker) + "\n";
     }
   }
-  if (!s.failed.empty()) {
-    out += Colorize("failed:", StateColor("failed"), options.color) + "\n";
-    for (const auto& f : s.failed) {
-      out += "  run " + std::to_string(f.id) + "  " + f.point + "\n    " + f.reason + "\n";
-    }
-  }
+  out += RenderFailures(s.failed, options);
   out += RenderRounds(s.adaptive, s.rounds);
+  return out;
+}
+
+std::string RenderFailures(const std::vector<RunFailure>& failed, const RenderOptions& options) {
+  if (failed.empty()) return "";
+  std::string out = Colorize("failed:", StateColor("failed"), options.color) + "\n";
+  for (const auto& f : failed) out += "  run " + std::to_string(f.id) + "  " + f.point + "\n    " + f.reason + "\n";
   return out;
 }
 

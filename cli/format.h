@@ -136,6 +136,9 @@ struct Snapshot {
 // The full `status` text: title, counts, runs in flight (bar, simulated time / duration, SO z),
 // failures with their reasons, ETA.
 std::string RenderStatus(const Snapshot& s, const RenderOptions& options);
+// "failed:" and two lines a failed run (its id and point, then its reason); "" for none. The end
+// of RenderStatus, and what `watch` prints when its target ends with failures.
+std::string RenderFailures(const std::vector<RunFailure>& failed, const RenderOptions& options);
 // The rounds of an adaptive campaign run, a few lines each: "round 2  finished  planned 0.48 core-h,
 // spent 0.31, 12.4 core-h left" / each action's reason / "  after it: F1 holds (round 1), F4
 // inconclusive", and the stop reason. "" for none.

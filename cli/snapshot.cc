@@ -1,5 +1,6 @@
 #include "cli/snapshot.h"
 
+#include <algorithm>
 #include <charconv>
 #include <set>
 #include <vector>
@@ -83,6 +84,13 @@ Status AddWaitingBedState(DaemonClient& client, const std::vector<int64_t>& swee
 // Runs in flight the progress board lists at most (server/dashboard/live_feed.cc).
 constexpr size_t kBoardRunning = 1000;
 
+// Live()'s failures that say this daemon has no board at all: no such route (404, a daemon from
+// before the board) or the 503 of a daemon serving no live feed (server/http/live_routes.cc).
+bool NoBoard(const Status& s) {
+  return s.code() == StatusCode::kNotFound ||
+         (s.code() == StatusCode::kUnavailable && s.reason().find("serves no live feed") != std::string::npos);
+}
+
 }  // namespace
 
 std::string Target::ToString() const { return (kind == Kind::kCampaignRun ? "cr:" : "") + std::to_string(id); }
@@ -148,59 +156,91 @@ Result<Snapshot> FetchSnapshotFromBoard(DaemonClient& client, const Target& targ
     Result<json> board = client.Live();
     if (board.ok()) {
       std::vector<int64_t> sweep_ids;
-      Result<std::optional<Snapshot>> view = SnapshotFromBoard(*board, target, &sweep_ids);
+      BoardMiss miss = BoardMiss::kThisRefresh;
+      Result<std::optional<Snapshot>> view = SnapshotFromBoard(*board, target, &sweep_ids, &miss);
       if (view.ok() && view->has_value()) {
         Snapshot s = std::move(**view);
         SANDSWIM_RETURN_IF_ERROR(AddWaitingBedState(client, sweep_ids, s));
         return s;
       }
+      // Older than everything the board lists, or a board from before runs named their sweeps: it
+      // will not show the target later either. Otherwise (newer than the board, which is rebuilt
+      // at most once a tick; more runs in flight than it lists; unreadable): this refresh only.
+      if (view.ok() && miss == BoardMiss::kForGood) *board_usable = false;
+    } else if (NoBoard(board.status())) {
+      *board_usable = false;  // an older daemon (no route), or one without a live feed
     }
-    // No board (an older daemon, or none served), or not the target on it (older than the sweeps
-    // it lists): the target's own routes from now on.
-    *board_usable = false;
+    // Any other failure (a busy or restarting daemon, a broken connection) may pass: the target's
+    // own routes for this refresh, the board again at the next.
   }
   return FetchSnapshot(client, target);
 }
 
 Result<std::optional<Snapshot>> SnapshotFromBoard(const json& board, const Target& target,
-                                                  std::vector<int64_t>* target_sweeps) {
+                                                  std::vector<int64_t>* target_sweeps, BoardMiss* miss) {
+  BoardMiss ignored;
+  if (miss == nullptr) miss = &ignored;
+  *miss = BoardMiss::kNone;
   try {
     Snapshot s;
-    std::set<int64_t> sweep_ids;
+    std::vector<int64_t> sweep_ids;  // the target's, in its own order
     const char* list = target.kind == Target::Kind::kSweep ? "sweeps" : "campaign_runs";
     const json listed = board.value(list, json::array());
     const json* entry = nullptr;
+    std::optional<int64_t> oldest_listed;
     for (const json& e : listed) {
-      if (e.value("id", int64_t{0}) == target.id) entry = &e;
+      const int64_t id = e.value("id", int64_t{0});
+      if (id == target.id) entry = &e;
+      oldest_listed = std::min(id, oldest_listed.value_or(id));
     }
-    if (entry == nullptr) return std::optional<Snapshot>();
+    if (entry == nullptr) {
+      // The board lists the newest sweeps and campaign runs: one older than all it lists is never
+      // on it; a newer one is once the board is rebuilt.
+      *miss = oldest_listed && target.id < *oldest_listed ? BoardMiss::kForGood : BoardMiss::kThisRefresh;
+      return std::optional<Snapshot>();
+    }
     if (target.kind == Target::Kind::kSweep) {
       s.title = SweepTitle(target.id, *entry);
-      sweep_ids.insert(target.id);
+      sweep_ids.push_back(target.id);
     } else {
       s.title = CampaignRunTitle(target.id, *entry);
-      for (const json& id : entry->value("sweeps", json::array())) sweep_ids.insert(id.get<int64_t>());
+      for (const json& id : entry->value("sweeps", json::array())) {
+        const int64_t sweep = id.get<int64_t>();
+        if (std::find(sweep_ids.begin(), sweep_ids.end(), sweep) == sweep_ids.end()) sweep_ids.push_back(sweep);
+      }
     }
     s.counts = CountsFromJson(entry->value("counts", json::object()));
     s.eta = EtaFrom(*entry);
     const json running = board.value("running", json::array());
+    std::vector<std::set<int64_t>> in_sweeps;  // each running run's sweeps, as the board lists them
     for (const json& run : running) {
       auto in = run.find("sweeps");
-      if (in == run.end() || !in->is_array()) return std::optional<Snapshot>();  // a board from before "sweeps"
-      for (const json& id : *in) {
-        if (sweep_ids.count(id.get<int64_t>())) {
-          s.running.push_back(InFlight(run));
-          break;
-        }
+      if (in == run.end() || !in->is_array()) {  // a board from before "sweeps": it never will say
+        *miss = BoardMiss::kForGood;
+        return std::optional<Snapshot>();
+      }
+      in_sweeps.emplace_back();
+      for (const json& id : *in) in_sweeps.back().insert(id.get<int64_t>());
+    }
+    // Grouped by sweep, in the target's order (a run in two of its sweeps under the first), as
+    // FetchSnapshot lists them.
+    std::set<int64_t> seen;
+    for (int64_t sweep : sweep_ids) {
+      for (size_t i = 0; i < running.size(); ++i) {
+        if (in_sweeps[i].count(sweep) == 0) continue;
+        const RunInFlight r = InFlight(running[i]);
+        if (seen.insert(r.id).second) s.running.push_back(r);
       }
     }
     // The board lists at most kBoardRunning runs in flight: past it, some of the target's may be missing.
     if (static_cast<int64_t>(s.running.size()) < s.counts.running && running.size() >= kBoardRunning) {
+      *miss = BoardMiss::kThisRefresh;
       return std::optional<Snapshot>();
     }
-    if (target_sweeps != nullptr) target_sweeps->assign(sweep_ids.begin(), sweep_ids.end());
+    if (target_sweeps != nullptr) *target_sweeps = sweep_ids;
     return std::optional<Snapshot>(std::move(s));
   } catch (const json::exception& e) {
+    *miss = BoardMiss::kThisRefresh;
     return Status::Corruption(std::string("the daemon's progress board is unreadable: ") + e.what());
   }
 }

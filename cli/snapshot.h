@@ -40,17 +40,27 @@ Result<int64_t> ParseId(const std::string& text, const std::string& field);
 // wait for a bed.
 Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target);
 
+// Why SnapshotFromBoard gave no snapshot: kForGood when the board will not show the target later
+// either (older than every sweep or campaign run of its kind the board lists, or a board from
+// before running runs named their sweeps); kThisRefresh when a later board may (newer than the
+// board, which the daemon rebuilds at most once a tick; more runs in flight than the board lists;
+// an unreadable board).
+enum class BoardMiss { kNone, kThisRefresh, kForGood };
+
 // The target as the daemon's progress board (GET /api/v1/live) shows it: title, counts, the
-// daemon's ETA and the runs in flight (failures are not on the board: `failed` stays empty, the
-// count is in `counts`). nullopt when the board does not show it (older than the newest sweeps and
-// campaign runs the board lists, a board from before running runs named their sweeps, or more runs
-// in flight than the board lists). `target_sweeps`, when given, receives the target's sweep ids.
+// daemon's ETA and the runs in flight, grouped by sweep in the target's order as FetchSnapshot
+// lists them (failures are not on the board: `failed` stays empty, the count is in `counts`).
+// nullopt when the board does not show it (`miss`, when given, says whether it may later).
+// `target_sweeps`, when given, receives the target's sweep ids in its order.
 Result<std::optional<Snapshot>> SnapshotFromBoard(const nlohmann::json& board, const Target& target,
-                                                  std::vector<int64_t>* target_sweeps = nullptr);
+                                                  std::vector<int64_t>* target_sweeps = nullptr,
+                                                  BoardMiss* miss = nullptr);
 
 // What `watch` looks at each refresh, in one request (two more while runs wait for a bed): the
-// board (SnapshotFromBoard) while `*board_usable`; when it shows no board or not the target,
-// sets *board_usable false and FetchSnapshot from then on. REQUIRES: board_usable != nullptr.
+// board (SnapshotFromBoard) while `*board_usable`, else FetchSnapshot. A refresh the board cannot
+// serve falls back to FetchSnapshot; it sets *board_usable false (FetchSnapshot from then on) only
+// when the daemon has no board (Live() answers 404, or the 503 of a daemon without a live feed) or
+// the board will never show the target (BoardMiss::kForGood). REQUIRES: board_usable != nullptr.
 Result<Snapshot> FetchSnapshotFromBoard(DaemonClient& client, const Target& target, bool* board_usable);
 
 // The results of a sweep or campaign run, as the daemon sends them: {"id", "results": [one row a

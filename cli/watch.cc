@@ -33,8 +33,19 @@ Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOp
       }
     }
     if (finished) {
-      // The board counts failures but does not list them: the last snapshot names them (once).
-      if (board_usable && s.counts.failed > 0) return FetchSnapshot(client, target);
+      // The board counts failures but does not list them: they are read once, at the end, and
+      // listed after the last frame or line. The target has finished either way: a failure to
+      // read them is said, not made the watch's.
+      if (s.counts.failed > 0 && s.failed.empty()) {
+        Result<Snapshot> named = FetchSnapshot(client, target);
+        if (named.ok()) {
+          s.failed = std::move(named->failed);
+        } else {
+          out << "(its " << s.counts.failed << " failed run(s) could not be listed: " << named.status().ToString()
+              << "; `sandswim status " << target.ToString() << "` lists them)\n";
+        }
+      }
+      out << RenderFailures(s.failed, render) << std::flush;
       return s;
     }
     clock.SleepFor(options.interval_s);

@@ -7,8 +7,11 @@
 //
 // Each refresh reads the daemon's progress board (GET /api/v1/live, the dashboard's; an unchanged
 // one is a 304): one request whatever the number of runs, two more while runs wait for a bed. A
-// target the board does not show (older than its newest sweeps) is followed through its own
-// routes (snapshot.h FetchSnapshotFromBoard). The ETA is the daemon's.
+// refresh the board cannot serve reads the target's own routes; a target the board will never
+// show (older than its newest sweeps) is followed through them from then on (snapshot.h
+// FetchSnapshotFromBoard). The ETA is the daemon's. When the target ends with failed runs, they
+// are listed after the last frame or line (RenderFailures), read once from the target's routes
+// when the board gave the count only.
 //
 // Time is the injected clock's (platform/clock.h): its monotonic time spaces the piped lines and
 // its sleep the refreshes, so tests run on a FakeClock without waiting.
@@ -35,8 +38,9 @@ struct WatchOptions {
   double line_interval_s = 5.0;  // piped: at most one line this often
 };
 
-// Follows `target` until it is finished; returns the last snapshot (the caller decides the exit
-// code from its counts). Errors from the daemon end the watch.
+// Follows `target` until it is finished; returns the last snapshot, its failures listed (the
+// caller decides the exit code from its counts). Errors from the daemon before the target has
+// finished end the watch.
 Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, Clock& clock,
                        std::ostream& out);
 

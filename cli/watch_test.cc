@@ -1,5 +1,6 @@
 #include "cli/watch.h"
 
+#include <algorithm>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -10,6 +11,7 @@
 #include <httplib.h>
 
 #include "cli/fake_client_test_util.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim::cli {
 namespace {
@@ -38,9 +40,12 @@ struct Scenario {
   PhaseClock clock{this};
 };
 
-json MakeRun(int64_t id, const std::string& state, double sim_time = 0, double started = 0, double finished = 0) {
+// A run of sweep 1 (the sweeps it is in: `sweeps`).
+json MakeRun(int64_t id, const std::string& state, double sim_time = 0, double started = 0, double finished = 0,
+             std::vector<int64_t> sweeps = {1}) {
   json r = {{"id", id},
             {"state", state},
+            {"sweeps", sweeps},
             {"point", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 4}}},
             {"run_duration_s", 4.0},
             {"progress", {{"sim_time_s", sim_time}, {"so_z", 0.4}, {"step", 0}}},
@@ -126,14 +131,42 @@ TEST(WatchTest, TerminalRedrawsInPlace) {
   EXPECT_THAT(text, HasSubstr("[###############.....]  75%"));
 }
 
-TEST(WatchTest, ReportsFailuresInTheLastSnapshot) {
+// The board counts failures without naming them: a watch that ends with failures reads them once
+// and lists them after its last line (piped) or frame (terminal).
+TEST(WatchTest, ListsTheFailedRunsAtTheEnd) {
+  for (bool tty : {false, true}) {
+    auto s = TwoRunScenario(/*one_fails=*/true);
+    std::ostringstream out;
+    WatchOptions options;
+    options.tty = tty;
+    auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
+    ASSERT_TRUE(last.ok());
+    EXPECT_EQ(last->counts.failed, 1);
+    ASSERT_EQ(last->failed.size(), 1u);
+    EXPECT_EQ(last->failed[0].reason, "engine_error: Lost atoms");
+    EXPECT_THAT(out.str(), ::testing::EndsWith("1 failed, 0 cancelled; finished\n"
+                                               "failed:\n"
+                                               "  run 2  vibration A=0.03 f=3 T=4s\n"
+                                               "    engine_error: Lost atoms\n"))
+        << (tty ? "terminal" : "piped");
+  }
+}
+
+// A target that has finished is not made a failed watch by a failure to read its failures: the
+// watch says so and ends as the target did.
+TEST(WatchTest, AFailureToListTheFailuresIsSaidNotMadeTheWatchs) {
   auto s = TwoRunScenario(/*one_fails=*/true);
+  s->phases.back() = [](FakeClient& c) {
+    Phase(c, {MakeRun(1, "done", 4, 100, 110), MakeRun(2, "failed")});
+    c.runs_refusal = Status::Unavailable("the daemon went away");
+  };
   std::ostringstream out;
   auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
-  ASSERT_TRUE(last.ok());
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
   EXPECT_EQ(last->counts.failed, 1);
-  ASSERT_EQ(last->failed.size(), 1u);
-  EXPECT_EQ(last->failed[0].reason, "engine_error: Lost atoms");
+  EXPECT_TRUE(last->failed.empty());
+  EXPECT_THAT(out.str(), HasSubstr("(its 1 failed run(s) could not be listed: unavailable: the daemon went away; "
+                                   "`sandswim status 1` lists them)\n"));
 }
 
 TEST(WatchTest, DaemonErrorEndsTheWatch) {
@@ -285,9 +318,11 @@ TEST(SnapshotTest, TheBoardShowsTheTargetsRunsInFlight) {
   ASSERT_TRUE(s.eta.has_value());
   EXPECT_EQ(s.eta->s, 60);
   EXPECT_EQ(sweeps, (std::vector<int64_t>{1, 2}));
-  auto absent = SnapshotFromBoard(*board, Target{Target::Kind::kSweep, 77});
+  BoardMiss miss = BoardMiss::kNone;
+  auto absent = SnapshotFromBoard(*board, Target{Target::Kind::kSweep, 77}, nullptr, &miss);
   ASSERT_TRUE(absent.ok());
   EXPECT_FALSE(absent->has_value());
+  EXPECT_EQ(miss, BoardMiss::kThisRefresh) << "no sweep on the board: 77 may be newer";
 }
 
 // A daemon without the board (or a target older than it shows) is followed through its own routes.
@@ -299,6 +334,143 @@ TEST(WatchTest, WithoutTheBoardWatchFollowsTheTargetsRoutes) {
   ASSERT_TRUE(last.ok()) << last.status().ToString();
   EXPECT_EQ(last->counts.done, 2);
   EXPECT_EQ(s->client.live_calls, 1) << "asked once, then not again";
+}
+
+// A target newer than the board (a sweep just submitted; the daemon rebuilds the board at most
+// once a tick) is read from its own routes for that refresh only: the next refresh asks the board
+// again, and finds it there.
+TEST(WatchTest, ATargetNewerThanTheBoardIsLookedForAgain) {
+  auto s = TwoRunScenario(/*one_fails=*/false);
+  s->client.sweeps[0] = {{"id", 0}, {"name", "older"}, {"scale", "smoke"}, {"counts", json::object()}};
+  int stale = 2;  // the first two boards were built before sweep 1
+  s->client.edit_board = [&stale](json& board) {
+    if (stale-- <= 0) return;
+    json& sweeps = board["sweeps"];
+    sweeps.erase(std::remove_if(sweeps.begin(), sweeps.end(), [](const json& e) { return e["id"] == 1; }),
+                 sweeps.end());
+    board["running"] = json::array();
+  };
+  std::ostringstream out;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  EXPECT_EQ(last->counts.done, 2);
+  EXPECT_EQ(s->client.live_calls, 4) << "the board, every refresh";
+  // Two refreshes through the routes (a GetSweep and 2 ListRuns each); the other two from the board.
+  EXPECT_EQ(s->client.route_calls, 2 * 3);
+}
+
+// A target older than everything the board lists will not be on it: the board is asked once.
+TEST(WatchTest, ATargetOlderThanTheBoardIsFollowedThroughItsRoutes) {
+  auto s = TwoRunScenario(/*one_fails=*/false);
+  s->client.edit_board = [](json& board) {
+    board["sweeps"] = json::array({{{"id", 5}, {"name", "newer"}, {"scale", "smoke"}, {"counts", json::object()}}});
+  };
+  std::ostringstream out;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  EXPECT_EQ(last->counts.done, 2);
+  EXPECT_EQ(s->client.live_calls, 1);
+}
+
+// Only a daemon without a board (404, or the 503 of one serving no live feed) turns the board off;
+// a board request that fails otherwise (busy, restarting) costs that refresh only.
+TEST(WatchTest, OnlyADaemonWithoutABoardTurnsTheBoardOff) {
+  for (const Status& failure : {Status::Unavailable("this daemon serves no live feed"),
+                                Status::NotFound("no route GET /api/v1/live")}) {
+    auto s = TwoRunScenario(/*one_fails=*/false);
+    s->client.live_refusals = {failure};
+    std::ostringstream out;
+    auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+    ASSERT_TRUE(last.ok()) << last.status().ToString();
+    EXPECT_EQ(s->client.live_calls, 1) << failure.ToString();
+  }
+  for (const Status& failure : {Status::Unavailable("too many connections"), Status::Internal("boom"),
+                                Status::Unavailable("connection refused")}) {
+    auto s = TwoRunScenario(/*one_fails=*/false);
+    s->client.live_refusals = {failure};
+    std::ostringstream out;
+    auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+    ASSERT_TRUE(last.ok()) << last.status().ToString();
+    EXPECT_EQ(last->counts.done, 2);
+    EXPECT_EQ(s->client.live_calls, 4) << failure.ToString() << ": the board again at the next refresh";
+    EXPECT_EQ(s->client.route_calls, 3) << "one refresh through the routes";
+  }
+}
+
+// The runs in flight of a campaign run are grouped by sweep, in the campaign run's order of its
+// sweeps (a run in two of them under the first), on the board as through the routes.
+TEST(SnapshotTest, RunsInFlightAreGroupedBySweep) {
+  FakeClient client;
+  client.campaign_runs[3] = {
+      {"id", 3},          {"campaign", "paper-58"},
+      {"scale", "smoke"}, {"trigger", "manual"},
+      {"sweeps", {4, 2}}, {"counts", {{"queued", 0}, {"running", 4}, {"done", 0}, {"failed", 0}, {"cancelled", 0}}}};
+  client.runs = {MakeRun(10, "running", 1, 0, 0, {2}), MakeRun(11, "running", 1, 0, 0, {4}),
+                 MakeRun(12, "running", 1, 0, 0, {2, 4}), MakeRun(13, "running", 1, 0, 0, {2}),
+                 MakeRun(14, "running", 1, 0, 0, {9})};
+  auto ids = [](const Snapshot& s) {
+    std::vector<int64_t> out;
+    for (const RunInFlight& r : s.running) out.push_back(r.id);
+    return out;
+  };
+  auto board = client.Live();
+  ASSERT_TRUE(board.ok());
+  auto view = SnapshotFromBoard(*board, Target{Target::Kind::kCampaignRun, 3});
+  ASSERT_TRUE(view.ok() && view->has_value());
+  auto routes = FetchSnapshot(client, Target{Target::Kind::kCampaignRun, 3});
+  ASSERT_TRUE(routes.ok());
+  EXPECT_EQ(ids(**view), (std::vector<int64_t>{11, 12, 10, 13}));
+  EXPECT_EQ(ids(**view), ids(*routes));
+  const std::string frame = RenderWatchFrame(**view, RenderOptions{});
+  EXPECT_LT(frame.find("run 12"), frame.find("run 10")) << frame;
+}
+
+// The daemon's own board (tests/fixtures/live_board.json: GET /api/v1/live recorded, and checked
+// against what the route serves by server_tests' RoutesTest.TheLiveBoardIsTheOneRecordedForTheCli):
+// campaign run cr:1 of sweeps 1 (Omega -80, 80) and 2 (Omega 80, 120), the Omega 80 run in both,
+// its three runs in flight.
+TEST(SnapshotTest, ReadsTheDaemonsRecordedBoard) {
+  const json board = json::parse(sandswim::testing::Fixture("live_board.json"), nullptr, false);
+  ASSERT_TRUE(board.is_object()) << "tests/fixtures/live_board.json";
+  auto ids = [](const Snapshot& s) {
+    std::vector<int64_t> out;
+    for (const RunInFlight& r : s.running) out.push_back(r.id);
+    return out;
+  };
+  std::vector<int64_t> sweeps;
+  auto cr = SnapshotFromBoard(board, Target{Target::Kind::kCampaignRun, 1}, &sweeps);
+  ASSERT_TRUE(cr.ok()) << cr.status().ToString();
+  ASSERT_TRUE(cr->has_value());
+  const Snapshot& s = **cr;
+  EXPECT_EQ(s.title, "campaign run cr:1 shared-omega (scale smoke, manual)");
+  EXPECT_EQ(s.counts.running, 3);
+  EXPECT_EQ(s.counts.total(), 3);
+  EXPECT_EQ(sweeps, (std::vector<int64_t>{1, 2}));
+  EXPECT_EQ(ids(s), (std::vector<int64_t>{1, 2, 3}));
+  ASSERT_EQ(s.running.size(), 3u);
+  EXPECT_EQ(s.running[1].sim_time_s, 0.5);
+  EXPECT_EQ(s.running[1].duration_s, 2.0);
+  EXPECT_EQ(s.running[1].worker, "w2:1");
+  EXPECT_EQ(s.running[1].point, "oscillatory A=0.03 f=3 Omega=80 T=2s");
+  ASSERT_TRUE(s.eta.has_value()) << "the campaign run's ETA";
+  EXPECT_GT(s.eta->s, 0);
+  EXPECT_GT(s.eta->rel_error, 0);
+  EXPECT_THAT(RenderWatchLine(s), HasSubstr(": 0/3 done, 3 running, 0 queued, 0 failed, 0 cancelled; ETA "));
+
+  // Each sweep: its own runs in flight, the shared one in both.
+  auto low = SnapshotFromBoard(board, Target{Target::Kind::kSweep, 1});
+  auto high = SnapshotFromBoard(board, Target{Target::Kind::kSweep, 2});
+  ASSERT_TRUE(low.ok() && low->has_value() && high.ok() && high->has_value());
+  EXPECT_EQ(ids(**low), (std::vector<int64_t>{1, 2}));
+  EXPECT_EQ(ids(**high), (std::vector<int64_t>{2, 3}));
+  EXPECT_EQ((*high)->title, "sweep 2 high (scale smoke)");
+
+  // Not on it: sweep 3 may be newer than the board; nothing is older than sweep 1.
+  BoardMiss miss = BoardMiss::kNone;
+  auto newer = SnapshotFromBoard(board, Target{Target::Kind::kSweep, 3}, nullptr, &miss);
+  ASSERT_TRUE(newer.ok());
+  EXPECT_FALSE(newer->has_value());
+  EXPECT_EQ(miss, BoardMiss::kThisRefresh);
 }
 
 TEST(SnapshotTest, ParsesTargets) {
@@ -324,7 +496,7 @@ TEST(SnapshotTest, CampaignRunDeduplicatesSharedRuns) {
       {"id", 3},          {"campaign", "paper-58"},
       {"scale", "smoke"}, {"trigger", "manual"},
       {"sweeps", {1, 2}}, {"counts", {{"queued", 0}, {"running", 1}, {"done", 0}, {"failed", 0}, {"cancelled", 0}}}};
-  client.runs = {MakeRun(1, "running", 2.0)};
+  client.runs = {MakeRun(1, "running", 2.0, 0, 0, {1, 2})};
   auto s = FetchSnapshot(client, Target{Target::Kind::kCampaignRun, 3});
   ASSERT_TRUE(s.ok()) << s.status().ToString();
   EXPECT_EQ(s->running.size(), 1u);

@@ -58,8 +58,12 @@ double DofOfInterval(double se, double ci95) {
   const double ratio = ci95 / se;
   if (ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return 1e7;
   double lo = 0.5, hi = 1e7;  // t(0.975, dof) falls as dof grows
+  // Bisection on a log scale until no double lies between lo and hi's geometric mean: about 56
+  // halvings of log(hi / lo) = 16.8 reach double precision (200 is only a guard). Going on would
+  // change nothing: the result is the one a fixed 200 iterations give, at a quarter of the cost.
   for (int i = 0; i < 200; ++i) {
     const double mid = std::sqrt(lo * hi);
+    if (mid <= lo || mid >= hi) break;
     if (gsl_cdf_tdist_Pinv(0.975, mid) > ratio) {
       lo = mid;
     } else {

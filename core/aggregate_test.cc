@@ -2,7 +2,9 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
+#include <gsl/gsl_cdf.h>
 #include <gtest/gtest.h>
 
 #include "core/scale.h"
@@ -87,6 +89,39 @@ TEST(AggregateTest, OneBedAddsTheScalesBedPrior) {
   EXPECT_EQ(half.uz_stderr, 0.001);
   EXPECT_EQ(FindScale("smoke")->bed_sd_rel, 0.17);
   EXPECT_FALSE(FindScale("paper")->bed_sd_rel.has_value());
+}
+
+// DofOfInterval before it stopped at convergence: a fixed 200 bisections. Kept here as the reference.
+double DofOfIntervalBy200Bisections(double se, double ci95) {
+  const double ratio = ci95 / se;
+  if (ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return 1e7;
+  double lo = 0.5, hi = 1e7;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    if (gsl_cdf_tdist_Pinv(0.975, mid) > ratio) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return std::sqrt(lo * hi);
+}
+
+// Stopping the bisection once it has converged gives the value 200 bisections gave, over the whole
+// range: intervals made with 0.5 to 1e7 degrees of freedom, ratios off that grid, and the ends.
+TEST(AggregateTest, TheIntervalsDegreesOfFreedomMatchTheFullBisection) {
+  std::vector<double> ratios;
+  for (double dof = 0.5; dof < 2e7; dof *= 1.37) ratios.push_back(gsl_cdf_tdist_Pinv(0.975, dof));
+  for (double r = 1.9600001; r < 1e3; r *= 1.11) ratios.push_back(r);
+  ratios.push_back(1e6);  // beyond t(0.975, 0.5): pinned at the low end
+  for (double se : {1e-6, 0.003, 2.0}) {
+    for (double ratio : ratios) {
+      const double want = DofOfIntervalBy200Bisections(se, ratio * se);
+      const double got = DofOfInterval(se, ratio * se);
+      EXPECT_NEAR(got, want, 1e-12 * want) << "ratio " << ratio << " se " << se;
+    }
+  }
+  EXPECT_EQ(DofOfInterval(1.0, gsl_cdf_ugaussian_Pinv(0.975)), 1e7);  // a normal quantile's ratio
 }
 
 // On data with a known answer: beds whose rates scatter around a true mean (normal, between-bed

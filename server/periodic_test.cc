@@ -3,6 +3,8 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <functional>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -38,17 +40,59 @@ class CallCounter {
   int calls_ = 0;
 };
 
+// A FakeClock that counts, per thread, the looks a waiting thread takes at its wait's condition
+// (each look also reads the time: FakeClock::WaitFor checks done() and then the clock). A thread
+// that has looked twice since the clock moved has seen the new time and, after the first look,
+// either waited on (still inside its wait) or left it and come back after its job ran: so the
+// job's calls, read then, say whether it ran early. No real sleep decides anything.
+class LookCountingClock : public FakeClock {
+ public:
+  bool WaitFor(std::condition_variable& cv, std::unique_lock<std::mutex>& lock, double seconds,
+               const std::function<bool()>& done) override {
+    return FakeClock::WaitFor(cv, lock, seconds, [&] {
+      {
+        std::lock_guard<std::mutex> l(looks_mu_);
+        ++looks_[std::this_thread::get_id()];
+      }
+      looks_cv_.notify_all();
+      return done();
+    });
+  }
+  // Moves time, then blocks (in real time, at most 10 s) until `threads` threads have each looked
+  // twice since; false when they did not.
+  bool AdvanceAndAwaitLooks(double seconds, int threads) {
+    Advance(seconds);
+    {
+      std::lock_guard<std::mutex> l(looks_mu_);
+      looks_.clear();  // after the move: every look counted from here reads the new time
+    }
+    std::unique_lock<std::mutex> l(looks_mu_);
+    return looks_cv_.wait_for(l, std::chrono::seconds(10), [&] {
+      int looked = 0;
+      for (const auto& [id, n] : looks_) looked += n >= 2;
+      return looked >= threads;
+    });
+  }
+
+ private:
+  std::mutex looks_mu_;
+  std::condition_variable looks_cv_;
+  std::map<std::thread::id, int> looks_;
+};
+
 // Time is a FakeClock's: a job's thread waits in the clock (AwaitWaiting sees it there) until
-// the test moves time past its period.
+// the test moves time past its period; a call before that is caught.
 TEST(PeriodicJobsTest, AJobRunsOncePerPeriodOfItsClockUntilStopped) {
-  FakeClock clock;
+  LookCountingClock clock;
   CallCounter counter;
   PeriodicJobs jobs(&clock);
   jobs.Add("minutely", 60, [&] { counter.Called(); });
   jobs.Start();
   for (int n = 1; n <= 3; ++n) {
     ASSERT_TRUE(clock.AwaitWaiting(1)) << "call " << n;
-    clock.Advance(59.5);  // not yet a period since the last call returned
+    // Not yet a period since the last call returned: the job's thread sees the time and waits on.
+    ASSERT_TRUE(clock.AdvanceAndAwaitLooks(59.5, 1)) << "call " << n;
+    EXPECT_EQ(counter.calls(), n - 1) << "ran before its period, call " << n;
     clock.Advance(0.5);
     ASSERT_TRUE(counter.WaitFor(n)) << "call " << n;
   }
@@ -64,7 +108,7 @@ TEST(PeriodicJobsTest, AJobRunsOncePerPeriodOfItsClockUntilStopped) {
 }
 
 TEST(PeriodicJobsTest, RunAtStartRunsBeforeTheFirstPeriodAndStopDoesNotWaitForTheNext) {
-  FakeClock clock;
+  LookCountingClock clock;
   CallCounter counter;
   PeriodicJobs jobs(&clock);
   jobs.Add(
@@ -73,7 +117,7 @@ TEST(PeriodicJobsTest, RunAtStartRunsBeforeTheFirstPeriodAndStopDoesNotWaitForTh
   jobs.Start();
   ASSERT_TRUE(counter.WaitFor(1));
   ASSERT_TRUE(clock.AwaitWaiting(2));  // both wait for their hour
-  clock.Advance(3599);
+  ASSERT_TRUE(clock.AdvanceAndAwaitLooks(3599, 2));  // both saw the time (an early "hourly" fails above)
   jobs.Stop();  // returns although both jobs wait for another second
   EXPECT_EQ(counter.calls(), 1);
 }

@@ -29,6 +29,7 @@
 #include "server/http/loopback_server_test_util.h"
 #include "server/http/result_rows.h"
 #include "server/dashboard/live_feed.h"
+#include "tests/fixture_file.h"
 
 namespace sandswim {
 namespace {
@@ -1224,6 +1225,63 @@ TEST(RoutesUnitTest, ListenAddressAndPolicy) {
   EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true, /*tls=*/true).ok());
   EXPECT_TRUE(CheckListenPolicy({"0.0.0.0", 1}, true, /*tls=*/false, /*plain_http_ok=*/true).ok());
   EXPECT_TRUE(CheckListenPolicy({"127.0.0.1", 1}, true).ok());
+}
+
+// Whether every value `recorded` holds is one `served` holds at the same place (objects: each key
+// of `recorded`; arrays: the same length, element by element; else equal). `served` may carry more.
+void ExpectRecordedIn(const json& recorded, const json& served, const std::string& at = "") {
+  if (recorded.is_object()) {
+    ASSERT_TRUE(served.is_object()) << at << " is no object";
+    for (const auto& [key, value] : recorded.items()) {
+      ASSERT_TRUE(served.contains(key)) << at << "/" << key << " is not served";
+      ExpectRecordedIn(value, served[key], at + "/" + key);
+    }
+  } else if (recorded.is_array()) {
+    ASSERT_TRUE(served.is_array()) << at << " is no array";
+    ASSERT_EQ(recorded.size(), served.size()) << at;
+    for (size_t i = 0; i < recorded.size(); ++i) ExpectRecordedIn(recorded[i], served[i], at + "/" + std::to_string(i));
+  } else {
+    EXPECT_EQ(recorded, served) << at;
+  }
+}
+
+// tests/fixtures/live_board.json is this daemon's GET /api/v1/live, recorded: a campaign run of
+// two sweeps that share a run (Omega 80), its bed done and its three runs in flight (cli_tests
+// feed the recording to `watch`'s reading of the board, snapshot.h SnapshotFromBoard). The ETAs'
+// "basis" sentences are left out of the recording (prose that changes with the cost model; the
+// CLI shows it as it comes). The board served must still hold everything recorded; if its form
+// changed on purpose, record it again from this test's message (and run cli_tests).
+TEST_F(RoutesTest, TheLiveBoardIsTheOneRecordedForTheCli) {
+  const json definition = json::parse(R"({"description": "two sweeps sharing Omega 80", "scale": "smoke",
+    "sweeps": [{"name": "low", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 2},
+                "axes": [{"param": "Omega", "values": [-80, 80]}]},
+               {"name": "high", "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": 80, "duration_s": 2},
+                "axes": [{"param": "Omega", "values": [80, 120]}]}]})");
+  auto stored = client_->Put("/api/v1/campaigns/shared-omega", definition.dump(), "application/json");
+  ASSERT_EQ(stored->status, 201) << stored->body;
+  auto started = Post("/api/v1/campaigns/shared-omega/runs", R"({"scale": "smoke"})");
+  ASSERT_EQ(started->status, 201) << started->body;
+  auto bed = leases_->Lease({"w1:1", "w1", 1});
+  ASSERT_TRUE(bed.ok() && bed->has_value() && (*bed)->kind == api::JobKind::kBed);
+  ASSERT_TRUE(leases_->PutBedRestart((*bed)->token, "r", Sha256Hex("r"), deps_.data_dir).ok());
+  api::Completion bed_done;
+  bed_done.ok = true;
+  bed_done.bed_result = api::BedResult{};
+  ASSERT_TRUE(leases_->Complete((*bed)->token, bed_done).ok());
+  for (int i = 0; i < 3; ++i) {
+    clock_.Advance(1);
+    auto run = leases_->Lease({"w" + std::to_string(i + 1) + ":1", "w" + std::to_string(i + 1), 1});
+    ASSERT_TRUE(run.ok() && run->has_value() && (*run)->kind == api::JobKind::kRun) << i;
+    ASSERT_TRUE(leases_->Heartbeat((*run)->token, {0.25 * (i + 1), 0.1 - 0.01 * i, 1000 * (i + 1)}).ok());
+  }
+  clock_.Advance(0.08);  // a tick (0.05 s) later, by the feed's clock
+  auto live = client_->Get("/api/v1/live");
+  ASSERT_EQ(live->status, 200) << live->body;
+  const json served = Body(live);
+  const json recorded = json::parse(testing::Fixture("live_board.json"), nullptr, /*allow_exceptions=*/false);
+  ASSERT_TRUE(recorded.is_object()) << "no tests/fixtures/live_board.json; the board served:\n" << served.dump(2);
+  ExpectRecordedIn(recorded, served);
+  if (::testing::Test::HasFailure()) ADD_FAILURE() << "the board served:\n" << served.dump(2);
 }
 
 }  // namespace

@@ -601,10 +601,13 @@ Result<RunDetail> Store::GetRun(int64_t id, Deck deck) {
 Result<std::map<int64_t, api::Trajectory>> Store::SweepTrajectories(int64_t sweep_id) {
   Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
+  // Done runs only: a trajectory is what a run reported at completion, and the analysis draws done
+  // runs; one left by a run that is not done (requeued, failed, running again) is not read, so it
+  // cannot fail the sweep's analysis.
   Statement st = t->Prepare(
-      "SELECT tr.run_id, tr.data FROM sweep_runs sr JOIN trajectories tr ON tr.run_id = sr.run_id "
-      "WHERE sr.sweep_id = ?");
-  st.Bind(1, sweep_id);
+      "SELECT tr.run_id, tr.data FROM sweep_runs sr JOIN runs r ON r.id = sr.run_id "
+      "JOIN trajectories tr ON tr.run_id = sr.run_id WHERE sr.sweep_id = ? AND r.state = ?");
+  st.Bind(1, sweep_id).Bind(2, JobStateName(JobState::kDone));
   std::map<int64_t, api::Trajectory> out;
   while (true) {
     Result<bool> row = st.Step();

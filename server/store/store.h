@@ -252,8 +252,9 @@ class Store {
   // migration 3): the reads that do not show it -- figures, snapshots, reports -- leave it out.
   enum class Deck { kRendered, kLeftOut };
   Result<RunDetail> GetRun(int64_t id, Deck deck = Deck::kRendered);
-  // The stored trajectory of every run of the sweep that has one, by run id, in one read: what
-  // the sweep's analysis draws (no run read, no deck, log or snapshot list per run).
+  // The stored trajectory of every done run of the sweep that has one, by run id, in one read:
+  // what the sweep's analysis draws (no run read, no deck, log or snapshot list per run). Runs not
+  // done are not read (a trajectory they left that does not parse fails nothing).
   Result<std::map<int64_t, api::Trajectory>> SweepTrajectories(int64_t sweep_id);
   Result<BedView> GetBed(int64_t id);
   // Every bed, by id.

@@ -516,8 +516,8 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   EXPECT_EQ(store->db().CountRows("sqlite_master; DROP TABLE runs").status().code(), StatusCode::kInvalidArgument);
 }
 
-// A sweep's trajectories in one read: each of its runs that has one, by run id, none of another
-// sweep's.
+// A sweep's trajectories in one read: each of its done runs that has one, by run id, none of
+// another sweep's; a run not done is not read, even with a trajectory that does not parse.
 TEST_F(StoreTest, SweepTrajectoriesAreItsRunsStoredTrajectories) {
   auto store = MustOpen();
   auto first = Submit(*store, *ParseSubmitRequest(Sweep("first", 3)), "engine", 1.7e9);
@@ -534,13 +534,20 @@ TEST_F(StoreTest, SweepTrajectoriesAreItsRunsStoredTrajectories) {
     for (int i : {0, 2}) {
       const double v = 0.5 * (i + 1);
       ASSERT_TRUE(jobs::PutTrajectory(*t, (*rows)[i].run_id, api::Trajectory{{0, v}, {0, 0}, {0, 0}, {0, -v}}).ok());
+      ASSERT_TRUE(jobs::MarkRunDone(*t, (*rows)[i].run_id, v, 10, 1.7e9).ok());
     }
     ASSERT_TRUE(jobs::PutTrajectory(*t, (*other)[0].run_id, api::Trajectory{{0, 9}, {0, 0}, {0, 0}, {0, 9}}).ok());
+    ASSERT_TRUE(jobs::MarkRunDone(*t, (*other)[0].run_id, 9, 10, 1.7e9).ok());
+    // Run 1 is still queued, with a trajectory that does not parse (an object of the wrong form).
+    Statement odd = t->Prepare("INSERT OR REPLACE INTO trajectories (run_id, data) VALUES (?, ?)");
+    odd.Bind(1, (*rows)[1].run_id).Bind(2, std::string(R"({"t": "not numbers"})"));
+    ASSERT_TRUE(odd.Run().ok());
     ASSERT_TRUE(t->Commit().ok());
   }
   auto trajectories = store->SweepTrajectories(first->sweep_ids[0]);
   ASSERT_TRUE(trajectories.ok()) << trajectories.status().ToString();
   ASSERT_EQ(trajectories->size(), 2u);
+  EXPECT_EQ(trajectories->count((*rows)[1].run_id), 0u) << "not done: not read";
   for (int i : {0, 2}) {
     const int64_t id = (*rows)[i].run_id;
     ASSERT_EQ(trajectories->count(id), 1u) << i;
