@@ -282,8 +282,9 @@ std::map<std::string, Verdict> ShowFrozenVerdicts(std::vector<ClaimVerdict>& ver
     v.reason = std::string("decided (") + VerdictName(f.verdict) + ") at " + look + " and frozen there; " +
                WithRoundsRuns(so_far.rounds) + " it now reads " + reads +
                ", which does not count (frozen): a decided claim is not judged again with later rounds' runs, so "
-               "that the procedure's error rates hold for the whole sequence of looks. The numbers of that look are "
-               "not kept: the rounds' table shows the claims' states after each look";
+               "that the procedure's error rates hold for the whole sequence of looks." +
+               (f.decided_by.is_null() ? std::string(" The numbers of that look were not kept (frozen before they were)")
+                                       : std::string(" What that look read is in decided_by"));
     v.parts.clear();
     v.missing.clear();
   }
@@ -319,6 +320,8 @@ nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c) {
       auto it = c.frozen.find(v.claim.id);
       j["frozen_at_round"] = it == c.frozen.end() ? nlohmann::json(nullptr) : nlohmann::json(it->second.round);
       j["frozen_at"] = it == c.frozen.end() ? nlohmann::json(nullptr) : nlohmann::json(it->second.frozen_at);
+      // The deciding look's own verdict (its parts and numbers), as stored when it froze the claim.
+      j["decided_by"] = it == c.frozen.end() ? nlohmann::json(nullptr) : it->second.decided_by;
       j["verdict_text"] = FrozenVerdictText(v, c.frozen);
       auto now = c.current.find(v.claim.id);
       j["current_verdict"] = now == c.current.end() ? nlohmann::json(nullptr) : nlohmann::json(VerdictName(now->second));

@@ -72,7 +72,9 @@ struct CampaignRunClaims {
 // {"campaign_run_id","campaign","scale","claims_source","note","adaptive","counts":{"holds",
 //  "differs","inconclusive"},"design":DesignKeyToJson (+ "adaptive": true for an adaptive run),
 //  "design_text","claims":[ClaimVerdictToJson ..., and for an adaptive run "frozen_at_round" (null
-//  while open), "frozen_at" (unix s, null while open), "verdict_text" "holds at smoke (frozen at
+//  while open), "frozen_at" (unix s, null while open), "decided_by" (the
+//  deciding look's ClaimVerdictToJson as stored when it froze the claim; null while open or when
+//  frozen before migration 18), "verdict_text" "holds at smoke (frozen at
 //  round 2)", "current_verdict" (what every round's runs so far read)]}
 nlohmann::json CampaignRunClaimsToJson(const CampaignRunClaims& c);
 

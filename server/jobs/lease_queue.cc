@@ -206,7 +206,7 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
                                 " (its leases were reclaimed before they expired)",
                             /*retryable=*/true, now);
       if (!state.ok()) return state.status();
-      SANDSWIM_RETURN_IF_ERROR(jobs::MarkLeaseExpired(t, e.job.lease_token));
+      SANDSWIM_RETURN_IF_ERROR(jobs::MarkLeaseExpired(t, e.job.lease_token, now));
       ++expired;
     }
   }

@@ -16,46 +16,54 @@ using nlohmann::json;
 
 std::string CoreHText(double h) { return Num(h, 3) + " core-h"; }
 
-// What an ended run or bed of the campaign run (created at `created_at`) is charged, at the rates
-// in `cost`: a prepared or failed bed its cost (per ending: a bed requeued and prepared again is
-// charged twice); a done run its simulated time; a failed or cancelled one the simulated time its
-// last heartbeat reached. A run with no positive simulated time (no heartbeat, or a heartbeat
-// that carried none: core/api.h's sim_time_s defaults to 0) is charged nothing when it never ran
-// (no lease: cancelled while queued, or its bed failed), and its whole planned length when it
-// ran: the most its last attempt can have simulated. The budget is not a hard limit: the earlier
-// attempts of a retried or handed-back run are not charged (their progress is cleared on requeue).
-// (The wall time its lease allowed is no price: it is wall time, not simulated time, and a lease
-// is mostly unused.) A run or bed that had ended before the campaign run was submitted (found
-// stored by its key: a nightly rerun's unchanged runs) cost it nothing and is charged 0.
-rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost, double created_at) {
+// What an attempt (a closed lease) at a run or bed of the campaign run (created at `created_at`)
+// is charged, at the rates in `cost` (those its round was planned at): a bed attempt the bed's
+// cost (however far it got: nothing says); a run attempt the simulated time it reached (done: its
+// result's; else its last heartbeat's). A run attempt with no positive simulated time (no
+// heartbeat, or a heartbeat that carried none: core/api.h's sim_time_s defaults to 0) is charged
+// its whole planned length, the most it can have simulated; one taken back unreceived never ran
+// and costs nothing. Each attempt is charged, so a retried run pays for every attempt and the
+// budget is a hard limit on what was spent. (The wall time a lease allowed is no price: it is wall
+// time, not simulated time, and a lease is mostly unused.) An attempt leased before the campaign
+// run was submitted cost it nothing (a nightly rerun that finds the night before's run still
+// running: that night's campaign run pays), nor one an earlier campaign run pays (`paid_by`).
+rounds::Charge Price(const rounds::ClosedAttempt& a, const AdaptiveCost& cost, double created_at) {
   rounds::Charge c;
-  c.kind = j.kind;
-  c.id = j.id;
-  c.ended_at = j.ended_at;
-  c.state = j.state;
-  if (j.ended_at < created_at) {
-    c.priced_by = "stored before";
+  c.kind = a.kind;
+  c.id = a.id;
+  c.ended_at = a.ended_at;
+  c.state = a.outcome;
+  c.lease_token = a.lease_token;
+  const bool run = a.kind == "run";
+  if (a.granted_at < created_at || a.paid_by || a.outcome == "unreceived") {
+    c.priced_by = a.granted_at < created_at ? "leased before"
+                  : a.paid_by               ? "paid by campaign run " + std::to_string(*a.paid_by)
+                                            : "never ran";
     c.core_h = 0;
-    if (j.kind == "run") c.sim_time_s = 0.0;
+    if (run) c.sim_time_s = 0.0;
     return c;
   }
-  if (j.kind == "bed") {
+  if (!run) {
     c.priced_by = "bed";
-    c.core_h = cost.BedCoreHours(j.point);
+    c.core_h = cost.BedCoreHours(a.point);
     return c;
   }
-  if (j.sim_time_s && *j.sim_time_s > 0) {
-    c.priced_by = j.state == "done" ? "result" : "heartbeat";
-    c.sim_time_s = *j.sim_time_s;
-  } else if (j.attempts == 0) {
-    c.priced_by = "never ran";
-    c.sim_time_s = 0.0;
+  if (a.sim_time_s && *a.sim_time_s > 0) {
+    c.priced_by = a.outcome == "done" ? "result" : "heartbeat";
+    c.sim_time_s = *a.sim_time_s;
   } else {
     c.priced_by = "planned length";
-    c.sim_time_s = j.run_duration_s;
+    c.sim_time_s = a.run_duration_s;
   }
-  c.core_h = *c.sim_time_s > 0 ? cost.RunCoreHours(j.point, *c.sim_time_s) : 0.0;
+  c.core_h = *c.sim_time_s > 0 ? cost.RunCoreHours(a.point, *c.sim_time_s) : 0.0;
   return c;
+}
+
+// The attempts a look charges, by token: what its write checks it still finds.
+std::set<std::string> TokensOf(const std::vector<rounds::ClosedAttempt>& attempts) {
+  std::set<std::string> out;
+  for (const rounds::ClosedAttempt& a : attempts) out.insert(a.lease_token);
+  return out;
 }
 
 // The claims' states after a look: a frozen one as it was decided (and at which round), an open
@@ -167,6 +175,8 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     row.planned_at = info->created_at;
     row.core_h_planned = first.core_h;
     row.actions = ActionsJson(first);
+    row.run_s_per_unit = cost->run_rate.s_per_unit;
+    row.bed_s_per_unit = cost->bed_rate.s_per_unit;
     Status s = store_->db().Write([&](Transaction& t) { return rounds::InsertRound(t, row); });
     if (!s.ok() && s.code() != StatusCode::kConflict) return s;
     stored->push_back(row);
@@ -191,24 +201,31 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   SANDSWIM_RETURN_IF_ERROR(store_->db().Write(
       [&](Transaction& t) { return rounds::SettleReplacements(t, campaign_run_id, now).status(); }));
 
+  // The ledger's reads come before the look, and its write (below) reads them again inside its
+  // transaction: an attempt that closed meanwhile (a forced rerun of a shared run, say) is neither
+  // missed nor charged twice; the look is taken again at the next tick instead.
+  Result<std::vector<rounds::ClosedAttempt>> attempts = rounds::UnchargedAttempts(*store_, campaign_run_id);
+  if (!attempts.ok()) return attempts.status();
+  Result<double> charged_before = rounds::ChargedCoreHours(*store_, campaign_run_id);
+  if (!charged_before.ok()) return charged_before.status();
+
   Result<ClaimLook> look = look_(*store_, *info);
   if (!look.ok()) return look.status();
   int cancelled = 0;
   for (const ClaimSweep& s : look->input.sweeps)
     for (const ClaimRun& r : s.runs) cancelled += r.state == "cancelled";
 
-  // The ledger: what ended since the last look is charged once; the budget left is the budget less
-  // every charge so far (a replaced or failed run stays charged).
-  Result<std::vector<rounds::EndedJob>> ended = rounds::UnchargedEndedJobs(*store_, campaign_run_id);
-  if (!ended.ok()) return ended.status();
+  // The ledger: each attempt closed since the last look is charged once, at the rates its round
+  // was planned at; the budget left is the budget less every charge so far (a replaced or failed
+  // run stays charged).
+  const AdaptiveCost round_cost = rounds::RoundRates(last, *cost);
   std::vector<rounds::Charge> charges;
   double charging = 0;
-  for (const rounds::EndedJob& j : *ended) {
-    charges.push_back(Price(j, *cost, info->created_at));
+  for (const rounds::ClosedAttempt& a : *attempts) {
+    charges.push_back(Price(a, round_cost, info->created_at));
     charging += charges.back().core_h;
   }
-  Result<double> charged_before = rounds::ChargedCoreHours(*store_, campaign_run_id);
-  if (!charged_before.ok()) return charged_before.status();
+  const std::set<std::string> priced = TokensOf(*attempts);
 
   // The look after round `last.round`.
   Result<std::map<std::string, rounds::FrozenVerdict>> frozen_rows = rounds::FrozenVerdicts(*store_, campaign_run_id);
@@ -220,7 +237,12 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     frozen_round[claim] = f.round;
   }
   const std::vector<ClaimVerdict> verdicts = EvaluateClaims(look->claims, look->input);
-  for (const std::string& claim : FreezeDecisions(verdicts, state.frozen)) frozen_round[claim] = last.round;
+  std::map<std::string, json> decided_by;  // the verdicts this look decides, as it reads them
+  for (const std::string& claim : FreezeDecisions(verdicts, state.frozen)) {
+    frozen_round[claim] = last.round;
+    for (const ClaimVerdict& v : verdicts)
+      if (v.claim.id == claim) decided_by[claim] = ClaimVerdictToJson(v);
+  }
   state.claims = look->claims;
   state.sweeps = AdaptiveSweepsOf(declared);
   state.input = look->input;
@@ -270,6 +292,15 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   }
 
   Status written = store_->db().Write([&](Transaction& t) -> Status {
+    // What the look read is what is charged: none of its runs or beds was queued again, and the
+    // attempts to charge are the ones priced.
+    Result<int64_t> busy_now = rounds::BusyJobs(t, campaign_run_id);
+    if (!busy_now.ok()) return busy_now.status();
+    Result<std::vector<rounds::ClosedAttempt>> attempts_now = rounds::UnchargedAttempts(t, campaign_run_id);
+    if (!attempts_now.ok()) return attempts_now.status();
+    if (*busy_now > 0 || TokensOf(*attempts_now) != priced) {
+      return Status(StatusCode::kConflict, "its runs changed while it was looked at; it is looked at again", "look");
+    }
     // A cancel between the look and this write stops the rounds too: nothing is added to a
     // cancelled sweep.
     if (!next.stop) {
@@ -286,7 +317,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     if (!spent_now.ok()) return spent_now.status();
     SANDSWIM_RETURN_IF_ERROR(rounds::FinishRound(t, campaign_run_id, last.round, now, *spent_now, after,
                                                  next.stop ? std::optional<std::string>(next.stop_reason) : std::nullopt));
-    SANDSWIM_RETURN_IF_ERROR(rounds::FreezeVerdicts(t, campaign_run_id, last.round, now, state.frozen));
+    SANDSWIM_RETURN_IF_ERROR(rounds::FreezeVerdicts(t, campaign_run_id, last.round, now, state.frozen, decided_by));
     if (next.stop) return Status::Ok();
     rounds::RoundRow row;
     row.campaign_run_id = campaign_run_id;
@@ -294,6 +325,8 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     row.planned_at = now;
     row.core_h_planned = next.core_h;
     row.actions = ActionsJson(next);
+    row.run_s_per_unit = cost->run_rate.s_per_unit;  // planned at these: its attempts are charged at them
+    row.bed_s_per_unit = cost->bed_rate.s_per_unit;
     SANDSWIM_RETURN_IF_ERROR(rounds::InsertRound(t, row));
     Result<std::map<std::string, rounds::SweepSlot>> slots = rounds::CampaignRunSweeps(t, campaign_run_id);
     if (!slots.ok()) return slots.status();
@@ -317,8 +350,11 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     }
     return FinishAddedRuns(t, sweep_ids, options_.max_queued_runs, added);
   });
-  // Another pass took this look first: what it stored stands.
-  if (written.code() == StatusCode::kConflict && written.field() == "round") return Out();
+  // Another pass took this look first (what it stored stands), or the runs changed since it read
+  // them (the next tick looks again).
+  if (written.code() == StatusCode::kConflict && (written.field() == "round" || written.field() == "look")) {
+    return Out();
+  }
   if (!written.ok()) return written;
 
   RoundStep step;

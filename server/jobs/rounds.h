@@ -12,21 +12,27 @@
 //      query, server/store/rounds.h BusyJobs), nothing more happens: nothing is analysed;
 //   3. else the longer runs of the last round that failed (or were cancelled) give their points'
 //      places back to the runs they replaced (server/store/rounds.h SettleReplacements: a failed
-//      longer run never costs a point its earlier measurement), then the claims are looked at (`look`: server/analysis/claim_check.h LookAtClaims, the data
-//      the verdicts shown are decided on), the verdicts each decides are frozen
-//      (FreezeDecisions: never looked at again), every run and bed that ended since the last look
-//      is charged to the campaign run's ledger (server/store/rounds.h UnchargedEndedJobs, Price
-//      in rounds.cc: a done run its simulated time, a failed or cancelled one the time its last
-//      heartbeat reached, a bed once, at the cost model's rates now), and the budget left is the
-//      budget less the ledger: at 0 the rounds stop, else PlanNextRound plans the next round
-//      within it or says why none follows (every claim decided, max_rounds rounds run, nothing
-//      left that could decide);
-//   4. in ONE transaction: the charges, the round's look (finished_at, core-h charged at it, the
+//      longer run never costs a point its earlier measurement); the attempts to charge are read
+//      (server/store/rounds.h UnchargedAttempts: every lease of its runs and beds that closed and
+//      is not charged yet), then the claims are looked at (`look`: server/analysis/claim_check.h
+//      LookAtClaims, the data the verdicts shown are decided on), the verdicts each decides are
+//      frozen (FreezeDecisions: never looked at again) with the look's own verdict, every attempt
+//      is priced (Price in rounds.cc: a run attempt the simulated time it reached, recorded when
+//      its lease closed -- the result's when done, else the last heartbeat's, else its planned
+//      length; a bed attempt the bed's cost) at the rates its round was planned at, and the budget
+//      left is the budget less the ledger: at 0 the rounds stop, else PlanNextRound plans the next
+//      round within it (at the rates now, stored with it) or says why none follows (every claim
+//      decided, max_rounds rounds run, nothing left that could decide);
+//   4. in ONE transaction, which first reads again whether any run or bed of it is busy and which
+//      attempts are uncharged (changed since they were read: nothing is written, and the next tick
+//      looks again): the charges, the round's look (finished_at, core-h charged at it, the
 //      claims' states after it, the stop reason), the verdicts frozen at it, the next round's row
 //      and its runs (added to the campaign run's sweeps: a new bed is the next replicate index, a
 //      new point joins its sweep, a longer run takes its point's place on that bed in the campaign
 //      run's sweeps, recorded as a replacement until it is settled at the next look). A charge is
 //      never deleted: a run that a longer one replaced, and a failed longer run, stay charged.
+//      The analysis itself runs outside the write: the writer's transaction is shared with every
+//      heartbeat and completion (group commit), which must not wait seconds for a look.
 // Restart-safe: everything it knows is in the store. A daemon stopped anywhere in a pass either
 // committed the round or did not; the next pass (of this daemon or the next) continues from what
 // is stored. Two passes that plan the same round from the same store cannot both store it (the
@@ -34,14 +40,16 @@
 // A campaign run some of whose runs or sweeps were cancelled stops, saying so.
 //
 // A rerun of an adaptive campaign (the nightly scheduler's) has rounds of its own, planned again
-// from round 1; the runs it orders again are found stored by key and charged 0 (they ended before
-// it was submitted), so it replays the earlier rounds at no cost and spends where claims are open.
+// from round 1; the runs it orders again are found stored by key and cost it nothing (their
+// attempts were leased before it was submitted), so it replays the earlier rounds at no cost and
+// spends where claims are open. A run the night before's campaign run still runs when the rerun
+// starts is that campaign run's to pay (leased before the rerun), and so is an attempt leased
+// later while the earlier campaign run has not stopped (the earliest live adaptive campaign run
+// that holds a job pays for its attempts): each attempt is charged once across campaign runs.
 //
-// Left for later: a rerun's round 1 does not take in the earlier nights' later rounds directly; a
-// retried run is charged for its last attempt only (an earlier attempt's progress is cleared when
-// it is queued again); the planner may order again a longer run that failed; a longer run starts
-// from its beginning (continuing from the restart written at the end of the shorter one is not
-// done).
+// Left for later: a rerun's round 1 does not take in the earlier nights' later rounds directly;
+// the planner may order again a longer run that failed; a longer run starts from its beginning
+// (continuing from the restart written at the end of the shorter one is not done).
 //
 // Thread safety: Tick() from one thread at a time (the scheduler's); the Store is thread-safe.
 #ifndef SANDSWIM_SERVER_JOBS_ROUNDS_H_

@@ -2,7 +2,8 @@
 // claims' own look (LookAtClaims), with synthetic results: a sign claim that round 1 leaves open
 // gets a round 2 with its reason, stored once however often or by however many daemons the pass
 // runs, and the rounds stop with a reason; cancelled sweeps stop them; what was spent is a ledger
-// (failed and replaced runs stay charged, each ending once) and stops them at the budget; a budget
+// (failed and replaced runs stay charged, each attempt once, at its round's planning rates; a run
+// shared with an earlier campaign run paid once) and stops them at the budget; a budget
 // below round 1 is refused at PUT and at submission, naming the field and what it needs.
 #include "server/jobs/rounds.h"
 
@@ -136,6 +137,45 @@ class RoundsTest : public ::testing::Test {
       auto reply = queue_->Complete(grant.token, c);
       EXPECT_TRUE(reply.ok()) << reply.status().ToString();
     }
+  }
+  // Leases the next job, which must be a bed, and prepares it.
+  void PrepareBed() {
+    auto bed = queue_->Lease({"w", "host", 1});
+    ASSERT_TRUE(bed.ok() && bed->has_value());
+    ASSERT_EQ((*bed)->kind, api::JobKind::kBed);
+    const std::string bytes = "restart " + (*bed)->key;
+    ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    api::Completion c;
+    c.ok = true;
+    c.execution.host = "host";
+    c.execution.engine_version = kEngine;
+    c.bed_result = api::BedResult{};
+    c.bed_result->grains = 3700;
+    c.bed_result->bed_height = 0.22;
+    c.bed_result->sha256 = Sha256Hex(bytes);
+    ASSERT_TRUE(queue_->Complete((*bed)->token, c).ok());
+  }
+  // The campaign run's charges of one job: {priced_by, lease_token, sim_time_s, core_h} each.
+  struct ChargeRow {
+    std::string priced_by, lease_token;
+    double sim_time_s = 0, core_h = 0;
+  };
+  std::vector<ChargeRow> Charges(int64_t campaign_run_id, const std::string& kind, int64_t job_id) {
+    std::vector<ChargeRow> out;
+    auto t = store_->db().BeginRead();
+    EXPECT_TRUE(t.ok());
+    if (!t.ok()) return out;
+    Statement st = t->Prepare(
+        "SELECT priced_by, COALESCE(lease_token, ''), COALESCE(sim_time_s, 0), core_h FROM campaign_run_charges "
+        "WHERE campaign_run_id = ? AND kind = ? AND job_id = ? ORDER BY ended_at");
+    st.Bind(1, campaign_run_id).Bind(2, kind).Bind(3, job_id);
+    while (true) {
+      auto row = st.Step();
+      EXPECT_TRUE(row.ok());
+      if (!row.ok() || !*row) break;
+      out.push_back({st.Text(0), st.Text(1), st.Double(2), st.Double(3)});
+    }
+    return out;
   }
   std::vector<rounds::RoundRow> Rounds(int64_t id) {
     auto r = rounds::ListRounds(*store_, id);
@@ -291,8 +331,12 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) 
   ASSERT_NE(done, nullptr);
   ASSERT_NE(failed, nullptr);
   ASSERT_EQ(failed->state, "failed");
-  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
-  ASSERT_TRUE(cost.ok());
+  // At the rates round 1 was planned at (the bed just prepared has since given the model a
+  // measured bed rate: not what round 1 was priced at).
+  auto now = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(now.ok());
+  const AdaptiveCost planned = rounds::RoundRates(Rounds(id).at(0), *now);
+  const AdaptiveCost* cost = &planned;
   const double expected = cost->RunCoreHours(done->point, 1) + cost->RunCoreHours(failed->point, 0.4) +
                           cost->BedCoreHours(done->point);
   ASSERT_GT(cost->RunCoreHours(failed->point, 0.4), 0);
@@ -307,18 +351,18 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) 
   // The next round, if any, was planned within what the ledger left.
   if (rows.size() > 1) EXPECT_LE(rows[1].core_h_planned, budget - Charged(id) + 1e-12);
 
-  // The same look again, from a second daemon, and the same endings charged again: nothing more.
+  // The same look again, from a second daemon, and the same attempts charged again: nothing more.
   EXPECT_FALSE(NewDriver()->Step(id, clock_.Now())->has_value());
-  auto ended = rounds::UnchargedEndedJobs(*store_, id);
+  auto ended = rounds::UnchargedAttempts(*store_, id);
   ASSERT_TRUE(ended.ok());
   EXPECT_TRUE(ended->empty());
-  std::vector<rounds::Charge> again{{"run", done->run_id, 0, "done", 1.0, "result", 1.0}};
   Status added = store_->db().Write([&](Transaction& t) -> Status {
-    Statement st = t.Prepare("SELECT finished_at FROM runs WHERE id = ?");
+    Statement st = t.Prepare("SELECT lease_token, ended_at FROM campaign_run_charges WHERE kind = 'run' AND job_id = ?");
     st.Bind(1, done->run_id);
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
-    again[0].ended_at = st.Double(0);
+    EXPECT_TRUE(*row);
+    std::vector<rounds::Charge> again{{"run", done->run_id, st.Double(1), "done", 1.0, "result", 1.0, st.Text(0)}};
     Result<double> h = rounds::AddCharges(t, id, 1, clock_.Now(), again);
     if (!h.ok()) return h.status();
     EXPECT_EQ(*h, 0.0);
@@ -326,7 +370,6 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) 
   });
   ASSERT_TRUE(added.ok()) << added.ToString();
   EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
-
 }
 
 // A heartbeat that carried no simulated time (api::Heartbeat's sim_time_s defaults to 0) is no
@@ -338,13 +381,13 @@ TEST_F(RoundsTest, AFailedRunWhoseHeartbeatSaidZeroIsChargedItsPlannedLength) {
   fails_ = [](const Point& p) { return p.Omega > 0; };
   fail_heartbeat_s_ = 0;
   EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 1);
-  auto ended = rounds::UnchargedEndedJobs(*store_, id);
+  auto ended = rounds::UnchargedAttempts(*store_, id);
   ASSERT_TRUE(ended.ok()) << ended.status().ToString();
-  const rounds::EndedJob* failed = nullptr;
-  for (const rounds::EndedJob& j : *ended)
-    if (j.kind == "run" && j.state == "failed") failed = &j;
+  const rounds::ClosedAttempt* failed = nullptr;
+  for (const rounds::ClosedAttempt& j : *ended)
+    if (j.kind == "run" && j.outcome == "failed") failed = &j;
   ASSERT_NE(failed, nullptr);
-  ASSERT_GT(failed->attempts, 0);
+  EXPECT_EQ(failed->sim_time_s.value_or(-1), 0.0);  // what its heartbeat said, recorded when its lease closed
   ASSERT_GT(failed->run_duration_s, 0);
   const double planned = failed->run_duration_s;
   const int64_t failed_id = failed->id;
@@ -359,51 +402,42 @@ TEST_F(RoundsTest, AFailedRunWhoseHeartbeatSaidZeroIsChargedItsPlannedLength) {
   EXPECT_DOUBLE_EQ(st.Double(1), planned);
 }
 
-// A bed is charged per ending, failed or prepared: one that failed, was requeued and then prepared
-// is charged for each ending (its cost was spent each time).
-TEST_F(RoundsTest, ABedIsChargedPerEndingFailedOrPrepared) {
+// A bed is charged per attempt: one whose lease expired (its worker vanished) and that was then
+// prepared is charged for both attempts (its cost was spent each time), each once.
+TEST_F(RoundsTest, ABedIsChargedPerAttemptExpiredOrPrepared) {
   ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
   const int64_t id = Submit("mine");
   ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  auto bed = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(bed.ok() && bed->has_value());
+  ASSERT_EQ((*bed)->kind, api::JobKind::kBed);
+  clock_.Advance((*bed)->ttl_s + 1);
+  auto expired = queue_->ExpireLeases();
+  ASSERT_TRUE(expired.ok());
+  ASSERT_EQ(*expired, 1);
   EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
-  auto beds_uncharged = [&](const std::string& state) {
-    auto ended = rounds::UnchargedEndedJobs(*store_, id);
+  auto bed_attempts = [&] {
+    auto ended = rounds::UnchargedAttempts(*store_, id);
     EXPECT_TRUE(ended.ok()) << ended.status().ToString();
-    int n = 0;
-    if (!ended.ok()) return -1;
-    for (const rounds::EndedJob& j : *ended) n += j.kind == "bed" && j.state == state;
-    return n;
+    std::multiset<std::string> out;
+    if (ended.ok())
+      for (const rounds::ClosedAttempt& a : *ended)
+        if (a.kind == "bed") out.insert(a.outcome);
+    return out;
   };
-  EXPECT_EQ(beds_uncharged("done"), 1);
+  EXPECT_EQ(bed_attempts(), (std::multiset<std::string>{"done", "expired"}));
   ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
-  EXPECT_EQ(beds_uncharged("done"), 0);
-  // The charged bed's ending as it would be had it failed later, then been prepared again later still
-  // (round 2's beds, if any, are not yet prepared).
-  ASSERT_TRUE(store_->db()
-                  .Write([](Transaction& t) {
-                    return t.Exec("UPDATE beds SET state = 'failed', finished_at = finished_at + 10 "
-                                  "WHERE id IN (SELECT job_id FROM campaign_run_charges WHERE kind = 'bed')");
-                  })
-                  .ok());
-  EXPECT_EQ(beds_uncharged("failed"), 1);
-  ASSERT_TRUE(store_->db()
-                  .Write([&](Transaction& t) -> Status {
-                    auto ended = rounds::UnchargedEndedJobs(t, id);
-                    if (!ended.ok()) return ended.status();
-                    std::vector<rounds::Charge> charges;
-                    for (const rounds::EndedJob& j : *ended)
-                      if (j.kind == "bed") charges.push_back({"bed", j.id, j.ended_at, j.state, std::nullopt, "bed", 1});
-                    return rounds::AddCharges(t, id, 2, clock_.Now(), charges).status();
-                  })
-                  .ok());
-  EXPECT_EQ(beds_uncharged("failed"), 0);
-  ASSERT_TRUE(store_->db()
-                  .Write([](Transaction& t) {
-                    return t.Exec("UPDATE beds SET state = 'done', finished_at = finished_at + 10 "
-                                  "WHERE id IN (SELECT job_id FROM campaign_run_charges WHERE kind = 'bed')");
-                  })
-                  .ok());
-  EXPECT_EQ(beds_uncharged("done"), 1);
+  EXPECT_TRUE(bed_attempts().empty());
+  auto t = store_->db().BeginRead();
+  ASSERT_TRUE(t.ok());
+  Statement st = t->Prepare("SELECT COUNT(*), COUNT(DISTINCT lease_token), SUM(core_h > 0) FROM campaign_run_charges "
+                            "WHERE kind = 'bed' AND job_id = ?");
+  st.Bind(1, (*bed)->id);
+  auto row = st.Step();
+  ASSERT_TRUE(row.ok() && *row);
+  EXPECT_EQ(st.Int(0), 2);
+  EXPECT_EQ(st.Int(1), 2);
+  EXPECT_EQ(st.Int(2), 2);
 }
 
 // A longer run joins only its order's sweep: the run it replaces leaves that sweep and stays in the
@@ -454,11 +488,12 @@ TEST_F(RoundsTest, TheRoundsStopWhenTheLedgerReachesTheBudget) {
   const int64_t id = Submit("mine");
   ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
   EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);  // round 1 leaves S1 open: round 2 would be planned
-  // An ending charged at an earlier look (say, at rates since revised) has used up the budget.
+  // An attempt charged at an earlier look (say, at rates since revised) has used up the budget.
   ASSERT_TRUE(store_->db()
                   .Write([&](Transaction& t) -> Status {
-                    return rounds::AddCharges(t, id, 1, clock_.Now(),
-                                              {{"bed", 1000000, 1, "done", std::nullopt, "bed", budget}})
+                    return rounds::AddCharges(
+                               t, id, 1, clock_.Now(),
+                               {{"bed", 1000000, 1, "done", std::nullopt, "bed", budget, "an earlier attempt"}})
                         .status();
                   })
                   .ok());
@@ -675,6 +710,267 @@ TEST_F(RoundsTest, ARerunReplaysItsStoredRoundsFreeOfCharge) {
   EXPECT_EQ(*store_->db().CountRows("runs"), runs);
   EXPECT_EQ(Charged(rerun), 0.0);
   for (const rounds::RoundRow& r : rows) EXPECT_EQ(r.core_h_spent.value_or(-1), 0.0);
+}
+
+// Every attempt is charged: a run whose first lease expired after a heartbeat at 0.6 s and whose
+// second was handed back at 0.3 s, then done at 1 s, is charged 0.6 + 0.3 + 1 s of its point, once
+// each: not again at a later look, after a daemon restart, nor by a rerun of the campaign (its
+// attempts were leased before the rerun was submitted: that campaign run paid for them).
+TEST_F(RoundsTest, ARetriedRunIsChargedForEachAttemptOnceAcrossLooksRestartsAndReruns) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  PrepareBed();
+  auto first = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(first.ok() && first->has_value());
+  ASSERT_EQ((*first)->kind, api::JobKind::kRun);
+  const int64_t run_id = (*first)->id;
+  api::Heartbeat beat;
+  beat.sim_time_s = 0.6;
+  ASSERT_TRUE(queue_->Heartbeat((*first)->token, beat).ok());
+  clock_.Advance((*first)->ttl_s + 1);
+  ASSERT_EQ(*queue_->ExpireLeases(), 1);
+  auto second = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(second.ok() && second->has_value());
+  ASSERT_EQ((*second)->id, run_id);
+  beat.sim_time_s = 0.3;
+  ASSERT_TRUE(queue_->Heartbeat((*second)->token, beat).ok());
+  clock_.Advance(1);
+  auto released = queue_->Release((*second)->token, "allocation ends (test)");
+  ASSERT_TRUE(released.ok());
+  ASSERT_EQ(released->state, "queued");
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  auto run = store_->GetRun(run_id);
+  ASSERT_TRUE(run.ok());
+  const Point p = run->summary.point;
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  const AdaptiveCost planned = rounds::RoundRates(Rounds(id)[0], *cost);
+  std::vector<ChargeRow> rows = Charges(id, "run", run_id);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0].priced_by, "heartbeat");
+  EXPECT_DOUBLE_EQ(rows[0].sim_time_s, 0.6);
+  EXPECT_EQ(rows[1].priced_by, "heartbeat");
+  EXPECT_DOUBLE_EQ(rows[1].sim_time_s, 0.3);
+  EXPECT_EQ(rows[2].priced_by, "result");
+  EXPECT_DOUBLE_EQ(rows[2].sim_time_s, 1.0);
+  EXPECT_EQ(std::set<std::string>({rows[0].lease_token, rows[1].lease_token, rows[2].lease_token}).size(), 3u);
+  const double expected = planned.RunCoreHours(p, 0.6) + planned.RunCoreHours(p, 0.3) + planned.RunCoreHours(p, 1);
+  EXPECT_NEAR(rows[0].core_h + rows[1].core_h + rows[2].core_h, expected, 1e-9 * expected);
+  const double charged = Charged(id);
+
+  // Later looks, a restart, a second daemon: nothing charged again.
+  for (int i = 0; i < 4 && !Rounds(id).back().stop_reason; ++i) {
+    Restart();
+    ASSERT_TRUE(driver_->Tick(clock_.Now()).ok());
+    ASSERT_TRUE(NewDriver()->Tick(clock_.Now()).ok());
+    CompleteAll(3e-4);
+  }
+  EXPECT_EQ(Charges(id, "run", run_id).size(), 3u);
+  EXPECT_GE(Charged(id), charged);
+
+  // A rerun of the campaign finds the run stored: its attempts cost the rerun nothing.
+  clock_.Advance(86400);
+  const int64_t rerun = Submit("mine");
+  for (int i = 0; i < 4 && (Rounds(rerun).empty() || !Rounds(rerun).back().stop_reason); ++i) {
+    ASSERT_TRUE(driver_->Tick(clock_.Now()).ok());
+    CompleteAll(3e-4);
+  }
+  std::vector<ChargeRow> again = Charges(rerun, "run", run_id);
+  ASSERT_EQ(again.size(), 3u);
+  for (const ChargeRow& r : again) {
+    EXPECT_EQ(r.priced_by, "leased before");
+    EXPECT_EQ(r.core_h, 0.0);
+  }
+  EXPECT_EQ(Charges(id, "run", run_id).size(), 3u);
+}
+
+// A round's attempts are charged at the rates it was planned at (stored with its row), not at the
+// cost model's rates at the look: planned and charged compare like with like.
+TEST_F(RoundsTest, ARoundIsChargedAtTheRatesItWasPlannedAt) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  auto cost = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(cost.ok());
+  std::vector<rounds::RoundRow> rows = Rounds(id);
+  ASSERT_EQ(rows.size(), 1u);
+  ASSERT_TRUE(rows[0].run_s_per_unit && rows[0].bed_s_per_unit);
+  EXPECT_EQ(*rows[0].run_s_per_unit, cost->run_rate.s_per_unit);
+  EXPECT_EQ(*rows[0].bed_s_per_unit, cost->bed_rate.s_per_unit);
+  // The model has moved since round 1 was planned: here, round 1 was planned at 3x today's rates.
+  ASSERT_TRUE(store_->db()
+                  .Write([](Transaction& t) {
+                    return t.Exec("UPDATE campaign_rounds SET run_s_per_unit = 3 * run_s_per_unit, "
+                                  "bed_s_per_unit = 3 * bed_s_per_unit");
+                  })
+                  .ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
+  ASSERT_TRUE(look.ok());
+  auto now = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
+  ASSERT_TRUE(now.ok());
+  const AdaptiveCost planned = rounds::RoundRates(Rounds(id)[0], *now);
+  double runs_planned = 0, runs_now = 0;  // the run rate is still the default (no result states a wall time)
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) {
+    runs_planned += planned.RunCoreHours(r.point, 1);
+    runs_now += now->RunCoreHours(r.point, 1);
+  }
+  EXPECT_NEAR(runs_planned, 3 * runs_now, 1e-9 * runs_planned);
+  const double at_planned = runs_planned + planned.BedCoreHours(look->input.sweeps.at(0).runs.at(0).point);
+  ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
+  rows = Rounds(id);
+  ASSERT_TRUE(rows[0].core_h_spent.has_value());
+  EXPECT_NEAR(*rows[0].core_h_spent, at_planned, 1e-9 * at_planned);
+  EXPECT_NEAR(Charged(id), at_planned, 1e-9 * at_planned);
+  // The next round is planned, and will be charged, at the rates of its planning.
+  if (rows.size() > 1 && !rows[0].stop_reason) {
+    ASSERT_TRUE(rows[1].run_s_per_unit.has_value());
+    EXPECT_EQ(*rows[1].run_s_per_unit, now->run_rate.s_per_unit);
+  }
+}
+
+// The look's ledger is read before the claims are looked at and read again inside its write: a
+// run of it run again meanwhile (a forced rerun of a run it shares: queued, leased, done between
+// the look's reads and its write) makes the write store nothing, and the next look charges every
+// attempt once, the new one included.
+TEST_F(RoundsTest, AnAttemptClosingBetweenTheLooksReadsAndItsWriteIsChargedOnce) {
+  int looks = 0;
+  int64_t rerun_id = 0;
+  RoundDriverOptions options;
+  options.engine_version = kEngine;
+  RoundDriver racing(
+      store_.get(),
+      [&](Store& store, const CampaignRunInfo& info) -> Result<ClaimLook> {
+        if (++looks == 1) {
+          EXPECT_TRUE(store.db()
+                          .Write([&](Transaction& t) -> Status {
+                            Statement st = t.Prepare(
+                                "UPDATE runs SET state = 'queued' WHERE id = (SELECT MIN(sr.run_id) FROM sweep_runs sr "
+                                "JOIN sweeps s ON s.id = sr.sweep_id WHERE s.campaign_run_id = ?) RETURNING id");
+                            st.Bind(1, info.id);
+                            Result<bool> row = st.Step();
+                            if (!row.ok()) return row.status();
+                            rerun_id = *row ? st.Int(0) : 0;
+                            return Status::Ok();
+                          })
+                          .ok());
+          EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 1);
+        }
+        return LookAtClaims(store, info);
+      },
+      options);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(racing.Step(id, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  auto step = racing.Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  EXPECT_FALSE(step->has_value());
+  ASSERT_GT(rerun_id, 0);
+  EXPECT_FALSE(Rounds(id)[0].finished_at.has_value());
+  EXPECT_EQ(Charged(id), 0.0);
+
+  step = racing.Step(id, clock_.Now());
+  ASSERT_TRUE(step.ok()) << step.status().ToString();
+  ASSERT_TRUE(step->has_value());
+  EXPECT_EQ(looks, 2);
+  std::vector<ChargeRow> rows = Charges(id, "run", rerun_id);
+  ASSERT_EQ(rows.size(), 2u);  // its first attempt and the one run between the reads and the write
+  EXPECT_NE(rows[0].lease_token, rows[1].lease_token);
+  auto all = store_->db().BeginRead();
+  ASSERT_TRUE(all.ok());
+  Statement st = all->Prepare("SELECT COUNT(*), SUM(core_h) FROM campaign_run_charges WHERE campaign_run_id = ?");
+  st.Bind(1, id);
+  ASSERT_TRUE(*st.Step());
+  EXPECT_EQ(st.Int(0), 4);  // the bed, two attempts at one run, one at the other
+  ASSERT_TRUE(Rounds(id)[0].core_h_spent.has_value());
+  EXPECT_NEAR(*Rounds(id)[0].core_h_spent, st.Double(1), 1e-12);
+}
+
+// The look that freezes a claim stores its own verdict with it (parts, numbers, reason): a later
+// evaluation that reads otherwise shows the frozen verdict, and GET .../claims shows what decided it.
+TEST_F(RoundsTest, TheDecidingLooksVerdictIsStoredWithTheFrozenClaim) {
+  std::vector<ClaimVerdict> last;  // the claims as the driver's last look evaluated them
+  RoundDriverOptions options;
+  options.engine_version = kEngine;
+  RoundDriver capturing(
+      store_.get(),
+      [&last](Store& store, const CampaignRunInfo& info) -> Result<ClaimLook> {
+        Result<ClaimLook> look = LookAtClaims(store, info);
+        if (look.ok()) last = EvaluateClaims(look->claims, look->input);
+        return look;
+      },
+      options);
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t id = Submit("mine");
+  ASSERT_TRUE(capturing.Step(id, clock_.Now()).ok());
+  json deciding;
+  for (int i = 0; i < 4 && deciding.is_null(); ++i) {
+    CompleteAll(/*rise_se=*/3e-4);
+    auto step = capturing.Step(id, clock_.Now());
+    ASSERT_TRUE(step.ok()) << step.status().ToString();
+    auto frozen = rounds::FrozenVerdicts(*store_, id);
+    ASSERT_TRUE(frozen.ok());
+    if (frozen->count("S1")) deciding = ClaimVerdictToJson(last.at(0));
+  }
+  ASSERT_FALSE(deciding.is_null());
+  auto frozen = rounds::FrozenVerdicts(*store_, id);
+  ASSERT_TRUE(frozen.ok());
+  const json& decided_by = frozen->at("S1").decided_by;
+  EXPECT_EQ(decided_by, deciding);
+  EXPECT_EQ(decided_by["verdict"], "holds");
+  ASSERT_FALSE(decided_by["parts"].empty());
+
+  // The results read otherwise now (the rising runs sink): the frozen verdict stands, and what
+  // decided it is shown as that look read it.
+  ASSERT_TRUE(store_->db().Write([](Transaction& t) { return t.Exec("UPDATE results SET uz = -0.01"); }).ok());
+  auto claims = CheckClaims(*store_, id);
+  ASSERT_TRUE(claims.ok()) << claims.status().ToString();
+  const json j = CampaignRunClaimsToJson(*claims);
+  ASSERT_EQ(j["claims"].size(), 1u);
+  EXPECT_EQ(j["claims"][0]["verdict"], "holds");
+  EXPECT_NE(j["claims"][0]["current_verdict"], "holds");
+  EXPECT_EQ(j["claims"][0]["decided_by"], decided_by);
+  EXPECT_THAT(j["claims"][0]["reason"].get<std::string>(), HasSubstr("decided_by"));
+}
+
+// A nightly rerun that starts while the night before's campaign run still runs a run they share:
+// the attempt leased before the rerun is the earlier campaign run's to pay, and so is one leased
+// after it (the lease expired and the run went again) while that campaign run has not stopped.
+// Each attempt is charged once, to the campaign run that leased it; the rerun records it at 0.
+TEST_F(RoundsTest, ARunSharedWithTheNightBeforeIsPaidOnceByTheCampaignRunThatLeasedIt) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t night = Submit("mine");
+  ASSERT_TRUE(driver_->Step(night, clock_.Now()).ok());
+  PrepareBed();
+  auto first = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(first.ok() && first->has_value());
+  const int64_t run_id = (*first)->id;
+  api::Heartbeat beat;
+  beat.sim_time_s = 0.5;
+  ASSERT_TRUE(queue_->Heartbeat((*first)->token, beat).ok());
+  clock_.Advance(10);
+  const int64_t rerun = Submit("mine");  // the next night's, while run_id still runs
+  ASSERT_NE(rerun, night);
+  clock_.Advance((*first)->ttl_s + 1);
+  ASSERT_EQ(*queue_->ExpireLeases(), 1);  // lost: it goes again, leased after the rerun began
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  ASSERT_TRUE(driver_->Step(night, clock_.Now()).ok());
+  ASSERT_TRUE(driver_->Step(rerun, clock_.Now()).ok());
+  std::vector<ChargeRow> paid = Charges(night, "run", run_id);
+  std::vector<ChargeRow> free = Charges(rerun, "run", run_id);
+  ASSERT_EQ(paid.size(), 2u);
+  ASSERT_EQ(free.size(), 2u);
+  EXPECT_EQ(paid[0].priced_by, "heartbeat");
+  EXPECT_EQ(paid[1].priced_by, "result");
+  for (const ChargeRow& r : paid) EXPECT_GT(r.core_h, 0);
+  EXPECT_EQ(free[0].priced_by, "leased before");
+  EXPECT_EQ(free[1].priced_by, "paid by campaign run " + std::to_string(night));
+  for (const ChargeRow& r : free) EXPECT_EQ(r.core_h, 0.0);
+  EXPECT_EQ(Charged(rerun), 0.0);
 }
 
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {

@@ -195,6 +195,8 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
                         "ALTER TABLE beds DROP COLUMN ranks;"
                         "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts; DROP TABLE campaign_run_charges; DROP TABLE campaign_run_replacements;"
                         "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
+                        "DROP INDEX leases_by_job; ALTER TABLE leases DROP COLUMN closed_at; "
+                        "ALTER TABLE leases DROP COLUMN sim_time_s;"
                         "DELETE FROM schema_migrations WHERE version >= 13; PRAGMA user_version = 12;")
                     .ok());
     Statement st = t->Prepare(

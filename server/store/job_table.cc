@@ -78,15 +78,36 @@ Status InsertLease(Transaction& t, const std::string& token, api::JobKind kind, 
   return st.Run();
 }
 
+namespace {
+
+// The simulated time a lease's attempt reached, as the run's row holds it while that lease is its
+// current one (a heartbeat's, or the result's once done); stamped once (the first stamp stands).
+constexpr const char* kStampReach =
+    "sim_time_s = COALESCE(sim_time_s, (SELECT r.sim_time_s FROM runs r WHERE leases.kind = 'run' "
+    "AND r.id = leases.job_id AND r.lease_token = leases.token))";
+
+// Before a run's progress is cleared (queued again, handed back): its current lease keeps what its
+// attempt reached, for the ledger (server/store/rounds.h UnchargedAttempts).
+Status StampRunReach(Transaction& t, int64_t run_id) {
+  Statement st = t.Prepare(std::string("UPDATE leases SET ") + kStampReach +
+                           " WHERE token = (SELECT lease_token FROM runs WHERE id = ?)");
+  st.Bind(1, run_id);
+  return st.Run();
+}
+
+}  // namespace
+
 Status CloseLease(Transaction& t, const std::string& token, double now, const std::string& outcome) {
-  Statement st = t.Prepare("UPDATE leases SET completed_at = ?, outcome = ? WHERE token = ?");
+  Statement st = t.Prepare(std::string("UPDATE leases SET completed_at = ?1, closed_at = ?1, outcome = ?2, ") +
+                           kStampReach + " WHERE token = ?3");
   st.Bind(1, now).Bind(2, outcome).Bind(3, token);
   return st.Run();
 }
 
-Status MarkLeaseExpired(Transaction& t, const std::string& token) {
-  Statement st = t.Prepare("UPDATE leases SET outcome = 'expired' WHERE token = ?");
-  st.Bind(1, token);
+Status MarkLeaseExpired(Transaction& t, const std::string& token, double now) {
+  Statement st = t.Prepare(std::string("UPDATE leases SET outcome = 'expired', closed_at = ?1, ") + kStampReach +
+                           " WHERE token = ?2");
+  st.Bind(1, now).Bind(2, token);
   return st.Run();
 }
 
@@ -214,6 +235,7 @@ Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, const 
     if (state == "queued") sql += ", sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
   }
   sql += " WHERE id = ?7";
+  if (kind == api::JobKind::kRun) SANDSWIM_RETURN_IF_ERROR(StampRunReach(t, id));
   Statement st = t.Prepare(sql);
   st.Bind(1, state).Bind(2, error_kind).Bind(3, message).Bind(4, state).Bind(5, now);
   if (kind == api::JobKind::kRun) st.Bind(6, now);
@@ -259,6 +281,7 @@ Status MarkReleased(Transaction& t, api::JobKind kind, int64_t id, bool wanted, 
                               "last_error = 'its sweeps were cancelled while it ran'");
   if (kind == api::JobKind::kRun && wanted) sql += ", queued_at = ?1, sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
   sql += " WHERE id = ?2";
+  if (kind == api::JobKind::kRun) SANDSWIM_RETURN_IF_ERROR(StampRunReach(t, id));
   Statement st = t.Prepare(sql);
   if (kind == api::JobKind::kRun) st.Bind(1, now);
   st.Bind(2, id);

@@ -43,10 +43,15 @@ Result<LeaseRow> FindLease(Transaction& t, const std::string& token);
 // Records a grant (token, job, attempt, the worker's request) at `now`.
 Status InsertLease(Transaction& t, const std::string& token, api::JobKind kind, int64_t job_id, int attempt,
                    const api::LeaseRequest& request, double now);
-// Closes a lease: completed at `now` with its outcome (done, failed, queued, released, ...).
+// Closes a lease: completed at `now` with its outcome (done, failed, queued, released, ...). Every
+// way a lease closes (this and MarkLeaseExpired) records closed_at and the simulated time its
+// attempt reached (schema/018: the run's sim_time_s while this lease is its current one -- the
+// result's once done, else the last heartbeat's; MarkRetriedOrFailed and MarkReleased stamp it
+// before they clear a run's progress): each attempt is charged once by the rounds' ledger.
 Status CloseLease(Transaction& t, const std::string& token, double now, const std::string& outcome);
-// Marks a lease reclaimed by the daemon (outcome "expired"); the job moves on without it.
-Status MarkLeaseExpired(Transaction& t, const std::string& token);
+// Marks a lease reclaimed by the daemon (outcome "expired", closed at `now`); the job moves on
+// without it. Call it after RetryOrFail's state change (the reach was stamped there).
+Status MarkLeaseExpired(Transaction& t, const std::string& token, double now);
 // Remembers which grant went out with the completion of `token` (Completion::next).
 Status SetNextToken(Transaction& t, const std::string& token, const std::string& next_token);
 

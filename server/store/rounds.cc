@@ -61,7 +61,10 @@ json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h) {
            {"budget_left_core_h", nullptr},
            {"actions", actions},
            {"claims_after", r.verdicts_after},
-           {"stop_reason", r.stop_reason ? json(*r.stop_reason) : json(nullptr)}};
+           {"stop_reason", r.stop_reason ? json(*r.stop_reason) : json(nullptr)},
+           {"rates", r.run_s_per_unit && r.bed_s_per_unit
+                         ? json{{"run_s_per_unit", *r.run_s_per_unit}, {"bed_s_per_unit", *r.bed_s_per_unit}}
+                         : json(nullptr)}};
     if (r.core_h_spent) {
       spent += *r.core_h_spent;
       j["budget_left_core_h"] = budget_core_h - spent;
@@ -73,8 +76,8 @@ json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h) {
 
 Result<std::vector<RoundRow>> ListRounds(Transaction& t, int64_t campaign_run_id) {
   Statement st = t.Prepare(
-      "SELECT round, planned_at, finished_at, core_h_planned, core_h_spent, actions, verdicts_after, stop_reason "
-      "FROM campaign_rounds WHERE campaign_run_id = ? ORDER BY round");
+      "SELECT round, planned_at, finished_at, core_h_planned, core_h_spent, actions, verdicts_after, stop_reason, "
+      "run_s_per_unit, bed_s_per_unit FROM campaign_rounds WHERE campaign_run_id = ? ORDER BY round");
   st.Bind(1, campaign_run_id);
   std::vector<RoundRow> out;
   for (;;) {
@@ -91,6 +94,8 @@ Result<std::vector<RoundRow>> ListRounds(Transaction& t, int64_t campaign_run_id
     r.actions = ParseOr(st.Text(5), json::array());
     r.verdicts_after = ParseOr(st.Text(6), json());
     r.stop_reason = st.OptText(7);
+    r.run_s_per_unit = st.OptDouble(8);
+    r.bed_s_per_unit = st.OptDouble(9);
     out.push_back(std::move(r));
   }
   return out;
@@ -103,14 +108,16 @@ Result<std::vector<RoundRow>> ListRounds(Store& store, int64_t campaign_run_id) 
 }
 
 Result<std::map<std::string, FrozenVerdict>> FrozenVerdicts(Transaction& t, int64_t campaign_run_id) {
-  Statement st = t.Prepare("SELECT claim, verdict, round, frozen_at FROM campaign_run_verdicts WHERE campaign_run_id = ?");
+  Statement st = t.Prepare(
+      "SELECT claim, verdict, round, frozen_at, decided_by FROM campaign_run_verdicts WHERE campaign_run_id = ?");
   st.Bind(1, campaign_run_id);
   std::map<std::string, FrozenVerdict> out;
   for (;;) {
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
     if (!*row) break;
-    out[st.Text(0)] = FrozenVerdict{VerdictOf(st.Text(1)), static_cast<int>(st.Int(2)), st.Double(3)};
+    out[st.Text(0)] = FrozenVerdict{VerdictOf(st.Text(1)), static_cast<int>(st.Int(2)), st.Double(3),
+                                    ParseOr(st.OptText(4).value_or(""), json())};
   }
   return out;
 }
@@ -153,7 +160,8 @@ Result<AdaptiveCost> AdaptiveCostNow(Store& store, const std::string& scale, dou
 Status InsertRound(Transaction& t, const RoundRow& r) {
   Statement st = t.Prepare(
       "INSERT INTO campaign_rounds (campaign_run_id, round, planned_at, finished_at, core_h_planned, core_h_spent, "
-      "actions, verdicts_after, stop_reason) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
+      "actions, verdicts_after, stop_reason, run_s_per_unit, bed_s_per_unit) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
+      "ON CONFLICT DO NOTHING");
   st.Bind(1, r.campaign_run_id).Bind(2, r.round).Bind(3, r.planned_at).Bind(4, r.finished_at);
   st.Bind(5, r.core_h_planned).Bind(6, r.core_h_spent).Bind(7, r.actions.dump());
   if (r.verdicts_after.is_null()) {
@@ -161,7 +169,7 @@ Status InsertRound(Transaction& t, const RoundRow& r) {
   } else {
     st.Bind(8, r.verdicts_after.dump());
   }
-  st.Bind(9, r.stop_reason);
+  st.Bind(9, r.stop_reason).Bind(10, r.run_s_per_unit).Bind(11, r.bed_s_per_unit);
   SANDSWIM_RETURN_IF_ERROR(st.Run());
   if (t.Changes() != 1) {
     return Status(StatusCode::kConflict,
@@ -194,14 +202,21 @@ Status FinishRound(Transaction& t, int64_t campaign_run_id, int round, double no
 }
 
 Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double now,
-                      const std::map<std::string, Verdict>& frozen) {
+                      const std::map<std::string, Verdict>& frozen,
+                      const std::map<std::string, json>& decided_by) {
   Statement st = t.Prepare(
-      "INSERT INTO campaign_run_verdicts (campaign_run_id, claim, verdict, round, frozen_at) VALUES (?, ?, ?, ?, ?) "
-      "ON CONFLICT DO NOTHING");
+      "INSERT INTO campaign_run_verdicts (campaign_run_id, claim, verdict, round, frozen_at, decided_by) "
+      "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
   for (const auto& [claim, verdict] : frozen) {
     if (verdict == Verdict::kInconclusive) continue;
     st.Reset();
     st.Bind(1, campaign_run_id).Bind(2, claim).Bind(3, VerdictName(verdict)).Bind(4, round).Bind(5, now);
+    auto it = decided_by.find(claim);
+    if (it == decided_by.end() || it->second.is_null()) {
+      st.BindNull(6);
+    } else {
+      st.Bind(6, it->second.dump());
+    }
     SANDSWIM_RETURN_IF_ERROR(st.Run());
   }
   return Status::Ok();
@@ -218,80 +233,105 @@ constexpr char kMyRuns[] =
 
 }  // namespace
 
-Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaign_run_id) {
-  std::vector<EndedJob> out;
+namespace {
+
+// The closed leases of the campaign run's (?1) runs and beds not charged yet, as
+// ClosedAttempt's columns: leases granted after the last per-ending look (rows from before
+// migration 18), and for each the earliest other adaptive campaign run that held the job when it
+// was leased and had not stopped by then (it pays).
+constexpr char kOldLook[] =
+    ", old_look(at) AS (SELECT COALESCE(MAX(charged_at), -1e300) FROM campaign_run_charges "
+    "WHERE campaign_run_id = ?1 AND lease_token IS NULL) ";
+constexpr char kClosedLease[] =
+    "(l.closed_at IS NOT NULL OR l.completed_at IS NOT NULL OR l.outcome IS NOT NULL) "
+    "AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c WHERE c.campaign_run_id = ?1 AND c.lease_token = l.token) "
+    "AND l.granted_at > (SELECT at FROM old_look) ";
+// An earlier adaptive campaign run, live when the lease was granted, that held a run meeting
+// `run_condition` (rr: the run; l: the lease).
+std::string EarlierPayer(const std::string& run_condition) {
+  return "(SELECT MIN(cr.id) FROM campaign_runs cr JOIN sweeps s ON s.campaign_run_id = cr.id "
+         "JOIN sweep_runs sr ON sr.sweep_id = s.id JOIN runs rr ON rr.id = sr.run_id WHERE " +
+         run_condition +
+         " AND cr.id < ?1 AND cr.created_at <= l.granted_at AND json_valid(cr.definition) "
+         "AND json_type(cr.definition, '$.adaptive') IS 'object' AND NOT EXISTS (SELECT 1 FROM campaign_rounds x "
+         "WHERE x.campaign_run_id = cr.id AND x.stop_reason IS NOT NULL AND x.finished_at <= l.granted_at))";
+}
+
+}  // namespace
+
+Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t campaign_run_id) {
+  std::vector<ClosedAttempt> out;
+  auto read = [&](Statement& st, const std::string& kind) -> Status {
+    st.Bind(1, campaign_run_id);
+    for (;;) {
+      Result<bool> row = st.Step();
+      if (!row.ok()) return row.status();
+      if (!*row) return Status::Ok();
+      ClosedAttempt a;
+      a.kind = kind;
+      a.lease_token = st.Text(0);
+      a.id = st.Int(1);
+      a.granted_at = st.Double(2);
+      a.ended_at = st.Double(3);
+      a.outcome = st.Text(4);
+      a.sim_time_s = st.OptDouble(5);
+      a.run_duration_s = st.OptDouble(6).value_or(0);
+      Result<Point> p = StoredPoint(st.Text(7), st.Text(8), st.Double(9), st.Double(10), st.Double(11),
+                                    st.Double(12), st.Double(13), st.OptText(14));
+      if (!p.ok()) return Status(p.status().code(), kind + " " + std::to_string(a.id) + ": " + p.status().reason());
+      a.point = *p;
+      a.paid_by = st.OptInt(15);
+      out.push_back(std::move(a));
+    }
+  };
+  // A run's attempts: what each reached when its lease closed (a lease closed before migration 18
+  // recorded none: a done one is read from the run's result).
   Statement runs = t.Prepare(
-      std::string(kMyRuns) +
-      "SELECT r.id, r.state, COALESCE(r.finished_at, 0), r.attempts, "
-      "CASE WHEN r.state = 'done' THEN COALESCE(res.sim_time_s, r.sim_time_s) ELSE r.sim_time_s END, "
-      "r.run_duration_s, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, r.materials "
-      "FROM runs r JOIN mine m ON m.run_id = r.id LEFT JOIN results res ON res.run_id = r.id "
-      "WHERE r.state IN ('done', 'failed', 'cancelled') AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c "
-      "WHERE c.campaign_run_id = ?1 AND c.kind = 'run' AND c.job_id = r.id AND c.ended_at = COALESCE(r.finished_at, 0)) "
-      "ORDER BY r.id");
-  runs.Bind(1, campaign_run_id);
-  for (;;) {
-    Result<bool> row = runs.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    EndedJob j;
-    j.kind = "run";
-    j.id = runs.Int(0);
-    j.state = runs.Text(1);
-    j.ended_at = runs.Double(2);
-    j.attempts = static_cast<int>(runs.Int(3));
-    j.sim_time_s = runs.OptDouble(4);
-    j.run_duration_s = runs.Double(5);
-    Result<Point> p = StoredPoint(runs.Text(6), runs.Text(7), runs.Double(8), runs.Double(9), runs.Double(10),
-                                  runs.Double(11), runs.Double(12), runs.OptText(13));
-    if (!p.ok()) return Status(p.status().code(), "run " + std::to_string(j.id) + ": " + p.status().reason());
-    j.point = *p;
-    out.push_back(std::move(j));
-  }
-  // A prepared or failed bed (per ending: one that failed, was requeued and was prepared is
-  // charged for both), priced by the materials of one of its runs here (its grains follow them).
+      std::string(kMyRuns) + kOldLook +
+      "SELECT l.token, r.id, l.granted_at, COALESCE(l.closed_at, l.completed_at, l.granted_at), "
+      "COALESCE(l.outcome, 'expired'), COALESCE(l.sim_time_s, CASE WHEN l.outcome = 'done' THEN res.sim_time_s END), "
+      "r.run_duration_s, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, r.materials, " +
+      EarlierPayer("rr.id = r.id") +
+      " FROM runs r JOIN mine m ON m.run_id = r.id JOIN leases l ON l.kind = 'run' AND l.job_id = r.id "
+      "LEFT JOIN results res ON res.run_id = r.id WHERE " +
+      kClosedLease + "ORDER BY r.id, l.granted_at, l.token");
+  SANDSWIM_RETURN_IF_ERROR(read(runs, "run"));
+  // A bed's attempts, priced by the materials of one of its runs here (its grains follow them).
   Statement beds = t.Prepare(
-      std::string(kMyRuns) +
-      "SELECT b.id, COALESCE(b.finished_at, 0), r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, "
-      "r.materials, b.state FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
-      "WHERE r2.bed_id = b.id) WHERE b.state IN ('done', 'failed') AND NOT EXISTS (SELECT 1 FROM "
-      "campaign_run_charges c WHERE c.campaign_run_id = ?1 AND c.kind = 'bed' AND c.job_id = b.id "
-      "AND c.ended_at = COALESCE(b.finished_at, 0)) ORDER BY b.id");
-  beds.Bind(1, campaign_run_id);
-  for (;;) {
-    Result<bool> row = beds.Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    EndedJob j;
-    j.kind = "bed";
-    j.id = beds.Int(0);
-    j.state = beds.Text(10);
-    j.ended_at = beds.Double(1);
-    Result<Point> p = StoredPoint(beds.Text(2), beds.Text(3), beds.Double(4), beds.Double(5), beds.Double(6),
-                                  beds.Double(7), beds.Double(8), beds.OptText(9));
-    if (!p.ok()) return Status(p.status().code(), "bed " + std::to_string(j.id) + ": " + p.status().reason());
-    j.point = *p;
-    out.push_back(std::move(j));
-  }
+      std::string(kMyRuns) + kOldLook +
+      "SELECT l.token, b.id, l.granted_at, COALESCE(l.closed_at, l.completed_at, l.granted_at), "
+      "COALESCE(l.outcome, 'expired'), NULL, NULL, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, "
+      "r.materials, " +
+      EarlierPayer("rr.bed_id = b.id") +
+      " FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
+      "WHERE r2.bed_id = b.id) JOIN leases l ON l.kind = 'bed' AND l.job_id = b.id WHERE " +
+      kClosedLease + "ORDER BY b.id, l.granted_at, l.token");
+  SANDSWIM_RETURN_IF_ERROR(read(beds, "bed"));
   return out;
 }
 
-Result<std::vector<EndedJob>> UnchargedEndedJobs(Store& store, int64_t campaign_run_id) {
+Result<std::vector<ClosedAttempt>> UnchargedAttempts(Store& store, int64_t campaign_run_id) {
   Result<Transaction> t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  return UnchargedEndedJobs(*t, campaign_run_id);
+  return UnchargedAttempts(*t, campaign_run_id);
 }
 
 Result<double> AddCharges(Transaction& t, int64_t campaign_run_id, int round, double now,
                           const std::vector<Charge>& charges) {
   Statement st = t.Prepare(
-      "INSERT INTO campaign_run_charges (campaign_run_id, kind, job_id, ended_at, state, sim_time_s, priced_by, core_h, "
-      "round, charged_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
+      "INSERT INTO campaign_run_charges (campaign_run_id, kind, job_id, lease_token, ended_at, state, sim_time_s, "
+      "priced_by, core_h, round, charged_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
   double added = 0;
   for (const Charge& c : charges) {
     st.Reset();
-    st.Bind(1, campaign_run_id).Bind(2, c.kind).Bind(3, c.id).Bind(4, c.ended_at).Bind(5, c.state);
-    st.Bind(6, c.sim_time_s).Bind(7, c.priced_by).Bind(8, c.core_h).Bind(9, round).Bind(10, now);
+    st.Bind(1, campaign_run_id).Bind(2, c.kind).Bind(3, c.id);
+    if (c.lease_token.empty()) {
+      st.BindNull(4);
+    } else {
+      st.Bind(4, c.lease_token);
+    }
+    st.Bind(5, c.ended_at).Bind(6, c.state).Bind(7, c.sim_time_s).Bind(8, c.priced_by).Bind(9, c.core_h);
+    st.Bind(10, round).Bind(11, now);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
     if (t.Changes() == 1) added += c.core_h;
   }
@@ -312,10 +352,14 @@ Result<double> ChargedCoreHours(Store& store, int64_t campaign_run_id) {
   return ChargedCoreHours(*t, campaign_run_id);
 }
 
-Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id) {
-  Result<Transaction> t = store.db().BeginRead();
-  if (!t.ok()) return t.status();
-  Statement st = t->Prepare(
+AdaptiveCost RoundRates(const RoundRow& round, AdaptiveCost now) {
+  if (round.run_s_per_unit) now.run_rate.s_per_unit = *round.run_s_per_unit;
+  if (round.bed_s_per_unit) now.bed_rate.s_per_unit = *round.bed_s_per_unit;
+  return now;
+}
+
+Result<int64_t> BusyJobs(Transaction& t, int64_t campaign_run_id) {
+  Statement st = t.Prepare(
       "SELECT COUNT(*) FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id JOIN runs r ON r.id = sr.run_id "
       "JOIN beds b ON b.id = r.bed_id WHERE s.campaign_run_id = ? "
       "AND (r.state IN ('queued', 'running') OR b.state IN ('queued', 'running'))");
@@ -323,6 +367,12 @@ Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id) {
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
   return *row ? st.Int(0) : 0;
+}
+
+Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id) {
+  Result<Transaction> t = store.db().BeginRead();
+  if (!t.ok()) return t.status();
+  return BusyJobs(*t, campaign_run_id);
 }
 
 Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id) {

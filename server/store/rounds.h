@@ -1,7 +1,8 @@
 // The rounds of adaptive campaign runs (schema/015_campaign_rounds.sql): one row per
-// round (what it added and why, core-hours planned and spent, the claims' states after it, why
-// the campaign run stopped) and the verdicts frozen at their first deciding look; and what the
-// campaign run has spent, a ledger of charged runs and beds (schema/016_campaign_run_charges.sql). The driver that
+// round (what it added and why, core-hours planned and spent, the rates it was planned at, the
+// claims' states after it, why the campaign run stopped) and the verdicts frozen at their first
+// deciding look with that look's verdict; and what the campaign run has spent, a ledger of charged
+// attempts at its runs and beds (schema/016_campaign_run_charges.sql, 018_attempt_charges.sql). The driver that
 // writes them is server/jobs/rounds.h; GET /api/v1/campaign-runs/{id} and `sandswim status cr:ID`
 // read them.
 //
@@ -40,12 +41,19 @@ struct RoundRow {
   nlohmann::json actions = nlohmann::json::array();  // ActionToJson of each
   nlohmann::json verdicts_after;                      // null until its look
   std::optional<std::string> stop_reason;
+  // The cost model's rates it was planned at (core/cost.h EngineRate::s_per_unit: runs per
+  // particle-step, beds per grain); unset for rounds planned before migration 18.
+  std::optional<double> run_s_per_unit;
+  std::optional<double> bed_s_per_unit;
 };
 
 struct FrozenVerdict {
   Verdict verdict = Verdict::kInconclusive;
   int round = 0;
   double frozen_at = 0;
+  // The deciding look's verdict (core/claims.h ClaimVerdictToJson of the claims' own evaluation
+  // then: its parts, numbers and reason); null for verdicts frozen before migration 18.
+  nlohmann::json decided_by;
 };
 
 // {"kind","claim","reason","core_h","sim_s","gain","draws","new_beds","runs":[{"sweep","point",
@@ -56,7 +64,8 @@ nlohmann::json ActionToJson(const AdaptiveAction& a);
 // [{"round","planned_at","finished_at","core_h_planned","core_h_spent","budget_left_core_h"
 //   (after it: the budget less every round's spending so far; null until its look),
 //   "actions":[{"kind","claim","reason","core_h","runs" (how many)}],"claims_after":[{"claim",
-//   "verdict","frozen_at_round"?}] (null until its look),"stop_reason"}]
+//   "verdict","frozen_at_round"?}] (null until its look),"stop_reason","rates":{"run_s_per_unit",
+//   "bed_s_per_unit"} (what it was planned and is charged at; null before migration 18)}]
 nlohmann::json RoundsToJson(const std::vector<RoundRow>& rows, double budget_core_h);
 
 // The rounds of a campaign run, in order (none: not adaptive, or its first look is to come).
@@ -78,46 +87,63 @@ Status InsertRound(Transaction& t, const RoundRow& row);
 // The look after a round: kConflict when it was taken already (finished_at set).
 Status FinishRound(Transaction& t, int64_t campaign_run_id, int round, double now, double core_h_spent,
                    const nlohmann::json& verdicts_after, const std::optional<std::string>& stop_reason);
-// Stores the verdicts `frozen` holds that are not stored yet, as frozen at `round`.
+// Stores the verdicts `frozen` holds that are not stored yet, as frozen at `round`, each with the
+// look's verdict that decided it (`decided_by`, by claim: ClaimVerdictToJson).
 Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double now,
-                      const std::map<std::string, Verdict>& frozen);
+                      const std::map<std::string, Verdict>& frozen,
+                      const std::map<std::string, nlohmann::json>& decided_by);
 
 // ---- What a campaign run spent: the ledger ---------------------------------------------------
 
-// A run or bed of the campaign run (a member of its sweeps, or a run a longer one replaced there)
-// that has ended and whose ending is not charged yet: what pricing it needs.
-struct EndedJob {
-  std::string kind;   // "run" | "bed"
+// An attempt at a run or bed of the campaign run (a member of its sweeps, or a run a longer one
+// replaced there): a lease that has closed (completed, failed, expired, handed back, taken back
+// unreceived; schema/018) and is not charged yet. A lease granted before a look of the old,
+// per-ending ledger (rows without a lease token, before migration 18) counts as charged by it.
+struct ClosedAttempt {
+  std::string kind;  // "run" | "bed"
   int64_t id = 0;
-  double ended_at = 0;  // its finished_at (0 when none was recorded)
-  std::string state;    // done | failed | cancelled
-  int attempts = 0;     // runs: leases it was granted (0: it never ran)
-  std::optional<double> sim_time_s;  // runs: done, its result's; else its last heartbeat's (NULL: none)
+  std::string lease_token;
+  double granted_at = 0;
+  double ended_at = 0;   // the lease's closed_at (its completed_at, or its grant, before 18)
+  std::string outcome;   // the lease's: done | failed | queued | cancelled | expired | released | unreceived
+  std::optional<double> sim_time_s;  // runs: what the attempt reached (done: its result's); NULL: none known
   double run_duration_s = 0;         // runs: its planned length at the scale
   Point point;                       // a run's point; a bed's: the point of one of its runs here
+  // Who else pays for it: the earliest other adaptive campaign run that held the job when it was
+  // leased and had not stopped (a nightly rerun that shares a run still running from the night
+  // before leaves it to that night's campaign run). Unset: nobody before this one.
+  std::optional<int64_t> paid_by;
 };
-Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaign_run_id);
-Result<std::vector<EndedJob>> UnchargedEndedJobs(Store& store, int64_t campaign_run_id);
+Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t campaign_run_id);
+Result<std::vector<ClosedAttempt>> UnchargedAttempts(Store& store, int64_t campaign_run_id);
 
 struct Charge {
   std::string kind;  // "run" | "bed"
   int64_t id = 0;
   double ended_at = 0;
-  std::string state;
+  std::string state;  // the lease's outcome (per ending, before 18: the job's state)
   std::optional<double> sim_time_s;
-  std::string priced_by;  // "result", "heartbeat", "planned length", "never ran", "bed", "stored before"
+  // "result", "heartbeat", "planned length", "never ran", "bed", "leased before", "paid by campaign
+  // run N"; before 18 also "stored before"
+  std::string priced_by;
   double core_h = 0;
+  std::string lease_token;  // the attempt charged ("": a charge per ending, as before migration 18)
 };
-// Stores the charges at the look after `round`; an ending charged already is not charged again.
-// Returns the core-hours newly charged.
+// Stores the charges at the look after `round`; an attempt (or, without a token, an ending)
+// charged already is not charged again. Returns the core-hours newly charged.
 Result<double> AddCharges(Transaction& t, int64_t campaign_run_id, int round, double now,
                           const std::vector<Charge>& charges);
 // The sum of the campaign run's charges: what it has spent (0 with none).
 Result<double> ChargedCoreHours(Transaction& t, int64_t campaign_run_id);
 Result<double> ChargedCoreHours(Store& store, int64_t campaign_run_id);
 
+// The cost model's rates a round was planned at (RoundRow's), else `now`'s: what its attempts are
+// charged at.
+AdaptiveCost RoundRates(const RoundRow& round, AdaptiveCost now);
+
 // How many runs of the campaign run's sweeps, and beds under them, are queued or running: a look
-// waits for 0 (one cheap query, before anything is analysed).
+// waits for 0 (one cheap query, before anything is analysed; again inside its write).
+Result<int64_t> BusyJobs(Transaction& t, int64_t campaign_run_id);
 Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id);
 
 // The campaign run's sweeps by name, and each one's next membership position.

@@ -137,6 +137,8 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
                         "DROP TABLE snapshots;"
                         "DROP TABLE campaign_rounds; DROP TABLE campaign_run_verdicts; DROP TABLE campaign_run_charges; DROP TABLE campaign_run_replacements;"
                         "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
+                        "DROP INDEX leases_by_job; ALTER TABLE leases DROP COLUMN closed_at; "
+                        "ALTER TABLE leases DROP COLUMN sim_time_s;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2; ALTER TABLE beds DROP COLUMN ranks;"
                         "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
