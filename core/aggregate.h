@@ -104,6 +104,14 @@ struct ReplicateAggregate {
 // REQUIRES: se > 0, ci95 > 0.
 double DofOfInterval(double se, double ci95);
 
+// DofOfInterval's answer and the t quantiles it evaluated to find it: a results page finds one for
+// each of its runs (a page of 10,000), so the count is what its cost is held to (aggregate_test.cc).
+struct DofSearch {
+  double dof = 0;
+  int quantiles = 0;
+};
+DofSearch SearchDofOfInterval(double se, double ci95);
+
 // `bed_sd_rel` (the scale's Scale::bed_sd_rel, 0: none): a point run on one bed only (K = 1) gets
 // the bed-to-bed scatter added to its run's own error, se^2 + (bed_sd_rel U)^2, and to its 95 %
 // half-width, ci^2 + (1.96 bed_sd_rel U)^2: one bed's interval says nothing of the bed it happened
