@@ -45,7 +45,7 @@ rounds::Charge Price(const rounds::EndedJob& j, const AdaptiveCost& cost, double
     return c;
   }
   if (j.sim_time_s && *j.sim_time_s > 0) {
-    c.priced_by = j.state == "done" ? "result" : "heartbeat";
+    c.priced_by = j.state == JobState::kDone ? "result" : "heartbeat";
     c.sim_time_s = *j.sim_time_s;
   } else if (j.attempts == 0) {
     c.priced_by = "never ran";
@@ -195,7 +195,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   if (!look.ok()) return look.status();
   int cancelled = 0;
   for (const ClaimSweep& s : look->input.sweeps)
-    for (const ClaimRun& r : s.runs) cancelled += r.state == "cancelled";
+    for (const ClaimRun& r : s.runs) cancelled += r.state == JobState::kCancelled;
 
   // The ledger: what ended since the last look is charged once; the budget left is the budget less
   // every charge so far (a replaced or failed run stays charged).

@@ -237,7 +237,9 @@ Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaig
     EndedJob j;
     j.kind = "run";
     j.id = runs.Int(0);
-    j.state = runs.Text(1);
+    Result<JobState> state = runs.State(1);
+    if (!state.ok()) return state.status();
+    j.state = *state;
     j.ended_at = runs.Double(2);
     j.attempts = static_cast<int>(runs.Int(3));
     j.sim_time_s = runs.OptDouble(4);
@@ -265,7 +267,9 @@ Result<std::vector<EndedJob>> UnchargedEndedJobs(Transaction& t, int64_t campaig
     EndedJob j;
     j.kind = "bed";
     j.id = beds.Int(0);
-    j.state = beds.Text(10);
+    Result<JobState> state = beds.State(10);
+    if (!state.ok()) return state.status();
+    j.state = *state;
     j.ended_at = beds.Double(1);
     Result<Point> p = StoredPoint(beds.Text(2), beds.Text(3), beds.Double(4), beds.Double(5), beds.Double(6),
                                   beds.Double(7), beds.Double(8), beds.OptText(9));
@@ -290,7 +294,7 @@ Result<double> AddCharges(Transaction& t, int64_t campaign_run_id, int round, do
   double added = 0;
   for (const Charge& c : charges) {
     st.Reset();
-    st.Bind(1, campaign_run_id).Bind(2, c.kind).Bind(3, c.id).Bind(4, c.ended_at).Bind(5, c.state);
+    st.Bind(1, campaign_run_id).Bind(2, c.kind).Bind(3, c.id).Bind(4, c.ended_at).Bind(5, JobStateName(c.state));
     st.Bind(6, c.sim_time_s).Bind(7, c.priced_by).Bind(8, c.core_h).Bind(9, round).Bind(10, now);
     SANDSWIM_RETURN_IF_ERROR(st.Run());
     if (t.Changes() == 1) added += c.core_h;
@@ -382,7 +386,7 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
   struct Pending {
     int round;
     int64_t sweep_id, position, old_run_id, new_run_id;
-    std::string state;
+    JobState state;
   };
   std::vector<Pending> pending;
   {
@@ -395,7 +399,9 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
       Result<bool> row = st.Step();
       if (!row.ok()) return row.status();
       if (!*row) break;
-      pending.push_back({static_cast<int>(st.Int(0)), st.Int(1), st.Int(2), st.Int(3), st.Int(4), st.Text(5)});
+      Result<JobState> state = st.State(5);
+      if (!state.ok()) return state.status();
+      pending.push_back({static_cast<int>(st.Int(0)), st.Int(1), st.Int(2), st.Int(3), st.Int(4), *state});
     }
   }
   if (pending.empty()) return int64_t{0};
@@ -407,7 +413,7 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
   int64_t restored = 0;
   std::vector<int64_t> sweeps;
   for (const Pending& p : pending) {
-    const bool stands = p.state == "done";
+    const bool stands = p.state == JobState::kDone;
     if (!stands) {
       back.Reset();
       back.Bind(1, p.sweep_id).Bind(2, p.old_run_id).Bind(3, p.position);

@@ -90,7 +90,7 @@ struct EndedJob {
   std::string kind;   // "run" | "bed"
   int64_t id = 0;
   double ended_at = 0;  // its finished_at (0 when none was recorded)
-  std::string state;    // done | failed | cancelled
+  JobState state = JobState::kDone;  // done | failed | cancelled
   int attempts = 0;     // runs: leases it was granted (0: it never ran)
   std::optional<double> sim_time_s;  // runs: done, its result's; else its last heartbeat's (NULL: none)
   double run_duration_s = 0;         // runs: its planned length at the scale
@@ -103,7 +103,7 @@ struct Charge {
   std::string kind;  // "run" | "bed"
   int64_t id = 0;
   double ended_at = 0;
-  std::string state;
+  JobState state = JobState::kDone;
   std::optional<double> sim_time_s;
   std::string priced_by;  // "result", "heartbeat", "planned length", "never ran", "bed", "stored before"
   double core_h = 0;
