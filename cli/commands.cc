@@ -21,6 +21,7 @@
 #include "cli/watch.h"
 #include "core/campaign_definition.h"
 #include "core/cost.h"
+#include "core/job_state.h"
 #include "core/scale.h"
 #include "core/sweep.h"
 
@@ -391,7 +392,11 @@ int RunStatus(Context& c) {
 void SetupRuns(CLI::App& sub, Args& a) {
   sub.add_option("--sweep", a.sweep, "only the runs of this sweep")->check(CLI::PositiveNumber);
   sub.add_option("--state", a.state, "only runs in this state")
-      ->check(CLI::IsMember({"queued", "running", "done", "failed", "cancelled"}));
+      ->check(CLI::IsMember([] {
+        std::vector<std::string> names;
+        for (JobState s : kJobStates) names.push_back(ToString(s));
+        return names;
+      }()));
   sub.add_option("--limit", a.limit, "at most N runs (default: all)")->check(CLI::PositiveNumber);
   AddJson(sub, a);
 }

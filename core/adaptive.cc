@@ -127,7 +127,7 @@ std::vector<PointInfo> PointsOf(const ClaimInput& in, const std::vector<std::str
     double sum = 0, ss = 0, se2 = 0, xd = 0, xd2 = 0, amp = 0, xamp = 0;
     int namp = 0, nx = 0, nxd = 0;
     for (const ClaimRun* r : p.runs) {
-      if (!InState(r->state, JobState::kDone) || !r->result) {
+      if (r->state != JobState::kDone || !r->result) {
         p.all_measured = false;
         continue;
       }
@@ -308,14 +308,14 @@ ClaimInput WithDraw(const ClaimInput& in, const AdaptiveAction& a, const std::ve
       for (ClaimRun& r : s.runs) {
         if (DriveIdOf(r.point) != id) continue;
         has_point = true;
-        if (o.replaces && r.replicate == o.replicate) r.result = drawn, r.state = "done";
+        if (o.replaces && r.replicate == o.replicate) r.result = drawn, r.state = JobState::kDone;
       }
       if (o.replaces || (!has_point && s.name != o.sweep)) continue;
       ClaimRun r;
       r.run_id = run_id;
       r.point = o.point;
       r.replicate = o.replicate;
-      r.state = "done";
+      r.state = JobState::kDone;
       r.result = drawn;
       s.runs.push_back(std::move(r));
     }

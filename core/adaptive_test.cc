@@ -66,7 +66,7 @@ AdaptiveState FirstRoundDone(const Fixture& f, double rel) {
   s.input.scale = "smoke";
   ClaimBed bed;
   bed.id = 1;
-  bed.state = "done";
+  bed.state = JobState::kDone;
   bed.grains = 6682;
   bed.bed_height = 0.68;
   s.input.beds.push_back(bed);
@@ -83,7 +83,7 @@ AdaptiveState FirstRoundDone(const Fixture& f, double rel) {
       ClaimRun r;
       r.run_id = ++id;
       r.point = p;
-      r.state = "done";
+      r.state = JobState::kDone;
       r.result = Measured(uz, rel);
       cs.runs.push_back(r);
     }

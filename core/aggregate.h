@@ -58,6 +58,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/job_state.h"
 #include "core/point.h"
 
 namespace sandswim {
@@ -67,7 +68,7 @@ struct ReplicateValue {
   int64_t run_id = 0;
   int replicate = 0;  // the bed's replicate index (0 .. K-1)
   int64_t bed_id = 0;
-  std::string state;                // the run's state: queued | running | done | failed | cancelled
+  JobState state = JobState::kQueued;  // the run's state
   bool conclusive = false;          // its result's own verdict (false: no result yet)
   std::optional<double> uz;         // m/s
   std::optional<double> uz_stderr;  // m/s, its own standard error

@@ -17,7 +17,7 @@ ReplicateValue Value(int replicate, std::optional<double> uz, bool conclusive = 
   v.run_id = 100 + replicate;
   v.replicate = replicate;
   v.bed_id = 10 + replicate;
-  v.state = "done";
+  v.state = JobState::kDone;
   v.conclusive = conclusive;
   v.uz = uz;
   if (uz) {
@@ -61,7 +61,7 @@ TEST(AggregateTest, ThreeBedsGiveTheirMeanAndTheScatterBetweenThem) {
 
 TEST(AggregateTest, InconclusiveAndUnfinishedReplicatesAreListedNotAveraged) {
   ReplicateValue queued = Value(2, std::nullopt, false);
-  queued.state = "queued";
+  queued.state = JobState::kQueued;
   ReplicateAggregate a = AggregateReplicates({Value(0, 0.10), Value(1, 0.5, false), queued, Value(3, 0.14)});
   EXPECT_EQ(a.replicates, 4);
   EXPECT_EQ(a.conclusive, 2);
@@ -219,7 +219,7 @@ TEST(AggregateTest, CensoredBedsAreEvidenceOfSignAndALowerEstimate) {
 
   // A failed or unfinished bed: no evidence at all, whatever the others say.
   ReplicateValue failed = Value(2, std::nullopt, false);
-  failed.state = "failed";
+  failed.state = JobState::kFailed;
   ReplicateAggregate open = AggregateReplicates({Value(0, 0.10), Censored(1, 1, 0.09), failed});
   EXPECT_EQ(open.evidence, ReplicateAggregate::Evidence::kOpen);
   EXPECT_EQ(open.open_beds, 1);

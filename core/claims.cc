@@ -283,13 +283,13 @@ BedEvidence AssessRun(const ClaimRun& r) {
   BedEvidence b;
   b.run = &r;
   const std::string id = "run " + std::to_string(r.run_id);
-  if (InState(r.state, JobState::kFailed) || InState(r.state, JobState::kCancelled)) {
+  if (r.state == JobState::kFailed || r.state == JobState::kCancelled) {
     b.state = BedState::kFailed;
-    b.detail = id + " " + r.state + (r.failure.empty() ? "" : " (" + r.failure + ")");
+    b.detail = id + " " + ToString(r.state) + (r.failure.empty() ? "" : " (" + r.failure + ")");
     return b;
   }
-  if (!InState(r.state, JobState::kDone) || !r.result) {
-    b.detail = id + " " + r.state;
+  if (r.state != JobState::kDone || !r.result) {
+    b.detail = id + " " + ToString(r.state);
     return b;
   }
   const api::RunResult& res = *r.result;
@@ -790,9 +790,9 @@ ClaimPart BeyondPart(const Claim& c, const ClaimSweep& s, double beyond) {
     const bool rising = BranchOf(r.point) == Branch::kRising;
     ClaimFigure f;
     f.name = "run " + std::to_string(r.run_id) + ": " + Label(r.point) + ", replicate " + std::to_string(r.replicate);
-    if (!InState(r.state, JobState::kDone) || !r.result) {
+    if (r.state != JobState::kDone || !r.result) {
       f.verdict = Verdict::kInconclusive;
-      f.note = r.state + (r.failure.empty() ? "" : ": " + r.failure);
+      f.note = ToString(r.state) + (r.failure.empty() ? "" : ": " + r.failure);
       ++unknown;
     } else {
       f.value = r.result->sim_time_s;
@@ -1352,8 +1352,8 @@ void EvaluateGrainCount(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   int prepared = 0;
   std::string pending;
   for (const ClaimBed& bed : in.beds) {
-    if (!InState(bed.state, JobState::kDone) || !bed.grains || scale == nullptr) {
-      pending += (pending.empty() ? "" : ", ") + std::string("bed ") + std::to_string(bed.id) + " " + bed.state;
+    if (bed.state != JobState::kDone || !bed.grains || scale == nullptr) {
+      pending += (pending.empty() ? "" : ", ") + std::string("bed ") + std::to_string(bed.id) + " " + ToString(bed.state);
       continue;
     }
     ++prepared;
@@ -1531,7 +1531,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
   if (const ClaimSweep* s = FindSweep(in, fastest)) {
     for (const ClaimRun& r : s->runs) {
       ++runs;
-      if (!InState(r.state, JobState::kDone) || !r.result) continue;
+      if (r.state != JobState::kDone || !r.result) continue;
       drifts.push_back(r.result->x_drift);
       ClaimFigure f;
       f.name = "x drift, run " + std::to_string(r.run_id) + " (replicate " + std::to_string(r.replicate) + ")";
@@ -1584,7 +1584,7 @@ void EvaluateModes(const Claim& c, const ClaimInput& in, ClaimVerdict& v) {
         const ClaimSweep* s = FindSweep(in, name);
         if (s == nullptr) continue;
         for (const ClaimRun& r : s->runs) {
-          if (!InState(r.state, JobState::kDone) || !r.result) {
+          if (r.state != JobState::kDone || !r.result) {
             ++*unfinished;
             continue;
           }

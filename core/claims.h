@@ -144,6 +144,7 @@
 
 #include "core/api.h"
 #include "core/fit.h"
+#include "core/job_state.h"
 #include "core/point.h"
 #include "core/status.h"
 
@@ -173,7 +174,7 @@ struct ClaimRun {
   int64_t run_id = 0;
   Point point;
   int replicate = 0;
-  std::string state;                     // queued | running | done | failed | cancelled
+  JobState state = JobState::kQueued;
   std::optional<api::RunResult> result;  // done runs
   std::string failure;                   // failed runs: the last error ("deck_error: ...")
 };
@@ -188,7 +189,7 @@ struct ClaimSweep {
 struct ClaimBed {
   int64_t id = 0;
   int replicate = 0;
-  std::string state;                 // queued | running | done | failed
+  JobState state = JobState::kQueued;  // never cancelled
   std::optional<int64_t> grains;     // prepared beds
   std::optional<double> bed_height;  // m, highest grain centre above the floor
 };

@@ -51,7 +51,7 @@ struct Synth {
       ClaimRun run;
       run.run_id = next_run++;
       run.point = point;
-      run.state = "done";
+      run.state = JobState::kDone;
       api::RunResult r;
       r.uz = uz;
       r.uz_stderr = stated;
@@ -90,7 +90,7 @@ void SetUz(ClaimSweep& sweep, Pick pick, double uz) {
 void Fail(ClaimSweep& sweep, const Point& point) {
   for (ClaimRun& r : sweep.runs) {
     if (!SameDrive(r.point, point)) continue;
-    r.state = "failed";
+    r.state = JobState::kFailed;
     r.result.reset();
     r.failure = "deck_error: ERROR: a test failure";
   }
@@ -381,7 +381,7 @@ TEST(ClaimsTest, GrainCountHoldsDiffersOrIsInconclusive) {
   // fraction of about 0.6, about 7.4e4 grains in the paper's 0.5 m^3.
   ClaimInput in;
   in.scale = "smoke";
-  in.beds.push_back({1, 0, "done", 6682, 0.66});
+  in.beds.push_back({1, 0, JobState::kDone, 6682, 0.66});
   const Claim paper = ClaimOf(R"({"id": "F6", "title": "t", "source": "s", "paper": {"text": "p"},
     "rule": {"kind": "grain_count", "paper_grains": 800000, "paper_bed_m3": 0.5, "tolerance_rel": 0.1}})");
   ClaimVerdict v = Evaluate(paper, in);
@@ -390,7 +390,7 @@ TEST(ClaimsTest, GrainCountHoldsDiffersOrIsInconclusive) {
     "rule": {"kind": "grain_count", "paper_grains": 74000, "paper_bed_m3": 0.5, "tolerance_rel": 0.1}})");
   v = Evaluate(honest, in);
   EXPECT_EQ(v.verdict, Verdict::kHolds) << v.reason;
-  in.beds[0] = {1, 0, "running", std::nullopt, std::nullopt};
+  in.beds[0] = {1, 0, JobState::kRunning, std::nullopt, std::nullopt};
   v = Evaluate(paper, in);
   EXPECT_EQ(v.verdict, Verdict::kInconclusive);
   EXPECT_THAT(v.reason, HasSubstr("no prepared bed"));
@@ -561,7 +561,7 @@ TEST(ClaimsTest, PointWithFailedReplicatesIsNotConclusive) {
   for (ClaimRun& r : base.runs) {
     if (r.point.Omega != -80) continue;
     if (r.replicate == 1) {
-      r.state = "failed";
+      r.state = JobState::kFailed;
       r.result.reset();
       r.failure = "lost_atoms: 3 atoms lost";
     } else if (r.replicate == 2) {
@@ -777,7 +777,7 @@ TEST(ClaimsTest, CensoredPointsEnterGrowthWithALowerEstimate) {
   }
   for (ClaimRun& r : two.runs)
     if (r.point.Omega == -40 && r.replicate == 1) {
-      r.state = "failed";
+      r.state = JobState::kFailed;
       r.result.reset();
     }
   v = Evaluate(f2, k2.input);
@@ -948,7 +948,7 @@ TEST(ClaimsTest, NothingFinishedDecidesNothing) {
     auto points = ExpandSweep(at_smoke);
     ASSERT_TRUE(points.ok()) << points.status().ToString();
     int64_t id = 1;
-    for (const Point& p : *points) sweep.runs.push_back({id++, p, 0, "queued", std::nullopt, ""});
+    for (const Point& p : *points) sweep.runs.push_back({id++, p, 0, JobState::kQueued, std::nullopt, ""});
     in.sweeps.push_back(sweep);
   }
   for (const ClaimVerdict& v : EvaluateClaims(c->claims, in)) {

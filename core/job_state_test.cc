@@ -3,6 +3,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 namespace sandswim {
 namespace {
@@ -18,6 +19,17 @@ TEST(JobStateTest, EveryStateRoundTripsThroughItsNameAndTheListNamesThemAll) {
   EXPECT_FALSE(ParseJobState("").has_value());
   EXPECT_FALSE(IsFinished(JobState::kRunning));
   EXPECT_TRUE(IsFinished(JobState::kCancelled));
+}
+
+TEST(JobStateTest, JsonCarriesTheNameAndRefusesAnyOtherText) {
+  for (JobState s : kJobStates) {
+    const nlohmann::json j = s;
+    EXPECT_EQ(j, std::string(JobStateName(s)));
+    EXPECT_EQ(j.get<JobState>(), s);
+  }
+  EXPECT_EQ(nlohmann::json({{"state", JobState::kDone}}).dump(), R"({"state":"done"})");
+  EXPECT_THROW(nlohmann::json("finished").get<JobState>(), nlohmann::json::exception);
+  EXPECT_THROW(nlohmann::json(2).get<JobState>(), nlohmann::json::exception);
 }
 
 }  // namespace

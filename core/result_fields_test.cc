@@ -5,34 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include "core/result_fields_test_util.h"
 #include "core/result_table.h"
 #include "core/trajectory.h"
 
 namespace sandswim {
 namespace {
 
-// Each field with a value no other field has and no default is.
-StoredResult EveryFieldSet() {
-  StoredResult s;
-  const std::vector<ResultField>& fields = ResultFields();
-  for (size_t i = 0; i < fields.size(); ++i) {
-    switch (fields[i].type) {
-      case ResultType::kReal:
-        fields[i].set(s, 0.125 * static_cast<double>(i + 1));
-        break;
-      case ResultType::kInteger:
-        fields[i].set(s, static_cast<int64_t>(100 + i));
-        break;
-      case ResultType::kBool:
-        fields[i].set(s, true);
-        break;
-      case ResultType::kText:
-        fields[i].set(s, "text of " + fields[i].name);
-        break;
-    }
-  }
-  return s;
-}
+using testing::EveryFieldSet;
 
 bool InReport(const ResultField& f) {
   return f.origin == ResultOrigin::kAnalysis || f.origin == ResultOrigin::kRun;

@@ -66,7 +66,7 @@ Result<std::map<int64_t, std::string>> FailuresOf(Store& store, int64_t sweep_id
   std::map<int64_t, std::string> out;
   RunFilter filter;
   filter.sweep_id = sweep_id;
-  filter.state = "failed";
+  filter.state = JobState::kFailed;
   filter.limit = 1000;
   while (true) {
     Result<RunPage> page = store.ListRuns(filter);
@@ -94,7 +94,7 @@ ClaimSweep ClaimSweepOf(const SweepAnalysis& analysis, const std::vector<ResultR
     run.replicate = row.replicate;
     run.state = row.state;
     // A requeued run's old result is not its result.
-    if (InState(row.state, JobState::kDone) && row.result) run.result = row.result->result;
+    if (row.state == JobState::kDone && row.result) run.result = row.result->result;
     if (auto f = failures.find(row.run_id); f != failures.end()) run.failure = f->second;
     sweep.runs.push_back(std::move(run));
   }
@@ -132,7 +132,7 @@ Result<ClaimInput> InputOf(Store& store, const CampaignRunInfo& campaign_run,
     b.id = bed->id;
     b.replicate = bed->replicate;
     b.state = bed->state;
-    if (InState(bed->state, JobState::kDone) && bed->result) {
+    if (bed->state == JobState::kDone && bed->result) {
       b.grains = bed->result->grains;
       b.bed_height = bed->result->bed_height;
     }

@@ -197,7 +197,7 @@ Result<DriftReport> CurrentState(Store& store, const CampaignRunInfo& info, doub
       p.run_id = row.run_id;
       p.key = row.key;
       p.state = row.state;
-      if (InState(row.state, JobState::kDone) && row.result) {
+      if (row.state == JobState::kDone && row.result) {
         p.uz = row.result->result.uz;
         p.uz_stderr = row.result->result.uz_stderr;
         p.uz_ci95 = row.result->result.uz_ci95;
@@ -244,7 +244,7 @@ void from_json(const json& j, DriftPoint& p) {
   p.point = j.at("point");
   p.run_id = j.at("run_id").get<int64_t>();
   p.key = j.value("key", "");
-  p.state = j.value("state", "");
+  p.state = j.at("state").get<JobState>();
   p.uz = OptField<double>(j, "uz");
   p.uz_previous = OptField<double>(j, "uz_previous");
   p.difference = OptField<double>(j, "difference");

@@ -37,6 +37,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/cron.h"
+#include "core/job_state.h"
 #include "core/status.h"
 #include "server/store/store.h"
 
@@ -48,7 +49,7 @@ struct DriftPoint {
   int replicate = 0;     // its bed's replicate index
   int64_t run_id = 0;
   std::string key;
-  std::string state;                         // the run's state when the report was made
+  JobState state = JobState::kQueued;        // the run's state when the report was made
   std::optional<double> uz;                  // m/s now (done runs)
   std::optional<double> uz_previous;         // m/s in the previous report
   std::optional<double> difference;          // uz - uz_previous, when both exist

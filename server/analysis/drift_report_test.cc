@@ -25,7 +25,7 @@ TEST(DriftReportTest, ADerivedToleranceComesFromTheErrorsAndPointsAggregateTheir
     p.replicate = replicate;
     p.run_id = 10 + replicate;
     p.bed_id = 100 + replicate;  // the same beds both nights
-    p.state = "done";
+    p.state = JobState::kDone;
     p.uz = uz;
     p.uz_stderr = se;
     p.analysis = api::kAnalysisVersion;
@@ -131,7 +131,7 @@ TEST(DriftReportTest, RatesOfDifferentAnalysesAreNotCompared) {
   DriftPoint p;
   p.point = point;
   p.run_id = 2;
-  p.state = "done";
+  p.state = JobState::kDone;
   p.uz = 0.090;
   p.analysis = api::kAnalysisVersion;
   now.rows = {p};
@@ -164,7 +164,7 @@ TEST(DriftReportTest, PointMeansMixingAnalysesAreNotCompared) {
     p.point = point;
     p.replicate = replicate;
     p.run_id = 10 + replicate;
-    p.state = "done";
+    p.state = JobState::kDone;
     p.uz = uz;
     p.uz_stderr = 0.001;
     p.analysis = analysis;

@@ -132,7 +132,7 @@ Result<Plot> RunFigure(Store& store, int64_t run_id) {
   if (!run.ok()) return run.status();
   if (!run->trajectory || run->trajectory->t.empty()) {
     return Status::FailedPrecondition(
-        "id", "run " + std::to_string(run_id) + " has no trajectory yet (state " + run->summary.state + ")");
+        "id", "run " + std::to_string(run_id) + " has no trajectory yet (state " + ToString(run->summary.state) + ")");
   }
   return RunTrajectoryPlot(run_id, run->summary.point, *run->trajectory, run->result ? &run->result->result : nullptr);
 }

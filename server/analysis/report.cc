@@ -164,7 +164,7 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
                                                    : "";
     html += "<tr" + std::string(p.drifted ? " class=\"drifted\"" : "") + "><td><a href=\"#run-" +
             std::to_string(p.run_id) + "\">" + std::to_string(p.run_id) + "</a></td><td>" + Escape(p.point.dump()) +
-            "</td><td>" + Escape(p.state) + "</td><td>" + now + "</td><td>" + cell(p.uz_previous) + "</td><td>" +
+            "</td><td>" + Escape(ToString(p.state)) + "</td><td>" + now + "</td><td>" + cell(p.uz_previous) + "</td><td>" +
             cell(p.difference) + "</td><td>" + note + "</td></tr>\n";
   }
   html += "</table>\n";
@@ -186,9 +186,9 @@ std::string DriftHtml(const std::optional<DriftReport>& drift) {
     int failed = 0, unfinished = 0, inconclusive = 0;
     for (const DriftPoint& p : drift->rows) {
       if (p.point != point) continue;
-      if (InState(p.state, JobState::kFailed) || InState(p.state, JobState::kCancelled)) {
+      if (p.state == JobState::kFailed || p.state == JobState::kCancelled) {
         ++failed;
-      } else if (!InState(p.state, JobState::kDone)) {
+      } else if (p.state != JobState::kDone) {
         ++unfinished;
       } else {
         ++inconclusive;
@@ -460,7 +460,7 @@ std::string RenderReportHtml(const ReportInput& in) {
         "whole periods)</th><th>Δz/T (m/s, whole run)</th><th>window ends</th></tr>\n";
     for (const ReportRun& r : s.runs) {
       html += "<tr><td><a href=\"#run-" + std::to_string(r.run_id) + "\">" + std::to_string(r.run_id) +
-              "</a></td><td>" + Escape(r.label) + "</td><td>" + Escape(r.state) + "</td><td" +
+              "</a></td><td>" + Escape(r.label) + "</td><td>" + Escape(ToString(r.state)) + "</td><td" +
               (r.inconclusive_reason.empty() ? std::string(">") : " title=\"" + Escape(r.inconclusive_reason) + "\">") +
               (r.uz_text.empty() ? std::string("–") : Escape(r.uz_text)) + "</td><td>" +
               (r.dz_rate ? Num(*r.dz_rate, 2) : std::string("–")) + "</td><td>" + Escape(r.window_end) + "</td></tr>\n";

@@ -25,6 +25,7 @@
 
 #include "core/claims.h"
 #include "core/fit.h"
+#include "core/job_state.h"
 #include "core/snapshot.h"
 #include "core/status.h"
 #include "server/analysis/drift_report.h"
@@ -40,7 +41,7 @@ namespace sandswim {
 struct ReportRun {
   int64_t run_id = 0;
   std::string label;  // PointLabel
-  std::string state;
+  JobState state = JobState::kQueued;
   std::string uz_text;              // DescribeUz ("" without a result)
   std::optional<double> dz_rate;    // m/s, dz over the whole run
   std::string window_end;           // why the steady window ended

@@ -28,6 +28,7 @@
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
 #include "server/store/rounds.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -55,12 +56,8 @@ double SyntheticUz(double omega) {
 class ReportTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/sandswim-report-XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    auto store = Store::Open(dir_ + "/test.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(*store);
+    ASSERT_TRUE(store_);
+    dir_ = store_.dir().string();
     leases_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, LeaseQueueOptions{});
     clock_.Set(1.7e9);
     StoredCampaign campaign;
@@ -80,8 +77,6 @@ class ReportTest : public ::testing::Test {
   void TearDown() override {
     StopServer();
     leases_.reset();
-    store_.reset();
-    std::filesystem::remove_all(dir_);
   }
 
   bool inconclusive_ = false;  // RunAll's results: inconclusive (one period) instead
@@ -167,7 +162,7 @@ class ReportTest : public ::testing::Test {
 
   std::string dir_;
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"report", "test.db"};
   std::unique_ptr<LeaseQueue> leases_;
   int64_t campaign_run_ = 0;
   std::vector<int64_t> sweeps_;

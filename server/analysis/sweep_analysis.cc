@@ -37,7 +37,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         v.run_id = b->run_id;
         v.replicate = b->replicate;
         v.state = b->state;
-        if (InState(b->state, JobState::kDone) && b->result) {
+        if (b->state == JobState::kDone && b->result) {
           if (first_done == nullptr) first_done = b;
           v.conclusive = b->result->result.conclusive;
           v.uz = b->result->result.uz;
@@ -62,7 +62,7 @@ SweepAnalysis AnalyzeSweepResults(const SweepInfo& info, const std::vector<Resul
         a.samples.push_back(std::move(sample));
       }
     }
-    if (!InState(row.state, JobState::kDone) || !row.result) continue;
+    if (row.state != JobState::kDone || !row.result) continue;
     if (beds.size() > 1) continue;  // its sample is the aggregate
     const api::RunResult& r = row.result->result;
     SweepSample sample;
@@ -110,7 +110,7 @@ Result<SweepAnalysis> AnalyzeSweep(Store& store, int64_t sweep_id) {
   auto trajectories = store.SweepTrajectories(sweep_id);
   if (!trajectories.ok()) return trajectories.status();
   for (const ResultRow& row : *rows) {
-    if (!InState(row.state, JobState::kDone) || !row.result) continue;
+    if (row.state != JobState::kDone || !row.result) continue;
     auto trajectory = trajectories->find(row.run_id);
     if (trajectory != trajectories->end() && !trajectory->second.t.empty())
       a.runs.push_back({row.run_id, row.point, std::move(trajectory->second), row.replicate});

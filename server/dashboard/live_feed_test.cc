@@ -14,27 +14,16 @@
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
 #include "server/store/rounds.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
 
 class LiveFeedTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char pattern[] = "/tmp/sandswim-live-XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    auto store = Store::Open(dir_ + "/test.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(*store);
-  }
-  void TearDown() override {
-    store_.reset();
-    std::filesystem::remove_all(dir_);
-  }
-  std::string dir_;
+  void SetUp() override { ASSERT_TRUE(store_); }
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"live", "test.db"};
 };
 
 // However many pages ask at once, one snapshot is built per tick, and all get the same one.

@@ -16,6 +16,7 @@
 #include "server/http/loopback_server_test_util.h"
 #include "server/jobs/lease_queue.h"
 #include "server/store/store.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -44,12 +45,8 @@ json Mine(double amplitude = 0.03) {
 class CampaignRoutesTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/sandswim-campaign-routes-XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    auto store = Store::Open(dir_ + "/test.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(*store);
+    ASSERT_TRUE(store_);
+    dir_ = store_.dir().string();
     clock_.Set(1.8e9);
     leases_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, LeaseQueueOptions{});
     deps_.store = store_.get();
@@ -65,8 +62,6 @@ class CampaignRoutesTest : public ::testing::Test {
   void TearDown() override {
     server_.reset();
     leases_.reset();
-    store_.reset();
-    std::filesystem::remove_all(dir_);
   }
 
   httplib::Result Put(const std::string& path, const std::string& body) {
@@ -90,7 +85,7 @@ class CampaignRoutesTest : public ::testing::Test {
 
   std::string dir_;
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"campaign-routes", "test.db"};
   std::unique_ptr<LeaseQueue> leases_;
   Deps deps_;
   std::unique_ptr<LoopbackServer> server_;

@@ -25,6 +25,7 @@
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 #include "core/aggregate.h"
+#include "core/job_state.h"
 #include "core/result_table.h"
 #include "core/snapshot.h"
 #include "core/sweep.h"
@@ -102,12 +103,7 @@ std::string MetricsText(const Metrics& m, HttpCounters& http) {
   std::ostringstream out;
   auto gauge_by_state = [&out](const char* name, const char* help, const RunCounts& c) {
     out << "# HELP " << name << " " << help << "\n# TYPE " << name << " gauge\n";
-    const std::pair<const char*, int64_t> states[] = {{"queued", c.queued},
-                                                      {"running", c.running},
-                                                      {"done", c.done},
-                                                      {"failed", c.failed},
-                                                      {"cancelled", c.cancelled}};
-    for (const auto& [state, n] : states) out << name << "{state=\"" << state << "\"} " << n << "\n";
+    for (JobState s : kJobStates) out << name << "{state=\"" << JobStateName(s) << "\"} " << c[s] << "\n";
   };
   auto counter = [&out](const char* name, const char* help, int64_t v) {
     out << "# HELP " << name << " " << help << "\n# TYPE " << name << " counter\n" << name << " " << v << "\n";

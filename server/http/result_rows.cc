@@ -81,7 +81,7 @@ ReplicateValue ReplicateOf(const ResultRow& row) {
   v.replicate = row.replicate;
   v.bed_id = row.bed_id;
   v.state = row.state;
-  if (InState(row.state, JobState::kDone) && row.result) {  // a requeued run's old result is not averaged
+  if (row.state == JobState::kDone && row.result) {  // a requeued run's old result is not averaged
     const api::RunResult& r = row.result->result;
     v.conclusive = r.conclusive;
     v.uz = r.uz;

@@ -29,6 +29,7 @@
 #include "server/http/loopback_server_test_util.h"
 #include "server/http/result_rows.h"
 #include "server/dashboard/live_feed.h"
+#include "server/store/temp_store_test_util.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim {
@@ -46,13 +47,10 @@ class RoutesTest : public ::testing::Test {
  protected:
   void SetUp() override { Start(""); }
 
+  // The daemon (re)started on the test's store file.
   void Start(const std::string& token) {
-    char pattern[] = "/tmp/sandswim-routes-XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    auto store = Store::Open(dir_ + "/test.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(*store);
+    ASSERT_TRUE(store_.Reopen());
+    dir_ = store_.dir().string();
     leases_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, LeaseQueueOptions{});
     deps_.store = store_.get();
     deps_.leases = leases_.get();
@@ -77,7 +75,6 @@ class RoutesTest : public ::testing::Test {
     client_ = nullptr;
     leases_.reset();
     store_.reset();
-    std::filesystem::remove_all(dir_);
   }
 
   httplib::Result Post(const std::string& path, const std::string& body, httplib::Headers headers = {}) {
@@ -106,7 +103,7 @@ class RoutesTest : public ::testing::Test {
 
   std::string dir_;
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"routes", "test.db"};
   std::unique_ptr<LeaseQueue> leases_;
   std::unique_ptr<LiveFeed> live_;
   Deps deps_;
@@ -164,6 +161,9 @@ TEST_F(RoutesTest, ListRunsPagesWithCursorRoundTrip) {
   auto bad = client_->Get("/api/v1/runs?limit=abc");
   EXPECT_EQ(bad->status, 400);
   EXPECT_EQ(Body(bad)["field"], "limit");
+  auto no_state = client_->Get("/api/v1/runs?state=bogus");
+  EXPECT_EQ(no_state->status, 400);
+  EXPECT_EQ(Body(no_state)["field"], "state");
 }
 
 struct BadInput {

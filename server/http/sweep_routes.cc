@@ -126,7 +126,13 @@ void ListRuns(Call& c) {
   auto sweep = QueryInt(c, "sweep", 1, INT64_MAX);
   if (!sweep.ok()) return Fail(c, sweep.status());
   filter.sweep_id = *sweep;
-  if (c.req.has_param("state")) filter.state = c.req.get_param_value("state");
+  if (c.req.has_param("state")) {
+    const std::string text = c.req.get_param_value("state");
+    filter.state = ParseJobState(text);
+    if (!filter.state) {
+      return Fail(c, Status::InvalidArgument("state", "'" + text + "' is not one of " + std::string(JobStateNames())));
+    }
+  }
   auto runs = c.deps.store->ListRuns(filter);
   if (!runs.ok()) return Fail(c, runs.status());
   json reply = *runs;

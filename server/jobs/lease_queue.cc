@@ -61,11 +61,11 @@ Status CheckLeaseRequest(const api::LeaseRequest& request, const std::string& fi
 
 // kConflict unless `token` is the current lease of a running job.
 Status RequireCurrent(const JobRow& job, const std::string& token, api::JobKind kind) {
-  if (job.state != "running" || job.lease_token != token) {
+  if (job.state != JobState::kRunning || job.lease_token != token) {
     return Status::Conflict("this lease on " + std::string(Noun(kind)) +
                             " is no longer held (it expired and the job was re-queued or "
                             "leased again); the job is " +
-                            job.state);
+                            ToString(job.state));
   }
   return Status::Ok();
 }
@@ -84,8 +84,8 @@ Result<LeaseRow> CurrentUploadLease(Transaction& t, const std::string& token, ap
 }
 
 // Moves a running job to queued (retry) or failed, recording why. Returns the new state.
-Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
-                                const std::string& kind_text, const std::string& message, bool retryable, double now) {
+Result<JobState> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
+                             const std::string& kind_text, const std::string& message, bool retryable, double now) {
   bool retry = retryable && job.attempts < job.max_attempts;
   // A lease the daemon reclaimed says nothing of the run itself (its worker vanished).
   const bool lost = kind_text == "lease_expired" || kind_text == "pilot_gone";
@@ -99,10 +99,10 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
       SANDSWIM_RETURN_IF_ERROR(jobs::MarkReleased(t, kind, id, /*wanted=*/false, now));
       SANDSWIM_RETURN_IF_ERROR(t.Event(now, "run.cancelled", Subject(kind, id),
                                        {{"kind", kind_text}, {"message", message + "; its sweeps were cancelled"}}));
-      return std::string("cancelled");
+      return JobState::kCancelled;
     }
   }
-  std::string state = retry ? "queued" : "failed";
+  const JobState state = retry ? JobState::kQueued : JobState::kFailed;
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkRetriedOrFailed(t, kind, id, state, kind_text, message, now));
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (retry ? ".requeued" : ".failed"), Subject(kind, id),
                                    {{"kind", kind_text}, {"message", message}, {"attempts", job.attempts}}));
@@ -118,8 +118,8 @@ Result<std::string> RetryOrFail(Transaction& t, api::JobKind kind, int64_t id, c
 // hand-backs: see LeaseQueue::HandBackLeasesOf): queued again with the attempt uncounted, or
 // cancelled when no live sweep wants the run -- unless it was handed back max_attempts times
 // before: then it counts ("released"). The lease closes as "released". Returns the job's state.
-Result<std::string> HandBackIn(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
-                               const std::string& token, const std::string& reason, double now) {
+Result<JobState> HandBackIn(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
+                            const std::string& token, const std::string& reason, double now) {
   Result<int64_t> released_before = jobs::CountRelease(t, kind, id);
   if (!released_before.ok()) return released_before.status();
   SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, "released"));
@@ -143,7 +143,7 @@ Result<std::string> HandBackIn(Transaction& t, api::JobKind kind, int64_t id, co
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkReleased(t, kind, id, wanted, now));
   SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + (wanted ? ".released" : ".cancelled"),
                                    Subject(kind, id), {{"reason", reason}, {"attempts", job.attempts - 1}}));
-  return std::string(wanted ? "queued" : "cancelled");
+  return wanted ? JobState::kQueued : JobState::kCancelled;
 }
 
 // The job leased together with the completion of `token` (leases.next_token), put back in the
@@ -189,7 +189,7 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
     if (!rows.ok()) return rows.status();
     for (const jobs::LostLease& e : *rows) {
       if (slurm_job.empty() && left_by_stopped_daemon && left_by_stopped_daemon(e.job.lease_token)) {
-        Result<std::string> state =
+        Result<JobState> state =
             HandBackIn(t, kind, e.id, e.job, e.job.lease_token,
                        "its worker " + e.worker + " was a local worker of the daemon that stopped, and did not come back",
                        now);
@@ -197,7 +197,7 @@ Result<int64_t> ReclaimIn(Transaction& t, double now, int default_max, const std
         ++handed_back;
         continue;
       }
-      Result<std::string> state =
+      Result<JobState> state =
           slurm_job.empty()
               ? RetryOrFail(t, kind, e.id, e.job, "lease_expired",
                             "worker " + e.worker + " stopped heartbeating (lease expired)", /*retryable=*/true, now)
@@ -482,26 +482,26 @@ Result<api::CompletionReply> LeaseQueue::CompleteIn(Transaction& t, const std::s
     return Status::InvalidArgument("failure", "a failed completion says why");
   }
 
-  Result<std::string> state =
+  Result<JobState> state =
       c.ok ? (kind == api::JobKind::kRun ? CompleteRun(t, id, c, now, snapshots) : CompleteBed(t, id, c, now))
            : CompleteFailure(t, kind, id, *job, *c.failure, now);
   if (!state.ok()) return state.status();
   if (kind == api::JobKind::kRun && !c.log_tail.empty()) {
     SANDSWIM_RETURN_IF_ERROR(jobs::PutLogTail(t, id, c.log_tail));
   }
-  if (*state == "done") {
+  if (*state == JobState::kDone) {
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, std::string(Noun(kind)) + ".done", Subject(kind, id),
                                      {{"host", c.execution.host},
                                       {"ranks", c.execution.ranks},
                                       {"wall_s", c.execution.wall_s}}));
   }
-  SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, *state));
+  SANDSWIM_RETURN_IF_ERROR(jobs::CloseLease(t, token, now, ToString(*state)));
   SANDSWIM_RETURN_IF_ERROR(t.Count("completions"));
-  return api::CompletionReply{*state};
+  return api::CompletionReply{ToString(*state)};
 }
 
-Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
-                                            const std::map<int, HashedFile>& snapshots) {
+Result<JobState> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
+                                         const std::map<int, HashedFile>& snapshots) {
   const api::RunResult& r = *c.result;
   SANDSWIM_RETURN_IF_ERROR(jobs::PutResult(t, id, r, c.execution, now));
   if (c.trajectory) SANDSWIM_RETURN_IF_ERROR(jobs::PutTrajectory(t, id, *c.trajectory));
@@ -530,10 +530,10 @@ Result<std::string> LeaseQueue::CompleteRun(Transaction& t, int64_t id, const ap
     RemoveSnapshotFiles(options_.data_dir, id, kept);
     ForgetWrittenSnapshots(id);
   }
-  return std::string("done");
+  return JobState::kDone;
 }
 
-Result<std::string> LeaseQueue::CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now) {
+Result<JobState> LeaseQueue::CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now) {
   const api::BedResult& b = *c.bed_result;
   Result<jobs::BedRow> bed = jobs::LoadBed(t, id);
   if (!bed.ok()) return bed.status();
@@ -544,21 +544,21 @@ Result<std::string> LeaseQueue::CompleteBed(Transaction& t, int64_t id, const ap
     return Status::FailedPrecondition("bed_result.sha256", "differs from the uploaded restart file's checksum");
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkBedDone(t, id, b, c.execution.ranks, now));
-  return std::string("done");
+  return JobState::kDone;
 }
 
-Result<std::string> LeaseQueue::CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
-                                                const api::Failure& f, double now) {
+Result<JobState> LeaseQueue::CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const JobRow& job,
+                                             const api::Failure& f, double now) {
   if (f.kind != "cancelled") {
     // A failure that repeats by nature is not tried again (core/api.h AttemptsFor).
     return RetryOrFail(t, kind, id, job, f.kind, f.message,
                        /*retryable=*/job.attempts < api::AttemptsFor(f.kind, job.max_attempts), now);
   }
   // A bed is never cancelled (other sweeps may want it): it goes back to the queue.
-  const std::string to = kind == api::JobKind::kRun ? "cancelled" : "queued";
+  const JobState to = kind == api::JobKind::kRun ? JobState::kCancelled : JobState::kQueued;
   SANDSWIM_RETURN_IF_ERROR(jobs::MarkCancelledOrQueued(t, kind, id, to, f.kind, f.message, now));
   SANDSWIM_RETURN_IF_ERROR(
-      t.Event(now, std::string(Noun(kind)) + "." + to, Subject(kind, id), {{"message", f.message}}));
+      t.Event(now, std::string(Noun(kind)) + "." + ToString(to), Subject(kind, id), {{"message", f.message}}));
   return to;
 }
 
@@ -575,10 +575,10 @@ Result<api::CompletionReply> LeaseQueue::Release(const std::string& token, const
   Result<JobRow> job = jobs::LoadJob(t, kind, id, options_.max_attempts);
   if (!job.ok()) return job.status();
   SANDSWIM_RETURN_IF_ERROR(RequireCurrent(*job, token, kind));
-  Result<std::string> state = HandBackIn(t, kind, id, *job, token, reason, now);
+  Result<JobState> state = HandBackIn(t, kind, id, *job, token, reason, now);
   if (!state.ok()) return state.status();
   SANDSWIM_RETURN_IF_ERROR(t.Commit());
-  return api::CompletionReply{*state};
+  return api::CompletionReply{ToString(*state)};
 }
 
 Result<std::vector<std::string>> LeaseQueue::RunningSlurmJobs() {
@@ -647,7 +647,7 @@ Result<int64_t> LeaseQueue::HandBackLeasesOf(const std::string& worker, const st
     if (!running.ok()) return running.status();
     for (const jobs::LostLease& e : *running) {
       if (e.worker != worker) continue;
-      Result<std::string> state = HandBackIn(*begun, kind, e.id, e.job, e.job.lease_token, reason, now);
+      Result<JobState> state = HandBackIn(*begun, kind, e.id, e.job, e.job.lease_token, reason, now);
       if (!state.ok()) return state.status();
       ++handed;
     }
@@ -803,9 +803,9 @@ Result<BedFile> LeaseQueue::GetBedRestart(int64_t bed_id) {
   if (!t.ok()) return t.status();
   Result<jobs::BedRow> bed = jobs::LoadBed(*t, bed_id);
   if (!bed.ok()) return bed.status();
-  if (bed->state != "done" || !bed->path) {
+  if (bed->state != JobState::kDone || !bed->path) {
     return Status::FailedPrecondition("bed",
-                                      "bed " + std::to_string(bed_id) + " is not prepared yet (" + bed->state + ")");
+                                      "bed " + std::to_string(bed_id) + " is not prepared yet (" + ToString(bed->state) + ")");
   }
   return BedFile{bed_id, bed->key, *bed->path, bed->sha256};
 }

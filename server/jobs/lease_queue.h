@@ -231,11 +231,11 @@ class LeaseQueue {
   };
   static Result<RunDeck> MakeRunDeck(const jobs::QueuedRun& run);
   // CompleteIn's outcomes: the state the job ends in.
-  Result<std::string> CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
-                                  const std::map<int, HashedFile>& snapshots);
-  Result<std::string> CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now);
-  Result<std::string> CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const jobs::JobRow& job,
-                                      const api::Failure& f, double now);
+  Result<JobState> CompleteRun(Transaction& t, int64_t id, const api::Completion& c, double now,
+                               const std::map<int, HashedFile>& snapshots);
+  Result<JobState> CompleteBed(Transaction& t, int64_t id, const api::Completion& c, double now);
+  Result<JobState> CompleteFailure(Transaction& t, api::JobKind kind, int64_t id, const jobs::JobRow& job,
+                                   const api::Failure& f, double now);
 
   Store* store_;
   Clock* clock_;

@@ -24,6 +24,7 @@
 #include "platform/files.h"
 #include "server/store/cost_model.h"
 #include "server/store/store.h"
+#include "server/store/temp_store_test_util.h"
 #include "server/jobs/submission.h"
 #include "tests/fixture_file.h"
 
@@ -62,23 +63,18 @@ api::Completion Failed(const std::string& kind, const std::string& message = "it
 
 class LeaseQueueTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::random_device rd;
-    dir_ = fs::temp_directory_path() / ("sandswim-lq-" + std::to_string(rd()));
-    fs::create_directories(dir_);
+  void SetUp() override { OpenStore(); }
+  void TearDown() override { queue_.reset(); }
+  // A new, empty store (and directory) and a new queue with options_.
+  void Renew() {
+    queue_.reset();
+    ASSERT_TRUE(store_.Renew());
     OpenStore();
   }
-  void TearDown() override {
-    queue_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
-  }
+  // A daemon (re)start: the store's file opened again, a new queue with options_.
   void OpenStore() {
     queue_.reset();
-    store_.reset();
-    auto s = Store::Open((dir_ / "db" / "sandswim.db").string());
-    ASSERT_TRUE(s.ok()) << s.status().ToString();
-    store_ = std::move(s).value();
+    ASSERT_TRUE(store_.Reopen());
     queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_, options_);
   }
   int64_t SubmitJson(const nlohmann::json& body, bool force = false) {
@@ -100,7 +96,7 @@ class LeaseQueueTest : public ::testing::Test {
     api::LeaseGrant g = MustLease("bed-worker");
     ASSERT_EQ(g.kind, api::JobKind::kBed);
     const std::string bytes = "restart bytes";
-    ASSERT_TRUE(queue_->PutBedRestart(g.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    ASSERT_TRUE(queue_->PutBedRestart(g.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
     api::Completion c;
     c.ok = true;
     c.bed_result = api::BedResult{};
@@ -112,14 +108,13 @@ class LeaseQueueTest : public ::testing::Test {
   }
   std::string RunState(int64_t id) {
     auto r = store_->GetRun(id);
-    return r.ok() ? r->summary.state : r.status().ToString();
+    return r.ok() ? ToString(r->summary.state) : r.status().ToString();
   }
   int64_t Rows(const std::string& table) { return store_->db().CountRows(table).value(); }
 
-  fs::path dir_;
   FakeClock clock_;
   LeaseQueueOptions options_{/*ttl_s=*/60, /*max_attempts=*/3, /*wall_budget_s=*/0};
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"lq", "db/sandswim.db"};
   std::unique_ptr<LeaseQueue> queue_;
 };
 
@@ -145,9 +140,9 @@ TEST_F(LeaseQueueTest, BedIsLeasedBeforeRunsAndRunsOnlyOnceTheBedIsDone) {
   c.bed_result = api::BedResult{};
   EXPECT_EQ(queue_->Complete(bed.token, c).status().code(), StatusCode::kFailedPrecondition);
   const std::string bytes = "restart";
-  EXPECT_EQ(queue_->PutBedRestart(bed.token, bytes, Sha256Hex("other"), dir_.string()).code(),
+  EXPECT_EQ(queue_->PutBedRestart(bed.token, bytes, Sha256Hex("other"), store_.dir().string()).code(),
             StatusCode::kInvalidArgument);
-  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
   ASSERT_EQ(queue_->Complete(bed.token, c)->state, "done");
   auto file = queue_->GetBedRestart(bed.id);
   ASSERT_TRUE(file.ok()) << file.status().ToString();
@@ -188,7 +183,7 @@ TEST_F(LeaseQueueTest, GrantsSayWhenNothingElseIsLeasable) {
   EXPECT_TRUE(nlohmann::json(bed2).get<api::LeaseGrant>().queue_dry);
   for (const api::LeaseGrant& bed : {bed1, bed2}) {
     const std::string bytes = "restart " + std::to_string(bed.id);
-    ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
     api::Completion c;
     c.ok = true;
     c.bed_result = api::BedResult{};
@@ -228,7 +223,7 @@ TEST_F(LeaseQueueTest, GrantsCarryAWallBudgetFromTheCostModel) {
   EXPECT_DOUBLE_EQ(bed.wall_budget_s,
                    std::ceil(kWallBudgetMultiple * smoke_grains * kDefaultBedSecondsPerGrain + kWallBudgetMarginS));
   const std::string bytes = "restart";
-  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
   api::Completion c;
   c.ok = true;
   c.bed_result = api::BedResult{};
@@ -255,7 +250,7 @@ TEST_F(LeaseQueueTest, GrantsCarryTheDrivesFactsTheirDeckStates) {
   EXPECT_GT(bed.dt_s, 0.0);
   EXPECT_NE(bed.deck.find("timestep        " + FormatNumber(bed.dt_s) + "\n"), std::string::npos) << bed.deck;
   const std::string bytes = "restart bytes";
-  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
   api::Completion done;
   done.ok = true;
   done.bed_result = api::BedResult{};
@@ -349,7 +344,7 @@ TEST_F(LeaseQueueTest, ExpiredLeaseIsRequeuedWithItsAttemptCountedThenFails) {
   clock_.Advance(61);
   EXPECT_EQ(*queue_->ExpireLeases(), 1);
   auto run = store_->GetRun(g.id);
-  EXPECT_EQ(run->summary.state, "failed");
+  EXPECT_EQ(run->summary.state, JobState::kFailed);
   EXPECT_EQ(run->summary.attempts, 3);
   ASSERT_TRUE(run->summary.last_error.has_value());
   EXPECT_EQ(run->summary.last_error->kind, "lease_expired");
@@ -369,7 +364,7 @@ TEST_F(LeaseQueueTest, FailuresRetryUntilMaxAttemptsAndKeepTheLastReason) {
     EXPECT_EQ(r->state, i < 3 ? "queued" : "failed");
   }
   auto run = store_->GetRun(id);
-  EXPECT_EQ(run->summary.state, "failed");
+  EXPECT_EQ(run->summary.state, JobState::kFailed);
   EXPECT_EQ(run->summary.last_error->kind, "signal");
   EXPECT_EQ(run->summary.last_error->message, "attempt 3");
 }
@@ -378,8 +373,7 @@ TEST_F(LeaseQueueTest, FailuresRetryUntilMaxAttemptsAndKeepTheLastReason) {
 TEST_F(LeaseQueueTest, FailuresThatRepeatByNatureAreNotRetried) {
   for (const char* kind : {"deck_error", "lost_atoms", "bad_output", "not_equilibrated", "bad_lease"}) {
     SCOPED_TRACE(kind);
-    TearDown();  // a fresh store and queue for each kind
-    SetUp();
+    Renew();  // a fresh store and queue for each kind
     SubmitJson(OmegaSignSweep());
     PrepareBed();
     api::LeaseGrant g = MustLease();
@@ -409,7 +403,7 @@ TEST_F(LeaseQueueTest, CompletionIsIdempotentPerToken) {
   EXPECT_EQ(Rows("results"), 1);
   EXPECT_EQ(Rows("events"), events);
   auto run = store_->GetRun(g.id);
-  EXPECT_EQ(run->summary.state, "done");
+  EXPECT_EQ(run->summary.state, JobState::kDone);
   EXPECT_EQ(run->result->result.uz, -0.01);
   ASSERT_TRUE(run->trajectory.has_value());
   EXPECT_EQ(run->trajectory->z.size(), 2u);
@@ -455,7 +449,7 @@ TEST_F(LeaseQueueTest, CompletionCanLeaseTheNextJob) {
   SubmitJson(OmegaSignSweep());
   api::LeaseGrant bed = MustLease("w");
   const std::string bytes = "restart bytes";
-  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_TRUE(queue_->PutBedRestart(bed.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
   api::Completion bed_done;
   bed_done.ok = true;
   bed_done.bed_result = api::BedResult{};
@@ -509,7 +503,7 @@ TEST_F(LeaseQueueTest, RepeatedCompletionTakesBackTheGrantItsLostReplyCarried) {
   EXPECT_EQ(queue_->Heartbeat(unreceived.token, {}).status().code(), StatusCode::kConflict);
   EXPECT_EQ(Rows("results"), 1);
   auto run = store_->GetRun(unreceived.id);
-  EXPECT_EQ(run->summary.state, "running");
+  EXPECT_EQ(run->summary.state, JobState::kRunning);
   EXPECT_EQ(run->summary.attempts, 1);
   ASSERT_EQ(queue_->Complete(again->next->token, OkRun())->state, "done");
   // A plain repeated completion (no next) still changes nothing.
@@ -567,7 +561,7 @@ TEST_F(LeaseQueueTest, LeasesOfAGoneSlurmJobAreReclaimedBeforeTheyExpire) {
   ASSERT_TRUE(n.ok()) << n.status().ToString();
   EXPECT_EQ(*n, 1);
   auto run = store_->GetRun((*a)->id);
-  EXPECT_EQ(run->summary.state, "queued");
+  EXPECT_EQ(run->summary.state, JobState::kQueued);
   ASSERT_TRUE(run->summary.last_error.has_value());
   EXPECT_EQ(run->summary.last_error->kind, "pilot_gone");
   EXPECT_THAT(run->summary.last_error->message, ::testing::HasSubstr("4242"));
@@ -705,7 +699,7 @@ TEST_F(LeaseQueueTest, AnExpiredLastAttemptOfACancelledSweepIsCancelledNotFailed
   clock_.Advance(61);
   EXPECT_EQ(*queue_->ExpireLeases(), 2);
   auto run = store_->GetRun(g.id);
-  EXPECT_EQ(run->summary.state, "cancelled");
+  EXPECT_EQ(run->summary.state, JobState::kCancelled);
   ASSERT_TRUE(run->summary.last_error.has_value());
   EXPECT_EQ(run->summary.last_error->kind, "cancelled");
   EXPECT_EQ(RunState(other.id), "cancelled");
@@ -730,7 +724,7 @@ TEST_F(LeaseQueueTest, AnUnreceivedGrantOfACancelledSweepIsCancelledNotQueuedAga
   EXPECT_EQ(again->state, "duplicate");
   EXPECT_FALSE(again->next.has_value());
   auto run = store_->GetRun(unreceived.id);
-  EXPECT_EQ(run->summary.state, "cancelled");
+  EXPECT_EQ(run->summary.state, JobState::kCancelled);
   EXPECT_EQ(run->summary.attempts, 0);  // the unreceived grant did not count
   EXPECT_EQ(queue_->Heartbeat(unreceived.token, {}).status().code(), StatusCode::kConflict);
   EXPECT_FALSE(queue_->Lease({"w", "h", 1})->has_value());
@@ -744,8 +738,7 @@ TEST_F(LeaseQueueTest, AnUnreceivedGrantOfACancelledSweepIsCancelledNotQueuedAga
 TEST_F(LeaseQueueTest, TheEtaFollowsTheEnginesCurrentShare) {
   for (const int slow_by : {1, 3}) {
     SCOPED_TRACE("slowed by " + std::to_string(slow_by));
-    TearDown();
-    SetUp();
+    Renew();
     const int64_t sweep = SubmitJson(OmegaSignSweep());
     PrepareBed();
     std::vector<api::LeaseGrant> runs = {MustLease("w1"), MustLease("w2")};
@@ -969,7 +962,7 @@ TEST_F(LeaseQueueTest, RunWhoseDeckNoLongerMatchesItsKeyFails) {
   EXPECT_NE(g.id, 1);
   auto r1 = store_->GetRun(1);
   ASSERT_TRUE(r1.ok());
-  EXPECT_EQ(r1->summary.state, "failed");
+  EXPECT_EQ(r1->summary.state, JobState::kFailed);
   ASSERT_TRUE(r1->summary.last_error.has_value());
   EXPECT_EQ(r1->summary.last_error->kind, "deck_error");
 }
@@ -1007,7 +1000,7 @@ std::string SnapshotDump(int64_t step) {
 // lists them; a completion listing one not uploaded (or with other bytes) is refused; what no
 // completion recorded is removed.
 TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
-  options_.data_dir = (dir_ / "data").string();
+  options_.data_dir = (store_.dir() / "data").string();
   OpenStore();
   nlohmann::json sweep = OmegaSignSweep();
   sweep["axes"][0]["values"] = {-80};
@@ -1072,7 +1065,7 @@ TEST_F(LeaseQueueTest, SnapshotsAreUploadedThenRecordedByTheCompletion) {
 // An upload received into a file under DATA/uploads is renamed into place: the stored restart and
 // snapshot are that very file (same inode), and no second copy is left behind.
 TEST_F(LeaseQueueTest, UploadsAreRenamedIntoPlaceNotCopied) {
-  options_.data_dir = (dir_ / "data").string();
+  options_.data_dir = (store_.dir() / "data").string();
   OpenStore();
   const DataDir data(options_.data_dir);
   nlohmann::json sweep = OmegaSignSweep();
@@ -1118,7 +1111,7 @@ TEST_F(LeaseQueueTest, UploadsAreRenamedIntoPlaceNotCopied) {
 // the daemon did not see written (it started again since) is hashed before the completion's
 // transaction, and a replaced one is still caught.
 TEST_F(LeaseQueueTest, ASnapshotIsHashedWhenUploadedAndTheCompletionComparesWithThat) {
-  options_.data_dir = (dir_ / "data").string();
+  options_.data_dir = (store_.dir() / "data").string();
   OpenStore();
   const DataDir data(options_.data_dir);
   nlohmann::json sweep = OmegaSignSweep();
@@ -1212,10 +1205,10 @@ TEST_F(LeaseQueueTest, LeasesOfAStoppedDaemonsLocalWorkerAreHandedBackNotCounted
   clock_.Advance(options_.ttl_s + 1);
   EXPECT_EQ(*queue_->ExpireLeases(), 2);
   auto handed = store_->GetRun(local.id);
-  EXPECT_EQ(handed->summary.state, "queued");
+  EXPECT_EQ(handed->summary.state, JobState::kQueued);
   EXPECT_EQ(handed->summary.attempts, 0) << "the daemon stopping was not the run's fault";
   auto expired = store_->GetRun(remote.id);
-  EXPECT_EQ(expired->summary.state, "queued");
+  EXPECT_EQ(expired->summary.state, JobState::kQueued);
   EXPECT_EQ(expired->summary.attempts, 1);
   ASSERT_TRUE(expired->summary.last_error.has_value());
   EXPECT_EQ(expired->summary.last_error->kind, "lease_expired");

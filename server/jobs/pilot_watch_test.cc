@@ -11,6 +11,7 @@
 #include "platform/clock.h"
 #include "server/store/store.h"
 #include "server/jobs/submission.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -57,9 +58,7 @@ class FakeSlurm : public slurm::SlurmCommands {
 class PilotWatchTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::random_device rd;
-    dir_ = fs::temp_directory_path() / ("sandswim-pw-" + std::to_string(rd()));
-    store_ = std::move(Store::Open((dir_ / "sandswim.db").string())).value();
+    ASSERT_TRUE(store_);
     queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_);
     auto req = ParseSubmitRequest(nlohmann::json::parse(R"({"name": "pw", "scale": "smoke",
       "base": {"mode": "oscillatory", "A": 0.03, "f": 3, "Omega": -80, "duration_s": 0.3},
@@ -68,7 +67,7 @@ class PilotWatchTest : public ::testing::Test {
     // The bed, done.
     auto bed = queue_->Lease({"w", "h", 1});
     ASSERT_TRUE(bed.ok() && bed->has_value());
-    ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, "r", Sha256Hex("r"), dir_.string()).ok());
+    ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, "r", Sha256Hex("r"), store_.dir().string()).ok());
     api::Completion c;
     c.ok = true;
     c.bed_result = api::BedResult{};
@@ -76,14 +75,11 @@ class PilotWatchTest : public ::testing::Test {
   }
   void TearDown() override {
     queue_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
   }
-  std::string State(int64_t run) { return store_->GetRun(run)->summary.state; }
+  std::string State(int64_t run) { return ToString(store_->GetRun(run)->summary.state); }
 
-  fs::path dir_;
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"pw"};
   std::unique_ptr<LeaseQueue> queue_;
   FakeSlurm slurm_;
 };

@@ -213,7 +213,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   if (!look.ok()) return look.status();
   int cancelled = 0;
   for (const ClaimSweep& s : look->input.sweeps)
-    for (const ClaimRun& r : s.runs) cancelled += r.state == "cancelled";
+    for (const ClaimRun& r : s.runs) cancelled += r.state == JobState::kCancelled;
 
   // The ledger: each attempt closed since the last look is charged once, at the rates its round
   // was planned at; the budget left is the budget less every charge so far (a replaced or failed

@@ -24,6 +24,7 @@
 #include "server/jobs/lease_queue.h"
 #include "server/store/campaigns.h"
 #include "server/store/rounds.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -52,25 +53,16 @@ json Adaptive(double budget_core_h, int max_rounds = 3) {
 
 class RoundsTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::string pattern = (fs::temp_directory_path() / "sandswim-rounds-XXXXXX").string();
-    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-    Restart();
-  }
+  void SetUp() override { Restart(); }
   void TearDown() override {
+    driver_.reset();
     queue_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
   }
   // A daemon (re)start: a reopened Store on the same file, a new queue and driver.
   void Restart() {
     driver_.reset();
     queue_.reset();
-    store_.reset();
-    auto s = Store::Open((dir_ / "sandswim.db").string());
-    ASSERT_TRUE(s.ok()) << s.status().ToString();
-    store_ = std::move(s).value();
+    ASSERT_TRUE(store_.Reopen());
     queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_);
     driver_ = NewDriver();
   }
@@ -95,7 +87,7 @@ class RoundsTest : public ::testing::Test {
       c.execution.engine_version = kEngine;
       if (grant.kind == api::JobKind::kBed) {
         const std::string bytes = "restart " + grant.key;
-        EXPECT_TRUE(queue_->PutBedRestart(grant.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+        EXPECT_TRUE(queue_->PutBedRestart(grant.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
         c.bed_result = api::BedResult{};
         c.bed_result->grains = 3700;
         c.bed_result->bed_height = 0.22;
@@ -144,7 +136,7 @@ class RoundsTest : public ::testing::Test {
     ASSERT_TRUE(bed.ok() && bed->has_value());
     ASSERT_EQ((*bed)->kind, api::JobKind::kBed);
     const std::string bytes = "restart " + (*bed)->key;
-    ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+    ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
     api::Completion c;
     c.ok = true;
     c.execution.host = "host";
@@ -196,11 +188,10 @@ class RoundsTest : public ::testing::Test {
     return h.ok() ? *h : -1;
   }
 
-  fs::path dir_;
   FakeClock clock_;
   std::function<bool(const Point&)> fails_;  // runs at these points fail for good
   double fail_heartbeat_s_ = -1;             // after a heartbeat at this simulated time (< 0: none)
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"rounds"};
   std::unique_ptr<LeaseQueue> queue_;
   std::unique_ptr<RoundDriver> driver_;
 };
@@ -327,10 +318,10 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) 
   ASSERT_TRUE(look.ok());
   const ClaimRun* done = nullptr;
   const ClaimRun* failed = nullptr;
-  for (const ClaimRun& r : look->input.sweeps.at(0).runs) (r.state == "done" ? done : failed) = &r;
+  for (const ClaimRun& r : look->input.sweeps.at(0).runs) (r.state == JobState::kDone ? done : failed) = &r;
   ASSERT_NE(done, nullptr);
   ASSERT_NE(failed, nullptr);
-  ASSERT_EQ(failed->state, "failed");
+  ASSERT_EQ(failed->state, JobState::kFailed);
   // At the rates round 1 was planned at (the bed just prepared has since given the model a
   // measured bed rate: not what round 1 was priced at).
   auto now = rounds::AdaptiveCostNow(*store_, "smoke", clock_.Now());
@@ -349,7 +340,9 @@ TEST_F(RoundsTest, TheLedgerChargesEachEndingOnceAndAFailedRunTheTimeItReached) 
   EXPECT_NEAR(*rows[0].core_h_spent, expected, 1e-9 * expected);
   EXPECT_NEAR(Charged(id), expected, 1e-9 * expected);
   // The next round, if any, was planned within what the ledger left.
-  if (rows.size() > 1) EXPECT_LE(rows[1].core_h_planned, budget - Charged(id) + 1e-12);
+  if (rows.size() > 1) {
+    EXPECT_LE(rows[1].core_h_planned, budget - Charged(id) + 1e-12);
+  }
 
   // The same look again, from a second daemon, and the same attempts charged again: nothing more.
   EXPECT_FALSE(NewDriver()->Step(id, clock_.Now())->has_value());
@@ -521,14 +514,14 @@ TEST_F(RoundsTest, AFailedLongerRunGivesThePointsPlaceBackToItsEarlierRun) {
   ASSERT_TRUE(driver_->Step(id, clock_.Now()).ok());
   EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
   auto runs_of = [&]() {
-    std::map<int64_t, std::string> out;
+    std::map<int64_t, JobState> out;
     auto look = LookAtClaims(*store_, *store_->GetCampaignRun(id));
     EXPECT_TRUE(look.ok());
     if (look.ok())
       for (const ClaimRun& r : look->input.sweeps.at(0).runs) out[r.run_id] = r.state;
     return out;
   };
-  const std::map<int64_t, std::string> first = runs_of();
+  const std::map<int64_t, JobState> first = runs_of();
   ASSERT_EQ(first.size(), 2u);
 
   auto step = driver_->Step(id, clock_.Now());
@@ -541,7 +534,7 @@ TEST_F(RoundsTest, AFailedLongerRunGivesThePointsPlaceBackToItsEarlierRun) {
   const size_t lengthened = rows[1].actions[0]["runs"].size();
   ASSERT_GE(lengthened, 1u);
   // The longer runs took their points' places: the sweep holds them and the runs they replaced left it.
-  std::map<int64_t, std::string> during = runs_of();
+  std::map<int64_t, JobState> during = runs_of();
   EXPECT_EQ(during.size(), 2u);
   int replaced = 0;
   for (const auto& [run, state] : first) replaced += during.count(run) == 0;
@@ -566,7 +559,7 @@ TEST_F(RoundsTest, AFailedLongerRunGivesThePointsPlaceBackToItsEarlierRun) {
     if (first.count(run)) continue;
     auto r = store_->GetRun(run);
     ASSERT_TRUE(r.ok());
-    EXPECT_EQ(r->summary.state, "failed");
+    EXPECT_EQ(r->summary.state, JobState::kFailed);
     longer += cost->RunCoreHours(r->summary.point, 0.5);
   }
   ASSERT_GT(longer, 0);
@@ -610,7 +603,7 @@ TEST_F(RoundsTest, ADoneLongerRunStandsAndTheRunItReplacedStaysCharged) {
   std::set<int64_t> after;
   for (const ClaimRun& r : look->input.sweeps.at(0).runs) {
     after.insert(r.run_id);
-    EXPECT_EQ(r.state, "done");
+    EXPECT_EQ(r.state, JobState::kDone);
   }
   EXPECT_EQ(after, during);
   EXPECT_NE(after, first);
@@ -653,7 +646,7 @@ TEST_F(RoundsTest, ABusyCampaignRunIsNotAnalysed) {
   ASSERT_TRUE(counting.Tick(clock_.Now()).ok());
   EXPECT_EQ(looks, 0);
   const std::string bytes = "restart " + (*bed)->key;
-  ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+  ASSERT_TRUE(queue_->PutBedRestart((*bed)->token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
   api::Completion c;
   c.ok = true;
   c.execution.host = "host";

@@ -18,6 +18,7 @@
 #include "server/jobs/submission.h"
 #include "tests/fixture_file.h"
 #include "server/store/campaigns.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -50,9 +51,6 @@ nlohmann::json TinyCampaign() {
 class SchedulerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::random_device rd;
-    dir_ = fs::temp_directory_path() / ("sandswim-sched-" + std::to_string(rd()));
-    fs::create_directories(dir_);
     clock_.Set(Utc(2026, 11, 22, 12, 0));
     Restart();
     StoredCampaign c;
@@ -65,17 +63,12 @@ class SchedulerTest : public ::testing::Test {
   void TearDown() override {
     scheduler_.reset();
     queue_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
   }
   // A daemon (re)start: a reopened Store on the same file, a new Scheduler, registration.
   void Restart(const std::string& engine = kTestEngine) {
     scheduler_.reset();
     queue_.reset();
-    store_.reset();
-    auto s = Store::Open((dir_ / "sandswim.db").string());
-    ASSERT_TRUE(s.ok()) << s.status().ToString();
-    store_ = std::move(s).value();
+    ASSERT_TRUE(store_.Reopen());
     queue_ = std::make_unique<LeaseQueue>(store_.get(), &clock_);
     scheduler_ = std::make_unique<Scheduler>(store_.get(), &clock_, engine, CronZone::kUtc);
   }
@@ -105,7 +98,7 @@ class SchedulerTest : public ::testing::Test {
       c.execution.engine_version = kTestEngine;
       if (grant.kind == api::JobKind::kBed) {
         const std::string bytes = "restart " + grant.key;
-        ASSERT_TRUE(queue_->PutBedRestart(grant.token, bytes, Sha256Hex(bytes), dir_.string()).ok());
+        ASSERT_TRUE(queue_->PutBedRestart(grant.token, bytes, Sha256Hex(bytes), store_.dir().string()).ok());
         c.bed_result = api::BedResult{};
         c.bed_result->grains = 100;
         c.bed_result->sha256 = Sha256Hex(bytes);
@@ -131,9 +124,8 @@ class SchedulerTest : public ::testing::Test {
     return r.ok() ? *r : std::vector<DriftReport>{};
   }
 
-  fs::path dir_;
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"sched"};
   std::unique_ptr<LeaseQueue> queue_;
   std::unique_ptr<Scheduler> scheduler_;
   double inconclusive_omega_ = 0;  // CompleteAll marks this point's result inconclusive (0: none)

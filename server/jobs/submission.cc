@@ -245,13 +245,13 @@ Result<SubmittedBed> UpsertBed(Transaction& t, const std::string& scale, const P
   Result<submissions::BedByKey> row = submissions::FindBed(t, bed.key);
   if (!row.ok()) return row.status();
   const int64_t bed_id = row->id;
-  if (row->state == "failed" && row->last_error_kind == "not_equilibrated") {
+  if (row->state == JobState::kFailed && row->last_error_kind == "not_equilibrated") {
     return SubmittedBed{bed_id, "bed " + std::to_string(bed_id) + " (" + scale + ", replicate " +
                                     std::to_string(bed.replicate) + ") failed for good: " + row->last_error +
                                     " Preparing it again would give the same bed, so it is not retried. "
                                     "Other replicates (\"replicates\") pour beds from other seeds."};
   }
-  if (row->state == "failed") {
+  if (row->state == JobState::kFailed) {
     SANDSWIM_RETURN_IF_ERROR(submissions::RequeueFailedBed(t, bed_id));
     SANDSWIM_RETURN_IF_ERROR(t.Event(now, "bed.requeued", "bed/" + std::to_string(bed_id)));
   }
@@ -260,10 +260,11 @@ Result<SubmittedBed> UpsertBed(Transaction& t, const std::string& scale, const P
 
 // A run whose key exists already: re-queued when it failed, was cancelled or is forced again;
 // else reused (done) or shared (queued, running). Counted in `out`.
-Status ReuseRun(Transaction& t, int64_t run_id, const std::string& state, bool force, double now, SubmitResult& out) {
-  const bool requeue = state == "failed" || state == "cancelled" || (state == "done" && force);
+Status ReuseRun(Transaction& t, int64_t run_id, JobState state, bool force, double now, SubmitResult& out) {
+  const bool requeue =
+      state == JobState::kFailed || state == JobState::kCancelled || (state == JobState::kDone && force);
   if (!requeue) {
-    ++(state == "done" ? out.runs_reused : out.runs_shared);
+    ++(state == JobState::kDone ? out.runs_reused : out.runs_shared);
     return Status::Ok();
   }
   // The old result row (if any) stays until the new completion replaces it.

@@ -16,6 +16,7 @@
 #include "platform/clock.h"
 #include "server/jobs/lease_queue.h"
 #include "server/store/store.h"
+#include "server/store/temp_store_test_util.h"
 #include "tests/fixture_file.h"
 
 namespace sandswim {
@@ -37,17 +38,7 @@ nlohmann::json Sweep(const std::string& name, std::vector<double> omegas = {-80,
 
 class SubmissionTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::random_device rd;
-    dir_ = fs::temp_directory_path() / ("sandswim-sub-" + std::to_string(rd()));
-    auto s = Store::Open((dir_ / "sandswim.db").string());
-    ASSERT_TRUE(s.ok()) << s.status().ToString();
-    store_ = std::move(s).value();
-  }
-  void TearDown() override {
-    store_.reset();
-    fs::remove_all(dir_);
-  }
+  void SetUp() override { ASSERT_TRUE(store_); }
   Result<SubmitResult> SubmitBody(const nlohmann::json& body, bool force = false,
                                   std::optional<std::string> key = std::nullopt) {
     Result<SubmitRequest> req = ParseSubmitRequest(body);
@@ -63,9 +54,8 @@ class SubmissionTest : public ::testing::Test {
   }
   int64_t Rows(const std::string& t) { return store_->db().CountRows(t).value(); }
 
-  fs::path dir_;
   FakeClock clock_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"sub"};
 };
 
 TEST_F(SubmissionTest, InsertsBedRunsSweepAndMembershipInOrder) {
@@ -107,7 +97,7 @@ TEST_F(SubmissionTest, ReplicatesMakeOneBedEachAndRunEveryPointOnEach) {
   for (int i = 0; i < 3; ++i) {
     const BedView& b = (*beds)[i];
     EXPECT_EQ(b.replicate, i);
-    EXPECT_EQ(b.state, "queued");
+    EXPECT_EQ(b.state, JobState::kQueued);
     EXPECT_EQ(b.runs, 2);
     ASSERT_TRUE(b.seed_pour1 && b.seed_pour2);
     EXPECT_EQ(*b.seed_pour1, BedSeedsFor(i).pour1);
@@ -155,7 +145,7 @@ TEST_F(SubmissionTest, ResubmittingReusesRunsAndForceRequeuesDoneOnes) {
   // Finish one run through the queue.
   LeaseQueue queue(store_.get(), &clock_);
   auto bed = queue.Lease({"w", "h", 1});
-  ASSERT_TRUE(queue.PutBedRestart((*bed)->token, "x", Sha256Hex("x"), dir_.string()).ok());
+  ASSERT_TRUE(queue.PutBedRestart((*bed)->token, "x", Sha256Hex("x"), store_.dir().string()).ok());
   api::Completion bc;
   bc.ok = true;
   bc.bed_result = api::BedResult{};
@@ -184,7 +174,7 @@ TEST_F(SubmissionTest, ResubmittingReusesRunsAndForceRequeuesDoneOnes) {
   EXPECT_EQ(forced->runs_requeued, 1);
   EXPECT_EQ(Rows("runs"), 2);
   auto detail = store_->GetRun((*run)->id);
-  EXPECT_EQ(detail->summary.state, "queued");
+  EXPECT_EQ(detail->summary.state, JobState::kQueued);
   EXPECT_EQ(detail->summary.attempts, 0);
   ASSERT_TRUE(detail->result.has_value());  // the old result stays until replaced
   EXPECT_EQ(detail->result->result.uz, 0.25);

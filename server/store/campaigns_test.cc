@@ -8,26 +8,15 @@
 
 #include "server/jobs/submission.h"
 #include "server/store/schedule_table.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
 
 class CampaignsTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::string pattern = (std::filesystem::temp_directory_path() / "sandswim-campaigns-XXXXXX").string();
-    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-    auto s = Store::Open((dir_ / "sandswim.db").string());
-    ASSERT_TRUE(s.ok()) << s.status().ToString();
-    store_ = std::move(s).value();
-  }
-  void TearDown() override {
-    store_.reset();
-    std::filesystem::remove_all(dir_);
-  }
-  std::filesystem::path dir_;
-  std::unique_ptr<Store> store_;
+  void SetUp() override { ASSERT_TRUE(store_); }
+  testing::TempStore store_{"campaigns"};
 };
 
 TEST_F(CampaignsTest, TheBuiltInOneWhenNoneIsStored) {
@@ -181,7 +170,7 @@ TEST_F(CampaignsTest, ARefusedDeleteChangesNothing) {
 // A database of schema 12 with a stored campaign and a campaign run of it: after the migration the
 // campaign is at version 1 with its definition, and the old campaign run says it recorded none.
 TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
-  const std::string path = (dir_ / "old.db").string();
+  const std::string path = (store_.dir() / "old.db").string();
   nlohmann::json definition = Mine(0).definition;
   {
     auto s = Store::Open(path);

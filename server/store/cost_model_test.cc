@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "server/store/store.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -15,18 +16,7 @@ namespace {
 // Rows written directly: a bed, a sweep of four runs on it (two done, one running, one queued).
 class CostModelTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char pattern[] = "/tmp/sandswim-cost-XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    auto store = Store::Open(dir_ + "/test.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(*store);
-  }
-  void TearDown() override {
-    store_.reset();
-    std::filesystem::remove_all(dir_);
-  }
+  void SetUp() override { ASSERT_TRUE(store_); }
   void Exec(const std::string& sql) {
     auto t = store_->db().Begin();
     ASSERT_TRUE(t.ok());
@@ -58,8 +48,7 @@ class CostModelTest : public ::testing::Test {
          ", 999, 0, 'v', '" + host + "', " + std::to_string(ranks) + ", 'mpirun', " + std::to_string(wall_s) +
          ", 0, 'r" + std::to_string(id) + "', " + std::to_string(id) + ")");
   }
-  std::string dir_;
-  std::unique_ptr<Store> store_;
+  testing::TempStore store_{"cost", "test.db"};
 };
 
 TEST_F(CostModelTest, NothingMeasuredGivesTheDefaultsAndSaysSo) {

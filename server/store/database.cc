@@ -177,6 +177,13 @@ std::string Statement::Text(int col) const {
   if (p == nullptr) return "";
   return std::string(reinterpret_cast<const char*>(p), sqlite3_column_bytes(stmt_, col));
 }
+Result<JobState> Statement::State(int col) const {
+  const std::string text = Text(col);
+  if (std::optional<JobState> s = ParseJobState(text)) return *s;
+  const char* name = sqlite3_column_name(stmt_, col);
+  return Status::Corruption(std::string("column ") + (name != nullptr ? name : std::to_string(col)) + " holds '" +
+                            text + "', which is not a job state (" + std::string(JobStateNames()) + ")");
+}
 std::optional<int64_t> Statement::OptInt(int col) const {
   if (IsNull(col)) return std::nullopt;
   return Int(col);

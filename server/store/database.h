@@ -56,6 +56,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/job_state.h"
 #include "core/status.h"
 
 struct sqlite3;
@@ -107,6 +108,9 @@ class Statement {
   std::optional<int64_t> OptInt(int col) const;
   std::optional<double> OptDouble(int col) const;
   std::optional<std::string> OptText(int col) const;
+  // A state column's job state (core/job_state.h); Corruption naming the column and its text when
+  // the text is no job state (never a default).
+  Result<JobState> State(int col) const;
 
  private:
   friend class Transaction;

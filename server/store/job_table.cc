@@ -29,7 +29,7 @@ Result<std::vector<LostLease>> LostLeases(Statement& st, int default_max) {
   SANDSWIM_RETURN_IF_ERROR(EachRow(st, [&](const Statement& s) {
     LostLease e;
     e.id = s.Int(0);
-    e.job.state = "running";
+    e.job.state = JobState::kRunning;
     e.job.lease_token = s.Text(1);
     e.job.attempts = static_cast<int>(s.Int(2));
     e.job.max_attempts = static_cast<int>(s.OptInt(3).value_or(default_max));
@@ -183,7 +183,9 @@ Result<JobRow> LoadJob(Transaction& t, api::JobKind kind, int64_t id, int defaul
   if (!row.ok()) return row.status();
   if (!*row) return Status::Conflict(std::string(Noun(kind)) + " of this lease no longer exists");
   JobRow j;
-  j.state = st.Text(0);
+  Result<JobState> state = st.State(0);
+  if (!state.ok()) return state.status();
+  j.state = *state;
   j.lease_token = st.Text(1);
   j.attempts = static_cast<int>(st.Int(2));
   j.max_attempts = static_cast<int>(st.OptInt(3).value_or(default_max));
@@ -223,7 +225,7 @@ Status MarkLeased(Transaction& t, api::JobKind kind, int64_t id, const std::stri
   return st.Run();
 }
 
-Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, const std::string& state,
+Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, JobState state,
                            const std::string& error_kind, const std::string& message, double now) {
   std::string sql = std::string("UPDATE ") + Table(kind) +
                     " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
@@ -232,24 +234,24 @@ Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, const 
   // queued run look 91 % done, and its ETA minutes where hours were left).
   if (kind == api::JobKind::kRun) {
     sql += ", queued_at = ?6";
-    if (state == "queued") sql += ", sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
+    if (state == JobState::kQueued) sql += ", sim_time_s = NULL, step = NULL, so_z = NULL, heartbeat_at = NULL";
   }
   sql += " WHERE id = ?7";
   if (kind == api::JobKind::kRun) SANDSWIM_RETURN_IF_ERROR(StampRunReach(t, id));
   Statement st = t.Prepare(sql);
-  st.Bind(1, state).Bind(2, error_kind).Bind(3, message).Bind(4, state).Bind(5, now);
+  st.Bind(1, JobStateName(state)).Bind(2, error_kind).Bind(3, message).Bind(4, JobStateName(state)).Bind(5, now);
   if (kind == api::JobKind::kRun) st.Bind(6, now);
   st.Bind(7, id);
   return st.Run();
 }
 
-Status MarkCancelledOrQueued(Transaction& t, api::JobKind kind, int64_t id, const std::string& state,
+Status MarkCancelledOrQueued(Transaction& t, api::JobKind kind, int64_t id, JobState state,
                              const std::string& error_kind, const std::string& message, double now) {
   Statement st = t.Prepare(std::string("UPDATE ") + Table(kind) +
                            " SET state = ?, lease_expires_at = NULL, last_error_kind = ?, "
                            "last_error = ?, finished_at = ? WHERE id = ?");
-  st.Bind(1, state).Bind(2, error_kind).Bind(3, message);
-  if (state == "cancelled") {
+  st.Bind(1, JobStateName(state)).Bind(2, error_kind).Bind(3, message);
+  if (state == JobState::kCancelled) {
     st.Bind(4, now);
   } else {
     st.BindNull(4);
@@ -314,7 +316,9 @@ Result<BedRow> LoadBed(Transaction& t, int64_t bed_id) {
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
   if (!*row) return Status::NotFound("no bed " + std::to_string(bed_id));
-  return BedRow{st.Text(0), st.Text(1), st.OptText(2), st.Text(3)};
+  Result<JobState> state = st.State(1);
+  if (!state.ok()) return state.status();
+  return BedRow{st.Text(0), *state, st.OptText(2), st.Text(3)};
 }
 
 Status RecordBedUpload(Transaction& t, int64_t bed_id, const std::string& path, const std::string& sha256) {

@@ -77,7 +77,7 @@ Result<int64_t> ExtendRunningLeases(Transaction& t, double until);
 // ---- Jobs (beds and runs) -----------------------------------------------------------------------
 
 struct JobRow {
-  std::string state;
+  JobState state = JobState::kQueued;
   std::string lease_token;
   int attempts = 0;
   int max_attempts = 0;  // the job's own, else the default given
@@ -101,11 +101,11 @@ Result<std::vector<LostLease>> SlurmJobLeases(Transaction& t, api::JobKind kind,
 // The job leased: running under `token` until `expires_at`, one more attempt.
 Status MarkLeased(Transaction& t, api::JobKind kind, int64_t id, const std::string& token, double expires_at,
                   const std::string& worker, double now);
-// After a failure: `state` "queued" (a retry; a run's queued_at is now) or "failed" (finished now).
-Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, const std::string& state,
+// After a failure: `state` kQueued (a retry; a run's queued_at is now) or kFailed (finished now).
+Status MarkRetriedOrFailed(Transaction& t, api::JobKind kind, int64_t id, JobState state,
                            const std::string& error_kind, const std::string& message, double now);
-// A cancelled completion: a run becomes "cancelled" (finished now), a bed "queued".
-Status MarkCancelledOrQueued(Transaction& t, api::JobKind kind, int64_t id, const std::string& state,
+// A cancelled completion: a run becomes kCancelled (finished now), a bed kQueued.
+Status MarkCancelledOrQueued(Transaction& t, api::JobKind kind, int64_t id, JobState state,
                              const std::string& error_kind, const std::string& message, double now);
 // How often the job was handed back before this call, which counts one more hand-back.
 Result<int64_t> CountRelease(Transaction& t, api::JobKind kind, int64_t id);
@@ -131,7 +131,7 @@ Status ExtendBedLease(Transaction& t, int64_t bed_id, double expires_at, double 
 
 struct BedRow {
   std::string key;
-  std::string state;
+  JobState state = JobState::kQueued;
   std::optional<std::string> path;  // of the uploaded restart file
   std::string sha256;
 };

@@ -432,7 +432,7 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
   struct Pending {
     int round;
     int64_t sweep_id, position, old_run_id, new_run_id;
-    std::string state;
+    JobState state;
   };
   std::vector<Pending> pending;
   {
@@ -445,7 +445,9 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
       Result<bool> row = st.Step();
       if (!row.ok()) return row.status();
       if (!*row) break;
-      pending.push_back({static_cast<int>(st.Int(0)), st.Int(1), st.Int(2), st.Int(3), st.Int(4), st.Text(5)});
+      Result<JobState> state = st.State(5);
+      if (!state.ok()) return state.status();
+      pending.push_back({static_cast<int>(st.Int(0)), st.Int(1), st.Int(2), st.Int(3), st.Int(4), *state});
     }
   }
   if (pending.empty()) return int64_t{0};
@@ -457,7 +459,7 @@ Result<int64_t> SettleReplacements(Transaction& t, int64_t campaign_run_id, doub
   int64_t restored = 0;
   std::vector<int64_t> sweeps;
   for (const Pending& p : pending) {
-    const bool stands = p.state == "done";
+    const bool stands = p.state == JobState::kDone;
     if (!stands) {
       back.Reset();
       back.Bind(1, p.sweep_id).Bind(2, p.old_run_id).Bind(3, p.position);

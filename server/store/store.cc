@@ -73,7 +73,9 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   RunSummary r;
   r.id = st.Int(0);
   r.key = st.Text(1);
-  r.state = st.Text(2);
+  Result<JobState> state = st.State(2);
+  if (!state.ok()) return state.status();
+  r.state = *state;
   Result<Point> point = PointFromRow(st, 3, kRunMaterialsColumn);
   if (!point.ok()) return Status(point.status().code(), "run " + std::to_string(r.id) + ": " + point.status().reason());
   r.point = *point;
@@ -105,27 +107,13 @@ Result<RunSummary> RunSummaryFromRow(const Statement& st) {
   return r;
 }
 
-// A count of rows in `state` (a state column's text, core/job_state.h); another text counts nowhere.
-void AddState(RunCounts& c, const std::string& state, int64_t n) {
-  std::optional<JobState> s = ParseJobState(state);
-  if (!s) return;
-  switch (*s) {
-    case JobState::kQueued:
-      c.queued += n;
-      break;
-    case JobState::kRunning:
-      c.running += n;
-      break;
-    case JobState::kDone:
-      c.done += n;
-      break;
-    case JobState::kFailed:
-      c.failed += n;
-      break;
-    case JobState::kCancelled:
-      c.cancelled += n;
-      break;
-  }
+// Adds the count in column 1 to the count of the state in column 0 (a state column: a text that
+// is no job state is Corruption, not a count lost).
+Status AddState(RunCounts& c, const Statement& st) {
+  Result<JobState> s = st.State(0);
+  if (!s.ok()) return s.status();
+  c[*s] += st.Int(1);
+  return Status::Ok();
 }
 
 template <typename T>
@@ -146,7 +134,7 @@ Result<RunCounts> CountsWhere(Transaction& t, const std::string& sql, int64_t id
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
     if (!*row) break;
-    AddState(c, st.Text(0), st.Int(1));
+    SANDSWIM_RETURN_IF_ERROR(AddState(c, st));
   }
   return c;
 }
@@ -182,9 +170,25 @@ constexpr const char* kSweepColumns = "id, name, scale, spec, campaign_run_id, f
 
 // ---- JSON ---------------------------------------------------------------------------------------
 
+int64_t& RunCounts::operator[](JobState s) {
+  switch (s) {
+    case JobState::kQueued:
+      return queued;
+    case JobState::kRunning:
+      return running;
+    case JobState::kDone:
+      return done;
+    case JobState::kFailed:
+      return failed;
+    case JobState::kCancelled:
+      return cancelled;
+  }
+  return queued;  // not reached: every JobState is a case
+}
+
 void to_json(nlohmann::json& j, const RunCounts& c) {
-  j = nlohmann::json{
-      {"queued", c.queued}, {"running", c.running}, {"done", c.done}, {"failed", c.failed}, {"cancelled", c.cancelled}};
+  j = nlohmann::json::object();
+  for (JobState s : kJobStates) j[ToString(s)] = c[s];
 }
 
 void to_json(nlohmann::json& j, const SweepInfo& s) {
@@ -505,9 +509,6 @@ Result<SweepInfo> Store::GetSweep(int64_t id) {
 }
 
 Result<RunPage> Store::ListRuns(const RunFilter& f) {
-  if (f.state && !ParseJobState(*f.state)) {
-    return Status::InvalidArgument("state", "'" + *f.state + "' is not one of " + std::string(JobStateNames()));
-  }
   int limit = std::clamp(f.limit, 1, 1000);
   Result<Transaction> t = db_->BeginRead();
   if (!t.ok()) return t.status();
@@ -521,7 +522,7 @@ Result<RunPage> Store::ListRuns(const RunFilter& f) {
   Statement st = t->Prepare(sql);
   st.Bind(1, f.after_id).Bind(4, limit + 1);
   if (f.sweep_id) st.Bind(2, *f.sweep_id);
-  if (f.state) st.Bind(3, *f.state);
+  if (f.state) st.Bind(3, JobStateName(*f.state));
   while (true) {
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
@@ -570,7 +571,9 @@ Result<RunDetail> Store::GetRun(int64_t id, Deck deck) {
       }
     }
     d.bed_key = st.Text(c + 1);
-    d.bed_state = st.Text(c + 2);
+    Result<JobState> bed_state = st.State(c + 2);
+    if (!bed_state.ok()) return bed_state.status();
+    d.bed_state = *bed_state;
     d.result = ReadResult(st, kRunColumnCount);
     if (!st.IsNull(c + 3)) {
       nlohmann::json tj = ParseJsonOr(st.Text(c + 3), nullptr);
@@ -641,7 +644,9 @@ Result<BedView> BedFromRow(const Statement& st) {
   b.replicate = static_cast<int>(st.Int(3));
   if (!st.IsNull(4)) b.seed_pour1 = st.Int(4);
   if (!st.IsNull(5)) b.seed_pour2 = st.Int(5);
-  b.state = st.Text(6);
+  Result<JobState> state = st.State(6);
+  if (!state.ok()) return state.status();
+  b.state = *state;
   b.attempts = static_cast<int>(st.Int(7));
   if (!st.IsNull(8)) {
     nlohmann::json j = nlohmann::json::parse(st.Text(8), nullptr, /*allow_exceptions=*/false);
@@ -718,7 +723,9 @@ Result<ResultRow> ResultRowFromRow(const Statement& st) {
   ResultRow r;
   r.run_id = st.Int(0);
   r.key = st.Text(1);
-  r.state = st.Text(2);
+  Result<JobState> state = st.State(2);
+  if (!state.ok()) return state.status();
+  r.state = *state;
   Result<Point> point = PointFromRow(st, 3, 13);
   if (!point.ok())
     return Status(point.status().code(), "run " + std::to_string(r.run_id) + ": " + point.status().reason());
@@ -1002,7 +1009,7 @@ Result<Metrics> Store::GetMetrics() {
       Result<bool> row = st.Step();
       if (!row.ok()) return row.status();
       if (!*row) break;
-      AddState(std::string(table) == "runs" ? m.runs : m.beds, st.Text(0), st.Int(1));
+      SANDSWIM_RETURN_IF_ERROR(AddState(std::string(table) == "runs" ? m.runs : m.beds, st));
     }
   }
   {
@@ -1112,7 +1119,7 @@ Result<LiveBoard> Store::ReadLiveBoard(int sweeps, int campaign_runs, int runnin
     Result<bool> row = st.Step();
     if (!row.ok()) return row.status();
     if (!*row) break;
-    AddState(board.runs, st.Text(0), st.Int(1));
+    SANDSWIM_RETURN_IF_ERROR(AddState(board.runs, st));
   }
   return board;
 }

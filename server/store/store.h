@@ -22,6 +22,7 @@
 
 #include "core/api.h"
 #include "core/deck.h"
+#include "core/job_state.h"
 #include "core/point.h"
 #include "core/result_fields.h"
 #include "core/status.h"
@@ -34,6 +35,9 @@ namespace sandswim {
 struct RunCounts {
   int64_t queued = 0, running = 0, done = 0, failed = 0, cancelled = 0;
   int64_t total() const { return queued + running + done + failed + cancelled; }
+  // The count of state `s` (the member of its name).
+  int64_t& operator[](JobState s);
+  int64_t operator[](JobState s) const { return const_cast<RunCounts&>(*this)[s]; }
 };
 void to_json(nlohmann::json& j, const RunCounts& c);  // {"queued":..,...,"cancelled":..}
 
@@ -72,7 +76,7 @@ void to_json(nlohmann::json& j, const Progress& p);
 struct RunSummary {
   int64_t id = 0;
   std::string key;
-  std::string state;  // queued | running | done | failed | cancelled
+  JobState state = JobState::kQueued;
   Point point;
   double run_duration_s = 0;  // at most, with a precision target
   int64_t steps = 0;
@@ -95,7 +99,7 @@ void to_json(nlohmann::json& j, const RunSummary& r);
 
 struct RunFilter {
   std::optional<int64_t> sweep_id;
-  std::optional<std::string> state;  // REQUIRES: one of the five states (else InvalidArgument)
+  std::optional<JobState> state;
   int64_t after_id = 0;              // cursor: runs with id > after_id
   int limit = 100;                   // clamped to [1, 1000]
 };
@@ -110,7 +114,7 @@ struct RunDetail {
   RunSummary summary;
   std::string deck;
   std::string bed_key;
-  std::string bed_state;
+  JobState bed_state = JobState::kQueued;
   std::vector<int64_t> sweep_ids;
   std::optional<StoredResult> result;
   std::optional<api::Trajectory> trajectory;
@@ -125,7 +129,7 @@ void to_json(nlohmann::json& j, const RunDetail& r);
 struct ResultRow {
   int64_t run_id = 0;
   std::string key;
-  std::string state;
+  JobState state = JobState::kQueued;
   Point point;
   double run_duration_s = 0;
   int64_t bed_id = 0;
@@ -191,7 +195,7 @@ struct BedView {
   std::string scale;
   int replicate = 0;
   std::optional<int64_t> seed_pour1, seed_pour2;  // absent for beds made before replicates
-  std::string state;                              // queued | running | done | failed
+  JobState state = JobState::kQueued;             // never cancelled
   int attempts = 0;
   std::optional<api::BedResult> result;
   // The MPI ranks it was prepared on; absent while not done, and for beds prepared before they

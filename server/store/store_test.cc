@@ -14,12 +14,14 @@
 
 #include <gtest/gtest.h>
 
+#include "core/result_fields_test_util.h"
 #include "core/trajectory.h"
 #include "platform/clock.h"
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
 #include "server/store/job_table.h"
 #include "server/store/result_columns.h"
+#include "server/store/temp_store_test_util.h"
 
 namespace sandswim {
 namespace {
@@ -28,19 +30,11 @@ namespace fs = std::filesystem;
 
 class StoreTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::random_device rd;
-    dir_ = fs::temp_directory_path() / ("sandswim-store-" + std::to_string(rd()));
-    path_ = (dir_ / "nested" / "sandswim.db").string();
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::unique_ptr<Store> MustOpen() {
-    auto s = Store::Open(path_);
-    EXPECT_TRUE(s.ok()) << s.status().ToString();
-    return s.ok() ? std::move(s).value() : nullptr;
-  }
-  fs::path dir_;
-  std::string path_;
+  // The store's file opened (again: a store a test opened before is closed first); nullptr and a
+  // test failure when it does not open.
+  Store* MustOpen() { return temp_.Reopen() ? temp_.get() : nullptr; }
+  // Not opened until a test does: opening (a directory made, migrations run) is what some test.
+  testing::TempStore temp_{"store", "nested/sandswim.db", /*open=*/false};
 };
 
 nlohmann::json Sweep(const std::string& name, int points) {
@@ -81,7 +75,8 @@ TEST_F(StoreTest, RefusesAFileFromANewerSchema) {
     ASSERT_TRUE(t->Exec("PRAGMA user_version = 99").ok());
     ASSERT_TRUE(t->Commit().ok());
   }
-  auto s = Store::Open(path_);
+  temp_.reset();
+  auto s = Store::Open(temp_.path());
   EXPECT_EQ(s.status().code(), StatusCode::kFailedPrecondition);
 }
 
@@ -332,7 +327,7 @@ TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
       if (s.ok()) ++written;
     }
   });
-  const std::string copy = (dir_ / "copy.db").string();
+  const std::string copy = (temp_.dir() / "copy.db").string();
   Result<int64_t> bytes = store->db().BackupTo(copy);
   const int during_backup = written.load();
   stop = true;
@@ -358,11 +353,11 @@ TEST_F(StoreTest, BackupWhileWritingIsAConsistentCopy) {
   }
   EXPECT_GE(*(*restored)->db().CountRows("events"), 4000);
 
-  Result<int64_t> bad = store->db().BackupTo((dir_ / "no-such-dir" / "copy.db").string());
+  Result<int64_t> bad = store->db().BackupTo((temp_.dir() / "no-such-dir" / "copy.db").string());
   EXPECT_FALSE(bad.ok());
   EXPECT_NE(bad.status().ToString().find("check that the directory exists"), std::string::npos)
       << bad.status().ToString();
-  EXPECT_FALSE(fs::exists(dir_ / "no-such-dir"));
+  EXPECT_FALSE(fs::exists(temp_.dir() / "no-such-dir"));
 }
 
 TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
@@ -388,12 +383,10 @@ TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
   EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
 
   RunFilter all;
-  all.state = "queued";
+  all.state = JobState::kQueued;
   EXPECT_EQ(store->ListRuns(all)->runs.size(), 5u);  // the two are shared with "five"
-  all.state = "done";
+  all.state = JobState::kDone;
   EXPECT_TRUE(store->ListRuns(all)->runs.empty());
-  all.state = "bogus";
-  EXPECT_EQ(store->ListRuns(all).status().field(), "state");
 
   auto page = store->ListSweeps(0, 1);
   ASSERT_EQ(page->sweeps.size(), 1u);
@@ -402,6 +395,23 @@ TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
   nlohmann::json j = *page;
   EXPECT_EQ(j["sweeps"][0]["counts"]["queued"], 5);
   EXPECT_EQ(j["sweeps"][0]["runs"], 5);
+
+  // A state that is no JobState cannot be asked for: the route refuses it (routes_test
+  // ListRunsPagesWithCursorRoundTrip), and a state column whose text is none is Corruption, never a default.
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Exec("PRAGMA ignore_check_constraints = ON; UPDATE runs SET state = 'finished' WHERE id = " +
+                        std::to_string(seen.front()) + "; PRAGMA ignore_check_constraints = OFF")
+                    .ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  auto corrupt = store->GetRun(seen.front());
+  ASSERT_FALSE(corrupt.ok());
+  EXPECT_EQ(corrupt.status().code(), StatusCode::kCorruption);
+  EXPECT_NE(corrupt.status().reason().find("'finished', which is not a job state"), std::string::npos)
+      << corrupt.status().ToString();
+  EXPECT_EQ(store->ListRuns(RunFilter{}).status().code(), StatusCode::kCorruption);
+  EXPECT_EQ(store->GetMetrics().status().code(), StatusCode::kCorruption);
 }
 
 // Every row of `of` `id`, read `limit` rows a page; fails the test on an error.
@@ -499,7 +509,7 @@ TEST_F(StoreTest, GetRunHasDeckAndSweepsAndNotFoundIsReported) {
   ASSERT_TRUE(run.ok()) << run.status().ToString();
   EXPECT_FALSE(run->deck.empty());
   EXPECT_EQ(run->sweep_ids, sub->sweep_ids);
-  EXPECT_EQ(run->bed_state, "queued");
+  EXPECT_EQ(run->bed_state, JobState::kQueued);
   nlohmann::json j = *run;
   EXPECT_EQ(j["state"], "queued");
   EXPECT_EQ(j["point"]["mode"], "oscillatory");
@@ -560,27 +570,10 @@ TEST_F(StoreTest, SweepTrajectoriesAreItsRunsStoredTrajectories) {
   EXPECT_TRUE(store->SweepTrajectories(12345)->empty());
 }
 
-// Each field of a run's result gets a value no other field has (its position in the description
-// shows in it), so that a read from a shifted column cannot pass.
+// Every field of a run's result with a value of its own (core/result_fields_test_util.h), as the
+// columns' CHECKs allow.
 StoredResult EveryFieldSet() {
-  StoredResult s;
-  const std::vector<ResultField>& fields = ResultFields();
-  for (size_t i = 0; i < fields.size(); ++i) {
-    switch (fields[i].type) {
-      case ResultType::kReal:
-        fields[i].set(s, 0.125 * static_cast<double>(i + 1));
-        break;
-      case ResultType::kInteger:
-        fields[i].set(s, static_cast<int64_t>(100 + i));
-        break;
-      case ResultType::kBool:
-        fields[i].set(s, true);
-        break;
-      case ResultType::kText:
-        fields[i].set(s, "text of " + fields[i].name);
-        break;
-    }
-  }
+  StoredResult s = testing::EveryFieldSet();
   s.result.analysed_from = "trajectory";  // the column's CHECK: one of dump, trajectory, unreadable
   return s;
 }
@@ -705,7 +698,7 @@ TEST_F(StoreTest, GroupedWritesCommitTogetherAndFailAlone) {
   EXPECT_EQ(refused.load(), want_refused);
   EXPECT_EQ(thrown.load(), want_thrown);
   EXPECT_EQ(ok.load(), kThreads * kEach - want_refused - want_thrown);
-  store.reset();
+  temp_.reset();
   // Reopened: exactly the successful changes were committed.
   auto again = MustOpen();
   ASSERT_NE(again, nullptr);

@@ -116,7 +116,9 @@ Result<BedByKey> FindBed(Transaction& t, const std::string& key) {
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
   if (!*row) return Status::Internal("bed row vanished");
-  return BedByKey{st.Int(0), st.Text(1), st.Text(2), st.Text(3)};
+  Result<JobState> state = st.State(1);
+  if (!state.ok()) return state.status();
+  return BedByKey{st.Int(0), *state, st.Text(2), st.Text(3)};
 }
 
 Status RequeueFailedBed(Transaction& t, int64_t bed_id) {
@@ -164,7 +166,9 @@ Result<RunRows::Existing> RunRows::Find(const std::string& key) {
   Result<bool> row = find_.Step();
   if (!row.ok()) return row.status();
   if (!*row) return Status::Internal("run row vanished");
-  Existing out{find_.Int(0), find_.Text(1)};
+  Result<JobState> state = find_.State(1);
+  if (!state.ok()) return state.status();
+  Existing out{find_.Int(0), *state};
   find_.Reset();
   return out;
 }

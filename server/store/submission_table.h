@@ -73,7 +73,7 @@ Status InsertBedIfNew(Transaction& t, const std::string& scale, const PlannedBed
                       const std::string& engine_version, double now);
 struct BedByKey {
   int64_t id = 0;
-  std::string state;
+  JobState state = JobState::kQueued;
   std::string last_error_kind;  // "" when none
   std::string last_error;       // "" when none
 };
@@ -94,7 +94,7 @@ class RunRows {
   Result<std::optional<int64_t>> InsertIfNew(const PlannedRun& run, int64_t bed_id, double now);
   struct Existing {
     int64_t id = 0;
-    std::string state;
+    JobState state = JobState::kQueued;
   };
   // The run row with `key`; kInternal when there is none.
   Result<Existing> Find(const std::string& key);

@@ -78,7 +78,7 @@ AdaptiveOutcome SimulateAdaptive(const Calibrator& cal, const Law& law, const No
           ClaimBed b;
           b.id = static_cast<int64_t>(beds.size());
           b.replicate = beds.back().replicate;
-          b.state = "done";
+          b.state = JobState::kDone;
           b.grains = beds.back().grains;
           b.bed_height = beds.back().surface - cal.scale().z_floor;
           state.input.beds.push_back(b);
@@ -90,7 +90,7 @@ AdaptiveOutcome SimulateAdaptive(const Calibrator& cal, const Law& law, const No
         run.run_id = next_id;
         run.point = o.point;
         run.replicate = o.replicate;
-        run.state = sim.result ? "done" : "failed";
+        run.state = sim.result ? JobState::kDone : JobState::kFailed;
         run.result = sim.result;
         run.failure = sim.failure;
         Place(state.input, o, run);

@@ -168,10 +168,10 @@ SimRun Calibrator::RunOne(const Law& law, const Noise& noise, const Bed& bed, co
     row.bed_id = bed.replicate + 1;
     row.replicate = bed.replicate;
     if (result.ok()) {
-      row.state = "done";
+      row.state = JobState::kDone;
       row.result = StoredResult{*result, {}, {}, 0};
     } else {
-      row.state = "failed";
+      row.state = JobState::kFailed;
     }
     *out_row = std::move(row);
   }
@@ -217,7 +217,7 @@ SimCampaign Calibrator::Simulate(const Law& law, const Noise& noise, uint64_t wo
     ClaimBed bed;
     bed.id = static_cast<int64_t>(b) + 1;
     bed.replicate = beds[b].replicate;
-    bed.state = "done";
+    bed.state = JobState::kDone;
     bed.grains = beds[b].grains;
     bed.bed_height = beds[b].surface - scale_->z_floor;
     input.beds.push_back(bed);
@@ -457,7 +457,7 @@ DriftReport NightReport(const SimCampaign& c, int64_t id, const Design& design) 
     p.replicate = run.replicate;
     p.bed_id = run.replicate + 1;  // the same beds both nights
     p.run_id = static_cast<int64_t>(i) + 1;
-    p.state = run.result ? "done" : "failed";
+    p.state = run.result ? JobState::kDone : JobState::kFailed;
     if (run.result) {
       p.analysis = run.result->analysis;
       p.inconclusive = !run.result->conclusive;
