@@ -4,6 +4,7 @@
 #include "server/analysis/figures.h"
 
 #include <stdlib.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -465,7 +466,9 @@ std::string Describe(const PageRect& r) {
 
 // Draws `plot` in `format` and returns the layout as drawn.
 FigureLayout Drawn(const Plot& plot, ImageFormat format) {
-  const std::string path = std::filesystem::temp_directory_path() / "sandswim-layout-test";
+  // A name of this process's own: ctest runs each test in a process of its own, several at once.
+  const std::string path =
+      std::filesystem::temp_directory_path() / ("sandswim-layout-test-" + std::to_string(getpid()));
   FigureLayout drawn;
   const Status status = DrawPlotToFile(plot, format, path, &drawn);
   EXPECT_TRUE(status.ok()) << status.ToString();
