@@ -11,6 +11,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -33,7 +34,7 @@ namespace {
 using json = nlohmann::json;
 
 // Bumped whenever the drawing changes, so files drawn the old way are not served.
-constexpr const char* kStyleVersion = "figures-v5";
+constexpr const char* kStyleVersion = "figures-v6";
 constexpr int kWidthPx = 1200, kHeightPx = 600;
 constexpr PLINT kBackground = 0, kInk = 1, kFirstSeries = 2;  // cmap0 indices
 
@@ -109,9 +110,13 @@ struct Range {
   }
 };
 
-// The usual plot box, in normalised page coordinates; the legend goes right of it.
-constexpr PLFLT kBoxLeft = 0.085, kBoxRight = 0.56, kBoxBottom = 0.11, kBoxTop = 0.91;
+// The plot box's edges, in fractions of the page. A plot with discs (a bed slice, narrowed to its
+// proportions) keeps its box left of kDiscBoxRight, the colour bar and the legend right of it;
+// any other plot's box reaches kBoxRight, with its legend inside (LayOutFigure).
+constexpr PLFLT kBoxLeft = 0.085, kBoxRight = 0.97, kDiscBoxRight = 0.56, kBoxBottom = 0.11, kBoxTop = 0.91;
 constexpr PLFLT kCharScale = 0.85;  // of PLplot's default character height
+// PLplot's default character height on this page, in pixels (both devices: plgchr after plinit).
+constexpr double kDefaultCharPx = 18.01;
 
 // Colour map 1 for discs: perceptually ordered, dark violet (low) through blue and green to yellow
 // (high), readable in grey and by most colour-blind readers.
@@ -230,8 +235,155 @@ void ShortestTickLabel(PLINT axis, PLFLT value, char* label, PLINT length, PLPoi
                 TickLabel(value, axis == PL_X_AXIS ? steps.x : steps.y).c_str());
 }
 
-// Draws under the PLplot mutex into `path`. REQUIRES: CheckPlot(plot) passed.
-void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
+// ---- Layout (LayOutFigure) ----
+
+// The axes' ranges: the limits as they are, or the data's with 5 % of room.
+std::array<double, 4> DataAxes(const Plot& plot) {
+  if (plot.limits) return *plot.limits;
+  Range xr, yr;
+  for (const Series& s : plot.series) {
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      xr.Add(s.x[i]);
+      const double e = s.y_err.empty() ? 0 : std::fabs(s.y_err[i]);
+      yr.Add(s.y[i] - e);
+      yr.Add(s.y[i] + e);
+    }
+  }
+  if (plot.discs) {
+    const Discs& d = *plot.discs;
+    for (size_t i = 0; i < d.x.size(); ++i) {
+      xr.Add(d.x[i] - d.r[i]);
+      xr.Add(d.x[i] + d.r[i]);
+      yr.Add(d.y[i] - d.r[i]);
+      yr.Add(d.y[i] + d.r[i]);
+    }
+  }
+  xr.Pad();
+  yr.Pad();
+  return {xr.lo, xr.hi, yr.lo, yr.hi};
+}
+
+// A label's width in character heights as PLplot sizes the legend's frame by it: pngcairo measures
+// the text it draws (DejaVu Sans); the svg device has no measure of its own, and PLplot falls back
+// on its Hershey fonts (wider, and twice as wide for a Greek letter or a math sign). Measured per
+// kind of character on both devices, then 5 % added. A PLplot escape ("#d", "#u") draws nothing;
+// "##" draws '#'.
+double LabelWidth(const std::string& label, ImageFormat format) {
+  const bool svg = format == ImageFormat::kSvg;
+  double width = 0;
+  for (size_t k = 0; k < label.size(); ++k) {
+    const unsigned char c = static_cast<unsigned char>(label[k]);
+    if (c == '#' && k + 1 < label.size()) {
+      if (label[k + 1] != '#') {
+        ++k;
+        continue;
+      }
+      ++k;
+    }
+    if ((c & 0xC0) == 0x80) continue;  // inside a UTF-8 sequence: counted at its first byte
+    if (c >= 0x80) {
+      width += svg ? 2.05 : 1.1;  // Ω, Δ, −, ≤, ±
+    } else if (c == ' ') {
+      width += svg ? 0.83 : 0.48;
+    } else if (std::strchr(".,:;'!|()[]{}/-_ijlftrI", c) != nullptr) {
+      width += svg ? 0.62 : 0.45;
+    } else if (std::strchr("mwMW%", c) != nullptr) {
+      width += svg ? 1.35 : 1.31;
+    } else if (std::strchr("=+<>~*&@?#^", c) != nullptr) {
+      width += svg ? 1.22 : 1.15;
+    } else if (std::isupper(c)) {
+      width += svg ? 1.01 : 0.95;
+    } else {
+      width += svg ? 1.01 : 0.82;  // digits and the other lower-case letters
+    }
+  }
+  return 1.05 * width;
+}
+
+// The legend's frame, laid out as pllegend lays it out: a border of 0.4 character and a gap of
+// 0.5 around the text, one sample (line or symbol) of kSamplePx, a row of 2 characters per entry.
+// Its characters are measured in the page's y fraction, used as is along x (as pllegend does).
+constexpr double kSamplePx = 34, kTextOffset = 0.5, kTextSpacing = 2.0;
+struct LegendSize {
+  double width = 0, height = 0;  // fractions of the page
+};
+LegendSize EstimateLegend(const Plot& plot, ImageFormat format, double text_scale) {
+  const double char_y = kCharScale * kDefaultCharPx / kHeightPx;
+  double longest = 0;
+  for (const Series& s : plot.series) longest = std::max(longest, LabelWidth(s.label, format));
+  LegendSize size;
+  size.width = (0.8 + kTextOffset) * char_y + kSamplePx / kWidthPx + longest * text_scale * kDefaultCharPx / kWidthPx;
+  size.height = static_cast<double>(plot.series.size()) * kTextSpacing * char_y;
+  return size;
+}
+
+// Clearances kept between the legend's frame and the data: a marker's radius with its error bar's
+// cap, a line's width, in pixels; and the legend's inset from the box's edges.
+constexpr double kMarkerClearPx = 9, kLineClearPx = 4, kInsetPx = 10, kLegendGapPx = 14, kRightMarginPx = 12;
+
+// Whether the segment a-b (page fractions) meets the rectangle r (Liang-Barsky clipping).
+bool SegmentMeets(const PageRect& r, double ax, double ay, double bx, double by) {
+  double t0 = 0, t1 = 1;
+  const double dx = bx - ax, dy = by - ay;
+  const double p[4] = {-dx, dx, -dy, dy};
+  const double q[4] = {ax - r.x0, r.x1 - ax, ay - r.y0, r.y1 - ay};
+  for (int i = 0; i < 4; ++i) {
+    if (p[i] == 0) {
+      if (q[i] < 0) return false;
+      continue;
+    }
+    const double t = q[i] / p[i];
+    if (p[i] < 0) {
+      t0 = std::max(t0, t);
+    } else {
+      t1 = std::min(t1, t);
+    }
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+PageRect Grown(const PageRect& r, double px) {
+  return {r.x0 - px / kWidthPx, r.x1 + px / kWidthPx, r.y0 - px / kHeightPx, r.y1 + px / kHeightPx};
+}
+
+// How many of the plot's data (markers, error bars, line segments) meet `legend` on the page.
+int DataMet(const Plot& plot, const PageRect& box, const std::array<double, 4>& axes, const PageRect& legend) {
+  const auto page_x = [&](double x) { return box.x0 + (x - axes[0]) / (axes[1] - axes[0]) * box.width(); };
+  const auto page_y = [&](double y) { return box.y0 + (y - axes[2]) / (axes[3] - axes[2]) * box.height(); };
+  int met = 0;
+  for (const Series& s : plot.series) {
+    if (s.markers) {
+      const PageRect near = Grown(legend, kMarkerClearPx);
+      for (size_t i = 0; i < s.x.size(); ++i) {
+        const double x = page_x(s.x[i]);
+        const double e = s.y_err.empty() ? 0 : std::fabs(s.y_err[i]);
+        if (SegmentMeets(near, x, page_y(s.y[i] - e), x, page_y(s.y[i] + e))) ++met;
+      }
+    } else {
+      const PageRect near = Grown(legend, kLineClearPx);
+      for (size_t i = 0; i + 1 < s.x.size(); ++i) {
+        if (SegmentMeets(near, page_x(s.x[i]), page_y(s.y[i]), page_x(s.x[i + 1]), page_y(s.y[i + 1]))) ++met;
+      }
+      if (s.x.size() == 1 && SegmentMeets(near, page_x(s.x[0]), page_y(s.y[0]), page_x(s.x[0]), page_y(s.y[0]))) ++met;
+    }
+  }
+  return met;
+}
+
+// The legend's rectangle of `size` in a corner of `box`, kInsetPx from its edges.
+PageRect CornerRect(const PageRect& box, const LegendSize& size, bool top, bool left) {
+  PageRect r;
+  r.x0 = left ? box.x0 + kInsetPx / kWidthPx : box.x1 - kInsetPx / kWidthPx - size.width;
+  r.x1 = r.x0 + size.width;
+  r.y1 = top ? box.y1 - kInsetPx / kHeightPx : box.y0 + kInsetPx / kHeightPx + size.height;
+  r.y0 = r.y1 - size.height;
+  return r;
+}
+
+// Draws under the PLplot mutex into `path`; `drawn` (optional) gets the layout as drawn. REQUIRES:
+// CheckPlot(plot) passed.
+void Draw(const Plot& plot, ImageFormat format, const std::string& path, FigureLayout* drawn) {
   std::lock_guard<std::mutex> lock(PlplotMutex());
   plsdev(format == ImageFormat::kSvg ? "svg" : "pngcairo");
   plsfnam(path.c_str());
@@ -248,36 +400,13 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
   pladv(0);
   plschr(0, kCharScale);
 
-  Range xr, yr;
-  if (plot.limits) {
-    const std::array<double, 4>& l = *plot.limits;
-    xr = Range{l[0], l[1]};
-    yr = Range{l[2], l[3]};
-  } else {
-    for (const Series& s : plot.series) {
-      for (size_t i = 0; i < s.x.size(); ++i) {
-        xr.Add(s.x[i]);
-        double e = s.y_err.empty() ? 0 : std::fabs(s.y_err[i]);
-        yr.Add(s.y[i] - e);
-        yr.Add(s.y[i] + e);
-      }
-    }
-    if (plot.discs) {
-      const Discs& d = *plot.discs;
-      for (size_t i = 0; i < d.x.size(); ++i) {
-        xr.Add(d.x[i] - d.r[i]);
-        xr.Add(d.x[i] + d.r[i]);
-        yr.Add(d.y[i] - d.r[i]);
-        yr.Add(d.y[i] + d.r[i]);
-      }
-    }
-    xr.Pad();
-    yr.Pad();
-  }
+  const FigureLayout layout = LayOutFigure(plot, format);
+  const PageRect& area = layout.box;
+  const Range xr{layout.axes[0], layout.axes[1]}, yr{layout.axes[2], layout.axes[3]};
   if (plot.equal_aspect) {
-    plvpas(kBoxLeft, kBoxRight, kBoxBottom, kBoxTop, (yr.hi - yr.lo) / (xr.hi - xr.lo));
+    plvpas(area.x0, area.x1, area.y0, area.y1, (yr.hi - yr.lo) / (xr.hi - xr.lo));
   } else {
-    plvpor(kBoxLeft, kBoxRight, kBoxBottom, kBoxTop);
+    plvpor(area.x0, area.x1, area.y0, area.y1);
   }
   // Plain decimals on the axes (no "(x10^-2)" factor floating above the axis).
   plsxax(8, 0);
@@ -287,7 +416,7 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
   const PLFLT box_w_px = (box_x1 - box_x0) * kWidthPx, box_h_px = (box_y1 - box_y0) * kHeightPx;
   // Offsets right of the box are in units of the box's width: a box narrowed to its aspect keeps
   // the usual gaps in pixels.
-  const PLFLT per_usual_width = plot.equal_aspect ? (kBoxRight - kBoxLeft) * kWidthPx / box_w_px : 1.0;
+  const PLFLT per_usual_width = plot.equal_aspect ? area.width() * kWidthPx / box_w_px : 1.0;
 
   plwind(xr.lo, xr.hi, yr.lo, yr.hi);
   Range values;
@@ -381,10 +510,15 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
     text_colors.push_back(kInk);
     texts.push_back(s.label.c_str());
   }
-  // The colour bar sits right of the box, the legend right of the colour bar: both are placed in
-  // units of the box's width and centred on it vertically, so they never overlap.
-  PLFLT legend_x = 0.02 * per_usual_width;
+  // With discs, the colour bar sits right of the box, the legend right of the colour bar: both
+  // are placed in units of the box's width and centred on it vertically, so they never overlap.
+  // Without, the legend goes where LayOutFigure put it.
+  PLFLT legend_x = kLegendGapPx / box_w_px, legend_y = 0, sample_width = kSamplePx / box_w_px;
+  PLINT position = PL_POSITION_RIGHT | PL_POSITION_OUTSIDE;
+  PLFLT text_scale = layout.text_scale;
   if (plot.discs) {
+    legend_x = 0.02 * per_usual_width;
+    sample_width = 0.06 * per_usual_width;
     constexpr PLFLT kGapPx = 14, kBarWidthPx = 22;
     const PLFLT bar_x = kGapPx / box_w_px;
     const char* axis_opts[] = {"bcvtm"};
@@ -400,37 +534,54 @@ void Draw(const Plot& plot, ImageFormat format, const std::string& path) {
                kBackground, kInk, 1, 0, 0, kInk, 1, 1, label_opts, labels, 1, axis_opts, ticks, sub_ticks, n_values,
                values_of_axis);
     legend_x = bar_x + bar_width + kGapPx / box_w_px;
-  }
-  // Labels longer than the space right of the plot holds (about 46 characters at the usual size;
-  // what is left beside a colour bar) are drawn smaller rather than cut at the page's edge.
-  PLFLT fits = 46;
-  if (plot.discs) {
-    const PLFLT usual_room_px = (1 - kBoxRight - 0.02 * (kBoxRight - kBoxLeft)) * kWidthPx;
-    fits = 46 * (kWidthPx - box_x1 * kWidthPx - legend_x * box_w_px) / usual_room_px;
-  }
-  size_t longest = 0;
-  for (const Series& s : plot.series) {
-    size_t chars = 0;
-    for (size_t k = 0; k < s.label.size(); ++k) {
-      if (s.label[k] == '#' && k + 1 < s.label.size()) {  // a PLplot escape (#d, #u) draws nothing
-        ++k;
-        continue;
+    // Labels longer than the space right of the colour bar holds (about 46 characters at the
+    // usual size beside the usual box) are drawn smaller rather than cut at the page's edge.
+    const PLFLT usual_room_px = (1 - kDiscBoxRight - 0.02 * (kDiscBoxRight - kBoxLeft)) * kWidthPx;
+    const PLFLT fits = 46 * (kWidthPx - box_x1 * kWidthPx - legend_x * box_w_px) / usual_room_px;
+    size_t longest = 0;
+    for (const Series& s : plot.series) {
+      size_t chars = 0;
+      for (size_t k = 0; k < s.label.size(); ++k) {
+        if (s.label[k] == '#' && k + 1 < s.label.size()) {  // a PLplot escape (#d, #u) draws nothing
+          ++k;
+          continue;
+        }
+        if ((static_cast<unsigned char>(s.label[k]) & 0xC0) != 0x80) ++chars;  // UTF-8 code points
       }
-      if ((static_cast<unsigned char>(s.label[k]) & 0xC0) != 0x80) ++chars;  // UTF-8 code points
+      longest = std::max(longest, chars);
     }
-    longest = std::max(longest, chars);
+    if (longest > fits) text_scale *= fits / static_cast<PLFLT>(longest);
+  } else if (layout.legend == LegendPlace::kInside) {
+    position = PL_POSITION_INSIDE | (layout.legend_top ? PL_POSITION_TOP : PL_POSITION_BOTTOM) |
+               (layout.legend_left ? PL_POSITION_LEFT : PL_POSITION_RIGHT);
+    legend_x = kInsetPx / box_w_px;
+    legend_y = kInsetPx / box_h_px;
   }
-  const PLFLT base_scale = n_series > 12 ? 0.65 : 0.75;
-  const PLFLT text_scale = longest > fits ? base_scale * fits / static_cast<PLFLT>(longest) : base_scale;
+  FigureLayout as_drawn = layout;
+  as_drawn.box = {box_x0, box_x1, box_y0, box_y1};
+  as_drawn.text_scale = text_scale;
   if (n_series > 0) {
     PLFLT legend_width = 0, legend_height = 0;
     plcol0(kInk);
-    pllegend(&legend_width, &legend_height, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX,
-             PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, legend_x, 0.0, 0.06 * per_usual_width, kBackground, kInk, 1, 0, 0,
-             n_series, opts.data(), 0.5, text_scale, 2.0, 0.0, text_colors.data(), texts.data(), nullptr, nullptr,
-             nullptr, nullptr, colors.data(), styles.data(), widths.data(), colors.data(), symbol_scales.data(),
-             symbol_numbers.data(), symbols.data());
+    pllegend(&legend_width, &legend_height, PL_LEGEND_BACKGROUND | PL_LEGEND_BOUNDING_BOX, position, legend_x,
+             legend_y, sample_width, kBackground, kInk, 1, 0, 0, n_series, opts.data(), kTextOffset, text_scale,
+             kTextSpacing, 0.0, text_colors.data(), texts.data(), nullptr, nullptr, nullptr, nullptr, colors.data(),
+             styles.data(), widths.data(), colors.data(), symbol_scales.data(), symbol_numbers.data(), symbols.data());
+    // Where PLplot put it, from the size it reports (in units of the box).
+    const double w = legend_width * (box_x1 - box_x0), h = legend_height * (box_y1 - box_y0);
+    PageRect r;
+    if (position & PL_POSITION_INSIDE) {
+      r.x0 = layout.legend_left ? box_x0 + legend_x * (box_x1 - box_x0) : box_x1 - legend_x * (box_x1 - box_x0) - w;
+      r.y1 = layout.legend_top ? box_y1 - legend_y * (box_y1 - box_y0) : box_y0 + legend_y * (box_y1 - box_y0) + h;
+    } else {
+      r.x0 = box_x1 + legend_x * (box_x1 - box_x0);
+      r.y1 = (box_y0 + box_y1) / 2 + h / 2;
+    }
+    r.x1 = r.x0 + w;
+    r.y0 = r.y1 - h;
+    as_drawn.legend_rect = r;
   }
+  if (drawn != nullptr) *drawn = as_drawn;
   plend();
 }
 
@@ -566,9 +717,72 @@ Result<Plot> PlotFromJson(const json& j) {
 
 std::string SeriesColor(size_t i) { return Hex(SeriesRgb(i)); }
 
-Status DrawPlotToFile(const Plot& plot, ImageFormat format, const std::string& path) {
+FigureLayout LayOutFigure(const Plot& plot, ImageFormat format) {
+  FigureLayout layout;
+  layout.axes = DataAxes(plot);
+  const size_t n = plot.series.size();
+  layout.text_scale = n > 12 ? 0.65 : 0.75;
+  layout.legend = n > 0 ? LegendPlace::kRight : LegendPlace::kNone;
+  if (plot.discs) {
+    layout.box = {kBoxLeft, kDiscBoxRight, kBoxBottom, kBoxTop};
+    return layout;  // the legend stands right of the colour bar, which PLplot sizes
+  }
+  layout.box = {kBoxLeft, kBoxRight, kBoxBottom, kBoxTop};
+  if (n == 0) return layout;
+  const PageRect box = layout.box;
+  const LegendSize size = EstimateLegend(plot, format, layout.text_scale);
+  if (size.width <= 0.7 * box.width() && size.height <= 0.85 * box.height()) {
+    // A free corner: top right, top left, bottom right, bottom left, the first that is.
+    struct Corner {
+      bool top, left;
+    };
+    int fewest = std::numeric_limits<int>::max();
+    Corner best{true, false};
+    for (const Corner c : {Corner{true, false}, Corner{true, true}, Corner{false, false}, Corner{false, true}}) {
+      const int met = DataMet(plot, box, layout.axes, CornerRect(box, size, c.top, c.left));
+      if (met < fewest) fewest = met, best = c;
+      if (met == 0) break;
+    }
+    // None: the corner with the fewest data gets room of its own, the y axis grown at its end so
+    // that every datum (with a marker's clearance) stays below (above) the legend.
+    const double taken = (size.height + (kInsetPx + kMarkerClearPx) / kHeightPx) / box.height();
+    if (fewest == 0 || (!plot.limits && taken <= 0.45)) {
+      layout.legend = LegendPlace::kInside;
+      layout.legend_top = best.top;
+      layout.legend_left = best.left;
+      layout.legend_rect = CornerRect(box, size, best.top, best.left);
+      if (fewest > 0) {
+        layout.headroom = true;
+        const double span = (layout.axes[3] - layout.axes[2]) / (1 - taken);
+        if (best.top) {
+          layout.axes[3] = layout.axes[2] + span;
+        } else {
+          layout.axes[2] = layout.axes[3] - span;
+        }
+      }
+      return layout;
+    }
+  }
+  // Right of the box, as wide as its longest label up to kMaxRightWidth of the page (longer labels
+  // are drawn smaller), centred on the box vertically; the box takes the rest of the width.
+  constexpr double kMaxRightWidth = 0.42;
+  LegendSize right = size;
+  if (right.width > kMaxRightWidth) {
+    const double frame = EstimateLegend(plot, format, 0).width;
+    layout.text_scale *= (kMaxRightWidth - frame) / (right.width - frame);
+    right = EstimateLegend(plot, format, layout.text_scale);
+  }
+  layout.box.x1 = 1 - (kRightMarginPx + kLegendGapPx) / kWidthPx - right.width;
+  layout.legend_rect.x0 = layout.box.x1 + kLegendGapPx / kWidthPx;
+  layout.legend_rect.x1 = layout.legend_rect.x0 + right.width;
+  layout.legend_rect.y0 = (box.y0 + box.y1 - right.height) / 2;
+  layout.legend_rect.y1 = layout.legend_rect.y0 + right.height;
+  return layout;
+}
+
+Status DrawPlotToFile(const Plot& plot, ImageFormat format, const std::string& path, FigureLayout* drawn) {
   SANDSWIM_RETURN_IF_ERROR(CheckPlot(plot));
-  Draw(plot, format, path);
+  Draw(plot, format, path, drawn);
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   if (ec || size == 0) return Status::IOError("PLplot wrote nothing to " + path + " (disk full?)");

@@ -84,13 +84,47 @@ std::string SeriesColor(size_t i);
 // with lo >= hi, or a non-finite value: what RenderPlot refuses before PLplot sees it.
 Status CheckPlot(const Plot& plot);
 
+// ---- Layout ------------------------------------------------------------------------------------
+// Where a figure's parts go on its page (1200 x 600 px). The plot box takes the page's width; a
+// legend up to 70 % of the box's width and 85 % of its height goes inside it, in the first corner
+// (top right, top left, bottom right, bottom left) its rectangle shares with no data (markers,
+// error bars, lines, with a few pixels of clearance); else, when it takes at most 45 % of the
+// box's height and the axes are the data's own (no `limits`), the y axis grows at the end of the
+// corner with the fewest data, so that the legend sits above (below) every datum; else (many or
+// long entries) it stands right of the box, as wide as its longest label (at most 42 % of the
+// page: longer labels are drawn smaller), and the box takes the rest. A plot with discs keeps its
+// box to the data's proportions in the left 56 %, the colour bar and the legend right of it.
+
+// A rectangle in fractions of the page: x from its left edge, y from its bottom edge.
+struct PageRect {
+  double x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+  double width() const { return x1 - x0; }
+  double height() const { return y1 - y0; }
+};
+enum class LegendPlace { kNone, kInside, kRight };
+struct FigureLayout {
+  PageRect box;                  // the area of the plot box (an equal-aspect box shrinks inside it)
+  std::array<double, 4> axes{};  // x_lo, x_hi, y_lo, y_hi
+  LegendPlace legend = LegendPlace::kNone;
+  bool legend_top = true, legend_left = false;  // kInside: the corner
+  bool headroom = false;                        // kInside: the y axis grew to make room for it
+  // kInside and kRight without discs: the legend's rectangle, estimated from its labels (at least
+  // as large as PLplot draws it). As drawn (DrawPlotToFile's `drawn`): the one PLplot reports.
+  PageRect legend_rect;
+  double text_scale = 0.75;  // the legend's labels, of PLplot's default character height
+};
+// The layout of `plot` drawn as `format` (pure: no drawing; the formats measure the legend's text
+// differently). REQUIRES: CheckPlot(plot) passed.
+FigureLayout LayOutFigure(const Plot& plot, ImageFormat format);
+
 // Draws the plot in this process (CheckPlot first); IOError when the temporary file cannot be
 // made. PLplot may end the process on an error of its own: the daemon draws through a
 // PlotRenderer (server/analysis/plot_renderer.h) in a process of its own instead.
 Result<std::string> RenderPlot(const Plot& plot, ImageFormat format);
 // The same, drawn into the file at `path` (created or replaced): what sandswim-render does, so
-// that a renderer PLplot ends leaves no file of its own behind.
-Status DrawPlotToFile(const Plot& plot, ImageFormat format, const std::string& path);
+// that a renderer PLplot ends leaves no file of its own behind. `drawn` (optional): the layout
+// as drawn, the box PLplot used and the legend's rectangle as PLplot reports it.
+Status DrawPlotToFile(const Plot& plot, ImageFormat format, const std::string& path, FigureLayout* drawn = nullptr);
 
 // Text shown as it is in a PLplot label: '#' (PLplot's escape, as in "U#dz#u") doubled. For
 // user-given names (a sweep's) inside titles.

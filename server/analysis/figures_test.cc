@@ -4,6 +4,7 @@
 #include "server/analysis/figures.h"
 
 #include <stdlib.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -408,6 +409,202 @@ TEST(FiguresTest, AnEqualAspectSliceRendersToPng) {
   Plot flat = BedSlicePlot(50, true);
   std::fill(flat.discs->value.begin(), flat.discs->value.end(), 0.0);
   EXPECT_TRUE(RenderPlot(flat, ImageFormat::kPng).ok());
+}
+
+// ---- Layout: the plot takes the page's width; the legend hides no data ----
+
+// The figure: U_z of a density-ratio sweep, one branch, bars that reach the top left.
+Plot DensitySweepUz() {
+  Plot plot;
+  plot.title = "sweep 3 density.rising (smoke): U#dz#u";
+  plot.x_label = "so_density (kg/m^3)";
+  plot.y_label = "U#dz#u (m/s), bars: 95 % interval";
+  plot.series.push_back({"rising (Ω < 0)",
+                         {1250, 1900, 2500, 3750, 5000, 7500},
+                         {0.1225, 0.108, 0.1015, 0.0815, 0.076, 0.047},
+                         {0.065, 0.05, 0.0375, 0.0295, 0.030, 0.0175},
+                         true,
+                         false});
+  return plot;
+}
+
+// The plot's data on the page (fractions), as the test sees them: markers with their bars and
+// every line, each segment sampled finely; and whether any comes within `clear_px` of `r`.
+bool DataWithin(const Plot& plot, const FigureLayout& at, const PageRect& r, double clear_px) {
+  const PageRect near{r.x0 - clear_px / 1200, r.x1 + clear_px / 1200, r.y0 - clear_px / 600, r.y1 + clear_px / 600};
+  const auto page_x = [&](double x) { return at.box.x0 + (x - at.axes[0]) / (at.axes[1] - at.axes[0]) * at.box.width(); };
+  const auto page_y = [&](double y) { return at.box.y0 + (y - at.axes[2]) / (at.axes[3] - at.axes[2]) * at.box.height(); };
+  const auto inside = [&](double x, double y) { return x >= near.x0 && x <= near.x1 && y >= near.y0 && y <= near.y1; };
+  for (const Series& s : plot.series) {
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      const double e = s.y_err.empty() ? 0 : s.y_err[i];
+      const double x0 = s.x[i], y0 = s.markers ? s.y[i] - e : s.y[i];
+      const double x1 = s.markers || i + 1 == s.x.size() ? s.x[i] : s.x[i + 1];
+      const double y1 = s.markers ? s.y[i] + e : i + 1 == s.x.size() ? s.y[i] : s.y[i + 1];
+      for (int k = 0; k <= 50; ++k) {
+        if (inside(page_x(x0 + (x1 - x0) * k / 50), page_y(y0 + (y1 - y0) * k / 50))) return true;
+      }
+    }
+  }
+  return false;
+}
+
+std::string Describe(const PageRect& r) {
+  std::ostringstream out;
+  out << "x " << r.x0 << ".." << r.x1 << ", y " << r.y0 << ".." << r.y1;
+  return out.str();
+}
+
+::testing::AssertionResult Contains(const PageRect& outer, const PageRect& inner) {
+  constexpr double kSlack = 1e-6;
+  if (inner.x0 >= outer.x0 - kSlack && inner.x1 <= outer.x1 + kSlack && inner.y0 >= outer.y0 - kSlack &&
+      inner.y1 <= outer.y1 + kSlack) {
+    return ::testing::AssertionSuccess();
+  }
+  return ::testing::AssertionFailure() << Describe(inner) << " is not inside " << Describe(outer);
+}
+
+// Draws `plot` in `format` and returns the layout as drawn.
+FigureLayout Drawn(const Plot& plot, ImageFormat format) {
+  // A name of this process's own: ctest runs each test in a process of its own, several at once.
+  const std::string path =
+      std::filesystem::temp_directory_path() / ("sandswim-layout-test-" + std::to_string(getpid()));
+  FigureLayout drawn;
+  const Status status = DrawPlotToFile(plot, format, path, &drawn);
+  EXPECT_TRUE(status.ok()) << status.ToString();
+  std::filesystem::remove(path);
+  return drawn;
+}
+
+// The density-ratio figure drew its box over the left 47 % of the page and its one-entry legend
+// in the rest. Now the box spans the page and the legend sits inside it, clear of every bar.
+TEST(FigureLayoutTest, AUzFigureUsesThePageWidthAndItsLegendHidesNoData) {
+  const Plot plot = DensitySweepUz();
+  for (ImageFormat format : {ImageFormat::kPng, ImageFormat::kSvg}) {
+    SCOPED_TRACE(ImageExtension(format));
+    const FigureLayout layout = LayOutFigure(plot, format);
+    EXPECT_EQ(layout.legend, LegendPlace::kInside);
+    EXPECT_FALSE(layout.headroom);
+    const FigureLayout drawn = Drawn(plot, format);
+    EXPECT_GE(drawn.box.width(), 0.85);
+    EXPECT_EQ(drawn.legend, LegendPlace::kInside);
+    // PLplot's frame lies inside the rectangle the layout kept for it, and no datum is near it.
+    EXPECT_TRUE(Contains(layout.legend_rect, drawn.legend_rect));
+    EXPECT_TRUE(Contains(drawn.box, drawn.legend_rect));
+    EXPECT_FALSE(DataWithin(plot, drawn, drawn.legend_rect, 3));
+  }
+}
+
+// Each kind of figure with a legend: the frame PLplot draws stays inside the rectangle the layout
+// kept free (so the estimate of its labels' width is never short, on either device); inside the
+// box it hides no data and the box spans the page, beside it the box keeps at least the old
+// layout's 47 %.
+TEST(FigureLayoutTest, EveryKindDrawsItsLegendInsideTheRoomKeptForIt) {
+  std::vector<Plot> plots = {DensitySweepUz()};
+  api::RunResult result;
+  result.analysis = api::kAnalysisVersion;
+  result.conclusive = true;
+  result.uz = 0.01;
+  result.uz_stderr = 0.001;
+  result.uz_blocks = 1;
+  result.block_s = 1.0 / 3;
+  result.window_t0 = 0.2;
+  result.window_t1 = 0.2 + 1.0 / 3;
+  plots.push_back(RunTrajectoryPlot(7, OscillatoryPoint(0.03, 3, -80, 0.6), Wiggle(0.01, 0), &result));
+  std::vector<RunTrajectory> runs;
+  for (int n = 0; n < 8; ++n) {
+    for (int sign : {-1, 1}) {
+      const double omega = sign * 10 * (n + 1);
+      runs.push_back({n * 2 + (sign > 0), OscillatoryPoint(0.03, 3, omega, 0.6), Wiggle(-sign * 0.002 * (n + 1), n)});
+    }
+  }
+  plots.push_back(SweepTrajectoriesPlot("every run", runs, "Omega"));                                   // 16 entries
+  plots.push_back(SweepTrajectoriesPlot("rising", std::vector<RunTrajectory>(runs.begin(), runs.begin() + 3), "Omega"));
+  std::vector<SweepSample> samples;
+  for (int n = 0; n < 6; ++n) {
+    const double w = 10 * std::pow(2.0, n);
+    samples.push_back({OscillatoryPoint(0.03, 3, -w, 4), 0.02 * (1 - std::exp(-0.02 * w)) + 1e-4 * (n % 2), 2e-4});
+    samples.push_back({OscillatoryPoint(0.03, 3, w, 4), -0.01 * (1 - std::exp(-0.03 * w)) - 1e-4 * (n % 3), 2e-4});
+  }
+  plots.push_back(SweepUzPlot("omega sweep: U_z", samples, FitSweep(samples)));  // 6 entries, fits and bands
+  for (const Plot& plot : plots) {
+    for (ImageFormat format : {ImageFormat::kPng, ImageFormat::kSvg}) {
+      SCOPED_TRACE(plot.title + " " + ImageExtension(format));
+      const FigureLayout layout = LayOutFigure(plot, format);
+      const FigureLayout drawn = Drawn(plot, format);
+      EXPECT_EQ(drawn.legend, layout.legend);
+      EXPECT_TRUE(Contains(layout.legend_rect, drawn.legend_rect));
+      EXPECT_GE(drawn.box.width(), 0.47);
+      EXPECT_LE(drawn.legend_rect.x1, 1.0);
+      if (drawn.legend == LegendPlace::kInside) {
+        EXPECT_GE(drawn.box.width(), 0.85);
+        EXPECT_FALSE(DataWithin(plot, drawn, drawn.legend_rect, 1));
+      } else {
+        EXPECT_GE(drawn.legend_rect.x0, drawn.box.x1);  // beside the box, not over it
+      }
+    }
+  }
+}
+
+// Data through every corner (a sine over many periods): the y axis grows at one end, and the
+// legend sits above (below) every datum instead of beside the plot.
+TEST(FigureLayoutTest, ACrowdedPlotMakesHeadroomForItsLegend) {
+  Plot plot;
+  plot.title = "crowded";
+  plot.x_label = "t (s)";
+  plot.y_label = "Δz (m)";
+  Series wave{"Δz = z(t) − z(0)", {}, {}, {}, false, false};
+  for (int i = 0; i <= 400; ++i) {
+    wave.x.push_back(i * 0.01);
+    wave.y.push_back(std::sin(2 * M_PI * 3 * i * 0.01));
+  }
+  plot.series = {wave, Series{"zero", {0, 4}, {0, 0}, {}, false, true}};
+  const FigureLayout layout = LayOutFigure(plot, ImageFormat::kPng);
+  ASSERT_EQ(layout.legend, LegendPlace::kInside);
+  EXPECT_TRUE(layout.headroom);
+  // The data's own range is -1.1..1.1 (5 % of room); one end grows, at the legend's side.
+  EXPECT_EQ(layout.axes[3] > 1.1 + 1e-9, layout.legend_top);
+  EXPECT_EQ(layout.axes[2] < -1.1 - 1e-9, !layout.legend_top);
+  const FigureLayout drawn = Drawn(plot, ImageFormat::kPng);
+  EXPECT_GE(drawn.box.width(), 0.85);
+  EXPECT_FALSE(DataWithin(plot, drawn, drawn.legend_rect, 1));
+
+  // Given limits are kept as they are: no headroom; the legend stands right of the box.
+  plot.limits = std::array<double, 4>{0, 4, -1, 1};
+  const FigureLayout fixed = LayOutFigure(plot, ImageFormat::kPng);
+  EXPECT_EQ(fixed.legend, LegendPlace::kRight);
+  EXPECT_EQ(fixed.axes, *plot.limits);
+  EXPECT_NEAR(fixed.legend_rect.x1, 1 - 12.0 / 1200, 1e-9);
+}
+
+// A legend too tall for the box stands right of it, as wide as its longest label: short labels
+// leave the box most of the page; long ones are drawn smaller rather than take half of it.
+TEST(FigureLayoutTest, ATallLegendStandsBesideTheBoxAsWideAsItsText) {
+  Plot plot;
+  plot.title = "tall";
+  plot.x_label = "t (s)";
+  plot.y_label = "Δz (m)";
+  for (int i = 0; i < 16; ++i) {
+    plot.series.push_back({"Ω = " + std::to_string(-10 * (i + 1)) + " rad/s", {0, 1}, {0, 0.01 * i}, {}, false, false});
+  }
+  const FigureLayout short_labels = LayOutFigure(plot, ImageFormat::kPng);
+  ASSERT_EQ(short_labels.legend, LegendPlace::kRight);
+  EXPECT_GT(short_labels.box.width(), 0.7);
+  EXPECT_LT(short_labels.legend_rect.width(), 0.2);
+  for (Series& s : plot.series) s.label += ", so_density = 5000 kg/m^3, replicate bed 2 of 3";
+  const FigureLayout long_labels = LayOutFigure(plot, ImageFormat::kPng);
+  EXPECT_LE(long_labels.legend_rect.width(), 0.42 + 1e-9);
+  EXPECT_LT(long_labels.text_scale, short_labels.text_scale);
+  EXPECT_GT(long_labels.box.width(), 0.45);
+}
+
+// A bed slice keeps its box to the bed's proportions, its colour bar and legend right of it.
+TEST(FigureLayoutTest, ASliceKeepsItsLegendBesideTheColourBar) {
+  const Plot plot = BedSlicePlot(20, true);
+  const FigureLayout drawn = Drawn(plot, ImageFormat::kPng);
+  EXPECT_EQ(drawn.legend, LegendPlace::kRight);
+  EXPECT_GT(drawn.legend_rect.x0, drawn.box.x1);
+  EXPECT_LE(drawn.legend_rect.x1, 1.0);
 }
 
 class FigureCacheTest : public ::testing::Test {
