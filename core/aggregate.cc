@@ -61,7 +61,10 @@ DofSearch SearchDofOfInterval(double se, double ci95) {
     double ratio;
     int quantiles;
   } target{ci95 / se, 0};
-  if (!std::isfinite(target.ratio) || target.ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return {1e7, 0};
+  // An interval with no finite ratio to its error (se = 0, or NaN) says nothing of its dof: the fewest
+  // (0.5), the widest quantile, as the bisection this replaced gave.
+  if (!std::isfinite(target.ratio)) return {0.5, 0};
+  if (target.ratio <= gsl_cdf_ugaussian_Pinv(0.975) * (1 + 1e-9)) return {1e7, 0};
   // t(0.975, e^x) - ratio falls as x = ln(dof) grows; its root in [ln 0.5, ln 1e7] by Brent's method.
   // (Halving that range 200 times took 1.2 ms a run: 11 s for a page of 10,000 runs' aggregates.)
   auto excess = [](double x, void* t) {
@@ -79,7 +82,9 @@ DofSearch SearchDofOfInterval(double se, double ci95) {
     if (gsl_root_fsolver_iterate(solver) != GSL_SUCCESS) break;
     lo = gsl_root_fsolver_x_lower(solver);
     hi = gsl_root_fsolver_x_upper(solver);
-    if (gsl_root_test_interval(lo, hi, 0, 1e-14) != GSL_CONTINUE) break;
+    // Absolute in ln(dof) (1e-13: dof to 1e-13 relative): a relative test has no tolerance left
+    // near ln(dof) = 0 (dof near 1 took 26-36 quantiles with one).
+    if (gsl_root_test_interval(lo, hi, 1e-13, 0) != GSL_CONTINUE) break;
   }
   const double dof = std::exp(gsl_root_fsolver_root(solver));
   gsl_root_fsolver_free(solver);

@@ -101,8 +101,8 @@ struct ReplicateAggregate {
 };
 
 // The degrees of freedom a 95 % interval of half-width `ci95` around a value of standard error `se`
-// was made with: ci95 / se = t(0.975, dof); 1e7 (normal) when the ratio is a normal quantile's.
-// REQUIRES: se > 0, ci95 > 0.
+// was made with: ci95 / se = t(0.975, dof); 1e7 (normal) when the ratio is a normal quantile's or
+// less, 0.5 when it is wider than t(0.975, 0.5)'s or not finite (se = 0, NaN): the fewest.
 double DofOfInterval(double se, double ci95);
 
 // DofOfInterval's answer and the t quantiles it evaluated to find it: a results page finds one for

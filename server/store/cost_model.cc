@@ -285,29 +285,36 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
         "r.rot_omega, r.duration_s, r.run_duration_s, r.materials FROM runs r JOIN beds b ON b.id = r.bed_id "
         "WHERE r.id IN (" + ScopeRuns(scope) + ") AND r.state IN ('queued', 'running')");
     st.Bind(1, id).Bind(2, now);
+    Status unparsed = Status::Ok();  // a state text that is no JobState: Corruption, as every store read
     Status s = StepAll(st, [&](const Statement& r) {
+      Result<JobState> run_state = r.State(0);
+      Result<JobState> bed_state = r.State(5);
+      if (!run_state.ok() || !bed_state.ok()) {
+        if (unparsed.ok()) unparsed = run_state.ok() ? bed_state.status() : run_state.status();
+        return;
+      }
       const Scale* scale = FindScale(r.Text(7));
       const double grains = r.OptInt(6) && *r.OptInt(6) > 0 ? static_cast<double>(*r.OptInt(6))
                                                               : EstimatedGrains(scale ? *scale : *smoke);
       WorkLeft w;
-      w.running = InState(r.Text(0), JobState::kRunning);
+      w.running = *run_state == JobState::kRunning;
       w.particles = grains + 1;
       w.steps = r.Int(1);
       w.steps_done = r.Int(2);
       w.elapsed_s = r.Double(3);
       w.min_steps = EarliestTargetStep(r, w.steps);
       left.push_back(w);
-      const std::string bed_state = r.Text(5);
-      if (InState(bed_state, JobState::kQueued) || InState(bed_state, JobState::kRunning)) {
+      if (*bed_state == JobState::kQueued || *bed_state == JobState::kRunning) {
         WorkLeft b;
         b.kind = WorkLeft::Kind::kBed;
-        b.running = InState(bed_state, JobState::kRunning);
+        b.running = *bed_state == JobState::kRunning;
         b.particles = grains;
         b.elapsed_s = b.running ? r.Double(8) : 0;
         beds[r.Int(4)] = b;
       }
     });
     if (!s.ok()) return s;
+    if (!unparsed.ok()) return unparsed;
   }
   for (const auto& [bed_id, b] : beds) left.push_back(b);
   if (left.empty()) return std::optional<Eta>();

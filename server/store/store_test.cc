@@ -19,6 +19,7 @@
 #include "platform/clock.h"
 #include "server/jobs/submission.h"
 #include "server/store/campaigns.h"
+#include "server/store/cost_model.h"
 #include "server/store/job_table.h"
 #include "server/store/result_columns.h"
 #include "server/store/temp_store_test_util.h"
@@ -412,6 +413,17 @@ TEST_F(StoreTest, ListRunsPagesByCursorAndFilters) {
       << corrupt.status().ToString();
   EXPECT_EQ(store->ListRuns(RunFilter{}).status().code(), StatusCode::kCorruption);
   EXPECT_EQ(store->GetMetrics().status().code(), StatusCode::kCorruption);
+  // The ETA reads the beds' state column too (its SQL keeps only queued and running runs): a bed it
+  // cannot place is an error, not a bed left out of the work left.
+  EXPECT_TRUE(ReadEta(*store, EtaScope::kSweep, sub->sweep_ids[0], 1.7e9, 1).ok());
+  {
+    auto t = store->db().Begin();
+    ASSERT_TRUE(t->Exec("PRAGMA ignore_check_constraints = ON; UPDATE beds SET state = 'finished'; "
+                        "PRAGMA ignore_check_constraints = OFF")
+                    .ok());
+    ASSERT_TRUE(t->Commit().ok());
+  }
+  EXPECT_EQ(ReadEta(*store, EtaScope::kSweep, sub->sweep_ids[0], 1.7e9, 1).status().code(), StatusCode::kCorruption);
 }
 
 // Every row of `of` `id`, read `limit` rows a page; fails the test on an error.
