@@ -170,8 +170,9 @@ Result<Snapshot> FetchSnapshotFromBoard(DaemonClient& client, const Target& targ
     } else if (NoBoard(board.status())) {
       *board_usable = false;  // an older daemon (no route), or one without a live feed
     }
-    // Any other failure (a busy or restarting daemon, a broken connection) may pass: the target's
-    // own routes for this refresh, the board again at the next.
+    // Any other failure (a busy daemon, a 500) may pass: the target's own routes for this refresh,
+    // the board again at the next. A daemon that cannot be reached fails those too: Watch skips
+    // the refresh (watch.h).
   }
   return FetchSnapshot(client, target);
 }
