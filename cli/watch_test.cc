@@ -451,6 +451,40 @@ TEST(WatchTest, ATargetNewerThanTheBoardIsLookedForAgain) {
   EXPECT_EQ(s->client.route_calls, 2 * 3);
 }
 
+// A board the daemon failed to rebuild ("stale": true) shows the target as it was: each refresh
+// it is stale reads the target's routes instead, so the watch ends when the target does.
+TEST(WatchTest, AStaleBoardIsAMissForThatRefresh) {
+  auto s = TwoRunScenario(/*one_fails=*/false);
+  json frozen;
+  int boards = 0;
+  s->client.edit_board = [&](json& board) {
+    if (boards++ == 0) {
+      frozen = board;  // the last board the daemon could build: sweep 1 running
+    } else if (boards < 20) {  // (bounded, so that a watch blind to the mark ends and fails below)
+      board = frozen;
+      board["stale"] = true;
+      board["built_at"] = 1.7e9;
+    }
+  };
+  std::ostringstream out;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  EXPECT_EQ(last->counts.done, 2);
+  EXPECT_EQ(s->client.live_calls, 4) << "ended with the target, not with the board";
+  EXPECT_EQ(s->client.route_calls, 3 * 3) << "the three refreshes after the first through the routes";
+
+  BoardMiss miss = BoardMiss::kNone;
+  frozen["stale"] = true;
+  auto view = SnapshotFromBoard(frozen, Target{Target::Kind::kSweep, 1}, nullptr, &miss);
+  ASSERT_TRUE(view.ok());
+  EXPECT_FALSE(view->has_value());
+  EXPECT_EQ(miss, BoardMiss::kThisRefresh);
+  frozen["stale"] = false;  // (a daemon may say so outright)
+  view = SnapshotFromBoard(frozen, Target{Target::Kind::kSweep, 1}, nullptr, &miss);
+  ASSERT_TRUE(view.ok());
+  EXPECT_TRUE(view->has_value());
+}
+
 // A target older than everything the board lists will not be on it: the board is asked once.
 TEST(WatchTest, ATargetOlderThanTheBoardIsFollowedThroughItsRoutes) {
   auto s = TwoRunScenario(/*one_fails=*/false);
