@@ -600,6 +600,26 @@ TEST(SnapshotTest, ReadsTheDaemonsRecordedBoard) {
   EXPECT_EQ(miss, BoardMiss::kThisRefresh);
 }
 
+// The recorded board with its sweep-2-only run renumbered below the others and listed first (as
+// a board in id order would list it): cr:1 still shows sweep 1's runs first, so the grouping is by
+// sweep, not the board's or the ids' order.
+TEST(SnapshotTest, GroupsTheRecordedBoardBySweepNotById) {
+  json board = json::parse(sandswim::testing::Fixture("live_board.json"), nullptr, false);
+  ASSERT_TRUE(board.is_object()) << "tests/fixtures/live_board.json";
+  json& running = board["running"];
+  ASSERT_EQ(running.size(), 3u);
+  ASSERT_EQ(running[2]["sweeps"], json({2})) << "run 3, in sweep 2 only";
+  json moved = running[2];
+  moved["id"] = 0;
+  running.erase(running.begin() + 2);
+  running.insert(running.begin(), moved);
+  auto cr = SnapshotFromBoard(board, Target{Target::Kind::kCampaignRun, 1});
+  ASSERT_TRUE(cr.ok() && cr->has_value());
+  std::vector<int64_t> ids;
+  for (const RunInFlight& r : (*cr)->running) ids.push_back(r.id);
+  EXPECT_EQ(ids, (std::vector<int64_t>{1, 2, 0}));
+}
+
 TEST(SnapshotTest, ParsesTargets) {
   auto sweep = ParseTarget("12");
   ASSERT_TRUE(sweep.ok());
