@@ -57,6 +57,7 @@ struct Args {
   int64_t limit = 0;
   int64_t campaign_run = 0;
   double interval_s = 1.0;
+  double give_up_after_s = 600;  // watch: a daemon unreachable this long ends it
   std::string engine_version;
   bool cost = false;  // `expand --cost`
   int cores = 0;      // `expand --cost --cores N`
@@ -244,6 +245,7 @@ int WaitAndReport(Context& c, DaemonClient& client, const std::vector<Target>& t
   options.tty = c.env.err_is_tty;
   options.color = c.ColorFor(c.env.err_is_tty);
   options.interval_s = c.args.interval_s;
+  options.notices = &c.err();
   bool failed = false;
   json all = json::array();
   for (const Target& t : targets) {
@@ -481,6 +483,9 @@ int RunResults(Context& c) {
 void SetupWatch(CLI::App& sub, Args& a) {
   AddTarget(sub, a, "SWEEP|CAMPAIGN-RUN", "a sweep id (12) or a campaign run (cr:7)");
   sub.add_option("--interval", a.interval_s, "seconds between polls")->check(CLI::Range(0.05, 3600.0));
+  sub.add_option("--give-up-after", a.give_up_after_s,
+                 "seconds an unreachable daemon is waited for (the last frame stays) before the watch ends")
+      ->check(CLI::Range(0.0, 86400.0));
 }
 
 int RunWatch(Context& c) {
@@ -492,6 +497,8 @@ int RunWatch(Context& c) {
   options.tty = c.env.out_is_tty;
   options.color = c.ColorFor(c.env.out_is_tty);
   options.interval_s = c.args.interval_s;
+  options.give_up_after_s = c.args.give_up_after_s;
+  options.notices = &c.err();
   auto last = Watch(**client, *target, options, c.clock(), c.out());
   if (!last.ok()) return Fail(c, last.status());
   return last->counts.failed > 0 ? kExitRunsFailed : kExitOk;

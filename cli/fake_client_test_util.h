@@ -40,6 +40,9 @@ class FakeClient : public DaemonClient {
   int live_calls = 0;
   Status runs_refusal;  // ListRuns answers it when set
   int route_calls = 0;  // GetSweep, GetCampaignRun and ListRuns: the target's own routes
+  // Live, GetSweep, GetCampaignRun, ListRuns and GetRun answer it when set: a daemon that cannot
+  // be reached (restarting), every route alike.
+  Status down;
 
   // Called as the client is destroyed (at the end of RunCli), so a test can keep what it recorded.
   std::function<void(const FakeClient&)> on_close;
@@ -66,6 +69,7 @@ class FakeClient : public DaemonClient {
   }
   Result<nlohmann::json> GetSweep(int64_t id) override {
     ++route_calls;
+    if (!down.ok()) return down;
     auto it = sweeps.find(id);
     if (it == sweeps.end()) return Status::NotFound("no sweep " + std::to_string(id));
     return it->second;
@@ -78,6 +82,7 @@ class FakeClient : public DaemonClient {
   // GET /api/v1/runs?sweep= finds it through the daemon's sweep membership.
   Result<nlohmann::json> ListRuns(const RunQuery& query) override {
     ++route_calls;
+    if (!down.ok()) return down;
     if (!runs_refusal.ok()) return runs_refusal;
     nlohmann::json out = nlohmann::json::array();
     for (const auto& r : runs) {
@@ -94,6 +99,7 @@ class FakeClient : public DaemonClient {
     return false;
   }
   Result<nlohmann::json> GetRun(int64_t id) override {
+    if (!down.ok()) return down;
     for (const auto& r : runs) {
       if (r.value("id", int64_t{0}) == id) return r;
     }
@@ -101,6 +107,7 @@ class FakeClient : public DaemonClient {
   }
   Result<nlohmann::json> GetCampaignRun(int64_t id) override {
     ++route_calls;
+    if (!down.ok()) return down;
     auto it = campaign_runs.find(id);
     if (it == campaign_runs.end()) return Status::NotFound("no campaign run " + std::to_string(id));
     return it->second;
@@ -113,6 +120,7 @@ class FakeClient : public DaemonClient {
   // without them makes a board from before running runs named their sweeps).
   Result<nlohmann::json> Live() override {
     ++live_calls;
+    if (!down.ok()) return down;
     if (!serves_board) return Status::NotFound("no route GET /api/v1/live");
     if (!live_refusals.empty()) {
       Status refusal = live_refusals.front();

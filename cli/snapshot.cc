@@ -165,13 +165,14 @@ Result<Snapshot> FetchSnapshotFromBoard(DaemonClient& client, const Target& targ
       }
       // Older than everything the board lists, or a board from before runs named their sweeps: it
       // will not show the target later either. Otherwise (newer than the board, which is rebuilt
-      // at most once a tick; more runs in flight than it lists; unreadable): this refresh only.
+      // at most once a tick; more runs in flight than it lists; unreadable; stale): this refresh only.
       if (view.ok() && miss == BoardMiss::kForGood) *board_usable = false;
     } else if (NoBoard(board.status())) {
       *board_usable = false;  // an older daemon (no route), or one without a live feed
     }
-    // Any other failure (a busy or restarting daemon, a broken connection) may pass: the target's
-    // own routes for this refresh, the board again at the next.
+    // Any other failure (a busy daemon, a 500) may pass: the target's own routes for this refresh,
+    // the board again at the next. A daemon that cannot be reached fails those too: Watch skips
+    // the refresh (watch.h).
   }
   return FetchSnapshot(client, target);
 }
@@ -181,6 +182,12 @@ Result<std::optional<Snapshot>> SnapshotFromBoard(const json& board, const Targe
   BoardMiss ignored;
   if (miss == nullptr) miss = &ignored;
   *miss = BoardMiss::kNone;
+  // A board the daemon failed to rebuild (server/dashboard/live_feed.h) may show a target as it
+  // was: its own routes for this refresh, the board again at the next.
+  if (auto stale = board.find("stale"); stale != board.end() && *stale == true) {
+    *miss = BoardMiss::kThisRefresh;
+    return std::optional<Snapshot>();
+  }
   try {
     Snapshot s;
     std::vector<int64_t> sweep_ids;  // the target's, in its own order

@@ -44,7 +44,8 @@ Result<Snapshot> FetchSnapshot(DaemonClient& client, const Target& target);
 // either (older than every sweep or campaign run of its kind the board lists, or a board from
 // before running runs named their sweeps); kThisRefresh when a later board may (newer than the
 // board, which the daemon rebuilds at most once a tick; more runs in flight than the board lists;
-// an unreadable board).
+// an unreadable board; a stale one: "stale": true, a board the daemon failed to rebuild, whose
+// counts may be those of a target since finished).
 enum class BoardMiss { kNone, kThisRefresh, kForGood };
 
 // The target as the daemon's progress board (GET /api/v1/live) shows it: title, counts, the

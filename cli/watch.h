@@ -13,8 +13,16 @@
 // are listed after the last frame or line (RenderFailures), read once from the target's routes
 // when the board gave the count only.
 //
-// Time is the injected clock's (platform/clock.h): its monotonic time spaces the piped lines and
-// its sleep the refreshes, so tests run on a FakeClock without waiting.
+// A daemon that cannot be reached (connection refused or reset, a timeout, a 502-504: kUnavailable)
+// after the first frame costs those refreshes only: the last frame stays, "daemon unreachable since
+// HH:MM:SS UTC; retrying" is said once (a line on `notices` when piped, a line under the frame on a
+// terminal), and the watch carries on when the daemon answers again. Only after
+// WatchOptions::give_up_after_s of it does the watch end, with an error that says what to do. A
+// daemon unreachable at the first refresh ends the watch at once (most likely a wrong address).
+//
+// Time is the injected clock's (platform/clock.h): its monotonic time spaces the piped lines,
+// times the give-up deadline and its sleep the refreshes, so tests run on a FakeClock without
+// waiting; its wall time is the "since" said.
 //
 // Thread safety: call from one thread.
 #ifndef SANDSWIM_CLI_WATCH_H_
@@ -36,11 +44,14 @@ struct WatchOptions {
   bool color = false;
   double interval_s = 1.0;       // between polls
   double line_interval_s = 5.0;  // piped: at most one line this often
+  double give_up_after_s = 600;  // a daemon unreachable this long (monotonic s) ends the watch
+  std::ostream* notices = nullptr;  // piped: where "daemon unreachable" is said (nullptr: `out`)
 };
 
 // Follows `target` until it is finished; returns the last snapshot, its failures listed (the
 // caller decides the exit code from its counts). Errors from the daemon before the target has
-// finished end the watch.
+// finished end the watch, except an unreachable daemon after the first frame (above), which ends
+// it only after options.give_up_after_s.
 Result<Snapshot> Watch(DaemonClient& client, const Target& target, const WatchOptions& options, Clock& clock,
                        std::ostream& out);
 

@@ -178,6 +178,98 @@ TEST(WatchTest, DaemonErrorEndsTheWatch) {
   EXPECT_EQ(last.status().code(), StatusCode::kNotFound);
 }
 
+// A daemon that stops answering mid-watch (restarting: the board and every route refused) costs
+// those refreshes only: the last frame stays, the outage is said once, and the watch ends as the
+// target does once the daemon answers again.
+std::unique_ptr<Scenario> RestartScenario(int refreshes_down) {
+  auto s = std::make_unique<Scenario>();
+  s->phases.push_back([](FakeClient& c) { Phase(c, {MakeRun(1, "running", 1.0), MakeRun(2, "queued")}); });
+  for (int i = 0; i < refreshes_down; ++i) {
+    s->phases.push_back([](FakeClient& c) {
+      c.down = Status::Unavailable("no daemon at http://fake (connection refused)");
+    });
+  }
+  s->phases.push_back([](FakeClient& c) {
+    c.down = Status::Ok();
+    Phase(c, {MakeRun(1, "done", 4, 100, 110), MakeRun(2, "running", 2.0)});
+  });
+  s->phases.push_back([](FakeClient& c) { Phase(c, {MakeRun(1, "done", 4, 100, 110), MakeRun(2, "failed")}); });
+  s->phases[0](s->client);
+  return s;
+}
+
+TEST(WatchTest, ADaemonThatStopsAnsweringCostsThoseRefreshesOnly) {
+  auto s = RestartScenario(/*refreshes_down=*/3);
+  std::ostringstream out, notices;
+  WatchOptions options;
+  options.notices = &notices;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  EXPECT_EQ(last->counts.done, 1);
+  EXPECT_EQ(last->counts.failed, 1);
+  ASSERT_EQ(last->failed.size(), 1u) << "listed once the daemon answered again";
+  EXPECT_EQ(s->client.live_calls, 6) << "every refresh asked, the three refused ones too";
+  // The first refresh at 22:13:20 UTC (the fake clock's 1.7e9 s), the daemon gone from the next.
+  EXPECT_EQ(notices.str(), "daemon unreachable since 22:13:21 UTC; retrying\ndaemon answers again\n");
+  EXPECT_THAT(out.str(), StartsWith("sweep 1 s (scale smoke): 0/2 done, 1 running, 1 queued"));
+  EXPECT_THAT(out.str(), HasSubstr("1 failed, 0 cancelled; finished\nfailed:\n  run 2"));
+}
+
+// On a terminal the outage is a line under the last frame, replaced by the next frame.
+TEST(WatchTest, OnATerminalTheOutageIsSaidUnderTheLastFrame) {
+  auto s = RestartScenario(/*refreshes_down=*/2);
+  std::ostringstream out;
+  WatchOptions options;
+  options.tty = true;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  const std::string text = out.str();
+  const std::string first = "sweep 1 s (scale smoke)\n";
+  ASSERT_THAT(text, StartsWith(first));
+  const size_t frame_end = text.find("\x1b[");
+  ASSERT_NE(frame_end, std::string::npos);
+  const std::string frame = text.substr(0, frame_end);  // 3 lines: title, counts, one run
+  EXPECT_THAT(text, HasSubstr("\x1b[3F\x1b[J" + frame + "daemon unreachable since 22:13:21 UTC; retrying\n\x1b[4F"))
+      << "the same frame with the outage under it, said once, then the next frame over all 4 lines";
+  size_t said = 0;
+  for (size_t at = text.find("unreachable"); at != std::string::npos; at = text.find("unreachable", at + 1)) ++said;
+  EXPECT_EQ(said, 1u);
+}
+
+// A daemon that stays away past --give-up-after ends the watch with what to do next.
+TEST(WatchTest, ADaemonAwayPastTheDeadlineEndsTheWatchSayingWhatToDo) {
+  auto s = RestartScenario(/*refreshes_down=*/1000);
+  std::ostringstream out, notices;
+  WatchOptions options;
+  options.notices = &notices;
+  options.give_up_after_s = 30;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, options, s->clock, out);
+  ASSERT_FALSE(last.ok());
+  EXPECT_EQ(last.status().code(), StatusCode::kUnavailable);
+  EXPECT_THAT(last.status().reason(), HasSubstr("has not answered since 22:13:21 UTC (30 s; last: no daemon at"));
+  EXPECT_THAT(last.status().reason(), HasSubstr("`sandswim watch 1` follows it again (--give-up-after S waits longer)"));
+  EXPECT_EQ(s->clock.Monotonic(), 31) << "one refresh shown, then 30 s of refused ones a second apart";
+  EXPECT_EQ(notices.str(), "daemon unreachable since 22:13:21 UTC; retrying\n");
+}
+
+// Unreachable at the first refresh: nothing to keep on screen, most likely a wrong address; and an
+// answer that says no (a 500) is no outage: both end the watch at once.
+TEST(WatchTest, AnUnreachableFirstRefreshOrARefusalEndsTheWatchAtOnce) {
+  for (bool first : {true, false}) {
+    auto s = RestartScenario(/*refreshes_down=*/1);
+    if (first) {
+      s->client.down = Status::Unavailable("no daemon at http://fake (connection refused)");
+    } else {
+      s->phases[1] = [](FakeClient& c) { c.down = Status::Internal("boom"); };
+    }
+    std::ostringstream out;
+    auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+    ASSERT_FALSE(last.ok());
+    EXPECT_EQ(last.status().code(), first ? StatusCode::kUnavailable : StatusCode::kInternal);
+    EXPECT_EQ(s->client.live_calls, first ? 1 : 2);
+  }
+}
+
 // A daemon on loopback whose progress board shows campaign run cr:7 (three sweeps, `done` runs
 // done, one more running for three polls, then done), among 50 other sweeps. It counts every
 // request by path and answers an unchanged board's If-None-Match with 304.
@@ -359,6 +451,40 @@ TEST(WatchTest, ATargetNewerThanTheBoardIsLookedForAgain) {
   EXPECT_EQ(s->client.route_calls, 2 * 3);
 }
 
+// A board the daemon failed to rebuild ("stale": true) shows the target as it was: each refresh
+// it is stale reads the target's routes instead, so the watch ends when the target does.
+TEST(WatchTest, AStaleBoardIsAMissForThatRefresh) {
+  auto s = TwoRunScenario(/*one_fails=*/false);
+  json frozen;
+  int boards = 0;
+  s->client.edit_board = [&](json& board) {
+    if (boards++ == 0) {
+      frozen = board;  // the last board the daemon could build: sweep 1 running
+    } else if (boards < 20) {  // (bounded, so that a watch blind to the mark ends and fails below)
+      board = frozen;
+      board["stale"] = true;
+      board["built_at"] = 1.7e9;
+    }
+  };
+  std::ostringstream out;
+  auto last = Watch(s->client, Target{Target::Kind::kSweep, 1}, WatchOptions{}, s->clock, out);
+  ASSERT_TRUE(last.ok()) << last.status().ToString();
+  EXPECT_EQ(last->counts.done, 2);
+  EXPECT_EQ(s->client.live_calls, 4) << "ended with the target, not with the board";
+  EXPECT_EQ(s->client.route_calls, 3 * 3) << "the three refreshes after the first through the routes";
+
+  BoardMiss miss = BoardMiss::kNone;
+  frozen["stale"] = true;
+  auto view = SnapshotFromBoard(frozen, Target{Target::Kind::kSweep, 1}, nullptr, &miss);
+  ASSERT_TRUE(view.ok());
+  EXPECT_FALSE(view->has_value());
+  EXPECT_EQ(miss, BoardMiss::kThisRefresh);
+  frozen["stale"] = false;  // (a daemon may say so outright)
+  view = SnapshotFromBoard(frozen, Target{Target::Kind::kSweep, 1}, nullptr, &miss);
+  ASSERT_TRUE(view.ok());
+  EXPECT_TRUE(view->has_value());
+}
+
 // A target older than everything the board lists will not be on it: the board is asked once.
 TEST(WatchTest, ATargetOlderThanTheBoardIsFollowedThroughItsRoutes) {
   auto s = TwoRunScenario(/*one_fails=*/false);
@@ -373,7 +499,8 @@ TEST(WatchTest, ATargetOlderThanTheBoardIsFollowedThroughItsRoutes) {
 }
 
 // Only a daemon without a board (404, or the 503 of one serving no live feed) turns the board off;
-// a board request that fails otherwise (busy, restarting) costs that refresh only.
+// a board request that fails otherwise (busy, a 500) while the routes answer costs the board that
+// refresh only.
 TEST(WatchTest, OnlyADaemonWithoutABoardTurnsTheBoardOff) {
   for (const Status& failure : {Status::Unavailable("this daemon serves no live feed"),
                                 Status::NotFound("no route GET /api/v1/live")}) {
@@ -384,8 +511,8 @@ TEST(WatchTest, OnlyADaemonWithoutABoardTurnsTheBoardOff) {
     ASSERT_TRUE(last.ok()) << last.status().ToString();
     EXPECT_EQ(s->client.live_calls, 1) << failure.ToString();
   }
-  for (const Status& failure : {Status::Unavailable("too many connections"), Status::Internal("boom"),
-                                Status::Unavailable("connection refused")}) {
+  // (A daemon that refuses connections refuses its routes too: ADaemonThatStopsAnsweringCostsThoseRefreshesOnly.)
+  for (const Status& failure : {Status::Unavailable("too many connections"), Status::Internal("boom")}) {
     auto s = TwoRunScenario(/*one_fails=*/false);
     s->client.live_refusals = {failure};
     std::ostringstream out;
@@ -471,6 +598,26 @@ TEST(SnapshotTest, ReadsTheDaemonsRecordedBoard) {
   ASSERT_TRUE(newer.ok());
   EXPECT_FALSE(newer->has_value());
   EXPECT_EQ(miss, BoardMiss::kThisRefresh);
+}
+
+// The recorded board with its sweep-2-only run renumbered below the others and listed first (as
+// a board in id order would list it): cr:1 still shows sweep 1's runs first, so the grouping is by
+// sweep, not the board's or the ids' order.
+TEST(SnapshotTest, GroupsTheRecordedBoardBySweepNotById) {
+  json board = json::parse(sandswim::testing::Fixture("live_board.json"), nullptr, false);
+  ASSERT_TRUE(board.is_object()) << "tests/fixtures/live_board.json";
+  json& running = board["running"];
+  ASSERT_EQ(running.size(), 3u);
+  ASSERT_EQ(running[2]["sweeps"], json({2})) << "run 3, in sweep 2 only";
+  json moved = running[2];
+  moved["id"] = 0;
+  running.erase(running.begin() + 2);
+  running.insert(running.begin(), moved);
+  auto cr = SnapshotFromBoard(board, Target{Target::Kind::kCampaignRun, 1});
+  ASSERT_TRUE(cr.ok() && cr->has_value());
+  std::vector<int64_t> ids;
+  for (const RunInFlight& r : (*cr)->running) ids.push_back(r.id);
+  EXPECT_EQ(ids, (std::vector<int64_t>{1, 2, 0}));
 }
 
 TEST(SnapshotTest, ParsesTargets) {

@@ -30,7 +30,7 @@ std::string LiveFeed::BuildContent() {
   try {
     return BuildContentOrThrow();
   } catch (const std::exception& e) {  // e.g. a string that is not UTF-8: keep the last snapshot
-    spdlog::warn("live feed: cannot build a snapshot ({}); pages keep the last one", e.what());
+    spdlog::warn("live feed: cannot build a snapshot ({}); pages keep the last one, marked stale", e.what());
     return "";
   }
 }
@@ -68,7 +68,7 @@ json LiveFeed::RoundsOf(int64_t campaign_run_id) {
 std::string LiveFeed::BuildContentOrThrow() {
   Result<LiveBoard> board = store_->ReadLiveBoard(sweeps_, campaign_runs_, 1000);
   if (!board.ok()) {
-    spdlog::warn("live feed: cannot read the board ({}); pages keep the last snapshot", board.status().ToString());
+    spdlog::warn("live feed: cannot read the board ({}); pages keep the last snapshot, marked stale", board.status().ToString());
     return "";
   }
   json sweeps = json::array();
@@ -124,11 +124,20 @@ std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::Current() {
   builds_.fetch_add(1);
   std::lock_guard<std::mutex> lock(mu_);
   built_at_ = now;
-  if (content.empty()) {  // the read failed: keep what pages have
-    if (current_) return current_;
-    content = json{{"error", "the daemon cannot read its database; see its log"}}.dump();
+  bool stale = false;
+  if (content.empty()) {  // the read failed: pages keep what they have, told that it is stale
+    if (current_) {
+      stale = true;
+      content = last_content_;
+    } else {
+      content = json{{"error", "the daemon cannot read its database; see its log"}}.dump();
+    }
+  } else {
+    content_built_at_ = clock_->Now();
   }
-  const bool changed = !current_ || content != last_content_;
+  // Becoming stale or fresh again is a change: a client holding the last ETag must hear of it.
+  const bool changed = !current_ || content != last_content_ || stale != stale_;
+  stale_ = stale;
   if (changed) {
     // Versions start from the daemon's clock in ms, so a page's version or ETag from before a
     // restart is never taken for a newer snapshot's.
@@ -139,9 +148,11 @@ std::shared_ptr<const LiveFeed::Snapshot> LiveFeed::Current() {
   // build's even when the content is unchanged (a page's ETA counts from it).
   auto snap = std::make_shared<Snapshot>();
   snap->version = version_;
-  char head[96];
-  std::snprintf(head, sizeof head, "{\"version\":%llu,\"time\":%.3f%s", static_cast<unsigned long long>(version_),
-                clock_->Now(), last_content_.size() > 2 ? "," : "");
+  char stale_fields[64] = "";
+  if (stale_) std::snprintf(stale_fields, sizeof stale_fields, ",\"stale\":true,\"built_at\":%.3f", content_built_at_);
+  char head[160];
+  std::snprintf(head, sizeof head, "{\"version\":%llu,\"time\":%.3f%s%s", static_cast<unsigned long long>(version_),
+                clock_->Now(), stale_fields, last_content_.size() > 2 ? "," : "");
   snap->json = head + last_content_.substr(1);
   current_ = std::move(snap);
   if (changed) changed_.notify_all();

@@ -15,7 +15,11 @@
 // daemon starts trails afresh (each run's latest progress is in the database anyway). Versions
 // start from the clock in ms, so they never repeat across restarts.
 //
-// Snapshot JSON: {"version", "time" (the daemon's clock, s), "runs": counts,
+// Stale: a rebuild that fails (the database cannot be read) serves the last snapshot's content
+// with "stale": true and "built_at" (the daemon's clock when that content was read, s), under a new
+// version, until a rebuild succeeds (then a new version again, without them). Absent otherwise.
+//
+// Snapshot JSON: {"version", "time" (the daemon's clock, s), "stale"?, "built_at"?, "runs": counts,
 //   "sweeps": [{id, name, scale, campaign_run_id?, cancelled, counts, runs, created_at, started_at?}],
 //   "campaign_runs": [{id, campaign, scale, trigger, created_at, sweeps, counts, started_at?,
 //     rounds? (an adaptive one, server/jobs/rounds.h: {"rounds", "looks", "stopped"}, so that its
@@ -63,7 +67,7 @@ class LiveFeed {
            int campaign_runs = 20, int max_streams_per_client = 8);
 
   // The snapshot, rebuilt first when the last is a tick old (one caller builds; the others wait
-  // for it and share it). A build that fails keeps the last snapshot (logged).
+  // for it and share it). A build that fails keeps the last snapshot's content, marked stale (logged).
   std::shared_ptr<const Snapshot> Current();
   // The first snapshot whose version is past `version`, or the current one after `wait_s` or
   // once Stop() was called.
@@ -111,6 +115,8 @@ class LiveFeed {
   std::shared_ptr<const Snapshot> current_;
   double built_at_ = 0;  // the clock's monotonic time of the last build
   std::string last_content_;
+  double content_built_at_ = 0;  // the clock's wall time when last_content_ was read
+  bool stale_ = false;           // the last build failed: current_ serves older content
   std::atomic<int> engine_slots_{0};
   uint64_t version_ = 0;
   std::map<int64_t, Trail> trails_;

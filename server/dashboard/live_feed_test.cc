@@ -53,6 +53,37 @@ TEST_F(LiveFeedTest, AnUnchangedBoardKeepsItsVersion) {
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(1)) << "a stopped feed does not wait";
 }
 
+// A rebuild that fails serves the last content marked stale, with when it was read, under a new
+// version (a client holding the last ETag hears of it); the next good build drops the mark under
+// another version. A snapshot that never failed carries neither field.
+TEST_F(LiveFeedTest, ABoardItCannotRebuildIsMarkedStale) {
+  LiveFeed feed(store_.get(), &clock_, /*tick_s=*/1);
+  const double read_at = clock_.Now();
+  const auto fresh = feed.Current();
+  const json first = json::parse(fresh->json);
+  EXPECT_FALSE(first.contains("stale"));
+  EXPECT_FALSE(first.contains("built_at"));
+  auto exec = [&](const char* sql) { return store_->db().Write([&](Transaction& t) { return t.Exec(sql); }); };
+  ASSERT_TRUE(exec("ALTER TABLE sweeps RENAME TO sweeps_away").ok());  // every read of the board fails
+  clock_.Advance(2);
+  const auto stale = feed.Current();
+  const json board = json::parse(stale->json);
+  EXPECT_EQ(board.value("stale", false), true) << stale->json;
+  EXPECT_DOUBLE_EQ(board.value("built_at", 0.0), read_at);
+  EXPECT_DOUBLE_EQ(board.value("time", 0.0), clock_.Now());
+  EXPECT_EQ(board["sweeps"], first["sweeps"]) << "the last content, kept";
+  EXPECT_GT(stale->version, fresh->version);
+  clock_.Advance(2);
+  EXPECT_EQ(feed.Current()->version, stale->version) << "still stale: no change";
+  ASSERT_TRUE(exec("ALTER TABLE sweeps_away RENAME TO sweeps").ok());
+  clock_.Advance(2);
+  const auto again = feed.Current();
+  const json recovered = json::parse(again->json);
+  EXPECT_FALSE(recovered.contains("stale")) << again->json;
+  EXPECT_FALSE(recovered.contains("built_at"));
+  EXPECT_GT(again->version, stale->version);
+}
+
 // A trail keeps one point per newer beat; past kMaxTrailPoints it halves its resolution, keeping
 // the whole run.
 TEST_F(LiveFeedTest, TrailsKeepNewerBeatsAndThinOut) {
