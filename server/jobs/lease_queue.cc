@@ -23,6 +23,7 @@
 #include "platform/data_dir.h"
 #include "platform/files.h"
 #include "server/store/cost_model.h"
+#include "server/store/rounds.h"
 
 namespace sandswim {
 namespace {
@@ -265,6 +266,8 @@ Result<std::optional<api::LeaseGrant>> LeaseQueue::LeaseIn(Transaction& t, const
     g.queue_dry = !*other_run;
   }
   SANDSWIM_RETURN_IF_ERROR(jobs::InsertLease(t, g.token, g.kind, g.id, g.attempt, request, now));
+  // Who pays for this attempt is decided now, once, from who holds the job now (issue 31).
+  SANDSWIM_RETURN_IF_ERROR(rounds::DecideLeasePayer(t, g.token, g.kind, g.id));
   SANDSWIM_RETURN_IF_ERROR(t.Count("leases_granted"));
   SANDSWIM_RETURN_IF_ERROR(
       t.Event(now, std::string(Noun(g.kind)) + ".leased", Subject(g.kind, g.id),

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <map>
 #include <set>
+#include <tuple>
 #include <utility>
 
 #include "core/scale.h"
@@ -16,18 +17,20 @@ using nlohmann::json;
 
 std::string CoreHText(double h) { return Num(h, 3) + " core-h"; }
 
-// What an attempt (a closed lease) at a run or bed of the campaign run (created at `created_at`)
+// What an attempt (a closed lease) at a run or bed of the campaign run (its id, created at `created_at`)
 // is charged, at the rates in `cost` (those its round was planned at): a bed attempt the bed's
 // cost (however far it got: nothing says); a run attempt the simulated time it reached (done: its
 // result's; else its last heartbeat's). A run attempt with no positive simulated time (no
 // heartbeat, or a heartbeat that carried none: core/api.h's sim_time_s defaults to 0) is charged
 // its whole planned length, the most it can have simulated; one taken back unreceived never ran
 // and costs nothing. Each attempt is charged, so a retried run pays for every attempt and the
-// budget is a hard limit on what was spent. (The wall time a lease allowed is no price: it is wall
-// time, not simulated time, and a lease is mostly unused.) An attempt leased before the campaign
-// run was submitted cost it nothing (a nightly rerun that finds the night before's run still
-// running: that night's campaign run pays), nor one an earlier campaign run pays (`paid_by`).
-rounds::Charge Price(const rounds::ClosedAttempt& a, const AdaptiveCost& cost, double created_at) {
+// ledger is complete. (The wall time a lease allowed is no price: it is wall time, not simulated
+// time, and a lease is mostly unused.) An attempt is charged in full by one campaign run only, its
+// payer (decided at the grant, server/store/rounds.h DecideLeasePayer): the others that hold the
+// job record it at 0, as do those that were submitted after it was leased (a nightly rerun that
+// finds the night before's run still running: that night's campaign run pays).
+rounds::Charge Price(const rounds::ClosedAttempt& a, const AdaptiveCost& cost, int64_t campaign_run_id,
+                     double created_at) {
   rounds::Charge c;
   c.kind = a.kind;
   c.id = a.id;
@@ -35,10 +38,11 @@ rounds::Charge Price(const rounds::ClosedAttempt& a, const AdaptiveCost& cost, d
   c.state = a.outcome;
   c.lease_token = a.lease_token;
   const bool run = a.kind == "run";
-  if (a.granted_at < created_at || a.paid_by || a.outcome == "unreceived") {
+  const bool ours = a.payer == campaign_run_id;
+  if (a.granted_at < created_at || !ours || a.outcome == "unreceived") {
     c.priced_by = a.granted_at < created_at ? "leased before"
-                  : a.paid_by               ? "paid by campaign run " + std::to_string(*a.paid_by)
-                                            : "never ran";
+                  : !ours ? (a.payer ? "paid by campaign run " + std::to_string(*a.payer) : "leased for no campaign run")
+                          : "never ran";
     c.core_h = 0;
     if (run) c.sim_time_s = 0.0;
     return c;
@@ -59,10 +63,12 @@ rounds::Charge Price(const rounds::ClosedAttempt& a, const AdaptiveCost& cost, d
   return c;
 }
 
-// The attempts a look charges, by token: what its write checks it still finds.
-std::set<std::string> TokensOf(const std::vector<rounds::ClosedAttempt>& attempts) {
-  std::set<std::string> out;
-  for (const rounds::ClosedAttempt& a : attempts) out.insert(a.lease_token);
+// The attempts a look charges, with what priced each (who pays, how far it got, how it ended):
+// what its write checks it still finds.
+using PricedAttempt = std::tuple<std::string, std::optional<int64_t>, std::optional<double>, std::string>;
+std::set<PricedAttempt> PricedOf(const std::vector<rounds::ClosedAttempt>& attempts) {
+  std::set<PricedAttempt> out;
+  for (const rounds::ClosedAttempt& a : attempts) out.emplace(a.lease_token, a.payer, a.sim_time_s, a.outcome);
   return out;
 }
 
@@ -222,10 +228,10 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
   std::vector<rounds::Charge> charges;
   double charging = 0;
   for (const rounds::ClosedAttempt& a : *attempts) {
-    charges.push_back(Price(a, round_cost, info->created_at));
+    charges.push_back(Price(a, round_cost, campaign_run_id, info->created_at));
     charging += charges.back().core_h;
   }
-  const std::set<std::string> priced = TokensOf(*attempts);
+  const std::set<PricedAttempt> priced = PricedOf(*attempts);
 
   // The look after round `last.round`.
   Result<std::map<std::string, rounds::FrozenVerdict>> frozen_rows = rounds::FrozenVerdicts(*store_, campaign_run_id);
@@ -298,7 +304,7 @@ Result<std::optional<RoundStep>> RoundDriver::Step(int64_t campaign_run_id, doub
     if (!busy_now.ok()) return busy_now.status();
     Result<std::vector<rounds::ClosedAttempt>> attempts_now = rounds::UnchargedAttempts(t, campaign_run_id);
     if (!attempts_now.ok()) return attempts_now.status();
-    if (*busy_now > 0 || TokensOf(*attempts_now) != priced) {
+    if (*busy_now > 0 || PricedOf(*attempts_now) != priced) {
       return Status(StatusCode::kConflict, "its runs changed while it was looked at; it is looked at again", "look");
     }
     // A cancel between the look and this write stops the rounds too: nothing is added to a

@@ -187,6 +187,50 @@ class RoundsTest : public ::testing::Test {
     EXPECT_TRUE(h.ok()) << h.status().ToString();
     return h.ok() ? *h : -1;
   }
+  // One value of a query that binds `id` (if it has a ?) and returns one number.
+  double Query(const std::string& sql, int64_t id = 0) {
+    auto t = store_->db().BeginRead();
+    EXPECT_TRUE(t.ok());
+    if (!t.ok()) return -1;
+    Statement st = t->Prepare(sql);
+    if (sql.find('?') != std::string::npos) st.Bind(1, id);
+    auto row = st.Step();
+    EXPECT_TRUE(row.ok() && *row) << sql;
+    return row.ok() && *row ? st.Double(0) : -1;
+  }
+  void Exec(const std::string& sql) {
+    Status s = store_->db().Write([&](Transaction& t) { return t.Exec(sql); });
+    ASSERT_TRUE(s.ok()) << sql << ": " << s.ToString();
+  }
+  // How many ledgers, over every campaign run, charge each lease of a job in full (> 0 core-h):
+  // {token: count}. A lease no ledger charged in full counts 0.
+  std::map<std::string, int> FullCharges(const std::string& kind, int64_t job_id) {
+    std::map<std::string, int> out;
+    auto t = store_->db().BeginRead();
+    EXPECT_TRUE(t.ok());
+    if (!t.ok()) return out;
+    Statement st = t->Prepare(
+        "SELECT l.token, (SELECT COUNT(*) FROM campaign_run_charges c WHERE c.lease_token = l.token AND c.core_h > 0) "
+        "FROM leases l WHERE l.kind = ? AND l.job_id = ?");
+    st.Bind(1, kind).Bind(2, job_id);
+    while (true) {
+      auto row = st.Step();
+      EXPECT_TRUE(row.ok());
+      if (!row.ok() || !*row) break;
+      out[st.Text(0)] = static_cast<int>(st.Int(1));
+    }
+    return out;
+  }
+  // Looks at every open campaign run until none of them plans or stops anything more.
+  void LookUntilQuiet(double rise_se) {
+    for (int i = 0; i < 6; ++i) {
+      CompleteAll(rise_se);
+      auto pass = driver_->Tick(clock_.Now());
+      ASSERT_TRUE(pass.ok()) << pass.status().ToString();
+      ASSERT_TRUE(pass->errors.empty()) << pass->errors.front().second.ToString();
+      if (pass->steps.empty()) return;
+    }
+  }
 
   FakeClock clock_;
   std::function<bool(const Point&)> fails_;  // runs at these points fail for good
@@ -928,6 +972,25 @@ TEST_F(RoundsTest, TheDecidingLooksVerdictIsStoredWithTheFrozenClaim) {
   EXPECT_NE(j["claims"][0]["current_verdict"], "holds");
   EXPECT_EQ(j["claims"][0]["decided_by"], decided_by);
   EXPECT_THAT(j["claims"][0]["reason"].get<std::string>(), HasSubstr("decided_by"));
+
+  // Looks after the freezing one (the driver's, which reads otherwise now, and a later round's
+  // freeze that decides otherwise) leave the frozen verdict and what decided it as they were.
+  const rounds::FrozenVerdict was = frozen->at("S1");
+  clock_.Advance(100);
+  CompleteAll(/*rise_se=*/3e-4);
+  ASSERT_TRUE(capturing.Step(id, clock_.Now()).ok());
+  ASSERT_TRUE(store_->db()
+                  .Write([&](Transaction& t) {
+                    return rounds::FreezeVerdicts(t, id, was.round + 1, clock_.Now(), {{"S1", Verdict::kDiffers}},
+                                                  {{"S1", json{{"verdict", "differs"}}}});
+                  })
+                  .ok());
+  auto later = rounds::FrozenVerdicts(*store_, id);
+  ASSERT_TRUE(later.ok());
+  EXPECT_EQ(later->at("S1").verdict, was.verdict);
+  EXPECT_EQ(later->at("S1").round, was.round);
+  EXPECT_EQ(later->at("S1").frozen_at, was.frozen_at);
+  EXPECT_EQ(later->at("S1").decided_by, decided_by);
 }
 
 // A nightly rerun that starts while the night before's campaign run still runs a run they share:
@@ -964,6 +1027,132 @@ TEST_F(RoundsTest, ARunSharedWithTheNightBeforeIsPaidOnceByTheCampaignRunThatLea
   EXPECT_EQ(free[1].priced_by, "paid by campaign run " + std::to_string(night));
   for (const ChargeRow& r : free) EXPECT_EQ(r.core_h, 0.0);
   EXPECT_EQ(Charged(rerun), 0.0);
+}
+
+// Who pays for an attempt is decided when it is leased (issue 31, referee 7a F1a): a run the newer
+// campaign run K leased and charged, that the older M's later round adds (the same key, reused
+// done, as AddPlannedRuns does), costs M nothing: M records it "paid by campaign run K". Each
+// attempt at it and its bed is charged in full by one ledger.
+TEST_F(RoundsTest, ARunAnOlderCampaignRunAddsAfterANewerOneRanItIsChargedOnce) {
+  ASSERT_TRUE(SaveCampaign(*store_, "m", Adaptive(50), kEngine, clock_.Now()).ok());
+  json other = Adaptive(50);
+  other["sweeps"][0]["axes"][0]["values"] = {-90, 90};  // other keys than M's
+  ASSERT_TRUE(SaveCampaign(*store_, "k", other, kEngine, clock_.Now()).ok());
+  const int64_t m = Submit("m");
+  ASSERT_TRUE(driver_->Step(m, clock_.Now()).ok());
+  clock_.Advance(10);
+  const int64_t k = Submit("k");
+  ASSERT_GT(k, m);
+  ASSERT_TRUE(driver_->Step(k, clock_.Now()).ok());
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 4);
+  const std::string k_runs = "SELECT MIN(sr.run_id) FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+                             "WHERE s.campaign_run_id = ?";
+  const auto r = static_cast<int64_t>(Query(k_runs, k));
+  const auto bed = static_cast<int64_t>(Query("SELECT bed_id FROM runs WHERE id = ?", r));
+  ASSERT_TRUE(driver_->Step(k, clock_.Now()).ok());  // K's look charges r
+  std::vector<ChargeRow> paid = Charges(k, "run", r);
+  ASSERT_EQ(paid.size(), 1u);
+  EXPECT_GT(paid[0].core_h, 0);
+
+  // M's next round orders the same key: r joins M's sweep.
+  Exec("INSERT INTO sweep_runs (sweep_id, run_id, position) SELECT s.id, " + std::to_string(r) +
+       ", 1000 FROM sweeps s WHERE s.campaign_run_id = " + std::to_string(m));
+  ASSERT_TRUE(driver_->Step(m, clock_.Now()).ok());
+  std::vector<ChargeRow> free = Charges(m, "run", r);
+  ASSERT_EQ(free.size(), 1u);
+  EXPECT_EQ(free[0].priced_by, "paid by campaign run " + std::to_string(k));
+  EXPECT_EQ(free[0].core_h, 0.0);
+  LookUntilQuiet(3e-4);
+  for (const auto& [token, n] : FullCharges("run", r)) EXPECT_EQ(n, 1) << "run lease " << token;
+  for (const auto& [token, n] : FullCharges("bed", bed)) EXPECT_EQ(n, 1) << "bed lease " << token;
+}
+
+// F1b: a failed longer run that N's replacement settled out of its sweep stays N's run (its
+// ledger and its look's wait count it). Run again because another campaign run asks for its key,
+// its new attempt is charged in full once over every ledger.
+TEST_F(RoundsTest, AReplacedRunRunAgainForAnotherCampaignRunIsChargedOnce) {
+  ASSERT_TRUE(SaveCampaign(*store_, "n", Adaptive(50), kEngine, clock_.Now()).ok());
+  json other = Adaptive(50);
+  other["sweeps"][0]["axes"][0]["values"] = {-90, 90};  // other keys than N's
+  ASSERT_TRUE(SaveCampaign(*store_, "k", other, kEngine, clock_.Now()).ok());
+  const int64_t n = Submit("n");
+  ASSERT_TRUE(driver_->Step(n, clock_.Now()).ok());
+  const int64_t k = Submit("k");
+  ASSERT_TRUE(driver_->Step(k, clock_.Now()).ok());
+  fails_ = [](const Point& p) { return p.Omega == 90; };
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 3);
+  fails_ = nullptr;
+  const auto r = static_cast<int64_t>(
+      Query("SELECT r.id FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id JOIN runs r ON r.id = sr.run_id "
+            "WHERE s.campaign_run_id = ? AND r.state = 'failed'",
+            k));
+  // N had ordered r as the longer run at one of its points; r failed and the look settled it out
+  // of N's sweep, the earlier run back in its place (what SettleReplacements leaves).
+  Exec("INSERT INTO campaign_run_replacements (campaign_run_id, round, sweep_id, position, old_run_id, new_run_id, "
+       "outcome, settled_at) SELECT " + std::to_string(n) + ", 1, sr.sweep_id, sr.position, sr.run_id, " +
+       std::to_string(r) + ", 'restored', 1 FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+       "WHERE s.campaign_run_id = " + std::to_string(n) + " ORDER BY sr.position LIMIT 1");
+  clock_.Advance(10);
+  const int64_t again = Submit("k");  // asks for r's key: the failed run is queued again
+  ASSERT_NE(again, k);
+  EXPECT_EQ(Query("SELECT state = 'queued' FROM runs WHERE id = ?", r), 1.0);
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 1);
+  LookUntilQuiet(3e-4);
+  std::map<std::string, int> full = FullCharges("run", r);
+  ASSERT_EQ(full.size(), 2u);  // its failed attempt and the one for `again`
+  for (const auto& [token, count] : full) EXPECT_EQ(count, 1) << "run lease " << token;
+}
+
+// F1c: a campaign run cancelled while a run it shares with a later one still runs pays for the
+// attempt it leased, and not for what is leased for the other after its cancel (a retry, and the
+// shared run never leased before it): those the live campaign run pays.
+TEST_F(RoundsTest, ACancelledCampaignRunIsNotBilledForAttemptsLeasedForAnotherAfterItsCancel) {
+  ASSERT_TRUE(SaveCampaign(*store_, "mine", Adaptive(50), kEngine, clock_.Now()).ok());
+  const int64_t cancelled = Submit("mine");
+  ASSERT_TRUE(driver_->Step(cancelled, clock_.Now()).ok());
+  PrepareBed();
+  auto first = queue_->Lease({"w", "host", 1});
+  ASSERT_TRUE(first.ok() && first->has_value());
+  const int64_t run_id = (*first)->id;
+  api::Heartbeat beat;
+  beat.sim_time_s = 0.5;
+  ASSERT_TRUE(queue_->Heartbeat((*first)->token, beat).ok());
+  clock_.Advance(10);
+  const int64_t live = Submit("mine");  // the next night's: shares both runs
+  auto info = store_->GetCampaignRun(cancelled);
+  ASSERT_TRUE(info.ok());
+  for (int64_t sweep : info->sweep_ids) {
+    auto c = queue_->Cancel(sweep);
+    ASSERT_TRUE(c.ok()) << c.status().ToString();
+    EXPECT_EQ(c->cancelled, 0);  // the live campaign run still wants them
+  }
+  const double cancelled_at = clock_.Now();
+  clock_.Advance((*first)->ttl_s + 1);
+  ASSERT_EQ(*queue_->ExpireLeases(), 1);  // goes again, for the live campaign run
+  EXPECT_EQ(CompleteAll(/*rise_se=*/1.6e-3), 2);
+  ASSERT_TRUE(driver_->Step(cancelled, clock_.Now()).ok());
+  ASSERT_TRUE(driver_->Step(live, clock_.Now()).ok());
+  ASSERT_TRUE(Rounds(cancelled).back().stop_reason.has_value());
+
+  std::vector<ChargeRow> before = Charges(cancelled, "run", run_id);
+  ASSERT_EQ(before.size(), 2u);
+  EXPECT_EQ(before[0].lease_token, (*first)->token);
+  EXPECT_EQ(before[0].priced_by, "heartbeat");  // leased before its cancel: its own
+  EXPECT_GT(before[0].core_h, 0);
+  EXPECT_EQ(before[1].priced_by, "paid by campaign run " + std::to_string(live));
+  // Nothing leased after the cancel is billed to it; each such attempt is the live one's, in full.
+  EXPECT_EQ(Query("SELECT COUNT(*) FROM campaign_run_charges c JOIN leases l ON l.token = c.lease_token "
+                  "WHERE c.campaign_run_id = ? AND l.granted_at > " + std::to_string(cancelled_at) +
+                  " AND c.core_h > 0",
+                  cancelled),
+            0.0);
+  EXPECT_GE(Query("SELECT COUNT(*) FROM leases WHERE granted_at > " + std::to_string(cancelled_at)), 2.0);
+  EXPECT_EQ(Query("SELECT COUNT(*) FROM leases l WHERE l.granted_at > " + std::to_string(cancelled_at) +
+                  " AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c WHERE c.lease_token = l.token "
+                  "AND c.campaign_run_id = ? AND c.core_h > 0)",
+                  live),
+            0.0);
+  for (const auto& [token, n] : FullCharges("run", run_id)) EXPECT_EQ(n, 1) << "run lease " << token;
 }
 
 TEST_F(RoundsTest, ABudgetBelowTheFirstRoundIsRefusedAtPutAndAtSubmission) {

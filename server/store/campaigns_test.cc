@@ -186,6 +186,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
                         "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
                         "DROP INDEX leases_by_job; ALTER TABLE leases DROP COLUMN closed_at; "
                         "ALTER TABLE leases DROP COLUMN sim_time_s;"
+                        "ALTER TABLE leases DROP COLUMN payer_campaign_run_id; ALTER TABLE leases DROP COLUMN payer_decided;"
                         "DELETE FROM schema_migrations WHERE version >= 13; PRAGMA user_version = 12;")
                     .ok());
     Statement st = t->Prepare(

@@ -224,21 +224,35 @@ Status FreezeVerdicts(Transaction& t, int64_t campaign_run_id, int round, double
 
 namespace {
 
-// The campaign run's runs, as ?1 names it: members of its sweeps, and both runs of each
-// replacement there (a replaced run, or a failed longer one, leaves its sweeps, not its ledger).
-constexpr char kMyRuns[] =
-    "WITH mine(run_id) AS (SELECT sr.run_id FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
-    "WHERE s.campaign_run_id = ?1 UNION SELECT old_run_id FROM campaign_run_replacements WHERE campaign_run_id = ?1 "
-    "UNION SELECT new_run_id FROM campaign_run_replacements WHERE campaign_run_id = ?1) ";
+// What "its runs" means, for the ledger (MyRunsSql), the look's wait (BusyJobs) and the payer a
+// grant decides (DecideLeasePayer); the one home of that definition. A campaign run holds the
+// members of its sweeps and both runs of each replacement there (a replaced run, or a failed
+// longer one, leaves its sweeps, not its ledger). Rows (cr_id, run_id) of that relation, each side
+// restricted by an SQL condition on its column (`cr`: "= ?1", `run`: "IS NOT NULL", say), so that
+// either way round it reads by index.
+std::string HoldsSql(const std::string& cr, const std::string& run) {
+  return "SELECT s.campaign_run_id AS cr_id, sr.run_id AS run_id FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id "
+         "WHERE s.campaign_run_id " + cr + " AND sr.run_id " + run +
+         " UNION SELECT campaign_run_id, old_run_id FROM campaign_run_replacements WHERE campaign_run_id " + cr +
+         " AND old_run_id " + run +
+         " UNION SELECT campaign_run_id, new_run_id FROM campaign_run_replacements WHERE campaign_run_id " + cr +
+         " AND new_run_id " + run;
+}
 
-}  // namespace
+// The campaign run's runs, as ?1 names it: a WITH clause.
+std::string MyRunsSql() { return "WITH mine(run_id) AS (SELECT run_id FROM (" + HoldsSql("= ?1", "IS NOT NULL") + ")) "; }
 
-namespace {
+// An adaptive campaign run `cr` that has not stopped: its rounds carry no stop reason and none of
+// its sweeps is cancelled (a cancel stops its rounds at the next look).
+constexpr char kLiveAdaptive[] =
+    "json_valid(cr.definition) AND json_type(cr.definition, '$.adaptive') IS 'object' "
+    "AND NOT EXISTS (SELECT 1 FROM campaign_rounds x WHERE x.campaign_run_id = cr.id AND x.stop_reason IS NOT NULL) "
+    "AND NOT EXISTS (SELECT 1 FROM sweeps xs WHERE xs.campaign_run_id = cr.id AND xs.cancelled_at IS NOT NULL)";
 
 // The closed leases of the campaign run's (?1) runs and beds not charged yet, as
 // ClosedAttempt's columns: leases granted after the last per-ending look (rows from before
-// migration 18), and for each the earliest other adaptive campaign run that held the job when it
-// was leased and had not stopped by then (it pays).
+// migration 18), and for each its payer: the one its grant decided (migration 19 on), else the
+// earlier rule's (below).
 constexpr char kOldLook[] =
     ", old_look(at) AS (SELECT COALESCE(MAX(charged_at), -1e300) FROM campaign_run_charges "
     "WHERE campaign_run_id = ?1 AND lease_token IS NULL) ";
@@ -246,15 +260,17 @@ constexpr char kClosedLease[] =
     "(l.closed_at IS NOT NULL OR l.completed_at IS NOT NULL OR l.outcome IS NOT NULL) "
     "AND NOT EXISTS (SELECT 1 FROM campaign_run_charges c WHERE c.campaign_run_id = ?1 AND c.lease_token = l.token) "
     "AND l.granted_at > (SELECT at FROM old_look) ";
-// An earlier adaptive campaign run, live when the lease was granted, that held a run meeting
-// `run_condition` (rr: the run; l: the lease).
-std::string EarlierPayer(const std::string& run_condition) {
-  return "(SELECT MIN(cr.id) FROM campaign_runs cr JOIN sweeps s ON s.campaign_run_id = cr.id "
+// The payer of a lease granted before migration 19, as the ledger decided it then, at the look:
+// an earlier adaptive campaign run, live when the lease was granted, that holds a run meeting
+// `run_condition` (rr: the run; l: the lease) in its sweeps now; else this one (?1).
+std::string PayerOf(const std::string& run_condition) {
+  return "CASE WHEN l.payer_decided THEN l.payer_campaign_run_id ELSE COALESCE((SELECT MIN(cr.id) FROM campaign_runs cr JOIN sweeps s ON s.campaign_run_id = cr.id "
          "JOIN sweep_runs sr ON sr.sweep_id = s.id JOIN runs rr ON rr.id = sr.run_id WHERE " +
          run_condition +
          " AND cr.id < ?1 AND cr.created_at <= l.granted_at AND json_valid(cr.definition) "
          "AND json_type(cr.definition, '$.adaptive') IS 'object' AND NOT EXISTS (SELECT 1 FROM campaign_rounds x "
-         "WHERE x.campaign_run_id = cr.id AND x.stop_reason IS NOT NULL AND x.finished_at <= l.granted_at))";
+         "WHERE x.campaign_run_id = cr.id AND x.stop_reason IS NOT NULL AND x.finished_at <= l.granted_at)), ?1) END, "
+         "l.payer_decided";
 }
 
 }  // namespace
@@ -280,29 +296,30 @@ Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t cam
                                     st.Double(12), st.Double(13), st.OptText(14));
       if (!p.ok()) return Status(p.status().code(), kind + " " + std::to_string(a.id) + ": " + p.status().reason());
       a.point = *p;
-      a.paid_by = st.OptInt(15);
+      a.payer = st.OptInt(15);
+      a.payer_decided = st.Int(16) != 0;
       out.push_back(std::move(a));
     }
   };
   // A run's attempts: what each reached when its lease closed (a lease closed before migration 18
   // recorded none: a done one is read from the run's result).
   Statement runs = t.Prepare(
-      std::string(kMyRuns) + kOldLook +
+      MyRunsSql() + kOldLook +
       "SELECT l.token, r.id, l.granted_at, COALESCE(l.closed_at, l.completed_at, l.granted_at), "
       "COALESCE(l.outcome, 'expired'), COALESCE(l.sim_time_s, CASE WHEN l.outcome = 'done' THEN res.sim_time_s END), "
       "r.run_duration_s, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, r.materials, " +
-      EarlierPayer("rr.id = r.id") +
+      PayerOf("rr.id = r.id") +
       " FROM runs r JOIN mine m ON m.run_id = r.id JOIN leases l ON l.kind = 'run' AND l.job_id = r.id "
       "LEFT JOIN results res ON res.run_id = r.id WHERE " +
       kClosedLease + "ORDER BY r.id, l.granted_at, l.token");
   SANDSWIM_RETURN_IF_ERROR(read(runs, "run"));
   // A bed's attempts, priced by the materials of one of its runs here (its grains follow them).
   Statement beds = t.Prepare(
-      std::string(kMyRuns) + kOldLook +
+      MyRunsSql() + kOldLook +
       "SELECT l.token, b.id, l.granted_at, COALESCE(l.closed_at, l.completed_at, l.granted_at), "
       "COALESCE(l.outcome, 'expired'), NULL, NULL, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, "
       "r.materials, " +
-      EarlierPayer("rr.bed_id = b.id") +
+      PayerOf("rr.bed_id = b.id") +
       " FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
       "WHERE r2.bed_id = b.id) JOIN leases l ON l.kind = 'bed' AND l.job_id = b.id WHERE " +
       kClosedLease + "ORDER BY b.id, l.granted_at, l.token");
@@ -359,10 +376,9 @@ AdaptiveCost RoundRates(const RoundRow& round, AdaptiveCost now) {
 }
 
 Result<int64_t> BusyJobs(Transaction& t, int64_t campaign_run_id) {
-  Statement st = t.Prepare(
-      "SELECT COUNT(*) FROM sweep_runs sr JOIN sweeps s ON s.id = sr.sweep_id JOIN runs r ON r.id = sr.run_id "
-      "JOIN beds b ON b.id = r.bed_id WHERE s.campaign_run_id = ? "
-      "AND (r.state IN ('queued', 'running') OR b.state IN ('queued', 'running'))");
+  Statement st = t.Prepare(MyRunsSql() +
+                           "SELECT COUNT(*) FROM mine m JOIN runs r ON r.id = m.run_id JOIN beds b ON b.id = r.bed_id "
+                           "WHERE r.state IN ('queued', 'running') OR b.state IN ('queued', 'running')");
   st.Bind(1, campaign_run_id);
   Result<bool> row = st.Step();
   if (!row.ok()) return row.status();
@@ -373,6 +389,18 @@ Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id) {
   Result<Transaction> t = store.db().BeginRead();
   if (!t.ok()) return t.status();
   return BusyJobs(*t, campaign_run_id);
+}
+
+Status DecideLeasePayer(Transaction& t, const std::string& token, api::JobKind kind, int64_t job_id) {
+  // The earliest live adaptive campaign run that holds the leased run, or a run on the leased bed.
+  const std::string runs = kind == api::JobKind::kBed ? "IN (SELECT id FROM runs WHERE bed_id = ?2)" : "= ?2";
+  Statement st = t.Prepare("UPDATE leases SET payer_decided = 1, payer_campaign_run_id = (SELECT MIN(cr.id) FROM (" +
+                           HoldsSql("IS NOT NULL", runs) + ") h JOIN campaign_runs cr ON cr.id = h.cr_id WHERE " +
+                           kLiveAdaptive + ") WHERE token = ?1");
+  st.Bind(1, token).Bind(2, job_id);
+  SANDSWIM_RETURN_IF_ERROR(st.Run());
+  if (t.Changes() != 1) return Status::Internal("the lease " + token + " to decide a payer for is not stored");
+  return Status::Ok();
 }
 
 Result<std::map<std::string, SweepSlot>> CampaignRunSweeps(Transaction& t, int64_t campaign_run_id) {

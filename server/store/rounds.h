@@ -109,10 +109,12 @@ struct ClosedAttempt {
   std::optional<double> sim_time_s;  // runs: what the attempt reached (done: its result's); NULL: none known
   double run_duration_s = 0;         // runs: its planned length at the scale
   Point point;                       // a run's point; a bed's: the point of one of its runs here
-  // Who else pays for it: the earliest other adaptive campaign run that held the job when it was
-  // leased and had not stopped (a nightly rerun that shares a run still running from the night
-  // before leaves it to that night's campaign run). Unset: nobody before this one.
-  std::optional<int64_t> paid_by;
+  // Who pays for it in full. `payer_decided` (leases granted from migration 19 on): the campaign
+  // run its grant chose (DecideLeasePayer; unset: none held the job then). Before 19, as the
+  // ledger decides at the look: the earliest other adaptive campaign run that holds the job in
+  // its sweeps now and had not stopped when it was leased, else this one.
+  std::optional<int64_t> payer;
+  bool payer_decided = false;
 };
 Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t campaign_run_id);
 Result<std::vector<ClosedAttempt>> UnchargedAttempts(Store& store, int64_t campaign_run_id);
@@ -124,7 +126,8 @@ struct Charge {
   std::string state;  // the lease's outcome (per ending, before 18: the job's state)
   std::optional<double> sim_time_s;
   // "result", "heartbeat", "planned length", "never ran", "bed", "leased before", "paid by campaign
-  // run N"; before 18 also "stored before"
+  // run N", "leased for no campaign run" (no adaptive campaign run held it at the grant); before 18
+  // also "stored before"
   std::string priced_by;
   double core_h = 0;
   std::string lease_token;  // the attempt charged ("": a charge per ending, as before migration 18)
@@ -141,8 +144,15 @@ Result<double> ChargedCoreHours(Store& store, int64_t campaign_run_id);
 // charged at.
 AdaptiveCost RoundRates(const RoundRow& round, AdaptiveCost now);
 
-// How many runs of the campaign run's sweeps, and beds under them, are queued or running: a look
-// waits for 0 (one cheap query, before anything is analysed; again inside its write).
+// Who pays for an attempt, decided once by its grant, in the grant's transaction (schema/019):
+// the earliest adaptive campaign run, its rounds not stopped and none of its sweeps cancelled,
+// that holds the leased run (a bed: one of its runs), by the ledger's own definition of its runs
+// (its sweeps' members and the runs of its replacements). None: the payer stays NULL.
+// The lease `token` (kind, job_id) is stored already.
+Status DecideLeasePayer(Transaction& t, const std::string& token, api::JobKind kind, int64_t job_id);
+
+// How many of the campaign run's runs (its sweeps' members and the runs of its replacements), and
+// beds under them, are queued or running: a look waits for 0 (one cheap query, before anything is analysed; again inside its write).
 Result<int64_t> BusyJobs(Transaction& t, int64_t campaign_run_id);
 Result<int64_t> BusyJobs(Store& store, int64_t campaign_run_id);
 

@@ -135,6 +135,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
                         "ALTER TABLE beds DROP COLUMN heartbeat_at; DROP TABLE run_progress;"
                         "DROP INDEX leases_by_job; ALTER TABLE leases DROP COLUMN closed_at; "
                         "ALTER TABLE leases DROP COLUMN sim_time_s;"
+                        "ALTER TABLE leases DROP COLUMN payer_campaign_run_id; ALTER TABLE leases DROP COLUMN payer_decided;"
                         "ALTER TABLE beds DROP COLUMN replicate; ALTER TABLE beds DROP COLUMN seed_pour1;"
                         "ALTER TABLE beds DROP COLUMN seed_pour2; ALTER TABLE beds DROP COLUMN ranks;"
                         "CREATE TABLE results (run_id INTEGER PRIMARY KEY REFERENCES runs (id), uz REAL NOT NULL, "
