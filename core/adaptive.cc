@@ -15,7 +15,7 @@
 namespace sandswim {
 
 double AdaptiveCost::RunCoreHours(const Point& p, double max_duration_s) const {
-  const double steps = std::ceil(max_duration_s / TimeStep(p.materials));
+  const double steps = std::ceil(max_duration_s / DriveStep(p));
   return steps * (EstimatedGrains(*scale, p.materials) + 1) * run_rate.s_per_unit / 3600;
 }
 

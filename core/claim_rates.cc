@@ -91,6 +91,9 @@ std::string CampaignDefinitionHash(const nlohmann::json& definition, const std::
   }
   content["claims"] = std::move(rules);
   content["precision"] = definition.is_object() ? definition.value("precision", nlohmann::json()) : nlohmann::json();
+  // A campaign-wide step changes every run; absent (every design before steps could be set), the
+  // hash is what it was.
+  if (definition.is_object() && definition.contains("numerics")) content["numerics"] = definition["numerics"];
   // nlohmann::json keeps an object's keys sorted: the dump is canonical.
   return Sha256Hex(content.dump());
 }

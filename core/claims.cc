@@ -1,3 +1,4 @@
+#include "core/convergence.h"
 #include "core/claims.h"
 
 #include <algorithm>
@@ -84,6 +85,11 @@ const std::vector<KindSpec>& Kinds() {
         {"osc_ratio", ParamType::kAtLeastOne, false},
         {"x_osc_with", ParamType::kSweeps, false},
         {"x_osc_without", ParamType::kSweeps, false}}},
+      {"converges",
+       {{"reference", ParamType::kSweeps, true},
+        {"sweeps", ParamType::kSweeps, true},
+        {"margin_rel", ParamType::kFraction, false},
+        {"margin_abs_mps", ParamType::kPositive, false}}},
   };
   return kKinds;
 }
@@ -1725,6 +1731,8 @@ std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const
       claim_rules::EvaluateGrainCount(c, input, v);
     } else if (kind == "modes") {
       claim_rules::EvaluateModes(c, input, v);
+    } else if (kind == "converges") {
+      EvaluateConvergence(c, input, v);
     }
     v.verdict = claim_rules::Combine(v.parts);
     const ClaimPart* first = nullptr;
@@ -1745,6 +1753,7 @@ std::vector<ClaimVerdict> EvaluateClaims(const std::vector<Claim>& claims, const
     }
     if (v.verdict == Verdict::kInconclusive && !v.missing.empty() && v.reason.find("missing") == std::string::npos)
       v.reason += " (" + std::to_string(v.missing.size()) + " point(s) missing)";
+    if (kind == "converges") v.reason = ConvergedUpTo(v) + "; " + v.reason;
     out.push_back(std::move(v));
   }
   return out;

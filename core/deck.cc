@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/embedded.h"
+#include "core/numerics.h"
 
 namespace sandswim {
 namespace {
@@ -26,7 +27,7 @@ constexpr double kViscousS = 0.2;             // s of damping (20000 steps of 1e
 constexpr int kCheckSamples = 100;            // at most 1 s of undamped checking
 constexpr double kKineticEnergyRatio = 1e-4;  // Sec. 2.3
 constexpr double kSkin = 0.01;                // m; fastest measured here
-constexpr int kThermoEvery = 1000;
+constexpr double kThermoS = 0.01;              // thermo output (1000 steps of 1e-5 s; MillisecondSteps' rule)
 
 std::string Fmt(double v) { return FormatNumber(v); }
 // Lengths the renderer derives (box, regions) are rounded to a nanometre, so that the deck reads
@@ -68,7 +69,7 @@ std::string_view Template(const char* name) {
 
 // Values both decks share: the materials (Table 1's unless the point sets others), the step and
 // the floor.
-Values CommonValues(const Box& box, const Materials& m) {
+Values CommonValues(const Box& box, const Materials& m, double dt) {
   return {
       {"template_version", Fmt(static_cast<long long>(kTemplateVersion))},
       {"skin", Fmt(kSkin)},
@@ -80,7 +81,7 @@ Values CommonValues(const Box& box, const Materials& m) {
       {"e_gs", Fmt(m.e_so_grain)},
       {"mu_gg", Fmt(m.mu_grain_grain)},
       {"mu_gs", Fmt(m.mu_so_grain)},
-      {"dt", Fmt(TimeStep(m))},  // DriveFacts' dt
+      {"dt", Fmt(dt)},  // DriveFacts' dt
       {"gravity", Fmt(kMaterials.gravity)},
       {"z_floor", Length(box.z_floor)},
   };
@@ -100,6 +101,23 @@ std::string MaterialsHeader(const Materials& m, MaterialRole only_role, bool all
   if (set.empty()) return "";
   return "# Materials not Table 1's: " + set + ".\n# Time step " + FormatNumber(TimeStep(m)) + " s: " +
          kTimeStepRule + ".\n";
+}
+
+// The lines a drive deck whose step is not its materials' rule carries (none otherwise: a Table 1
+// deck's bytes and key stay what they were before steps could be set): the step and its criteria
+// (core/numerics.h), and where the evidence for it is.
+std::string StepHeader(const Point& p) {
+  if (!p.dt_s) return "";
+  const StepCriteria c = JudgeStep(p, *p.dt_s);
+  std::string out = "# Time step " + FormatNumber(*p.dt_s) + " s, not Table 1's rule (" +
+                    FormatNumber(TimeStep(p.materials)) + " s): numerics.dt or its scale's default, core/numerics.h;\n" +
+                    "#   convergence evidence: docs/explanation/convergence.md. Criteria: " +
+                    FormatNumber(std::round(1000 * c.grain_rayleigh_fraction) / 10) +
+                    " % of the grain's Rayleigh time, " + FormatNumber(std::round(c.contact_steps)) +
+                    " steps a Hertz contact and " + FormatNumber(std::round(c.pass_steps)) +
+                    " to pass a grain at " + FormatNumber(std::round(c.speed_mps * 100) / 100) + " m/s.\n";
+  for (const std::string& w : c.warnings) out += "#   warned: " + w + "\n";
+  return out;
 }
 
 // Inserts `lines` after the deck's first line (its title).
@@ -169,7 +187,7 @@ std::string RenderBedDeck(const Scale& scale, int replicate, const Materials& ma
   const double r = m.d_grain / 2;
   // The drag keeps its 50 ms damping time for a grain of another mass.
   const double grain_mass_ratio = m.rho_grain / kTable1.rho_grain * std::pow(m.d_grain / kTable1.d_grain, 3);
-  Values v = CommonValues(s, m);
+  Values v = CommonValues(s, m, dt);
   const double h1 = 0.0 - s.z_floor;    // first layer: floor to z = 0
   const double h2 = s.z_bed_top - 0.0;  // second layer: z = 0 to the top
   const double stretch = kPackedFraction / kInsertFraction;
@@ -217,19 +235,30 @@ std::string RenderBedDeck(const Scale& scale, int replicate, const Materials& ma
   return AfterTitle(Render(Template("templates/bed.in"), v), MaterialsHeader(m, MaterialRole::kBed, false));
 }
 
+namespace {
+// Steps in kOmegaUpdateS (at least one) at the point's set step; a step from its materials' rule
+// (no dt_s) keeps the 100 steps its deck always had, so its bytes and key are unchanged.
+long long MillisecondSteps(const Point& p) {
+  return std::max(1LL, std::llround(kOmegaUpdateS / p.dt_s.value_or(kMaterials.dt)));
+}
+}  // namespace
+
+int DumpEverySteps(const Point& p) { return static_cast<int>(MillisecondSteps(p)); }
+
 int OmegaUpdateSteps(const Point& p) {
-  if (!p.has_vibration()) return kOmegaUpdateSteps;
-  const double period_steps = 1.0 / (p.f * TimeStep(p.materials));
+  const long long ms = MillisecondSteps(p);
+  if (!p.has_vibration()) return static_cast<int>(ms);
+  const double period_steps = 1.0 / (p.f * DriveStep(p));
   // Clamped as a double first: a tiny f makes period_steps past long long (or inf), and the cast
   // of such a value is undefined.
   const double most = std::floor(period_steps / kMinOmegaUpdatesPerPeriod);
   if (!(most >= 1)) return 1;
-  return static_cast<int>(std::min(most, static_cast<double>(kOmegaUpdateSteps)));
+  return static_cast<int>(std::min(most, static_cast<double>(ms)));
 }
 
 long long DriveSteps(const Point& p, const std::optional<PrecisionTarget>& target) {
   const long long chunk = OmegaUpdateSteps(p);
-  const long long steps = std::max(1LL, StepsFor(RunDuration(p, target), TimeStep(p.materials)));  // never 0 steps
+  const long long steps = std::max(1LL, StepsFor(RunDuration(p, target), DriveStep(p)));  // never 0 steps
   return (steps + chunk - 1) / chunk * chunk;
 }
 
@@ -240,7 +269,7 @@ std::string ControlFileText(StopVerdict verdict) {
 
 DriveInfo DriveFacts(const Point& p, const Scale& s) {
   DriveInfo d;
-  d.dt = TimeStep(p.materials);
+  d.dt = DriveStep(p);
   d.f = p.has_vibration() ? p.f : 0.0;
   d.A = p.has_vibration() ? p.A : 0.0;
   d.z_floor = std::round(BoxFor(s, p.materials).z_floor * 1e9) / 1e9;  // as the deck's Length()
@@ -295,7 +324,7 @@ std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<
   const Materials& m = p.materials;
   const Box box = BoxFor(s, m);
   const DriveInfo drive = DriveFacts(p, s);
-  Values v = CommonValues(box, m);
+  Values v = CommonValues(box, m, drive.dt);
   // omega(t) = w0 + w1 cos(2 pi f t), along the mode's axis (core/point.h).
   std::array<double, 3> w0{0, 0, 0}, w1{0, 0, 0};
   if (p.has_constant_rotation()) {
@@ -321,8 +350,8 @@ std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<
       {"w1y", Fmt(w1[1])},
       {"w1z", Fmt(w1[2])},
       {"omega_every", Fmt(chunk)},
-      {"dump_every", Fmt(static_cast<long long>(kDumpEverySteps))},
-      {"thermo_every", Fmt(static_cast<long long>(kThermoEvery))},
+      {"dump_every", Fmt(static_cast<long long>(DumpEverySteps(p)))},
+      {"thermo_every", Fmt(std::max(1LL, StepsFor(kThermoS, p.dt_s.value_or(kMaterials.dt))))},
       {"chunks", Fmt(steps / chunk)},
       {"total_steps", Fmt(steps)},
       {"r_so", Fmt(m.d_so / 2)},
@@ -331,7 +360,8 @@ std::string RenderDriveDeck(const Point& p, const Scale& s, const std::optional<
       {"control_file", kControlFile},
       {"precision", precision},
   });
-  std::string deck = AfterTitle(Render(Template("templates/drive.in"), v), MaterialsHeader(m, MaterialRole::kDrive, true));
+  std::string deck = AfterTitle(Render(Template("templates/drive.in"), v),
+                                MaterialsHeader(m, MaterialRole::kDrive, true) + StepHeader(p));
   if (m.rho_so != kTable1.rho_so) {
     // A drive-only parameter: the bed was poured with Table 1's SO, which now takes its density.
     const std::string anchor = "group so type 2\n";

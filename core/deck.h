@@ -58,12 +58,15 @@ Result<SnapshotFractions> CheckSnapshotFractions(std::vector<double> fractions);
 std::optional<std::string> SnapshotFractionsText(const SnapshotFractions& fractions);
 Result<SnapshotFractions> StoredSnapshotFractions(const std::optional<std::string>& text);
 
-// Steps between updates of the SO's prescribed angular velocity (a chunk): the SO is left out of
-// the integrator, so its omega holds between updates. 100 steps = 1 ms, fewer when f is high:
-// OmegaUpdateSteps() keeps at least kMinOmegaUpdatesPerPeriod updates in every drive period.
-inline constexpr int kOmegaUpdateSteps = 100;
+// Time between updates of the SO's prescribed angular velocity (a chunk): the SO is left out of
+// the integrator, so its omega holds between updates. 1 ms (100 steps of Table 1's 1e-5 s), in
+// steps of the point's own step (core/numerics.h), fewer when f is high: OmegaUpdateSteps() keeps
+// at least kMinOmegaUpdatesPerPeriod updates in every drive period.
+inline constexpr double kOmegaUpdateS = 1e-3;
+inline constexpr int kOmegaUpdateSteps = 100;  // at Table 1's step
 inline constexpr int kMinOmegaUpdatesPerPeriod = 20;
-// Steps between trajectory frames (1 ms of physical time at dt = 1e-5 s).
+// Steps between trajectory frames at Table 1's step: 1 ms of physical time (DumpEverySteps: at
+// the point's own step, still 1 ms).
 inline constexpr int kDumpEverySteps = 100;
 
 // Lines the decks print for the worker to read (all start with "SANDSWIM ").
@@ -99,9 +102,12 @@ std::string RenderDriveDeck(const Point& p, const Scale& scale, const std::optio
 // kSnapshotFramesPerRun, in whole chunks (OmegaUpdateSteps), at least one chunk.
 long long SnapshotEverySteps(const Point& p, const std::optional<PrecisionTarget>& target);
 
-// Steps between omega updates for this point: kOmegaUpdateSteps, or fewer so that a drive period
-// holds at least kMinOmegaUpdatesPerPeriod updates (f = 50 Hz and below: 100 steps).
+// Steps between omega updates for this point: 1 ms of its step (kOmegaUpdateSteps at Table 1's),
+// or fewer so that a drive period holds at least kMinOmegaUpdatesPerPeriod updates (f = 50 Hz and
+// below: 1 ms).
 int OmegaUpdateSteps(const Point& p);
+// Steps between trajectory frames for this point: 1 ms of its step, at least one.
+int DumpEverySteps(const Point& p);
 
 // Number of steps a drive run of this point makes when it is not stopped early: RunDuration
 // (core/precision.h) rounded up to whole chunks.

@@ -129,18 +129,22 @@ Status Validate(const Point& p) {
 
 bool SameDrive(const Point& a, const Point& b) {
   return a.mode == b.mode && a.A == b.A && a.f == b.f && a.Omega == b.Omega && a.omega == b.omega &&
-         (!a.has_constant_rotation() || a.axis == b.axis) && a.materials == b.materials;
+         (!a.has_constant_rotation() || a.axis == b.axis) && a.materials == b.materials &&
+         DriveStep(a) == DriveStep(b);
 }
 
 DriveId DriveIdOf(const Point& p) {
   std::array<double, kMaterialFieldCount> materials{};
   for (size_t i = 0; i < kMaterialFieldCount; ++i) materials[i] = p.materials.*MaterialFields()[i].member;
   return {static_cast<int>(p.mode), p.A,   p.f, p.Omega, p.omega, p.has_constant_rotation() ? static_cast<int>(p.axis) : -1,
-          materials};
+          materials, DriveStep(p)};
 }
 
+double DriveStep(const Point& p) { return p.dt_s ? *p.dt_s : TimeStep(p.materials); }
+
 Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
-                          double duration_s, const std::optional<std::string>& materials) {
+                          double duration_s, const std::optional<std::string>& materials,
+                          std::optional<double> dt_s) {
   std::optional<Mode> m = ParseMode(mode);
   if (!m)
     return Status(StatusCode::kCorruption, "stored mode \"" + std::string(mode) + "\" is not one of ours", "mode");
@@ -158,6 +162,11 @@ Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A
   Result<Materials> stored = StoredMaterials(materials);
   if (!stored.ok()) return stored.status();
   p.materials = *stored;
+  if (dt_s) {
+    if (!std::isfinite(*dt_s) || !(*dt_s > 0))
+      return Status(StatusCode::kCorruption, "stored time step " + std::to_string(*dt_s) + " is not a step", "dt_s");
+    if (*dt_s != TimeStep(p.materials)) p.dt_s = dt_s;
+  }
   return p;
 }
 

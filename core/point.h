@@ -63,16 +63,25 @@ struct Point {
   RotationAxis axis = RotationAxis::kX;  // rotation, vibration+rotation
   double duration_s = 0.0;               // physical time the user asks for
   Materials materials;                   // Table 1 unless a sweep sets them
+  // The drive's time step when it is not the materials' rule (core/materials.h TimeStep): set by
+  // planning (core/numerics.h ResolveDriveStep), never by a sweep's "base". Absent: TimeStep.
+  std::optional<double> dt_s;
 
   bool has_vibration() const { return mode != Mode::kRotation; }
   bool has_constant_rotation() const { return mode == Mode::kRotation || mode == Mode::kVibrationRotation; }
 };
 
+// The step the point's drive deck runs at: dt_s, else its materials' TimeStep.
+double DriveStep(const Point& p);
+
 // A point as the database stores it (mode and axis by name): the one decoding the daemon's reads
 // and its lease queue share. Corruption naming the column when a name is not one of ours.
-// `materials` is the runs.materials column (core/materials.h StoredMaterials: NULL is Table 1's).
+// `materials` is the runs.materials column (core/materials.h StoredMaterials: NULL is Table 1's),
+// `dt_s` the runs.dt_s column (NULL: the materials' TimeStep; a non-positive or non-finite step is
+// Corruption naming "dt_s").
 Result<Point> StoredPoint(std::string_view mode, std::string_view axis, double A, double f, double Omega, double omega,
-                          double duration_s, const std::optional<std::string>& materials);
+                          double duration_s, const std::optional<std::string>& materials,
+                          std::optional<double> dt_s = std::nullopt);
 
 // The paper's Sec. 3.2 drive (eq. 6): y = A sin(2 pi f t), omega_x = Omega cos(2 pi f t).
 Point OscillatoryPoint(double A, double f, double Omega, double duration_s);
@@ -82,10 +91,11 @@ Point OscillatoryPoint(double A, double f, double Omega, double duration_s);
 // Materials: ValidateMaterials (core/materials.h).
 Status Validate(const Point& p);
 
-// Two points drive the SO the same way (everything but duration equal, materials included).
+// Two points drive the SO the same way (everything but duration equal, materials and step included).
 bool SameDrive(const Point& a, const Point& b);
 // An ordered identity of the drive: equal exactly when SameDrive (axis only where it matters).
-using DriveId = std::tuple<int, double, double, double, double, int, std::array<double, kMaterialFieldCount>>;
+using DriveId =
+    std::tuple<int, double, double, double, double, int, std::array<double, kMaterialFieldCount>, double>;
 DriveId DriveIdOf(const Point& p);
 
 }  // namespace sandswim

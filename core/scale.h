@@ -43,6 +43,10 @@ struct Scale {
   // The most grains its bed may hold (EstimatedGrains): what a run at the scale's purpose can take
   // (core/scale.cc says why each).
   double max_grains = 0;
+  // The drive's time step for Table 1's materials when a sweep asks for none (core/numerics.h
+  // ResolveDriveStep scales it by a point's materials and shrinks it where a point needs): Table
+  // 1's until a convergence study decides otherwise (core/scale.cc says which study).
+  double default_dt_s = 1e-5;
   // Derived: the largest A this box takes with Table 1's materials, (y_len - d_so - 3 d_grain) / 2.
   double max_amplitude() const;
 };

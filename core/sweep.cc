@@ -352,11 +352,17 @@ std::optional<size_t> PointCount(const std::vector<SweepAxis>& axes, Combine com
   return n <= cap ? std::optional<size_t>(n) : std::nullopt;
 }
 
-// "precision" (core/precision.h), "replicates" (an integer from 1 to kMaxReplicates) and
-// "snapshots" (core/deck.h), which a sweep and a campaign (for its sweeps) may set; absent keys
+// "precision" (core/precision.h), "replicates" (an integer from 1 to kMaxReplicates),
+// "snapshots" (core/deck.h) and "numerics" (core/numerics.h), which a sweep and a campaign (for
+// its sweeps) may set; absent keys
 // leave the values as they are.
 Status ReadRunSettings(const json& obj, std::optional<PrecisionTarget>& precision, std::optional<int>& replicates,
-                       std::optional<SnapshotFractions>& snapshots) {
+                       std::optional<SnapshotFractions>& snapshots, std::optional<Numerics>& numerics) {
+  if (obj.count("numerics")) {
+    auto n = ParseNumerics(obj["numerics"]);
+    if (!n.ok()) return n.status().WithFieldPrefix("numerics");
+    numerics = *n;
+  }
   if (obj.count("snapshots")) {
     const json& v = obj["snapshots"];
     if (!v.is_array()) return WrongType("snapshots", "an array of fractions of the run's length", v);
@@ -426,8 +432,8 @@ Status CheckPoint(const Point& p, const Scale& scale, const std::vector<SweepAxi
 // scale applies).
 Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::string& campaign_scale) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
-  std::set<std::string> allowed = {"name",      "base",       "axes",     "combine", "description",
-                                   "precision", "replicates", "snapshots"};
+  std::set<std::string> allowed = {"name",      "base",       "axes",      "combine", "description",
+                                   "precision", "replicates", "snapshots", "numerics"};
   if (!in_campaign) {
     allowed.insert("scale");
     allowed.insert("force");
@@ -458,7 +464,7 @@ Result<SweepSpec> ParseSweepObject(const json& j, bool in_campaign, const std::s
                                      "must be at most " + std::to_string(kMaxDescriptionLength) + " characters");
   }
 
-  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, s.precision, s.replicates, s.snapshots));
+  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, s.precision, s.replicates, s.snapshots, s.numerics));
 
   if (!j.count("base")) return Status::InvalidArgument("base", "is required");
   auto base = ParseBase(j["base"]);
@@ -589,6 +595,7 @@ Result<std::vector<Point>> ExpandSweep(const SweepSpec& s, size_t max_points) {
     Point p = s.base;
     for (size_t k = 0; k < s.axes.size(); ++k) *ParamSlot(p, s.axes[k].param) = s.axes[k].values[index[k]];
     SANDSWIM_RETURN_IF_ERROR(CheckPoint(p, *scale, s.axes, index));
+    SANDSWIM_RETURN_IF_ERROR(ResolveDriveStep(p, *scale, s.numerics.value_or(Numerics{})));
     points.push_back(p);
   }
   return points;
@@ -623,7 +630,7 @@ Result<AdaptiveSettings> ParseAdaptiveSettings(const json& j) {
 Result<Campaign> ParseCampaign(const json& j) {
   SANDSWIM_RETURN_IF_ERROR(RequireObject(j, ""));
   SANDSWIM_RETURN_IF_ERROR(CheckKeys(j, {"name", "description", "scale", "schedule", "drift_tolerance_mps", "precision",
-                                         "replicates", "snapshots", "sweeps", "claims", "adaptive"}));
+                                         "replicates", "snapshots", "numerics", "sweeps", "claims", "adaptive"}));
   Campaign c;
   auto name = ReadString(j, "name");
   if (!name.ok()) return name.status();
@@ -651,7 +658,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     if (*tol < 0) return Status::InvalidArgument("drift_tolerance_mps", "must be >= 0 m/s");
     c.drift_tolerance_mps = *tol;
   }
-  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, c.precision, c.replicates, c.snapshots));
+  SANDSWIM_RETURN_IF_ERROR(ReadRunSettings(j, c.precision, c.replicates, c.snapshots, c.numerics));
   if (!j.count("sweeps")) return Status::InvalidArgument("sweeps", "is required");
   const json& sweeps = j["sweeps"];
   if (!sweeps.is_array()) return WrongType("sweeps", "an array", sweeps);
@@ -664,6 +671,7 @@ Result<Campaign> ParseCampaign(const json& j) {
     if (!s->precision) s->precision = c.precision;
     if (!s->replicates) s->replicates = c.replicates;
     if (!s->snapshots) s->snapshots = c.snapshots;
+    if (!s->numerics) s->numerics = c.numerics;
     for (const auto& other : c.sweeps)
       if (other.name == s->name) return Status::InvalidArgument(path + ".name", "repeats sweep \"" + s->name + "\"");
     total += *PointCount(s->axes, s->combine, kMaxRunsPerSubmission) * s->Replicates();
@@ -695,7 +703,7 @@ Result<Campaign> ParseCampaign(const json& j) {
   return c;
 }
 
-std::vector<std::string> BuiltinCampaignNames() { return {"paper-58", "density-ratio"}; }
+std::vector<std::string> BuiltinCampaignNames() { return {"paper-58", "density-ratio", "dt-convergence"}; }
 
 Result<json> BuiltinCampaignDefinition(const std::string& name) {
   auto names = BuiltinCampaignNames();
@@ -857,6 +865,8 @@ json PointToJson(const Point& p) {
   // Materials only where they are not Table 1's: a Table 1 point's JSON is what it always was.
   for (const MaterialField& m : MaterialFields())
     if (p.materials.*m.member != kTable1.*m.member) j[std::string(m.name)] = p.materials.*m.member;
+  // A step other than the materials' rule (core/numerics.h): part of the drive's identity.
+  if (p.dt_s) j["dt_s"] = *p.dt_s;
   return j;
 }
 
@@ -865,7 +875,12 @@ json PlannedRunToJson(const PlannedRun& r) {
   j["key"] = r.key;
   j["run_duration_s"] = r.run_duration_s;
   j["steps"] = r.steps;
-  if (const double dt = TimeStep(r.point.materials); dt != kMaterials.dt) j["dt_s"] = dt;
+  if (const double dt = DriveStep(r.point); dt != kMaterials.dt) {
+    j["dt_s"] = dt;
+    StepCriteria c = JudgeStep(r.point, dt);
+    c.source = r.point.dt_s ? "numerics.dt or the scale's default, core/numerics.h" : kTimeStepRule;
+    j["dt_criteria"] = StepCriteriaToJson(c);
+  }
   j["replicate"] = r.replicate;
   if (r.precision) j["precision"] = PrecisionToJson(*r.precision);
   if (!r.snapshots.empty()) j["snapshots"] = r.snapshots;

@@ -27,6 +27,7 @@
 
 #include "core/claims.h"
 #include "core/deck.h"
+#include "core/numerics.h"
 #include "core/point.h"
 #include "core/scale.h"
 #include "core/status.h"
@@ -64,6 +65,8 @@ struct SweepSpec {
   // Full-bed snapshots its runs take (core/deck.h SnapshotFractions): fractions of each run's
   // actual length. Absent: the campaign's, else none.
   std::optional<SnapshotFractions> snapshots;
+  // Its drive's time step (core/numerics.h). Absent: the campaign's, else the scale's default.
+  std::optional<Numerics> numerics;
 };
 
 Result<SweepSpec> ParseSweep(const nlohmann::json& j);
@@ -94,6 +97,7 @@ struct Campaign {
   std::optional<PrecisionTarget> precision;  // for its sweeps that set none
   std::optional<int> replicates;             // for its sweeps that set none
   std::optional<SnapshotFractions> snapshots;  // for its sweeps that set none
+  std::optional<Numerics> numerics;            // for its sweeps that set none
   // The paper's findings it tests (core/claims.h); each rule names sweeps of this campaign.
   std::vector<Claim> claims;
   // Run in rounds (above); requires claims and one replicate bed (more beds are what rounds add).
@@ -101,7 +105,7 @@ struct Campaign {
 };
 
 Result<Campaign> ParseCampaign(const nlohmann::json& j);
-// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58", "density-ratio".
+// Campaigns shipped with sandswim (templates/campaigns/*.json, compiled in): "paper-58", "density-ratio", "dt-convergence".
 std::vector<std::string> BuiltinCampaignNames();
 Result<Campaign> BuiltinCampaign(const std::string& name);
 // Its definition, the JSON file as shipped. NotFound for a name that is not built in.
@@ -175,7 +179,7 @@ Result<std::vector<ScalePlan>> PlanSubmission(const std::vector<SweepSpec>& swee
 
 // The JSON object `sandswim expand --json` prints for a run: key, mode, A, f, Omega or omega +
 // axis, duration_s (asked), the materials that are not Table 1's, run_duration_s (at the scale),
-// steps, dt_s (only when not Table 1's 1e-5 s), sweeps.
+// steps, dt_s and dt_criteria (core/numerics.h; only when not Table 1's 1e-5 s), sweeps.
 nlohmann::json PlannedRunToJson(const PlannedRun& r);
 // The point alone, as in a sweep's "base" (only the fields its mode uses, and the materials that
 // are not Table 1's).

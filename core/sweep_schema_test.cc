@@ -302,7 +302,7 @@ TEST_F(SweepSchemaTest, ReplicatesAreTheOnesCxxTakes) {
 TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
   const json& sweep_schema = defs_.at("sweep");
   EXPECT_EQ(Keys(sweep_schema), (std::set<std::string>{"name", "scale", "description", "base", "axes", "combine",
-                                                       "force", "precision", "replicates", "snapshots"}));
+                                                       "force", "precision", "replicates", "snapshots", "numerics"}));
   EXPECT_EQ(Strings(sweep_schema.at("required")), (std::set<std::string>{"name", "scale", "base"}));
   json full = {{"name", "s"},           {"scale", "smoke"},
                {"description", "d"},    {"base", {{"mode", "vibration"}, {"A", 0.03}, {"f", 3}, {"duration_s", 1}}},
@@ -323,7 +323,7 @@ TEST_F(SweepSchemaTest, SweepAndCampaignFieldsAreTheOnesCxxTakes) {
 
   const json& campaign = defs_.at("campaign");
   EXPECT_EQ(Keys(campaign), (std::set<std::string>{"name", "description", "scale", "schedule", "drift_tolerance_mps",
-                                                   "precision", "replicates", "snapshots", "sweeps", "claims", "adaptive"}));
+                                                   "precision", "replicates", "snapshots", "numerics", "sweeps", "claims", "adaptive"}));
   EXPECT_EQ(Strings(campaign.at("required")), (std::set<std::string>{"name", "description", "scale", "sweeps"}));
   json c = {{"name", "c"},
             {"description", "d"},

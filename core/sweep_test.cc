@@ -338,7 +338,7 @@ TEST(SweepTest, ProductVariesTheLastAxisFastestAndZipPairs) {
 // Campaigns.
 
 TEST(CampaignTest, Paper58IsBuiltIn) {
-  EXPECT_THAT(BuiltinCampaignNames(), ElementsAre("paper-58", "density-ratio"));
+  EXPECT_THAT(BuiltinCampaignNames(), ElementsAre("paper-58", "density-ratio", "dt-convergence"));
   auto c = BuiltinCampaign("paper-58");
   ASSERT_TRUE(c.ok()) << c.status().ToString();
   EXPECT_EQ(c->name, "paper-58");

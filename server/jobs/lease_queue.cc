@@ -308,7 +308,7 @@ Result<LeaseQueue::RunDeck> LeaseQueue::MakeRunDeck(const jobs::QueuedRun& run) 
     return RunDeck{*run.stored_deck, *drive, std::nullopt, {}};  // such runs have no target or snapshots
   }
   Result<Point> point = StoredPoint(run.mode, run.axis, run.A, run.f, run.Omega, run.omega, run.duration_s,
-                                    run.materials);
+                                    run.materials, run.dt_s);
   const Scale* scale = FindScale(run.scale);
   Result<std::optional<PrecisionTarget>> precision = StoredPrecision(run.precision);
   Result<SnapshotFractions> snapshots = StoredSnapshotFractions(run.snapshots);

@@ -26,6 +26,7 @@ nlohmann::json SweepToJson(const SweepSpec& s) {
   if (s.precision) j["precision"] = PrecisionToJson(*s.precision);
   if (s.replicates) j["replicates"] = *s.replicates;
   if (s.snapshots) j["snapshots"] = *s.snapshots;
+  if (s.numerics) j["numerics"] = NumericsToJson(*s.numerics);
   return j;
 }
 

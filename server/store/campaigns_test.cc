@@ -187,6 +187,7 @@ TEST_F(CampaignsTest, CampaignsStoredBeforeVersionsBecomeVersionOne) {
                         "DROP INDEX leases_by_job; ALTER TABLE leases DROP COLUMN closed_at; "
                         "ALTER TABLE leases DROP COLUMN sim_time_s;"
                         "ALTER TABLE leases DROP COLUMN payer_campaign_run_id; ALTER TABLE leases DROP COLUMN payer_decided;"
+                        "ALTER TABLE runs DROP COLUMN dt_s;"
                         "DELETE FROM schema_migrations WHERE version >= 13; PRAGMA user_version = 12;")
                     .ok());
     Statement st = t->Prepare(

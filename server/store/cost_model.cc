@@ -38,7 +38,7 @@ int64_t EarliestTargetStep(const Statement& r, int64_t steps) {
   Result<std::optional<PrecisionTarget>> target = StoredPrecision(r.OptText(9));
   if (!target.ok() || !*target) return 0;
   Result<Point> point = StoredPoint(r.Text(10), r.Text(11), r.Double(12), r.Double(13), r.Double(14), r.Double(15),
-                                    r.Double(16), r.OptText(18));
+                                    r.Double(16), r.OptText(18), r.OptDouble(19));
   const double run_s = r.Double(17);
   if (!point.ok() || !(run_s > 0)) return 0;
   const double earliest = EarliestTargetStopS(*point, **target);
@@ -282,7 +282,7 @@ Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, dou
     Statement st = t->Prepare(
         "SELECT r.state, r.steps, COALESCE(r.step, 0), COALESCE(r.heartbeat_at - r.started_at, 0), b.id, b.state, "
         "b.grains, b.scale, COALESCE(?2 - b.started_at, 0), r.precision, r.mode, r.axis, r.A, r.f, r.osc_omega, "
-        "r.rot_omega, r.duration_s, r.run_duration_s, r.materials FROM runs r JOIN beds b ON b.id = r.bed_id "
+        "r.rot_omega, r.duration_s, r.run_duration_s, r.materials, r.dt_s FROM runs r JOIN beds b ON b.id = r.bed_id "
         "WHERE r.id IN (" + ScopeRuns(scope) + ") AND r.state IN ('queued', 'running')");
     st.Bind(1, id).Bind(2, now);
     Status unparsed = Status::Ok();  // a state text that is no JobState: Corruption, as every store read

@@ -357,7 +357,7 @@ Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t) {
   Statement st = t.Prepare(
       "SELECT r.id, r.key, d.deck, r.attempts, r.run_duration_s, r.steps, b.id, b.sha256, "
       "r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, b.scale, b.key, "
-      "b.engine_version, r.precision, r.snapshots, r.materials "
+      "b.engine_version, r.precision, r.snapshots, r.materials, r.dt_s "
       "FROM runs r JOIN beds b ON b.id = r.bed_id LEFT JOIN run_decks d ON d.run_id = r.id "
       "WHERE r.state = 'queued' AND b.state = 'done' ORDER BY r.id LIMIT 1");
   Result<bool> row = st.Step();
@@ -385,6 +385,7 @@ Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t) {
   r.precision = st.OptText(18);
   r.snapshots = st.OptText(19);
   r.materials = st.OptText(20);
+  r.dt_s = st.OptDouble(21);
   return std::optional<QueuedRun>(std::move(r));
 }
 

@@ -166,6 +166,7 @@ struct QueuedRun {
   std::optional<std::string> precision;       // JSON, as stored (core/precision.h StoredPrecision)
   std::optional<std::string> snapshots;       // JSON, as stored (core/deck.h StoredSnapshotFractions)
   std::optional<std::string> materials;       // JSON, as stored (core/materials.h StoredMaterials)
+  std::optional<double> dt_s;                  // the drive's step, NULL: its materials' TimeStep
 };
 Result<std::optional<QueuedRun>> NextQueuedRun(Transaction& t);
 

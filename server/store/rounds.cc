@@ -293,11 +293,11 @@ Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t cam
       a.sim_time_s = st.OptDouble(5);
       a.run_duration_s = st.OptDouble(6).value_or(0);
       Result<Point> p = StoredPoint(st.Text(7), st.Text(8), st.Double(9), st.Double(10), st.Double(11),
-                                    st.Double(12), st.Double(13), st.OptText(14));
+                                    st.Double(12), st.Double(13), st.OptText(14), st.OptDouble(15));
       if (!p.ok()) return Status(p.status().code(), kind + " " + std::to_string(a.id) + ": " + p.status().reason());
       a.point = *p;
-      a.payer = st.OptInt(15);
-      a.payer_decided = st.Int(16) != 0;
+      a.payer = st.OptInt(16);
+      a.payer_decided = st.Int(17) != 0;
       out.push_back(std::move(a));
     }
   };
@@ -307,7 +307,7 @@ Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t cam
       MyRunsSql() + kOldLook +
       "SELECT l.token, r.id, l.granted_at, COALESCE(l.closed_at, l.completed_at, l.granted_at), "
       "COALESCE(l.outcome, 'expired'), COALESCE(l.sim_time_s, CASE WHEN l.outcome = 'done' THEN res.sim_time_s END), "
-      "r.run_duration_s, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, r.materials, " +
+      "r.run_duration_s, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, r.materials, r.dt_s, " +
       PayerOf("rr.id = r.id") +
       " FROM runs r JOIN mine m ON m.run_id = r.id JOIN leases l ON l.kind = 'run' AND l.job_id = r.id "
       "LEFT JOIN results res ON res.run_id = r.id WHERE " +
@@ -318,7 +318,7 @@ Result<std::vector<ClosedAttempt>> UnchargedAttempts(Transaction& t, int64_t cam
       MyRunsSql() + kOldLook +
       "SELECT l.token, b.id, l.granted_at, COALESCE(l.closed_at, l.completed_at, l.granted_at), "
       "COALESCE(l.outcome, 'expired'), NULL, NULL, r.mode, r.axis, r.A, r.f, r.osc_omega, r.rot_omega, r.duration_s, "
-      "r.materials, " +
+      "r.materials, r.dt_s, " +
       PayerOf("rr.bed_id = b.id") +
       " FROM beds b JOIN runs r ON r.id = (SELECT MIN(r2.id) FROM runs r2 JOIN mine m ON m.run_id = r2.id "
       "WHERE r2.bed_id = b.id) JOIN leases l ON l.kind = 'bed' AND l.job_id = b.id WHERE " +

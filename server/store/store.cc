@@ -34,9 +34,9 @@ constexpr std::string_view kRunColumns =
     "r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
     "r.run_duration_s, r.steps, r.bed_id, r.attempts, r.worker, r.sim_time_s, r.so_z, r.step, "
     "r.heartbeat_at, r.created_at, r.started_at, r.finished_at, r.last_error_kind, r.last_error, "
-    "r.precision, r.snapshots, r.materials";
+    "r.precision, r.snapshots, r.materials, r.dt_s";
 constexpr int kRunColumnCount = ColumnCount(kRunColumns);
-constexpr int kRunMaterialsColumn = kRunColumnCount - 1;
+constexpr int kRunMaterialsColumn = kRunColumnCount - 2;  // and r.dt_s after it
 
 // kRunColumns, then the run's result (a query joins `results res`), then what a query adds.
 const std::string& RunColumns() {
@@ -61,11 +61,11 @@ Result<std::vector<api::Snapshot>> SnapshotsIn(Transaction& t, int64_t run_id) {
   return out;
 }
 
-// Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s, and column `materials`: the
-// run's materials (core/point.h StoredPoint).
+// Columns c..c+6: mode, A, f, osc_omega, rot_omega, axis, duration_s, and columns `materials` and
+// `materials` + 1: the run's materials and its step, r.dt_s (core/point.h StoredPoint).
 Result<Point> PointFromRow(const Statement& st, int c, int materials) {
   return StoredPoint(st.Text(c), st.Text(c + 5), st.Double(c + 1), st.Double(c + 2), st.Double(c + 3), st.Double(c + 4),
-                     st.Double(c + 6), st.OptText(materials));
+                     st.Double(c + 6), st.OptText(materials), st.OptDouble(materials + 1));
 }
 
 // A row of RunColumns().
@@ -311,6 +311,7 @@ struct OldResult {
   int analysis = 1;
   std::optional<std::string> precision;  // the run's precision target (JSON), if it had one
   std::optional<std::string> materials;  // the run's materials (runs.materials), NULL: Table 1's
+  std::optional<double> dt_s;            // the run's step (runs.dt_s), NULL: its materials' TimeStep
 };
 
 // The result analysis `kAnalysisVersion` makes of `o`'s stored trajectory, or why there is none.
@@ -320,11 +321,12 @@ Result<api::RunResult> Reanalyse(const OldResult& o) {
   try {
     api::Trajectory tr = tj.get<api::Trajectory>();
     std::vector<SoSample> samples;
-    for (size_t i = 0; i < tr.t.size() && i < tr.x.size() && i < tr.y.size() && i < tr.z.size(); ++i) {
-      samples.push_back({std::llround(tr.t[i] / kMaterials.dt), tr.t[i], tr.x[i], tr.y[i], tr.z[i]});
-    }
     Result<Materials> materials = StoredMaterials(o.materials);
     if (!materials.ok()) return materials.status();
+    const double dt = o.dt_s.value_or(TimeStep(*materials));
+    for (size_t i = 0; i < tr.t.size() && i < tr.x.size() && i < tr.y.size() && i < tr.z.size(); ++i) {
+      samples.push_back({std::llround(tr.t[i] / dt), tr.t[i], tr.x[i], tr.y[i], tr.z[i]});
+    }
     BedBounds bounds;
     bounds.so_radius = materials->d_so / 2;  // the run's SO, as its deck's r_so
     if (const Scale* scale = FindScale(o.scale)) bounds.floor = BoxFor(*scale, *materials).z_floor;
@@ -388,7 +390,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
       Statement st = t->Prepare(
           "SELECT res.run_id, r.f, r.mode, b.scale, COALESCE(b.result, ''), COALESCE(tr.data, ''), "
           "res.stop_reason, res.sim_time_s, res.steps, res.grains, res.z0, res.analysis, r.precision, "
-          "r.materials FROM results res "
+          "r.materials, r.dt_s FROM results res "
           "JOIN runs r ON r.id = res.run_id JOIN beds b ON b.id = r.bed_id "
           "LEFT JOIN trajectories tr ON tr.run_id = res.run_id "
           "WHERE res.analysis < ? AND res.analysed_from != 'unreadable' AND res.run_id > ? "
@@ -414,6 +416,7 @@ Result<Store::Reanalysis> Store::ReanalyzeOldResults() {
         o.analysis = static_cast<int>(st.Int(11));
         o.precision = st.OptText(12);
         o.materials = st.OptText(13);
+        o.dt_s = st.OptDouble(14);
         page.push_back(std::move(o));
       }
     }
@@ -711,7 +714,7 @@ namespace {
 // query adds after them (from kResultRowColumnCount() on).
 constexpr std::string_view kResultRowRunColumns =
     "r.id, r.key, r.state, r.mode, r.A, r.f, r.osc_omega, r.rot_omega, r.axis, r.duration_s, "
-    "r.run_duration_s, r.bed_id, b.replicate, r.materials";
+    "r.run_duration_s, r.bed_id, b.replicate, r.materials, r.dt_s";
 constexpr int kResultRowRunColumnCount = ColumnCount(kResultRowRunColumns);
 const std::string& ResultRowColumns() {
   static const std::string kColumns = std::string(kResultRowRunColumns) + ", " + ResultSelectList();

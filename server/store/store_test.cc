@@ -124,7 +124,7 @@ TEST_F(StoreTest, ResultsOfTheOldEstimatorAreMigratedAndReanalysed) {
     auto t = store->db().Begin();
     ASSERT_TRUE(t->Exec("DROP TABLE results; DELETE FROM schema_migrations WHERE version >= 7; PRAGMA user_version = 6;"
                         "ALTER TABLE runs DROP COLUMN precision; ALTER TABLE runs DROP COLUMN snapshots;"
-                        "ALTER TABLE runs DROP COLUMN materials;"
+                        "ALTER TABLE runs DROP COLUMN materials; ALTER TABLE runs DROP COLUMN dt_s;"
                         "DROP TABLE campaign_versions; ALTER TABLE campaigns DROP COLUMN version;"
                         "ALTER TABLE campaign_runs DROP COLUMN campaign_version;"
                         "ALTER TABLE campaign_runs DROP COLUMN definition;"

@@ -134,8 +134,8 @@ Status RequeueFailedBed(Transaction& t, int64_t bed_id) {
 RunRows::RunRows(Transaction& t)
     : t_(t),
       insert_(t.Prepare("INSERT INTO runs (key, bed_id, mode, A, f, osc_omega, rot_omega, axis, duration_s, "
-                        "run_duration_s, steps, state, created_at, queued_at, precision, snapshots, materials) "
-                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?) "
+                        "run_duration_s, steps, state, created_at, queued_at, precision, snapshots, materials, dt_s) "
+                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?, ?) "
                         "ON CONFLICT (key) DO NOTHING")),
       find_(t.Prepare("SELECT id, state FROM runs WHERE key = ?")),
       member_(t.Prepare("INSERT INTO sweep_runs (sweep_id, run_id, position) VALUES (?, ?, ?) "
@@ -155,6 +155,7 @@ Result<std::optional<int64_t>> RunRows::InsertIfNew(const PlannedRun& r, int64_t
   }
   insert_.Bind(15, SnapshotFractionsText(r.snapshots));
   insert_.Bind(16, MaterialsText(r.point.materials));
+  insert_.Bind(17, r.point.dt_s);
   SANDSWIM_RETURN_IF_ERROR(insert_.Run());
   if (t_.Changes() != 1) return std::optional<int64_t>();
   return std::optional<int64_t>(t_.LastInsertId());

@@ -170,7 +170,8 @@ int Main(int argc, char** argv) {
   }
   const double dt = After(deck, "timestep").value_or(kMaterials.dt);
   const double duration = static_cast<double>(chunks * per_chunk) * dt;
-  const Point point = DriveOf(deck, duration);
+  Point point = DriveOf(deck, duration);
+  if (dt != TimeStep(point.materials)) point.dt_s = dt;  // as planning set it (core/numerics.h)
   RunSpec spec;
   spec.point = point;
   spec.duration_s = duration;
