@@ -888,7 +888,7 @@ function jsonEditor(container, { initial, draftKey = null, id = 'json-text' }) {
 async function submitPage() {
   document.title = 'submit · sandswim';
   main().innerHTML = `<h1>Submit a sweep</h1>
-    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api/v1/openapi.json">the API document</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.
+    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api-reference">the REST API</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.
     A study to rerun, edit and schedule is a <a href="/campaigns">campaign</a>.</p>
     <div id="sweep-editor"></div>
     <p><button id="submit">Submit</button> <span id="submit-result"></span></p>`;
@@ -1091,7 +1091,7 @@ async function campaignEditorPage(name, from) {
   const baseSweeps = base ? ((base.resolved || {}).sweeps || []).map(s => s.name) : [];
   const baseClaims = base ? ((base.resolved || {}).claims || []).map(c => c.id) : [];
   main().innerHTML = `<h1>${heading}</h1>
-    <p class="muted">The campaign as JSON (<a href="/api/v1/openapi.json">the API document</a>; schema/campaign.schema.json). The daemon checks every field when you save;
+    <p class="muted">The campaign as JSON (<a href="/api-reference/campaigns">the REST API</a>; schema/campaign.schema.json). The daemon checks every field when you save;
     an error is shown beside its line and nothing is stored. Each save of a change makes a new version; its past runs keep the definition they ran.</p>
     <div id="campaign-editor"></div>
     <p><button id="save">Save</button> <span id="save-result"></span></p>
@@ -1134,6 +1134,77 @@ async function campaignEditorPage(name, from) {
   });
 }
 
+// ---- The REST API, rendered from the daemon's own description (/api/v1/openapi.json) -----------
+// The same grouping as docs/reference/api/ (tests/docs/check_docs.py): by the path's first segment
+// after /api/v1/, the operations routes (/healthz, /metrics, backup, cost model) together.
+
+function apiResourceOf(path) {
+  const m = path.match(/^\/api\/v1\/([^/{]+)/);
+  if (!m) return 'operations';
+  return ['openapi.json', 'backup', 'cost-model'].includes(m[1]) ? 'operations' : m[1];
+}
+// A description's text, its `code` spans shown as code.
+const apiText = t => esc(t || '').replace(/`([^`]+)`/g, '<code>$1</code>');
+function apiSchemaText(s) {
+  if (!s || typeof s !== 'object') return '';
+  if (s.$ref) {
+    const name = s.$ref.split('/').pop();
+    return `<a href="/api-reference/schemas#schema-${esc(name)}">${esc(name)}</a>`;
+  }
+  for (const k of ['oneOf', 'anyOf', 'allOf']) if (s[k]) return s[k].map(apiSchemaText).join(k === 'allOf' ? ' and ' : ' or ');
+  if (s.type === 'array') return `array of ${apiSchemaText(s.items) || 'values'}`;
+  if (s.enum) return `${esc(s.type || '')} (${s.enum.map(v => `<code>${esc(v)}</code>`).join(', ')})`;
+  return esc(s.type || '');
+}
+async function apiReferencePage(resource) {
+  const doc = await get('/api/v1/openapi.json');
+  const groups = {};
+  for (const [path, ops] of Object.entries(doc.paths || {})) {
+    for (const [method, op] of Object.entries(ops)) {
+      if (typeof op !== 'object' || method === 'parameters') continue;
+      (groups[apiResourceOf(path)] ||= []).push({ method, path, op });
+    }
+  }
+  const nav = `<p><a href="/api-reference">All resources</a> · <a href="/api-reference/schemas">Schemas</a> · ` +
+    `<a href="/api/v1/openapi.json">the description as JSON</a></p>`;
+  if (!resource) {
+    main().innerHTML = `<h1>REST API</h1>${nav}<p>${apiText(doc.info?.description)}</p>
+      <table><thead><tr><th>resource</th><th>routes</th></tr></thead><tbody>${Object.keys(groups).sort().map(r =>
+        `<tr><td><a href="/api-reference/${esc(r)}">${esc(r)}</a></td><td>${groups[r].map(o =>
+          `<code>${esc(o.method.toUpperCase())} ${esc(o.path)}</code>`).join('<br>')}</td></tr>`).join('')}</tbody></table>`;
+    return;
+  }
+  if (resource === 'schemas') {
+    main().innerHTML = `<h1>REST API: schemas</h1>${nav}` + Object.entries(doc.components?.schemas || {}).map(([name, s]) => {
+      const req = new Set(s.required || []);
+      const props = Object.entries(s.properties || {});
+      return `<section class="card" id="schema-${esc(name)}"><h2>${esc(name)}</h2><p>${apiText(s.description)}</p>` +
+        (props.length ? `<table><thead><tr><th>field</th><th>type</th><th>unit</th><th>required</th><th>what</th></tr></thead><tbody>${
+          props.map(([k, v]) => `<tr><td><code>${esc(k)}</code></td><td>${apiSchemaText(v)}</td><td>${esc(v['x-unit'] || '')}</td>` +
+            `<td>${req.has(k) ? 'yes' : 'no'}</td><td>${apiText(v.description)}</td></tr>`).join('')}</tbody></table>`
+          : `<p>Type: ${apiSchemaText(s)}</p>`) + '</section>';
+    }).join('');
+    if (location.hash) document.getElementById(location.hash.slice(1))?.scrollIntoView();
+    return;
+  }
+  const ops = groups[resource];
+  if (!ops) throw new ApiError(404, { detail: `no resource ${resource} in the API` });
+  main().innerHTML = `<h1>REST API: ${esc(resource)}</h1>${nav}` + ops.map(({ method, path, op }) => {
+    const params = op.parameters || [];
+    return `<section class="card"><h2><code>${esc(method.toUpperCase())} ${esc(path)}</code></h2>
+      <p>${apiText(op.summary)}</p><p class="muted">${apiText(op.description)}</p>` +
+      (params.length ? `<table><thead><tr><th>parameter</th><th>in</th><th>required</th><th>type</th><th>what</th></tr></thead><tbody>${
+        params.map(p => `<tr><td><code>${esc(p.name)}</code></td><td>${esc(p.in)}</td><td>${p.required ? 'yes' : 'no'}</td>` +
+          `<td>${apiSchemaText(p.schema)}</td><td>${apiText(p.description)}</td></tr>`).join('')}</tbody></table>` : '') +
+      Object.entries(op.requestBody?.content || {}).map(([ct, c]) =>
+        `<p>Request body (<code>${esc(ct)}</code>): ${apiSchemaText(c.schema)}</p>`).join('') +
+      `<table><thead><tr><th>status</th><th>what</th><th>body</th></tr></thead><tbody>${
+        Object.entries(op.responses || {}).map(([code, r]) => `<tr><td>${esc(code)}</td><td>${apiText(r.description)}</td><td>${
+          Object.entries(r.content || {}).map(([ct, c]) => `<code>${esc(ct)}</code> ${apiSchemaText(c.schema)}`).join(', ')}</td></tr>`).join('')
+      }</tbody></table></section>`;
+  }).join('');
+}
+
 // ---- Routing ------------------------------------------------------------------------------------
 
 async function route() {
@@ -1151,6 +1222,8 @@ async function route() {
     else if ((m = path.match(/^\/campaigns\/([A-Za-z0-9._-]{1,64})$/))) await campaignPage(m[1]);
     else if ((m = path.match(/^\/campaigns\/([A-Za-z0-9._-]{1,64})\/edit$/))) await campaignEditorPage(m[1], null);
     else if (path === '/new-campaign') await campaignEditorPage(null, new URLSearchParams(location.search).get('from'));
+    else if (path === '/api-reference') await apiReferencePage(null);
+    else if ((m = path.match(/^\/api-reference\/([a-z-]{1,40})$/))) await apiReferencePage(m[1]);
     else main().innerHTML = `<h1>Not found</h1><p>No page at ${esc(path)}. <a href="/">The overview</a>.</p>`;
   } catch (e) {
     main().innerHTML = `<h1>Cannot show this page</h1><p class="error">${esc(e.message)}</p>` +

@@ -302,6 +302,7 @@ void RegisterDashboard(httplib::Server& server, const Counters& counters) {
   });
   server.Get("/submit", page);
   server.Get("/new-campaign", page);
+  server.Get(R"(/api-reference(/[a-z-]{1,40})?)", page);  // the REST API, rendered from /api/v1/openapi.json
   server.Get(R"(/campaigns(/[A-Za-z0-9._-]{1,64}(/edit)?)?)", page);
   server.Get(R"(/(campaign-runs|sweeps|runs|beds)(/[0-9]+)?)", page);
   server.Get(R"(/ui/([A-Za-z0-9_-][A-Za-z0-9._-]*))",

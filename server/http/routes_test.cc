@@ -971,7 +971,8 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
 // The dashboard: one page at every dashboard path, its files under /ui/, nothing else.
 TEST_F(RoutesTest, DashboardPagesAndFiles) {
   for (const char* path : {"/", "/campaign-runs/3", "/sweeps/1", "/runs/12", "/beds", "/beds/2", "/submit", "/campaigns",
-                           "/campaigns/paper-58", "/campaigns/my.own_copy-2/edit", "/new-campaign"}) {
+                           "/campaigns/paper-58", "/campaigns/my.own_copy-2/edit", "/new-campaign", "/api-reference",
+                           "/api-reference/sweeps"}) {
     auto r = client_->Get(path);
     ASSERT_EQ(r->status, 200) << path;
     EXPECT_EQ(r->get_header_value("Content-Type"), "text/html; charset=utf-8") << path;
