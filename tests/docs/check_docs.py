@@ -107,13 +107,24 @@ def check_links(root, problems):
 def check_section_refs(root, problems):
     """A section named in prose (under "X", below, "X") must be a heading of some page: link it."""
     every = [h.lower() for p in md_files(root) for h in headings(root, p)]
-    ref = re.compile(r"\b(?:[Uu]nder|[Bb]elow|[Aa]bove|[Ss]ee)(?:,| under| in)? \"([A-Z][^\"]{2,80})\"")
+    ref = re.compile(r"\b(?:[Uu]nder|[Bb]elow|[Aa]bove|[Ss]ee)(?:,| under| in)?\s+\"([A-Z][^\"]{2,80})\"")
     for page in md_files(root):
         with open(os.path.join(root, page), encoding="utf-8") as f:
-            for n, line in prose_lines(f.read()):
-                for h in ref.findall(line):
-                    if not any(x.startswith(h.lower()) for x in every):
-                        problems.append(f"{page}:{n}: refers to a section \"{h}\" that no page has (link the page)")
+            lines = prose_lines(f.read())
+        # Paragraphs, so that a quoted name broken over two lines is seen whole.
+        paragraphs, start, text = [], None, []
+        for n, line in lines + [(0, "")]:
+            if line.strip():
+                start = start or n
+                text.append(line)
+            elif text:
+                paragraphs.append((start, " ".join(text)))
+                start, text = None, []
+        for n, para in paragraphs:
+            for h in ref.findall(para):
+                h = " ".join(h.split())
+                if not any(x.startswith(h.lower()) for x in every):
+                    problems.append(f"{page}:{n}: refers to a section \"{h}\" that no page has (link the page)")
 
 
 def code_files(root):
