@@ -1084,7 +1084,7 @@ void SetupSlurm(CLI::App& sub, Args& a) {
   submit->add_option("--account", r.account, "Slurm account");
   submit->add_option("--job-name", r.job_name, "Slurm job name")->capture_default_str();
   submit->add_option("--output", r.output, "sbatch --output pattern for the worker's log");
-  submit->add_option("--script", r.script, "the batch script (default: pilot.sbatch / array.sbatch, see README)");
+  submit->add_option("--script", r.script, "the batch script (default: pilot.sbatch / array.sbatch, see deploy/slurm/README.md)");
   submit->add_option("--worker", a.slurm.worker, "sandswim-worker on the compute nodes (default: on PATH)");
   submit->add_option("--workdir", a.slurm.workdir, "run directories on the compute nodes");
   submit

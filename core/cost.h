@@ -33,7 +33,7 @@ namespace sandswim {
 // measured run replaces it.
 inline constexpr double kDefaultSecondsPerParticleStep = 6.5e-7;
 inline constexpr double kDefaultRateRelError = 0.3;
-// A smoke bed of 6,682 grains took 708-840 s on one rank (README's three beds).
+// A smoke bed of 6,682 grains took 708-840 s on one rank (docs/measurements.md, the baseline on three replicate beds).
 inline constexpr double kDefaultBedSecondsPerGrain = 0.115;
 // A fitted rate is never claimed better than this: the host's other work comes and goes.
 inline constexpr double kMinRateRelError = 0.1;

@@ -22,7 +22,8 @@ namespace {
 //     sweep's largest: 2A + d_SO + 3 d_grain); L_x = 0.18 m = d_SO + 3 d_grain, the least the rule
 //     allows, since every centimetre of box costs grains. The height gives the SO about 0.15 m of
 //     travel each way: the baseline Omega = -80 rose at 0.12 m/s and +80 sank at 0.09 m/s on the
-//     earlier 0.20 x 0.38 m smoke box (Δz over the whole run, README "What the demo costs"), so
+//     earlier 0.20 x 0.38 m smoke box (Δz over the whole run,
+//     docs/measurements.md#the-earlier-smoke-box), so
 //     0.15 m holds the one-period transient and three whole periods at f = 3 Hz (1.33 s) for the
 //     baseline pair; faster points end their window at the boundary and say so. Measured here
 //     (tests/bench/bench_physics, 2026-11-25): 6,682 grains, the SO settled at z = -0.011 m, the
@@ -37,7 +38,8 @@ namespace {
 // of physical time (f = 1 Hz still gets its transient and three periods: core/precision.h
 // RunDuration). It is a cost choice for a test scale, not a physics one: a sweep may set its own.
 // The smoke bed-to-bed prior, 0.17: the baseline pair on three replicate smoke beds on the real
-// engine (README "The baseline on three replicate beds", 2026-11): between-bed sd 0.0088 m/s of
+// engine (2026-11; docs/measurements.md#the-baseline-on-three-replicate-beds-the-current-smoke-box):
+// between-bed sd 0.0088 m/s of
 // -0.0530 sinking (17 %), 0.0038 of 0.0973 rising (4 %); the larger is taken for every point, since
 // three beds fix neither well. paper and mini have no replicate measurement: none.
 // Why a prior and not K = 3 beds by default for paper-58, measured on the truth
@@ -62,7 +64,7 @@ const std::vector<Scale> kScales = {
      0.18, 0.38, -0.35, 0.34, PrecisionTarget{0.2, 0.005, 3, 2.0}, 0.17, 2e4},
 };
 
-// Smoke's bed as prepared on this project's machine (README): its grains.
+// Smoke's bed as prepared on this project's machine (docs/measurements.md): its grains.
 constexpr double kSmokeGrains = 6682;
 
 double Span(const Materials& m) { return m.d_so + 3 * m.d_grain; }

@@ -59,7 +59,7 @@
 // flag says the mean depends on the window (a residual transient, or an SO speeding up near a
 // boundary), which a user should read before comparing it. Marking it inconclusive would drop
 // 1 % of stationary runs from the fits while catching few real drifts at smoke's 4-5 periods
-// (power in the README).
+// (power: docs/measurements.md).
 // z_osc_amplitude: the amplitude at f of a least-squares fit of a line and harmonics f, 2f, 3f
 // over the window (0 when the window holds no whole period or the mode does not vibrate).
 // x_osc_amplitude: the same fit to x (analysis 4); absent when it is not measured (no whole

@@ -106,8 +106,8 @@ std::map<std::string, Verdict> ShowFrozenVerdicts(std::vector<ClaimVerdict>& ver
 
 // What an adaptive run's verdicts are quoted instead of the single-look tables' rates.
 inline constexpr const char* kAdaptiveRatesText =
-    "the adaptive procedure's error rates are measured by tests/bench/bench_adaptive (README: Claim-driven "
-    "rounds), not the single-look tables";
+    "the adaptive procedure's error rates are measured by tests/bench/bench_adaptive (docs/measurements.md, "
+    "\"Adaptive rounds on the truth engine\"), not the single-look tables";
 // Uncalibrated rates at `design_text`, text kAdaptiveRatesText.
 ClaimRates AdaptiveClaimRates(const std::string& design_text);
 // Sets every verdict's and part's rates to AdaptiveClaimRates(design_text).

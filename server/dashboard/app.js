@@ -549,8 +549,8 @@ async function campaignRunPage(id) {
       <dt>sweeps</dt><dd>${info.sweeps.map(s => `<a href="/sweeps/${s}">${s}</a>`).join(', ')}</dd>
       ${info.last_drift && info.last_drift.summary ? `<dt>drift</dt><dd class="wrap" id="drift">${esc(info.last_drift.summary)}</dd>` : ''}
       <dt>report</dt><dd><a href="${esc(authed(`/api/v1/campaign-runs/${id}/report`))}">the HTML report</a> · <a href="${esc(authed(`/api/v1/campaign-runs/${id}/results?format=csv`))}">results as CSV</a></dd></dl></section>
-    <section class="card"><h2>The paper's findings: do they hold here?</h2><div id="claims" class="muted">Loading…</div></section>
-    ${info.adaptive ? `<section class="card"><h2>Rounds</h2><div id="rounds">${roundsHtml(info.adaptive, info.rounds)}</div></section>` : ''}
+    <section class="card"><h2>The paper's findings: do they hold here?</h2><p class="muted help-link"><a href="/help/docs/explanation/verdicts.md">What a verdict means, and how often it is wrong</a></p><div id="claims" class="muted">Loading…</div></section>
+    ${info.adaptive ? `<section class="card"><h2>Rounds</h2><p class="muted help-link"><a href="/help/docs/how-to/adaptive-campaigns.md#seeing-the-rounds">Reading the rounds</a></p><div id="rounds">${roundsHtml(info.adaptive, info.rounds)}</div></section>` : ''}
     <section class="card"><h2>Runs</h2><div id="runs"></div></section>
     <section class="card"><h2>U_z against the swept parameter</h2><div id="uz-plots" class="grid2"></div>
       <h2>Figures</h2><div id="figures" class="grid2"></div></section>`;
@@ -666,7 +666,7 @@ async function runPage(id) {
         ${err ? `<dt>failure</dt><dd id="failure" class="error">${esc(err.kind)}: ${esc(err.message || err.reason || JSON.stringify(err))}</dd>` : ''}
       </dl></section>
       <section class="card"><h2>z(t) of the SO</h2><div id="zt-plot" class="plot"></div><p class="muted" id="zt-note"></p></section>
-      ${res ? `<section class="card"><h2>Result</h2><dl class="facts" id="result">
+      ${res ? `<section class="card"><h2>Result</h2><p class="muted help-link"><a href="/help/docs/explanation/uz.md">How U_z and its error are measured</a></p><dl class="facts" id="result">
         <dt>U_z</dt><dd><b>${esc(res.uz_text || '')}</b></dd>
         <dt>window</dt><dd>${num(res.window_t0)} – ${num(res.window_t1)} s, ${res.uz_blocks} ${esc(res.block_kind || 'block')}s, ends at ${esc(res.window_end)}</dd>
         <dt>Δz</dt><dd>${num(res.dz, 4)} m over ${num(res.sim_time_s)} s</dd>
@@ -888,7 +888,7 @@ function jsonEditor(container, { initial, draftKey = null, id = 'json-text' }) {
 async function submitPage() {
   document.title = 'submit · sandswim';
   main().innerHTML = `<h1>Submit a sweep</h1>
-    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api/v1/openapi.json">the API document</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.
+    <p class="muted">A sweep (or <code>{"campaign": "paper-58"}</code>) as the REST API takes it: see <a href="/api-reference">the REST API</a> and <a href="/help/docs/how-to/sweeps.md">how to write a sweep</a>. The daemon checks every field; an error is shown next to its field, and nothing is stored.
     A study to rerun, edit and schedule is a <a href="/campaigns">campaign</a>.</p>
     <div id="sweep-editor"></div>
     <p><button id="submit">Submit</button> <span id="submit-result"></span></p>`;
@@ -1091,7 +1091,7 @@ async function campaignEditorPage(name, from) {
   const baseSweeps = base ? ((base.resolved || {}).sweeps || []).map(s => s.name) : [];
   const baseClaims = base ? ((base.resolved || {}).claims || []).map(c => c.id) : [];
   main().innerHTML = `<h1>${heading}</h1>
-    <p class="muted">The campaign as JSON (<a href="/api/v1/openapi.json">the API document</a>; schema/campaign.schema.json). The daemon checks every field when you save;
+    <p class="muted">The campaign as JSON (<a href="/help/docs/how-to/campaigns.md">how to write a campaign</a>; <a href="/api-reference/campaigns">the REST API</a>; schema/campaign.schema.json). The daemon checks every field when you save;
     an error is shown beside its line and nothing is stored. Each save of a change makes a new version; its past runs keep the definition they ran.</p>
     <div id="campaign-editor"></div>
     <p><button id="save">Save</button> <span id="save-result"></span></p>
@@ -1134,6 +1134,165 @@ async function campaignEditorPage(name, from) {
   });
 }
 
+// ---- The REST API, rendered from the daemon's own description (/api/v1/openapi.json) -----------
+// The same grouping as docs/reference/api/ (tests/docs/check_docs.py): by the path's first segment
+// after /api/v1/, the operations routes (/healthz, /metrics, backup, cost model) together.
+
+function apiResourceOf(path) {
+  const m = path.match(/^\/api\/v1\/([^/{]+)/);
+  if (!m) return 'operations';
+  return ['openapi.json', 'backup', 'cost-model'].includes(m[1]) ? 'operations' : m[1];
+}
+// A description's text, its `code` spans shown as code.
+const apiText = t => esc(t || '').replace(/`([^`]+)`/g, '<code>$1</code>');
+function apiSchemaText(s) {
+  if (!s || typeof s !== 'object') return '';
+  if (s.$ref) {
+    const name = s.$ref.split('/').pop();
+    return `<a href="/api-reference/schemas#schema-${esc(name)}">${esc(name)}</a>`;
+  }
+  for (const k of ['oneOf', 'anyOf', 'allOf']) if (s[k]) return s[k].map(apiSchemaText).join(k === 'allOf' ? ' and ' : ' or ');
+  if (s.type === 'array') return `array of ${apiSchemaText(s.items) || 'values'}`;
+  if (s.enum) return `${esc(s.type || '')} (${s.enum.map(v => `<code>${esc(v)}</code>`).join(', ')})`;
+  return esc(s.type || '');
+}
+async function apiReferencePage(resource) {
+  const doc = await get('/api/v1/openapi.json');
+  const groups = {};
+  for (const [path, ops] of Object.entries(doc.paths || {})) {
+    for (const [method, op] of Object.entries(ops)) {
+      if (typeof op !== 'object' || method === 'parameters') continue;
+      (groups[apiResourceOf(path)] ||= []).push({ method, path, op });
+    }
+  }
+  const nav = `<p><a href="/api-reference">All resources</a> · <a href="/api-reference/schemas">Schemas</a> · ` +
+    `<a href="/api/v1/openapi.json">the description as JSON</a></p>`;
+  if (!resource) {
+    main().innerHTML = `<h1>REST API</h1>${nav}<p>${apiText(doc.info?.description)}</p>
+      <table><thead><tr><th>resource</th><th>routes</th></tr></thead><tbody>${Object.keys(groups).sort().map(r =>
+        `<tr><td><a href="/api-reference/${esc(r)}">${esc(r)}</a></td><td>${groups[r].map(o =>
+          `<code>${esc(o.method.toUpperCase())} ${esc(o.path)}</code>`).join('<br>')}</td></tr>`).join('')}</tbody></table>`;
+    return;
+  }
+  if (resource === 'schemas') {
+    main().innerHTML = `<h1>REST API: schemas</h1>${nav}` + Object.entries(doc.components?.schemas || {}).map(([name, s]) => {
+      const req = new Set(s.required || []);
+      const props = Object.entries(s.properties || {});
+      return `<section class="card" id="schema-${esc(name)}"><h2>${esc(name)}</h2><p>${apiText(s.description)}</p>` +
+        (props.length ? `<table><thead><tr><th>field</th><th>type</th><th>unit</th><th>required</th><th>what</th></tr></thead><tbody>${
+          props.map(([k, v]) => `<tr><td><code>${esc(k)}</code></td><td>${apiSchemaText(v)}</td><td>${esc(v['x-unit'] || '')}</td>` +
+            `<td>${req.has(k) ? 'yes' : 'no'}</td><td>${apiText(v.description)}</td></tr>`).join('')}</tbody></table>`
+          : `<p>Type: ${apiSchemaText(s)}</p>`) + '</section>';
+    }).join('');
+    if (location.hash) document.getElementById(location.hash.slice(1))?.scrollIntoView();
+    return;
+  }
+  const ops = groups[resource];
+  if (!ops) throw new ApiError(404, { detail: `no resource ${resource} in the API` });
+  main().innerHTML = `<h1>REST API: ${esc(resource)}</h1>${nav}` + ops.map(({ method, path, op }) => {
+    const params = op.parameters || [];
+    return `<section class="card"><h2><code>${esc(method.toUpperCase())} ${esc(path)}</code></h2>
+      <p>${apiText(op.summary)}</p><p class="muted">${apiText(op.description)}</p>` +
+      (params.length ? `<table><thead><tr><th>parameter</th><th>in</th><th>required</th><th>type</th><th>what</th></tr></thead><tbody>${
+        params.map(p => `<tr><td><code>${esc(p.name)}</code></td><td>${esc(p.in)}</td><td>${p.required ? 'yes' : 'no'}</td>` +
+          `<td>${apiSchemaText(p.schema)}</td><td>${apiText(p.description)}</td></tr>`).join('')}</tbody></table>` : '') +
+      Object.entries(op.requestBody?.content || {}).map(([ct, c]) =>
+        `<p>Request body (<code>${esc(ct)}</code>): ${apiSchemaText(c.schema)}</p>`).join('') +
+      `<table><thead><tr><th>status</th><th>what</th><th>body</th></tr></thead><tbody>${
+        Object.entries(op.responses || {}).map(([code, r]) => `<tr><td>${esc(code)}</td><td>${apiText(r.description)}</td><td>${
+          Object.entries(r.content || {}).map(([ct, c]) => `<code>${esc(ct)}</code> ${apiSchemaText(c.schema)}`).join(', ')}</td></tr>`).join('')
+      }</tbody></table></section>`;
+  }).join('');
+}
+
+// ---- Help: the docs compiled into the daemon (docs/**/*.md), rendered here ---------------------
+// A small Markdown reader for the docs' own subset: headings, paragraphs, lists, tables, code
+// blocks (fenced and indented), links, images, `code`, **bold** and *italics*. A link to another
+// docs page stays in the dashboard (/help/docs/...); one out of docs/ is shown as its path.
+
+function helpResolve(base, target) {
+  const parts = base.split('/').slice(0, -1);
+  for (const p of target.split('/')) {
+    if (p === '..') parts.pop();
+    else if (p !== '.' && p !== '') parts.push(p);
+  }
+  return parts.join('/');
+}
+function helpAnchor(text) {
+  return text.replace(/`|\*\*|\*|\[|\]\([^)]*\)/g, '').trim().toLowerCase().replace(/[^\p{L}\p{N}_\- ]/gu, '').replace(/ /g, '-');
+}
+function helpInline(text, base) {
+  const codes = [];
+  let t = esc(text).replace(/`([^`]+)`/g, (_, c) => { codes.push(c); return `\u0000${codes.length - 1}\u0000`; });
+  t = t.replace(/!\[([^\]]*)\]\(([^)\s]+)[^)]*\)/g, (_, alt) => `<em>[${alt}]</em>`);
+  t = t.replace(/\[([^\]]+)\]\(([^)\s]+)\)/g, (_, label, target) => {
+    const href = target.replace(/&amp;/g, '&');
+    if (/^[a-z]+:/.test(href)) return `<a href="${esc(href)}" rel="noopener">${label}</a>`;
+    const [path, anchor] = href.split('#');
+    const resolved = path ? helpResolve(base, path) : base;
+    if (resolved.startsWith('docs/') && resolved.endsWith('.md')) {
+      return `<a href="/help/${esc(resolved)}${anchor ? '#' + esc(anchor) : ''}">${label}</a>`;
+    }
+    return `${label} (<code>${esc(resolved)}</code>)`;
+  });
+  t = t.replace(/\*\*([^*]+)\*\*/g, '<strong>$1</strong>').replace(/(^|[\s(])\*([^*\s][^*]*)\*/g, '$1<em>$2</em>');
+  return t.replace(/\u0000(\d+)\u0000/g, (_, i) => `<code>${codes[Number(i)]}</code>`);  // escaped above
+}
+function helpRender(md, base) {
+  const lines = md.split('\n'), out = [], seen = {};
+  let i = 0;
+  const isBlank = l => !l.trim();
+  while (i < lines.length) {
+    const line = lines[i];
+    if (isBlank(line)) { i++; continue; }
+    let m;
+    if (line.startsWith('```')) {
+      const code = [];
+      for (i++; i < lines.length && !lines[i].startsWith('```'); i++) code.push(lines[i]);
+      i++;
+      out.push(`<pre>${esc(code.join('\n'))}</pre>`);
+    } else if (line.startsWith('    ')) {
+      const code = [];
+      while (i < lines.length && (lines[i].startsWith('    ') || (isBlank(lines[i]) && (lines[i + 1] || '').startsWith('    ')))) code.push(lines[i++].slice(4));
+      out.push(`<pre>${esc(code.join('\n'))}</pre>`);
+    } else if ((m = line.match(/^(#{1,6})\s+(.*)$/))) {
+      let id = helpAnchor(m[2]);
+      seen[id] = (seen[id] || 0) + 1;
+      if (seen[id] > 1) id += `-${seen[id] - 1}`;
+      out.push(`<h${m[1].length} id="${esc(id)}">${helpInline(m[2], base)}</h${m[1].length}>`);
+      i++;
+    } else if (line.startsWith('|')) {
+      const rows = [];
+      while (i < lines.length && lines[i].startsWith('|')) rows.push(lines[i++]);
+      const cells = r => r.replace(/^\||\|$/g, '').split(/(?<!\\)\|/).map(c => c.trim().replace(/\\\|/g, '|'));
+      const body = rows.filter((r, k) => k !== 1 || !/^\|[\s:|-]+\|?$/.test(r));
+      out.push(`<table><thead><tr>${cells(body[0]).map(c => `<th>${helpInline(c, base)}</th>`).join('')}</tr></thead><tbody>${
+        body.slice(1).map(r => `<tr>${cells(r).map(c => `<td>${helpInline(c.replace(/<br>/g, ' '), base)}</td>`).join('')}</tr>`).join('')}</tbody></table>`);
+    } else if (/^\s*([-*]|\d+\.)\s/.test(line)) {
+      const ordered = /^\s*\d+\./.test(line), items = [];
+      while (i < lines.length && !isBlank(lines[i])) {
+        if (/^\s{0,1}([-*]|\d+\.)\s/.test(lines[i])) items.push(lines[i].replace(/^\s*([-*]|\d+\.)\s+/, ''));
+        else items[items.length - 1] += ' ' + lines[i].trim();
+        i++;
+      }
+      const tag = ordered ? 'ol' : 'ul';
+      out.push(`<${tag}>${items.map(it => `<li>${helpInline(it, base)}</li>`).join('')}</${tag}>`);
+    } else {
+      const para = [];
+      while (i < lines.length && !isBlank(lines[i]) && !/^(#{1,6}\s|```|\|)/.test(lines[i])) para.push(lines[i++]);
+      out.push(`<p>${helpInline(para.join(' '), base)}</p>`);
+    }
+  }
+  return out.join('\n');
+}
+async function helpPage(path) {
+  const res = await fetch(`/help-files/${path}`);
+  if (!res.ok) throw new ApiError(res.status, { detail: `no docs page ${path}` });
+  main().innerHTML = `<p class="muted"><a href="/help/docs/index.md">All docs</a> · ${esc(path)}</p>` +
+    `<article class="card help">${helpRender(await res.text(), path)}</article>`;
+  if (location.hash) document.getElementById(decodeURIComponent(location.hash.slice(1)))?.scrollIntoView();
+}
+
 // ---- Routing ------------------------------------------------------------------------------------
 
 async function route() {
@@ -1151,6 +1310,10 @@ async function route() {
     else if ((m = path.match(/^\/campaigns\/([A-Za-z0-9._-]{1,64})$/))) await campaignPage(m[1]);
     else if ((m = path.match(/^\/campaigns\/([A-Za-z0-9._-]{1,64})\/edit$/))) await campaignEditorPage(m[1], null);
     else if (path === '/new-campaign') await campaignEditorPage(null, new URLSearchParams(location.search).get('from'));
+    else if (path === '/help') await helpPage('docs/index.md');
+    else if ((m = path.match(/^\/help\/(docs\/[A-Za-z0-9_./-]{1,200}\.md)$/))) await helpPage(m[1]);
+    else if (path === '/api-reference') await apiReferencePage(null);
+    else if ((m = path.match(/^\/api-reference\/([a-z-]{1,40})$/))) await apiReferencePage(m[1]);
     else main().innerHTML = `<h1>Not found</h1><p>No page at ${esc(path)}. <a href="/">The overview</a>.</p>`;
   } catch (e) {
     main().innerHTML = `<h1>Cannot show this page</h1><p class="error">${esc(e.message)}</p>` +
@@ -1169,8 +1332,10 @@ function start() {
   document.addEventListener('click', e => {
     const a = e.target.closest('a');
     if (!a || a.target || e.ctrlKey || e.metaKey || e.shiftKey || a.origin !== location.origin || a.pathname.startsWith('/api/')) return;
+    // A link within the page (a docs page's #anchor) is the browser's to follow.
+    if (a.hash && a.pathname === location.pathname && a.search === location.search) return;
     e.preventDefault();
-    history.pushState(null, '', a.pathname + a.search);
+    history.pushState(null, '', a.pathname + a.search + a.hash);
     $('#action-message').hidden = true;
     route();
   });

@@ -37,6 +37,7 @@
 #include "server/analysis/claim_check.h"
 #include "server/analysis/drift_report.h"
 #include "server/dashboard/dashboard_files.h"
+#include "server/dashboard/help_files.h"
 #include "server/analysis/figures.h"
 #include "server/http/call.h"
 #include "server/http/guarded_http_server.h"
@@ -302,6 +303,23 @@ void RegisterDashboard(httplib::Server& server, const Counters& counters) {
   });
   server.Get("/submit", page);
   server.Get("/new-campaign", page);
+  server.Get(R"(/api-reference(/[a-z-]{1,40})?)", page);  // the REST API, rendered from /api/v1/openapi.json
+  // The docs' help pages: the page at /help/docs/..., the Markdown it renders under /help-files/.
+  server.Get(R"(/help(/docs/[A-Za-z0-9_./-]{1,200}\.md)?)", page);
+  server.Get(R"(/help-files/(docs/[A-Za-z0-9_./-]{1,200}\.md))",
+             [counters](const httplib::Request& req, httplib::Response& res) {
+               const std::string name = req.matches[1].str();
+               std::optional<std::string_view> bytes = HelpFile(name);
+               if (!bytes) {
+                 SendProblem(res, Status::NotFound("no docs page \"" + name + "\""));
+                 counters->Count(404);
+                 return;
+               }
+               res.set_header("Cache-Control", "no-cache");
+               res.status = 200;
+               res.set_content(bytes->data(), bytes->size(), "text/markdown; charset=utf-8");
+               counters->Count(200);
+             });
   server.Get(R"(/campaigns(/[A-Za-z0-9._-]{1,64}(/edit)?)?)", page);
   server.Get(R"(/(campaign-runs|sweeps|runs|beds)(/[0-9]+)?)", page);
   server.Get(R"(/ui/([A-Za-z0-9_-][A-Za-z0-9._-]*))",

@@ -971,12 +971,20 @@ TEST_F(RoutesTest, EveryRouteInTheTableIsServed) {
 // The dashboard: one page at every dashboard path, its files under /ui/, nothing else.
 TEST_F(RoutesTest, DashboardPagesAndFiles) {
   for (const char* path : {"/", "/campaign-runs/3", "/sweeps/1", "/runs/12", "/beds", "/beds/2", "/submit", "/campaigns",
-                           "/campaigns/paper-58", "/campaigns/my.own_copy-2/edit", "/new-campaign"}) {
+                           "/campaigns/paper-58", "/campaigns/my.own_copy-2/edit", "/new-campaign", "/api-reference",
+                           "/api-reference/sweeps", "/help", "/help/docs/index.md", "/help/docs/how-to/sweeps.md"}) {
     auto r = client_->Get(path);
     ASSERT_EQ(r->status, 200) << path;
     EXPECT_EQ(r->get_header_value("Content-Type"), "text/html; charset=utf-8") << path;
     EXPECT_THAT(r->body, HasSubstr("<script src=\"/ui/app.js\"></script>")) << path;
   }
+  // The docs, compiled in: a help page's Markdown, and a 404 for a page that is not there.
+  auto help = client_->Get("/help-files/docs/index.md");
+  ASSERT_EQ(help->status, 200);
+  EXPECT_EQ(help->get_header_value("Content-Type"), "text/markdown; charset=utf-8");
+  EXPECT_THAT(help->body, HasSubstr("# sandswim documentation"));
+  EXPECT_EQ(client_->Get("/help-files/docs/../README.md")->status, 404);
+  EXPECT_EQ(client_->Get("/help-files/docs/no-such-page.md")->status, 404);
   auto js = client_->Get("/ui/app.js");
   ASSERT_EQ(js->status, 200);
   EXPECT_EQ(js->get_header_value("Content-Type"), "text/javascript; charset=utf-8");

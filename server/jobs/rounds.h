@@ -69,7 +69,7 @@
 namespace sandswim {
 
 // How a campaign run's claims are looked at (the daemon: LookAtClaims). Injected, because the
-// jobs room does not see the analysis room (README "Code layout").
+// jobs room does not see the analysis room (docs/development/architecture.md).
 using ClaimLookFn = std::function<Result<ClaimLook>(Store&, const CampaignRunInfo&)>;
 
 // What one pass did for one campaign run.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The walls of server/ (README "Layout"): which room may include which, and who alone may speak
+"""The walls of server/ (docs/development/architecture.md): which room may include which, and who alone may speak
 SQLite, SQL and HTTP. Run by ctest (server_rooms); `--measure` prints the numbers the layout is
 judged by (files and lines per room, the longest functions, SQL-bearing files, include cycles).
 

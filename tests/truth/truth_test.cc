@@ -245,7 +245,7 @@ TEST(CalibrationTest, TruthTableNamesTheBrokenParts) {
 // (the engine's own per-period scatter, MA(1) -0.2, jitter and x motion; no transient, no bed
 // effect) and its power on the same law with a drift of the rate (Noise::rate_slope), at the
 // baseline's slow rising point (U_z = 0.034 m/s, 3 Hz): runs of 2 s (smoke's longest at 3 Hz,
-// 5 periods in the window) and 4 s (11). 1,000 runs a case; the rates are printed for the README.
+// 5 periods in the window) and 4 s (11). 1,000 runs a case; the rates are printed for docs/measurements.md.
 TEST(TruthTrendTest, FalseAlarmsOnAStationaryLawAndPowerOnADrift) {
   const Scale& smoke = *FindScale("smoke");
   const Law& paper = *FindLaw("paper");
