@@ -111,6 +111,9 @@ Status CheckName(const std::string& field, const std::string& name) {
         (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
     if (!ok) return Status::InvalidArgument(field, "may hold only A-Z a-z 0-9 . _ -");
   }
+  // A URL's path normalises them away (/campaigns/.. is /): such a sweep or campaign could be
+  // stored but never opened, scheduled or deleted by its address.
+  if (name == "." || name == "..") return Status::InvalidArgument(field, "may not be \".\" or \"..\"");
   return Status::Ok();
 }
 

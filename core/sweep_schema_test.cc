@@ -231,7 +231,7 @@ TEST_F(SweepSchemaTest, PointCapsAreThePointCaps) {
   EXPECT_EQ(defs_.at("duration_s").at("maximum").get<double>(), kMaxDurationS);
   EXPECT_EQ(defs_.at("duration_s").at("minimum").get<double>(), kMinDurationS);
   EXPECT_EQ(defs_.at("name").at("maxLength"), kMaxNameLength);
-  EXPECT_EQ(defs_.at("name").at("pattern"), "^[A-Za-z0-9._-]+$");
+  EXPECT_EQ(defs_.at("name").at("pattern"), "^(?!\\.\\.?$)[A-Za-z0-9._-]+$") << "CheckName refuses . and ..";
   EXPECT_EQ(defs_.at("description").at("maxLength"), kMaxDescriptionLength);
 
   std::set<std::string> scales;

@@ -135,6 +135,8 @@ TEST(SweepTest, BadInputNamesTheField) {
       // Wrong types and bad enumerations.
       {"name not a string", [](json& j) { j["name"] = 5; }, "name"},
       {"name with a space", [](json& j) { j["name"] = "a b"; }, "name"},
+      {"name a URL normalises (.)", [](json& j) { j["name"] = "."; }, "name"},
+      {"name a URL normalises (..)", [](json& j) { j["name"] = ".."; }, "name"},
       {"name too long", [](json& j) { j["name"] = std::string(101, 'a'); }, "name"},
       {"unknown scale", [](json& j) { j["scale"] = "huge"; }, "scale"},
       {"unknown mode", [](json& j) { j["base"]["mode"] = "swim"; }, "base.mode"},

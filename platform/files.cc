@@ -100,6 +100,39 @@ Status PlaceFile(const std::string& path, std::string_view bytes, const std::str
   return Status::Ok();
 }
 
+namespace {
+// One entry's permissions without group's and others' bits; true when they had some.
+Result<bool> RestrictEntry(const std::string& path) {
+  struct stat st {};
+  if (lstat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return false;
+    return Status::IOError("cannot stat " + path + ": " + std::strerror(errno));
+  }
+  if (S_ISLNK(st.st_mode) || (st.st_mode & 077) == 0) return false;
+  if (chmod(path.c_str(), st.st_mode & 07700) != 0) {
+    return Status::IOError("cannot make " + path + " private (chmod): " + std::strerror(errno));
+  }
+  return true;
+}
+}  // namespace
+
+Result<int> RestrictToOwner(const std::string& path) {
+  namespace fs = std::filesystem;
+  auto top = RestrictEntry(path);
+  if (!top.ok()) return top.status();
+  int changed = *top ? 1 : 0;
+  std::error_code ec;
+  if (!fs::is_directory(fs::symlink_status(path, ec))) return changed;
+  for (fs::recursive_directory_iterator it(path, fs::directory_options::none, ec), end; !ec && it != end;
+       it.increment(ec)) {
+    auto one = RestrictEntry(it->path().string());
+    if (!one.ok()) return one.status();
+    if (*one) ++changed;
+  }
+  if (ec) return Status::IOError("cannot list " + path + ": " + ec.message());
+  return changed;
+}
+
 Result<FileIdentity> IdentifyFile(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return Status::NotFound(path + " does not exist");

@@ -30,6 +30,13 @@ Status WriteFileAtomically(const std::string& path, std::string_view bytes);
 // the file system refuses (another disk) falls back to writing `bytes`.
 Status PlaceFile(const std::string& path, std::string_view bytes, const std::string& from);
 
+// Takes group's and others' permissions away from `path` and, when it is a directory, from every
+// entry under it: a directory ends at most 0700, a file at most 0600 (symbolic links are neither
+// followed nor changed). For a data directory made by an earlier version, or under a loose umask,
+// before the daemon opens it. Returns how many entries it changed (0 when nothing is at `path`);
+// IOError naming an entry it could not change.
+Result<int> RestrictToOwner(const std::string& path);
+
 // What tells one file from another at a path without reading it: a file renamed over it, or
 // rewritten, has another identity.
 struct FileIdentity {

@@ -8,12 +8,15 @@
 // run recorded removed (LeaseQueue::RemoveUnrecordedSnapshots). A step that fails ends the start,
 // saying what to check.
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -22,6 +25,7 @@
 #include "platform/clock.h"
 #include "platform/data_dir.h"
 #include "platform/engine_probe.h"
+#include "platform/files.h"
 #include "platform/tls.h"
 #include "platform/token.h"
 #include "server/analysis/claim_check.h"
@@ -374,9 +378,33 @@ void SchedulerPass(sandswim::Scheduler& scheduler, sandswim::RoundDriver& rounds
   }
 }
 
+// The studies, the token and the leases are the daemon's user's alone: what an earlier daemon (or
+// another umask) left readable by others is made private before anything is opened.
+Status RestrictDataToOwner(const Flags& flags) {
+  std::vector<std::string> paths = {flags.data};
+  if (!flags.db.empty()) paths.insert(paths.end(), {flags.db, flags.db + "-wal", flags.db + "-shm", flags.db + "-journal"});
+  int changed = 0;
+  for (const std::string& path : paths) {
+    if (path.empty()) continue;
+    auto n = sandswim::RestrictToOwner(path);
+    if (!n.ok()) return n.status();
+    changed += *n;
+  }
+  if (changed > 0) {
+    spdlog::warn("made {} file(s) and directories of {} and {} private to this user (0600 files, 0700 directories): "
+                 "they were readable by others",
+                 changed, flags.data, flags.db);
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Every file and directory the daemon makes -- the database and its WAL, backups, uploads, beds,
+  // snapshots, the TLS key, the token -- is its user's alone (0600, 0700), whatever umask it was
+  // started under; its local workers inherit the same.
+  umask(077);
   Flags flags;
   CLI::App app{"sandswimd: the sandswim daemon (REST API, SQLite store, lease queue)"};
   AddFlags(app, flags);
@@ -396,6 +424,9 @@ int main(int argc, char** argv) {
 
   auto address = sandswim::ParseListenAddress(flags.listen);
   if (!address.ok()) return Die(address.status(), "use --listen HOST:PORT, e.g. 127.0.0.1:8640");
+  if (Status s = RestrictDataToOwner(flags); !s.ok()) {
+    return Die(s, "run sandswimd as the owner of --data " + flags.data + " and --db " + flags.db);
+  }
   auto token = ResolveToken(flags);
   if (!token.ok()) return Die(token.status(), "sandswimd serves with a token unless told --no-token");
   auto tls = ResolveTls(flags, *address);

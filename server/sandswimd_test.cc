@@ -8,6 +8,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -196,6 +197,39 @@ TEST_F(SandswimdTest, AFirstStartMakesItsTokenFileAndTheNextReusesIt) {
   c.set_bearer_token_auth(token);
   EXPECT_EQ(c.Get("/api/v1/sweeps")->status, 200);
   EXPECT_THAT(ReadText(Log()), HasSubstr("using the token in " + TokenPath()));
+}
+
+// Under umask 022, every file a fresh daemon makes is 0600 and every directory 0700, its database's
+// WAL and shared memory too; a data directory an earlier daemon left readable by others is
+// tightened at start, with a log line.
+TEST_F(SandswimdTest, ItsFilesAreItsUsersAloneWhateverTheUmask) {
+  namespace fs = std::filesystem;
+  const mode_t old_umask = umask(022);
+  fs::create_directories(dir_ + "/var/data/beds");
+  std::ofstream(dir_ + "/var/data/beds/old.restart") << "x";  // 0644, 0755: an earlier daemon's
+  Daemon d;
+  auto exited = d.Start(Flags("127.0.0.1:0", /*no_token=*/false), Log());
+  umask(old_umask);
+  ASSERT_FALSE(exited.has_value()) << ReadText(Log());
+  std::string token = ReadText(TokenPath());
+  token.pop_back();
+  httplib::Client c("127.0.0.1", d.port());
+  c.set_bearer_token_auth(token);
+  ASSERT_EQ(c.Post("/api/v1/sweeps", kDaemonExampleSweep, "application/json")->status, 201);
+  auto mode = [](const std::string& path) {
+    struct stat st {};
+    return lstat(path.c_str(), &st) == 0 ? static_cast<int>(st.st_mode & 07777) : -1;
+  };
+  const std::string db = dir_ + "/var/sandswim.db";
+  for (const std::string& file : {db, db + "-wal", db + "-shm", TokenPath(), dir_ + "/var/data/beds/old.restart"}) {
+    EXPECT_EQ(mode(file), 0600) << file;
+  }
+  for (const std::string& sub : {"", "/beds", "/backups", "/uploads"}) {
+    const std::string path = dir_ + "/var/data" + sub;
+    if (fs::exists(path)) EXPECT_EQ(mode(path), 0700) << path;
+  }
+  EXPECT_THAT(ReadText(Log()), HasSubstr("private to this user"));
+  d.Kill(SIGTERM);
 }
 
 // A token the operator gives must hold 128 bits; the refusal says how to make one.

@@ -64,12 +64,14 @@ struct Answer {
 };
 
 // One GET on a new connection from `from`, the whole answer (the connection says close).
-Answer Ask(const std::string& listen, const std::string& from, const std::string& path, double limit_s = 60) {
+// `headers`: more header lines, each ending in CRLF.
+Answer Ask(const std::string& listen, const std::string& from, const std::string& path, double limit_s = 60,
+           const std::string& headers = "") {
   Answer a;
   const auto start = Steady::now();
   const int fd = testing::ConnectTo(listen, from);
   if (fd < 0) return a;
-  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: " + listen + "\r\nConnection: close\r\n\r\n");
+  Send(fd, "GET " + path + " HTTP/1.1\r\nHost: " + listen + "\r\n" + headers + "Connection: close\r\n\r\n");
   while (SecondsSince(start) < limit_s) {
     pollfd p{fd, POLLIN, 0};
     if (poll(&p, 1, 100) <= 0) continue;
@@ -289,6 +291,87 @@ TEST_F(LoadLimitsTest, ALocalCrowdHoldingTheReserveCostsNoWorkerItsLease) {
   EXPECT_THAT(daemon_->process().Output(), ::testing::Not(::testing::HasSubstr("lease(s) expired")));
   EXPECT_GT(fresh_healthz.size(), 0u) << "no fresh /healthz got a reserve slot";
   (void)sweep;
+}
+
+// A local user without the token cannot lock its holders out (issue #47, finding 1): all of
+// loopback is one client, and 64 -- then 1,000 -- idle keep-alive connections of it, each asking
+// /healthz every 3.5 s, hold the per-client cap. The token's holders (the CLI's GET /api/v1/sweeps
+// on a fresh connection, ten a second) must all be answered 200, and the worker keep its leases.
+TEST_F(LoadLimitsTest, AnIdleCrowdWithoutTheTokenLocksOutNoHolderOfIt) {
+  setenv("SANDSWIM_STAND_IN_SECONDS", "4", 1);
+  const std::string token = "0123456789abcdef0123456789abcdef";
+  setenv("SANDSWIM_TOKEN", token.c_str(), 1);
+  struct Unset {
+    ~Unset() { unsetenv("SANDSWIM_TOKEN"); }
+  } unset;
+  StartDaemon({"--lease-ttl", "3"}, /*loopback_apart=*/false);
+  int status = 0;
+  json submitted = daemon_->Post("/api/v1/sweeps", testing::OmegaSweep("holders", {-10, -20, -30}, 0.05, 20), &status);
+  ASSERT_EQ(status, 201) << submitted.dump();
+  const std::string listen = daemon_->listen();
+  worker_ = testing::StartWorker(*daemon_, dir_ + "/worker", 1,
+                                 {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
+  std::vector<int> crowd;
+  std::vector<Steady::time_point> next_ask;
+  int64_t crowd_refused = 0;
+  auto tend = [&] {
+    const auto now = Steady::now();
+    for (size_t i = 0; i < crowd.size(); ++i) {
+      if (crowd[i] >= 0) {
+        std::string got;
+        const bool open = Drain(crowd[i], &got);
+        for (size_t at = got.find("HTTP/1.1 429"); at != std::string::npos; at = got.find("HTTP/1.1 429", at + 1)) {
+          ++crowd_refused;
+        }
+        if (!open) {
+          close(crowd[i]);
+          crowd[i] = -1;
+        }
+      }
+      if (now < next_ask[i]) continue;
+      if (crowd[i] < 0) crowd[i] = testing::ConnectTo(listen, i % 2 == 0 ? "" : "127.0.0.3");
+      if (crowd[i] < 0) continue;
+      Send(crowd[i], std::string("GET /healthz HTTP/1.1\r\nHost: ") + listen + "\r\n\r\n");
+      next_ask[i] = now + std::chrono::milliseconds(3500);
+    }
+  };
+  for (const int size : {64, 1000}) {
+    while (static_cast<int>(crowd.size()) < size) {
+      crowd.push_back(testing::ConnectTo(listen, crowd.size() % 2 == 0 ? "" : "127.0.0.3"));
+      next_ask.push_back(Steady::now());
+    }
+    const auto start = Steady::now();
+    while (SecondsSince(start) < 1) tend();
+    std::vector<double> served;
+    int refused = 0;
+    while (SecondsSince(start) < 11) {
+      tend();
+      const Answer read = Ask(listen, "", "/api/v1/sweeps", 10, "Authorization: Bearer " + token + "\r\n");
+      if (read.status == 200) served.push_back(read.seconds);
+      else ++refused;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    std::sort(served.begin(), served.end());
+    const double p50 = served.empty() ? -1 : served[served.size() / 2];
+    const double p99 = served.empty() ? -1 : served[std::min(served.size() - 1, served.size() * 99 / 100)];
+    std::printf("LOAD %d idle loopback connections without the token: token holders %zu served (p50 %.1f ms, "
+                "p99 %.1f ms), %d not; %lld of the crowd's requests refused 429\n",
+                size, served.size(), p50 * 1e3, p99 * 1e3, refused, static_cast<long long>(crowd_refused));
+    EXPECT_EQ(refused, 0) << "a token holder was refused under " << size << " idle connections";
+    EXPECT_GT(served.size(), 20u);
+    EXPECT_LT(p99, 2.0);
+  }
+  const auto start = Steady::now();
+  bool done = false;
+  while (!done && SecondsSince(start) < 90) {
+    tend();
+    done = daemon_->Query("SELECT count(*) FROM runs WHERE state IN ('queued', 'running')") == "0";
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  for (int fd : crowd) if (fd >= 0) close(fd);
+  ASSERT_TRUE(done) << "the sweep did not finish under the crowd";
+  EXPECT_EQ(daemon_->Query("SELECT max(attempts) FROM runs"), "1") << "a run's lease was lost";
+  EXPECT_EQ(daemon_->Query("SELECT max(attempts) FROM beds"), "1") << "the bed's lease was lost";
 }
 
 // One stream per client here: a stream the page closes is noticed at the stream's next write (a

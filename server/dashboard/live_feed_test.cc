@@ -19,6 +19,8 @@
 namespace sandswim {
 namespace {
 
+using json = nlohmann::json;  // stated here too: a build without unity has no other file to lend it
+
 class LiveFeedTest : public ::testing::Test {
  protected:
   void SetUp() override { ASSERT_TRUE(store_); }

@@ -68,6 +68,7 @@ struct HttpCounters {
   std::mutex mu;
   std::map<int, uint64_t> by_status;
   std::unique_ptr<FailedAuthThrottle> auth_failures;
+  std::unique_ptr<RefusalLog> refusals;  // a foreign Host, a cross-site write: a line per peer and interval
   void Count(int status) {
     std::lock_guard<std::mutex> lock(mu);
     ++by_status[status == -1 ? 200 : status];
@@ -107,14 +108,32 @@ inline void SendProblem(httplib::Response& res, const Status& status, int http_s
 
 inline void Fail(Call& c, const Status& status, int http_status = 0) { SendProblem(c.res, status, http_status); }
 
-// Parses a JSON body; a syntax error names the byte where parsing stopped.
+// Parses a JSON body; a syntax error names the byte where parsing stopped. A key twice in one
+// object is refused, naming it: which of the two a reader takes is the parser's whim, and another
+// reader (a proxy, a log) may take the other.
 inline Result<json> ParseJsonBody(const std::string& body, bool allow_empty) {
   if (body.empty()) {
     if (allow_empty) return json::object();
     return Status::InvalidArgument("body", "a JSON body is required");
   }
+  struct DuplicateKey {
+    std::string key;
+  };
+  std::vector<std::vector<std::string>> keys;  // of each object open, innermost last
+  const json::parser_callback_t refuse_duplicates = [&keys](int, json::parse_event_t event, json& parsed) {
+    if (event == json::parse_event_t::object_start) keys.emplace_back();
+    if (event == json::parse_event_t::object_end && !keys.empty()) keys.pop_back();
+    if (event == json::parse_event_t::key && !keys.empty()) {
+      const std::string key = parsed.get<std::string>();
+      if (std::find(keys.back().begin(), keys.back().end(), key) != keys.back().end()) throw DuplicateKey{key};
+      keys.back().push_back(key);
+    }
+    return true;
+  };
   try {
-    return json::parse(body);
+    return json::parse(body, refuse_duplicates);
+  } catch (const DuplicateKey& d) {
+    return Status::InvalidArgument(d.key, "appears twice in one object: give each key once");
   } catch (const json::parse_error& e) {
     return Status::InvalidArgument("body", "malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
   } catch (const json::exception& e) {  // e.g. a number too large for a double (1e999)
@@ -122,12 +141,31 @@ inline Result<json> ParseJsonBody(const std::string& body, bool allow_empty) {
   }
 }
 
+// A body a route's schema allows to be left out or to be any object (cancel, backup): empty, or
+// a JSON object. What it holds is not read, but a body that is no JSON object is refused.
+inline Status EmptyOrObject(const std::string& body) {
+  auto j = ParseJsonBody(body, /*allow_empty=*/true);
+  if (!j.ok()) return j.status();
+  if (!j->is_object()) return Status::InvalidArgument("body", "must be a JSON object, or left out");
+  return Status::Ok();
+}
+
+// Whether a message may hold keys that its type does not know: kClosed where its schema says
+// additionalProperties false (schema/openapi.json).
+enum class Keys { kOpen, kClosed };
+
 // Converts a worker message with its nlohmann conversions; a wrong type names the message.
 template <typename T>
-inline Result<T> ParseMessage(const std::string& body, const char* what, bool allow_empty) {
+inline Result<T> ParseMessage(const std::string& body, const char* what, bool allow_empty, Keys keys = Keys::kOpen) {
   auto j = ParseJsonBody(body, allow_empty);
   if (!j.ok()) return j.status();
   if (!j->is_object()) return Status::InvalidArgument("body", std::string(what) + " must be a JSON object");
+  if (keys == Keys::kClosed) {
+    const json known = T{};  // every field, as its conversion writes them
+    for (const auto& [key, value] : j->items()) {
+      if (!known.contains(key)) return Status::InvalidArgument(key, std::string("is not a field of ") + what);
+    }
+  }
   try {
     return j->template get<T>();
   } catch (const json::exception& e) {

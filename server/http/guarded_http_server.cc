@@ -304,6 +304,7 @@ struct GuardedHttpServer::Connection {
   bool counted = false;     // in open_ and per_client_
   bool restricted = false;  // opened past its client's connection cap, or in the reserve: reserved requests only
   bool in_reserve = false;  // one of the last connection slots (ReserveSlots)
+  bool authenticated = false;  // has carried a request with the daemon's credential: not in per_client_
   bool handshaking = false;  // TLS: the session is not set up yet
   bool want_write = false;   // TLS: the handshake waits for room to send
   bool draining = false;    // answered and half-closed: what still arrives is dropped until idle_until
@@ -329,6 +330,10 @@ class GuardedHttpServer::Queue final : public httplib::TaskQueue {
 
 GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits) : limits_(limits) {
   new_task_queue = [this] { return new Queue(this); };
+  // What the library's Keep-Alive header announces: these limits, not its own defaults (max=5),
+  // which this server does not apply.
+  set_keep_alive_max_count(static_cast<size_t>(std::max(1, limits_.max_requests_per_connection)));
+  set_keep_alive_timeout(static_cast<time_t>(std::max(1.0, limits_.idle_s)));
 }
 
 GuardedHttpServer::~GuardedHttpServer() {
@@ -361,6 +366,15 @@ bool GuardedHttpServer::SetTls(const std::string& cert_file, const std::string& 
 
 void GuardedHttpServer::SetReserved(std::function<bool(const httplib::Request&)> reserved) {
   reserved_ = std::move(reserved);
+}
+
+void GuardedHttpServer::SetAuthenticated(std::function<bool(const httplib::Request&)> authenticated) {
+  authenticated_ = std::move(authenticated);
+}
+
+void GuardedHttpServer::SetOwnHeaders(std::vector<std::pair<std::string, std::string>> headers) {
+  own_headers_.clear();
+  for (const auto& [name, value] : headers) own_headers_ += name + ": " + value + "\r\n";
 }
 
 void GuardedHttpServer::SetRefusalBody(std::function<std::string(int, const std::string&)> body) {
@@ -466,9 +480,11 @@ void GuardedHttpServer::Admit(socket_t sock) {
   if (taken) Close(std::move(taken));  // already uncounted: its slot is this connection's
   if (!c->counted) {  // past the fd budget: no thread, no read, no answer
     client_refused_.fetch_add(1);
-    spdlog::warn("closed a connection from {} at once: {} connections are open, the most this daemon keeps "
-                 "(its last {} for the worker protocol and /healthz), and every one of those is in use",
-                 c->peer, max_open_, ReserveSlots());
+    refusals_.Refused(c->client, "connections", [&] {
+      return "closed a connection from " + c->peer + " at once: " + std::to_string(max_open_) +
+             " connections are open, the most this daemon keeps (its last " + std::to_string(ReserveSlots()) +
+             " for the worker protocol, the token's holders and /healthz), and every one of those is in use";
+    });
     return Close(std::move(c));
   }
   c->idle_until = Steady::now() + Seconds(limits_.idle_s);
@@ -482,13 +498,14 @@ void GuardedHttpServer::Park(std::unique_ptr<Connection> c) {
     if (c->stream.full()) {
       // A request head larger than the buffer: answered here, without a thread, and drained.
       client_refused_.fetch_add(1);
-      spdlog::warn("refused a request from {}: its head is larger than {} KiB (431)", c->peer, 16);
+      refusals_.Refused(c->client, "large head",
+                        [&] { return "refused a request from " + c->peer + ": its head is larger than 16 KiB (431)"; });
       const std::string detail = "the request's line and headers are larger than 16 KiB: send fewer or shorter headers";
       const std::string body = refusal_body_ ? refusal_body_(431, detail) : detail;
       c->stream.SendNow("HTTP/1.1 431 Request Header Fields Too Large\r\nContent-Type: " +
                         std::string(refusal_body_ ? "application/problem+json" : "text/plain") +
-                        "\r\nConnection: close\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n" +
-                        body);
+                        "\r\n" + own_headers_ + "Connection: close\r\nContent-Length: " + std::to_string(body.size()) +
+                        "\r\n\r\n" + body);
       c->stream.ShutdownWrite();
       c->draining = true;
       c->head_started.reset();
@@ -538,12 +555,23 @@ void GuardedHttpServer::UncountLocked(Connection& c) {
   if (!c.counted) return;
   c.counted = false;
   --open_;
-  auto it = per_client_.find(c.client);
-  if (it != per_client_.end() && --it->second <= 0) per_client_.erase(it);
+  if (!c.authenticated) {
+    auto it = per_client_.find(c.client);
+    if (it != per_client_.end() && --it->second <= 0) per_client_.erase(it);
+  }
   if (c.in_reserve) {
     auto r = in_reserve_.find(c.client);
     if (r != in_reserve_.end() && --r->second <= 0) in_reserve_.erase(r);
   }
+}
+
+void GuardedHttpServer::Authenticated(Connection& c) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!c.in_reserve) c.restricted = false;
+  if (c.authenticated || !c.counted) return;
+  c.authenticated = true;
+  auto it = per_client_.find(c.client);
+  if (it != per_client_.end() && --it->second <= 0) per_client_.erase(it);
 }
 
 std::unique_ptr<GuardedHttpServer::Connection> GuardedHttpServer::TakeReserveSlotLocked() {
@@ -555,6 +583,11 @@ std::unique_ptr<GuardedHttpServer::Connection> GuardedHttpServer::TakeReserveSlo
     if (!c->in_reserve) continue;
     if (pick == nullptr) {
       pick = c.get();
+      continue;
+    }
+    // Those who have not shown the token first.
+    if (c->authenticated != pick->authenticated) {
+      if (!c->authenticated) pick = c.get();
       continue;
     }
     const int mine = in_reserve_[c->client], theirs = in_reserve_[pick->client];
@@ -644,9 +677,11 @@ void GuardedHttpServer::PollLoop() {
     }
     for (auto& c : slow) {
       slow_closed_.fetch_add(1);
-      spdlog::warn("closed a connection from {}: its request head did not arrive in time (a slow or stalled "
-                   "client; limit: {} s from its first byte)",
-                   c->peer, limits_.head_s);
+      refusals_.Refused(c->client, "slow", [&] {
+        return fmt::format("closed a connection from {}: its request head did not arrive in time (a slow or stalled "
+                           "client; limit: {} s from its first byte)",
+                           c->peer, limits_.head_s);
+      });
       Close(std::move(c));
     }
     for (auto& c : idle) Close(std::move(c));
@@ -703,8 +738,10 @@ GuardedHttpServer::After GuardedHttpServer::ServeOne(Connection& c) {
   try {
     ret = process_request(stream, last, connection_closed, [&](httplib::Request& req) {
       const bool reserved = reserved_ && reserved_(req);
+      const bool authenticated = authenticated_ && authenticated_(req);
+      if (authenticated) Authenticated(c);
       if (!reserved) {
-        if (c.restricted) {
+        if (c.restricted && !authenticated) {
           throw Refused{429, 2,
                         c.in_reserve ? std::string("the daemon's connections are nearly all taken (the last are kept "
                                                    "for workers and /healthz): retry shortly")
@@ -737,8 +774,8 @@ GuardedHttpServer::After GuardedHttpServer::ServeOne(Connection& c) {
     const std::string head = "HTTP/1.1 " + std::to_string(r.status) +
                              (r.status == 429 ? " Too Many Requests" : " Service Unavailable") +
                              "\r\nContent-Type: " + (refusal_body_ ? "application/problem+json" : "text/plain") +
-                             "\r\nRetry-After: " + std::to_string(r.retry_after_s) +
-                             "\r\nConnection: close\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n";
+                             "\r\nRetry-After: " + std::to_string(r.retry_after_s) + "\r\n" + own_headers_ +
+                             "Connection: close\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n";
     stream.set_deadline(std::nullopt, "");
     stream.write(head.data(), head.size());
     stream.write(body.data(), body.size());
@@ -747,9 +784,12 @@ GuardedHttpServer::After GuardedHttpServer::ServeOne(Connection& c) {
   if (holds_reader) readers_in_flight_.fetch_sub(1);
   if (*stream.missed() != '\0') {
     slow_closed_.fetch_add(1);
-    spdlog::warn("closed a connection from {}: its {} did not arrive in time (a slow or stalled client; "
-                 "limits: head {} s, body {} s + {} KiB/s)",
-                 c.peer, stream.missed(), limits_.head_s, limits_.body_grace_s, limits_.min_body_bytes_per_s / 1024);
+    refusals_.Refused(c.client, "slow", [&] {
+      return fmt::format("closed a connection from {}: its {} did not arrive in time (a slow or stalled client; "
+                         "limits: head {} s, body {} s + {} KiB/s)",
+                         c.peer, stream.missed(), limits_.head_s, limits_.body_grace_s,
+                         limits_.min_body_bytes_per_s / 1024);
+    });
     return After::kClose;
   }
   stream.set_deadline(std::nullopt, "");

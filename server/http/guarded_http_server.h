@@ -21,8 +21,12 @@
 //  - Per client (ClientKey of the peer address, server/http/request_policy.h: an IPv4 address, an IPv6
 //    /64, every loopback address together unless `loopback_clients_apart`): past
 //    `max_connections_per_client` open connections, a new
-//    connection is served only for reserved requests (one request, then closed); any other request
-//    on it is answered 429 with Retry-After and the connection closed. Workers on the same host as
+//    connection is served only for reserved requests (one request, then closed) and for
+//    authenticated ones (SetAuthenticated: the daemon's token); any other request on it is answered
+//    429 with Retry-After and the connection closed. A connection that has carried an authenticated
+//    request no longer counts against its client: the cap counts the connections of those who have
+//    not shown the token, so that a local user without it (all of loopback is one client) cannot
+//    lock the token's holders out by holding the cap. Workers on the same host as
 //    a greedy client keep their heartbeats that way. Past `max_connections` in all, a new connection
 //    is closed at once, except into the reserve: the last ReserveSlots() before it (up to 64) are
 //    admitted as restricted connections, for whoever comes, and belong to no client. When every
@@ -32,10 +36,13 @@
 //    addresses it has and even when it is the workers' own client (all of loopback is one), cannot
 //    keep a worker's next connection out; a reserve connection that has sent its request is not
 //    taken. What it may ask is the predicate's (SetReserved: the worker protocol with the right
-//    token, and /healthz).
+//    token, and /healthz) or any authenticated request. A slot is taken from a connection that has
+//    not shown the token before one that has.
 //  - A request head larger than the 16 KiB buffer is answered 431 by the poller (no thread) and the
 //    connection drained and closed.
 //  - TLS (SetTls): the handshake is stepped by the poller as its bytes arrive, under the head's deadline.
+//  - Refusals (a slow head or body, a head past the buffer, a connection shut out) are logged at
+//    most once per client and 10 s, with a count (RefusalLog, server/http/request_policy.h).
 //  - Keep-alive: a connection serves at most `max_requests_per_connection` requests; while more
 //    than half of `threads` are in flight, responses carry "Connection: close".
 // What a handler does and how long a response streams is not limited here (deadlines are checked
@@ -62,7 +69,9 @@
 
 #include <httplib.h>
 
+#include "platform/clock.h"
 #include "server/http/connection_limits.h"
+#include "server/http/request_policy.h"
 
 namespace sandswim {
 
@@ -75,6 +84,12 @@ class GuardedHttpServer : public httplib::Server {
   // Names the requests the reserved threads and the reserve's connections serve (a predicate on a
   // request whose head has arrived: its method, path and headers; no body). Unset: none.
   void SetReserved(std::function<bool(const httplib::Request& head)> reserved);
+  // Names the requests that carry the daemon's own credential (a predicate on a request's head, as
+  // SetReserved's): served past the client's connection cap and in the reserve, and their
+  // connection counted apart from its client's from then on. Unset: none.
+  void SetAuthenticated(std::function<bool(const httplib::Request& head)> authenticated);
+  // Headers every answer the server writes itself (429, 431, 503) carries, as the routes' do.
+  void SetOwnHeaders(std::vector<std::pair<std::string, std::string>> headers);
   // Renders the body of a refusal (429, 503) as the routes' problem documents are rendered; unset:
   // the detail as plain text.
   void SetRefusalBody(std::function<std::string(int http_status, const std::string& detail)> body);
@@ -124,6 +139,9 @@ class GuardedHttpServer : public httplib::Server {
   // client holding most of the reserve, the one opened first. REQUIRES mu_; null when none waits.
   std::unique_ptr<Connection> TakeReserveSlotLocked();
   void UncountLocked(Connection& c);  // REQUIRES mu_
+  // `c` has carried an authenticated request: it leaves its client's count (and, outside the
+  // reserve, its restriction). Takes mu_.
+  void Authenticated(Connection& c);
   void PollLoop();
   void ServeLoop();
   void StartThreads();
@@ -132,9 +150,13 @@ class GuardedHttpServer : public httplib::Server {
   ConnectionLimits limits_;
   ssl_ctx_st* tls_ = nullptr;  // SSL_CTX, owned; null: plain HTTP
   std::function<bool(const httplib::Request&)> reserved_;
+  std::function<bool(const httplib::Request&)> authenticated_;
+  std::string own_headers_;  // "Name: value\r\n" lines
   std::function<std::string(int, const std::string&)> refusal_body_;
   std::atomic<int64_t> slow_closed_{0}, busy_refused_{0}, client_refused_{0};
   std::atomic<int> readers_in_flight_{0};
+  SystemClock clock_;
+  RefusalLog refusals_{&clock_};  // slow, oversized or shut-out connections: a line per client and interval
 
   mutable std::mutex mu_;  // guards everything below
   std::condition_variable work_ready_;

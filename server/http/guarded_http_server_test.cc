@@ -326,7 +326,30 @@ TEST_F(GuardedHttpServerPoolTest, AConnectionCarriesALimitedNumberOfRequests) {
     auto r = c.Get("/hello");
     ASSERT_TRUE(r);
     EXPECT_EQ(r->get_header_value("Connection"), i == 3 ? "close" : "") << "request " << i;
+    // What it announces is what it keeps (the library's own default said max=5).
+    if (i < 3) EXPECT_THAT(r->get_header_value("Keep-Alive"), ::testing::HasSubstr("max=3")) << "request " << i;
   }
+}
+
+// The server's own answers (here a 431, written by the poller) carry the headers the routes' do.
+class GuardedHttpServerOwnHeadersTest : public GuardedHttpServerTest {
+ protected:
+  void Configure(GuardedHttpServer& server) override {
+    server.SetOwnHeaders({{"X-Content-Type-Options", "nosniff"}, {"X-Frame-Options", "DENY"}});
+  }
+};
+
+TEST_F(GuardedHttpServerOwnHeadersTest, ItsOwnRefusalsCarryTheOwnHeaders) {
+  const int fd = Connect();
+  Send(fd, "GET /hello HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(17 * 1024, 'a') + "\r\n\r\n");
+  std::string got;
+  char buf[4096];
+  ssize_t n;
+  while ((n = recv(fd, buf, sizeof buf, 0)) > 0) got.append(buf, static_cast<size_t>(n));
+  close(fd);
+  EXPECT_THAT(got, ::testing::StartsWith("HTTP/1.1 431")) << got;
+  EXPECT_THAT(got, ::testing::HasSubstr("\r\nX-Content-Type-Options: nosniff\r\n"));
+  EXPECT_THAT(got, ::testing::HasSubstr("\r\nX-Frame-Options: DENY\r\n"));
 }
 
 // Three connections per client; past them, a connection is served only for reserved requests.
@@ -351,6 +374,55 @@ TEST_F(GuardedHttpServerClientCapTest, AClientPastItsConnectionsIsServedOnlyRese
   for (int fd : held) close(fd);
   for (int i = 0; i < 500 && server_->open_connections() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_THAT(Ask("/hello"), ::testing::StartsWith("HTTP/1.1 200")) << "the client's connections were closed";
+}
+
+// A client that holds its cap without the credential cannot keep out one that shows it: the
+// credential's request is served past the cap, and its connection counts no more against the
+// client (so three of them leave room for three silent ones again).
+class GuardedHttpServerAuthenticatedTest : public GuardedHttpServerClientCapTest {
+ protected:
+  void Configure(GuardedHttpServer& server) override {
+    server.SetAuthenticated(
+        [](const httplib::Request& head) { return head.get_header_value("Authorization") == "Bearer right"; });
+  }
+  // One GET with `authorization` on the keep-alive connection `fd`: the status line's code.
+  static int AskOn(int fd, const std::string& path, const std::string& authorization) {
+    Send(fd, "GET " + path + " HTTP/1.1\r\nHost: x\r\nAuthorization: " + authorization + "\r\n\r\n");
+    std::string got;
+    char buf[4096];
+    while (got.find("\r\n\r\n") == std::string::npos) {
+      pollfd p{fd, POLLIN, 0};
+      if (poll(&p, 1, 5000) <= 0) break;
+      const ssize_t n = recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) break;
+      got.append(buf, static_cast<size_t>(n));
+    }
+    return got.rfind("HTTP/1.1 ", 0) == 0 ? std::atoi(got.c_str() + 9) : 0;
+  }
+};
+
+TEST_F(GuardedHttpServerAuthenticatedTest, TheCredentialIsServedPastACapHeldWithoutIt) {
+  // Three holders first: once they have shown the credential they are not the client's.
+  std::vector<int> holders, crowd;
+  for (int i = 0; i < 3; ++i) {
+    holders.push_back(Connect());
+    EXPECT_EQ(AskOn(holders.back(), "/hello", "Bearer right"), 200) << i;
+  }
+  for (int i = 0; i < 3; ++i) {
+    crowd.push_back(Connect());
+    EXPECT_EQ(AskOn(crowd.back(), "/hello", "none"), 200) << "a holder's connection was counted against the cap";
+  }
+  // The cap is the crowd's now: a fourth without the credential is refused, one with it served.
+  const int wrong = Connect();
+  EXPECT_EQ(AskOn(wrong, "/hello", "Bearer wrong"), 429);
+  close(wrong);
+  const int right = Connect();
+  EXPECT_EQ(AskOn(right, "/hello", "Bearer right"), 200);
+  close(right);
+  EXPECT_EQ(AskOn(holders[0], "/hello", "Bearer right"), 200) << "a holder's keep-alive connection was closed";
+  EXPECT_EQ(server_->client_refused(), 1);
+  for (int fd : holders) close(fd);
+  for (int fd : crowd) close(fd);
 }
 
 // A local user is one client whichever loopback addresses it connects from, unless the operator

@@ -55,6 +55,7 @@ namespace {
 // DATA/backups/ and streamed; the file is removed once sent. A POST: it writes a file and costs a
 // whole copy, which no link or image of another page may start.
 void PostBackup(Call& c) {
+  if (Status s = EmptyOrObject(c.body); !s.ok()) return Fail(c, s);
   const std::string dir = DataDir(c.deps.data_dir).Backups();
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);

@@ -102,15 +102,19 @@ std::optional<Status> CrossSiteRefusal(const HostPolicy& policy, std::string_vie
   const std::string lower = Lower(o);
   int default_port = 0;
   std::string_view authority;
+  bool https = false;
   if (lower.rfind("http://", 0) == 0) {
     default_port = 80;
     authority = o.substr(7);
   } else if (lower.rfind("https://", 0) == 0) {
     default_port = 443;
     authority = o.substr(8);
+    https = true;
   } else {
     return refuse();  // "null", file:, chrome-extension:, ...
   }
+  // The daemon's own pages have its scheme; a proxy the operator named may end TLS for it.
+  if (https != policy.tls && policy.allowed_names.empty()) return refuse();
   if (authority.empty() || authority.find('/') != std::string_view::npos) return refuse();
   if (!HostAllowedWithDefaultPort(policy, authority, default_port)) return refuse();
   return std::nullopt;
@@ -167,6 +171,51 @@ std::string ClientKey(const std::string& address, bool loopback_apart) {
   char text[INET6_ADDRSTRLEN];
   if (inet_ntop(AF_INET6, &v6, text, sizeof text) == nullptr) return address;
   return std::string(text) + "/64";
+}
+
+RefusalLog::RefusalLog(Clock* clock, double every_s, size_t max_entries, std::function<void(const std::string&)> log)
+    : clock_(clock), every_s_(every_s), max_entries_(std::max<size_t>(1, max_entries)), log_(std::move(log)) {
+  if (!log_) log_ = [](const std::string& line) { spdlog::warn("{}", line); };
+}
+
+void RefusalLog::Refused(const std::string& peer, const std::string& kind, const std::function<std::string()>& line) {
+  int64_t left_out = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const double now = clock_->Monotonic();
+    const std::string key = kind + " " + peer;
+    auto it = entries_.find(key);
+    if (it == entries_.end()) {
+      if (entries_.size() >= max_entries_) {
+        for (auto e = entries_.begin(); e != entries_.end();) {
+          e = now - e->second.last_log >= every_s_ ? entries_.erase(e) : std::next(e);
+        }
+        if (entries_.size() >= max_entries_) entries_.clear();  // a crowd of peers: each starts again
+      }
+      it = entries_.emplace(key, Entry{}).first;
+    }
+    Entry& e = it->second;
+    if (now - e.last_log < every_s_) {
+      ++e.unlogged;
+      ++unlogged_total_;
+      return;
+    }
+    left_out = e.unlogged;
+    unlogged_total_ -= e.unlogged;
+    e.unlogged = 0;
+    e.last_log = now;
+  }
+  std::string text = line();
+  if (left_out > 0) {
+    text += " (and " + std::to_string(left_out) + " more such refusal(s) of " + peer + " since its last line; at most one line per " +
+            std::to_string(static_cast<int>(every_s_)) + " s)";
+  }
+  log_(text);
+}
+
+int64_t RefusalLog::unlogged_total() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return unlogged_total_;
 }
 
 FailedAuthThrottle::FailedAuthThrottle(Clock* clock, Options options, std::function<void(double)> sleep,

@@ -9,10 +9,12 @@
 //  - JSON writes say they are JSON (IsJsonMediaType), else 415: a browser sends such a request to
 //    another origin only after a CORS preflight, which the daemon never approves, and an HTML form
 //    cannot send it at all.
-//  - Failed token attempts are logged and slowed (FailedAuthThrottle).
+//  - Failed token attempts are logged and slowed (FailedAuthThrottle); other refusals (a foreign
+//    Host, a cross-site write, a slow or oversized head) are logged at most once per peer and
+//    interval, with a count (RefusalLog).
 //  - What a 5xx may tell a client: no file paths (RedactPaths); the log keeps them.
 //
-// Thread safety: the free functions are pure; FailedAuthThrottle is safe from any thread.
+// Thread safety: the free functions are pure; FailedAuthThrottle and RefusalLog are safe from any thread.
 #ifndef SANDSWIM_SERVER_REQUEST_POLICY_H_
 #define SANDSWIM_SERVER_REQUEST_POLICY_H_
 
@@ -37,6 +39,7 @@ struct HostPolicy {
   std::string listen_host;                 // the address it listens on: "127.0.0.1", "::1", "0.0.0.0", a name
   int listen_port = 0;                     // 0: not known (a server registered before it bound): any port
   std::vector<std::string> allowed_names;  // --allow-host NAME (any port: a proxy may listen on its own)
+  bool tls = false;                        // it serves HTTPS: its own pages' origins are https://
 };
 
 // True when `host` (a Host header value: "NAME", "NAME:PORT", "[V6]:PORT") is, with the listen
@@ -51,7 +54,9 @@ bool HostAllowed(const HostPolicy& policy, std::string_view host);
 // Why a request that changes state must be refused as coming from a web page of another site, or
 // nullopt. Refused: Sec-Fetch-Site "cross-site" or "same-site" (another origin on this site, e.g.
 // another port of 127.0.0.1); an Origin of "null" (sandboxed frames, file: pages); any other Origin
-// that is not http(s)://HOST with HostAllowed(HOST). Neither header present (a program): allowed.
+// that is not SCHEME://HOST with HostAllowed(HOST) and SCHEME the daemon's own (https with
+// `tls`, else http; either when the operator named hosts, since a proxy may end TLS in front).
+// Neither header present (a program): allowed.
 std::optional<Status> CrossSiteRefusal(const HostPolicy& policy, std::string_view origin,
                                        std::string_view sec_fetch_site);
 
@@ -71,6 +76,38 @@ bool IsJsonMediaType(std::string_view content_type);
 // `text` with every file path (a word holding '/' that is not an API path or a URL) replaced by
 // "(a path: see the daemon's log)".
 std::string RedactPaths(std::string_view text);
+
+// Refusals logged per peer (a ClientKey) and kind ("host", "cross-site", "slow head"): the first
+// is logged as it comes; later ones of that peer and kind within `every_s` of the last line are
+// counted, and the next line after the interval says how many were left out. A peer refused
+// thousands of times a second (a foreign page looping posts, a crowd of slow clients) costs the
+// log a line per interval and kind. At most `max_entries` peer-and-kind pairs are remembered; past
+// them the pairs quiet for an interval are forgotten (or all, when none is).
+class RefusalLog {
+ public:
+  // `log` is injectable for tests (default: spdlog warns).
+  explicit RefusalLog(Clock* clock, double every_s = 10, size_t max_entries = 4096,
+                      std::function<void(const std::string&)> log = {});
+
+  // One refusal of `peer`; `line` says what was refused and why (built only when logged, so pass
+  // a function for a costly one).
+  void Refused(const std::string& peer, const std::string& kind, const std::function<std::string()>& line);
+
+  int64_t unlogged_total() const;  // refusals counted and not (yet) logged
+
+ private:
+  struct Entry {
+    double last_log = -1e300;
+    int64_t unlogged = 0;
+  };
+  Clock* clock_;
+  double every_s_;
+  size_t max_entries_;
+  std::function<void(const std::string&)> log_;
+  mutable std::mutex mu_;
+  std::unordered_map<std::string, Entry> entries_;  // by kind + " " + peer
+  int64_t unlogged_total_ = 0;
+};
 
 // Failed token attempts per peer address: logged, at most one line per peer every `log_every_s`
 // (peer, count, the last route), and slowed. A peer's first `free_failures` failures (typos, a

@@ -68,6 +68,19 @@ TEST(CrossSiteRefusalTest, PagesOfOtherOriginsMayNot) {
   EXPECT_TRUE(CrossSiteRefusal(p, "http://127.0.0.1:8640", "Cross-Site"));
 }
 
+// An origin of the daemon's host and port with the other scheme is another origin.
+TEST(CrossSiteRefusalTest, TheOriginsSchemeIsTheDaemonsOwn) {
+  HostPolicy p = Loopback();
+  EXPECT_TRUE(CrossSiteRefusal(p, "https://127.0.0.1:8640", ""));
+  p.tls = true;
+  EXPECT_FALSE(CrossSiteRefusal(p, "https://127.0.0.1:8640", ""));
+  EXPECT_TRUE(CrossSiteRefusal(p, "http://127.0.0.1:8640", ""));
+  // Behind a proxy the operator named, the proxy may end TLS: either scheme.
+  p.tls = false;
+  p.allowed_names = {"sandswim.lab.example"};
+  EXPECT_FALSE(CrossSiteRefusal(p, "https://sandswim.lab.example", ""));
+}
+
 // Per-client limits count an IPv4 address, or an IPv6 /64, as one client.
 TEST(ClientKeyTest, EveryLoopbackAddressIsOneClientUnlessTheOperatorSetsThemApart) {
   for (const char* local : {"127.0.0.1", "127.0.0.2", "127.255.255.254", "127.1.2.3", "::1", "::ffff:127.0.0.9"}) {
@@ -225,6 +238,35 @@ TEST_F(FailedAuthThrottleTest, TheGlobalCapHolds) {
   throttle = &t;
   t.Failed("A", "x");
   EXPECT_EQ(other, FailedAuthThrottle::Verdict::kBusy);
+}
+
+// 4,786 refusals in 5 s once made as many log lines: now one per peer and kind per interval, the
+// next saying how many were left out.
+TEST(RefusalLogTest, OneLinePerPeerAndKindPerIntervalWithACount) {
+  FakeClock clock;
+  std::vector<std::string> lines;
+  RefusalLog log(&clock, /*every_s=*/10, /*max_entries=*/4, [&](const std::string& l) { lines.push_back(l); });
+  int built = 0;
+  for (int i = 0; i < 1000; ++i) {
+    log.Refused("loopback", "host", [&] {
+      ++built;
+      return std::string("refused a Host");
+    });
+  }
+  log.Refused("loopback", "cross-site", [] { return std::string("refused a cross-site write"); });
+  log.Refused("10.0.0.9", "host", [] { return std::string("refused another's Host"); });
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(built, 1) << "a line was built for a refusal that was not logged";
+  EXPECT_EQ(log.unlogged_total(), 999);
+  clock.Advance(10);
+  log.Refused("loopback", "host", [] { return std::string("refused a Host"); });
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[3], "refused a Host (and 999 more such refusal(s) of loopback since its last line; at most one "
+                      "line per 10 s)");
+  EXPECT_EQ(log.unlogged_total(), 0);
+  // Past max_entries, the quiet pairs are forgotten: memory stays bounded however many peers come.
+  for (int i = 0; i < 100; ++i) log.Refused("10.1.0." + std::to_string(i), "slow", [] { return std::string("x"); });
+  EXPECT_EQ(lines.size(), 104u);
 }
 
 }  // namespace

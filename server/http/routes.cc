@@ -140,11 +140,13 @@ std::optional<Refusal> CheckAuth(const Deps& deps, const Route& route, const htt
 
 // Empty when the request may reach its route; otherwise why not (server/http/request_policy.h).
 std::optional<Refusal> CheckRequest(const Deps& deps, const Route& route, const httplib::Request& req,
-                                    FailedAuthThrottle& throttle) {
+                                    FailedAuthThrottle& throttle, RefusalLog& refusals) {
   if (std::string_view(route.method) != "GET") {
     if (auto cross = CrossSiteRefusal(deps.host_policy, req.get_header_value("Origin"),
                                       req.get_header_value("Sec-Fetch-Site"))) {
-      spdlog::warn("refused {} {} from {}: {}", req.method, req.path, req.remote_addr, cross->reason());
+      refusals.Refused(ClientKey(req.remote_addr, deps.loopback_clients_apart), "cross-site", [&] {
+        return "refused " + req.method + " " + req.path + " from " + req.remote_addr + ": " + cross->reason();
+      });
       return Refusal{*cross, 403};
     }
     if (route.body == BodyKind::kJson && !IsJsonMediaType(req.get_header_value("Content-Type"))) {
@@ -178,7 +180,7 @@ bool ReadBody(const httplib::ContentReader& reader, size_t limit, std::string& b
 void Dispatch(const Route& route, Deps& deps, HttpCounters* counters, const httplib::Request& req,
               httplib::Response& res, const httplib::ContentReader* reader) {
   Call c{req, res, deps, {}, nullptr, counters};
-  std::optional<Refusal> denied = CheckRequest(deps, route, req, *counters->auth_failures);
+  std::optional<Refusal> denied = CheckRequest(deps, route, req, *counters->auth_failures, *counters->refusals);
   if (denied && denied->http_status == 429) res.set_header("Retry-After", "1");
   if (denied) {
     // Not a byte of a refused body is read on a request thread (a client sending it a byte a
@@ -350,8 +352,10 @@ void RefuseBeforeRouting(httplib::Server& server, Deps* d, const Counters& count
   // before any byte of the body is read.
   server.set_pre_routing_handler([d, counters](const httplib::Request& req, httplib::Response& res) {
     if (!HostAllowed(d->host_policy, req.get_header_value("Host"))) {
-      spdlog::warn("refused {} {} from {}: Host \"{}\" does not name this daemon", req.method, req.path,
-                   req.remote_addr, req.get_header_value("Host"));
+      counters->refusals->Refused(ClientKey(req.remote_addr, d->loopback_clients_apart), "host", [&] {
+        return "refused " + req.method + " " + req.path + " from " + req.remote_addr + ": Host \"" +
+               req.get_header_value("Host") + "\" does not name this daemon";
+      });
       res.set_header("Connection", "close");
       SendProblem(res,
                   Status::InvalidArgument("Host", "\"" + req.get_header_value("Host") +
@@ -424,12 +428,9 @@ void RegisterBackstops(httplib::Server& server, const Counters& counters) {
   // Every response, the library's own answers too: no framing, no sniffing, no referrer, and only
   // the daemon's own scripts, styles and images (the dashboard has no inline script or style).
   server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
-    if (!res.has_header("Content-Security-Policy")) {
-      res.set_header("Content-Security-Policy", "default-src 'self'; frame-ancestors 'none'");
+    for (const auto& [name, value] : SecurityHeaders()) {
+      if (name != "Content-Security-Policy" || !res.has_header(name)) res.set_header(name, value);
     }
-    res.set_header("X-Frame-Options", "DENY");
-    res.set_header("X-Content-Type-Options", "nosniff");
-    res.set_header("Referrer-Policy", "no-referrer");
   });
 
   server.set_logger([](const httplib::Request& req, const httplib::Response& res) {
@@ -439,10 +440,21 @@ void RegisterBackstops(httplib::Server& server, const Counters& counters) {
 
 }  // namespace
 
+const std::vector<std::pair<std::string, std::string>>& SecurityHeaders() {
+  static const std::vector<std::pair<std::string, std::string>> kHeaders = {
+      {"Content-Security-Policy", "default-src 'self'; frame-ancestors 'none'"},  // a route may set a stricter one
+      {"X-Frame-Options", "DENY"},
+      {"X-Content-Type-Options", "nosniff"},
+      {"Referrer-Policy", "no-referrer"},
+  };
+  return kHeaders;
+}
+
 void RegisterRoutes(httplib::Server& server, Deps& deps) {
   Deps* d = &deps;
   auto counters = std::make_shared<HttpCounters>();
   counters->auth_failures = std::make_unique<FailedAuthThrottle>(deps.clock, FailedAuthThrottle::Options{});
+  counters->refusals = std::make_unique<RefusalLog>(deps.clock);
   RegisterTable(server, d, counters);
   RegisterDashboard(server, counters);
   RegisterOptions(server, counters);
@@ -506,16 +518,22 @@ namespace {
 // reserved threads and the reserve's connections serve (server/http/guarded_http_server.h), so that
 // no reader can cost a worker its lease. A worker call with a wrong or no token is an ordinary
 // request (and is refused 401 there): a guesser holds no reserved thread while its failure is slowed.
+// A request head whose Authorization header carries the daemon's token (none has it when the
+// daemon has no token: then nobody has shown one).
+bool CarriesToken(const std::string& token, const httplib::Request& head) {
+  if (token.empty()) return false;
+  const std::string header = head.get_header_value("Authorization");
+  const std::string prefix = "Bearer ";
+  if (header.rfind(prefix, 0) != 0 || header.size() - prefix.size() != token.size()) return false;
+  return CRYPTO_memcmp(header.data() + prefix.size(), token.data(), token.size()) == 0;
+}
+
 bool IsReservedRequest(const std::string& token, const httplib::Request& head) {
   const Route* route = FindRoute(head.method, head.path);
   if (route == nullptr) return false;
   if (std::string_view(route->path) == "/healthz") return true;
   if (route->access != Access::kWorker) return false;
-  if (token.empty()) return true;
-  const std::string header = head.get_header_value("Authorization");
-  const std::string prefix = "Bearer ";
-  if (header.rfind(prefix, 0) != 0 || header.size() - prefix.size() != token.size()) return false;
-  return CRYPTO_memcmp(header.data() + prefix.size(), token.data(), token.size()) == 0;
+  return token.empty() || CarriesToken(token, head);
 }
 }  // namespace
 
@@ -524,6 +542,9 @@ ApiServer::ApiServer(Deps deps, ConnectionLimits limits)
     : deps_(std::move(deps)), server_(std::make_unique<GuardedHttpServer>(limits)) {
   deps_.loopback_clients_apart = limits.loopback_clients_apart;  // one rule for "which client": the limits'
   server_->SetReserved([this](const httplib::Request& head) { return IsReservedRequest(deps_.token, head); });
+  // The token's holders (the CLI, workers, scripts) are served past a crowd that has not shown it.
+  server_->SetAuthenticated([this](const httplib::Request& head) { return CarriesToken(deps_.token, head); });
+  server_->SetOwnHeaders(SecurityHeaders());
   server_->SetRefusalBody([](int http_status, const std::string& detail) {
     const Status why = http_status == 429 ? Status::ResourceExhausted("", detail) : Status::Unavailable(detail);
     return api::ToJsonText(ProblemFor(why, http_status));
@@ -539,6 +560,7 @@ ApiServer::~ApiServer() { Stop(); }
 Status ApiServer::UseTls(const std::string& cert_file, const std::string& key_file) {
   std::string error;
   if (!server_->SetTls(cert_file, key_file, &error)) return Status::InvalidArgument("--tls-cert", error);
+  deps_.host_policy.tls = true;  // before Serve(), as Bind's policy
   return Status::Ok();
 }
 

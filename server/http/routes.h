@@ -39,6 +39,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -70,6 +71,10 @@ struct RouteInfo {
 std::vector<RouteInfo> RouteTable();
 
 // Installs the routes, the problem+json error and exception handlers, auth and body limits.
+// The headers every answer carries, the routes' and the server's own refusals alike: no framing,
+// no sniffing, no referrer, and only the daemon's own scripts, styles and images.
+const std::vector<std::pair<std::string, std::string>>& SecurityHeaders();
+
 void RegisterRoutes(httplib::Server& server, Deps& deps);
 
 // Scratch directories under DATA hold only what a request in flight writes, removed when it ends:

@@ -211,6 +211,12 @@ TEST_F(RoutesTest, BadInputGetsProblemNamingTheFieldAndChangesNothing) {
        "axes"},
       {"unknown scale", R"({"name": "bad", "scale": "galaxy", )" + base + "}", "scale"},
       {"unknown campaign", R"({"campaign": "nope"})", "campaign"},
+      {"a key twice (which one wins is a parser's whim)", R"({"name": "bad", "name": "good", "scale": "smoke", )" + base + "}",
+       "name"},
+      {"a key twice inside base", sweep("", R"("base": {"mode": "oscillatory", "A": 0.03, "A": 9, "f": 3, "Omega": -80, "duration_s": 0.3})"),
+       "A"},
+      {"the name . (a URL normalises it away)", R"({"name": ".", "scale": "smoke", )" + base + "}", "name"},
+      {"the name ..", R"({"name": "..", "scale": "smoke", )" + base + "}", "name"},
   };
   const auto before = AllRows();
   for (const BadInput& c : cases) {
@@ -230,6 +236,42 @@ TEST_F(RoutesTest, BadInputGetsProblemNamingTheFieldAndChangesNothing) {
     }
   }
   EXPECT_EQ(AllRows(), before);
+}
+
+// Routes whose body is optional take none or a JSON object, not a broken one; a lease request is
+// held to its schema: ranks at least 1, no key it does not know.
+TEST_F(RoutesTest, OptionalBodiesAndLeaseRequestsAreHeldToTheirSchemas) {
+  const int64_t id = SubmitExample();
+  const std::string cancel = "/api/v1/sweeps/" + std::to_string(id) + "/cancel";
+  const auto before = AllRows();
+  struct Case {
+    std::string path, body, field;
+  };
+  const std::vector<Case> cases = {
+      {cancel, "{", "body"},
+      {cancel, "[1]", "body"},
+      {cancel, R"({"a": 1, "a": 2})", "a"},
+      {"/api/v1/backup", "{", "body"},
+      {"/api/v1/leases", R"({"worker": "w", "host": "h", "ranks": 0})", "ranks"},
+      {"/api/v1/leases", R"({"worker": "w", "host": "h", "ranks": -5})", "ranks"},
+      {"/api/v1/leases", R"({"worker": "w", "host": "h", "ranks": 1, "priority": 9})", "priority"},
+      {"/api/v1/leases", R"({"worker": "w", "worker": "x", "host": "h"})", "worker"},
+      {"/api/v1/leases/abc/heartbeat", R"({"step": 1, "colour": "red"})", "colour"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.path + " " + c.body);
+    auto r = Post(c.path, c.body);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 400) << r->body;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "application/problem+json");
+    EXPECT_EQ(Body(r)["field"], c.field) << r->body;
+  }
+  EXPECT_EQ(AllRows(), before);
+  auto sweep = client_->Get(("/api/v1/sweeps/" + std::to_string(id)).c_str());
+  EXPECT_EQ(Body(sweep)["counts"]["cancelled"], 0) << "a broken body cancelled the sweep";
+  EXPECT_EQ(Rows("leases"), 0);
+  EXPECT_EQ(Post(cancel, "{}")->status, 200);
+  EXPECT_EQ(Post(cancel, "")->status, 200);
 }
 
 TEST_F(RoutesTest, HugeBodyIs413AndChangesNothing) {

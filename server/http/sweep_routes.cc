@@ -108,6 +108,7 @@ void GetSweepResults(Call& c) { SendResults(c, ResultsOf::kSweep); }
 void CancelSweep(Call& c) {
   auto id = PathId(c);
   if (!id.ok()) return Fail(c, id.status());
+  if (Status s = EmptyOrObject(c.body); !s.ok()) return Fail(c, s);
   auto summary = c.deps.leases->Cancel(*id);
   if (!summary.ok()) return Fail(c, summary.status());
   auto sweep = c.deps.store->GetSweep(*id);

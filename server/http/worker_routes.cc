@@ -52,8 +52,11 @@ namespace routes {
 namespace {
 
 void LeaseJob(Call& c) {
-  auto request = ParseMessage<api::LeaseRequest>(c.body, "LeaseRequest", /*allow_empty=*/true);
+  auto request = ParseMessage<api::LeaseRequest>(c.body, "LeaseRequest", /*allow_empty=*/true, Keys::kClosed);
   if (!request.ok()) return Fail(c, request.status());
+  if (request->ranks < 1) {
+    return Fail(c, Status::InvalidArgument("ranks", "must be at least 1, got " + std::to_string(request->ranks)));
+  }
   if (Status s = api::LimitLengths(*request); !s.ok()) return Fail(c, s);
   auto grant = c.deps.leases->Lease(*request);
   if (!grant.ok()) return Fail(c, grant.status());
@@ -65,7 +68,7 @@ void LeaseJob(Call& c) {
 }
 
 void HeartbeatLease(Call& c) {
-  auto beat = ParseMessage<api::Heartbeat>(c.body, "Heartbeat", /*allow_empty=*/true);
+  auto beat = ParseMessage<api::Heartbeat>(c.body, "Heartbeat", /*allow_empty=*/true, Keys::kClosed);
   if (!beat.ok()) return Fail(c, beat.status());
   auto reply = c.deps.leases->Heartbeat(PathToken(c), *beat);
   if (!reply.ok()) return Fail(c, reply.status());
