@@ -35,6 +35,7 @@
 #include "server/analysis/plot_renderer.h"
 #include "server/http/routes.h"
 #include "server/jobs/scheduler.h"
+#include "server/store/eta_cache.h"
 #include "server/store/store.h"
 
 namespace {
@@ -489,6 +490,8 @@ int main(int argc, char** argv) {
   deps.public_reads = flags.public_reads;
   deps.host_policy.allowed_names = flags.allow_hosts;
   deps.max_queued_runs = flags.max_queued_runs;
+  // A status poll's ETA is read once per change, not per request (server/store/eta_cache.h).
+  sandswim::EtaCache etas(store->get());
   // The dashboard's live view: one snapshot a second however many pages are open (server/dashboard/live_feed.h).
   sandswim::LiveFeed live(store->get(), &clock, /*tick_s=*/1.0, /*max_streams=*/128, /*sweeps=*/50,
                           /*campaign_runs=*/20, flags.live_streams_per_client);
@@ -497,6 +500,8 @@ int main(int argc, char** argv) {
   deps.live = &live;
   deps.engine_slots = flags.local_workers;
   live.set_engine_slots(flags.local_workers);
+  deps.etas = &etas;
+  live.set_eta_cache(&etas);
   flags.http.head_s = flags.http_head_timeout_s;
   sandswim::ApiServer server(deps, flags.http);
   if (tls->has_value()) {

@@ -298,7 +298,7 @@ void GetCampaignRun(Call& c) {
   if (!info.ok()) return Fail(c, info.status());
   auto drift = LastDriftFor(*c.deps.store, *info);
   if (!drift.ok()) return Fail(c, drift.status());
-  auto eta = ReadEta(*c.deps.store, EtaScope::kCampaignRun, *id, c.deps.clock->Now(), c.deps.engine_slots);
+  auto eta = EtaOf(c, EtaScope::kCampaignRun, *id);
   if (!eta.ok()) return Fail(c, eta.status());
   json reply = *info;
   reply["last_drift"] = drift->has_value() ? json(**drift) : json(nullptr);

@@ -87,6 +87,7 @@ struct Connection {
   std::mutex mu;
   std::map<std::string, sqlite3_stmt*> cache;  // guarded by mu
   std::set<sqlite3_stmt*> in_use;              // cached statements held by a Statement
+  std::atomic<uint64_t> commits{0};            // COMMITs that succeeded (Database::commits)
 
   ~Connection() {
     for (auto& [sql, stmt] : cache) sqlite3_finalize(stmt);
@@ -317,6 +318,7 @@ Status Transaction::Commit() {
   Status s = ExecRaw(conn_->db, "COMMIT");
   if (!s.ok()) return s;  // still open: the destructor rolls back
   open_ = false;
+  conn_->commits.fetch_add(1, std::memory_order_release);
   return Status::Ok();
 }
 
@@ -462,6 +464,8 @@ Result<Transaction> Database::Begin() {
   SANDSWIM_RETURN_IF_ERROR(ExecRaw(writer_->db, "BEGIN IMMEDIATE"));
   return Transaction(writer_.get(), std::move(lock));
 }
+
+uint64_t Database::commits() const { return writer_->commits.load(std::memory_order_acquire); }
 
 Result<Transaction> Database::BeginRead() {
   Connection* conn = writer_.get();
