@@ -25,6 +25,7 @@
 #include "platform/tls.h"
 #include "platform/token.h"
 #include "server/analysis/claim_check.h"
+#include "server/analysis/claims_cache.h"
 #include "server/analysis/drift_report.h"
 #include "server/jobs/lease_queue.h"
 #include "server/dashboard/live_feed.h"
@@ -492,6 +493,8 @@ int main(int argc, char** argv) {
   deps.max_queued_runs = flags.max_queued_runs;
   // A status poll's ETA is read once per change, not per request (server/store/eta_cache.h).
   sandswim::EtaCache etas(store->get());
+  // A campaign run's verdicts are evaluated once per change (server/analysis/claims_cache.h).
+  sandswim::ClaimsCache claims(store->get());
   // The dashboard's live view: one snapshot a second however many pages are open (server/dashboard/live_feed.h).
   sandswim::LiveFeed live(store->get(), &clock, /*tick_s=*/1.0, /*max_streams=*/128, /*sweeps=*/50,
                           /*campaign_runs=*/20, flags.live_streams_per_client);
@@ -501,6 +504,7 @@ int main(int argc, char** argv) {
   deps.engine_slots = flags.local_workers;
   live.set_engine_slots(flags.local_workers);
   deps.etas = &etas;
+  deps.claims = &claims;
   live.set_eta_cache(&etas);
   flags.http.head_s = flags.http_head_timeout_s;
   sandswim::ApiServer server(deps, flags.http);

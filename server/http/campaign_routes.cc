@@ -34,6 +34,7 @@
 #include "server/store/cost_model.h"
 #include "server/store/rounds.h"
 #include "server/analysis/claim_check.h"
+#include "server/analysis/claims_cache.h"
 #include "server/analysis/drift_report.h"
 #include "server/dashboard/dashboard_files.h"
 #include "server/analysis/figures.h"
@@ -336,6 +337,11 @@ void GetCampaignRunResults(Call& c) { SendResults(c, ResultsOf::kCampaignRun); }
 void GetCampaignRunClaims(Call& c) {
   auto id = PathId(c);
   if (!id.ok()) return Fail(c, id.status());
+  if (c.deps.claims != nullptr) {
+    auto cached = c.deps.claims->Get(*id);
+    if (!cached.ok()) return Fail(c, cached.status());
+    return SendJson(c, 200, CampaignRunClaimsToJson(**cached));
+  }
   auto claims = CheckClaims(*c.deps.store, *id);
   if (!claims.ok()) return Fail(c, claims.status());
   SendJson(c, 200, CampaignRunClaimsToJson(*claims));

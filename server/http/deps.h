@@ -26,6 +26,7 @@ inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;     // 1 MiB
 inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;  // 2 GiB
 inline constexpr int kDefaultPort = 8640;
 
+class ClaimsCache;
 class EtaCache;
 class LiveFeed;
 class PlotRenderer;
@@ -58,6 +59,9 @@ struct Deps {
   // The ETAs a status answer carries, kept between writes (server/store/eta_cache.h); nullptr:
   // read for every answer.
   EtaCache* etas = nullptr;
+  // Campaign runs' verdicts, kept between writes (server/analysis/claims_cache.h); nullptr:
+  // evaluated for every answer.
+  ClaimsCache* claims = nullptr;
 };
 
 // Who may call a route when a token is configured.
