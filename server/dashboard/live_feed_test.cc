@@ -19,6 +19,8 @@
 namespace sandswim {
 namespace {
 
+using json = nlohmann::json;
+
 class LiveFeedTest : public ::testing::Test {
  protected:
   void SetUp() override { ASSERT_TRUE(store_); }
