@@ -29,6 +29,7 @@
 #include "platform/tls.h"
 #include "platform/token.h"
 #include "server/analysis/claim_check.h"
+#include "server/analysis/claims_cache.h"
 #include "server/analysis/drift_report.h"
 #include "server/jobs/lease_queue.h"
 #include "server/dashboard/live_feed.h"
@@ -39,6 +40,7 @@
 #include "server/analysis/plot_renderer.h"
 #include "server/http/routes.h"
 #include "server/jobs/scheduler.h"
+#include "server/store/eta_cache.h"
 #include "server/store/store.h"
 
 namespace {
@@ -520,6 +522,10 @@ int main(int argc, char** argv) {
   deps.public_reads = flags.public_reads;
   deps.host_policy.allowed_names = flags.allow_hosts;
   deps.max_queued_runs = flags.max_queued_runs;
+  // A status poll's ETA is read once per change, not per request (server/store/eta_cache.h).
+  sandswim::EtaCache etas(store->get());
+  // A campaign run's verdicts are evaluated once per change (server/analysis/claims_cache.h).
+  sandswim::ClaimsCache claims(store->get());
   // The dashboard's live view: one snapshot a second however many pages are open (server/dashboard/live_feed.h).
   sandswim::LiveFeed live(store->get(), &clock, /*tick_s=*/1.0, /*max_streams=*/128, /*sweeps=*/50,
                           /*campaign_runs=*/20, flags.live_streams_per_client);
@@ -528,6 +534,9 @@ int main(int argc, char** argv) {
   deps.live = &live;
   deps.engine_slots = flags.local_workers;
   live.set_engine_slots(flags.local_workers);
+  deps.etas = &etas;
+  deps.claims = &claims;
+  live.set_eta_cache(&etas);
   flags.http.head_s = flags.http_head_timeout_s;
   sandswim::ApiServer server(deps, flags.http);
   if (tls->has_value()) {

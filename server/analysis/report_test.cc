@@ -20,6 +20,7 @@
 #include "core/text.h"
 #include "platform/clock.h"
 #include "server/analysis/claim_check.h"
+#include "server/analysis/claims_cache.h"
 #include "server/jobs/lease_queue.h"
 #include "server/jobs/rounds.h"
 #include "server/http/loopback_server_test_util.h"
@@ -816,6 +817,60 @@ TEST_F(ReportTest, AFigureFollowsNewResults) {
   auto second = client_->Get(path.c_str());
   ASSERT_EQ(second->status, 200);
   EXPECT_NE(second->body, first->body);
+}
+
+// ClaimsCache (server/analysis/claims_cache.h): a campaign run's verdicts are evaluated once while
+// nothing is written, and again after any write, so a result of its runs is in the next answer.
+TEST_F(ReportTest, ClaimsCacheKeepsAnAnswerUntilAWriteAndShowsEveryResult) {
+  StoredCampaign campaign;
+  campaign.name = "cached-claims";
+  json definition = json::parse(kCampaign);
+  definition["name"] = "cached-claims";
+  definition["claims"] = json::parse(R"([
+    {"id": "F1", "title": "Omega < 0 rises, Omega > 0 sinks", "source": "Sec. 3.2, Fig. 4",
+     "paper": {"text": "rose with negative Omega, sank with positive"},
+     "rule": {"kind": "sign", "sweeps": ["baseline", "omega"], "expect": "against_Omega"}}])");
+  campaign.definition = definition;
+  ASSERT_TRUE(PutCampaign(*store_, campaign).ok());
+  SubmitRequest request;
+  request.campaign = "cached-claims";
+  auto submitted = Submit(*store_, request, kReportEngine, clock_.Now());
+  ASSERT_TRUE(submitted.ok()) << submitted.status().ToString();
+  const int64_t id = *submitted->campaign_run_id;
+  auto direct = [&] {
+    auto claims = CheckClaims(*store_, id);
+    EXPECT_TRUE(claims.ok()) << claims.status().ToString();
+    return claims.ok() ? CampaignRunClaimsToJson(*claims) : json();
+  };
+
+  ClaimsCache cache(store_.get());
+  auto first = cache.Get(id);
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
+  EXPECT_EQ((*first)->verdicts.at(0).verdict, Verdict::kInconclusive);  // nothing run yet
+  auto again = cache.Get(id);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->get(), first->get());  // the same answer, not evaluated again
+  EXPECT_EQ(cache.evaluations(), 1u);
+
+  // Each completion is a write: after every one, the cache answers what an evaluation answers.
+  for (int step = 0; step < 40; ++step) {
+    RunAll(1);
+    auto now = cache.Get(id);
+    ASSERT_TRUE(now.ok()) << now.status().ToString();
+    ASSERT_EQ(CampaignRunClaimsToJson(**now), direct()) << "after completion " << step;
+  }
+  RunAll();
+  auto done = cache.Get(id);
+  ASSERT_TRUE(done.ok());
+  EXPECT_EQ((*done)->verdicts.at(0).verdict, Verdict::kHolds) << (*done)->verdicts.at(0).reason;
+  const uint64_t evaluations = cache.evaluations();
+  EXPECT_EQ(cache.Get(id)->get(), done->get());
+  EXPECT_EQ(cache.evaluations(), evaluations);
+
+  // An unknown campaign run: NotFound, and not kept.
+  EXPECT_EQ(cache.Get(id + 1000).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(cache.Get(id + 1000).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(cache.evaluations(), evaluations + 2);
 }
 
 }  // namespace

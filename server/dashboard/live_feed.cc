@@ -36,7 +36,8 @@ std::string LiveFeed::BuildContent() {
 }
 
 json LiveFeed::EtaOf(EtaScope scope, int64_t id) {
-  Result<std::optional<Eta>> eta = ReadEta(*store_, scope, id, clock_->Now(), engine_slots_.load());
+  Result<std::optional<Eta>> eta = etas_ != nullptr ? etas_->Get(scope, id, clock_->Now(), engine_slots_.load())
+                                                    : ReadEta(*store_, scope, id, clock_->Now(), engine_slots_.load());
   if (!eta.ok()) {
     spdlog::warn("live feed: no ETA ({})", eta.status().ToString());
     return nullptr;

@@ -46,6 +46,7 @@
 
 #include "platform/clock.h"
 #include "server/store/cost_model.h"
+#include "server/store/eta_cache.h"
 #include "server/store/store.h"
 
 namespace sandswim {
@@ -92,6 +93,10 @@ class LiveFeed {
 
   // Engines the ETAs of unfinished sweeps and campaign runs spread work over, at least (server/store/cost_model.h).
   void set_engine_slots(int slots) { engine_slots_.store(slots); }
+  // Where the board's ETAs come from: the routes' cache (server/store/eta_cache.h), so that a
+  // sweep's status and the board share one read. nullptr (the default): read at each build.
+  // REQUIRES: set before the feed is used; `etas` outlives it.
+  void set_eta_cache(EtaCache* etas) { etas_ = etas; }
 
   uint64_t builds() const { return builds_.load(); }  // snapshots built (for tests and benchmarks)
   static constexpr size_t kMaxTrailPoints = 4096;     // past it, every other point is dropped
@@ -118,6 +123,7 @@ class LiveFeed {
   double content_built_at_ = 0;  // the clock's wall time when last_content_ was read
   bool stale_ = false;           // the last build failed: current_ serves older content
   std::atomic<int> engine_slots_{0};
+  EtaCache* etas_ = nullptr;
   uint64_t version_ = 0;
   std::map<int64_t, Trail> trails_;
   std::optional<double> last_idle_sweep_;  // monotonic; unset before the first beat

@@ -28,6 +28,7 @@
 #include "platform/http_status.h"
 #include "server/http/deps.h"
 #include "server/http/request_policy.h"
+#include "server/store/eta_cache.h"
 
 namespace sandswim {
 namespace routes {
@@ -188,6 +189,13 @@ inline Result<int64_t> ParseInt(const std::string& text, const std::string& fiel
 
 inline Result<int64_t> PathId(const Call& c, size_t index = 1) {
   return ParseInt(c.req.matches[index].str(), "id", 1, INT64_MAX);
+}
+
+// The ETA of what is left of a sweep or a campaign run (server/store/cost_model.h ReadEta), from
+// the daemon's EtaCache when it has one.
+inline Result<std::optional<Eta>> EtaOf(const Call& c, EtaScope scope, int64_t id) {
+  if (c.deps.etas != nullptr) return c.deps.etas->Get(scope, id, c.deps.clock->Now(), c.deps.engine_slots);
+  return ReadEta(*c.deps.store, scope, id, c.deps.clock->Now(), c.deps.engine_slots);
 }
 
 inline std::string PathToken(const Call& c) { return c.req.matches[1].str(); }

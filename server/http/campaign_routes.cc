@@ -34,6 +34,7 @@
 #include "server/store/cost_model.h"
 #include "server/store/rounds.h"
 #include "server/analysis/claim_check.h"
+#include "server/analysis/claims_cache.h"
 #include "server/analysis/drift_report.h"
 #include "server/dashboard/dashboard_files.h"
 #include "server/analysis/figures.h"
@@ -298,7 +299,7 @@ void GetCampaignRun(Call& c) {
   if (!info.ok()) return Fail(c, info.status());
   auto drift = LastDriftFor(*c.deps.store, *info);
   if (!drift.ok()) return Fail(c, drift.status());
-  auto eta = ReadEta(*c.deps.store, EtaScope::kCampaignRun, *id, c.deps.clock->Now(), c.deps.engine_slots);
+  auto eta = EtaOf(c, EtaScope::kCampaignRun, *id);
   if (!eta.ok()) return Fail(c, eta.status());
   json reply = *info;
   reply["last_drift"] = drift->has_value() ? json(**drift) : json(nullptr);
@@ -336,6 +337,11 @@ void GetCampaignRunResults(Call& c) { SendResults(c, ResultsOf::kCampaignRun); }
 void GetCampaignRunClaims(Call& c) {
   auto id = PathId(c);
   if (!id.ok()) return Fail(c, id.status());
+  if (c.deps.claims != nullptr) {
+    auto cached = c.deps.claims->Get(*id);
+    if (!cached.ok()) return Fail(c, cached.status());
+    return SendJson(c, 200, CampaignRunClaimsToJson(**cached));
+  }
   auto claims = CheckClaims(*c.deps.store, *id);
   if (!claims.ok()) return Fail(c, claims.status());
   SendJson(c, 200, CampaignRunClaimsToJson(*claims));

@@ -26,6 +26,8 @@ inline constexpr size_t kMaxJsonBodyBytes = size_t{1} << 20;     // 1 MiB
 inline constexpr size_t kMaxRestartBodyBytes = size_t{2} << 30;  // 2 GiB
 inline constexpr int kDefaultPort = 8640;
 
+class ClaimsCache;
+class EtaCache;
 class LiveFeed;
 class PlotRenderer;
 
@@ -54,6 +56,12 @@ struct Deps {
   // Engines this daemon knows will work (its local workers): the ETA spreads work over at least
   // this many (server/store/cost_model.h ReadEta), more when more are in flight.
   int engine_slots = 0;
+  // The ETAs a status answer carries, kept between writes (server/store/eta_cache.h); nullptr:
+  // read for every answer.
+  EtaCache* etas = nullptr;
+  // Campaign runs' verdicts, kept between writes (server/analysis/claims_cache.h); nullptr:
+  // evaluated for every answer.
+  ClaimsCache* claims = nullptr;
 };
 
 // Who may call a route when a token is configured.

@@ -96,7 +96,7 @@ void GetSweep(Call& c) {
   if (!id.ok()) return Fail(c, id.status());
   auto sweep = c.deps.store->GetSweep(*id);
   if (!sweep.ok()) return Fail(c, sweep.status());
-  auto eta = ReadEta(*c.deps.store, EtaScope::kSweep, *id, c.deps.clock->Now(), c.deps.engine_slots);
+  auto eta = EtaOf(c, EtaScope::kSweep, *id);
   if (!eta.ok()) return Fail(c, eta.status());
   json reply = *sweep;
   reply["eta"] = EtaJson(*eta);

@@ -94,9 +94,11 @@ Result<Share> ReadShare(Transaction& t, double now, const EngineRate& model) {
   return CurrentShare(recent, before, so_far, model, kShareWindowS);
 }
 
-Result<CostModelView> ReadIn(Transaction& t, double now) {
+// `hosts`: also every done run's rate per host and rank count (GET /api/v1/cost-model), a read
+// of every result; the ETA does not use them.
+Result<CostModelView> ReadIn(Transaction& t, double now, bool hosts) {
   CostModelView v;
-  {
+  if (hosts) {
     // Every done run's result, per host and rank count.
     std::map<std::pair<std::string, int>, std::vector<RateSample>> by_host;
     Statement st = t.Prepare("SELECT host, ranks, steps * (grains + 1.0), wall_s FROM results WHERE wall_s > 0");
@@ -267,13 +269,13 @@ void to_json(json& j, const CostModelView& v) {
 Result<CostModelView> ReadCostModel(Store& store, double now) {
   Result<Transaction> t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  return ReadIn(*t, now);
+  return ReadIn(*t, now, /*hosts=*/true);
 }
 
 Result<std::optional<Eta>> ReadEta(Store& store, EtaScope scope, int64_t id, double now, int min_slots) {
   Result<Transaction> t = store.db().BeginRead();
   if (!t.ok()) return t.status();
-  Result<CostModelView> model = ReadIn(*t, now);
+  Result<CostModelView> model = ReadIn(*t, now, /*hosts=*/false);
   if (!model.ok()) return model.status();
   const Scale* smoke = FindScale("smoke");
   std::vector<WorkLeft> left;

@@ -4,8 +4,11 @@
 #include <sqlite3.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <thread>
@@ -84,6 +87,7 @@ struct Connection {
   std::mutex mu;
   std::map<std::string, sqlite3_stmt*> cache;  // guarded by mu
   std::set<sqlite3_stmt*> in_use;              // cached statements held by a Statement
+  std::atomic<uint64_t> commits{0};            // COMMITs that succeeded (Database::commits)
 
   ~Connection() {
     for (auto& [sql, stmt] : cache) sqlite3_finalize(stmt);
@@ -197,6 +201,62 @@ std::optional<std::string> Statement::OptText(int col) const {
   return Text(col);
 }
 
+// ---- Statement profile (a diagnostic) -----------------------------------------------------------
+
+namespace {
+
+// SANDSWIM_SQL_PROFILE=FILE: every connection counts each statement's runs and their time
+// (SQLite's own measure, SQLITE_TRACE_PROFILE), written to FILE as a table when the process ends
+// normally, most time first. This is how the store's statements under bench_load were ranked
+// (issue #49); off, it costs nothing.
+class SqlProfile {
+ public:
+  static SqlProfile* Get() {
+    static SqlProfile* profile = [] {
+      const char* path = std::getenv("SANDSWIM_SQL_PROFILE");
+      return path != nullptr && *path != '\0' ? new SqlProfile(path) : nullptr;
+    }();
+    return profile;
+  }
+  void Attach(sqlite3* db) { sqlite3_trace_v2(db, SQLITE_TRACE_PROFILE, &SqlProfile::OnProfile, this); }
+
+ private:
+  struct Tally {
+    int64_t runs = 0, ns = 0;
+  };
+  explicit SqlProfile(std::string path) : path_(std::move(path)) {
+    std::atexit([] { Get()->Write(); });
+  }
+  static int OnProfile(unsigned, void* self, void* stmt, void* ns) {
+    const char* sql = sqlite3_sql(static_cast<sqlite3_stmt*>(stmt));
+    auto* profile = static_cast<SqlProfile*>(self);
+    std::lock_guard<std::mutex> lock(profile->mu_);
+    Tally& t = profile->by_sql_[sql != nullptr ? sql : "?"];
+    ++t.runs;
+    t.ns += *static_cast<int64_t*>(ns);
+    return 0;
+  }
+  void Write() {
+    std::lock_guard<std::mutex> lock(mu_);
+    std::vector<std::pair<std::string, Tally>> rows(by_sql_.begin(), by_sql_.end());
+    std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.second.ns > b.second.ns; });
+    FILE* f = std::fopen(path_.c_str(), "w");
+    if (f == nullptr) return;
+    std::fprintf(f, "total_ms\truns\tmean_us\tsql\n");
+    for (const auto& [sql, t] : rows) {
+      std::fprintf(f, "%.1f\t%lld\t%.1f\t%s\n", static_cast<double>(t.ns) / 1e6, static_cast<long long>(t.runs),
+                   static_cast<double>(t.ns) / 1e3 / static_cast<double>(std::max<int64_t>(1, t.runs)), sql.c_str());
+    }
+    std::fclose(f);
+  }
+
+  const std::string path_;
+  std::mutex mu_;
+  std::map<std::string, Tally> by_sql_;  // guarded by mu_
+};
+
+}  // namespace
+
 // ---- Transaction --------------------------------------------------------------------------------
 
 Transaction::Transaction(Connection* conn, std::unique_lock<std::mutex> lock)
@@ -258,6 +318,7 @@ Status Transaction::Commit() {
   Status s = ExecRaw(conn_->db, "COMMIT");
   if (!s.ok()) return s;  // still open: the destructor rolls back
   open_ = false;
+  conn_->commits.fetch_add(1, std::memory_order_release);
   return Status::Ok();
 }
 
@@ -305,6 +366,7 @@ Status Database::OpenFile(const std::string& path) {
     return Status::IOError("cannot open database " + path + ": " + msg + WhyNotWritable(path));
   }
   sqlite3_busy_timeout(writer_->db, 5000);
+  if (SqlProfile* profile = SqlProfile::Get()) profile->Attach(writer_->db);
   // The first statement is where a database that cannot be written fails (its WAL cannot be made).
   if (Status s = ExecRaw(writer_->db,
                          "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = ON; "
@@ -335,6 +397,7 @@ Status Database::OpenReaders(int n) {
                              (reader->db ? sqlite3_errmsg(reader->db) : "out of memory"));
     }
     sqlite3_busy_timeout(reader->db, 5000);
+    if (SqlProfile* profile = SqlProfile::Get()) profile->Attach(reader->db);
     // query_only: a write slipped into a read transaction fails here instead of waiting on the lock.
     SANDSWIM_RETURN_IF_ERROR(ExecRaw(reader->db, "PRAGMA query_only = 1; PRAGMA foreign_keys = ON; PRAGMA temp_store = MEMORY; "
                                                  "PRAGMA cache_size = -16384;"));
@@ -401,6 +464,8 @@ Result<Transaction> Database::Begin() {
   SANDSWIM_RETURN_IF_ERROR(ExecRaw(writer_->db, "BEGIN IMMEDIATE"));
   return Transaction(writer_.get(), std::move(lock));
 }
+
+uint64_t Database::commits() const { return writer_->commits.load(std::memory_order_acquire); }
 
 Result<Transaction> Database::BeginRead() {
   Connection* conn = writer_.get();

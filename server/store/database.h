@@ -177,6 +177,10 @@ class Database {
   // only for other readers when all of them are taken; on the writer's connection for an
   // in-memory database. REQUIRES: nothing is written in it.
   Result<Transaction> BeginRead();
+  // Write transactions committed on the writer's connection since Open (grouped or not; a read of
+  // an in-memory database, which runs there, counts too). A cache of what was read keeps its
+  // answer while this is unchanged: no change can have reached the file since (eta_cache.h).
+  uint64_t commits() const;
   // Read-only connections opened beside the writer's (0 for an in-memory database).
   int read_connections() const { return static_cast<int>(readers_.size()); }
 

@@ -1,13 +1,24 @@
 // bench_load: load figures on the real sandswimd. A campaign runs (a sweep whose runs a
-// worker runs with the STAND-IN engine, tests/bench/stand_in_engine.cc, 1 s each, 2 slots) while
-// a second process sends status queries at a fixed rate (default 1,000 requests/s for 60 s: a
-// sweep's status, the running runs, the dashboard's live snapshot, in turn) over 16 keep-alive
-// connections. It prints the achieved rate, errors, latency percentiles (from the time each
-// request was due, so a stalled server is not hidden by requests not sent), and the campaign's
-// throughput (runs finished per minute) with and without the load.
+// worker runs with the STAND-IN engine, tests/bench/stand_in_engine.cc, 1 s each, 2 slots, every
+// run heartbeating each second) while a second process sends status queries at a fixed rate
+// (default 1,000 requests/s for 60 s: a sweep's status, the running runs, the dashboard's live
+// snapshot, in turn) over 16 keep-alive connections. It prints the achieved rate, errors, latency
+// percentiles (from the time each request was due, so a stalled server is not hidden by requests
+// not sent), and the campaign's throughput (runs finished per minute) with and without the load.
 //
-//   bench_load [--rate 1000] [--seconds 60]
+// --matrix runs the same load on campaigns of 58, 1,000 and 10,000 runs with 2 and 64 slots (one
+// worker process, every slot's run heartbeating each second), one window without the load and
+// one with it each, so the cost of a status answer can be read against the runs in the campaign
+// and in flight; runs last long enough that the campaign outlives both windows (at least 1 s, 6 s
+// with 64 slots). --claims times GET /api/v1/campaign-runs/{id}/claims on a finished 10,000-run
+// campaign run (tests/bench/synthetic_campaign.h, with its one claim): the first answer,
+// then the same asked again.
+//
+//   bench_load [--rate 1000] [--seconds 60] [--runs 2000] [--slots 2] [--run-seconds 1]
+//   bench_load --matrix [--rate 1000] [--seconds 30]
+//   bench_load --claims
 //   bench_load --load URL RATE SECONDS   (the load process; prints one JSON line)
+// SANDSWIMD_UNDER_TEST=PATH runs it on another build's daemon (tests/service_fixture.cc).
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,6 +26,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <mutex>
@@ -25,6 +37,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "tests/bench/synthetic_campaign.h"
 #include "tests/engine_fixture.h"
 #include "tests/service_fixture.h"
 
@@ -94,79 +107,174 @@ int Load(const std::string& url, double rate, double seconds) {
   return 0;
 }
 
-}  // namespace
 
-int main(int argc, char** argv) {
-  if (argc == 5 && std::string(argv[1]) == "--load") return Load(argv[2], std::atof(argv[3]), std::atof(argv[4]));
-  double rate = 1000, seconds = 60;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string flag = argv[i];
-    if (flag == "--rate")
-      rate = std::atof(argv[i + 1]);
-    else if (flag == "--seconds")
-      seconds = std::atof(argv[i + 1]);
-    else
-      Die("usage: bench_load [--rate R] [--seconds S]");
-  }
-  const std::filesystem::path dir = std::filesystem::path(sandswim::testing::CacheDir()) / "bench-load";
+std::string Spawn(const std::vector<std::string>& argv) {
+  int pipe_fds[2];
+  if (pipe(pipe_fds) != 0) Die("pipe");
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, pipe_fds[1], 1);
+  posix_spawn_file_actions_addclose(&actions, pipe_fds[0]);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, args.data(), environ) != 0) Die("spawn");
+  posix_spawn_file_actions_destroy(&actions);
+  close(pipe_fds[1]);
+  std::string out;
+  char buf[4096];
+  for (ssize_t n; (n = read(pipe_fds[0], buf, sizeof buf)) > 0;) out.append(buf, static_cast<size_t>(n));
+  close(pipe_fds[0]);
+  int wstatus = 0;
+  waitpid(pid, &wstatus, 0);
+  return out;
+}
+
+struct Window {
+  double runs_per_min = 0;
+  json load;  // the load process's line; null without load
+};
+
+// One campaign of `runs` runs of `run_s` each on `slots` slots in `dir`, measured over the windows
+// `loads` (true: with the status load) of `seconds` each; prints a line per window.
+std::vector<Window> Campaign(const std::filesystem::path& dir, int runs, int slots, double run_s, double rate,
+                             double seconds, const std::vector<bool>& loads, const std::string& label) {
   std::filesystem::remove_all(dir);
-  setenv("SANDSWIM_STAND_IN_SECONDS", "1", 1);
+  setenv("SANDSWIM_STAND_IN_SECONDS", std::to_string(run_s).c_str(), 1);
   sandswim::testing::Daemon daemon((dir / "daemon").string());
   std::vector<double> omegas;
-  for (int i = 0; i < 2000; ++i) omegas.push_back(-10.0 - i);
+  for (int i = 0; i < runs; ++i) omegas.push_back(-10.0 - i);
   int status = 0;
   daemon.Post("/api/v1/sweeps", sandswim::testing::OmegaSweep("load", omegas, 1.0), &status);
   if (status != 201) Die("submit");
-  auto worker = sandswim::testing::StartWorker(daemon, (dir / "worker").string(), 2,
+  auto worker = sandswim::testing::StartWorker(daemon, (dir / "worker").string(), slots,
                                                {"--launcher", "direct", "--engine", SANDSWIM_STAND_IN_ENGINE_PATH});
-  std::this_thread::sleep_for(std::chrono::seconds(5));  // the bed, the first runs
-
-  auto done = [&] { return daemon.Get("/api/v1/sweeps/1")["counts"]["done"].get<int64_t>(); };
-  auto window = [&](const char* what, bool load) {
-    const int64_t d0 = done();
+  auto sweep = [&] { return daemon.Get("/api/v1/sweeps/1"); };
+  // The bed, then the first runs: wait until every slot has a run (or a bed and a minute).
+  const Steady::time_point ready_by = Steady::now() + std::chrono::duration_cast<Steady::duration>(std::chrono::duration<double>(run_s + 60));
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  while (Steady::now() < ready_by) {
+    const json s = sweep();
+    if (s["counts"]["running"].get<int64_t>() >= std::min(slots, runs)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  std::this_thread::sleep_for(std::chrono::duration<double>(std::min(run_s, 3.0)));  // past the first completions
+  std::vector<Window> out;
+  for (bool load : loads) {
+    const int64_t d0 = sweep()["counts"]["done"].get<int64_t>();
     const Steady::time_point t0 = Steady::now();
-    json stats;
+    Window w;
     if (load) {
-      int pipe_fds[2];
-      if (pipe(pipe_fds) != 0) Die("pipe");
-      posix_spawn_file_actions_t actions;
-      posix_spawn_file_actions_init(&actions);
-      posix_spawn_file_actions_adddup2(&actions, pipe_fds[1], 1);
-      posix_spawn_file_actions_addclose(&actions, pipe_fds[0]);
-      const std::string rate_s = std::to_string(rate), seconds_s = std::to_string(seconds);
-      std::vector<char*> args = {const_cast<char*>("/proc/self/exe"), const_cast<char*>("--load"),
-                                 const_cast<char*>(daemon.url().c_str()), const_cast<char*>(rate_s.c_str()),
-                                 const_cast<char*>(seconds_s.c_str()), nullptr};
-      pid_t pid = 0;
-      if (posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, args.data(), environ) != 0) Die("spawn");
-      close(pipe_fds[1]);
-      std::string out;
-      char buf[4096];
-      for (ssize_t n; (n = read(pipe_fds[0], buf, sizeof buf)) > 0;) out.append(buf, static_cast<size_t>(n));
-      close(pipe_fds[0]);
-      int wstatus = 0;
-      waitpid(pid, &wstatus, 0);
-      stats = json::parse(out);
+      w.load = json::parse(Spawn({"/proc/self/exe", "--load", daemon.url(), std::to_string(rate), std::to_string(seconds)}));
     } else {
       std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
     }
     const double wall = std::chrono::duration<double>(Steady::now() - t0).count();
-    const int64_t finished = done() - d0;
-    std::printf("%-22s campaign: %lld runs finished in %.0f s = %.1f runs/min", what, static_cast<long long>(finished),
-                wall, 60.0 * finished / wall);
+    const json s = sweep();
+    const int64_t finished = s["counts"]["done"].get<int64_t>() - d0;
+    w.runs_per_min = 60.0 * static_cast<double>(finished) / wall;
+    const std::string what = label + (label.empty() ? "" : ", ") + (load ? "with status load" : "without load");
+    std::printf("%-44s campaign: %lld runs finished in %.0f s = %.1f runs/min (%lld running at the end)", what.c_str(),
+                static_cast<long long>(finished), wall, w.runs_per_min,
+                static_cast<long long>(s["counts"]["running"].get<int64_t>()));
     if (load) {
+      const json& st = w.load;
       std::printf("; load: %lld requests at %.0f/s, %lld errors, latency from due p50 %.2f ms, p99 %.2f ms, max %.1f ms "
                   "(service p50 %.2f ms, p99 %.2f ms)",
-                  static_cast<long long>(stats["requests"].get<int64_t>()), stats["rate"].get<double>(),
-                  static_cast<long long>(stats["errors"].get<int64_t>()), stats["p50_ms"].get<double>(),
-                  stats["p99_ms"].get<double>(), stats["max_ms"].get<double>(), stats["service_p50_ms"].get<double>(),
-                  stats["service_p99_ms"].get<double>());
+                  static_cast<long long>(st["requests"].get<int64_t>()), st["rate"].get<double>(),
+                  static_cast<long long>(st["errors"].get<int64_t>()), st["p50_ms"].get<double>(),
+                  st["p99_ms"].get<double>(), st["max_ms"].get<double>(), st["service_p50_ms"].get<double>(),
+                  st["service_p99_ms"].get<double>());
     }
     std::printf("\n");
-  };
-  window("without load", false);
-  window("with status load", true);
-  window("without load (again)", false);
+    std::fflush(stdout);
+    out.push_back(std::move(w));
+  }
   worker->Stop();
+  return out;
+}
+
+// The claims of a finished 10,000-run campaign run, asked for twice.
+int Claims(const std::filesystem::path& dir) {
+  std::filesystem::remove_all(dir);
+  auto seeded = sandswim::bench::SeedTenThousandRunCampaign((dir / "daemon" / "sandswim.db").string(),
+                                                           (dir / "daemon").string(), 10000, "SYNTHETIC bench_load",
+                                                           /*with_claim=*/true);
+  if (!seeded.ok()) Die("seed: " + seeded.status().ToString());
+  sandswim::testing::Daemon daemon((dir / "daemon").string());
+  int status = 0;
+  const json runs = daemon.Get("/api/v1/campaign-runs");
+  const int64_t id = runs["campaign_runs"].at(0)["id"].get<int64_t>();
+  const std::string path = "/api/v1/campaign-runs/" + std::to_string(id) + "/claims";
+  for (const char* what : {"first", "again", "again"}) {
+    const Steady::time_point t0 = Steady::now();
+    const std::string body = daemon.GetText(path, &status);
+    const double ms = std::chrono::duration<double, std::milli>(Steady::now() - t0).count();
+    std::printf("GET %s (%d runs, %s): %d, %zu bytes in %.1f ms\n", path.c_str(), seeded->runs, what, status,
+                body.size(), ms);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc == 5 && std::string(argv[1]) == "--load") return Load(argv[2], std::atof(argv[3]), std::atof(argv[4]));
+  double rate = 1000, seconds = 60, run_s = 1;
+  int runs = 2000, slots = 2;
+  bool matrix = false, claims = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "--matrix") {
+      matrix = true;
+      seconds = 30;
+      continue;
+    }
+    if (flag == "--claims") {
+      claims = true;
+      continue;
+    }
+    if (i + 1 >= argc) Die("usage: bench_load [--rate R] [--seconds S] [--runs N] [--slots N] [--run-seconds S] | --matrix | --claims");
+    const double value = std::atof(argv[++i]);
+    if (flag == "--rate")
+      rate = value;
+    else if (flag == "--seconds")
+      seconds = value;
+    else if (flag == "--runs")
+      runs = static_cast<int>(value);
+    else if (flag == "--slots")
+      slots = static_cast<int>(value);
+    else if (flag == "--run-seconds")
+      run_s = value;
+    else
+      Die("unknown flag " + flag);
+  }
+  const std::filesystem::path dir = std::filesystem::path(sandswim::testing::CacheDir()) / "bench-load";
+  if (claims) return Claims(dir);
+  if (!matrix) {
+    Campaign(dir, runs, slots, run_s, rate, seconds, {false, true, false}, "");
+    return 0;
+  }
+  std::printf("%-8s %-6s %-6s %-10s %-10s %-10s %-12s %-14s %-14s\n", "runs", "slots", "run_s", "req/s", "p50_ms",
+              "p99_ms", "service_p99", "runs/min idle", "runs/min load");
+  std::vector<std::string> table;
+  for (int n : {58, 1000, 10000}) {
+    for (int s : {2, 64}) {
+      // Long enough that the campaign outlives the settling and both windows.
+      const double r = std::max(s > 2 ? 6.0 : 1.0, std::ceil((2 * seconds + 15) * s / n));
+      const std::string label = std::to_string(n) + " runs, " + std::to_string(s) + " slots";
+      auto w = Campaign(dir, n, s, r, rate, seconds, {false, true}, label);
+      const json& l = w[1].load;
+      char line[256];
+      std::snprintf(line, sizeof line, "%-8d %-6d %-6.0f %-10.0f %-10.2f %-10.2f %-12.2f %-14.1f %-14.1f", n, s, r,
+                    l["rate"].get<double>(), l["p50_ms"].get<double>(), l["p99_ms"].get<double>(),
+                    l["service_p99_ms"].get<double>(), w[0].runs_per_min, w[1].runs_per_min);
+      table.push_back(line);
+    }
+  }
+  std::printf("\n%-8s %-6s %-6s %-10s %-10s %-10s %-12s %-14s %-14s\n", "runs", "slots", "run_s", "req/s", "p50_ms",
+              "p99_ms", "service_p99", "runs/min idle", "runs/min load");
+  for (const std::string& line : table) std::printf("%s\n", line.c_str());
   return 0;
 }

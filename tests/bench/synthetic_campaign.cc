@@ -16,7 +16,7 @@
 namespace sandswim::bench {
 
 Result<SeededCampaign> SeedTenThousandRunCampaign(const std::string& db, const std::string& data_dir, int runs_done,
-                                                  const std::string& engine) {
+                                                  const std::string& engine, bool with_claim) {
   using nlohmann::json;
   std::error_code ec;
   std::filesystem::create_directories(data_dir, ec);
@@ -39,6 +39,14 @@ Result<SeededCampaign> SeedTenThousandRunCampaign(const std::string& db, const s
                                {"axes", json::array({{{"param", "Omega"}, {"values", omegas}},
                                                      {{"param", "A"}, {"values", amplitudes}}})},
                                {"combine", "product"}}})}};
+  if (with_claim) {
+    campaign.definition["claims"] = json::array(
+        {{{"id", "S1"},
+          {"title", "Omega < 0 rises, Omega > 0 sinks"},
+          {"source", "tests/bench/synthetic_campaign.h"},
+          {"paper", {{"text", "not from a paper: a benchmark's claim"}}},
+          {"rule", {{"kind", "sign"}, {"sweeps", {"Omega-A"}}, {"expect", "against_Omega"}}}}});
+  }
   if (Status s = PutCampaign(**store, campaign); !s.ok()) return s;
   SubmitRequest request;
   request.campaign = "big-10k";

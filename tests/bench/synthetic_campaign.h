@@ -24,9 +24,11 @@ struct SeededCampaign {
 };
 
 // Creates `db` (with the daemon's migrations) and `data_dir`, and seeds them as above;
-// `engine` is the engine_version every result states (name it SYNTHETIC).
+// `engine` is the engine_version every result states (name it SYNTHETIC). `with_claim`: the
+// campaign states one claim (a sign rule over its sweep), so its run has a verdict to evaluate
+// (bench_load --claims).
 Result<SeededCampaign> SeedTenThousandRunCampaign(const std::string& db, const std::string& data_dir, int runs_done,
-                                                  const std::string& engine);
+                                                  const std::string& engine, bool with_claim = false);
 
 }  // namespace sandswim::bench
 
