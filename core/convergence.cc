@@ -111,11 +111,9 @@ void EvaluateConvergence(const Claim& c, const ClaimInput& in, ClaimVerdict& v) 
 
   for (auto& [dt, points] : steps) {
     ClaimPart part;
-    part.name = "dt = " + Num(dt) + " s (" + [&] {
-      std::string s;
-      for (const std::string& n : step_sweeps[dt]) s += (s.empty() ? "" : ", ") + n;
-      return s;
-    }() + ")";
+    std::string sweeps_at_step;
+    for (const std::string& n : step_sweeps[dt]) sweeps_at_step += (sweeps_at_step.empty() ? "" : ", ") + n;
+    part.name = "dt = " + Num(dt) + " s (" + sweeps_at_step + ")";
     int equivalent = 0, differs = 0, undecided = 0;
     for (const PointAtStep& p : points) {
       if (!p.why.empty() || p.pairs.empty()) {

@@ -63,7 +63,7 @@ library_sources() {  # library_sources DIR...: their .cc files but tests and pro
 }
 targets=(${SANDSWIM_FUZZ_TARGETS:-fuzz_sweep fuzz_dump fuzz_engine_log fuzz_request})
 objs=("$out/obj/templates_embedded.o")
-server_objs=("$out/obj/schema_embedded.o" "$out/obj/dashboard_embedded.o")
+server_objs=("$out/obj/schema_embedded.o" "$out/obj/dashboard_embedded.o" "$out/obj/help_embedded.o")
 jobs=("$build/templates/sandswim_templates_embedded.cc" "$out/obj/templates_embedded.o")
 mapfile -t core_sources < <(library_sources "$root/core")
 batches core objs "${core_sources[@]}"
@@ -71,7 +71,8 @@ if [[ " ${targets[*]} " == *" fuzz_request "* ]]; then
   mapfile -t server_sources < <(library_sources "$root/platform"; library_sources "$root/server" "$root"/server/*/)
   batches server server_objs "${server_sources[@]}"
   jobs+=("$build/templates/sandswim_schema_embedded.cc" "$out/obj/schema_embedded.o"
-         "$build/server/sandswim_dashboard_embedded.cc" "$out/obj/dashboard_embedded.o")
+         "$build/server/sandswim_dashboard_embedded.cc" "$out/obj/dashboard_embedded.o"
+         "$build/server/sandswim_help_embedded.cc" "$out/obj/help_embedded.o")
 fi
 # The HTTP library's and the figures' flags for every object, so that all see one layout.
 read -r -a lib_cflags <<< "$(pkg-config --cflags cpp-httplib plplot spdlog)"
