@@ -140,8 +140,10 @@ double TimeStep(const Materials& m) {
   const double so = RayleighTime(m.d_so, m.rho_so, kMaterials.youngs_so, kMaterials.poisson_so);
   const double ratio = std::min(grain, so) / table1;
   if (!(ratio < 1)) return kMaterials.dt;  // Table 1 itself lands here: exactly 1e-5 s
-  // Two significant digits, rounded down: 7.3e-06, never a 17-digit step in a deck.
-  const double step = kMaterials.dt * ratio;
+  return RoundStepDown(kMaterials.dt * ratio);
+}
+
+double RoundStepDown(double step) {
   const double unit = std::pow(10.0, std::floor(std::log10(step)) - 1);
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.0fe%d", std::floor(step / unit * (1 + 1e-12)), static_cast<int>(std::lround(std::log10(unit))));

@@ -107,6 +107,8 @@ nlohmann::json MaterialFieldsJson();
 // particles keep 1e-5 s (the ceiling: never a longer step than the paper's).
 double RayleighTime(double diameter, double density, double youngs, double poisson);
 double TimeStep(const Materials& m);
+// A step rounded down to two significant digits (7.3e-06): a deck never states a 17-digit step.
+double RoundStepDown(double step);
 // The rule in words, for the deck's header and the run's record.
 inline constexpr char kTimeStepRule[] =
     "1e-5 s x min(1, T_R / T_R of Table 1's grain) over grain and SO, T_R the Rayleigh time, rounded down";

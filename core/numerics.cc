@@ -1,22 +1,12 @@
 #include "core/numerics.h"
 
 #include <cmath>
-#include <cstdio>
 #include <limits>
 
 #include "core/text.h"
 
 namespace sandswim {
 namespace {
-
-// Two significant digits, rounded down: a deck never states a 17-digit step.
-double RoundDown2(double v) {
-  const double unit = std::pow(10.0, std::floor(std::log10(v)) - 1);
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.0fe%d", std::floor(v / unit * (1 + 1e-12)),
-                static_cast<int>(std::lround(std::log10(unit))));
-  return std::strtod(buf, nullptr);
-}
 
 // The point's fastest speed and where it comes from.
 std::pair<double, std::string> FastestSpeed(const Point& p) {
@@ -116,7 +106,7 @@ double LargestAcceptedStep(const Point& p) {
     const double mid = std::sqrt(lo * hi);
     (JudgeStep(p, mid).level == StepLevel::kRefused ? hi : lo) = mid;
   }
-  return RoundDown2(lo);
+  return RoundStepDown(lo);
 }
 
 Status ResolveDriveStep(Point& p, const Scale& scale, const Numerics& numerics) {
